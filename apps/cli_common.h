@@ -1,0 +1,37 @@
+// Shared pieces of the command-line front end: registration of subcommands, progress
+// reporting. No science here.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <string>
+
+namespace eco::cli {
+
+// Each cmd_*.cpp adds its subcommands to the top-level app.
+void registerTerrainCommands(CLI::App& app);   // eco terrain generate|convert, eco chm generate
+void registerAbioticsCommand(CLI::App& app);   // eco abiotics
+
+/// Progress on stderr: a bar redrawn in place on a terminal, a line per 10 % otherwise
+/// (CI logs). Thread-safe only when called from one thread.
+class Progress {
+public:
+    Progress(std::string label, long total);
+    /// Report that `done` of `total` units are complete.
+    void update(long done);
+    /// Final line with the elapsed time.
+    void finish();
+
+private:
+    std::string label_;
+    long total_;
+    int lastDecile_ = -1;
+    bool tty_;
+    std::chrono::steady_clock::time_point start_;
+};
+
+/// Print one informational line to stderr (stdout is kept for results).
+void info(const std::string& line);
+
+}  // namespace eco::cli

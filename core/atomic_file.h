@@ -1,0 +1,31 @@
+// Write-then-rename: an output file appears complete or not at all.
+#pragma once
+
+#include <string>
+
+namespace eco {
+
+/// Hands out a temporary path beside `finalPath`; commit() renames it into place, and the
+/// destructor removes the temporary when commit() was never reached (an error was thrown).
+class AtomicOutput {
+public:
+    explicit AtomicOutput(std::string finalPath);
+    AtomicOutput(const AtomicOutput&) = delete;
+    AtomicOutput& operator=(const AtomicOutput&) = delete;
+    ~AtomicOutput();
+
+    const std::string& tempPath() const { return temp_; }
+    const std::string& finalPath() const { return final_; }
+    /// Atomically replace finalPath with the temporary file. Throws IoError on failure.
+    void commit();
+
+private:
+    std::string final_;
+    std::string temp_;
+    bool committed_ = false;
+};
+
+/// Create a directory and its parents (no-op if it exists); IoError naming it on failure.
+void ensureDirectory(const std::string& dir);
+
+}  // namespace eco

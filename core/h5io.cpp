@@ -1,0 +1,435 @@
+#include "h5io.h"
+
+#include <cstdio>
+#include <numeric>
+#include <sstream>
+
+namespace eco::h5 {
+
+namespace {
+
+/// HDF5 prints its own error stack to stderr by default; we report errors ourselves.
+struct SilenceHdf5 {
+    SilenceHdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+};
+const SilenceHdf5 kSilence;
+
+hid_t closeAny(hid_t id) {
+    switch (H5Iget_type(id)) {
+        case H5I_FILE: return H5Fclose(id);
+        case H5I_GROUP: return H5Gclose(id);
+        case H5I_DATASET: return H5Dclose(id);
+        case H5I_DATASPACE: return H5Sclose(id);
+        case H5I_DATATYPE: return H5Tclose(id);
+        case H5I_ATTR: return H5Aclose(id);
+        case H5I_GENPROP_LST: return H5Pclose(id);
+        default: return 0;
+    }
+}
+
+std::size_t product(const std::vector<hsize_t>& dims) {
+    return std::accumulate(dims.begin(), dims.end(), std::size_t{1},
+                           [](std::size_t a, hsize_t b) { return a * static_cast<std::size_t>(b); });
+}
+
+std::string parentOf(const std::string& path) {
+    const auto pos = path.find_last_of('/');
+    if (pos == std::string::npos || pos == 0) return "/";
+    return path.substr(0, pos);
+}
+
+}  // namespace
+
+Handle& Handle::operator=(Handle&& o) noexcept {
+    if (this != &o) {
+        if (id_ >= 0) closeAny(id_);
+        id_ = o.id_;
+        o.id_ = -1;
+    }
+    return *this;
+}
+
+Handle::~Handle() {
+    if (id_ >= 0) closeAny(id_);
+}
+
+File File::create(const std::string& path) {
+    const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    if (id < 0) throw IoError(path + ": cannot create HDF5 file");
+    return File(path, id);
+}
+
+File File::openRead(const std::string& path) {
+    if (std::FILE* probe = std::fopen(path.c_str(), "rb")) std::fclose(probe);
+    else throw IoError(path + ": cannot open file (missing or unreadable)");
+    if (H5Fis_hdf5(path.c_str()) <= 0) throw IoError(path + ": not an HDF5 file (or corrupt)");
+    const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (id < 0) throw IoError(path + ": cannot open HDF5 file");
+    return File(path, id);
+}
+
+std::string File::where(const std::string& object) const { return path_ + ": " + object; }
+
+bool File::exists(const std::string& objectPath) const {
+    if (objectPath == "/") return true;
+    // Check each level: H5Lexists fails on a missing intermediate group.
+    std::string sofar;
+    std::stringstream ss(objectPath);
+    std::string part;
+    while (std::getline(ss, part, '/')) {
+        if (part.empty()) continue;
+        sofar += "/" + part;
+        if (H5Lexists(id(), sofar.c_str(), H5P_DEFAULT) <= 0) return false;
+    }
+    return true;
+}
+
+void File::ensureGroup(const std::string& groupPath) {
+    std::string sofar;
+    std::stringstream ss(groupPath);
+    std::string part;
+    while (std::getline(ss, part, '/')) {
+        if (part.empty()) continue;
+        sofar += "/" + part;
+        if (H5Lexists(id(), sofar.c_str(), H5P_DEFAULT) > 0) continue;
+        Handle g(H5Gcreate2(id(), sofar.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+        if (!g.valid()) throw IoError(where(sofar) + ": cannot create group");
+    }
+}
+
+void File::requireObject(const std::string& name) const {
+    if (!exists(name)) throw IoError(where(name) + ": dataset or group is missing");
+}
+
+namespace {
+
+template <typename T>
+void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
+                const std::vector<hsize_t>& dims, hid_t memType, hid_t fileType) {
+    if (product(dims) != n)
+        throw ValidationError(f.path() + ": " + name + ": data size does not match its shape");
+    f.ensureGroup(parentOf(name));
+    Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr));
+    Handle plist(H5Pcreate(H5P_DATASET_CREATE));
+    // Compress large datasets; chunk along the first axis.
+    if (n >= 4096 && !dims.empty()) {
+        std::vector<hsize_t> chunk = dims;
+        chunk[0] = 1;
+        if (dims.size() == 1) chunk[0] = std::min<hsize_t>(dims[0], 65536);
+        else if (dims.size() == 2) chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(dims[0], 65536 / std::max<hsize_t>(1, dims[1])));
+        H5Pset_chunk(plist.id(), static_cast<int>(chunk.size()), chunk.data());
+        H5Pset_shuffle(plist.id());
+        H5Pset_deflate(plist.id(), 4);
+    }
+    if (H5Lexists(f.id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(f.id(), name.c_str(), H5P_DEFAULT);
+    Handle ds(H5Dcreate2(f.id(), name.c_str(), fileType, space.id(), H5P_DEFAULT, plist.id(), H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(f.path() + ": " + name + ": cannot create dataset");
+    if (n > 0 && H5Dwrite(ds.id(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+        throw IoError(f.path() + ": " + name + ": cannot write dataset");
+}
+
+template <typename T>
+std::vector<T> readTyped(const File& f, const std::string& name, std::vector<hsize_t>* dimsOut,
+                         hid_t memType, H5T_class_t expectClass) {
+    if (!f.exists(name)) throw IoError(f.path() + ": " + name + ": dataset is missing");
+    Handle ds(H5Dopen2(f.id(), name.c_str(), H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(f.path() + ": " + name + ": not a dataset");
+    Handle type(H5Dget_type(ds.id()));
+    if (H5Tget_class(type.id()) != expectClass)
+        throw IoError(f.path() + ": " + name + ": dataset has the wrong element type");
+    Handle space(H5Dget_space(ds.id()));
+    const int rank = H5Sget_simple_extent_ndims(space.id());
+    std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+    H5Sget_simple_extent_dims(space.id(), dims.data(), nullptr);
+    std::vector<T> out(product(dims));
+    if (!out.empty() && H5Dread(ds.id(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+        throw IoError(f.path() + ": " + name + ": cannot read dataset (corrupt file?)");
+    if (dimsOut) *dimsOut = dims;
+    return out;
+}
+
+}  // namespace
+
+void File::writeF32(const std::string& name, const std::vector<float>& v, const std::vector<hsize_t>& dims) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE);
+}
+void File::writeF64(const std::string& name, const std::vector<double>& v, const std::vector<hsize_t>& dims) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE);
+}
+void File::writeI32(const std::string& name, const std::vector<std::int32_t>& v, const std::vector<hsize_t>& dims) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_INT32, H5T_STD_I32LE);
+}
+
+std::vector<float> File::readF32(const std::string& name, std::vector<hsize_t>* dims) const {
+    return readTyped<float>(*this, name, dims, H5T_NATIVE_FLOAT, H5T_FLOAT);
+}
+std::vector<double> File::readF64(const std::string& name, std::vector<hsize_t>* dims) const {
+    return readTyped<double>(*this, name, dims, H5T_NATIVE_DOUBLE, H5T_FLOAT);
+}
+std::vector<std::int32_t> File::readI32(const std::string& name, std::vector<hsize_t>* dims) const {
+    return readTyped<std::int32_t>(*this, name, dims, H5T_NATIVE_INT32, H5T_INTEGER);
+}
+
+std::vector<hsize_t> File::shape(const std::string& name) const {
+    requireObject(name);
+    Handle ds(H5Dopen2(id(), name.c_str(), H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(where(name) + ": not a dataset");
+    Handle space(H5Dget_space(ds.id()));
+    const int rank = H5Sget_simple_extent_ndims(space.id());
+    std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+    H5Sget_simple_extent_dims(space.id(), dims.data(), nullptr);
+    return dims;
+}
+
+void File::writeStrings(const std::string& name, const std::vector<std::string>& v) {
+    ensureGroup(parentOf(name));
+    std::vector<const char*> ptrs;
+    ptrs.reserve(v.size());
+    for (const auto& s : v) ptrs.push_back(s.c_str());
+    Handle type(H5Tcopy(H5T_C_S1));
+    H5Tset_size(type.id(), H5T_VARIABLE);
+    H5Tset_cset(type.id(), H5T_CSET_UTF8);
+    const hsize_t n = v.size();
+    Handle space(H5Screate_simple(1, &n, nullptr));
+    if (H5Lexists(id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(id(), name.c_str(), H5P_DEFAULT);
+    Handle ds(H5Dcreate2(id(), name.c_str(), type.id(), space.id(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(where(name) + ": cannot create string dataset");
+    if (n > 0 && H5Dwrite(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
+        throw IoError(where(name) + ": cannot write string dataset");
+}
+
+std::vector<std::string> File::readStrings(const std::string& name) const {
+    requireObject(name);
+    Handle ds(H5Dopen2(id(), name.c_str(), H5P_DEFAULT));
+    Handle ftype(H5Dget_type(ds.id()));
+    if (H5Tget_class(ftype.id()) != H5T_STRING) throw IoError(where(name) + ": not a string dataset");
+    Handle space(H5Dget_space(ds.id()));
+    hsize_t n = 0;
+    H5Sget_simple_extent_dims(space.id(), &n, nullptr);
+    Handle type(H5Tcopy(H5T_C_S1));
+    H5Tset_size(type.id(), H5T_VARIABLE);
+    std::vector<char*> ptrs(n, nullptr);
+    if (n > 0 && H5Dread(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
+        throw IoError(where(name) + ": cannot read string dataset");
+    std::vector<std::string> out;
+    out.reserve(n);
+    for (char* p : ptrs) out.emplace_back(p ? p : "");
+    if (n > 0) H5Dvlen_reclaim(type.id(), space.id(), H5P_DEFAULT, ptrs.data());
+    return out;
+}
+
+namespace {
+
+Handle openObject(const File& f, const std::string& object) {
+    if (!f.exists(object)) throw IoError(f.path() + ": " + object + ": object is missing");
+    Handle o(H5Oopen(f.id(), object.c_str(), H5P_DEFAULT));
+    if (!o.valid()) throw IoError(f.path() + ": " + object + ": cannot open object");
+    return o;
+}
+
+void writeAttr(const File& f, const std::string& object, const std::string& attr, hid_t type,
+               hid_t space, const void* data) {
+    // H5Oopen returns a group or dataset id; close it with H5Oclose through Handle's H5Iget_type.
+    Handle o = openObject(f, object);
+    if (H5Aexists(o.id(), attr.c_str()) > 0) H5Adelete(o.id(), attr.c_str());
+    Handle a(H5Acreate2(o.id(), attr.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT));
+    if (!a.valid() || H5Awrite(a.id(), type, data) < 0)
+        throw IoError(f.path() + ": " + object + ": cannot write attribute " + attr);
+}
+
+Handle openAttr(const File& f, const std::string& object, const std::string& attr, Handle& obj) {
+    obj = openObject(f, object);
+    if (H5Aexists(obj.id(), attr.c_str()) <= 0)
+        throw IoError(f.path() + ": " + object + ": attribute '" + attr + "' is missing");
+    return Handle(H5Aopen(obj.id(), attr.c_str(), H5P_DEFAULT));
+}
+
+}  // namespace
+
+void File::setAttr(const std::string& object, const std::string& attr, const std::string& value) {
+    Handle type(H5Tcopy(H5T_C_S1));
+    H5Tset_size(type.id(), value.size() + 1);
+    H5Tset_cset(type.id(), H5T_CSET_UTF8);
+    Handle space(H5Screate(H5S_SCALAR));
+    writeAttr(*this, object, attr, type.id(), space.id(), value.c_str());
+}
+
+void File::setAttr(const std::string& object, const std::string& attr, double value) {
+    Handle space(H5Screate(H5S_SCALAR));
+    writeAttr(*this, object, attr, H5T_NATIVE_DOUBLE, space.id(), &value);
+}
+
+void File::setAttr(const std::string& object, const std::string& attr, std::int64_t value) {
+    Handle space(H5Screate(H5S_SCALAR));
+    writeAttr(*this, object, attr, H5T_NATIVE_INT64, space.id(), &value);
+}
+
+void File::setAttr(const std::string& object, const std::string& attr, const std::vector<double>& value) {
+    const hsize_t n = value.size();
+    Handle space(H5Screate_simple(1, &n, nullptr));
+    writeAttr(*this, object, attr, H5T_NATIVE_DOUBLE, space.id(), value.data());
+}
+
+bool File::hasAttr(const std::string& object, const std::string& attr) const {
+    if (!exists(object)) return false;
+    Handle o(H5Oopen(id(), object.c_str(), H5P_DEFAULT));
+    return o.valid() && H5Aexists(o.id(), attr.c_str()) > 0;
+}
+
+std::string File::attrString(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    if (H5Tget_class(type.id()) != H5T_STRING)
+        throw IoError(where(object) + ": attribute '" + attr + "' is not a string");
+    if (H5Tis_variable_str(type.id()) > 0) {
+        char* p = nullptr;
+        Handle mem(H5Tcopy(H5T_C_S1));
+        H5Tset_size(mem.id(), H5T_VARIABLE);
+        if (H5Aread(a.id(), mem.id(), &p) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
+        std::string s = p ? p : "";
+        H5free_memory(p);
+        return s;
+    }
+    const std::size_t n = H5Tget_size(type.id());
+    std::string s(n, '\0');
+    if (H5Aread(a.id(), type.id(), s.data()) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
+    s.resize(s.find('\0') == std::string::npos ? n : s.find('\0'));
+    return s;
+}
+
+double File::attrDouble(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    double v = 0;
+    if (H5Aread(a.id(), H5T_NATIVE_DOUBLE, &v) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
+    return v;
+}
+
+std::int64_t File::attrInt(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    std::int64_t v = 0;
+    if (H5Aread(a.id(), H5T_NATIVE_INT64, &v) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
+    return v;
+}
+
+std::vector<double> File::attrDoubles(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    Handle space(H5Aget_space(a.id()));
+    const hssize_t n = H5Sget_simple_extent_npoints(space.id());
+    std::vector<double> v(static_cast<std::size_t>(std::max<hssize_t>(n, 0)));
+    if (!v.empty() && H5Aread(a.id(), H5T_NATIVE_DOUBLE, v.data()) < 0)
+        throw IoError(where(object) + ": cannot read attribute " + attr);
+    return v;
+}
+
+std::vector<std::string> File::list(const std::string& group) const {
+    requireObject(group);
+    Handle g(H5Gopen2(id(), group.c_str(), H5P_DEFAULT));
+    if (!g.valid()) throw IoError(where(group) + ": not a group");
+    H5G_info_t info;
+    H5Gget_info(g.id(), &info);
+    std::vector<std::string> names;
+    for (hsize_t i = 0; i < info.nlinks; ++i) {
+        const ssize_t len = H5Lget_name_by_idx(g.id(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
+        std::string name(static_cast<std::size_t>(len), '\0');
+        H5Lget_name_by_idx(g.id(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), name.size() + 1, H5P_DEFAULT);
+        names.push_back(name);
+    }
+    return names;
+}
+
+namespace {
+
+void writeGeometry(File& f, const std::string& name, int w, int h, double cell, double ox, double oy,
+                   const std::string& units) {
+    f.setAttr(name, "cell_size_m", cell);
+    f.setAttr(name, "origin_x_m", ox);
+    f.setAttr(name, "origin_y_m", oy);
+    f.setAttr(name, "width", static_cast<std::int64_t>(w));
+    f.setAttr(name, "height", static_cast<std::int64_t>(h));
+    f.setAttr(name, "units", units);
+    f.setAttr(name, "row_order", std::string("south_to_north"));
+}
+
+struct Geometry {
+    double cell, ox, oy;
+};
+
+Geometry readGeometry(const File& f, const std::string& name) {
+    Geometry g{f.attrDouble(name, "cell_size_m"), f.attrDouble(name, "origin_x_m"),
+               f.attrDouble(name, "origin_y_m")};
+    if (!(g.cell > 0) || !std::isfinite(g.cell))
+        throw IoError(f.path() + ": " + name + ": cell_size_m must be positive, got " + std::to_string(g.cell));
+    if (f.hasAttr(name, "row_order") && f.attrString(name, "row_order") != "south_to_north")
+        throw IoError(f.path() + ": " + name + ": unsupported row_order '" +
+                      f.attrString(name, "row_order") + "'");
+    return g;
+}
+
+}  // namespace
+
+void File::writeGrid(const std::string& name, const Grid<float>& g, const std::string& units) {
+    writeF32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
+    writeGeometry(*this, name, g.width(), g.height(), g.cellSizeM(), g.originX(), g.originY(), units);
+}
+
+Grid<float> File::readGrid(const std::string& name) const {
+    std::vector<hsize_t> dims;
+    auto data = readF32(name, &dims);
+    if (dims.size() != 2) throw IoError(where(name) + ": expected a 2-D grid dataset");
+    const Geometry geo = readGeometry(*this, name);
+    Grid<float> g(static_cast<int>(dims[1]), static_cast<int>(dims[0]), geo.cell, geo.ox, geo.oy);
+    g.data() = std::move(data);
+    return g;
+}
+
+void File::writeGridI32(const std::string& name, const Grid<std::int32_t>& g, const std::string& units) {
+    writeI32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
+    writeGeometry(*this, name, g.width(), g.height(), g.cellSizeM(), g.originX(), g.originY(), units);
+}
+
+Grid<std::int32_t> File::readGridI32(const std::string& name) const {
+    std::vector<hsize_t> dims;
+    auto data = readI32(name, &dims);
+    if (dims.size() != 2) throw IoError(where(name) + ": expected a 2-D grid dataset");
+    const Geometry geo = readGeometry(*this, name);
+    Grid<std::int32_t> g(static_cast<int>(dims[1]), static_cast<int>(dims[0]), geo.cell, geo.ox, geo.oy);
+    g.data() = std::move(data);
+    return g;
+}
+
+void File::writeStack(const std::string& name, const std::vector<Grid<float>>& planes,
+                      const std::string& units) {
+    if (planes.empty()) throw ValidationError(where(name) + ": no planes to write");
+    const auto& g0 = planes.front();
+    std::vector<float> all;
+    all.reserve(g0.size() * planes.size());
+    for (const auto& p : planes) {
+        if (!p.sameGeometry(g0)) throw ValidationError(where(name) + ": planes differ in geometry");
+        all.insert(all.end(), p.data().begin(), p.data().end());
+    }
+    writeF32(name, all, {static_cast<hsize_t>(planes.size()), static_cast<hsize_t>(g0.height()),
+                         static_cast<hsize_t>(g0.width())});
+    writeGeometry(*this, name, g0.width(), g0.height(), g0.cellSizeM(), g0.originX(), g0.originY(), units);
+}
+
+std::vector<Grid<float>> File::readStack(const std::string& name) const {
+    std::vector<hsize_t> dims;
+    auto data = readF32(name, &dims);
+    if (dims.size() != 3) throw IoError(where(name) + ": expected a 3-D [plane][row][column] dataset");
+    const Geometry geo = readGeometry(*this, name);
+    const std::size_t planeSize = static_cast<std::size_t>(dims[1] * dims[2]);
+    std::vector<Grid<float>> out;
+    for (hsize_t p = 0; p < dims[0]; ++p) {
+        Grid<float> g(static_cast<int>(dims[2]), static_cast<int>(dims[1]), geo.cell, geo.ox, geo.oy);
+        std::copy(data.begin() + static_cast<std::ptrdiff_t>(p * planeSize),
+                  data.begin() + static_cast<std::ptrdiff_t>((p + 1) * planeSize), g.data().begin());
+        out.push_back(std::move(g));
+    }
+    return out;
+}
+
+}  // namespace eco::h5

@@ -1,0 +1,60 @@
+// Helpers shared by the tests: running the eco binary and temporary directories.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace eco::test {
+
+struct CommandResult {
+    int exitCode = -1;
+    std::string output;  ///< stdout and stderr together
+};
+
+/// Run the eco binary with `args` (a shell-quoted string), capturing its output.
+inline CommandResult runEco(const std::string& args) {
+    const std::string cmd = std::string(ECO_BINARY) + " " + args + " 2>&1";
+    CommandResult r;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    std::array<char, 4096> buf{};
+    std::size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
+    const int status = ::pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+/// A fresh empty directory under the system temp dir, removed at scope exit.
+class TempDir {
+public:
+    explicit TempDir(const std::string& tag) {
+        path_ = std::filesystem::temp_directory_path() /
+                ("eco_test_" + tag + "_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++));
+        std::filesystem::remove_all(path_);
+        std::filesystem::create_directories(path_);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        std::filesystem::remove_all(path_, ec);
+    }
+    std::string file(const std::string& name) const { return (path_ / name).string(); }
+    const std::filesystem::path& path() const { return path_; }
+
+private:
+    static int& counter() {
+        static int c = 0;
+        return c;
+    }
+    std::filesystem::path path_;
+};
+
+/// Path of a file in the source tree.
+inline std::string sourcePath(const std::string& rel) { return std::string(ECO_SOURCE_DIR) + "/" + rel; }
+
+}  // namespace eco::test
