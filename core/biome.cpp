@@ -1,1 +1,434 @@
-// placeholder: filled in by its owner
+#include "biome.h"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "error.h"
+
+namespace eco {
+
+namespace detail {
+extern const char* const kSonomaToml;
+}
+
+double Allometry::crownRadiusM(double heightM) const {
+    if (heightM <= 0.0) return 0.0;
+    return linear ? linearFactor * heightM : std::exp(a + b * std::log(heightM));
+}
+
+double VigourShape::g(double d, double r) const {
+    return (1.0 + a) * std::exp(std::pow(std::abs(d) / r, p) * std::log(q)) - a;
+}
+
+double Biome::vigourOf(int s, double sunHours, double moistureMm, double temperatureC, double slopeDeg) const {
+    const Species& sp = species[static_cast<std::size_t>(s)];
+    const double ft = vigour.g(temperatureC - sp.temperature.c, sp.temperature.r);
+    const double fm = vigour.g(moistureMm - sp.moisture.c, sp.moisture.r);
+    const double fe = vigour.g(sunHours - sp.sun.c, sp.sun.r);
+    const double fg = vigour.g(slopeDeg - sp.slope.c, sp.slope.r);
+    return sp.alpha * std::min(std::min(ft, fm), std::min(fe, fg));
+}
+
+int Biome::speciesIndex(const std::string& name) const {
+    for (const auto& s : species)
+        if (s.name == name) return s.id;
+    std::string known;
+    for (const auto& s : species) known += (known.empty() ? "" : ", ") + s.name;
+    throw ValidationError("unknown species '" + name + "' in biome '" + this->name + "' (known: " + known + ")");
+}
+
+namespace {
+
+/// Reads one TOML table strictly: every key must be consumed, every value typed and ranged.
+/// Messages name the file, the context (e.g. species 'Toyon'), the key and its line.
+class StrictTable {
+public:
+    StrictTable(const toml::table& t, std::string file, std::string context)
+        : t_(t), file_(std::move(file)), context_(std::move(context)) {}
+
+    [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+        std::string loc = file_;
+        if (const toml::node* n = t_.get(key)) {
+            if (n->source().begin.line > 0) loc += ":" + std::to_string(n->source().begin.line);
+        } else if (t_.source().begin.line > 0) {
+            loc += ":" + std::to_string(t_.source().begin.line);
+        }
+        throw ValidationError(loc + ": " + context_ + (context_.empty() ? "" : ": ") + "field '" + key +
+                              "': " + what);
+    }
+
+    const toml::node& node(const std::string& key) {
+        used_.insert(key);
+        const toml::node* n = t_.get(key);
+        if (!n) fail(key, "missing");
+        return *n;
+    }
+    bool has(const std::string& key) const { return t_.contains(key); }
+
+    double number(const std::string& key) {
+        const toml::node& n = node(key);
+        double v;
+        if (auto f = n.value_exact<double>()) v = *f;
+        else if (auto i = n.value_exact<std::int64_t>()) v = static_cast<double>(*i);
+        else fail(key, "expected a number");
+        if (!std::isfinite(v)) fail(key, "value is not finite");
+        return v;
+    }
+    double numberIn(const std::string& key, double lo, double hi) {
+        const double v = number(key);
+        if (v < lo || v > hi) fail(key, "value " + fmt(v) + " outside [" + fmt(lo) + ", " + fmt(hi) + "]");
+        return v;
+    }
+    double positive(const std::string& key) {
+        const double v = number(key);
+        if (!(v > 0)) fail(key, "value " + fmt(v) + " must be positive");
+        return v;
+    }
+    std::int64_t integer(const std::string& key) {
+        const toml::node& n = node(key);
+        auto i = n.value_exact<std::int64_t>();
+        if (!i) fail(key, "expected an integer");
+        return *i;
+    }
+    std::string string(const std::string& key) {
+        const toml::node& n = node(key);
+        auto s = n.value_exact<std::string>();
+        if (!s) fail(key, "expected a string");
+        if (s->empty()) fail(key, "must not be empty");
+        return *s;
+    }
+    bool boolean(const std::string& key) {
+        auto b = node(key).value_exact<bool>();
+        if (!b) fail(key, "expected true or false");
+        return *b;
+    }
+    const toml::table& table(const std::string& key) {
+        const toml::table* t = node(key).as_table();
+        if (!t) fail(key, "expected a table");
+        return *t;
+    }
+    const toml::array& array(const std::string& key) {
+        const toml::array* a = node(key).as_array();
+        if (!a) fail(key, "expected an array");
+        return *a;
+    }
+    std::vector<double> numbers(const std::string& key, std::size_t expectCount) {
+        const toml::array& a = array(key);
+        if (a.size() != expectCount)
+            fail(key, "expected " + std::to_string(expectCount) + " values, got " + std::to_string(a.size()));
+        std::vector<double> out;
+        for (const auto& e : a) {
+            if (auto f = e.value_exact<double>()) out.push_back(*f);
+            else if (auto i = e.value_exact<std::int64_t>()) out.push_back(static_cast<double>(*i));
+            else fail(key, "element " + std::to_string(out.size()) + " is not a number");
+            if (!std::isfinite(out.back())) fail(key, "element " + std::to_string(out.size() - 1) + " is not finite");
+        }
+        return out;
+    }
+    std::vector<std::int64_t> integers(const std::string& key) {
+        std::vector<std::int64_t> out;
+        for (const auto& e : array(key)) {
+            auto i = e.value_exact<std::int64_t>();
+            if (!i) fail(key, "element " + std::to_string(out.size()) + " is not an integer");
+            out.push_back(*i);
+        }
+        return out;
+    }
+    std::vector<std::string> strings(const std::string& key) {
+        std::vector<std::string> out;
+        for (const auto& e : array(key)) {
+            auto s = e.value_exact<std::string>();
+            if (!s) fail(key, "element " + std::to_string(out.size()) + " is not a string");
+            out.push_back(*s);
+        }
+        return out;
+    }
+    /// Unknown keys are errors (a typo must not silently fall back to a default).
+    void finish() const {
+        for (const auto& [k, v] : t_)
+            if (!used_.count(std::string(k.str()))) fail(std::string(k.str()), "unknown key");
+    }
+
+    static std::string fmt(double v) {
+        std::ostringstream s;
+        s << v;
+        return s.str();
+    }
+
+private:
+    const toml::table& t_;
+    std::string file_;
+    std::string context_;
+    std::set<std::string> used_;
+};
+
+Response readResponse(StrictTable& parent, const std::string& key, const std::string& file,
+                      const std::string& context) {
+    StrictTable t(parent.table(key), file, context + ": " + key);
+    Response r;
+    r.c = t.number("c");
+    r.r = t.positive("r");
+    t.finish();
+    return r;
+}
+
+}  // namespace
+
+Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
+    toml::table root;
+    try {
+        root = toml::parse(tomlText, sourceName);
+    } catch (const toml::parse_error& e) {
+        throw IoError(sourceName + ":" + std::to_string(e.source().begin.line) + ": invalid TOML: " +
+                      std::string(e.description()));
+    }
+    const std::string& file = sourceName;
+    Biome b;
+    b.sourcePath = sourceName;
+    StrictTable top(root, file, "");
+
+    {
+        StrictTable t(top.table("biome"), file, "[biome]");
+        b.name = t.string("name");
+        t.finish();
+    }
+    {
+        StrictTable t(top.table("climate"), file, "[climate]");
+        b.climate.latitudeDeg = t.numberIn("latitude_deg", -90, 90);
+        b.climate.lapseRateCPerKm = t.numberIn("lapse_rate_c_per_km", 0, 50);
+        const auto temp = t.numbers("temperature_c", 12);
+        const auto rain = t.numbers("rainfall_mm", 12);
+        const auto clar = t.numbers("sky_clarity", 12);
+        for (int m = 0; m < 12; ++m) {
+            b.climate.temperatureC[m] = temp[m];
+            if (temp[m] < -90 || temp[m] > 60) t.fail("temperature_c", "month " + std::to_string(m) + " value " + StrictTable::fmt(temp[m]) + " outside [-90, 60]");
+            b.climate.rainfallMm[m] = rain[m];
+            if (rain[m] < 0) t.fail("rainfall_mm", "month " + std::to_string(m) + " value " + StrictTable::fmt(rain[m]) + " must not be negative");
+            b.climate.skyClarity[m] = clar[m];
+            if (clar[m] < 0 || clar[m] > 1) t.fail("sky_clarity", "month " + std::to_string(m) + " value " + StrictTable::fmt(clar[m]) + " outside [0, 1]");
+        }
+        t.finish();
+    }
+    {
+        StrictTable t(top.table("soil"), file, "[soil]");
+        b.soil.runoffLimitMm = t.positive("runoff_limit_mm");
+        b.soil.slopeThresholdDeg = t.numberIn("slope_threshold_deg", 0, 90);
+        b.soil.slopeMaxDeg = t.numberIn("slope_max_deg", 0, 90);
+        if (b.soil.slopeMaxDeg <= b.soil.slopeThresholdDeg)
+            t.fail("slope_max_deg", "must exceed slope_threshold_deg (" + StrictTable::fmt(b.soil.slopeThresholdDeg) + ")");
+        b.soil.evaporationFraction = t.numberIn("evaporation_fraction", 0, 1);
+        b.soil.saturationMm = t.positive("saturation_mm");
+        t.finish();
+    }
+    {
+        StrictTable t(top.table("vigour"), file, "[vigour]");
+        b.vigour.a = t.numberIn("a", 0, 10);
+        b.vigour.q = t.number("q");
+        if (!(b.vigour.q > 0 && b.vigour.q < 1)) t.fail("q", "value " + StrictTable::fmt(b.vigour.q) + " must lie in (0, 1)");
+        b.vigour.p = t.positive("p");
+        t.finish();
+    }
+    {
+        StrictTable t(top.table("growth_periods"), file, "[growth_periods]");
+        for (const auto& [k, v] : top.table("growth_periods")) {
+            const std::string key(k.str());
+            std::vector<int> months;
+            for (auto m : t.integers(key)) {
+                if (m < 0 || m > 11) t.fail(key, "month " + std::to_string(m) + " outside 0-11 (0 = January)");
+                if (std::find(months.begin(), months.end(), static_cast<int>(m)) != months.end())
+                    t.fail(key, "month " + std::to_string(m) + " listed twice");
+                months.push_back(static_cast<int>(m));
+            }
+            if (months.empty()) t.fail(key, "must list at least one month");
+            b.growthPeriods.emplace_back(key, months);
+        }
+        t.finish();
+    }
+    std::vector<Allometry> allometries;
+    {
+        StrictTable t(top.table("allometry"), file, "[allometry]");
+        for (const auto& [k, v] : top.table("allometry")) {
+            const std::string code(k.str());
+            StrictTable a(t.table(code), file, "[allometry." + code + "]");
+            Allometry al;
+            al.code = code;
+            if (a.has("linear_factor")) {
+                al.linear = true;
+                al.linearFactor = a.positive("linear_factor");
+            } else {
+                al.a = a.number("a");
+                al.b = a.positive("b");
+            }
+            a.finish();
+            allometries.push_back(al);
+        }
+        t.finish();
+    }
+    {
+        const toml::array& subs = top.array("sub_biome");
+        for (std::size_t i = 0; i < subs.size(); ++i) {
+            const toml::table* st = subs[i].as_table();
+            if (!st) top.fail("sub_biome", "entry " + std::to_string(i) + " is not a table");
+            StrictTable t(*st, file, "sub_biome #" + std::to_string(i + 1));
+            SubBiome sb;
+            sb.number = static_cast<int>(t.integer("number"));
+            if (sb.number != static_cast<int>(i) + 1)
+                t.fail("number", "sub-biomes must be numbered 1, 2, ... in order; got " + std::to_string(sb.number));
+            sb.name = t.string("name");
+            sb.canopySpecies = t.strings("canopy");
+            t.finish();
+            b.subBiomes.push_back(sb);
+        }
+        if (b.subBiomes.empty()) top.fail("sub_biome", "at least one sub-biome is required");
+        if (b.subBiomes.size() > 16) top.fail("sub_biome", "at most 16 sub-biomes are supported");
+    }
+    {
+        const toml::array& sps = top.array("species");
+        if (sps.size() == 0) top.fail("species", "at least one species is required");
+        for (std::size_t i = 0; i < sps.size(); ++i) {
+            const toml::table* st = sps[i].as_table();
+            if (!st) top.fail("species", "entry " + std::to_string(i) + " is not a table");
+            std::string ctx = "species #" + std::to_string(i + 1);
+            if (auto n = (*st)["name"].value<std::string>()) ctx = "species '" + *n + "'";
+            StrictTable t(*st, file, ctx);
+            Species s;
+            s.id = static_cast<int>(i);
+            s.name = t.string("name");
+            for (const auto& other : b.species)
+                if (other.name == s.name) t.fail("name", "duplicate species name '" + s.name + "'");
+            for (auto n : t.integers("sub_biomes")) {
+                if (n < 1 || n > static_cast<std::int64_t>(b.subBiomes.size()))
+                    t.fail("sub_biomes", "sub-biome " + std::to_string(n) + " does not exist (1.." +
+                                             std::to_string(b.subBiomes.size()) + ")");
+                s.subBiomes.push_back(static_cast<int>(n));
+            }
+            if (s.subBiomes.empty()) t.fail("sub_biomes", "must name at least one sub-biome");
+            const double age = t.number("max_age_years");
+            if (!(age > 0)) t.fail("max_age_years", "value " + StrictTable::fmt(age) + " must be positive");
+            s.maxAgeYears = age;
+            s.maxHeightM = t.positive("max_height_m");
+            s.alpha = t.numberIn("alpha", 0, 1);
+            s.sun = readResponse(t, "sun", file, ctx);
+            s.moisture = readResponse(t, "moisture", file, ctx);
+            s.temperature = readResponse(t, "temperature", file, ctx);
+            s.slope = readResponse(t, "slope", file, ctx);
+            s.growthPeriod = t.string("growth_period");
+            bool found = false;
+            for (const auto& [name, months] : b.growthPeriods)
+                if (name == s.growthPeriod) {
+                    s.growthMonths = months;
+                    found = true;
+                }
+            if (!found) t.fail("growth_period", "unknown growth period '" + s.growthPeriod + "'");
+            const std::string code = t.string("allometry");
+            found = false;
+            for (const auto& al : allometries)
+                if (al.code == code) {
+                    s.allometry = al;
+                    found = true;
+                }
+            if (!found) t.fail("allometry", "unknown allometry code '" + code + "'");
+            s.canopy = t.boolean("canopy");
+            t.finish();
+            b.species.push_back(s);
+        }
+    }
+    // Cross-checks: sub-biome canopy lists name existing, canopy-capable member species.
+    for (const auto& sb : b.subBiomes) {
+        for (const auto& name : sb.canopySpecies) {
+            auto it = std::find_if(b.species.begin(), b.species.end(), [&](const Species& s) { return s.name == name; });
+            const std::string ctx = file + ": sub_biome " + std::to_string(sb.number) + " ('" + sb.name + "'): field 'canopy': ";
+            if (it == b.species.end()) throw ValidationError(ctx + "unknown species '" + name + "'");
+            if (!it->canopy) throw ValidationError(ctx + "species '" + name + "' has canopy = false");
+            if (std::find(it->subBiomes.begin(), it->subBiomes.end(), sb.number) == it->subBiomes.end())
+                throw ValidationError(ctx + "species '" + name + "' is not a member of this sub-biome");
+        }
+    }
+    top.finish();
+    return b;
+}
+
+Biome loadBiome(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(path + ": cannot open biome file (missing or unreadable)");
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw IoError(path + ": error while reading biome file");
+    return parseBiome(ss.str(), path);
+}
+
+Biome defaultBiome() {
+    Biome b = parseBiome(detail::kSonomaToml, "<embedded sonoma.toml>");
+    return b;
+}
+
+std::string biomeToToml(const Biome& b) {
+    toml::table root;
+    root.insert("biome", toml::table{{"name", b.name}});
+    auto arr = [](const auto& values) {
+        toml::array a;
+        for (auto v : values) a.push_back(v);
+        return a;
+    };
+    root.insert("climate", toml::table{{"latitude_deg", b.climate.latitudeDeg},
+                                       {"lapse_rate_c_per_km", b.climate.lapseRateCPerKm},
+                                       {"temperature_c", arr(b.climate.temperatureC)},
+                                       {"rainfall_mm", arr(b.climate.rainfallMm)},
+                                       {"sky_clarity", arr(b.climate.skyClarity)}});
+    root.insert("soil", toml::table{{"runoff_limit_mm", b.soil.runoffLimitMm},
+                                    {"slope_threshold_deg", b.soil.slopeThresholdDeg},
+                                    {"slope_max_deg", b.soil.slopeMaxDeg},
+                                    {"evaporation_fraction", b.soil.evaporationFraction},
+                                    {"saturation_mm", b.soil.saturationMm}});
+    root.insert("vigour", toml::table{{"a", b.vigour.a}, {"q", b.vigour.q}, {"p", b.vigour.p}});
+    toml::table periods;
+    for (const auto& [name, months] : b.growthPeriods) {
+        toml::array a;
+        for (int m : months) a.push_back(static_cast<std::int64_t>(m));
+        periods.insert(name, a);
+    }
+    root.insert("growth_periods", periods);
+    toml::table allo;
+    for (const auto& s : b.species) {
+        if (allo.contains(s.allometry.code)) continue;
+        if (s.allometry.linear) allo.insert(s.allometry.code, toml::table{{"linear_factor", s.allometry.linearFactor}});
+        else allo.insert(s.allometry.code, toml::table{{"a", s.allometry.a}, {"b", s.allometry.b}});
+    }
+    root.insert("allometry", allo);
+    toml::array subs;
+    for (const auto& sb : b.subBiomes) {
+        toml::array canopy;
+        for (const auto& n : sb.canopySpecies) canopy.push_back(n);
+        subs.push_back(toml::table{{"number", static_cast<std::int64_t>(sb.number)}, {"name", sb.name}, {"canopy", canopy}});
+    }
+    root.insert("sub_biome", subs);
+    toml::array sps;
+    auto resp = [](const Response& r) { return toml::table{{"c", r.c}, {"r", r.r}}; };
+    for (const auto& s : b.species) {
+        toml::array subsOf;
+        for (int n : s.subBiomes) subsOf.push_back(static_cast<std::int64_t>(n));
+        sps.push_back(toml::table{{"name", s.name},
+                                  {"sub_biomes", subsOf},
+                                  {"max_age_years", s.maxAgeYears},
+                                  {"max_height_m", s.maxHeightM},
+                                  {"alpha", s.alpha},
+                                  {"sun", resp(s.sun)},
+                                  {"moisture", resp(s.moisture)},
+                                  {"temperature", resp(s.temperature)},
+                                  {"slope", resp(s.slope)},
+                                  {"growth_period", s.growthPeriod},
+                                  {"allometry", s.allometry.code},
+                                  {"canopy", s.canopy}});
+    }
+    root.insert("species", sps);
+    std::ostringstream out;
+    out << root;
+    return out.str();
+}
+
+}  // namespace eco

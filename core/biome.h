@@ -85,8 +85,8 @@ struct Biome {
 
     /// Index of a species by exact name; ValidationError listing the names if unknown.
     int speciesIndex(const std::string& name) const;
-    /// Annual-mean-free vigour of species s (Eq. 1) for the four abiotic values.
-    double vigour(int s, double sunHours, double moistureMm, double temperatureC, double slopeDeg) const;
+    /// Vigour v_s = alpha_s * min(f_t, f_m, f_e, f_g) of species s (Eq. 1) for the four abiotic values.
+    double vigourOf(int s, double sunHours, double moistureMm, double temperatureC, double slopeDeg) const;
 };
 
 /// Parse and validate a biome TOML file. Throws IoError (unreadable, bad TOML) or

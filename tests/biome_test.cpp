@@ -1,1 +1,180 @@
+// Biome parsing and strict validation (core/biome.h).
 #include <catch2/catch.hpp>
+
+#include <fstream>
+#include <sstream>
+
+#include "biome.h"
+#include "error.h"
+#include "test_util.h"
+
+using namespace eco;
+
+namespace {
+
+std::string sonomaText() {
+    std::ifstream in(test::sourcePath("biomes/sonoma.toml"));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+/// Replace the first occurrence of `from` after the line `anchor` (a species name line).
+std::string mutate(const std::string& text, const std::string& anchor, const std::string& from,
+                   const std::string& to) {
+    const auto a = text.find(anchor);
+    REQUIRE(a != std::string::npos);
+    const auto p = text.find(from, a);
+    REQUIRE(p != std::string::npos);
+    return text.substr(0, p) + to + text.substr(p + from.size());
+}
+
+/// Parse and return the ValidationError message (fails the test if parsing succeeds).
+std::string errorOf(const std::string& text) {
+    try {
+        parseBiome(text, "mutated.toml");
+    } catch (const ValidationError& e) {
+        return e.what();
+    } catch (const IoError& e) {
+        return e.what();
+    }
+    FAIL("expected a validation error");
+    return {};
+}
+
+}  // namespace
+
+TEST_CASE("the Sonoma biome has every species of Table 3", "[biome]") {
+    const Biome b = loadBiome(test::sourcePath("biomes/sonoma.toml"));
+    REQUIRE(b.species.size() == 16);
+    REQUIRE(b.subBiomes.size() == 4);
+    const Species& redwood = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
+    CHECK(redwood.maxAgeYears == 800);
+    CHECK(redwood.maxHeightM == 110);
+    CHECK(redwood.alpha == Approx(0.45));
+    CHECK(redwood.sun.c == 9.5);
+    CHECK(redwood.sun.r == 11);
+    CHECK(redwood.canopy);
+    CHECK(redwood.growthMonths == std::vector<int>{11, 0, 1, 2, 3, 4});
+    const Species& laurel = b.species[static_cast<std::size_t>(b.speciesIndex("California Laurel"))];
+    CHECK(laurel.growthMonths.size() == 9);
+    CHECK(laurel.subBiomes == std::vector<int>{1, 2, 4});
+    CHECK_FALSE(laurel.canopy);
+    // Allometry D at 30 m: exp(-0.72 + 0.65 ln 30).
+    CHECK(b.species[static_cast<std::size_t>(b.speciesIndex("Douglas-Fir"))].allometry.crownRadiusM(30.0) ==
+          Approx(std::exp(-0.72 + 0.65 * std::log(30.0))));
+    // Allometry E is linear: r = 4 h.
+    CHECK(b.species[0].allometry.crownRadiusM(0.25) == Approx(1.0));
+    CHECK(b.climate.latitudeDeg == Approx(38.58));
+    CHECK(b.climate.rainfallMm[0] == Approx(201.3));
+    CHECK(b.climate.temperatureC[6] == Approx(32.1));
+    CHECK(b.soil.saturationMm == 180);
+    CHECK(b.vigour.a == Approx(0.2));
+    int canopyCount = 0;
+    for (const auto& s : b.species) canopyCount += s.canopy;
+    CHECK(canopyCount == 7);
+}
+
+TEST_CASE("the embedded default equals biomes/sonoma.toml and survives a TOML round trip", "[biome]") {
+    const Biome file = loadBiome(test::sourcePath("biomes/sonoma.toml"));
+    const Biome embedded = defaultBiome();
+    const Biome again = parseBiome(biomeToToml(embedded), "roundtrip.toml");
+    for (const Biome* b : {&embedded, &again}) {
+        REQUIRE(b->species.size() == file.species.size());
+        for (std::size_t i = 0; i < file.species.size(); ++i) {
+            const Species &x = file.species[i], &y = b->species[i];
+            CHECK(x.name == y.name);
+            CHECK(x.maxAgeYears == y.maxAgeYears);
+            CHECK(x.maxHeightM == y.maxHeightM);
+            CHECK(x.alpha == y.alpha);
+            CHECK(x.sun.c == y.sun.c);
+            CHECK(x.moisture.r == y.moisture.r);
+            CHECK(x.temperature.c == y.temperature.c);
+            CHECK(x.slope.r == y.slope.r);
+            CHECK(x.growthMonths == y.growthMonths);
+            CHECK(x.subBiomes == y.subBiomes);
+            CHECK(x.allometry.crownRadiusM(10) == y.allometry.crownRadiusM(10));
+            CHECK(x.canopy == y.canopy);
+        }
+        CHECK(b->climate.skyClarity == file.climate.skyClarity);
+        CHECK(b->soil.runoffLimitMm == file.soil.runoffLimitMm);
+    }
+}
+
+TEST_CASE("vigour shape g(d) of Eq. 1", "[biome]") {
+    const VigourShape g;  // a = 0.2, q = 0.01, p = 4.5
+    CHECK(g.g(0.0, 7.0) == Approx(1.0));
+    CHECK(g.g(7.0, 7.0) == Approx(1.2 * 0.01 - 0.2));
+    CHECK(g.g(-7.0, 7.0) == Approx(g.g(7.0, 7.0)));
+    CHECK(g.g(100.0, 7.0) == Approx(-0.2));
+    const Biome b = defaultBiome();
+    const int sorrel = b.speciesIndex("Redwood Sorrel");
+    // At every optimum the vigour is alpha.
+    CHECK(b.vigourOf(sorrel, 3.5, 100, 13.5, 30) == Approx(0.60));
+    // The limiting factor wins (minimum).
+    CHECK(b.vigourOf(sorrel, 3.5 + 7, 100, 13.5, 30) == Approx(0.60 * (1.2 * 0.01 - 0.2)));
+}
+
+TEST_CASE("biome validation names the file, the species and the field", "[biome]") {
+    const std::string base = sonomaText();
+    struct Case {
+        std::string what, anchor, from, to, expectField, expectWords;
+    };
+    const std::vector<Case> cases = {
+        {"alpha above 1", "name = \"Toyon\"", "alpha = 0.68", "alpha = 1.4", "alpha", "outside [0, 1]"},
+        {"negative alpha", "name = \"Toyon\"", "alpha = 0.68", "alpha = -0.1", "alpha", "outside [0, 1]"},
+        {"zero max age", "name = \"Toyon\"", "max_age_years = 150", "max_age_years = 0", "max_age_years", "positive"},
+        {"negative max height", "name = \"Toyon\"", "max_height_m = 9.0", "max_height_m = -9.0", "max_height_m", "positive"},
+        {"zero range r", "name = \"Toyon\"", "sun = { c = 9.5, r = 11 }", "sun = { c = 9.5, r = 0 }", "'r'", "positive"},
+        {"unknown key", "name = \"Toyon\"", "canopy = false", "canopy = false\ncanopy_height = 3", "canopy_height", "unknown key"},
+        {"missing field", "name = \"Toyon\"", "alpha = 0.68\n", "", "alpha", "missing"},
+        {"sub-biome that does not exist", "name = \"Toyon\"", "sub_biomes = [1, 2, 3]", "sub_biomes = [1, 2, 7]", "sub_biomes", "does not exist"},
+        {"alpha as a string", "name = \"Toyon\"", "alpha = 0.68", "alpha = \"high\"", "alpha", "expected a number"},
+        {"unknown growth period", "name = \"Toyon\"", "growth_period = \"S\"", "growth_period = \"X\"", "growth_period", "unknown growth period"},
+        {"unknown allometry", "name = \"Toyon\"", "allometry = \"A\"", "allometry = \"Q\"", "allometry", "unknown allometry"},
+    };
+    for (const auto& c : cases) {
+        SECTION(c.what) {
+            const std::string msg = errorOf(mutate(base, c.anchor, c.from, c.to));
+            INFO(msg);
+            CHECK_THAT(msg, Catch::Contains("mutated.toml"));
+            CHECK_THAT(msg, Catch::Contains("species 'Toyon'"));
+            CHECK_THAT(msg, Catch::Contains(c.expectField));
+            CHECK_THAT(msg, Catch::Contains(c.expectWords));
+        }
+    }
+}
+
+TEST_CASE("biome validation of months, climate and structure", "[biome]") {
+    const std::string base = sonomaText();
+    SECTION("a month outside 0-11") {
+        const std::string msg = errorOf(mutate(base, "[growth_periods]", "S = [11, 0", "S = [12, 0"));
+        CHECK_THAT(msg, Catch::Contains("growth_periods") && Catch::Contains("S") && Catch::Contains("outside 0-11"));
+    }
+    SECTION("negative rainfall") {
+        const std::string msg = errorOf(mutate(base, "rainfall_mm", "201.3", "-1"));
+        CHECK_THAT(msg, Catch::Contains("rainfall_mm") && Catch::Contains("negative"));
+    }
+    SECTION("eleven months of temperature") {
+        const std::string msg = errorOf(mutate(base, "temperature_c", "13.5, ", ""));
+        CHECK_THAT(msg, Catch::Contains("temperature_c") && Catch::Contains("expected 12 values"));
+    }
+    SECTION("a canopy species that is not canopy-capable") {
+        const std::string msg = errorOf(mutate(base, "name = \"Redwood\"\n", "canopy = true", "canopy = false"));
+        CHECK_THAT(msg, Catch::Contains("sub_biome 1") && Catch::Contains("Redwood"));
+    }
+    SECTION("unknown top-level table") {
+        const std::string msg = errorOf(base + "\n[weather]\nwind = 3\n");
+        CHECK_THAT(msg, Catch::Contains("weather") && Catch::Contains("unknown key"));
+    }
+    SECTION("invalid TOML names the line") {
+        const std::string msg = errorOf("[biome]\nname = \"x\"\nalpha = = 3\n");
+        CHECK_THAT(msg, Catch::Contains("mutated.toml:3") && Catch::Contains("invalid TOML"));
+    }
+    SECTION("a missing file") {
+        CHECK_THROWS_WITH(loadBiome("/nonexistent/biome.toml"), Catch::Contains("/nonexistent/biome.toml"));
+    }
+    SECTION("unknown species name lists the known ones") {
+        CHECK_THROWS_WITH(defaultBiome().speciesIndex("Oak"), Catch::Contains("unknown species 'Oak'") && Catch::Contains("Redwood"));
+    }
+}
