@@ -12,6 +12,9 @@ namespace eco::cli {
 // Each cmd_*.cpp adds its subcommands to the top-level app.
 void registerTerrainCommands(CLI::App& app);   // eco terrain generate|convert, eco chm generate
 void registerAbioticsCommand(CLI::App& app);   // eco abiotics
+void registerCanopyCommand(CLI::App& app);     // eco canopy
+void registerSimulateCommand(CLI::App& app);   // eco simulate
+void registerRunCommand(CLI::App& app);        // eco run CONFIG (the whole pipeline)
 
 /// Progress on stderr: a bar redrawn in place on a terminal, a line per 10 % otherwise
 /// (CI logs). Thread-safe only when called from one thread.

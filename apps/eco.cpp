@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
 
     eco::cli::registerTerrainCommands(app);
     eco::cli::registerAbioticsCommand(app);
+    eco::cli::registerCanopyCommand(app);
+    eco::cli::registerSimulateCommand(app);
+    eco::cli::registerRunCommand(app);
 
     try {
         app.parse(argc, argv);

@@ -1,0 +1,4 @@
+#include "cli_common.h"
+namespace eco::cli {
+void registerRunCommand(CLI::App&) {}
+}  // namespace eco::cli

@@ -1,0 +1,4 @@
+#include "cli_common.h"
+namespace eco::cli {
+void registerSimulateCommand(CLI::App&) {}
+}  // namespace eco::cli
