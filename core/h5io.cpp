@@ -208,6 +208,7 @@ std::vector<std::string> File::readStrings(const std::string& name) const {
     H5Sget_simple_extent_dims(space.id(), &n, nullptr);
     Handle type(H5Tcopy(H5T_C_S1));
     H5Tset_size(type.id(), H5T_VARIABLE);
+    H5Tset_cset(type.id(), H5Tget_cset(ftype.id()));
     std::vector<char*> ptrs(n, nullptr);
     if (n > 0 && H5Dread(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
         throw IoError(where(name) + ": cannot read string dataset");
@@ -286,6 +287,7 @@ std::string File::attrString(const std::string& object, const std::string& attr)
         char* p = nullptr;
         Handle mem(H5Tcopy(H5T_C_S1));
         H5Tset_size(mem.id(), H5T_VARIABLE);
+        H5Tset_cset(mem.id(), H5Tget_cset(type.id()));
         if (H5Aread(a.id(), mem.id(), &p) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
         std::string s = p ? p : "";
         H5free_memory(p);
