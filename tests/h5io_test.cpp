@@ -1,1 +1,160 @@
+// Round trips through the HDF5 layer and its error messages.
 #include <catch2/catch.hpp>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "error.h"
+#include "h5io.h"
+#include "test_util.h"
+
+using eco::Grid;
+using eco::h5::File;
+
+namespace {
+
+Grid<float> sampleGrid(int w, int h, float base) {
+    Grid<float> g(w, h, 0.5, 10.0, -20.0);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) g(ix, iy) = base + 0.25f * ix - 3.0f * iy;
+    return g;
+}
+
+}  // namespace
+
+TEST_CASE("h5io: float grid round trip keeps values and geometry", "[h5io]") {
+    eco::test::TempDir dir("h5_grid");
+    const std::string path = dir.file("g.h5");
+    const Grid<float> g = sampleGrid(9, 5, 1.5f);
+    {
+        File f = File::create(path);
+        f.writeGrid("/a/b/grid", g, "m");
+    }
+    const File f = File::openRead(path);
+    CHECK(f.exists("/a"));
+    CHECK(f.exists("/a/b/grid"));
+    CHECK_FALSE(f.exists("/a/c/grid"));
+    const Grid<float> r = f.readGrid("/a/b/grid");
+    CHECK(r.sameGeometry(g, 0.0));
+    CHECK(r.data() == g.data());
+    CHECK(f.attrString("/a/b/grid", "units") == "m");
+    CHECK(f.attrString("/a/b/grid", "row_order") == "south_to_north");
+    CHECK(f.attrInt("/a/b/grid", "width") == 9);
+    CHECK(f.attrInt("/a/b/grid", "height") == 5);
+    CHECK(f.shape("/a/b/grid") == std::vector<hsize_t>{5, 9});
+    CHECK(f.list("/a/b") == std::vector<std::string>{"grid"});
+}
+
+TEST_CASE("h5io: large grids (compressed, chunked) round trip", "[h5io]") {
+    eco::test::TempDir dir("h5_big");
+    const std::string path = dir.file("big.h5");
+    Grid<float> g(300, 170, 0.914);
+    for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = static_cast<float>(i % 1013) * 0.37f;
+    {
+        File f = File::create(path);
+        f.writeGrid("/big", g, "m");
+    }
+    CHECK(File::openRead(path).readGrid("/big").data() == g.data());
+}
+
+TEST_CASE("h5io: stacks and int grids round trip", "[h5io]") {
+    eco::test::TempDir dir("h5_stack");
+    const std::string path = dir.file("s.h5");
+    std::vector<Grid<float>> planes;
+    for (int m = 0; m < 12; ++m) planes.push_back(sampleGrid(6, 4, static_cast<float>(m)));
+    Grid<std::int32_t> labels(6, 4, 0.5, 10.0, -20.0);
+    for (std::size_t i = 0; i < labels.size(); ++i) labels.data()[i] = static_cast<std::int32_t>(i) - 7;
+    {
+        File f = File::create(path);
+        f.writeStack("/maps/sun", planes, "hours/day");
+        f.writeGridI32("/maps/labels", labels, "category");
+    }
+    const File f = File::openRead(path);
+    const auto back = f.readStack("/maps/sun");
+    REQUIRE(back.size() == 12);
+    for (int m = 0; m < 12; ++m) {
+        CHECK(back[m].data() == planes[m].data());
+        CHECK(back[m].sameGeometry(planes[m], 0.0));
+    }
+    CHECK(f.shape("/maps/sun") == std::vector<hsize_t>{12, 4, 6});
+    const auto l = f.readGridI32("/maps/labels");
+    CHECK(l.data() == labels.data());
+    CHECK(l.sameGeometry(labels, 0.0));
+    // A stack is not a 2-D grid and vice versa.
+    CHECK_THROWS_AS(f.readGrid("/maps/sun"), eco::IoError);
+    // Planes of different geometry are refused.
+    File w = File::create(dir.file("bad.h5"));
+    std::vector<Grid<float>> mixed{sampleGrid(6, 4, 0), sampleGrid(4, 6, 0)};
+    CHECK_THROWS_AS(w.writeStack("/x", mixed, "m"), eco::ValidationError);
+}
+
+TEST_CASE("h5io: 1-D arrays, strings and attributes round trip", "[h5io]") {
+    eco::test::TempDir dir("h5_attr");
+    const std::string path = dir.file("a.h5");
+    const std::vector<std::string> names{"Douglas-Fir", "Coast Redwood", "", "Toyon \xC3\xA9"};
+    const std::vector<double> d{1.5, -2.25, 1e-300, 3.0};
+    const std::vector<std::int32_t> ints{1, -2, 2147483647};
+    {
+        File f = File::create(path);
+        f.writeStrings("/species/names", names);
+        f.writeF64("/species/values", d, {4});
+        f.writeI32("/species/ints", ints, {3});
+        f.writeF32("/species/matrix", {1, 2, 3, 4, 5, 6}, {2, 3});
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(3));
+        f.setAttr("/", "biome", std::string("sonoma"));
+        f.setAttr("/species", "lapse_rate_c_per_km", 9.8);
+        f.setAttr("/species/values", "bin_edges", std::vector<double>{0, 0.5, 1.0});
+        CHECK_THROWS_AS(f.writeF64("/bad", d, {5}), eco::ValidationError);
+    }
+    const File f = File::openRead(path);
+    CHECK(f.readStrings("/species/names") == names);
+    CHECK(f.readF64("/species/values") == d);
+    CHECK(f.readI32("/species/ints") == ints);
+    std::vector<hsize_t> dims;
+    CHECK(f.readF32("/species/matrix", &dims) == std::vector<float>{1, 2, 3, 4, 5, 6});
+    CHECK(dims == std::vector<hsize_t>{2, 3});
+    CHECK(f.attrInt("/", "schema_version") == 3);
+    CHECK(f.attrString("/", "biome") == "sonoma");
+    CHECK(f.attrDouble("/species", "lapse_rate_c_per_km") == 9.8);
+    CHECK(f.attrDoubles("/species/values", "bin_edges") == std::vector<double>{0, 0.5, 1.0});
+    CHECK(f.hasAttr("/species", "lapse_rate_c_per_km"));
+    CHECK_FALSE(f.hasAttr("/species", "nope"));
+    CHECK_FALSE(f.hasAttr("/nowhere", "nope"));
+    const auto children = f.list("/species");
+    CHECK(children.size() == 4);
+}
+
+TEST_CASE("h5io: a missing dataset or attribute is named in the error", "[h5io]") {
+    eco::test::TempDir dir("h5_missing");
+    const std::string path = dir.file("m.h5");
+    {
+        File f = File::create(path);
+        f.writeF64("/present", {1.0}, {1});
+    }
+    const File f = File::openRead(path);
+    CHECK_THROWS_WITH(f.readF64("/absent/values"),
+                      Catch::Contains("/absent/values") && Catch::Contains(path) && Catch::Contains("missing"));
+    CHECK_THROWS_WITH(f.readGrid("/terrain/elevation"), Catch::Contains("/terrain/elevation"));
+    CHECK_THROWS_WITH(f.attrDouble("/present", "cell_size_m"),
+                      Catch::Contains("cell_size_m") && Catch::Contains("/present"));
+    // Wrong element type.
+    CHECK_THROWS_WITH(f.readI32("/present"), Catch::Contains("/present") && Catch::Contains("type"));
+    // A 1-D array is not a grid: it has no geometry.
+    CHECK_THROWS_AS(f.readGrid("/present"), eco::IoError);
+}
+
+TEST_CASE("h5io: a missing or non-HDF5 file gives a clear error", "[h5io]") {
+    eco::test::TempDir dir("h5_bad");
+    const std::string missing = dir.file("nope.h5");
+    CHECK_THROWS_WITH(File::openRead(missing), Catch::Contains(missing) && Catch::Contains("cannot open"));
+    const std::string text = dir.file("text.h5");
+    {
+        std::ofstream o(text);
+        o << "this is not an HDF5 file\n";
+    }
+    CHECK_THROWS_AS(File::openRead(text), eco::IoError);
+    CHECK_THROWS_WITH(File::openRead(text), Catch::Contains(text) && Catch::Contains("not an HDF5 file"));
+    // Creating in a directory that does not exist.
+    CHECK_THROWS_AS(File::create(dir.file("no/such/dir/x.h5")), eco::IoError);
+}
