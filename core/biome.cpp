@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "strict_toml.h"
 
 namespace eco {
 
@@ -44,129 +45,6 @@ int Biome::speciesIndex(const std::string& name) const {
 
 namespace {
 
-/// Reads one TOML table strictly: every key must be consumed, every value typed and ranged.
-/// Messages name the file, the context (e.g. species 'Toyon'), the key and its line.
-class StrictTable {
-public:
-    StrictTable(const toml::table& t, std::string file, std::string context)
-        : t_(t), file_(std::move(file)), context_(std::move(context)) {}
-
-    [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-        std::string loc = file_;
-        if (const toml::node* n = t_.get(key)) {
-            if (n->source().begin.line > 0) loc += ":" + std::to_string(n->source().begin.line);
-        } else if (t_.source().begin.line > 0) {
-            loc += ":" + std::to_string(t_.source().begin.line);
-        }
-        throw ValidationError(loc + ": " + context_ + (context_.empty() ? "" : ": ") + "field '" + key +
-                              "': " + what);
-    }
-
-    const toml::node& node(const std::string& key) {
-        used_.insert(key);
-        const toml::node* n = t_.get(key);
-        if (!n) fail(key, "missing");
-        return *n;
-    }
-    bool has(const std::string& key) const { return t_.contains(key); }
-
-    double number(const std::string& key) {
-        const toml::node& n = node(key);
-        double v;
-        if (auto f = n.value_exact<double>()) v = *f;
-        else if (auto i = n.value_exact<std::int64_t>()) v = static_cast<double>(*i);
-        else fail(key, "expected a number");
-        if (!std::isfinite(v)) fail(key, "value is not finite");
-        return v;
-    }
-    double numberIn(const std::string& key, double lo, double hi) {
-        const double v = number(key);
-        if (v < lo || v > hi) fail(key, "value " + fmt(v) + " outside [" + fmt(lo) + ", " + fmt(hi) + "]");
-        return v;
-    }
-    double positive(const std::string& key) {
-        const double v = number(key);
-        if (!(v > 0)) fail(key, "value " + fmt(v) + " must be positive");
-        return v;
-    }
-    std::int64_t integer(const std::string& key) {
-        const toml::node& n = node(key);
-        auto i = n.value_exact<std::int64_t>();
-        if (!i) fail(key, "expected an integer");
-        return *i;
-    }
-    std::string string(const std::string& key) {
-        const toml::node& n = node(key);
-        auto s = n.value_exact<std::string>();
-        if (!s) fail(key, "expected a string");
-        if (s->empty()) fail(key, "must not be empty");
-        return *s;
-    }
-    bool boolean(const std::string& key) {
-        auto b = node(key).value_exact<bool>();
-        if (!b) fail(key, "expected true or false");
-        return *b;
-    }
-    const toml::table& table(const std::string& key) {
-        const toml::table* t = node(key).as_table();
-        if (!t) fail(key, "expected a table");
-        return *t;
-    }
-    const toml::array& array(const std::string& key) {
-        const toml::array* a = node(key).as_array();
-        if (!a) fail(key, "expected an array");
-        return *a;
-    }
-    std::vector<double> numbers(const std::string& key, std::size_t expectCount) {
-        const toml::array& a = array(key);
-        if (a.size() != expectCount)
-            fail(key, "expected " + std::to_string(expectCount) + " values, got " + std::to_string(a.size()));
-        std::vector<double> out;
-        for (const auto& e : a) {
-            if (auto f = e.value_exact<double>()) out.push_back(*f);
-            else if (auto i = e.value_exact<std::int64_t>()) out.push_back(static_cast<double>(*i));
-            else fail(key, "element " + std::to_string(out.size()) + " is not a number");
-            if (!std::isfinite(out.back())) fail(key, "element " + std::to_string(out.size() - 1) + " is not finite");
-        }
-        return out;
-    }
-    std::vector<std::int64_t> integers(const std::string& key) {
-        std::vector<std::int64_t> out;
-        for (const auto& e : array(key)) {
-            auto i = e.value_exact<std::int64_t>();
-            if (!i) fail(key, "element " + std::to_string(out.size()) + " is not an integer");
-            out.push_back(*i);
-        }
-        return out;
-    }
-    std::vector<std::string> strings(const std::string& key) {
-        std::vector<std::string> out;
-        for (const auto& e : array(key)) {
-            auto s = e.value_exact<std::string>();
-            if (!s) fail(key, "element " + std::to_string(out.size()) + " is not a string");
-            out.push_back(*s);
-        }
-        return out;
-    }
-    /// Unknown keys are errors (a typo must not silently fall back to a default).
-    void finish() const {
-        for (const auto& [k, v] : t_)
-            if (!used_.count(std::string(k.str()))) fail(std::string(k.str()), "unknown key");
-    }
-
-    static std::string fmt(double v) {
-        std::ostringstream s;
-        s << v;
-        return s.str();
-    }
-
-private:
-    const toml::table& t_;
-    std::string file_;
-    std::string context_;
-    std::set<std::string> used_;
-};
-
 Response readResponse(StrictTable& parent, const std::string& key, const std::string& file,
                       const std::string& context) {
     StrictTable t(parent.table(key), file, context + ": " + key);
@@ -180,13 +58,7 @@ Response readResponse(StrictTable& parent, const std::string& key, const std::st
 }  // namespace
 
 Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
-    toml::table root;
-    try {
-        root = toml::parse(tomlText, sourceName);
-    } catch (const toml::parse_error& e) {
-        throw IoError(sourceName + ":" + std::to_string(e.source().begin.line) + ": invalid TOML: " +
-                      std::string(e.description()));
-    }
+    const toml::table root = parseTomlText(tomlText, sourceName);
     const std::string& file = sourceName;
     Biome b;
     b.sourcePath = sourceName;
