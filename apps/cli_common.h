@@ -5,6 +5,8 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <memory>
+#include <vector>
 #include <string>
 
 namespace eco::cli {
@@ -15,6 +17,12 @@ void registerAbioticsCommand(CLI::App& app);   // eco abiotics
 void registerCanopyCommand(CLI::App& app);     // eco canopy
 void registerSimulateCommand(CLI::App& app);   // eco simulate
 void registerRunCommand(CLI::App& app);        // eco run CONFIG (the whole pipeline)
+
+/// The whole command line, every subcommand registered.
+std::unique_ptr<CLI::App> makeApp();
+/// Run one eco command in this process, e.g. {"abiotics", "--terrain", "t.h5", ...}, as if
+/// typed; eco::Error from the command propagates, a parse error becomes ValidationError.
+void runCommand(const std::vector<std::string>& args);
 
 /// Progress on stderr: a bar redrawn in place on a terminal, a line per 10 % otherwise
 /// (CI logs). Thread-safe only when called from one thread.

@@ -1,34 +1,57 @@
 // eco: the command-line front end of the ecosystem toolkit.
 #include <omp.h>
 
+#include <algorithm>
 #include <iostream>
 
 #include "cli_common.h"
 #include "eco_version.h"
 #include "error.h"
 
-int main(int argc, char** argv) {
-    CLI::App app{"eco: simulate plant ecosystems, analyse them into biome databases, and synthesize "
-                 "large scenes from them.\nRun 'eco <command> --help' for each command."};
-    app.set_version_flag("--version", std::string("eco ") + ECO_VERSION_STRING);
-    app.require_subcommand(1);
-    int threads = 0;
-    app.add_option("--threads", threads, "OpenMP threads (default: all cores); results do not depend on it")
+namespace eco::cli {
+
+std::unique_ptr<CLI::App> makeApp() {
+    auto app = std::make_unique<CLI::App>(
+        "eco: simulate plant ecosystems, analyse them into biome databases, and synthesize "
+        "large scenes from them.\nRun 'eco <command> --help' for each command.",
+        "eco");
+    app->set_version_flag("--version", std::string("eco ") + ECO_VERSION_STRING);
+    app->require_subcommand(1);
+    auto threads = std::make_shared<int>(0);
+    app->add_option("--threads", *threads, "OpenMP threads (default: all cores); results do not depend on it")
         ->check(CLI::NonNegativeNumber);
-    app.parse_complete_callback([&] {
-        if (threads > 0) omp_set_num_threads(threads);
+    app->parse_complete_callback([threads] {
+        if (*threads > 0) omp_set_num_threads(*threads);
     });
 
-    eco::cli::registerTerrainCommands(app);
-    eco::cli::registerAbioticsCommand(app);
-    eco::cli::registerCanopyCommand(app);
-    eco::cli::registerSimulateCommand(app);
-    eco::cli::registerRunCommand(app);
+    registerTerrainCommands(*app);
+    registerAbioticsCommand(*app);
+    registerCanopyCommand(*app);
+    registerSimulateCommand(*app);
+    registerRunCommand(*app);
+    return app;
+}
 
+void runCommand(const std::vector<std::string>& args) {
+    auto app = makeApp();
+    std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them reversed
     try {
-        app.parse(argc, argv);
+        app->parse(reversed);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        std::string line;
+        for (const auto& a : args) line += " " + a;
+        throw ValidationError("eco" + line + ": " + e.what());
+    }
+}
+
+}  // namespace eco::cli
+
+int main(int argc, char** argv) {
+    auto app = eco::cli::makeApp();
+    try {
+        app->parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app->exit(e);
     } catch (const eco::Error& e) {
         std::cerr << "eco: error: " << e.what() << "\n";
         return 1;

@@ -30,14 +30,14 @@ struct TerrainGenParams {
     double cellSizeM = 0.914;       ///< metres per cell (the paper's 3 ft lidar grid)
     double originX = 0, originY = 0;  ///< lower-left corner (metres)
     std::uint64_t seed = 1;
-    double reliefM = 120;           ///< height range of the hills above the valley rim
-    double valleyDepthM = 40;       ///< depth of the valley below the lowest hills
+    double reliefM = 70;            ///< height range of the hills above the valley rim
+    double valleyDepthM = 25;       ///< depth of the valley below the lowest hills
     double baseElevationM = 60;     ///< creek bed where it leaves the domain
     double creekDropM = 20;         ///< fall of the creek bed across the domain (drains downstream)
     double ridgeWavelengthM = 260;  ///< largest ridge spacing of the ridged fBm
     double hillWavelengthM = 420;   ///< wavelength of the broad hills (plain fBm)
     double ridgeWeight = 0.6;       ///< share of ridged fBm in the hills (rest: plain fBm)
-    double valleyHalfWidthM = 70;   ///< distance from the creek at which the walls reach valleyDepthM
+    double valleyHalfWidthM = 85;   ///< distance from the creek at which the walls reach valleyDepthM
     double meanderAmplitudeM = 35;  ///< sideways swing of the valley axis (capped at 12 % of the extent)
     double meanderWavelengthM = 350;
     /// Half width of the creek channel at the bank top, and of its flat bed. The bed is
@@ -45,7 +45,7 @@ struct TerrainGenParams {
     double creekHalfWidthM = 3.0;
     double creekBedHalfWidthM = 1.5;
     double creekDepthM = 1.5;       ///< depth of the channel below the valley floor
-    double smallestFeatureCells = 3;  ///< fBm octaves stop at this wavelength (in cells)
+    double smallestFeatureCells = 10; ///< fBm octaves stop at this wavelength (in cells)
 };
 
 /// Geometric description of what generateTerrain built (ground truth for tests and tools).

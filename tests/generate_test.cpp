@@ -136,9 +136,11 @@ TEST_CASE("generate: the creek lies below the ridges and drains out of the domai
         std::vector<float> sorted = g.data();
         std::sort(sorted.begin(), sorted.end());
         const double p90 = sorted[sorted.size() * 9 / 10];
-        const double p25 = sorted[sorted.size() / 4];
+        const double p50 = sorted[sorted.size() / 2];
         CHECK(p90 > along.front() + p.valleyDepthM);
-        CHECK(along.front() < p25 + 1e-6);
+        // Even where it enters (the bed falls creekDropM across the domain), the creek lies
+        // below the median elevation.
+        CHECK(along.front() < p50);
         CHECK(g.minValue() >= features.creekBedM.back() - 1e-3);
 
         // Steepest descent (D8) from the first creek cell inside the grid reaches an edge.

@@ -1,0 +1,164 @@
+// Abiotic maps (SPEC §2, paper §5.1): slope, monthly temperature, monthly sunlight with
+// terrain self-shadowing and a diffuse sky term, and monthly soil moisture from rainfall
+// routed over the terrain. docs/abiotics.md gives the models, formulas and file layout.
+//
+// Conventions: grids follow grid.h (row iy = 0 is the southern row, x east, y north,
+// elevations in metres); monthly maps are 12 planes, plane 0 = January.
+// Every function here is deterministic: results are bit-identical whatever the number of
+// OpenMP threads.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "biome.h"
+#include "grid.h"
+
+namespace eco {
+
+// ---------------------------------------------------------------------------------------
+// Slope and temperature
+
+/// Slope in degrees (0 = horizontal, 90 = vertical): the angle between the surface normal
+/// and the vertical, from central differences of the elevation (one-sided differences on
+/// the edge rows and columns). Exact on a plane. Needs at least 2 cells along each axis
+/// that has a gradient; a single row or column gets a zero gradient along it.
+Grid<float> slopeDegrees(const Grid<float>& elevationM);
+
+/// Monthly air temperature in degrees Celsius: sea-level monthly temperature minus
+/// lapseRateCPerKm * elevationM / 1000. 12 planes, 0 = January.
+MonthlyGrids<float> temperatureC(const Grid<float>& elevationM, const Climate& climate);
+
+// ---------------------------------------------------------------------------------------
+// Sun
+
+/// Parameters of the sunlight model (all written into every abiotics file).
+struct SunParams {
+    double stepMinutes = 10;  ///< sampling interval of the sun path, minutes (about)
+    int skyAzimuths = 16;     ///< azimuths of the sky-view sweeps
+    int skyElevations = 6;    ///< elevation bands of the sky-view sweeps (0..90 degrees)
+    int dayOfMonth = 15;      ///< representative day of each month, 1..28
+};
+
+/// Solar declination in radians for day of year 1..366 (1 = 1 January), from the sun's
+/// ecliptic longitude with the first-order orbital eccentricity correction.
+double solarDeclinationRad(int dayOfYear);
+
+/// Astronomical day length in hours (sun centre above the geometric horizon, no
+/// refraction) at latitudeDeg (north positive) on day of year 1..366. 0 in polar night,
+/// 24 in polar day.
+double dayLengthHours(double latitudeDeg, int dayOfYear);
+
+/// Day of year (1..365, non-leap year) of day `dayOfMonth` of month `month0` (0 = January).
+int dayOfYearFor(int month0, int dayOfMonth);
+
+/// Everything the sunlight model computes, for inspection and tests.
+struct SunDetail {
+    MonthlyGrids<float> directHours;   ///< hours/day of direct sun (unshadowed, facing the sun)
+    Grid<float> skyView;               ///< fraction of the (cosine-weighted) sky seen, [0, 1]
+    std::array<double, 12> dayLengthHours{};  ///< astronomical day length of each month's day
+    MonthlyGrids<float> sunHours;      ///< total: clarity*direct + (1-clarity)*skyView*dayLength
+};
+
+/// Sky-view factor in [0, 1] per cell: the fraction of the diffuse light of a uniform sky
+/// that reaches the surface, relative to open flat ground (which gets exactly 1). Uses
+/// params.skyAzimuths x params.skyElevations horizon sweeps.
+Grid<float> skyViewFactor(const Grid<float>& elevationM, const SunParams& params);
+
+/// The full sunlight model; `progress(fraction)` is called from the calling thread.
+SunDetail sunDetail(const Grid<float>& elevationM, const Climate& climate, const SunParams& params,
+                    const std::function<void(double fraction)>& progress = {});
+
+/// Monthly sunlight in hours/day (12 planes, 0 = January):
+///   clarity_m * directHours_m + (1 - clarity_m) * skyView * dayLength_m,
+/// so open flat ground gets exactly the astronomical day length.
+MonthlyGrids<float> sunHours(const Grid<float>& elevationM, const Climate& climate,
+                             const SunParams& params,
+                             const std::function<void(double fraction)>& progress = {});
+
+/// A canopy tree that shades the ground under its crown disc.
+struct ShadingTree {
+    double x = 0, y = 0;        ///< crown centre, world metres
+    double crownRadiusM = 0;    ///< crown radius, metres
+    double alpha = 0;           ///< fraction of light the crown absorbs, [0, 1]
+};
+
+/// Canopy attenuation: every cell whose centre lies inside (or on) a crown disc is
+/// multiplied by (1 - alpha) once per covering tree. Cells under no crown are unchanged.
+/// ValidationError for a negative or non-finite radius or an alpha outside [0, 1].
+MonthlyGrids<float> applyCanopyShade(const MonthlyGrids<float>& sun,
+                                     const std::vector<ShadingTree>& trees);
+
+// ---------------------------------------------------------------------------------------
+// Moisture
+
+/// Water budget of the recorded year of moistureMm(), in cubic metres of water over the
+/// whole grid (1 mm on 1 m^2 = 0.001 m^3). Month 0 = January.
+struct MoistureBalance {
+    std::array<double, 12> rainM3{};           ///< rain falling on the grid
+    std::array<double, 12> absorbedM3{};       ///< infiltrated into the soil store
+    std::array<double, 12> evaporatedM3{};     ///< removed from the soil store by evaporation
+    std::array<double, 12> storageChangeM3{};  ///< store at month end minus store at month start
+    std::array<double, 12> outflowM3{};        ///< runoff leaving the grid edge
+    double initialStorageM3 = 0;  ///< soil store at the start of the recorded January
+    double finalStorageM3 = 0;    ///< soil store at the end of the recorded December
+
+    static double sum(const std::array<double, 12>& a);
+    double rainYearM3() const { return sum(rainM3); }
+    double absorbedYearM3() const { return sum(absorbedM3); }
+    double evaporatedYearM3() const { return sum(evaporatedM3); }
+    double storageChangeYearM3() const { return sum(storageChangeM3); }
+    double outflowYearM3() const { return sum(outflowM3); }
+    /// |rain - (storage change + evaporated + outflow)| / rain over the year (0 if no rain).
+    double relativeError() const;
+};
+
+/// Monthly soil water in mm (the store W after each month; 12 planes, 0 = January).
+/// Runoff is routed from high to low over the depression-filled terrain with
+/// multiple-flow-direction (slope-weighted) partitioning; see docs/abiotics.md.
+/// The 12-month cycle is run spinUpYears times (>= 0) from a dry soil before the recorded
+/// year. When `balance` is given it receives the water budget of the recorded year.
+/// `progress(fraction)` is called from the calling thread after each simulated month.
+MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& climate, const Soil& soil,
+                               MoistureBalance* balance = nullptr, int spinUpYears = 1,
+                               const std::function<void(double fraction)>& progress = {});
+
+// ---------------------------------------------------------------------------------------
+// All maps together, and their file
+
+struct AbioticParams {
+    SunParams sun;
+    int moistureSpinUpYears = 1;
+};
+
+struct Abiotics {
+    MonthlyGrids<float> sunHours;      ///< hours/day
+    MonthlyGrids<float> moistureMm;    ///< mm (soil water after each month)
+    MonthlyGrids<float> temperatureC;  ///< degrees Celsius
+    Grid<float> slopeDeg;              ///< degrees
+    Grid<float> elevationM;            ///< metres
+};
+
+/// Throws ValidationError unless the elevation grid is at least 3 x 3 with finite values.
+void validateElevation(const Grid<float>& elevationM, const std::string& what = "elevation");
+
+/// All abiotic maps for a terrain and biome. `progress(stage, fraction)` is called from
+/// the calling thread with stage "slope", "temperature", "sun" or "moisture" and the
+/// fraction of that stage done (each stage ends with 1.0).
+Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, const AbioticParams& params,
+                         const std::function<void(const std::string& stage, double fraction)>& progress = {});
+
+/// Write an abiotics file atomically (temporary file, then rename). Layout in
+/// docs/abiotics.md: /elevation, /slope, /sun, /moisture, /temperature and root
+/// attributes recording the biome, the climate, the soil and every model parameter.
+void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& biome,
+                   const AbioticParams& params);
+
+/// Read the maps of an abiotics file. IoError naming the file and the dataset when one is
+/// missing, has the wrong shape or a different geometry than /elevation, or when the file
+/// is not an eco-abiotics file.
+Abiotics readAbiotics(const std::string& path);
+
+}  // namespace eco
