@@ -1,5 +1,8 @@
 #include "abiotics.h"
 
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
 #include <omp.h>
 
 #include <algorithm>
@@ -145,9 +148,8 @@ LineLayout columnLayout(const Grid<float>& z, const std::vector<float>& gx, cons
     return t;
 }
 
-struct Vec3 {
-    double x, y, z;
-};
+/// Directions (x east, y north, z up) are glm vectors.
+using Vec3 = glm::dvec3;
 
 /// Geometry of one sweep direction.
 struct SweepSetup {
@@ -454,7 +456,7 @@ Grid<float> skyViewFactor(const Grid<float>& elevationM, const SunParams& params
                            // ground (exactly 1 there), so flat open ground sums to flatTotal.
                            const double gxi = lay.gx[base + static_cast<std::size_t>(i)];
                            const double gyi = lay.gy[base + static_cast<std::size_t>(i)];
-                           const double cosTilted = (d.z - gxi * d.x - gyi * d.y) / std::sqrt(1.0 + gxi * gxi + gyi * gyi);
+                           const double cosTilted = glm::dot(d, glm::normalize(Vec3(-gxi, -gyi, 1.0)));
                            out[base + static_cast<std::size_t>(i)] +=
                                static_cast<std::uint32_t>(std::nearbyint(q * cosTilted / d.z));
                        }
