@@ -17,6 +17,9 @@ void registerAbioticsCommand(CLI::App& app);   // eco abiotics
 void registerCanopyCommand(CLI::App& app);     // eco canopy
 void registerSimulateCommand(CLI::App& app);   // eco simulate
 void registerRunCommand(CLI::App& app);        // eco run CONFIG (the whole pipeline)
+void registerAnalyseCommand(CLI::App& app);    // eco analyse SIM.h5 ... --out DB.h5
+void registerInspectCommand(CLI::App& app);    // eco inspect DB.h5 [--png DIR]
+void registerPcfCommand(CLI::App& app);        // eco pcf POINTS.csv --window x0,y0,x1,y1
 
 /// The whole command line, every subcommand registered.
 std::unique_ptr<CLI::App> makeApp();

@@ -29,6 +29,9 @@ std::unique_ptr<CLI::App> makeApp() {
     registerCanopyCommand(*app);
     registerSimulateCommand(*app);
     registerRunCommand(*app);
+    registerAnalyseCommand(*app);
+    registerInspectCommand(*app);
+    registerPcfCommand(*app);
     return app;
 }
 

@@ -1,0 +1,591 @@
+#include "biome_db.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <limits>
+
+#include "atomic_file.h"
+#include "error.h"
+#include "h5io.h"
+
+namespace eco {
+
+namespace {
+
+int popcount(unsigned v) {
+    int n = 0;
+    for (; v; v &= v - 1) ++n;
+    return n;
+}
+
+std::string regionGroup(std::size_t r) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "/regions/region_%04zu", r);
+    return buf;
+}
+
+std::string inputGroup(std::size_t i) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "/inputs/input_%03zu", i);
+    return buf;
+}
+
+hsize_t hs(std::size_t v) { return static_cast<hsize_t>(v); }
+
+/// Rows of equal length flattened, for a [rows][cols] dataset.
+template <typename Rows, typename Get>
+std::vector<double> flatten(const Rows& rows, std::size_t cols, Get get) {
+    std::vector<double> out;
+    out.reserve(rows.size() * cols);
+    for (const auto& r : rows) {
+        const auto& v = get(r);
+        for (std::size_t c = 0; c < cols; ++c) out.push_back(c < v.size() ? v[c] : std::numeric_limits<double>::quiet_NaN());
+    }
+    return out;
+}
+
+std::vector<double> featuresRow(const Features& f) { return {f.begin(), f.end()}; }
+
+// ---- reading helpers: every shape is checked, every message names file and dataset ----
+
+class Reader {
+public:
+    explicit Reader(const h5::File& f) : f_(f) {}
+
+    std::vector<double> f64(const std::string& name, std::vector<std::size_t> expect) const {
+        std::vector<hsize_t> dims;
+        auto v = f_.readF64(name, &dims);
+        check(name, dims, expect);
+        return v;
+    }
+    std::vector<std::int32_t> i32(const std::string& name, std::vector<std::size_t> expect) const {
+        std::vector<hsize_t> dims;
+        auto v = f_.readI32(name, &dims);
+        check(name, dims, expect);
+        return v;
+    }
+    std::vector<std::string> strings(const std::string& name, std::size_t expect) const {
+        auto v = f_.readStrings(name);
+        if (expect != kAny && v.size() != expect)
+            throw IoError(f_.path() + ": " + name + ": expected " + std::to_string(expect) + " entries, found " +
+                          std::to_string(v.size()));
+        return v;
+    }
+    /// Length of a 1-D dataset.
+    std::size_t length(const std::string& name) const {
+        const auto dims = f_.shape(name);
+        if (dims.size() != 1) throw IoError(f_.path() + ": " + name + ": expected a 1-D dataset");
+        return static_cast<std::size_t>(dims[0]);
+    }
+    static constexpr std::size_t kAny = static_cast<std::size_t>(-1);
+
+private:
+    void check(const std::string& name, const std::vector<hsize_t>& dims, const std::vector<std::size_t>& expect) const {
+        bool ok = dims.size() == expect.size();
+        for (std::size_t i = 0; ok && i < dims.size(); ++i) ok = expect[i] == kAny || dims[i] == expect[i];
+        if (ok) return;
+        auto show = [](auto const& d) {
+            std::string s = "[";
+            for (std::size_t i = 0; i < d.size(); ++i) {
+                if (i) s += "][";
+                s += d[i] == static_cast<std::decay_t<decltype(d[i])>>(kAny) ? std::string("*") : std::to_string(d[i]);
+            }
+            return s + "]";
+        };
+        throw IoError(f_.path() + ": " + name + ": expected shape " + show(expect) + ", found " + show(dims));
+    }
+    const h5::File& f_;
+};
+
+Features featuresAt(const std::vector<double>& flat, std::size_t row) {
+    Features f{};
+    for (int c = 0; c < kFeatureCount; ++c) f[static_cast<std::size_t>(c)] = flat[row * kFeatureCount + static_cast<std::size_t>(c)];
+    return f;
+}
+
+std::vector<double> rowOf(const std::vector<double>& flat, std::size_t row, std::size_t cols) {
+    return {flat.begin() + static_cast<std::ptrdiff_t>(row * cols), flat.begin() + static_cast<std::ptrdiff_t>((row + 1) * cols)};
+}
+
+}  // namespace
+
+const DbPairStats* DbRegion::pair(int source, int target) const {
+    auto it = std::lower_bound(pairs.begin(), pairs.end(), std::make_pair(source, target),
+                               [](const DbPairStats& p, const std::pair<int, int>& key) {
+                                   return std::make_pair(p.source, p.target) < key;
+                               });
+    return it != pairs.end() && it->source == source && it->target == target ? &*it : nullptr;
+}
+
+std::string BiomeDatabase::categoryName(int category) const {
+    const int ns = speciesCount();
+    if (category < 0 || category >= 2 * ns) return "category " + std::to_string(category);
+    const std::string& name = speciesNames[static_cast<std::size_t>(category % ns)];
+    return category >= ns ? name + " (canopy)" : name;
+}
+
+std::string BiomeDatabase::combinationName(int mask) const {
+    std::string numbers, names;
+    for (std::size_t b = 0; b < 31; ++b) {
+        if (!(mask & (1 << b))) continue;
+        if (!numbers.empty()) {
+            numbers += "+";
+            names += ", ";
+        }
+        numbers += std::to_string(b + 1);
+        names += b < subBiomeNames.size() ? subBiomeNames[b] : "?";
+    }
+    return numbers.empty() ? "none" : numbers + " (" + names + ")";
+}
+
+int BiomeDatabase::combinationIndex(int mask) const {
+    for (std::size_t i = 0; i < combinations.size(); ++i)
+        if (combinations[i].mask == mask) return static_cast<int>(i);
+    return -1;
+}
+
+int BiomeDatabase::standInCombination(int combination) const {
+    if (combination <= 0) return -1;
+    if (combinationIndex(combination) >= 0) return combination;
+    int best = -1, bestShared = 0, bestDiff = 0;
+    for (const auto& c : combinations) {  // ascending mask: ties keep the lowest
+        const int shared = popcount(static_cast<unsigned>(c.mask & combination));
+        const int diff = popcount(static_cast<unsigned>(c.mask ^ combination));
+        if (shared == 0) continue;
+        if (best < 0 || shared > bestShared || (shared == bestShared && diff < bestDiff)) {
+            best = c.mask;
+            bestShared = shared;
+            bestDiff = diff;
+        }
+    }
+    return best;
+}
+
+int BiomeDatabase::nearestRegion(int combination, double sunHours, double moistureMm, double temperatureC,
+                                 double slopeDeg) const {
+    const int mask = standInCombination(combination);
+    if (mask < 0) return -1;
+    const DbCombination& c = combinations[static_cast<std::size_t>(combinationIndex(mask))];
+    const Features raw = {sunHours, moistureMm, temperatureC, slopeDeg};
+    Features z{};
+    for (std::size_t f = 0; f < kFeatureCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];
+    int best = -1;
+    double bestD = std::numeric_limits<double>::infinity();
+    for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r) {
+        const Features& cz = regions[static_cast<std::size_t>(r)].centroidNormalised;
+        double d = 0;
+        for (std::size_t f = 0; f < kFeatureCount; ++f) d += (z[f] - cz[f]) * (z[f] - cz[f]);
+        if (d < bestD) {
+            bestD = d;
+            best = r;
+        }
+    }
+    return best < 0 ? c.firstRegion : best;
+}
+
+std::string utcTimestamp() {
+    const std::time_t now = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&now, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
+    const std::size_t ns = db.speciesNames.size();
+    const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
+    const std::size_t nsep = static_cast<std::size_t>(db.separationBins.count);
+    if (db.canopySubBiomeMask.size() != ns)
+        throw ValidationError(path + ": canopy sub-biome masks (" + std::to_string(db.canopySubBiomeMask.size()) +
+                              ") do not match the species (" + std::to_string(ns) + ")");
+
+    AtomicOutput out(path);
+    {
+        h5::File f = h5::File::create(out.tempPath());
+        f.setAttr("/", "format", std::string(kBiomeDbFormat));
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(kBiomeDbSchemaVersion));
+        f.setAttr("/", "code_version", db.codeVersion);
+        f.setAttr("/", "created_utc", db.createdUtc);
+        f.setAttr("/", "biome_name", db.biomeName);
+        f.setAttr("/", "biome_toml", db.biomeToml);
+        f.setAttr("/", "units",
+                  std::string("lengths m, areas m2, densities plants/m2, sun hours/day, moisture mm, "
+                              "temperature degC, slope degrees"));
+        f.setAttr("/", "seeding_radius_factor", db.seedingRadiusFactor);
+
+        f.writeStrings("/species/names", db.speciesNames);
+        f.writeI32("/species/canopy_subbiome_mask",
+                   std::vector<std::int32_t>(db.canopySubBiomeMask.begin(), db.canopySubBiomeMask.end()), {hs(ns)});
+        f.writeStrings("/sub_biomes/names", db.subBiomeNames);
+        std::vector<std::string> catNames;
+        std::vector<std::int32_t> catLayer, catSpecies;
+        for (int c = 0; c < db.categoryCount(); ++c) {
+            catNames.push_back(db.categoryName(c));
+            catLayer.push_back(static_cast<std::int32_t>(BiomeDatabase::layerOf(c, static_cast<int>(ns))));
+            catSpecies.push_back(static_cast<std::int32_t>(static_cast<std::size_t>(c) % std::max<std::size_t>(ns, 1)));
+        }
+        f.writeStrings("/categories/names", catNames);
+        f.writeI32("/categories/layer", catLayer, {hs(catLayer.size())});
+        f.writeI32("/categories/species", catSpecies, {hs(catSpecies.size())});
+        f.writeStrings("/features/names", std::vector<std::string>(kFeatureNames.begin(), kFeatureNames.end()));
+        f.writeStrings("/features/units", std::vector<std::string>(kFeatureUnits.begin(), kFeatureUnits.end()));
+
+        std::vector<std::string> pNames, pValues;
+        for (const auto& [k, v] : db.parameters) {
+            pNames.push_back(k);
+            pValues.push_back(v);
+        }
+        f.writeStrings("/parameters/names", pNames);
+        f.writeStrings("/parameters/values", pValues);
+
+        f.ensureGroup("/bins");
+        f.setAttr("/bins", "pcf_rmax_m", db.pcfBins.rMaxM);
+        f.setAttr("/bins", "pcf_bins", static_cast<std::int64_t>(db.pcfBins.count));
+        f.setAttr("/bins", "separation_min_m", db.separationBins.minM);
+        f.setAttr("/bins", "separation_max_m", db.separationBins.maxM);
+        f.setAttr("/bins", "separation_bins", static_cast<std::int64_t>(db.separationBins.count));
+        f.writeF64("/bins/pcf_edges_m", db.pcfBins.edgesM(), {hs(nb + 1)});
+        std::vector<double> annulus(nb);
+        for (std::size_t k = 0; k < nb; ++k) annulus[k] = db.pcfBins.annulusAreaM2(static_cast<int>(k));
+        f.writeF64("/bins/pcf_annulus_area_m2", annulus, {hs(nb)});
+        f.writeF64("/bins/separation_edges_m", db.separationBins.edgesM(), {hs(nsep + 1)});
+
+        f.ensureGroup("/inputs");
+        f.setAttr("/inputs", "count", static_cast<std::int64_t>(db.inputs.size()));
+        for (std::size_t i = 0; i < db.inputs.size(); ++i) {
+            const DbInput& in = db.inputs[i];
+            const std::string g = inputGroup(i);
+            f.ensureGroup(g);
+            f.setAttr(g, "path", in.path);
+            f.setAttr(g, "abiotics", in.abioticsPath);
+            f.setAttr(g, "terrain", in.terrainPath);
+            f.setAttr(g, "canopy", in.canopyPath);
+            f.setAttr(g, "seed", static_cast<std::int64_t>(in.seed));  // the uint64's bits
+            f.setAttr(g, "year", static_cast<std::int64_t>(in.year));
+            f.setAttr(g, "window_m", std::vector<double>{in.window.x0, in.window.y0, in.window.x1, in.window.y1});
+            f.setAttr(g, "undergrowth_plants", in.undergrowthPlants);
+            f.setAttr(g, "canopy_trees", in.canopyTrees);
+            f.setAttr(g, "unlabelled_plants", in.unlabelledPlants);
+            f.setAttr(g, "unlabelled_area_m2", in.unlabelledAreaM2);
+            f.setAttr(g, "parameters", in.parameters);
+        }
+
+        const std::size_t nc = db.combinations.size();
+        std::size_t kMaxTried = 1;
+        for (const auto& c : db.combinations) kMaxTried = std::max(kMaxTried, c.silhouette.size());
+        std::vector<std::int32_t> cMask, cK, cFirst;
+        std::vector<double> cArea, cCells;
+        for (const auto& c : db.combinations) {
+            cMask.push_back(c.mask);
+            cK.push_back(c.k);
+            cFirst.push_back(c.firstRegion);
+            cArea.push_back(c.areaM2);
+            cCells.push_back(static_cast<double>(c.cellCount));
+        }
+        f.ensureGroup("/combinations");
+        f.writeI32("/combinations/mask", cMask, {hs(nc)});
+        f.writeI32("/combinations/k", cK, {hs(nc)});
+        f.writeI32("/combinations/first_region", cFirst, {hs(nc)});
+        f.writeF64("/combinations/area_m2", cArea, {hs(nc)});
+        f.writeF64("/combinations/cell_count", cCells, {hs(nc)});
+        f.writeF64("/combinations/feature_mean",
+                   flatten(db.combinations, kFeatureCount, [](const DbCombination& c) { return featuresRow(c.featureMean); }),
+                   {hs(nc), kFeatureCount});
+        f.writeF64("/combinations/feature_std",
+                   flatten(db.combinations, kFeatureCount, [](const DbCombination& c) { return featuresRow(c.featureStd); }),
+                   {hs(nc), kFeatureCount});
+        f.writeF64("/combinations/silhouette",
+                   flatten(db.combinations, kMaxTried, [](const DbCombination& c) -> const std::vector<double>& { return c.silhouette; }),
+                   {hs(nc), hs(kMaxTried)});
+
+        const std::size_t nr = db.regions.size();
+        std::vector<std::int32_t> rComb, rCluster;
+        std::vector<double> rArea, rCells, rUnder, rCanopy, rDensity;
+        for (const auto& r : db.regions) {
+            rComb.push_back(r.combination);
+            rCluster.push_back(r.cluster);
+            rArea.push_back(r.areaM2);
+            rCells.push_back(static_cast<double>(r.cellCount));
+            rUnder.push_back(r.undergrowthCount);
+            rCanopy.push_back(r.canopyCount);
+            rDensity.push_back(r.densityPerM2);
+        }
+        f.ensureGroup("/regions");
+        f.setAttr("/regions", "count", static_cast<std::int64_t>(nr));
+        f.writeI32("/regions/combination", rComb, {hs(nr)});
+        f.writeI32("/regions/cluster", rCluster, {hs(nr)});
+        f.writeF64("/regions/centroid_normalised",
+                   flatten(db.regions, kFeatureCount, [](const DbRegion& r) { return featuresRow(r.centroidNormalised); }),
+                   {hs(nr), kFeatureCount});
+        f.writeF64("/regions/centroid_raw",
+                   flatten(db.regions, kFeatureCount, [](const DbRegion& r) { return featuresRow(r.centroidRaw); }),
+                   {hs(nr), kFeatureCount});
+        f.writeF64("/regions/area_m2", rArea, {hs(nr)});
+        f.writeF64("/regions/cell_count", rCells, {hs(nr)});
+        f.writeF64("/regions/undergrowth_count", rUnder, {hs(nr)});
+        f.writeF64("/regions/canopy_count", rCanopy, {hs(nr)});
+        f.writeF64("/regions/density_per_m2", rDensity, {hs(nr)});
+        f.writeF64("/regions/species_count",
+                   flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.speciesCount; }),
+                   {hs(nr), hs(ns)});
+        f.writeF64("/regions/species_proportion",
+                   flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.speciesProportion; }),
+                   {hs(nr), hs(ns)});
+        f.writeF64("/regions/canopy_species_count",
+                   flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.canopySpeciesCount; }),
+                   {hs(nr), hs(ns)});
+
+        for (std::size_t ri = 0; ri < nr; ++ri) {
+            const DbRegion& r = db.regions[ri];
+            const std::string g = regionGroup(ri);
+            f.ensureGroup(g);
+            f.setAttr(g, "combination", static_cast<std::int64_t>(r.combination));
+            f.setAttr(g, "cluster", static_cast<std::int64_t>(r.cluster));
+            for (int which = 0; which < 2; ++which) {
+                const auto& hists = which == 0 ? r.height : r.crownRadius;
+                const std::string stem = g + (which == 0 ? "/height" : "/crown_radius");
+                if (hists.size() != ns)
+                    throw ValidationError(path + ": region " + std::to_string(ri) + ": size histograms for " +
+                                          std::to_string(hists.size()) + " species, expected " + std::to_string(ns));
+                const std::size_t bins = ns ? hists[0].counts.size() : 0;
+                for (const auto& h : hists)
+                    if (h.counts.size() != bins || h.edges.size() != bins + 1)
+                        throw ValidationError(path + ": region " + std::to_string(ri) +
+                                              ": size histograms must all have the same number of bins");
+                f.writeF64(stem + "_edges_m", flatten(hists, bins + 1, [](const DbHistogram& h) -> const std::vector<double>& { return h.edges; }),
+                           {hs(ns), hs(bins + 1)});
+                f.writeF64(stem + "_counts", flatten(hists, bins, [](const DbHistogram& h) -> const std::vector<double>& { return h.counts; }),
+                           {hs(ns), hs(bins)});
+                std::vector<double> over;
+                for (const auto& h : hists) over.push_back(h.overflow);
+                f.writeF64(stem + "_overflow", over, {hs(ns)});
+            }
+            const std::size_t np = r.pairs.size();
+            std::vector<std::int32_t> src, tgt;
+            std::vector<double> norm, under, sources;
+            for (const auto& p : r.pairs) {
+                if (p.pairCount.size() != nb || p.translateWeighted.size() != nb || p.g.size() != nb ||
+                    p.separationCount.size() != nsep)
+                    throw ValidationError(path + ": region " + std::to_string(ri) + ": pair " + std::to_string(p.source) +
+                                          " -> " + std::to_string(p.target) + " has arrays of the wrong length");
+                src.push_back(p.source);
+                tgt.push_back(p.target);
+                norm.push_back(p.normalisation);
+                under.push_back(p.separationUnderflow);
+                sources.push_back(p.separationSources);
+            }
+            const std::string pg = g + "/pairs";
+            f.ensureGroup(pg);
+            f.writeI32(pg + "/source", src, {hs(np)});
+            f.writeI32(pg + "/target", tgt, {hs(np)});
+            f.writeF64(pg + "/pair_count", flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.pairCount; }),
+                       {hs(np), hs(nb)});
+            f.writeF64(pg + "/translate_weighted",
+                       flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.translateWeighted; }),
+                       {hs(np), hs(nb)});
+            f.writeF64(pg + "/normalisation_per_m2", norm, {hs(np)});
+            f.writeF64(pg + "/g", flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.g; }),
+                       {hs(np), hs(nb)});
+            f.writeF64(pg + "/separation_count",
+                       flatten(r.pairs, nsep, [](const DbPairStats& p) -> const std::vector<double>& { return p.separationCount; }),
+                       {hs(np), hs(nsep)});
+            f.writeF64(pg + "/separation_underflow", under, {hs(np)});
+            f.writeF64(pg + "/separation_sources", sources, {hs(np)});
+        }
+    }
+    out.commit();
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading
+
+BiomeDatabase readBiomeDatabase(const std::string& path) {
+    const h5::File f = h5::File::openRead(path);
+    if (!f.hasAttr("/", "format"))
+        throw IoError(path + ": not a biome database (root attribute 'format' is missing; expected '" +
+                      std::string(kBiomeDbFormat) + "')");
+    const std::string format = f.attrString("/", "format");
+    if (format != kBiomeDbFormat)
+        throw IoError(path + ": not a biome database (format '" + format + "', expected '" + kBiomeDbFormat + "')");
+    if (!f.hasAttr("/", "schema_version")) throw IoError(path + ": root attribute 'schema_version' is missing");
+    const std::int64_t version = f.attrInt("/", "schema_version");
+    if (version != kBiomeDbSchemaVersion)
+        throw IoError(path + ": biome database schema_version " + std::to_string(version) + " found, version " +
+                      std::to_string(kBiomeDbSchemaVersion) + " expected (re-run eco analyse with this version)");
+
+    const Reader rd(f);
+    BiomeDatabase db;
+    db.schemaVersion = static_cast<int>(version);
+    db.codeVersion = f.attrString("/", "code_version");
+    db.createdUtc = f.attrString("/", "created_utc");
+    db.biomeName = f.attrString("/", "biome_name");
+    db.biomeToml = f.attrString("/", "biome_toml");
+    db.seedingRadiusFactor = f.attrDouble("/", "seeding_radius_factor");
+
+    db.speciesNames = rd.strings("/species/names", Reader::kAny);
+    const std::size_t ns = db.speciesNames.size();
+    const auto masks = rd.i32("/species/canopy_subbiome_mask", {ns});
+    db.canopySubBiomeMask.assign(masks.begin(), masks.end());
+    db.subBiomeNames = rd.strings("/sub_biomes/names", Reader::kAny);
+    const auto featureNames = rd.strings("/features/names", kFeatureCount);
+    for (std::size_t i = 0; i < kFeatureCount; ++i)
+        if (featureNames[i] != kFeatureNames[i])
+            throw IoError(path + ": /features/names: feature " + std::to_string(i) + " is '" + featureNames[i] +
+                          "', expected '" + kFeatureNames[i] + "'");
+    const auto pNames = rd.strings("/parameters/names", Reader::kAny);
+    const auto pValues = rd.strings("/parameters/values", pNames.size());
+    for (std::size_t i = 0; i < pNames.size(); ++i) db.parameters.emplace_back(pNames[i], pValues[i]);
+
+    db.pcfBins.rMaxM = f.attrDouble("/bins", "pcf_rmax_m");
+    db.pcfBins.count = static_cast<int>(f.attrInt("/bins", "pcf_bins"));
+    db.separationBins.minM = f.attrDouble("/bins", "separation_min_m");
+    db.separationBins.maxM = f.attrDouble("/bins", "separation_max_m");
+    db.separationBins.count = static_cast<int>(f.attrInt("/bins", "separation_bins"));
+    try {
+        db.pcfBins.validate(path + ": /bins");
+        db.separationBins.validate(path + ": /bins");
+    } catch (const ValidationError& e) {
+        throw IoError(e.what());
+    }
+    const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
+    const std::size_t nsep = static_cast<std::size_t>(db.separationBins.count);
+    rd.f64("/bins/pcf_edges_m", {nb + 1});
+    rd.f64("/bins/separation_edges_m", {nsep + 1});
+
+    const std::size_t nIn = static_cast<std::size_t>(f.attrInt("/inputs", "count"));
+    for (std::size_t i = 0; i < nIn; ++i) {
+        const std::string g = inputGroup(i);
+        DbInput in;
+        in.path = f.attrString(g, "path");
+        in.abioticsPath = f.attrString(g, "abiotics");
+        in.terrainPath = f.attrString(g, "terrain");
+        in.canopyPath = f.attrString(g, "canopy");
+        in.seed = static_cast<std::uint64_t>(f.attrInt(g, "seed"));
+        in.year = static_cast<int>(f.attrInt(g, "year"));
+        const auto w = f.attrDoubles(g, "window_m");
+        if (w.size() != 4) throw IoError(path + ": " + g + ": attribute window_m must have 4 values");
+        in.window = RectWindow{w[0], w[1], w[2], w[3]};
+        in.undergrowthPlants = f.attrInt(g, "undergrowth_plants");
+        in.canopyTrees = f.attrInt(g, "canopy_trees");
+        in.unlabelledPlants = f.attrInt(g, "unlabelled_plants");
+        in.unlabelledAreaM2 = f.attrDouble(g, "unlabelled_area_m2");
+        in.parameters = f.attrString(g, "parameters");
+        db.inputs.push_back(in);
+    }
+
+    const std::size_t nc = rd.length("/combinations/mask");
+    const auto cMask = rd.i32("/combinations/mask", {nc});
+    const auto cK = rd.i32("/combinations/k", {nc});
+    const auto cFirst = rd.i32("/combinations/first_region", {nc});
+    const auto cArea = rd.f64("/combinations/area_m2", {nc});
+    const auto cCells = rd.f64("/combinations/cell_count", {nc});
+    const auto cMean = rd.f64("/combinations/feature_mean", {nc, kFeatureCount});
+    const auto cStd = rd.f64("/combinations/feature_std", {nc, kFeatureCount});
+    const auto silShape = f.shape("/combinations/silhouette");
+    if (silShape.size() != 2 || silShape[0] != nc)
+        throw IoError(path + ": /combinations/silhouette: expected shape [" + std::to_string(nc) + "][kmax]");
+    const std::size_t kTried = static_cast<std::size_t>(silShape[1]);
+    const auto cSil = rd.f64("/combinations/silhouette", {nc, kTried});
+
+    const std::size_t nr = rd.length("/regions/combination");
+    for (std::size_t i = 0; i < nc; ++i) {
+        DbCombination c;
+        c.mask = cMask[i];
+        c.k = cK[i];
+        c.firstRegion = cFirst[i];
+        c.areaM2 = cArea[i];
+        c.cellCount = static_cast<std::int64_t>(cCells[i]);
+        c.featureMean = featuresAt(cMean, i);
+        c.featureStd = featuresAt(cStd, i);
+        c.silhouette = rowOf(cSil, i, kTried);
+        if (c.k < 1 || c.firstRegion < 0 || static_cast<std::size_t>(c.firstRegion + c.k) > nr)
+            throw IoError(path + ": /combinations: combination " + std::to_string(c.mask) + " refers to regions " +
+                          std::to_string(c.firstRegion) + " .. " + std::to_string(c.firstRegion + c.k - 1) + " of " +
+                          std::to_string(nr));
+        for (double s : c.featureStd)
+            if (!(s > 0.0)) throw IoError(path + ": /combinations/feature_std: non-positive normalisation");
+        db.combinations.push_back(std::move(c));
+    }
+
+    const auto rComb = rd.i32("/regions/combination", {nr});
+    const auto rCluster = rd.i32("/regions/cluster", {nr});
+    const auto rCz = rd.f64("/regions/centroid_normalised", {nr, kFeatureCount});
+    const auto rCr = rd.f64("/regions/centroid_raw", {nr, kFeatureCount});
+    const auto rArea = rd.f64("/regions/area_m2", {nr});
+    const auto rCells = rd.f64("/regions/cell_count", {nr});
+    const auto rUnder = rd.f64("/regions/undergrowth_count", {nr});
+    const auto rCanopy = rd.f64("/regions/canopy_count", {nr});
+    const auto rDensity = rd.f64("/regions/density_per_m2", {nr});
+    const auto rSpecies = rd.f64("/regions/species_count", {nr, ns});
+    const auto rProp = rd.f64("/regions/species_proportion", {nr, ns});
+    const auto rCanSp = rd.f64("/regions/canopy_species_count", {nr, ns});
+    for (std::size_t ri = 0; ri < nr; ++ri) {
+        DbRegion r;
+        r.combination = rComb[ri];
+        r.cluster = rCluster[ri];
+        r.centroidNormalised = featuresAt(rCz, ri);
+        r.centroidRaw = featuresAt(rCr, ri);
+        r.areaM2 = rArea[ri];
+        r.cellCount = static_cast<std::int64_t>(rCells[ri]);
+        r.undergrowthCount = rUnder[ri];
+        r.canopyCount = rCanopy[ri];
+        r.densityPerM2 = rDensity[ri];
+        r.speciesCount = rowOf(rSpecies, ri, ns);
+        r.speciesProportion = rowOf(rProp, ri, ns);
+        r.canopySpeciesCount = rowOf(rCanSp, ri, ns);
+        const std::string g = regionGroup(ri);
+        for (int which = 0; which < 2; ++which) {
+            const std::string stem = g + (which == 0 ? "/height" : "/crown_radius");
+            const auto shape = f.shape(stem + "_counts");
+            if (shape.size() != 2 || shape[0] != ns)
+                throw IoError(path + ": " + stem + "_counts: expected shape [" + std::to_string(ns) + "][bins]");
+            const std::size_t bins = static_cast<std::size_t>(shape[1]);
+            const auto edges = rd.f64(stem + "_edges_m", {ns, bins + 1});
+            const auto counts = rd.f64(stem + "_counts", {ns, bins});
+            const auto over = rd.f64(stem + "_overflow", {ns});
+            auto& hists = which == 0 ? r.height : r.crownRadius;
+            for (std::size_t s = 0; s < ns; ++s)
+                hists.push_back(DbHistogram{rowOf(edges, s, bins + 1), rowOf(counts, s, bins), over[s]});
+        }
+        const std::string pg = g + "/pairs";
+        const std::size_t np = rd.length(pg + "/source");
+        const auto src = rd.i32(pg + "/source", {np});
+        const auto tgt = rd.i32(pg + "/target", {np});
+        const auto cnt = rd.f64(pg + "/pair_count", {np, nb});
+        const auto tw = rd.f64(pg + "/translate_weighted", {np, nb});
+        const auto norm = rd.f64(pg + "/normalisation_per_m2", {np});
+        const auto gg = rd.f64(pg + "/g", {np, nb});
+        const auto sep = rd.f64(pg + "/separation_count", {np, nsep});
+        const auto under = rd.f64(pg + "/separation_underflow", {np});
+        const auto sources = rd.f64(pg + "/separation_sources", {np});
+        for (std::size_t p = 0; p < np; ++p) {
+            DbPairStats ps;
+            ps.source = src[p];
+            ps.target = tgt[p];
+            if (ps.source < 0 || ps.target < 0 || ps.source >= db.categoryCount() || ps.target >= db.categoryCount())
+                throw IoError(path + ": " + pg + ": pair " + std::to_string(p) + " has a category outside 0.." +
+                              std::to_string(db.categoryCount() - 1));
+            ps.pairCount = rowOf(cnt, p, nb);
+            ps.translateWeighted = rowOf(tw, p, nb);
+            ps.normalisation = norm[p];
+            ps.g = rowOf(gg, p, nb);
+            ps.separationCount = rowOf(sep, p, nsep);
+            ps.separationUnderflow = under[p];
+            ps.separationSources = sources[p];
+            r.pairs.push_back(std::move(ps));
+        }
+        std::sort(r.pairs.begin(), r.pairs.end(), [](const DbPairStats& a, const DbPairStats& b) {
+            return std::make_pair(a.source, a.target) < std::make_pair(b.source, b.target);
+        });
+        db.regions.push_back(std::move(r));
+    }
+    return db;
+}
+
+}  // namespace eco
