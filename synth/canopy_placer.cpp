@@ -1,1 +1,1142 @@
-// placeholder: filled in by its owner
+#include "canopy_placer.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <cstdio>
+
+#include "atomic_file.h"
+#include "eco_version.h"
+#include "error.h"
+#include "h5io.h"
+#include "image_out.h"
+#include "rng.h"
+#include "strict_toml.h"
+
+namespace eco {
+
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+constexpr std::uint64_t kStreamRing = 0x63616e6f70790001ull;  // ring sampling, per (iteration, tree id)
+/// Rows per render band: small enough to balance two to a few dozen threads, large enough
+/// that a crown rarely spans many bands. Only performance depends on it, never results.
+constexpr int kBandRows = 16;
+
+std::string num(double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+}
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// ------------------------------------------------------------------------- rendering
+
+/// A crown to render: trunk (x, y), apex height h, radius r (metres).
+struct Crown {
+    double x, y, h, r;
+};
+
+/// Depth and id buffers plus, per crown, the number of cells of its disc.
+struct Frame {
+    std::vector<float> depth;        ///< crown surface above ground; lowest() where uncovered
+    std::vector<std::int32_t> id;    ///< top crown, -1 where none
+    std::vector<std::int32_t> disc;  ///< per crown: cells whose centre lies inside its disc
+};
+
+/// Rows [y0, y1] whose cell centres can lie inside the crown's disc (y0 > y1: none).
+inline void crownRows(const Crown& c, double originY, double cell, int height, int& y0, int& y1) {
+    y0 = std::max(0, static_cast<int>(std::floor((c.y - c.r - originY) / cell - 0.5)));
+    y1 = std::min(height - 1, static_cast<int>(std::ceil((c.y + c.r - originY) / cell - 0.5)));
+}
+
+/// Render crowns top-down. Each band of kBandRows rows is written by one thread, its crowns
+/// visited in index order with a strict depth test, so a tie goes to the lower index and
+/// the buffers do not depend on the number of threads.
+void render(const std::vector<Crown>& crowns, int w, int h, double cell, double ox, double oy, Frame& f) {
+    const std::size_t nCells = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    f.depth.assign(nCells, std::numeric_limits<float>::lowest());
+    f.id.assign(nCells, -1);
+    f.disc.assign(crowns.size(), 0);
+    const int nBands = (h + kBandRows - 1) / kBandRows;
+    // Bucket crowns by band (counting sort keeps index order inside a band).
+    std::vector<std::size_t> start(static_cast<std::size_t>(nBands) + 1, 0);
+    std::vector<int> rowLo(crowns.size()), rowHi(crowns.size());
+    for (std::size_t t = 0; t < crowns.size(); ++t) {
+        crownRows(crowns[t], oy, cell, h, rowLo[t], rowHi[t]);
+        if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+        for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b) ++start[static_cast<std::size_t>(b) + 1];
+    }
+    for (int b = 0; b < nBands; ++b) start[static_cast<std::size_t>(b) + 1] += start[static_cast<std::size_t>(b)];
+    std::vector<std::int32_t> entries(start.back());
+    std::vector<std::int32_t> entryDisc(start.back(), 0);
+    {
+        std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+        for (std::size_t t = 0; t < crowns.size(); ++t) {
+            if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+            for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b)
+                entries[fill[static_cast<std::size_t>(b)]++] = static_cast<std::int32_t>(t);
+        }
+    }
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int b = 0; b < nBands; ++b) {
+        const int bandLo = b * kBandRows, bandHi = std::min(h, bandLo + kBandRows) - 1;
+        for (std::size_t e = start[static_cast<std::size_t>(b)]; e < start[static_cast<std::size_t>(b) + 1]; ++e) {
+            const std::int32_t t = entries[e];
+            const Crown& c = crowns[static_cast<std::size_t>(t)];
+            const double r2 = c.r * c.r, base = c.h - c.r;
+            std::int32_t count = 0;
+            const int yA = std::max(bandLo, rowLo[static_cast<std::size_t>(t)]);
+            const int yB = std::min(bandHi, rowHi[static_cast<std::size_t>(t)]);
+            for (int iy = yA; iy <= yB; ++iy) {
+                const double dy = oy + (iy + 0.5) * cell - c.y;
+                const double rem = r2 - dy * dy;
+                if (!(rem > 0)) continue;
+                const double hw = std::sqrt(rem);
+                const int xA = std::max(0, static_cast<int>(std::ceil((c.x - hw - ox) / cell - 0.5)));
+                const int xB = std::min(w - 1, static_cast<int>(std::floor((c.x + hw - ox) / cell - 0.5)));
+                if (xA > xB) continue;
+                float* depthRow = f.depth.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(w);
+                std::int32_t* idRow = f.id.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(w);
+                // Single precision inside the span (offsets of a few metres), written as
+                // branch-free selects so that the loop vectorises.
+                const float r2f = static_cast<float>(r2), dy2 = static_cast<float>(dy * dy);
+                const float basef = static_cast<float>(base), cellf = static_cast<float>(cell);
+                const float dx0 = static_cast<float>(ox + (xA + 0.5) * cell - c.x);
+                std::int32_t n = 0;
+                for (int ix = xA; ix <= xB; ++ix) {
+                    const float dx = dx0 + static_cast<float>(ix - xA) * cellf;
+                    const float d2 = dx * dx + dy2;
+                    const bool in = d2 < r2f;
+                    const float z = basef + std::sqrt(std::max(r2f - d2, 0.0f));
+                    const bool top = in & (z > depthRow[ix]);
+                    n += static_cast<std::int32_t>(in);
+                    depthRow[ix] = top ? z : depthRow[ix];
+                    idRow[ix] = top ? t : idRow[ix];
+                }
+                count += n;
+            }
+            entryDisc[e] = count;
+        }
+    }
+    for (std::size_t e = 0; e < entries.size(); ++e) f.disc[static_cast<std::size_t>(entries[e])] += entryDisc[e];
+}
+
+/// What a render says about the CHM footprint and each crown's visible part of it.
+struct Visibility {
+    std::vector<std::int64_t> visible;  ///< footprint cells where the crown is on top
+    std::vector<std::int64_t> sumX;     ///< sum of their column indices
+    std::vector<std::int64_t> sumY;     ///< sum of their row indices
+    std::vector<std::uint8_t> open;     ///< per cell: on the footprint and uncovered
+    std::int64_t footprint = 0;
+    std::int64_t covered = 0;
+    double sumSquaredErrorM2 = 0;
+};
+
+void measure(const Frame& f, const Grid<float>& chm, double thresholdM, std::size_t nCrowns, Visibility& v) {
+    const int w = chm.width(), h = chm.height();
+    v.visible.assign(nCrowns, 0);
+    v.sumX.assign(nCrowns, 0);
+    v.sumY.assign(nCrowns, 0);
+    v.open.resize(chm.size());
+    std::vector<std::int64_t> rowFoot(static_cast<std::size_t>(h), 0), rowCovered(static_cast<std::size_t>(h), 0);
+    std::vector<double> rowSq(static_cast<std::size_t>(h), 0.0);
+    std::int64_t* visible = v.visible.data();
+    std::int64_t* sumX = v.sumX.data();
+    std::int64_t* sumY = v.sumY.data();
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy) {
+        const std::size_t row = static_cast<std::size_t>(iy) * static_cast<std::size_t>(w);
+        std::int64_t foot = 0, covered = 0;
+        double sq = 0;
+        // Runs of one id along the row are summed locally and flushed once (integer sums:
+        // the totals do not depend on the order of the atomic additions).
+        std::int32_t runId = -1;
+        std::int64_t runN = 0, runX = 0;
+        auto flush = [&] {
+            if (runId >= 0 && runN > 0) {
+#pragma omp atomic
+                visible[runId] += runN;
+#pragma omp atomic
+                sumX[runId] += runX;
+#pragma omp atomic
+                sumY[runId] += runN * iy;
+            }
+            runN = 0;
+            runX = 0;
+        };
+        for (int ix = 0; ix < w; ++ix) {
+            const std::size_t i = row + static_cast<std::size_t>(ix);
+            const float c = chm.data()[i];
+            const std::int32_t id = f.id[i];
+            v.open[i] = c >= thresholdM && id < 0;
+            if (!(c >= thresholdM)) continue;
+            ++foot;
+            const double rendered = id >= 0 ? static_cast<double>(f.depth[i]) : 0.0;
+            sq += (rendered - c) * (rendered - c);
+            if (id < 0) continue;
+            ++covered;
+            if (id != runId) {
+                flush();
+                runId = id;
+            }
+            ++runN;
+            runX += ix;
+        }
+        flush();
+        rowFoot[static_cast<std::size_t>(iy)] = foot;
+        rowCovered[static_cast<std::size_t>(iy)] = covered;
+        rowSq[static_cast<std::size_t>(iy)] = sq;
+    }
+    v.footprint = v.covered = 0;
+    v.sumSquaredErrorM2 = 0;
+    for (int iy = 0; iy < h; ++iy) {  // fixed order: the double sum is thread-independent
+        v.footprint += rowFoot[static_cast<std::size_t>(iy)];
+        v.covered += rowCovered[static_cast<std::size_t>(iy)];
+        v.sumSquaredErrorM2 += rowSq[static_cast<std::size_t>(iy)];
+    }
+}
+
+// ------------------------------------------------------------------------- spatial hashing
+
+/// Uniform grid of point indices over the CHM extent, rebuilt per query phase. A uniform
+/// grid rather than FLANN: crowns have a bounded radius, so a radius query touches 3 x 3
+/// buckets, the build is one counting sort (O(n), no allocation per query), results come in
+/// index order (deterministic), and points can be appended while accepting new trees.
+class BucketGrid {
+public:
+    BucketGrid(double originX, double originY, double extentX, double extentY, double bucketM)
+        : ox_(originX), oy_(originY), s_(std::max(bucketM, std::max(extentX, extentY) / 4096.0)) {
+        nx_ = std::max(1, static_cast<int>(std::ceil(extentX / s_)) + 1);
+        ny_ = std::max(1, static_cast<int>(std::ceil(extentY / s_)) + 1);
+        buckets_.assign(static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_), {});
+    }
+    void insert(double x, double y, std::int32_t id) { buckets_[bucketOf(x, y)].push_back(id); }
+    /// Calls fn(id) for every point whose bucket lies within `radius` of (x, y); stops early
+    /// when fn returns true (and then returns true).
+    template <typename Fn>
+    bool any(double x, double y, double radius, Fn&& fn) const {
+        const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
+        const int bx1 = clampX(static_cast<int>(std::floor((x + radius - ox_) / s_)));
+        const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
+        const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
+        for (int by = by0; by <= by1; ++by)
+            for (int bx = bx0; bx <= bx1; ++bx)
+                for (const std::int32_t id : buckets_[static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) +
+                                                      static_cast<std::size_t>(bx)])
+                    if (fn(id)) return true;
+        return false;
+    }
+
+private:
+    int clampX(int b) const { return std::clamp(b, 0, nx_ - 1); }
+    int clampY(int b) const { return std::clamp(b, 0, ny_ - 1); }
+    std::size_t bucketOf(double x, double y) const {
+        const int bx = clampX(static_cast<int>(std::floor((x - ox_) / s_)));
+        const int by = clampY(static_cast<int>(std::floor((y - oy_) / s_)));
+        return static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(bx);
+    }
+    double ox_, oy_, s_;
+    int nx_ = 1, ny_ = 1;
+    std::vector<std::vector<std::int32_t>> buckets_;
+};
+
+// ------------------------------------------------------------------------- nearest mapped cell
+
+/// 1D squared distance transform along one line with the nearest site (Felzenszwalb and
+/// Huttenlocher's lower envelope of parabolas). f[q] = squared distance so far (inf: none),
+/// site[q] = its cell; on exit both hold the result along the line.
+void lowerEnvelope(std::vector<double>& f, std::vector<std::int64_t>& site, std::vector<int>& v,
+                   std::vector<double>& z, std::vector<double>& outF, std::vector<std::int64_t>& outSite) {
+    const int n = static_cast<int>(f.size());
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    int k = -1;
+    for (int q = 0; q < n; ++q) {
+        if (!std::isfinite(f[static_cast<std::size_t>(q)])) continue;
+        while (k >= 0) {
+            const int p = v[static_cast<std::size_t>(k)];
+            const double s = ((f[static_cast<std::size_t>(q)] + static_cast<double>(q) * q) -
+                              (f[static_cast<std::size_t>(p)] + static_cast<double>(p) * p)) /
+                             (2.0 * (q - p));
+            if (s <= z[static_cast<std::size_t>(k)]) --k;
+            else break;
+        }
+        ++k;
+        v[static_cast<std::size_t>(k)] = q;
+        z[static_cast<std::size_t>(k)] = k == 0 ? -inf
+                                                : ((f[static_cast<std::size_t>(q)] + static_cast<double>(q) * q) -
+                                                   (f[static_cast<std::size_t>(v[static_cast<std::size_t>(k) - 1])] +
+                                                    static_cast<double>(v[static_cast<std::size_t>(k) - 1]) *
+                                                        v[static_cast<std::size_t>(k) - 1])) /
+                                                      (2.0 * (q - v[static_cast<std::size_t>(k) - 1]));
+        z[static_cast<std::size_t>(k) + 1] = inf;
+    }
+    if (k < 0) {
+        for (int q = 0; q < n; ++q) {
+            outF[static_cast<std::size_t>(q)] = inf;
+            outSite[static_cast<std::size_t>(q)] = -1;
+        }
+        return;
+    }
+    int j = 0;
+    for (int q = 0; q < n; ++q) {
+        while (z[static_cast<std::size_t>(j) + 1] < q) ++j;
+        const int p = v[static_cast<std::size_t>(j)];
+        outF[static_cast<std::size_t>(q)] = static_cast<double>(q - p) * (q - p) + f[static_cast<std::size_t>(p)];
+        outSite[static_cast<std::size_t>(q)] = site[static_cast<std::size_t>(p)];
+    }
+}
+
+/// The species map with every -1 replaced by the species of the nearest mapped cell (exact
+/// Euclidean distance transform, columns then rows). All -1 when nothing is mapped.
+Grid<std::int32_t> fillFromNearest(const Grid<std::int32_t>& map) {
+    const int w = map.width(), h = map.height();
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> colF(map.size(), inf);
+    std::vector<std::int64_t> colSite(map.size(), -1);
+    // Pass 1: along each column (x fixed), nearest mapped cell in that column.
+#pragma omp parallel
+    {
+        std::vector<double> f(static_cast<std::size_t>(h)), outF(static_cast<std::size_t>(h)), z(static_cast<std::size_t>(h) + 1);
+        std::vector<std::int64_t> site(static_cast<std::size_t>(h)), outSite(static_cast<std::size_t>(h));
+        std::vector<int> v(static_cast<std::size_t>(h));
+#pragma omp for schedule(static)
+        for (int ix = 0; ix < w; ++ix) {
+            for (int iy = 0; iy < h; ++iy) {
+                const std::size_t i = map.index(ix, iy);
+                f[static_cast<std::size_t>(iy)] = map.data()[i] >= 0 ? 0.0 : inf;
+                site[static_cast<std::size_t>(iy)] = map.data()[i] >= 0 ? static_cast<std::int64_t>(i) : -1;
+            }
+            lowerEnvelope(f, site, v, z, outF, outSite);
+            for (int iy = 0; iy < h; ++iy) {
+                colF[map.index(ix, iy)] = outF[static_cast<std::size_t>(iy)];
+                colSite[map.index(ix, iy)] = outSite[static_cast<std::size_t>(iy)];
+            }
+        }
+    }
+    Grid<std::int32_t> out = map;
+#pragma omp parallel
+    {
+        std::vector<double> f(static_cast<std::size_t>(w)), outF(static_cast<std::size_t>(w)), z(static_cast<std::size_t>(w) + 1);
+        std::vector<std::int64_t> site(static_cast<std::size_t>(w)), outSite(static_cast<std::size_t>(w));
+        std::vector<int> v(static_cast<std::size_t>(w));
+#pragma omp for schedule(static)
+        for (int iy = 0; iy < h; ++iy) {
+            for (int ix = 0; ix < w; ++ix) {
+                f[static_cast<std::size_t>(ix)] = colF[map.index(ix, iy)];
+                site[static_cast<std::size_t>(ix)] = colSite[map.index(ix, iy)];
+            }
+            lowerEnvelope(f, site, v, z, outF, outSite);
+            for (int ix = 0; ix < w; ++ix)
+                if (map(ix, iy) < 0 && outSite[static_cast<std::size_t>(ix)] >= 0)
+                    out(ix, iy) = map.data()[static_cast<std::size_t>(outSite[static_cast<std::size_t>(ix)])];
+        }
+    }
+    return out;
+}
+
+// ------------------------------------------------------------------------- the placer
+
+struct Tree {
+    double x, y;     ///< trunk, world metres
+    double heightM;  ///< apex above ground
+    double radiusM;  ///< crown radius
+    std::int32_t species;
+    std::uint64_t uid;  ///< creation order; keys the tree's random stream
+};
+
+/// Read-only lookups of the placer: CHM heights, species, crown radii.
+class Scene {
+public:
+    Scene(const Grid<float>& chm, const Grid<std::int32_t>& speciesMap, const Biome& biome, const CanopyParams& p)
+        : chm_(chm), map_(speciesMap), biome_(biome), p_(p) {
+        bool anyNone = false;
+        for (const std::int32_t s : speciesMap.data()) anyNone = anyNone || s < 0;
+        if (anyNone) {
+            filled_ = fillFromNearest(speciesMap);
+            // Nothing mapped at all: the tallest canopy species (lower index on a tie).
+            int tallest = -1;
+            for (const auto& s : biome.species)
+                if (s.canopy && (tallest < 0 || s.maxHeightM > biome.species[static_cast<std::size_t>(tallest)].maxHeightM))
+                    tallest = s.id;
+            for (auto& s : filled_.data())
+                if (s < 0) s = tallest;
+        }
+    }
+    const Grid<float>& chm() const { return chm_; }
+    bool inside(double x, double y) const {
+        return x >= chm_.originX() && y >= chm_.originY() && x < chm_.originX() + chm_.extentX() &&
+               y < chm_.originY() + chm_.extentY();
+    }
+    std::size_t cellIndex(double x, double y) const {
+        const int ix = std::clamp(chm_.cellX(x), 0, chm_.width() - 1);
+        const int iy = std::clamp(chm_.cellY(y), 0, chm_.height() - 1);
+        return chm_.index(ix, iy);
+    }
+    /// CHM at (x, y): bilinear over those of the four surrounding cells on the footprint
+    /// (weights renormalised), so a trunk near a crown edge does not average in the ground;
+    /// the nearest cell when none of the four is on the footprint.
+    double heightAt(double x, double y) const {
+        const double fx = (x - chm_.originX()) / chm_.cellSizeM() - 0.5;
+        const double fy = (y - chm_.originY()) / chm_.cellSizeM() - 0.5;
+        const int x0 = static_cast<int>(std::floor(fx)), y0 = static_cast<int>(std::floor(fy));
+        const double tx = fx - x0, ty = fy - y0;
+        double sum = 0, wsum = 0;
+        const double wts[4] = {(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty};
+        const int dxs[4] = {0, 1, 0, 1}, dys[4] = {0, 0, 1, 1};
+        for (int k = 0; k < 4; ++k) {
+            const double v = chm_.clamped(x0 + dxs[k], y0 + dys[k]);
+            if (v >= p_.canopyThresholdM && wts[k] > 0) {
+                sum += wts[k] * v;
+                wsum += wts[k];
+            }
+        }
+        if (wsum > 0) return sum / wsum;
+        return chm_.data()[cellIndex(x, y)];
+    }
+    int speciesAt(double x, double y) const {
+        const std::size_t i = cellIndex(x, y);
+        const int s = map_.data()[i];
+        return s >= 0 ? s : filled_.data()[i];
+    }
+    bool mapped(double x, double y) const { return map_.data()[cellIndex(x, y)] >= 0; }
+    double radiusFor(int species, double heightM) const {
+        return biome_.species[static_cast<std::size_t>(species)].allometry.crownRadiusM(heightM);
+    }
+    /// A tree at (x, y) with the CHM's height there.
+    Tree makeTree(double x, double y, double heightM, std::uint64_t uid) const {
+        const int s = speciesAt(x, y);
+        return {x, y, heightM, radiusFor(s, heightM), s, uid};
+    }
+
+private:
+    const Grid<float>& chm_;
+    const Grid<std::int32_t>& map_;
+    Grid<std::int32_t> filled_;
+    const Biome& biome_;
+    const CanopyParams& p_;
+};
+
+std::vector<Crown> crownsOf(const std::vector<Tree>& trees) {
+    std::vector<Crown> c(trees.size());
+    for (std::size_t i = 0; i < trees.size(); ++i) c[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
+    return c;
+}
+
+/// Render the trees and measure them against the CHM.
+void renderAndMeasure(const std::vector<Tree>& trees, const Grid<float>& chm, double thresholdM, Frame& frame,
+                      Visibility& vis) {
+    render(crownsOf(trees), chm.width(), chm.height(), chm.cellSizeM(), chm.originX(), chm.originY(), frame);
+    measure(frame, chm, thresholdM, trees.size(), vis);
+}
+
+void fillStats(IterationStats& s, std::size_t trees, const Visibility& vis) {
+    s.trees = trees;
+    s.coverage = vis.footprint ? static_cast<double>(vis.covered) / static_cast<double>(vis.footprint) : 1.0;
+    s.rmseM = vis.footprint ? std::sqrt(vis.sumSquaredErrorM2 / static_cast<double>(vis.footprint)) : 0.0;
+}
+
+bool starved(std::size_t t, const Frame& frame, const Visibility& vis, double minFraction) {
+    const double disc = frame.disc[t];
+    if (!(disc > 0)) return true;
+    return static_cast<double>(vis.visible[t]) < minFraction * disc;
+}
+
+/// Initial seeds at the CHM maxima, refined to sub-cell precision by a parabola through each
+/// maximum and its two neighbours along x and along y.
+std::vector<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
+    const Grid<float>& chm = scene.chm();
+    const auto maxima = chmLocalMaxima(chm, p.minSeedHeightM, p.localMaximumRadiusCells);
+    std::vector<Tree> trees(maxima.size());
+    const int w = chm.width(), h = chm.height();
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(maxima.size()); ++k) {
+        const std::size_t i = maxima[static_cast<std::size_t>(k)];
+        const int ix = static_cast<int>(i % static_cast<std::size_t>(w)), iy = static_cast<int>(i / static_cast<std::size_t>(w));
+        const double c = chm(ix, iy);
+        auto offset = [&](double lo, double hi) {
+            const double curvature = lo - 2.0 * c + hi;
+            if (!(curvature < 0)) return 0.0;
+            return std::clamp(0.5 * (lo - hi) / curvature, -0.5, 0.5);
+        };
+        const double ox = (ix > 0 && ix < w - 1) ? offset(chm(ix - 1, iy), chm(ix + 1, iy)) : 0.0;
+        const double oy = (iy > 0 && iy < h - 1) ? offset(chm(ix, iy - 1), chm(ix, iy + 1)) : 0.0;
+        const double x = chm.cellCentreX(ix) + ox * chm.cellSizeM();
+        const double y = chm.cellCentreY(iy) + oy * chm.cellSizeM();
+        double height = scene.heightAt(x, y);
+        if (height < c) height = c;  // the maximum cell is a lower bound of the apex
+        trees[static_cast<std::size_t>(k)] = scene.makeTree(x, y, height, static_cast<std::uint64_t>(k));
+    }
+    return trees;
+}
+
+/// Largest crown radius any canopy species reaches at the CHM's largest height.
+double largestRadius(const Biome& biome, double maxHeightM) {
+    double r = 0;
+    for (const auto& s : biome.species)
+        if (s.canopy) r = std::max(r, s.allometry.crownRadiusM(std::max(maxHeightM, 0.0)));
+    return r;
+}
+
+/// Keep flags of the duplicate removal (see removeDuplicateTrees): tallest first, ties to the
+/// larger crown then the lower index; a crown goes when its trunk is within minTrunkDistanceM
+/// of a kept trunk or its sphere lies inside a kept sphere (centres at apex - radius).
+std::vector<char> duplicateKeepFlags(const std::vector<Crown>& c, double minTrunkDistanceM, double originX,
+                                     double originY, double extentX, double extentY) {
+    double maxR = 0;
+    for (const auto& k : c) maxR = std::max(maxR, k.r);
+    std::vector<std::size_t> order(c.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        if (c[a].h != c[b].h) return c[a].h > c[b].h;
+        if (c[a].r != c[b].r) return c[a].r > c[b].r;
+        return a < b;
+    });
+    const double reach = std::max({minTrunkDistanceM, maxR, 1e-6});
+    BucketGrid kept(originX, originY, extentX, extentY, reach);
+    std::vector<char> keep(c.size(), 0);
+    const double minD2 = minTrunkDistanceM * minTrunkDistanceM;
+    for (const std::size_t i : order) {
+        const Crown& a = c[i];
+        const bool duplicate = kept.any(a.x, a.y, reach, [&](std::int32_t j) {
+            const Crown& b = c[static_cast<std::size_t>(j)];  // at least as tall as a
+            const double dx = b.x - a.x, dy = b.y - a.y;
+            const double d2 = dx * dx + dy * dy;
+            if (d2 < minD2) return true;
+            const double dz = (b.h - b.r) - (a.h - a.r);
+            return std::sqrt(d2 + dz * dz) + a.r <= b.r;
+        });
+        if (duplicate) continue;
+        keep[i] = 1;
+        kept.insert(a.x, a.y, static_cast<std::int32_t>(i));
+    }
+    return keep;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------- parameters
+
+const std::vector<CanopyParamField>& canopyParamFields() {
+    using K = CanopyParamField::Kind;
+    static const std::vector<CanopyParamField> fields = {
+        {"canopy_threshold_m", "CHM footprint: cells with CHM >= this are canopy (m)", K::Real,
+         &CanopyParams::canopyThresholdM, nullptr},
+        {"min_seed_height_m", "trees are seeded and may move only where the CHM is >= this (m)", K::Real,
+         &CanopyParams::minSeedHeightM, nullptr},
+        {"local_maximum_radius_cells", "initial seeds: strict CHM maxima over a (2R+1)^2 window (cells)", K::Integer,
+         nullptr, &CanopyParams::localMaximumRadiusCells},
+        {"min_visible_fraction", "a tree whose visible crown is below this fraction of its disc is removed", K::Real,
+         &CanopyParams::minVisibleFraction, nullptr},
+        {"max_iterations", "iteration cap", K::Integer, nullptr, &CanopyParams::maxIterations},
+        {"move_factor", "fraction of the way to the centroid of the visible crown moved per iteration", K::Real,
+         &CanopyParams::moveFactor, nullptr},
+        {"ring_samples", "candidate new trees per tree and iteration", K::Integer, nullptr, &CanopyParams::ringSamples},
+        {"ring_factor", "ring radius = ring_factor * (r_i + r_new)", K::Real, &CanopyParams::ringFactor, nullptr},
+        {"min_trunk_distance_m", "duplicates: trunks closer than this (m)", K::Real, &CanopyParams::minTrunkDistanceM,
+         nullptr},
+        {"coverage_epsilon", "stop when an iteration gains less coverage than this (fraction)", K::Real,
+         &CanopyParams::coverageEpsilon, nullptr},
+        {"seed", "random seed of the ring sampling", K::Seed, nullptr, nullptr},
+    };
+    return fields;
+}
+
+double canopyParamValue(const CanopyParams& p, const CanopyParamField& f) {
+    switch (f.kind) {
+        case CanopyParamField::Kind::Real: return p.*(f.real);
+        case CanopyParamField::Kind::Integer: return p.*(f.integer);
+        case CanopyParamField::Kind::Seed: return static_cast<double>(p.seed);
+    }
+    return 0;
+}
+
+void setCanopyParam(CanopyParams& p, const std::string& key, double value) {
+    for (const auto& f : canopyParamFields()) {
+        if (key != f.key) continue;
+        if (!std::isfinite(value)) throw ValidationError("canopy parameter '" + key + "' must be finite, got " + num(value));
+        if (f.kind != CanopyParamField::Kind::Real && value != std::floor(value))
+            throw ValidationError("canopy parameter '" + key + "' must be an integer, got " + num(value));
+        switch (f.kind) {
+            case CanopyParamField::Kind::Real: p.*(f.real) = value; break;
+            case CanopyParamField::Kind::Integer:
+                if (std::abs(value) > 1e9) throw ValidationError("canopy parameter '" + key + "' out of range: " + num(value));
+                p.*(f.integer) = static_cast<int>(value);
+                break;
+            case CanopyParamField::Kind::Seed:
+                if (value < 0 || value >= 9007199254740992.0)
+                    throw ValidationError("canopy parameter 'seed' must lie in [0, 2^53), got " + num(value));
+                p.seed = static_cast<std::uint64_t>(value);
+                break;
+        }
+        return;
+    }
+    std::string keys;
+    for (const auto& f : canopyParamFields()) keys += (keys.empty() ? "" : ", ") + std::string(f.key);
+    throw ValidationError("unknown canopy parameter '" + key + "' (known: " + keys + ")");
+}
+
+void validateCanopyParams(const CanopyParams& p) {
+    auto fail = [](const std::string& key, const std::string& what, double v) {
+        throw ValidationError("canopy parameter '" + key + "' " + what + ", got " + num(v));
+    };
+    if (!std::isfinite(p.canopyThresholdM) || p.canopyThresholdM < 0) fail("canopy_threshold_m", "must be >= 0", p.canopyThresholdM);
+    if (!std::isfinite(p.minSeedHeightM) || p.minSeedHeightM <= 0) fail("min_seed_height_m", "must be > 0", p.minSeedHeightM);
+    if (p.localMaximumRadiusCells < 1 || p.localMaximumRadiusCells > 64)
+        fail("local_maximum_radius_cells", "must lie in [1, 64]", p.localMaximumRadiusCells);
+    if (!std::isfinite(p.minVisibleFraction) || p.minVisibleFraction < 0 || p.minVisibleFraction > 1)
+        fail("min_visible_fraction", "must lie in [0, 1]", p.minVisibleFraction);
+    if (p.maxIterations < 0 || p.maxIterations > 100000) fail("max_iterations", "must lie in [0, 100000]", p.maxIterations);
+    if (!std::isfinite(p.moveFactor) || p.moveFactor < 0 || p.moveFactor > 1) fail("move_factor", "must lie in [0, 1]", p.moveFactor);
+    if (p.ringSamples < 0 || p.ringSamples > 1024) fail("ring_samples", "must lie in [0, 1024]", p.ringSamples);
+    if (!std::isfinite(p.ringFactor) || p.ringFactor <= 0 || p.ringFactor > 10) fail("ring_factor", "must lie in (0, 10]", p.ringFactor);
+    if (!std::isfinite(p.minTrunkDistanceM) || p.minTrunkDistanceM < 0)
+        fail("min_trunk_distance_m", "must be >= 0", p.minTrunkDistanceM);
+    if (!std::isfinite(p.coverageEpsilon) || p.coverageEpsilon < 0 || p.coverageEpsilon > 1)
+        fail("coverage_epsilon", "must lie in [0, 1]", p.coverageEpsilon);
+}
+
+// ------------------------------------------------------------------------- public functions
+
+std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chm, double minHeightM, int radiusCells) {
+    const int w = chm.width(), h = chm.height(), R = std::max(1, radiusCells);
+    std::vector<std::vector<std::size_t>> rows(static_cast<std::size_t>(h));
+#pragma omp parallel for schedule(dynamic, 16)
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const float v = chm(ix, iy);
+            if (!(v >= minHeightM)) continue;
+            const std::size_t i = chm.index(ix, iy);
+            bool isMax = true;
+            for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R) && isMax; ++jy)
+                for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
+                    const float u = chm(jx, jy);
+                    const std::size_t j = chm.index(jx, jy);
+                    if (j == i) continue;
+                    if (u > v || (u == v && j < i)) {
+                        isMax = false;
+                        break;
+                    }
+                }
+            if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
+        }
+    }
+    std::vector<std::size_t> out;
+    for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
+    return out;
+}
+
+CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& like) {
+    std::vector<Crown> crowns(plants.size());
+    for (std::size_t i = 0; i < plants.size(); ++i)
+        crowns[i] = {plants[i].xM, plants[i].yM, plants[i].heightM, plants[i].crownRadiusM};
+    Frame f;
+    render(crowns, like.width(), like.height(), like.cellSizeM(), like.originX(), like.originY(), f);
+    CrownRender out{Grid<float>::like(like, 0.f), Grid<std::int32_t>::like(like, -1)};
+    for (std::size_t i = 0; i < like.size(); ++i) {
+        out.treeIndex.data()[i] = f.id[i];
+        out.surfaceM.data()[i] = f.id[i] >= 0 ? f.depth[i] : 0.f;
+    }
+    return out;
+}
+
+CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
+                         const Biome& biome, const CanopyParams& params, const CanopyProgress& progress) {
+    const auto tStart = Clock::now();
+    validateCanopyParams(params);
+    if (chmM.empty()) throw ValidationError("canopy placer: the CHM is empty");
+    auto geom = [](const auto& g) {
+        return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.cellSizeM()) +
+               " m, origin (" + num(g.originX()) + ", " + num(g.originY()) + ")";
+    };
+    if (!chmM.sameGeometry(terrainM))
+        throw ValidationError("canopy placer: the CHM (" + geom(chmM) + ") and the terrain (" + geom(terrainM) +
+                              ") differ in geometry");
+    if (!chmM.sameGeometry(speciesMap))
+        throw ValidationError("canopy placer: the CHM (" + geom(chmM) + ") and the species map (" + geom(speciesMap) +
+                              ") differ in geometry");
+    for (int iy = 0; iy < chmM.height(); ++iy)
+        for (int ix = 0; ix < chmM.width(); ++ix) {
+            const float v = chmM(ix, iy);
+            if (!std::isfinite(v) || v < 0)
+                throw ValidationError("canopy placer: CHM height " + num(v) + " m at cell (" + std::to_string(ix) + ", " +
+                                      std::to_string(iy) + ") is negative or not finite");
+        }
+    bool anyCanopy = false;
+    for (const auto& s : biome.species) anyCanopy = anyCanopy || s.canopy;
+    if (!anyCanopy) throw ValidationError("canopy placer: biome '" + biome.name + "' has no canopy species");
+    for (std::size_t i = 0; i < speciesMap.size(); ++i) {
+        const int s = speciesMap.data()[i];
+        if (s < -1 || s >= static_cast<int>(biome.species.size()) ||
+            (s >= 0 && !biome.species[static_cast<std::size_t>(s)].canopy))
+            throw ValidationError("canopy placer: species map value " + std::to_string(s) + " at cell (" +
+                                  std::to_string(i % static_cast<std::size_t>(speciesMap.width())) + ", " +
+                                  std::to_string(i / static_cast<std::size_t>(speciesMap.width())) +
+                                  ") is not a canopy species of biome '" + biome.name + "' nor -1");
+    }
+
+    const Scene scene(chmM, speciesMap, biome, params);
+    const double cell = chmM.cellSizeM();
+    const double maxRadius = std::max(largestRadius(biome, chmM.maxValue()), cell);
+    CanopyResult result;
+
+    // Initial seeding.
+    auto tIter = Clock::now();
+    std::vector<Tree> trees = initialSeeds(scene, params);
+    std::uint64_t nextUid = trees.size();
+    result.initialSeeds = trees.size();
+    Frame frame;
+    Visibility vis;
+    std::vector<std::uint8_t> candValid;
+    std::vector<Tree> candTree;
+    renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+    {
+        IterationStats s;
+        s.iteration = 0;
+        s.added = trees.size();
+        fillStats(s, trees.size(), vis);
+        s.seconds = secondsSince(tIter);
+        result.iterations.push_back(s);
+        if (progress) progress(s);
+    }
+
+    result.stopReason = params.maxIterations == 0 ? "iteration cap" : "";
+    for (int it = 1; it <= params.maxIterations; ++it) {
+        tIter = Clock::now();
+        IterationStats s;
+        s.iteration = it;
+
+        // Remove sun-starved trees; move the others toward the centroid of their visible crown.
+        std::vector<Tree> next;
+        next.reserve(trees.size());
+        std::vector<std::size_t> from;
+        from.reserve(trees.size());
+        for (std::size_t t = 0; t < trees.size(); ++t)
+            if (!starved(t, frame, vis, params.minVisibleFraction)) {
+                next.push_back(trees[t]);
+                from.push_back(t);
+            }
+        s.removed = trees.size() - next.size();
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(next.size()); ++k) {
+            Tree& tr = next[static_cast<std::size_t>(k)];
+            const std::size_t t = from[static_cast<std::size_t>(k)];
+            const std::int64_t n = vis.visible[t];
+            if (n <= 0) continue;
+            const double cx = chmM.originX() + (static_cast<double>(vis.sumX[t]) / static_cast<double>(n) + 0.5) * cell;
+            const double cy = chmM.originY() + (static_cast<double>(vis.sumY[t]) / static_cast<double>(n) + 0.5) * cell;
+            const double nx = tr.x + params.moveFactor * (cx - tr.x);
+            const double ny = tr.y + params.moveFactor * (cy - tr.y);
+            const double nh = scene.heightAt(nx, ny);
+            if (nh < params.minSeedHeightM) continue;  // never walk off the canopy
+            tr = scene.makeTree(nx, ny, nh, tr.uid);
+        }
+        trees.swap(next);
+
+        // Ring seeding where the CHM is uncovered: candidates per tree in parallel (pure
+        // functions of the tree and its random stream), accepted serially in tree order.
+        if (params.ringSamples > 0) {
+            BucketGrid grid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
+            for (std::size_t t = 0; t < trees.size(); ++t) grid.insert(trees[t].x, trees[t].y, static_cast<std::int32_t>(t));
+            const int K = params.ringSamples;
+            std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
+            for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
+            // One slot per (tree, direction): a flag array (cleared each iteration) and tree
+            // slots that are only written when valid, kept across iterations.
+            candValid.assign(trees.size() * static_cast<std::size_t>(K), 0);
+            if (candTree.size() < candValid.size()) candTree.resize(candValid.size());
+#pragma omp parallel for schedule(dynamic, 256)
+            for (std::ptrdiff_t tt = 0; tt < static_cast<std::ptrdiff_t>(trees.size()); ++tt) {
+                const Tree& tr = trees[static_cast<std::size_t>(tt)];
+                RandomStream rng(params.seed, mixStream(mixStream(kStreamRing, static_cast<std::uint64_t>(it)), tr.uid));
+                const double phase = rng.uniform() * kTwoPi / K;
+                const double cp = std::cos(phase), sp = std::sin(phase);
+                for (int k = 0; k < K; ++k) {
+                    // Direction: the k-th of K evenly spaced ones, rotated by the tree's phase.
+                    const double ux = ring[static_cast<std::size_t>(k)][0] * cp - ring[static_cast<std::size_t>(k)][1] * sp;
+                    const double uy = ring[static_cast<std::size_t>(k)][0] * sp + ring[static_cast<std::size_t>(k)][1] * cp;
+                    // First guess: a new crown as large as tree i's, tangent to it. It must
+                    // stand on an uncovered footprint cell of the last render (cheap test
+                    // first); its CHM height then gives r_new and the ring at
+                    // ringFactor * (r_i + r_new), which must pass the same test.
+                    const double gx = tr.x + params.ringFactor * 2.0 * tr.radiusM * ux;
+                    const double gy = tr.y + params.ringFactor * 2.0 * tr.radiusM * uy;
+                    if (!scene.inside(gx, gy)) continue;
+                    const std::size_t gi = scene.cellIndex(gx, gy);
+                    if (!vis.open[gi]) continue;
+                    const double gh = scene.heightAt(gx, gy);
+                    const double rNew = gh >= params.minSeedHeightM ? scene.radiusFor(scene.speciesAt(gx, gy), gh) : tr.radiusM;
+                    const double d = params.ringFactor * (tr.radiusM + rNew);
+                    const double x = tr.x + d * ux, y = tr.y + d * uy;
+                    if (!scene.inside(x, y)) continue;
+                    const std::size_t ci = scene.cellIndex(x, y);
+                    if (!vis.open[ci]) continue;
+                    const double hNew = scene.heightAt(x, y);
+                    if (hNew < params.minSeedHeightM) continue;
+                    const bool inCrown = grid.any(x, y, maxRadius, [&](std::int32_t j) {
+                        const Tree& o = trees[static_cast<std::size_t>(j)];
+                        const double dx = o.x - x, dy = o.y - y;
+                        return dx * dx + dy * dy < o.radiusM * o.radiusM;
+                    });
+                    if (inCrown) continue;
+                    const std::size_t slot = static_cast<std::size_t>(tt) * static_cast<std::size_t>(K) + static_cast<std::size_t>(k);
+                    candValid[slot] = 1;
+                    candTree[slot] = scene.makeTree(x, y, hNew, 0);
+                }
+            }
+            // Accept in order: a candidate whose trunk lies in an accepted new crown, or whose
+            // crown holds an accepted new trunk, is dropped.
+            BucketGrid added(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
+            std::vector<Tree> fresh;
+            for (std::size_t slot = 0; slot < candValid.size(); ++slot) {
+                if (!candValid[slot]) continue;
+                const Tree& c = candTree[slot];
+                const bool clash = added.any(c.x, c.y, maxRadius, [&](std::int32_t j) {
+                    const Tree& o = fresh[static_cast<std::size_t>(j)];
+                    const double dx = o.x - c.x, dy = o.y - c.y;
+                    const double rr = std::max(o.radiusM, c.radiusM);
+                    return dx * dx + dy * dy < rr * rr;
+                });
+                if (clash) continue;
+                added.insert(c.x, c.y, static_cast<std::int32_t>(fresh.size()));
+                fresh.push_back(c);
+                fresh.back().uid = nextUid++;
+            }
+            s.added = fresh.size();
+            trees.insert(trees.end(), fresh.begin(), fresh.end());
+        }
+
+        renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+        fillStats(s, trees.size(), vis);
+        s.seconds = secondsSince(tIter);
+        const double gain = s.coverage - result.iterations.back().coverage;
+        result.iterations.push_back(s);
+        if (progress) progress(s);
+        if (gain < params.coverageEpsilon) {
+            result.stopReason = "coverage gain " + num(gain) + " below epsilon " + num(params.coverageEpsilon);
+            break;
+        }
+        if (it == params.maxIterations) result.stopReason = "iteration cap (" + std::to_string(it) + ")";
+    }
+
+    // Final clean-up: starved trees of the last render, then duplicates, tallest first.
+    tIter = Clock::now();
+    IterationStats fin;
+    fin.iteration = -1;
+    {
+        std::vector<Tree> kept;
+        kept.reserve(trees.size());
+        for (std::size_t t = 0; t < trees.size(); ++t)
+            if (!starved(t, frame, vis, params.minVisibleFraction)) kept.push_back(trees[t]);
+        fin.removed = trees.size() - kept.size();
+        trees.swap(kept);
+    }
+    {
+        const auto keep = duplicateKeepFlags(crownsOf(trees), params.minTrunkDistanceM, chmM.originX(), chmM.originY(),
+                                             chmM.extentX(), chmM.extentY());
+        std::vector<Tree> kept;
+        for (std::size_t i = 0; i < trees.size(); ++i)
+            if (keep[i]) kept.push_back(trees[i]);
+        result.duplicatesRemoved = trees.size() - kept.size();
+        trees.swap(kept);
+    }
+    renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+    fillStats(fin, trees.size(), vis);
+    fin.seconds = secondsSince(tIter);
+    result.final = fin;
+    if (progress) progress(fin);
+
+    result.trees.resize(trees.size());
+    for (std::size_t i = 0; i < trees.size(); ++i) {
+        const Tree& t = trees[i];
+        Plant& p = result.trees[i];
+        p.speciesId = t.species;
+        p.xM = t.x;
+        p.yM = t.y;
+        p.groundZM = terrainM.sampleBilinear(t.x, t.y);
+        p.heightM = t.heightM;
+        p.crownRadiusM = t.radiusM;
+        if (!scene.mapped(t.x, t.y)) ++result.fallbackTrees;
+    }
+    result.seconds = secondsSince(tStart);
+    return result;
+}
+
+std::size_t removeDuplicateTrees(std::vector<Plant>& plants, double minTrunkDistanceM) {
+    if (!std::isfinite(minTrunkDistanceM) || minTrunkDistanceM < 0)
+        throw ValidationError("removeDuplicateTrees: minimum trunk distance must be >= 0, got " + num(minTrunkDistanceM));
+    if (plants.empty()) return 0;
+    std::vector<Crown> crowns(plants.size());
+    double x0 = plants[0].xM, x1 = x0, y0 = plants[0].yM, y1 = y0;
+    for (std::size_t i = 0; i < plants.size(); ++i) {
+        const Plant& p = plants[i];
+        crowns[i] = {p.xM, p.yM, p.heightM, p.crownRadiusM};
+        x0 = std::min(x0, p.xM);
+        x1 = std::max(x1, p.xM);
+        y0 = std::min(y0, p.yM);
+        y1 = std::max(y1, p.yM);
+    }
+    const auto keep = duplicateKeepFlags(crowns, minTrunkDistanceM, x0, y0, x1 - x0, y1 - y0);
+    std::vector<Plant> kept;
+    for (std::size_t i = 0; i < plants.size(); ++i)
+        if (keep[i]) kept.push_back(plants[i]);
+    const std::size_t removed = plants.size() - kept.size();
+    plants.swap(kept);
+    return removed;
+}
+
+// ------------------------------------------------------------------------- configuration
+
+void readCanopyConfig(StrictTable& t, CanopyParams& canopy, SpeciesMapParams& speciesMap) {
+    for (const auto& f : canopyParamFields()) {
+        if (!t.has(f.key)) continue;
+        switch (f.kind) {
+            case CanopyParamField::Kind::Real: canopy.*(f.real) = t.number(f.key); break;
+            case CanopyParamField::Kind::Integer: {
+                const std::int64_t v = t.integer(f.key);
+                if (v < -1000000000 || v > 1000000000) t.fail(f.key, "value " + std::to_string(v) + " out of range");
+                canopy.*(f.integer) = static_cast<int>(v);
+                break;
+            }
+            case CanopyParamField::Kind::Seed: {
+                const std::int64_t v = t.integer(f.key);
+                if (v < 0) t.fail(f.key, "must be >= 0");
+                canopy.seed = static_cast<std::uint64_t>(v);
+                break;
+            }
+        }
+    }
+    speciesMap.canopyThresholdM = canopy.canopyThresholdM;
+    speciesMap.targetTolerance = t.numberOr("target_tolerance", speciesMap.targetTolerance);
+    if (t.has("max_bisection_steps")) speciesMap.maxBisectionSteps = static_cast<int>(t.integer("max_bisection_steps"));
+    if (t.has("target_sweeps")) speciesMap.targetSweeps = static_cast<int>(t.integer("target_sweeps"));
+    try {
+        validateCanopyParams(canopy);
+    } catch (const ValidationError& e) {
+        throw ValidationError(t.file() + ": " + (t.context().empty() ? "" : t.context() + ": ") + e.what());
+    }
+}
+
+void loadCanopyConfig(const std::string& path, CanopyParams& canopy, SpeciesMapParams& speciesMap) {
+    const toml::table root = parseTomlFile(path);
+    if (const toml::node* n = root.get("canopy")) {
+        const toml::table* t = n->as_table();
+        if (!t) throw ValidationError(path + ": 'canopy' must be a table");
+        StrictTable table(*t, path, "[canopy]");
+        readCanopyConfig(table, canopy, speciesMap);
+        table.finish();
+    } else {
+        StrictTable table(root, path, "");
+        readCanopyConfig(table, canopy, speciesMap);
+        table.finish();
+    }
+    if (speciesMap.targetTolerance <= 0 || speciesMap.targetTolerance >= 1 || speciesMap.maxBisectionSteps < 1 ||
+        speciesMap.targetSweeps < 1)
+        throw ValidationError(path + ": target_tolerance must lie in (0, 1), max_bisection_steps and target_sweeps >= 1");
+}
+
+// ------------------------------------------------------------------------- files
+
+namespace {
+constexpr const char* kCanopyFormat = "eco-canopy";
+constexpr std::int64_t kCanopySchemaVersion = 1;
+}  // namespace
+
+void writeCanopyFile(const std::string& path, const CanopyRecord& rec, const Biome& biome) {
+    AtomicOutput out(path);
+    {
+        h5::File f = h5::File::create(out.tempPath());
+        writePlants(f, "/canopy", rec.result.trees, biome);
+        f.setAttr("/canopy", "layer", std::string("canopy"));
+        f.writeGridI32("/species_map", rec.speciesMap, "species id, -1 none");
+        f.setAttr("/species_map", "names", std::string("/canopy/species_names"));
+        f.ensureGroup("/chm");
+        f.writeGrid("/chm/height", rec.chmM, "m");
+        f.ensureGroup("/terrain");
+        f.writeGrid("/terrain/elevation", rec.terrainM, "m");
+
+        // Iterations, then the final clean-up as iteration -1.
+        std::vector<IterationStats> its = rec.result.iterations;
+        its.push_back(rec.result.final);
+        const hsize_t n = its.size();
+        std::vector<std::int32_t> iteration(n), trees(n), removed(n), added(n);
+        std::vector<double> coverage(n), rmse(n), seconds(n);
+        for (std::size_t i = 0; i < its.size(); ++i) {
+            iteration[i] = its[i].iteration;
+            trees[i] = static_cast<std::int32_t>(its[i].trees);
+            removed[i] = static_cast<std::int32_t>(its[i].removed);
+            added[i] = static_cast<std::int32_t>(its[i].added);
+            coverage[i] = its[i].coverage;
+            rmse[i] = its[i].rmseM;
+            seconds[i] = its[i].seconds;
+        }
+        f.ensureGroup("/iterations");
+        f.writeI32("/iterations/iteration", iteration, {n});
+        f.writeI32("/iterations/trees", trees, {n});
+        f.writeI32("/iterations/removed", removed, {n});
+        f.writeI32("/iterations/added", added, {n});
+        f.writeF64("/iterations/coverage", coverage, {n});
+        f.writeF64("/iterations/rmse_m", rmse, {n});
+        f.writeF64("/iterations/seconds", seconds, {n});
+        f.setAttr("/iterations", "stop_reason", rec.result.stopReason);
+        f.setAttr("/iterations", "initial_seeds", static_cast<std::int64_t>(rec.result.initialSeeds));
+        f.setAttr("/iterations", "duplicates_removed", static_cast<std::int64_t>(rec.result.duplicatesRemoved));
+        f.setAttr("/iterations", "fallback_trees", static_cast<std::int64_t>(rec.result.fallbackTrees));
+        f.setAttr("/iterations", "seconds", rec.result.seconds);
+        f.setAttr("/iterations", "note", std::string("iteration 0 = initial seeding, -1 = final clean-up; coverage "
+                                                     "= fraction of CHM cells >= canopy_threshold_m under a crown"));
+
+        f.ensureGroup("/targets");
+        {
+            const hsize_t m = rec.targets.size();
+            std::vector<std::string> species;
+            std::vector<double> requested, achieved, reachable, weight, alpha;
+            std::vector<std::int32_t> feasible, iterations;
+            for (const auto& t : rec.targets) {
+                species.push_back(t.species);
+                requested.push_back(t.requested);
+                achieved.push_back(t.achieved);
+                reachable.push_back(t.reachable);
+                weight.push_back(t.weight);
+                alpha.push_back(t.alpha);
+                feasible.push_back(t.feasible ? 1 : 0);
+                iterations.push_back(t.iterations);
+            }
+            if (m > 0) {
+                f.writeStrings("/targets/species", species);
+                f.writeF64("/targets/requested", requested, {m});
+                f.writeF64("/targets/achieved", achieved, {m});
+                f.writeF64("/targets/reachable", reachable, {m});
+                f.writeF64("/targets/weight", weight, {m});
+                f.writeF64("/targets/alpha", alpha, {m});
+                f.writeI32("/targets/feasible", feasible, {m});
+                f.writeI32("/targets/iterations", iterations, {m});
+            }
+            f.setAttr("/targets", "count", static_cast<std::int64_t>(m));
+            f.setAttr("/targets", "note", std::string("fractions of the forested area (CHM >= canopy_threshold_m), inside "
+                                                      "/targets/mask when present"));
+            for (const auto& lw : rec.speciesParams.localWeights) {
+                if (f.exists("/targets/mask")) break;
+                Grid<std::int32_t> m32 = Grid<std::int32_t>::like(*lw.mask, 0);
+                for (std::size_t i = 0; i < m32.size(); ++i) m32.data()[i] = lw.mask->data()[i] ? 1 : 0;
+                f.writeGridI32("/targets/mask", m32, "1 inside the brush, 0 outside");
+            }
+        }
+
+        f.setAttr("/", "format", std::string(kCanopyFormat));
+        f.setAttr("/", "schema_version", kCanopySchemaVersion);
+        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
+        f.setAttr("/", "seed", static_cast<std::int64_t>(rec.params.seed));
+        for (const auto& field : canopyParamFields())
+            if (field.kind != CanopyParamField::Kind::Seed)
+                f.setAttr("/", field.key, canopyParamValue(rec.params, field));
+        f.setAttr("/", "target_tolerance", rec.speciesParams.targetTolerance);
+        f.setAttr("/", "max_bisection_steps", static_cast<std::int64_t>(rec.speciesParams.maxBisectionSteps));
+        f.setAttr("/", "target_sweeps", static_cast<std::int64_t>(rec.speciesParams.targetSweeps));
+        std::vector<double> weights(biome.species.size(), 1.0);
+        for (std::size_t i = 0; i < rec.speciesParams.weights.size() && i < weights.size(); ++i)
+            weights[i] = rec.speciesParams.weights[i];
+        f.setAttr("/", "species_weights", weights);
+        f.setAttr("/", "biome_name", biome.name);
+        f.setAttr("/", "biome_toml", biomeToToml(biome));
+        f.setAttr("/", "terrain_source", rec.terrainSource);
+        f.setAttr("/", "chm_source", rec.chmSource);
+        f.setAttr("/", "abiotics_source", rec.abioticsSource);
+        f.setAttr("/", "biome_source", rec.biomeSource);
+        f.setAttr("/", "mask_source", rec.maskSource);
+        f.setAttr("/", "units", std::string("metres; x east, y north, world coordinates of the input grids"));
+    }
+    out.commit();
+}
+
+CanopyFileData readCanopyFile(const std::string& path, const Biome& biome) {
+    const h5::File f = h5::File::openRead(path);
+    if (!f.hasAttr("/", "format") || f.attrString("/", "format") != kCanopyFormat)
+        throw IoError(path + ": not an eco-canopy file (root attribute format != '" + std::string(kCanopyFormat) + "')");
+    const std::int64_t version = f.attrInt("/", "schema_version");
+    if (version != kCanopySchemaVersion)
+        throw IoError(path + ": eco-canopy schema version " + std::to_string(version) + " is not supported (expected " +
+                      std::to_string(kCanopySchemaVersion) + ")");
+    CanopyFileData d;
+    d.trees = readPlants(f, "/canopy", biome);
+    d.speciesMap = f.readGridI32("/species_map");
+    d.chmM = f.readGrid("/chm/height");
+    d.terrainM = f.readGrid("/terrain/elevation");
+    d.seed = static_cast<std::uint64_t>(f.attrInt("/", "seed"));
+    const auto iteration = f.readI32("/iterations/iteration");
+    const auto trees = f.readI32("/iterations/trees");
+    const auto removed = f.readI32("/iterations/removed");
+    const auto added = f.readI32("/iterations/added");
+    const auto coverage = f.readF64("/iterations/coverage");
+    const auto rmse = f.readF64("/iterations/rmse_m");
+    const auto seconds = f.readF64("/iterations/seconds");
+    for (const auto* v : {&trees, &removed, &added})
+        if (v->size() != iteration.size()) throw IoError(path + ": /iterations arrays differ in length");
+    for (const auto* v : {&coverage, &rmse, &seconds})
+        if (v->size() != iteration.size()) throw IoError(path + ": /iterations arrays differ in length");
+    for (std::size_t i = 0; i < iteration.size(); ++i) {
+        IterationStats s;
+        s.iteration = iteration[i];
+        s.trees = static_cast<std::size_t>(trees[i]);
+        s.removed = static_cast<std::size_t>(removed[i]);
+        s.added = static_cast<std::size_t>(added[i]);
+        s.coverage = coverage[i];
+        s.rmseM = rmse[i];
+        s.seconds = seconds[i];
+        d.iterations.push_back(s);
+    }
+    return d;
+}
+
+void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, const Grid<float>& terrainM,
+                    const Biome& biome, const std::string& title) {
+    if (terrainM.empty()) throw ValidationError(path + ": cannot draw on an empty terrain");
+    const CrownRender r = renderCrowns(trees, terrainM);
+    // Shade crowns and ground together: the hillshade of the terrain plus the crown surface.
+    Grid<float> surface = terrainM;
+    for (std::size_t i = 0; i < surface.size(); ++i) surface.data()[i] += r.surfaceM.data()[i];
+    const Grid<float> shade = hillshade(surface);
+    const int w = terrainM.width(), h = terrainM.height();
+    const int factor = std::max(1, static_cast<int>(std::ceil(std::max(w, h) / 1024.0)));
+    const int pw = std::max(1, w / factor), ph = std::max(1, h / factor);
+    Canvas picture(pw, ph);
+    for (int py = 0; py < ph; ++py)
+        for (int px = 0; px < pw; ++px) {
+            const int ix = std::min(w - 1, px * factor + factor / 2);
+            const int iy = std::max(0, h - 1 - (py * factor + factor / 2));  // image row 0 = north
+            const std::size_t i = terrainM.index(ix, iy);
+            const float s = shade.data()[i];
+            const std::int32_t t = r.treeIndex.data()[i];
+            Rgb c;
+            if (t >= 0) {
+                const Rgb base = categoryColour(trees[static_cast<std::size_t>(t)].speciesId);
+                const float k = 0.35f + 0.65f * s;
+                c = {base[0] * k, base[1] * k, base[2] * k};
+            } else {
+                const float g = 0.30f + 0.55f * s;
+                c = {g, g, g};
+            }
+            picture.set(px, py, c);
+        }
+    std::vector<std::size_t> counts(biome.species.size(), 0);
+    for (const auto& t : trees)
+        if (t.speciesId >= 0 && static_cast<std::size_t>(t.speciesId) < counts.size()) ++counts[static_cast<std::size_t>(t.speciesId)];
+    std::vector<std::pair<std::string, Rgb>> entries;
+    for (std::size_t s = 0; s < counts.size(); ++s)
+        if (counts[s] > 0)
+            entries.emplace_back(biome.species[s].name + " (" + std::to_string(counts[s]) + ")",
+                                 categoryColour(static_cast<int>(s)));
+    entries.emplace_back("ground (hillshade)", Rgb{0.6f, 0.6f, 0.6f});
+    const std::string heading = title + " (" + std::to_string(trees.size()) + ")";
+    withLegend(picture, heading, entries).writePng(path);
+}
+
+}  // namespace eco

@@ -1,1 +1,446 @@
+// Canopy placer (paper §5.2, Algorithm 1): recovery of known trees from a synthetic CHM,
+// determinism across thread counts, species fallback, duplicates, files, and the eco canopy
+// command's outputs and error paths.
 #include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "biome.h"
+#include "canopy_placer.h"
+#include "error.h"
+#include "generate.h"
+#include "h5io.h"
+#include "rng.h"
+#include "species_map.h"
+#include "terrain_io.h"
+#include "test_util.h"
+
+using namespace eco;
+
+namespace {
+
+/// A CHM built from known spheres: isolated trees on a jittered lattice, and clusters of two
+/// or three overlapping crowns whose apexes all stay visible. Crown radii follow the
+/// allometry of `species`, so the placer's crowns can match the CHM exactly.
+struct SyntheticForest {
+    Grid<float> chm;
+    std::vector<GeneratedTree> trees;
+    std::vector<bool> isolated;
+};
+
+SyntheticForest syntheticForest(const Biome& b, int species, std::uint64_t seed = 3) {
+    SyntheticForest f;
+    const double cell = 0.914, slot = 18.0;
+    const int n = 240;
+    f.chm = Grid<float>(n, n, cell, 500.0, 1000.0, 0.f);  // a non-zero origin on purpose
+    const Allometry& allo = b.species[static_cast<std::size_t>(species)].allometry;
+    const int slots = static_cast<int>((n * cell - slot / 2) / slot);
+    for (int sy = 0; sy < slots; ++sy)
+        for (int sx = 0; sx < slots; ++sx) {
+            RandomStream rng(seed, static_cast<std::uint64_t>(sy * slots + sx));
+            const double cx = f.chm.originX() + slot * (sx + 0.5), cy = f.chm.originY() + slot * (sy + 0.5);
+            const double kind = rng.uniform();
+            const double base = rng.uniform(15.0, 35.0);
+            if (kind < 0.65) {  // isolated
+                const double h = base;
+                f.trees.push_back({cx + rng.uniform(-2, 2), cy + rng.uniform(-2, 2), h, allo.crownRadiusM(h)});
+                f.isolated.push_back(true);
+                continue;
+            }
+            const int count = kind < 0.9 ? 2 : 3;
+            const double r = allo.crownRadiusM(base);
+            const double d = rng.uniform(0.9, 1.4) * r;  // trunk distance: crowns overlap
+            const double rho = count == 2 ? d / 2 : d / std::sqrt(3.0);
+            const double phase = rng.uniform(0, 6.283185307179586);
+            for (int k = 0; k < count; ++k) {
+                const double a = phase + 6.283185307179586 * k / count;
+                const double h = base + rng.uniform(-1.5, 1.5);
+                f.trees.push_back({cx + rho * std::cos(a), cy + rho * std::sin(a), h, allo.crownRadiusM(h)});
+                f.isolated.push_back(false);
+            }
+        }
+    rasterizeCrowns(f.trees, f.chm);
+    return f;
+}
+
+Grid<std::int32_t> uniformMap(const Grid<float>& like, int species) { return Grid<std::int32_t>::like(like, species); }
+
+double nearestDistance(const std::vector<Plant>& plants, double x, double y) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& p : plants) best = std::min(best, std::hypot(p.xM - x, p.yM - y));
+    return best;
+}
+
+bool sameTrees(const std::vector<Plant>& a, const std::vector<Plant>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if (a[i].speciesId != b[i].speciesId || a[i].xM != b[i].xM || a[i].yM != b[i].yM ||
+            a[i].groundZM != b[i].groundZM || a[i].heightM != b[i].heightM || a[i].crownRadiusM != b[i].crownRadiusM)
+            return false;
+    return true;
+}
+
+std::string slurp(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+}  // namespace
+
+TEST_CASE("placer recovers known trees from a synthetic CHM", "[canopy]") {
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    const SyntheticForest f = syntheticForest(b, fir);
+    const Grid<float> terrain = Grid<float>::like(f.chm, 100.f);
+    const CanopyResult r = placeCanopy(f.chm, terrain, uniformMap(f.chm, fir), b, CanopyParams{});
+    const double truth = static_cast<double>(f.trees.size());
+    INFO("truth " << truth << " placed " << r.trees.size() << " initial " << r.initialSeeds << " final coverage "
+                  << r.final.coverage << " rmse " << r.final.rmseM << " stop " << r.stopReason);
+    REQUIRE(f.trees.size() > 150);
+    CHECK(std::abs(static_cast<double>(r.trees.size()) - truth) <= 0.05 * truth);
+    std::size_t isolated = 0;
+    double worst = 0;
+    for (std::size_t i = 0; i < f.trees.size(); ++i) {
+        if (!f.isolated[i]) continue;
+        ++isolated;
+        worst = std::max(worst, nearestDistance(r.trees, f.trees[i].x, f.trees[i].y));
+    }
+    INFO("isolated trees " << isolated << ", worst position error " << worst << " m");
+    CHECK(isolated > 60);
+    CHECK(worst <= 1.0);
+    CHECK(r.final.coverage > 0.95);
+    for (const auto& p : r.trees) {
+        CHECK(p.speciesId == fir);
+        CHECK(p.groundZM == Approx(100.0));
+        CHECK(p.heightM >= 3.0);
+        CHECK(p.crownRadiusM == Approx(b.species[static_cast<std::size_t>(fir)].allometry.crownRadiusM(p.heightM)));
+    }
+    REQUIRE(!r.iterations.empty());
+    CHECK(r.iterations.front().iteration == 0);
+    CHECK(r.final.trees == r.trees.size());
+}
+
+TEST_CASE("placer output is identical with 1 and 2 threads", "[canopy]") {
+    const Biome b = defaultBiome();
+    // A dense generated canopy (ring seeding, removals and moves all happen) with two
+    // species and a patch where no species can grow (fallback).
+    const Grid<std::int32_t> sketch = generateDensitySketch(160, 140, 0.914, SketchParams{});
+    ChmGenParams cp;
+    cp.denseSpacingM = 3.5;
+    cp.minHeightM = 5;
+    cp.maxHeightM = 20;
+    const Grid<float> chm = generateChm(sketch, cp);
+    Grid<std::int32_t> map = uniformMap(chm, b.speciesIndex("Douglas-Fir"));
+    for (int iy = 0; iy < chm.height(); ++iy)
+        for (int ix = 0; ix < chm.width(); ++ix) {
+            if (ix > 100) map(ix, iy) = b.speciesIndex("Redwood");
+            if (ix < 30 && iy < 40) map(ix, iy) = -1;
+        }
+    Grid<float> terrain = Grid<float>::like(chm);
+    for (int iy = 0; iy < chm.height(); ++iy)
+        for (int ix = 0; ix < chm.width(); ++ix) terrain(ix, iy) = static_cast<float>(50 + 0.3 * ix + 0.1 * iy);
+    CanopyParams p;
+    p.seed = 11;
+    omp_set_num_threads(1);
+    const CanopyResult one = placeCanopy(chm, terrain, map, b, p);
+    omp_set_num_threads(2);
+    const CanopyResult two = placeCanopy(chm, terrain, map, b, p);
+    CHECK(one.iterations.size() >= 2);
+    CHECK(sameTrees(one.trees, two.trees));
+    REQUIRE(one.iterations.size() == two.iterations.size());
+    for (std::size_t i = 0; i < one.iterations.size(); ++i) {
+        CHECK(one.iterations[i].trees == two.iterations[i].trees);
+        CHECK(one.iterations[i].coverage == two.iterations[i].coverage);
+        CHECK(one.iterations[i].rmseM == two.iterations[i].rmseM);
+    }
+    CHECK(one.final.rmseM == two.final.rmseM);
+    CHECK(one.stopReason == two.stopReason);
+    // A different seed changes the ring sampling.
+    p.seed = 12;
+    const CanopyResult other = placeCanopy(chm, terrain, map, b, p);
+    CHECK_FALSE(sameTrees(one.trees, other.trees));
+}
+
+TEST_CASE("trees where no species can grow take the nearest mapped species", "[canopy]") {
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir"), redwood = b.speciesIndex("Redwood");
+    const SyntheticForest f = syntheticForest(b, fir);
+    Grid<std::int32_t> map = uniformMap(f.chm, fir);
+    const int w = f.chm.width();
+    for (int iy = 0; iy < f.chm.height(); ++iy)
+        for (int ix = 0; ix < w; ++ix) map(ix, iy) = ix < w / 3 ? -1 : (ix < 2 * w / 3 ? fir : redwood);
+    const CanopyResult r = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), map, b, CanopyParams{});
+    std::size_t west = 0;
+    for (const auto& p : r.trees) {
+        const int ix = f.chm.cellX(p.xM);
+        if (ix < w / 3) {
+            ++west;
+            CHECK(p.speciesId == fir);  // nearest mapped cells are the fir band
+        } else {
+            CHECK(p.speciesId == map(ix, f.chm.cellY(p.yM)));
+        }
+    }
+    CHECK(west > 20);
+    CHECK(r.fallbackTrees == west);
+    // Nothing mapped at all: the tallest canopy species (Redwood, 110 m).
+    const CanopyResult none = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, -1), b, CanopyParams{});
+    REQUIRE(!none.trees.empty());
+    for (const auto& p : none.trees) CHECK(p.speciesId == redwood);
+    CHECK(none.fallbackTrees == none.trees.size());
+}
+
+TEST_CASE("seeds are strict local maxima at or above the seed height; a plateau gives one", "[canopy]") {
+    Grid<float> chm(12, 10, 1.0, 0, 0, 0.f);
+    chm(3, 3) = 10.f;           // a peak
+    chm(8, 6) = chm(9, 6) = 7.f;  // a two-cell plateau
+    chm(5, 8) = 2.5f;           // below 3 m
+    chm(0, 0) = 4.f;            // a corner counts
+    const auto seeds = chmLocalMaxima(chm, 3.0, 1);
+    REQUIRE(seeds.size() == 3);
+    CHECK(seeds[0] == chm.index(0, 0));
+    CHECK(seeds[1] == chm.index(3, 3));
+    CHECK(seeds[2] == chm.index(8, 6));
+    // A wider window merges nearby peaks.
+    chm(5, 3) = 9.f;
+    CHECK(chmLocalMaxima(chm, 3.0, 1).size() == 4);
+    CHECK(chmLocalMaxima(chm, 3.0, 2).size() == 3);
+}
+
+TEST_CASE("crowns render as spheres with depth ties to the lower index", "[canopy]") {
+    const Grid<float> like(40, 40, 0.5, 10.0, 20.0);
+    std::vector<Plant> plants = {{0, 20.0, 30.0, 0, 12.0, 4.0}, {1, 20.0, 30.0, 0, 12.0, 4.0}};
+    const CrownRender r = renderCrowns(plants, like);
+    for (int iy = 0; iy < like.height(); ++iy)
+        for (int ix = 0; ix < like.width(); ++ix) {
+            const double d = std::hypot(like.cellCentreX(ix) - 20.0, like.cellCentreY(iy) - 30.0);
+            if (d < 4.0 - 1e-6) {
+                REQUIRE(r.treeIndex(ix, iy) == 0);
+                REQUIRE(r.surfaceM(ix, iy) == Approx(12.0 - 4.0 + std::sqrt(16.0 - d * d)).epsilon(1e-5));
+            } else if (d > 4.0 + 1e-6) {
+                REQUIRE(r.treeIndex(ix, iy) == -1);
+                REQUIRE(r.surfaceM(ix, iy) == 0.f);
+            }
+        }
+    // A taller crown wins where it is higher.
+    plants.push_back({2, 22.0, 30.0, 0, 14.0, 3.0});
+    const CrownRender r2 = renderCrowns(plants, like);
+    CHECK(r2.treeIndex(like.cellX(22.1), like.cellY(30.1)) == 2);
+}
+
+TEST_CASE("duplicates: close trunks and crowns inside larger crowns are removed", "[canopy]") {
+    std::vector<Plant> plants = {
+        {0, 0.0, 0.0, 0, 20.0, 4.0},   // kept: tallest
+        {0, 0.6, 0.0, 0, 19.0, 3.8},   // trunk 0.6 m from the first: removed
+        {0, 10.0, 0.0, 0, 20.0, 4.0},  // kept
+        {0, 10.5, 0.5, 0, 17.0, 1.0},  // sphere (centre z 16, r 1) inside (centre z 16, r 4): removed
+        {0, 13.5, 0.0, 0, 19.9, 2.0},  // overlaps but sticks out: kept
+    };
+    CHECK(removeDuplicateTrees(plants, 1.0) == 2);
+    REQUIRE(plants.size() == 3);
+    CHECK(plants[0].xM == 0.0);
+    CHECK(plants[1].xM == 10.0);
+    CHECK(plants[2].xM == 13.5);
+    // Through the placer: two apexes 2.5 m apart survive a 1 m minimum distance, not a 3 m one.
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    Grid<float> chm(60, 60, 0.5, 0, 0, 0.f);
+    const double h = 20, r = b.species[static_cast<std::size_t>(fir)].allometry.crownRadiusM(h);
+    rasterizeCrowns({{13.7, 15.1, h, r}, {16.2, 15.1, h - 0.3, r}}, chm);
+    CanopyParams p;
+    p.maxIterations = 0;  // only the seeding and the final clean-up
+    CHECK(placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p).trees.size() == 2);
+    p.minTrunkDistanceM = 3.0;
+    const auto merged = placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p);
+    CHECK(merged.trees.size() == 1);
+    CHECK(merged.duplicatesRemoved == 1);
+}
+
+TEST_CASE("bad placer input is rejected with a clear message", "[canopy]") {
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    const Grid<float> chm(20, 20, 1.0, 0, 0, 10.f);
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    const auto map = uniformMap(chm, fir);
+    CHECK_THROWS_WITH(placeCanopy(chm, Grid<float>(21, 20, 1.0), map, b, {}),
+                      Catch::Contains("terrain") && Catch::Contains("geometry"));
+    CHECK_THROWS_WITH(placeCanopy(chm, Grid<float>(20, 20, 2.0), map, b, {}), Catch::Contains("geometry"));
+    CHECK_THROWS_WITH(placeCanopy(chm, terrain, Grid<std::int32_t>(20, 19, 1.0), b, {}), Catch::Contains("species map"));
+    Grid<float> negative = chm;
+    negative(4, 7) = -1.f;
+    CHECK_THROWS_WITH(placeCanopy(negative, terrain, map, b, {}), Catch::Contains("(4, 7)") && Catch::Contains("negative"));
+    CHECK_THROWS_WITH(placeCanopy(chm, terrain, uniformMap(chm, b.speciesIndex("Toyon")), b, {}),
+                      Catch::Contains("not a canopy species"));
+    CanopyParams p;
+    p.minVisibleFraction = 1.5;
+    CHECK_THROWS_WITH(placeCanopy(chm, terrain, map, b, p), Catch::Contains("min_visible_fraction"));
+    CHECK_THROWS_WITH(setCanopyParam(p, "min_visibel_fraction", 0.2), Catch::Contains("unknown canopy parameter"));
+    CHECK_THROWS_WITH(setCanopyParam(p, "max_iterations", 2.5), Catch::Contains("integer"));
+}
+
+TEST_CASE("canopy configs are read strictly", "[canopy]") {
+    test::TempDir dir("canopy_config");
+    {
+        std::ofstream(dir.file("ok.toml")) << "[canopy]\nmin_visible_fraction = 0.3\nmax_iterations = 7\nseed = 99\n"
+                                              "canopy_threshold_m = 2.5\ntarget_tolerance = 0.005\n[other]\nx = 1\n";
+        CanopyParams c;
+        SpeciesMapParams s;
+        loadCanopyConfig(dir.file("ok.toml"), c, s);
+        CHECK(c.minVisibleFraction == 0.3);
+        CHECK(c.maxIterations == 7);
+        CHECK(c.seed == 99u);
+        CHECK(c.canopyThresholdM == 2.5);
+        CHECK(s.canopyThresholdM == 2.5);
+        CHECK(s.targetTolerance == 0.005);
+    }
+    {
+        std::ofstream(dir.file("typo.toml")) << "move_factor = 0.5\nring_facter = 1.0\n";
+        CanopyParams c;
+        SpeciesMapParams s;
+        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("typo.toml"), c, s),
+                          Catch::Contains("typo.toml:2") && Catch::Contains("ring_facter") && Catch::Contains("unknown key"));
+    }
+    {
+        std::ofstream(dir.file("type.toml")) << "[canopy]\nmax_iterations = 2.5\n";
+        CanopyParams c;
+        SpeciesMapParams s;
+        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("type.toml"), c, s), Catch::Contains("expected an integer"));
+    }
+    {
+        std::ofstream(dir.file("range.toml")) << "min_visible_fraction = 2\n";
+        CanopyParams c;
+        SpeciesMapParams s;
+        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("range.toml"), c, s), Catch::Contains("min_visible_fraction"));
+    }
+}
+
+TEST_CASE("canopy files round-trip", "[canopy]") {
+    test::TempDir dir("canopy_file");
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    const SyntheticForest f = syntheticForest(b, fir);
+    CanopyRecord rec;
+    rec.chmM = f.chm;
+    rec.terrainM = Grid<float>::like(f.chm, 42.f);
+    rec.speciesMap = uniformMap(f.chm, fir);
+    rec.params.seed = 1234;
+    rec.result = placeCanopy(rec.chmM, rec.terrainM, rec.speciesMap, b, rec.params);
+    rec.targets.push_back({"Douglas-Fir", 0.5, 0.49, 0.9, true, 1.5, 0.645, 12});
+    writeCanopyFile(dir.file("c.h5"), rec, b);
+    const CanopyFileData d = readCanopyFile(dir.file("c.h5"), b);
+    CHECK(sameTrees(d.trees, rec.result.trees));
+    CHECK(d.speciesMap.data() == rec.speciesMap.data());
+    CHECK(d.chmM.data() == rec.chmM.data());
+    CHECK(d.chmM.sameGeometry(rec.chmM));
+    CHECK(d.terrainM.data() == rec.terrainM.data());
+    CHECK(d.seed == 1234u);
+    CHECK(d.iterations.size() == rec.result.iterations.size() + 1);
+    CHECK(d.iterations.back().iteration == -1);
+    const h5::File h = h5::File::openRead(dir.file("c.h5"));
+    CHECK(h.attrString("/", "format") == "eco-canopy");
+    CHECK(h.attrInt("/", "schema_version") == 1);
+    for (const auto& field : canopyParamFields())
+        if (std::string(field.key) != "seed") CHECK(h.hasAttr("/", field.key));
+    CHECK(h.attrString("/", "biome_toml").find("Redwood") != std::string::npos);
+    CHECK(h.readStrings("/targets/species") == std::vector<std::string>{"Douglas-Fir"});
+    // readTerrain finds the terrain in a canopy file.
+    CHECK(readTerrain(dir.file("c.h5")).data() == rec.terrainM.data());
+    CHECK_THROWS_WITH(readCanopyFile(dir.file("missing.h5"), b), Catch::Contains("missing.h5"));
+}
+
+// ------------------------------------------------------------------------- eco canopy
+
+namespace {
+
+/// A small terrain and CHM pair on disk.
+struct CliFiles {
+    test::TempDir dir{"canopy_cli"};
+    std::string terrain = dir.file("terrain.h5");
+    std::string chm = dir.file("chm.h5");
+    CliFiles() {
+        Grid<float> t(48, 40, 1.0, 0, 0);
+        for (int iy = 0; iy < t.height(); ++iy)
+            for (int ix = 0; ix < t.width(); ++ix) t(ix, iy) = static_cast<float>(80 + 0.2 * ix + 0.1 * iy);
+        writeTerrain(terrain, t);
+        Grid<float> c = Grid<float>::like(t, 0.f);
+        const Allometry a{"D", false, -0.72, 0.65, 0};
+        rasterizeCrowns({{10.2, 10.7, 20, a.crownRadiusM(20)}, {30.5, 12.2, 25, a.crownRadiusM(25)},
+                         {24.3, 28.9, 18, a.crownRadiusM(18)}, {28.1, 30.0, 19, a.crownRadiusM(19)}},
+                        c);
+        writeTerrain(chm, c);
+    }
+};
+
+}  // namespace
+
+TEST_CASE("eco canopy writes the trees, species map, iterations and pictures", "[canopy][cli]") {
+    CliFiles f;
+    const std::string out = f.dir.file("canopy.h5"), csv = f.dir.file("trees.csv"), png = f.dir.file("png");
+    const auto r = test::runEco("canopy --terrain " + f.terrain + " --chm " + f.chm + " --out " + out + " --csv " + csv +
+                                " --png " + png + " --target Redwood=0.5 --seed 5 --max-iterations 4");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("computing the abiotic maps"));
+    CHECK_THAT(r.output, Catch::Contains("target Redwood = 0.5"));
+    CHECK_THAT(r.output, Catch::Contains("final"));
+    const Biome b = defaultBiome();
+    const CanopyFileData d = readCanopyFile(out, b);
+    CHECK(d.trees.size() >= 3);
+    CHECK(d.trees.size() <= 5);
+    CHECK(d.seed == 5u);
+    const h5::File h = h5::File::openRead(out);
+    CHECK(h.attrInt("/", "max_iterations") == 4);
+    CHECK(h.attrString("/", "abiotics_source").find("computed") != std::string::npos);
+    CHECK(h.readF64("/targets/requested") == std::vector<double>{0.5});
+    CHECK_THAT(slurp(csv), Catch::StartsWith("layer,species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m"));
+    CHECK(std::ifstream(png + "/canopy.png").good());
+    CHECK(std::ifstream(png + "/species_map.png").good());
+}
+
+TEST_CASE("eco canopy rejects bad input with a clear error and a non-zero exit", "[canopy][cli]") {
+    CliFiles f;
+    const std::string out = f.dir.file("c.h5");
+    const std::string base = "canopy --terrain " + f.terrain + " --out " + out;
+    {  // CHM of another size
+        writeTerrain(f.dir.file("small.h5"), Grid<float>(40, 40, 1.0, 0, 0, 5.f));
+        const auto r = test::runEco(base + " --chm " + f.dir.file("small.h5"));
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("small.h5") && Catch::Contains("terrain.h5") && Catch::Contains("geometry"));
+    }
+    {  // CHM of another cell size
+        writeTerrain(f.dir.file("coarse.h5"), Grid<float>(48, 40, 2.0, 0, 0, 5.f));
+        const auto r = test::runEco(base + " --chm " + f.dir.file("coarse.h5"));
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("coarse.h5") && Catch::Contains("2 m"));
+    }
+    {  // negative heights
+        Grid<float> c(48, 40, 1.0, 0, 0, 5.f);
+        c(7, 3) = -0.5f;
+        writeTerrain(f.dir.file("negative.asc"), c);
+        const auto r = test::runEco(base + " --chm " + f.dir.file("negative.asc"));
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("negative.asc") && Catch::Contains("(7, 3)"));
+    }
+    {  // fraction outside [0, 1]
+        const auto r = test::runEco(base + " --chm " + f.chm + " --target Redwood=1.5");
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("[0, 1]"));
+    }
+    {  // unknown species
+        const auto r = test::runEco(base + " --chm " + f.chm + " --target Sequoia=0.5");
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("unknown species 'Sequoia'") && Catch::Contains("Redwood"));
+    }
+    {  // unknown config key
+        std::ofstream(f.dir.file("bad.toml")) << "[canopy]\nmax_iteratons = 3\n";
+        const auto r = test::runEco(base + " --chm " + f.chm + " --config " + f.dir.file("bad.toml"));
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("max_iteratons"));
+    }
+    CHECK_FALSE(std::ifstream(out).good());  // nothing written by a failed run
+}

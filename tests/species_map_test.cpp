@@ -1,1 +1,289 @@
+// Species map (paper §5.1): vigour argmax with the height rule, target bisection globally and
+// inside a brush, infeasible targets, strict parsing and bad input.
 #include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <cmath>
+#include <memory>
+#include <set>
+
+#include "biome.h"
+#include "error.h"
+#include "rng.h"
+#include "species_map.h"
+#include "terrain_io.h"
+#include "test_util.h"
+
+using namespace eco;
+
+namespace {
+
+/// A small landscape with gradients: sun 4..14 h along x, moisture 30..190 mm along y,
+/// temperature 19 C, slope 20 degrees, a 30 m CHM with a bare strip on the west edge. A
+/// little per-cell noise keeps whole rows and columns from tying (as in real maps).
+SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
+    SpeciesMapInputs in;
+    in.sunHours = Grid<float>(w, h, 1.0);
+    in.moistureMm = Grid<float>::like(in.sunHours);
+    in.temperatureC = Grid<float>::like(in.sunHours, 19.f);
+    in.slopeDeg = Grid<float>::like(in.sunHours, 20.f);
+    in.chmM = Grid<float>::like(in.sunHours, 30.f);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            RandomStream noise(99, static_cast<std::uint64_t>(iy * w + ix));
+            in.sunHours(ix, iy) = static_cast<float>(4.0 + 10.0 * ix / (w - 1) + noise.uniform(-0.3, 0.3));
+            in.moistureMm(ix, iy) = static_cast<float>(30.0 + 160.0 * iy / (h - 1) + noise.uniform(-5, 5));
+            in.temperatureC(ix, iy) = static_cast<float>(19.0 + noise.uniform(-1, 1));
+            if (ix < 4) in.chmM(ix, iy) = 0.f;
+        }
+    return in;
+}
+
+/// Reference argmax from Biome::vigourOf, written independently of the library.
+int referenceArgmax(const Biome& b, const SpeciesMapInputs& in, int ix, int iy) {
+    int best = -1;
+    double bestV = 0;
+    for (const auto& s : b.species) {
+        if (!s.canopy || s.maxHeightM < in.chmM(ix, iy)) continue;
+        const double v = b.vigourOf(s.id, in.sunHours(ix, iy), in.moistureMm(ix, iy), in.temperatureC(ix, iy),
+                                    in.slopeDeg(ix, iy));
+        if (v > bestV) {
+            bestV = v;
+            best = s.id;
+        }
+    }
+    return best;
+}
+
+}  // namespace
+
+TEST_CASE("unweighted vigour equals Biome::vigourOf (Eq. 1 with the exact g)", "[species_map]") {
+    const Biome b = defaultBiome();
+    RandomStream rng(7, 1);
+    int exact = 0, total = 0;
+    for (int k = 0; k < 2000; ++k) {
+        const double sun = rng.uniform(0, 16), moist = rng.uniform(0, 250), temp = rng.uniform(-5, 40),
+                     slope = rng.uniform(0, 80);
+        for (const auto& s : b.species) {
+            const double ref = b.vigourOf(s.id, sun, moist, temp, slope);
+            const double fast = unweightedVigour(b, s.id, sun, moist, temp, slope);
+            REQUIRE(fast == Approx(ref).margin(1e-12));
+            exact += fast == ref;
+            ++total;
+        }
+    }
+    CHECK(exact == total);  // g is monotone, so min over g equals g at the max distance, bit for bit
+    // g(0) = 1 and g(r) = (1 + a) * 0.01 - a, as in Eq. 1.
+    const auto& rw = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
+    CHECK(unweightedVigour(b, rw.id, rw.sun.c, rw.moisture.c, rw.temperature.c, rw.slope.c) == Approx(rw.alpha));
+    CHECK(unweightedVigour(b, rw.id, rw.sun.c + rw.sun.r, rw.moisture.c, rw.temperature.c, rw.slope.c) ==
+          Approx(rw.alpha * (1.2 * 0.01 - 0.2)));
+}
+
+TEST_CASE("species map is the vigour argmax over tall-enough canopy species", "[species_map]") {
+    const Biome b = defaultBiome();
+    SpeciesMapInputs in = gradientInputs();
+    // Some cells taller than every species but Redwood (110 m), some taller than all.
+    in.chmM(40, 10) = 60.f;
+    in.chmM(41, 10) = 120.f;
+    const Grid<std::int32_t> map = computeSpeciesMap(b, in);
+    REQUIRE(map.sameGeometry(in.chmM));
+    std::set<int> seen;
+    for (int iy = 0; iy < in.chmM.height(); ++iy)
+        for (int ix = 0; ix < in.chmM.width(); ++ix) {
+            const int s = map(ix, iy);
+            REQUIRE(s == referenceArgmax(b, in, ix, iy));
+            if (s >= 0) {
+                REQUIRE(b.species[static_cast<std::size_t>(s)].canopy);
+                REQUIRE(b.species[static_cast<std::size_t>(s)].maxHeightM >= in.chmM(ix, iy));
+            }
+            seen.insert(s);
+        }
+    CHECK(seen.size() >= 3);  // the gradients make several species dominant
+    const int redwood = b.speciesIndex("Redwood");
+    CHECK((map(40, 10) == redwood || map(40, 10) == -1));
+    CHECK(map(41, 10) == -1);  // 120 m: no species is that tall
+}
+
+TEST_CASE("a cell where every vigour is <= 0 has no species", "[species_map]") {
+    const Biome b = defaultBiome();
+    SpeciesMapInputs in = gradientInputs(8, 8);
+    in.temperatureC.fill(80.f);  // far outside every temperature range
+    const auto map = computeSpeciesMap(b, in);
+    for (const auto s : map.data()) CHECK(s == -1);
+}
+
+TEST_CASE("species map and target bisection do not depend on the thread count", "[species_map]") {
+    const Biome b = defaultBiome();
+    const SpeciesMapInputs in = gradientInputs(96, 80);
+    const int redwood = b.speciesIndex("Redwood");
+    omp_set_num_threads(1);
+    SpeciesMapParams p1;
+    const auto r1 = meetTarget(b, in, p1, redwood, 0.3);
+    const auto m1 = computeSpeciesMap(b, in, p1);
+    omp_set_num_threads(2);
+    SpeciesMapParams p2;
+    const auto r2 = meetTarget(b, in, p2, redwood, 0.3);
+    const auto m2 = computeSpeciesMap(b, in, p2);
+    CHECK(m1.data() == m2.data());
+    CHECK(r1.weight == r2.weight);
+    CHECK(r1.achieved == r2.achieved);
+}
+
+TEST_CASE("bisection meets a feasible global target within 1 %", "[species_map]") {
+    const Biome b = defaultBiome();
+    const SpeciesMapInputs in = gradientInputs();
+    for (const char* name : {"Redwood", "Douglas-Fir", "Oregon White Oak"}) {
+        for (double target : {0.1, 0.35, 0.6}) {
+            SpeciesMapParams p;
+            const int s = b.speciesIndex(name);
+            const TargetResult r = meetTarget(b, in, p, s, target);
+            INFO(name << " target " << target << " achieved " << r.achieved << " reachable " << r.reachable);
+            if (target > r.reachable + p.targetTolerance) {
+                CHECK_FALSE(r.feasible);
+                continue;
+            }
+            CHECK(r.feasible);
+            CHECK(std::abs(r.achieved - target) <= 0.01);
+            // The map computed with the new weights holds exactly the reported fraction.
+            const auto map = computeSpeciesMap(b, in, p);
+            CHECK(speciesFraction(map, in.chmM, s, p.canopyThresholdM) == r.achieved);
+            CHECK(r.alpha == Approx(r.weight * b.species[static_cast<std::size_t>(s)].alpha));
+            // The biome's own alpha (its light absorption) is left alone.
+            CHECK(b.species[static_cast<std::size_t>(s)].alpha == defaultBiome().species[static_cast<std::size_t>(s)].alpha);
+        }
+    }
+    // Coast Live Oak grows to 25 m only: on a 30 m canopy no target above 0 is reachable.
+    {
+        SpeciesMapParams p;
+        const auto oak = meetTarget(b, in, p, b.speciesIndex("Coast Live Oak"), 0.2);
+        CHECK_FALSE(oak.feasible);
+        CHECK(oak.reachable == 0.0);
+        CHECK(oak.achieved == 0.0);
+    }
+    SpeciesMapParams p;
+    const auto zero = meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.0);
+    CHECK(zero.feasible);
+    CHECK(zero.achieved == 0.0);
+}
+
+TEST_CASE("an infeasible target is reported with the best reachable fraction", "[species_map]") {
+    const Biome b = defaultBiome();
+    SpeciesMapInputs in = gradientInputs();
+    // Redwood's temperature range is 19 +- 32 C: make half the forest far too hot for it but
+    // fine for Coast Live Oak? No species survives 60 C, so that half has no species at all.
+    for (int iy = 0; iy < in.chmM.height() / 2; ++iy)
+        for (int ix = 0; ix < in.chmM.width(); ++ix) in.temperatureC(ix, iy) = 60.f;
+    SpeciesMapParams p;
+    const int redwood = b.speciesIndex("Redwood");
+    const TargetResult r = meetTarget(b, in, p, redwood, 0.9);
+    CHECK_FALSE(r.feasible);
+    CHECK(r.reachable < 0.9 - 0.01);
+    CHECK(r.achieved == Approx(r.reachable).margin(1e-12));
+    CHECK(r.reachable == Approx(0.5).margin(0.03));
+    const auto map = computeSpeciesMap(b, in, p);
+    CHECK(speciesFraction(map, in.chmM, redwood, p.canopyThresholdM) == r.achieved);
+}
+
+TEST_CASE("a target inside a brush mask changes the map only inside it", "[species_map]") {
+    const Biome b = defaultBiome();
+    const SpeciesMapInputs in = gradientInputs();
+    auto mask = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>::like(in.chmM, 0));
+    for (int iy = 10; iy < 40; ++iy)
+        for (int ix = 20; ix < 50; ++ix) (*mask)(ix, iy) = 1;
+    SpeciesMapParams p;
+    const auto before = computeSpeciesMap(b, in, p);
+    const int fir = b.speciesIndex("Douglas-Fir");
+    const TargetResult r = meetTarget(b, in, p, fir, 0.5, mask, "brush");
+    CHECK(r.feasible);
+    CHECK(std::abs(r.achieved - 0.5) <= 0.01);
+    REQUIRE(p.localWeights.size() == 1);
+    CHECK(p.weights.empty());  // the global weights are untouched
+    const auto after = computeSpeciesMap(b, in, p);
+    CHECK(speciesFraction(after, in.chmM, fir, p.canopyThresholdM, mask.get()) == r.achieved);
+    for (std::size_t i = 0; i < after.size(); ++i)
+        if (mask->data()[i] == 0) REQUIRE(after.data()[i] == before.data()[i]);
+    // Meeting it again with the same brush replaces the brush weight, not adds another.
+    meetTarget(b, in, p, fir, 0.3, mask, "brush");
+    CHECK(p.localWeights.size() == 1);
+}
+
+TEST_CASE("several targets are met one after another", "[species_map]") {
+    const Biome b = defaultBiome();
+    const SpeciesMapInputs in = gradientInputs();
+    SpeciesMapParams p;
+    const auto results = meetTargets(b, in, p, {{"Redwood", 0.3}, {"Douglas-Fir", 0.2}});
+    REQUIRE(results.size() == 2);
+    const auto map = computeSpeciesMap(b, in, p);
+    for (const auto& r : results) {
+        INFO(r.species << " achieved " << r.achieved);
+        CHECK(r.feasible);
+        CHECK(std::abs(r.achieved - r.requested) <= 0.01);
+        CHECK(speciesFraction(map, in.chmM, b.speciesIndex(r.species), p.canopyThresholdM) == r.achieved);
+    }
+}
+
+TEST_CASE("targets are parsed strictly", "[species_map]") {
+    const Biome b = defaultBiome();
+    const auto t = parseSpeciesTarget("Redwood=0.4", b);
+    CHECK(t.species == "Redwood");
+    CHECK(t.fraction == 0.4);
+    CHECK(parseSpeciesTarget("Coast Live Oak = 1", b).species == "Coast Live Oak");
+    auto message = [&](const std::string& text) {
+        try {
+            parseSpeciesTarget(text, b);
+        } catch (const ValidationError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    CHECK_THAT(message("Redwod=0.4"), Catch::Contains("unknown species 'Redwod'") && Catch::Contains("Douglas-Fir"));
+    CHECK_THAT(message("Toyon=0.4"), Catch::Contains("not a canopy species"));
+    CHECK_THAT(message("Redwood=1.5"), Catch::Contains("[0, 1]"));
+    CHECK_THAT(message("Redwood=-0.1"), Catch::Contains("[0, 1]"));
+    CHECK_THAT(message("Redwood=0.4x"), Catch::Contains("not a number"));
+    CHECK_THAT(message("Redwood=nan"), Catch::Contains("[0, 1]"));
+    CHECK_THAT(message("Redwood"), Catch::Contains("SPECIES=FRACTION"));
+}
+
+TEST_CASE("bad species-map input is rejected with a clear message", "[species_map]") {
+    const Biome b = defaultBiome();
+    SpeciesMapParams p;
+    {
+        SpeciesMapInputs in = gradientInputs();
+        in.chmM(3, 5) = -2.f;
+        CHECK_THROWS_WITH(computeSpeciesMap(b, in), Catch::Contains("negative height") && Catch::Contains("(3, 5)"));
+    }
+    {
+        SpeciesMapInputs in = gradientInputs();
+        in.slopeDeg = Grid<float>(10, 10, 1.0);
+        CHECK_THROWS_AS(computeSpeciesMap(b, in), ValidationError);
+    }
+    const SpeciesMapInputs in = gradientInputs();
+    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 1.2), Catch::Contains("[0, 1]"));
+    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Toyon"), 0.2), Catch::Contains("not a canopy species"));
+    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Redwood", 0.7}, {"Douglas-Fir", 0.5}}), Catch::Contains("sum to"));
+    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Redwood", 0.2}, {"Redwood", 0.3}}), Catch::Contains("twice"));
+    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Nope", 0.2}}), Catch::Contains("unknown species"));
+    auto empty = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>::like(in.chmM, 0));
+    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, empty, "m.png"),
+                      Catch::Contains("no forested cell") && Catch::Contains("m.png"));
+    auto small = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>(5, 5, 1.0, 0, 0, 1));
+    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, small, "m.png"), Catch::Contains("geometry"));
+}
+
+TEST_CASE("a mask image must have the CHM's pixel size", "[species_map]") {
+    test::TempDir dir("species_mask");
+    const Grid<float> chm(32, 24, 0.914);
+    Grid<float> grey(32, 24, 0.914);
+    for (int iy = 0; iy < 24; ++iy)
+        for (int ix = 0; ix < 32; ++ix) grey(ix, iy) = ix < 16 ? 1.f : 0.f;
+    writeTerrainImage(dir.file("mask.png"), grey);
+    const auto mask = readMaskImage(dir.file("mask.png"), chm);
+    CHECK(mask(0, 0) == 1);
+    CHECK(mask(31, 23) == 0);
+    CHECK(forestedCells(Grid<float>::like(chm, 10.f), 3.0, &mask) == 16u * 24u);
+    writeTerrainImage(dir.file("small.png"), Grid<float>(16, 16, 1.0));
+    CHECK_THROWS_WITH(readMaskImage(dir.file("small.png"), chm),
+                      Catch::Contains("small.png") && Catch::Contains("never resampled"));
+}

@@ -1,0 +1,215 @@
+// Canopy placer (paper §5.2, Algorithm 1; SPEC §4): individual canopy trees from a canopy
+// height model (CHM), on CPU cores.
+//
+//   1. Seed a tree at every strict local maximum of the CHM that is >= minSeedHeightM.
+//   2. Iterate: render every crown top-down into a depth / tree-id buffer at CHM resolution;
+//      remove trees whose visible crown (on the CHM footprint) is below minVisibleFraction of
+//      their disc; move every other tree toward the centroid of its visible pixels; seed new
+//      trees on a ring around each tree where the CHM is uncovered. Stop when the coverage of
+//      the CHM footprint gains less than coverageEpsilon, or after maxIterations.
+//   3. Remove starved trees of the last render and duplicates (trunks closer than
+//      minTrunkDistanceM; crowns whose sphere lies entirely inside a larger one).
+//
+// A tree is a sphere of crown radius r (species allometry, Eq. 2) with its apex at the
+// tree's height h; its surface above the ground is z = h - r + sqrt(r^2 - d^2) inside the
+// disc d < r. Crowns are rendered in heights above the ground, as the CHM is (a CHM is a
+// surface model minus the terrain), so the rendered surface and the CHM compare cell by cell.
+//
+// Attributes of a tree at (x, y): height = CHM there (bilinear over the footprint cells
+// around it), species = species map at its cell, crown radius = that species' allometry at
+// that height, ground elevation = terrain (bilinear). Where the species map holds -1 (no
+// canopy species can grow there) the tree takes the species of the NEAREST mapped cell
+// (exact Euclidean distance between cell centres; ties broken by a fixed rule): it continues the
+// neighbouring stand, needs nothing beyond the map, and is recorded as such in
+// CanopyResult::fallbackTrees. A map with no species at all gives the tallest canopy species.
+//
+// Determinism: the result is a pure function of the inputs and CanopyParams (seed
+// included): identical bits for any number of OpenMP threads. The render splits the grid
+// into bands of rows, each written by one thread, trees in index order, depth ties to the
+// lower tree index; per-tree sums are integers; random numbers come from Philox keyed by
+// (seed, iteration, tree id); new trees are accepted serially in a fixed order.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "biome.h"
+#include "grid.h"
+#include "plants.h"
+#include "species_map.h"
+
+namespace eco {
+
+/// Every threshold of the placer. Written into every output (see canopyParamFields()).
+struct CanopyParams {
+    /// CHM footprint: cells with CHM >= this (metres) are canopy; coverage, RMSE and the
+    /// visible part of each crown are measured on them.
+    double canopyThresholdM = 3.0;
+    /// Trees are seeded, and may move, only where the CHM is >= this (metres).
+    double minSeedHeightM = 3.0;
+    /// Initial seeds are strict maxima of the CHM over a (2R + 1) x (2R + 1) window (cells).
+    int localMaximumRadiusCells = 1;
+    /// A tree whose visible crown (on the footprint) is less than this fraction of its
+    /// disc is sun-starved and removed (paper: "an area threshold").
+    double minVisibleFraction = 0.2;
+    /// Iteration cap of Algorithm 1.
+    int maxIterations = 30;
+    /// Fraction of the way to the centroid of its visible crown a tree moves per iteration.
+    /// 1 is the paper's full move; a half move keeps overlapping crowns closer to the CHM's
+    /// peaks (less Lloyd-style drift) and converged faster in our tests (docs/canopy.md).
+    double moveFactor = 0.5;
+    /// Candidate new trees per existing tree and iteration, evenly spaced on the ring with a
+    /// random rotation.
+    int ringSamples = 8;
+    /// Ring radius = ringFactor * (r_i + r_new): 1 places the new crown tangent to tree i's;
+    /// below 1 the new crown overlaps it, which reaches the crescents a hidden neighbour
+    /// leaves uncovered beside a crown (docs/canopy.md).
+    double ringFactor = 0.8;
+    /// Final duplicate removal: of two trunks closer than this (metres) the lower tree goes.
+    double minTrunkDistanceM = 1.0;
+    /// Stop when an iteration raises the footprint coverage by less than this (fraction).
+    double coverageEpsilon = 0.0005;
+    /// Seed of the ring sampling.
+    std::uint64_t seed = 1;
+};
+
+/// One named, documented parameter of CanopyParams, for configs and output attributes.
+struct CanopyParamField {
+    const char* key;    ///< snake_case, as in TOML configs and HDF5 attributes
+    const char* doc;    ///< one line, with units
+    enum class Kind { Real, Integer, Seed } kind;
+    double CanopyParams::*real = nullptr;
+    int CanopyParams::*integer = nullptr;
+};
+/// All fields of CanopyParams, in declaration order.
+const std::vector<CanopyParamField>& canopyParamFields();
+/// Value of a field as a double (seeds above 2^53 lose precision; write them separately).
+double canopyParamValue(const CanopyParams& p, const CanopyParamField& f);
+/// Set a field by key from a number; ValidationError for an unknown key or a non-integer
+/// value of an integer field (the message lists the keys).
+void setCanopyParam(CanopyParams& p, const std::string& key, double value);
+
+/// ValidationError naming the field when a parameter is out of range.
+void validateCanopyParams(const CanopyParams& p);
+
+/// Statistics of one iteration (iteration 0 = the initial seeding), measured on the render
+/// that ends it.
+struct IterationStats {
+    int iteration = 0;
+    std::size_t trees = 0;     ///< trees after the iteration
+    std::size_t removed = 0;   ///< sun-starved trees removed in it
+    std::size_t added = 0;     ///< trees seeded in it
+    double coverage = 0;       ///< fraction of the CHM footprint covered by some crown
+    double rmseM = 0;          ///< RMS of (rendered crown surface - CHM) over the footprint, metres
+    double seconds = 0;        ///< wall time of the iteration
+};
+
+struct CanopyResult {
+    std::vector<Plant> trees;
+    std::vector<IterationStats> iterations;  ///< 0 = initial seeding, then one per iteration
+    IterationStats final;        ///< after the final clean-up (starved trees, duplicates)
+    std::size_t initialSeeds = 0;
+    std::size_t duplicatesRemoved = 0;   ///< trunks too close or crowns inside larger crowns
+    std::size_t fallbackTrees = 0;       ///< final trees whose cell has no species (nearest mapped)
+    std::string stopReason;      ///< "coverage gain below epsilon" or "iteration cap"
+    double seconds = 0;          ///< whole placement, wall time
+};
+
+/// Called after each iteration (and for the final clean-up, with iteration = -1) from the
+/// calling thread.
+using CanopyProgress = std::function<void(const IterationStats&)>;
+
+/// Place canopy trees on a CHM (metres above ground). terrainM gives the trees' ground
+/// elevation; speciesMap (from computeSpeciesMap, -1 = none) their species. All three grids
+/// must share one geometry (ValidationError naming them otherwise); CHM heights must be
+/// finite and >= 0; species ids must be canopy species of `biome` or -1.
+CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
+                         const Biome& biome, const CanopyParams& params, const CanopyProgress& progress = {});
+
+/// A top-down render of crowns (spheres) at the resolution of `like`.
+struct CrownRender {
+    Grid<float> surfaceM;        ///< crown surface above ground; 0 where uncovered
+    Grid<std::int32_t> treeIndex;  ///< index into the plant list of the top crown; -1 where none
+};
+
+/// Render plants as the placer does (depth ties to the lower index). Parallel, deterministic.
+CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& like);
+
+/// Remove duplicates from a plant list, tallest first (ties: larger crown, then lower index):
+/// a plant goes when its trunk is closer than minTrunkDistanceM to a kept one's, or when its
+/// crown sphere lies entirely inside a kept one's. Order of the survivors is kept. Returns
+/// the number removed. Uses a uniform grid of bucket size max(crown radius, distance).
+std::size_t removeDuplicateTrees(std::vector<Plant>& plants, double minTrunkDistanceM);
+
+/// Strict local maxima of the CHM >= minHeightM over a (2R + 1)^2 window, as cell indices in
+/// row order. On a plateau of equal values the cell of lowest index wins, so a flat top gives
+/// one seed, not none.
+std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chmM, double minHeightM, int radiusCells);
+
+// ------------------------------------------------------------------------- configuration
+
+class StrictTable;  // core/strict_toml.h
+
+/// Read canopy and species-map parameters from a strict TOML table (keys of
+/// canopyParamFields() plus target_tolerance, max_bisection_steps, target_sweeps;
+/// canopy_threshold_m sets both structs). Keys absent keep their values; unknown keys are
+/// errors (the caller's StrictTable::finish reports them).
+void readCanopyConfig(StrictTable& table, CanopyParams& canopy, SpeciesMapParams& speciesMap);
+/// Same from a file: its [canopy] table when there is one (other tables belong to other
+/// stages), else its top level. IoError / ValidationError naming the file, line and key.
+void loadCanopyConfig(const std::string& path, CanopyParams& canopy, SpeciesMapParams& speciesMap);
+
+// ------------------------------------------------------------------------- files
+
+/// Everything a canopy file records. Layout (docs/canopy.md), one HDF5 file:
+///   /canopy                 the trees (core/plants.h layout: species_id, x, y, ground_z,
+///                           height, crown_radius, species_names)
+///   /species_map            int32 grid, "species id, -1 none" (ids index /canopy/species_names)
+///   /chm/height             float grid, m: the input CHM
+///   /terrain/elevation      float grid, m: the input terrain
+///   /iterations/{iteration, trees, removed, added (int32), coverage, rmse_m, seconds}  per iteration
+///                           (iteration -1 = the final clean-up) and attributes stop_reason,
+///                           initial_seeds, duplicates_removed, fallback_trees, seconds
+///   /targets/{species, requested, achieved, reachable, feasible, weight, alpha, iterations}
+///                           and /targets/mask (int32 grid, 1 = inside) when a brush was used
+///   root attributes: format = "eco-canopy", schema_version = 1, code_version, seed, every
+///   CanopyParams field by key, target_tolerance, max_bisection_steps, target_sweeps,
+///   species_weights (global user weights, biome order), biome_name, biome_toml, and the
+///   sources terrain_source, chm_source, abiotics_source, biome_source, mask_source.
+struct CanopyRecord {
+    CanopyResult result;
+    Grid<std::int32_t> speciesMap;
+    Grid<float> chmM;
+    Grid<float> terrainM;
+    CanopyParams params;
+    SpeciesMapParams speciesParams;
+    std::vector<TargetResult> targets;
+    std::string terrainSource, chmSource, abioticsSource, biomeSource, maskSource;
+};
+
+/// Write a canopy file atomically (temporary file, then rename). IoError on failure.
+void writeCanopyFile(const std::string& path, const CanopyRecord& record, const Biome& biome);
+
+/// What later stages read back from a canopy file.
+struct CanopyFileData {
+    std::vector<Plant> trees;            ///< species mapped by name onto the given biome
+    Grid<std::int32_t> speciesMap;       ///< ids of the FILE's species order (/canopy/species_names)
+    Grid<float> chmM;
+    Grid<float> terrainM;
+    std::vector<IterationStats> iterations;
+    std::uint64_t seed = 0;
+};
+/// Read a canopy file. IoError naming the file and the dataset when it is not an eco-canopy
+/// file of a known schema version or misses a dataset.
+CanopyFileData readCanopyFile(const std::string& path, const Biome& biome);
+
+/// Picture of the crowns drawn top-down over a hillshade of the terrain, each crown in its
+/// species' categoryColour, shaded by the crown surface, with a legend (species and counts);
+/// the title gets the tree count appended.
+/// North up; scaled down to at most 1024 pixels a side. Atomic PNG.
+void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, const Grid<float>& terrainM,
+                    const Biome& biome, const std::string& title = "Canopy trees");
+
+}  // namespace eco
