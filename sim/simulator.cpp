@@ -1,1 +1,1141 @@
-// placeholder: filled in by its owner
+// The undergrowth simulator engine. The model is in processes.h; this file is the data
+// layout and the parallel sweep (docs/simulator.md, "Parallel sweep without races").
+#include "simulator.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+#include "error.h"
+#include "processes.h"
+#include "rng.h"
+
+namespace eco::sim {
+
+namespace {
+
+// Rows per band of the sweep. Fixed (never derived from the thread count), so that the
+// per-band partial sums, and hence every result, are the same for any number of threads.
+constexpr int kBandRows = 32;
+constexpr double kPi = 3.14159265358979323846;
+// Below these sizes a loop runs on one thread: a fork and join costs more than the work, and
+// far more on a loaded machine. Results never depend on it (see kBandRows).
+std::size_t kParallelPlants = 20000;
+std::size_t kParallelCells = 200000;
+// The O(n) scatters (sort, band lists, compaction) have little work per plant: they go
+// parallel only for this many times more plants.
+constexpr std::size_t kParallelSortFactor = 16;
+
+// Working state of one simulation cell; 16 bytes.
+struct CellState {
+    float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
+    float transmission = 1.f;        // running product over the undergrowth painted so far this month
+    std::uint16_t occupants = 0;     // undergrowth plants covering the cell (count pass)
+    std::uint16_t painted = 0;       // occupants painted so far this month (height rank of the next)
+    std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
+};
+
+// One plant in one band's list: everything the sweep needs, read sequentially.
+constexpr std::uint32_t kManyCells = 0xFFFFFFFFu;
+struct BandEntry {
+    std::uint32_t plant;
+    std::uint32_t cell;  // the only cell of a one-cell plant, else kManyCells
+    std::uint32_t slot;  // partial-sum slot of (plant, band)
+    float keep;          // 1 - alpha of the plant's species
+};
+
+struct SpeciesConst {
+    double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
+    double capacity = 0;       // carbon pool capacity
+    double backgroundMu = 0;   // monthly background mortality
+    double rouletteDenominator = 1;  // maxAge^beta
+    double sunC = 0, sunR = 1, moistC = 0, moistR = 1, tempC = 0, tempR = 1, slopeC = 0, slopeR = 1;
+    bool growthMonth[12] = {};
+    int period = 0;            // index into biome.growthPeriods
+    std::uint32_t memberMask = 0;      // sub-biomes the species belongs to (bit b = sub-biome b + 1)
+    std::uint32_t canopySeedMask = 0;  // packages a canopy tree of this species spreads
+    Allometry allometry;
+};
+
+// Plants as a structure of arrays (the order is the plant index; compaction keeps it stable).
+struct PlantStore {
+    std::vector<std::uint64_t> id;
+    std::vector<std::int32_t> species;
+    std::vector<double> x, y, groundZ, height, radius, growthAge, pool;
+    std::vector<std::int32_t> ageMonths, rootIx, rootIy;
+    std::vector<std::uint32_t> coarse;  // abiotics cell of the root
+    std::vector<float> vigour, sun, water, canopyLimit;
+
+    std::size_t size() const { return id.size(); }
+    template <typename F>
+    void forEachArray(F&& f) {
+        f(id); f(species); f(x); f(y); f(groundZ); f(height); f(radius); f(growthAge); f(pool);
+        f(ageMonths); f(rootIx); f(rootIy); f(coarse); f(vigour); f(sun); f(water); f(canopyLimit);
+    }
+    std::size_t bytesPerPlant() {
+        std::size_t b = 0;
+        forEachArray([&](auto& v) { b += sizeof(typename std::decay_t<decltype(v)>::value_type); });
+        return b;
+    }
+};
+
+std::uint64_t hashBytes(std::uint64_t h, const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        std::uint64_t w;
+        std::memcpy(&w, p + i, 8);
+        h = mixStream(h, w);
+    }
+    std::uint64_t tail = n;
+    for (; i < n; ++i) tail = (tail << 8) ^ p[i];
+    return mixStream(h, tail);
+}
+template <typename T>
+std::uint64_t hashVector(std::uint64_t h, const std::vector<T>& v) {
+    return hashBytes(h, v.data(), v.size() * sizeof(T));
+}
+
+}  // namespace
+
+struct Simulation::Impl {
+    // ---- fixed inputs
+    Biome biome;
+    SimParams params;
+    std::uint64_t seed = 0;
+    Abiotics abio;
+    Grid<float> chm;
+    std::vector<Plant> canopy;  // relevant trees only
+    SimArea area;
+    std::vector<SpeciesConst> spc;
+    std::vector<std::uint32_t> periodMonthMask;       // per growth period: bit m set when month m belongs to it
+    std::array<std::vector<int>, 12> periodsOfMonth;  // periods containing month m
+    double vigA = 0.2, vigLnQ = std::log(0.01), vigP = 4.5;
+    bool vigPIsFourAndHalf = true;  // x^4.5 as x^4 sqrt(x): exact to an ulp and 5x faster than pow
+
+    // ---- simulation grid
+    int W = 0, H = 0;
+    double cell = 0.2, ox = 0, oy = 0;
+    std::vector<int> coarseCol;        // per sim column: abiotics column
+    std::vector<std::size_t> coarseRowOffset;  // per sim row: abiotics row * abiotics width
+    std::vector<CellState> cells;
+    Grid<float> seedProb;              // also the grid geometry
+    Grid<float> canopyTrans;           // copy of the canopy transmission (inspection only)
+    std::vector<std::uint16_t> seedPkg;
+    std::vector<std::vector<float>> deficitSun, deficitWater;  // per growth period, per cell
+    std::uint32_t windowMask = 0;      // months accumulated since the last germination
+
+    // ---- plants and per-month scratch
+    PlantStore pl;
+    std::vector<std::int32_t> rowLo, rowHi, bandLo;
+    std::vector<std::uint32_t> slotStart;
+    std::vector<double> partSun, partWater;
+    std::vector<std::int32_t> partCells;
+    std::vector<std::uint32_t> bandStart;
+    std::vector<BandEntry> bandEntries;
+    std::vector<std::uint32_t> singleCell;  // per plant: its only cell, or kManyCells
+    std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy
+    // Plant indices, tallest first (see sortOrder).
+    std::vector<std::uint32_t> order, orderB, keyA, keyB, fillPos;
+    std::vector<std::int32_t> bandHi;
+
+    std::int64_t month = 0;
+    std::uint64_t nextId = 1;
+    SimCounters counters;
+    std::size_t droppedInitial = 0;
+    mutable std::uint64_t fingerprintCache = 0;
+    mutable bool fingerprintReady = false;
+
+    int bands() const { return (H + kBandRows - 1) / kBandRows; }
+
+    // ------------------------------------------------------------------ setup
+    void setup(SimInputs&& in, const SimParams& p, std::uint64_t s) {
+        params = p;
+        params.validate("simulation parameters");
+        seed = s;
+        biome = std::move(in.biome);
+        abio = std::move(in.abiotics);
+        chm = std::move(in.chmM);
+        validateAbiotics();
+        setupSpecies();
+        setupGrid(in.area);
+        setupCanopy(in.canopy);
+    }
+
+    void validateAbiotics() {
+        const Grid<float>& g = abio.slopeDeg;
+        if (g.empty()) throw ValidationError("simulation: the abiotics have no slope map");
+        auto check = [&](const MonthlyGrids<float>& m, const char* what) {
+            if (m.months.size() != 12)
+                throw ValidationError(std::string("simulation: abiotic map '") + what + "' must have 12 monthly planes, has " +
+                                      std::to_string(m.months.size()));
+            for (const auto& plane : m.months)
+                if (!plane.sameGeometry(g))
+                    throw ValidationError(std::string("simulation: abiotic map '") + what +
+                                          "' does not have the geometry of the slope map");
+        };
+        check(abio.sunHours, "sun");
+        check(abio.moistureMm, "moisture");
+        check(abio.temperatureC, "temperature");
+        if (abio.elevationM.empty()) abio.elevationM = Grid<float>::like(g, 0.f);
+        if (!abio.elevationM.sameGeometry(g))
+            throw ValidationError("simulation: the elevation map does not have the geometry of the slope map");
+    }
+
+    void setupSpecies() {
+        if (biome.species.empty()) throw ValidationError("simulation: the biome has no species");
+        vigA = biome.vigour.a;
+        vigLnQ = std::log(biome.vigour.q);
+        vigP = biome.vigour.p;
+        vigPIsFourAndHalf = vigP == 4.5;
+        periodMonthMask.clear();
+        for (const auto& [name, months] : biome.growthPeriods) {
+            std::uint32_t mask = 0;
+            for (int m : months) mask |= 1u << m;
+            periodMonthMask.push_back(mask);
+        }
+        for (int m = 0; m < 12; ++m) {
+            periodsOfMonth[m].clear();
+            for (std::size_t g = 0; g < periodMonthMask.size(); ++g)
+                if (periodMonthMask[g] & (1u << m)) periodsOfMonth[m].push_back(static_cast<int>(g));
+        }
+        spc.assign(biome.species.size(), {});
+        for (std::size_t i = 0; i < biome.species.size(); ++i) {
+            const Species& s = biome.species[i];
+            SpeciesConst& c = spc[i];
+            c.alpha = s.alpha;
+            c.maxAgeYears = s.maxAgeYears;
+            c.maxHeightM = s.maxHeightM;
+            if (!(s.maxAgeYears > 0) || !(s.maxHeightM > 0))
+                throw ValidationError("simulation: species '" + s.name + "' needs a positive max age and max height");
+            c.capacity = poolCapacity(params.poolCapacityStressMonths, s.alpha, vigA);
+            c.backgroundMu = backgroundMortalityPerMonth(params.survivalAtMaxAge, s.maxAgeYears);
+            c.rouletteDenominator = std::pow(s.maxAgeYears, params.rouletteAgeExponent);
+            c.sunC = s.sun.c; c.sunR = s.sun.r;
+            c.moistC = s.moisture.c; c.moistR = s.moisture.r;
+            c.tempC = s.temperature.c; c.tempR = s.temperature.r;
+            c.slopeC = s.slope.c; c.slopeR = s.slope.r;
+            c.period = -1;
+            for (std::size_t g = 0; g < biome.growthPeriods.size(); ++g)
+                if (biome.growthPeriods[g].first == s.growthPeriod) c.period = static_cast<int>(g);
+            std::vector<int> months = s.growthMonths;
+            if (c.period >= 0 && months.empty()) months = biome.growthPeriods[static_cast<std::size_t>(c.period)].second;
+            if (c.period < 0) {
+                // A species whose months are not a named period gets a period of its own.
+                std::uint32_t mask = 0;
+                for (int m : months) mask |= 1u << m;
+                periodMonthMask.push_back(mask);
+                c.period = static_cast<int>(periodMonthMask.size() - 1);
+                for (int m : months) periodsOfMonth[m].push_back(c.period);
+            }
+            for (int m : months) c.growthMonth[m] = true;
+            for (int b : s.subBiomes) c.memberMask |= 1u << (b - 1);
+            c.allometry = s.allometry;
+        }
+        for (const SubBiome& sb : biome.subBiomes)
+            for (const std::string& name : sb.canopySpecies)
+                for (std::size_t i = 0; i < biome.species.size(); ++i)
+                    if (biome.species[i].name == name) spc[i].canopySeedMask |= 1u << (sb.number - 1);
+    }
+
+    void setupGrid(const std::optional<SimArea>& requested) {
+        const Grid<float>& g = abio.slopeDeg;
+        const double ex0 = g.originX(), ey0 = g.originY(), ex1 = ex0 + g.extentX(), ey1 = ey0 + g.extentY();
+        area = requested ? *requested : SimArea{ex0, ey0, ex1, ey1};
+        const double tol = 1e-6 * std::max(1.0, std::max(std::abs(ex1), std::abs(ey1)));
+        if (area.x0 < ex0 - tol || area.y0 < ey0 - tol || area.x1 > ex1 + tol || area.y1 > ey1 + tol)
+            throw ValidationError("simulation: area [" + std::to_string(area.x0) + ", " + std::to_string(area.y0) + ", " +
+                                  std::to_string(area.x1) + ", " + std::to_string(area.y1) +
+                                  "] (x0, y0, x1, y1 in metres) is not inside the abiotics extent [" +
+                                  std::to_string(ex0) + ", " + std::to_string(ey0) + ", " + std::to_string(ex1) + ", " +
+                                  std::to_string(ey1) + "]");
+        cell = params.cellSizeM;
+        W = static_cast<int>(std::floor((area.x1 - area.x0) / cell + 1e-9));
+        H = static_cast<int>(std::floor((area.y1 - area.y0) / cell + 1e-9));
+        if (W < 1 || H < 1) throw ValidationError("simulation: area is smaller than one cell of " + std::to_string(cell) + " m");
+        if (W > 65535 * 4 || static_cast<double>(W) * H > 4.0e9)
+            throw ValidationError("simulation: area of " + std::to_string(W) + " x " + std::to_string(H) + " cells is too large");
+        ox = area.x0;
+        oy = area.y0;
+        // The grid covers whole cells; the area's upper edges are trimmed to them.
+        area.x1 = ox + W * cell;
+        area.y1 = oy + H * cell;
+        seedProb = Grid<float>(W, H, cell, ox, oy, 0.f);
+        coarseCol.resize(static_cast<std::size_t>(W));
+        for (int ix = 0; ix < W; ++ix) coarseCol[ix] = std::clamp(g.cellX(seedProb.cellCentreX(ix)), 0, g.width() - 1);
+        coarseRowOffset.resize(static_cast<std::size_t>(H));
+        for (int iy = 0; iy < H; ++iy)
+            coarseRowOffset[iy] = static_cast<std::size_t>(std::clamp(g.cellY(seedProb.cellCentreY(iy)), 0, g.height() - 1)) *
+                                  static_cast<std::size_t>(g.width());
+        const std::size_t n = static_cast<std::size_t>(W) * static_cast<std::size_t>(H);
+        cells.assign(n, CellState{});
+        seedPkg.assign(n, 0);
+        deficitSun.assign(periodMonthMask.size(), std::vector<float>(n, 0.f));
+        deficitWater.assign(periodMonthMask.size(), std::vector<float>(n, 0.f));
+    }
+
+    // Visit the cells whose centres lie within the disc (x, y, r), rows [r0, r1) only, as
+    // row spans fn(iy, ixFirst, ixLast). When (rootIx, rootIy) >= 0 the root cell is always
+    // part of the footprint ("at least its own cell").
+    template <typename F>
+    void forEachSpan(double x, double y, double r, int rootIx, int rootIy, int r0, int r1, F&& fn) const {
+        const double r2 = r * r;
+        for (int iy = r0; iy < r1; ++iy) {
+            const double dy = oy + (iy + 0.5) * cell - y;
+            int a = 1, b = 0;
+            if (dy * dy <= r2) {
+                const double half = std::sqrt(r2 - dy * dy);
+                const double fa = std::ceil((x - half - ox) / cell - 0.5);
+                const double fb = std::floor((x + half - ox) / cell - 0.5);
+                a = static_cast<int>(std::max(fa, -1.0));
+                b = static_cast<int>(std::min(fb, static_cast<double>(W)));
+            }
+            if (iy == rootIy) {
+                if (a > b) a = b = rootIx;
+                else { a = std::min(a, rootIx); b = std::max(b, rootIx); }
+            }
+            a = std::max(a, 0);
+            b = std::min(b, W - 1);
+            if (a <= b) fn(iy, a, b);
+        }
+    }
+    // Rows [lo, hi] whose centres may lie within r of y (plus the root row), clamped.
+    void rowRange(double y, double r, int rootIy, int& lo, int& hi) const {
+        const double flo = std::ceil((y - r - oy) / cell - 0.5);
+        const double fhi = std::floor((y + r - oy) / cell - 0.5);
+        lo = static_cast<int>(std::clamp(flo, -1.0, static_cast<double>(H)));
+        hi = static_cast<int>(std::clamp(fhi, -1.0, static_cast<double>(H)));
+        if (rootIy >= 0) {
+            lo = std::min(lo, rootIy);
+            hi = std::max(hi, rootIy);
+        }
+        lo = std::max(lo, 0);
+        hi = std::min(hi, H - 1);
+    }
+
+    void setupCanopy(const std::vector<Plant>& trees) {
+        // Keep the trees whose crown or seeding disc reaches the area, in input order.
+        canopy.clear();
+        for (const Plant& t : trees) {
+            if (t.speciesId < 0 || static_cast<std::size_t>(t.speciesId) >= spc.size())
+                throw ValidationError("simulation: canopy tree with species id " + std::to_string(t.speciesId) +
+                                      " outside the biome's " + std::to_string(spc.size()) + " species");
+            if (!std::isfinite(t.xM) || !std::isfinite(t.yM) || !std::isfinite(t.crownRadiusM) || t.crownRadiusM < 0)
+                throw ValidationError("simulation: canopy tree with a non-finite position or a bad crown radius");
+            const double reach = std::max(1.0, params.seedOuterRadiusFactor) * t.crownRadiusM;
+            const double dx = std::max({area.x0 - t.xM, 0.0, t.xM - area.x1});
+            const double dy = std::max({area.y0 - t.yM, 0.0, t.yM - area.y1});
+            if (dx * dx + dy * dy <= reach * reach) canopy.push_back(t);
+        }
+        if (chm.empty()) {
+            // No CHM given: the tallest covering crown, at the abiotics resolution.
+            chm = Grid<float>::like(abio.slopeDeg, 0.f);
+            for (const Plant& t : trees) {
+                const int x0 = std::max(0, chm.cellX(t.xM - t.crownRadiusM)), x1 = std::min(chm.width() - 1, chm.cellX(t.xM + t.crownRadiusM));
+                const int y0 = std::max(0, chm.cellY(t.yM - t.crownRadiusM)), y1 = std::min(chm.height() - 1, chm.cellY(t.yM + t.crownRadiusM));
+                for (int iy = y0; iy <= y1; ++iy)
+                    for (int ix = x0; ix <= x1; ++ix) {
+                        const double dx = chm.cellCentreX(ix) - t.xM, dy = chm.cellCentreY(iy) - t.yM;
+                        if (dx * dx + dy * dy <= t.crownRadiusM * t.crownRadiusM)
+                            chm(ix, iy) = std::max(chm(ix, iy), static_cast<float>(t.heightM));
+                    }
+            }
+        }
+        const double gamma = params.seedingProbability;
+        const double inner = params.seedInnerRadiusFactor, outer = params.seedOuterRadiusFactor;
+        std::vector<float>& prob = seedProb.data();
+        // Each band of rows is owned by one thread and visits the trees in input order, so the
+        // float products and sums per cell are the same for any thread count.
+#pragma omp parallel for schedule(dynamic, 1)
+        for (int b = 0; b < bands(); ++b) {
+            const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+            for (const Plant& t : canopy) {
+                const SpeciesConst& sc = spc[static_cast<std::size_t>(t.speciesId)];
+                const float keep = static_cast<float>(1.0 - sc.alpha);
+                int lo, hi;
+                rowRange(t.yM, t.crownRadiusM, -1, lo, hi);
+                if (t.crownRadiusM > 0 && lo <= hi)
+                    forEachSpan(t.xM, t.yM, t.crownRadiusM, -1, -1, std::max(lo, r0), std::min(hi + 1, r1),
+                                [&](int iy, int a, int e) {
+                                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                                    for (int ix = a; ix <= e; ++ix) {
+                                        row[ix].canopyTransmission *= keep;
+                                        if (row[ix].canopyTrees < 255) ++row[ix].canopyTrees;
+                                    }
+                                });
+                if (sc.canopySeedMask == 0 || !(t.crownRadiusM > 0) || !(gamma > 0)) continue;
+                const double reach = outer * t.crownRadiusM;
+                rowRange(t.yM, reach, -1, lo, hi);
+                if (lo > hi) continue;
+                forEachSpan(t.xM, t.yM, reach, -1, -1, std::max(lo, r0), std::min(hi + 1, r1), [&](int iy, int a, int e) {
+                    const double dy = oy + (iy + 0.5) * cell - t.yM;
+                    const std::size_t rowOff = static_cast<std::size_t>(iy) * W;
+                    for (int ix = a; ix <= e; ++ix) {
+                        const double dx = ox + (ix + 0.5) * cell - t.xM;
+                        const double k = seedKernel(std::sqrt(dx * dx + dy * dy), t.crownRadiusM, inner, outer);
+                        if (k <= 0) continue;
+                        prob[rowOff + ix] += static_cast<float>(gamma * k);
+                        seedPkg[rowOff + ix] |= static_cast<std::uint16_t>(sc.canopySeedMask);
+                    }
+                });
+            }
+            for (int iy = r0; iy < r1; ++iy)
+                for (int ix = 0; ix < W; ++ix) {
+                    float& v = prob[static_cast<std::size_t>(iy) * W + ix];
+                    v = std::min(v, 1.f);
+                }
+        }
+        canopyTrans = Grid<float>(W, H, cell, ox, oy, 1.f);
+        for (std::size_t i = 0; i < cells.size(); ++i) canopyTrans.data()[i] = cells[i].canopyTransmission;
+    }
+
+    // ------------------------------------------------------------------ plants
+    double vigour(int s, double sun, double water, double temp, double slope) const {
+        const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
+        // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
+        const double x = std::max(std::max(std::abs(temp - c.tempC) / c.tempR, std::abs(water - c.moistC) / c.moistR),
+                                  std::max(std::abs(sun - c.sunC) / c.sunR, std::abs(slope - c.slopeC) / c.slopeR));
+        const double xp = vigPIsFourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, vigP);
+        return c.alpha * ((1.0 + vigA) * std::exp(xp * vigLnQ) - vigA);
+    }
+
+    float canopyLimitAt(double x, double y) const {
+        const int ix = std::clamp(chm.cellX(x), 0, chm.width() - 1), iy = std::clamp(chm.cellY(y), 0, chm.height() - 1);
+        return static_cast<float>(std::max(static_cast<double>(chm(ix, iy)), params.canopyThresholdM));
+    }
+
+    void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
+                  double ageYears, double pool, double vig) {
+        const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
+        const double h = idealHeightM(growthAgeYears, c.maxAgeYears, c.maxHeightM);
+        const Grid<float>& g = abio.slopeDeg;
+        const int cx = std::clamp(g.cellX(x), 0, g.width() - 1), cy = std::clamp(g.cellY(y), 0, g.height() - 1);
+        pl.id.push_back(id);
+        pl.species.push_back(s);
+        pl.x.push_back(x);
+        pl.y.push_back(y);
+        pl.groundZ.push_back(abio.elevationM.sampleBilinear(x, y));
+        pl.height.push_back(h);
+        pl.radius.push_back(c.allometry.crownRadiusM(h));
+        pl.growthAge.push_back(growthAgeYears);
+        pl.pool.push_back(pool);
+        pl.ageMonths.push_back(static_cast<std::int32_t>(std::lround(ageYears * 12.0)));
+        pl.rootIx.push_back(rootIx);
+        pl.rootIy.push_back(rootIy);
+        pl.coarse.push_back(static_cast<std::uint32_t>(g.index(cx, cy)));
+        pl.vigour.push_back(static_cast<float>(vig));
+        pl.sun.push_back(0.f);
+        pl.water.push_back(0.f);
+        pl.canopyLimit.push_back(canopyLimitAt(x, y));
+    }
+
+    void addInitial(const std::vector<UndergrowthPlant>& initial) {
+        for (const UndergrowthPlant& p : initial) {
+            if (p.speciesId < 0 || static_cast<std::size_t>(p.speciesId) >= spc.size())
+                throw ValidationError("simulation: initial plant with species id " + std::to_string(p.speciesId) +
+                                      " outside the biome's " + std::to_string(spc.size()) + " species");
+            if (!std::isfinite(p.xM) || !std::isfinite(p.yM) || !std::isfinite(p.heightM) || p.heightM < 0 ||
+                !std::isfinite(p.pool) || !std::isfinite(p.ageYears) || p.ageYears < 0)
+                throw ValidationError("simulation: initial plant " + std::to_string(p.id) + " has a non-finite or negative value");
+            const int ix = seedProb.cellX(p.xM), iy = seedProb.cellY(p.yM);
+            if (!seedProb.inside(ix, iy)) {
+                ++droppedInitial;
+                continue;
+            }
+            const SpeciesConst& c = spc[static_cast<std::size_t>(p.speciesId)];
+            const double ga = p.growthAgeYears > 0 ? p.growthAgeYears : growthAgeForHeight(p.heightM, c.maxAgeYears, c.maxHeightM);
+            const double pool = std::min(p.pool, c.capacity);
+            addPlant(nextId++, p.speciesId, p.xM, p.yM, ix, iy, ga, p.ageYears, pool, p.vigour);
+        }
+    }
+
+    // ------------------------------------------------------------------ the monthly sweep
+    // Footprint rows, bands and partial-sum slots of every plant.
+    void computeBounds() {
+        const std::size_t n = pl.size();
+        rowLo.resize(n);
+        rowHi.resize(n);
+        bandLo.resize(n);
+        bandHi.resize(n);
+        singleCell.resize(n);
+        slotStart.resize(n + 1);
+#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
+        for (std::size_t p = 0; p < n; ++p) {
+            if (pl.radius[p] < 0.5 * cell) {
+                // No other cell centre is closer than half a cell to a point inside its own
+                // cell: the footprint is the root cell (most plants, most months).
+                rowLo[p] = rowHi[p] = pl.rootIy[p];
+                bandLo[p] = bandHi[p] = pl.rootIy[p] / kBandRows;
+                singleCell[p] = static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]);
+                continue;
+            }
+            int lo, hi;
+            rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+            rowLo[p] = lo;
+            rowHi[p] = hi;
+            bandLo[p] = lo / kBandRows;
+            bandHi[p] = hi / kBandRows;
+            std::uint32_t only = kManyCells;
+            if (lo == hi)
+                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, lo + 1, [&](int iy, int a, int z) {
+                    if (a == z) only = static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a);
+                });
+            singleCell[p] = only;
+        }
+        slotStart[0] = 0;
+        for (std::size_t p = 0; p < n; ++p)
+            slotStart[p + 1] = slotStart[p] + static_cast<std::uint32_t>(bandHi[p] - bandLo[p] + 1);
+    }
+
+    // Chunks of the parallel counting scatters: fixed size (never derived from the thread
+    // count), and a scatter is stable whatever the chunking, so results do not depend on it.
+    static constexpr std::size_t kChunk = 32768;
+    std::vector<std::uint32_t> chunkCounts;
+
+    // Height order of all plants, tallest first; ties (equal float heights) by plant index,
+    // which is id order because plants are appended with increasing ids and compaction is
+    // stable. LSD radix sort on the float height (3 passes of 11 bits): O(n) every month,
+    // each pass a stable counting scatter, parallel over fixed chunks.
+    void sortOrder() {
+        const std::size_t n = pl.size();
+        keyA.resize(n);
+        keyB.resize(n);
+        order.resize(n);
+        orderB.resize(n);
+        const bool parallel = n > kParallelSortFactor * kParallelPlants;
+#pragma omp parallel for schedule(static) if (parallel)
+        for (std::size_t p = 0; p < n; ++p) {
+            const float h = static_cast<float>(pl.height[p]);  // heights are >= 0
+            std::uint32_t bits;
+            std::memcpy(&bits, &h, sizeof bits);
+            keyA[p] = ~bits;  // descending
+            order[p] = static_cast<std::uint32_t>(p);
+        }
+        std::uint32_t* keyIn = keyA.data();
+        std::uint32_t* keyOut = keyB.data();
+        std::uint32_t* idxIn = order.data();
+        std::uint32_t* idxOut = orderB.data();
+        constexpr int kDigits = 2048;
+        const std::size_t chunks = (n + kChunk - 1) / kChunk;
+        chunkCounts.resize(chunks * kDigits);
+        for (int shift = 0; shift < 32; shift += 11) {
+            std::fill(chunkCounts.begin(), chunkCounts.end(), 0u);
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+            for (std::size_t c = 0; c < chunks; ++c) {
+                std::uint32_t* h = &chunkCounts[c * kDigits];
+                for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) ++h[(keyIn[i] >> shift) & 2047u];
+            }
+            // Prefix in (digit, chunk) order; skip a pass that would not move anything.
+            std::uint32_t run = 0;
+            bool single = false;
+            for (int d = 0; d < kDigits; ++d) {
+                std::uint32_t total = 0;
+                for (std::size_t c = 0; c < chunks; ++c) {
+                    const std::uint32_t k = chunkCounts[c * kDigits + d];
+                    chunkCounts[c * kDigits + d] = run;
+                    run += k;
+                    total += k;
+                }
+                if (total == n) single = true;
+            }
+            if (single) continue;
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+            for (std::size_t c = 0; c < chunks; ++c) {
+                std::uint32_t* pos = &chunkCounts[c * kDigits];
+                for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
+                    const std::uint32_t at = pos[(keyIn[i] >> shift) & 2047u]++;
+                    keyOut[at] = keyIn[i];
+                    idxOut[at] = idxIn[i];
+                }
+            }
+            std::swap(keyIn, keyOut);
+            std::swap(idxIn, idxOut);
+        }
+        if (idxIn != order.data()) std::copy(idxIn, idxIn + n, order.begin());
+    }
+
+    // Band lists: the plants overlapping each band; in height order when `sorted`. A stable
+    // counting scatter of the (plant, band) pairs by band, parallel over fixed chunks.
+    void buildBands(bool sorted) {
+        const int nb = bands();
+        const std::size_t n = pl.size();
+        if (sorted) sortOrder();
+        const bool parallel = n > kParallelSortFactor * kParallelPlants;
+        const std::size_t chunks = (n + kChunk - 1) / kChunk;
+        chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
+        auto plantAt = [&](std::size_t i) { return sorted ? order[i] : static_cast<std::uint32_t>(i); };
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t* h = &chunkCounts[c * nb];
+            for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
+                const std::uint32_t p = plantAt(i);
+                for (int b = bandLo[p]; b <= bandHi[p]; ++b) ++h[b];
+            }
+        }
+        bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
+        std::uint32_t run = 0;
+        for (int b = 0; b < nb; ++b) {
+            bandStart[b] = run;
+            for (std::size_t c = 0; c < chunks; ++c) {
+                const std::uint32_t k = chunkCounts[c * nb + b];
+                chunkCounts[c * nb + b] = run;
+                run += k;
+            }
+        }
+        bandStart[nb] = run;
+        bandEntries.resize(run);
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t* pos = &chunkCounts[c * nb];
+            for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
+                const std::uint32_t p = plantAt(i);
+                const int lo = bandLo[p], hi = bandHi[p];
+                const float keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
+                for (int b = lo; b <= hi; ++b)
+                    bandEntries[pos[b]++] = BandEntry{p, singleCell[p], slotStart[p] + static_cast<std::uint32_t>(b - lo), keep};
+            }
+        }
+    }
+
+    template <typename F>
+    void forEachPlantSpan(std::uint32_t p, int r0, int r1, F&& fn) const {
+        forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], std::max(r0, rowLo[p]),
+                    std::min(r1, rowHi[p] + 1), fn);
+    }
+
+    // Count pass and paint pass of one band. The band's rows belong to this call only.
+    void sweepBand(int b, int m) {
+        const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+        const BandEntry* e0 = bandEntries.data() + bandStart[b];
+        const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
+        for (const BandEntry* e = e0; e != e1; ++e) {
+            if (e->cell != kManyCells) {
+                ++cells[e->cell].occupants;
+                continue;
+            }
+            forEachPlantSpan(e->plant, r0, r1, [&](int iy, int a, int z) {
+                CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                for (int ix = a; ix <= z; ++ix) ++row[ix].occupants;
+            });
+        }
+        const float* sunPlane = abio.sunHours[m].data().data();
+        const float* moistPlane = abio.moistureMm[m].data().data();
+        const double demand = params.minWaterDemandMm;
+        const std::vector<int>& periods = periodsOfMonth[m];
+        // Share of one occupant in cell (ix, iy); the last occupant leaves the leftover to
+        // germination and resets the cell for the next month.
+        auto paint = [&](int ix, int iy, float keep, double& sunSum, double& waterSum) {
+            const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
+            CellState& cs = cells[c];
+            const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
+            const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cc];
+            const double avail = waterAfterCanopyMm(moistPlane[cc], cs.canopyTrees, demand);
+            const int k = cs.painted, n = cs.occupants;
+            sunSum += base * cs.transmission;
+            waterSum += waterShareMm(avail, k, n, demand);
+            cs.transmission *= keep;
+            if (k + 1 == n) {
+                const double sunLeft = base * cs.transmission;
+                const double waterLeft = waterLeftoverMm(avail, n, demand);
+                for (int g : periods) {
+                    deficitSun[static_cast<std::size_t>(g)][c] += static_cast<float>(base - sunLeft);
+                    deficitWater[static_cast<std::size_t>(g)][c] += static_cast<float>(avail - waterLeft);
+                }
+                cs.transmission = 1.f;
+                cs.painted = 0;
+                cs.occupants = 0;
+            } else {
+                cs.painted = static_cast<std::uint16_t>(k + 1);
+            }
+        };
+        for (const BandEntry* e = e0; e != e1; ++e) {
+            double sunSum = 0, waterSum = 0;
+            std::int32_t count = 0;
+            if (e->cell != kManyCells) {
+                paint(static_cast<int>(e->cell % static_cast<std::uint32_t>(W)), static_cast<int>(e->cell / static_cast<std::uint32_t>(W)),
+                      e->keep, sunSum, waterSum);
+                count = 1;
+            } else {
+                forEachPlantSpan(e->plant, r0, r1, [&](int iy, int a, int z) {
+                    for (int ix = a; ix <= z; ++ix) paint(ix, iy, e->keep, sunSum, waterSum);
+                    count += z - a + 1;
+                });
+            }
+            partSun[e->slot] = sunSum;
+            partWater[e->slot] = waterSum;
+            partCells[e->slot] = count;
+        }
+    }
+
+    void updatePlants(int m) {
+        const std::size_t n = pl.size();
+        fate.assign(n, 0);
+        const float* tempPlane = abio.temperatureC[m].data().data();
+        const float* slopePlane = abio.slopeDeg.data().data();
+#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
+        for (std::size_t p = 0; p < n; ++p) {
+            double sunSum = 0, waterSum = 0;
+            std::int64_t count = 0;
+            for (std::uint32_t s = slotStart[p]; s < slotStart[p + 1]; ++s) {
+                sunSum += partSun[s];
+                waterSum += partWater[s];
+                count += partCells[s];
+            }
+            const double inv = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
+            const double sun = sunSum * inv, water = waterSum * inv;
+            const int s = pl.species[p];
+            const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
+            const double v = vigour(s, sun, water, tempPlane[pl.coarse[p]], slopePlane[pl.coarse[p]]);
+            pl.sun[p] = static_cast<float>(sun);
+            pl.water[p] = static_cast<float>(water);
+            pl.vigour[p] = static_cast<float>(v);
+            const PoolStep ps = updatePool(pl.pool[p], v, c.capacity);
+            pl.pool[p] = ps.pool;
+            if (c.growthMonth[m] && ps.overflow > 0) {
+                pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, params.growthMonthsPerOverflow);
+                pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
+                pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
+            }
+            ++pl.ageMonths[p];
+            if (pl.height[p] >= pl.canopyLimit[p]) {
+                fate[p] = 2;
+            } else {
+                const double mu = mortalityProbability(c.backgroundMu, pl.pool[p]);
+                if (mortalityUniform(seed, pl.id[p], static_cast<std::uint64_t>(month)) < mu) fate[p] = 1;
+            }
+        }
+    }
+
+    void compact() {
+        const std::size_t n = pl.size();
+        std::size_t keep = 0;
+        for (std::size_t p = 0; p < n; ++p) {
+            if (fate[p] == 1) ++counters.diedBackgroundOrStress;
+            else if (fate[p] == 2) ++counters.diedAtCanopy;
+            else ++keep;
+        }
+        if (keep == n) return;
+        // Arrays are compacted independently of each other: one task per array.
+#pragma omp parallel if (n > kParallelSortFactor * kParallelPlants)
+#pragma omp single
+        pl.forEachArray([&](auto& v) {
+            auto* vp = &v;
+#pragma omp task firstprivate(vp)
+            {
+                std::size_t out = 0;
+                for (std::size_t p = 0; p < n; ++p)
+                    if (fate[p] == 0) (*vp)[out++] = (*vp)[p];
+                vp->resize(out);
+            }
+        });
+    }
+
+    void stepMonth() {
+        const int m = static_cast<int>(month % 12);
+        const std::size_t n = pl.size();
+        if (n > 0) {
+            computeBounds();
+            buildBands(true);
+            const std::size_t slots = slotStart[n];
+            partSun.resize(slots);
+            partWater.resize(slots);
+            partCells.resize(slots);
+#pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
+            for (int b = 0; b < bands(); ++b) sweepBand(b, m);
+            updatePlants(m);
+            compact();
+        }
+        windowMask |= 1u << m;
+        counters.plantMonths += static_cast<std::int64_t>(n);
+        if (m == params.seedingMonth) germinate(static_cast<std::uint64_t>(month / 12));
+        ++month;
+    }
+
+    // ------------------------------------------------------------------ germination
+    // Mean leftover sun, water and temperature of cell c over the months of period g in the
+    // window; false when the window holds none of its months.
+    bool leftoverMeans(std::size_t c, int ix, int iy, int g, double& sun, double& water, double& temp) const {
+        const std::uint32_t months = windowMask & periodMonthMask[static_cast<std::size_t>(g)];
+        if (!months) return false;
+        const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
+        double sunBase = 0, waterBase = 0, tempSum = 0;
+        int count = 0;
+        for (int m = 0; m < 12; ++m) {
+            if (!(months & (1u << m))) continue;
+            sunBase += static_cast<double>(cells[c].canopyTransmission) * abio.sunHours[m].data()[cc];
+            waterBase += waterAfterCanopyMm(abio.moistureMm[m].data()[cc], cells[c].canopyTrees, params.minWaterDemandMm);
+            tempSum += abio.temperatureC[m].data()[cc];
+            ++count;
+        }
+        sun = std::max(0.0, sunBase - deficitSun[static_cast<std::size_t>(g)][c]) / count;
+        water = std::max(0.0, waterBase - deficitWater[static_cast<std::size_t>(g)][c]) / count;
+        temp = tempSum / count;
+        return true;
+    }
+
+    void weightsAt(int ix, int iy, double* w) const {
+        const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
+        const std::uint32_t pkg = seedPkg[c];
+        const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
+        const double slope = abio.slopeDeg.data()[cc];
+        // Means per growth period, computed once.
+        double sunG[32], waterG[32], tempG[32];
+        bool okG[32];
+        const int periods = std::min<int>(32, static_cast<int>(periodMonthMask.size()));
+        for (int g = 0; g < periods; ++g) okG[g] = false;
+        bool computed[32] = {};
+        for (std::size_t s = 0; s < spc.size(); ++s) {
+            w[s] = 0;
+            const SpeciesConst& sc = spc[s];
+            if (!(sc.memberMask & pkg) || sc.period >= periods) continue;
+            const int g = sc.period;
+            if (!computed[g]) {
+                okG[g] = leftoverMeans(c, ix, iy, g, sunG[g], waterG[g], tempG[g]);
+                computed[g] = true;
+            }
+            if (!okG[g]) continue;
+            const double vbar = vigour(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
+            w[s] = rouletteWeight(vbar, sc.maxAgeYears, params.rouletteAgeExponent);
+        }
+    }
+
+    // Occupancy count of the current plants into cells[].occupants (band-parallel).
+    void countOccupancy() {
+        computeBounds();
+        buildBands(false);
+#pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
+        for (int b = 0; b < bands(); ++b) {
+            const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+            for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e)
+                forEachPlantSpan(bandEntries[e].plant, r0, r1, [&](int iy, int a, int z) {
+                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                    for (int ix = a; ix <= z; ++ix)
+                        if (row[ix].occupants < 65535) ++row[ix].occupants;
+                });
+        }
+    }
+
+    struct Candidate {
+        int ix, iy, species;
+        double x, y;
+    };
+
+    void germinate(std::uint64_t year) {
+        countOccupancy();
+        const std::size_t ns = spc.size();
+        std::vector<std::vector<Candidate>> perBand(static_cast<std::size_t>(bands()));
+#pragma omp parallel if (cells.size() > kParallelCells)
+        {
+            std::vector<double> w(ns);
+#pragma omp for schedule(dynamic, 1)
+            for (int b = 0; b < bands(); ++b) {
+                const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+                for (int iy = r0; iy < r1; ++iy)
+                    for (int ix = 0; ix < W; ++ix) {
+                        const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
+                        const float prob = seedProb.data()[c];
+                        if (!(prob > 0) || cells[c].occupants > 0 || seedPkg[c] == 0) continue;
+                        const auto bits = randomBits(seed, mixStream(c, kGerminationStreamTag), year);
+                        const double u = bits[0] * 0x1.0p-32;
+                        if (u >= prob) continue;
+                        weightsAt(ix, iy, w.data());
+                        const int s = rouletteSelect(w.data(), static_cast<int>(ns), bits[1] * 0x1.0p-32);
+                        if (s < 0) continue;
+                        perBand[static_cast<std::size_t>(b)].push_back(
+                            {ix, iy, s, ox + (ix + bits[2] * 0x1.0p-32) * cell, oy + (iy + bits[3] * 0x1.0p-32) * cell});
+                    }
+            }
+        }
+        // In cell order: a seedling occupies its cells at once, so a later candidate whose
+        // cell an earlier seedling of this year already covers does not germinate.
+        const double ga = params.seedlingGrowthAgeMonths / 12.0;
+        for (const auto& list : perBand)
+            for (const Candidate& cd : list) {
+                const std::size_t c = static_cast<std::size_t>(cd.iy) * W + cd.ix;
+                if (cells[c].occupants > 0) continue;
+                addPlant(nextId++, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, 0.0, 0.0);
+                ++counters.germinated;
+                const std::size_t p = pl.size() - 1;
+                int lo, hi;
+                rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
+                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                    for (int ix = a; ix <= z; ++ix)
+                        if (row[ix].occupants < 65535) ++row[ix].occupants;
+                });
+            }
+#pragma omp parallel for schedule(dynamic, 65536) if (cells.size() > kParallelCells)
+        for (std::size_t c = 0; c < cells.size(); ++c) cells[c].occupants = 0;
+        // A new season of leftovers starts.
+        for (auto& v : deficitSun) std::fill(v.begin(), v.end(), 0.f);
+        for (auto& v : deficitWater) std::fill(v.begin(), v.end(), 0.f);
+        windowMask = 0;
+    }
+
+    // ------------------------------------------------------------------ outputs
+    UndergrowthPlant plantAt(std::size_t p) const {
+        UndergrowthPlant u;
+        u.id = pl.id[p];
+        u.speciesId = pl.species[p];
+        u.xM = pl.x[p];
+        u.yM = pl.y[p];
+        u.groundZM = pl.groundZ[p];
+        u.heightM = pl.height[p];
+        u.crownRadiusM = pl.radius[p];
+        u.ageYears = pl.ageMonths[p] / 12.0;
+        u.growthAgeYears = pl.growthAge[p];
+        u.vigour = pl.vigour[p];
+        u.pool = pl.pool[p];
+        u.sunShare = pl.sun[p];
+        u.waterShare = pl.water[p];
+        return u;
+    }
+
+    std::uint64_t computeFingerprint() const {
+        std::uint64_t h = 0x65636F73696D3031ull;
+        for (const auto& [k, v] : params.namedValues()) {
+            h = hashBytes(h, k.data(), k.size());
+            h = hashBytes(h, &v, sizeof v);
+        }
+        h = mixStream(h, seed);
+        const std::string toml = biomeToToml(biome);
+        h = hashBytes(h, toml.data(), toml.size());
+        const double a[4] = {area.x0, area.y0, area.x1, area.y1};
+        h = hashBytes(h, a, sizeof a);
+        for (const Plant& t : canopy) {  // field by field: the struct has padding
+            const double v[5] = {t.xM, t.yM, t.groundZM, t.heightM, t.crownRadiusM};
+            h = mixStream(h, static_cast<std::uint64_t>(t.speciesId));
+            h = hashBytes(h, v, sizeof v);
+        }
+        for (const auto* mg : {&abio.sunHours, &abio.moistureMm, &abio.temperatureC})
+            for (const auto& g : mg->months) h = hashVector(h, g.data());
+        h = hashVector(h, abio.slopeDeg.data());
+        h = hashVector(h, abio.elevationM.data());
+        h = hashVector(h, chm.data());
+        return h;
+    }
+};
+
+// ====================================================================== public API
+
+void setParallelThresholds(std::size_t plants, std::size_t cells) {
+    kParallelPlants = plants;
+    kParallelCells = cells;
+}
+
+Simulation::Simulation(SimInputs inputs, SimParams params, std::uint64_t seed,
+                       const std::vector<UndergrowthPlant>& initial)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->setup(std::move(inputs), params, seed);
+    impl_->addInitial(initial);
+}
+
+Simulation::~Simulation() = default;
+
+void Simulation::stepMonth() { impl_->stepMonth(); }
+void Simulation::stepYear() {
+    for (int i = 0; i < 12; ++i) impl_->stepMonth();
+}
+std::int64_t Simulation::monthsDone() const { return impl_->month; }
+std::size_t Simulation::plantCount() const { return impl_->pl.size(); }
+
+std::vector<UndergrowthPlant> Simulation::plants() const {
+    std::vector<UndergrowthPlant> out(impl_->pl.size());
+    for (std::size_t p = 0; p < out.size(); ++p) out[p] = impl_->plantAt(p);
+    return out;
+}
+
+YearRecord Simulation::census() const {
+    const Impl& s = *impl_;
+    const std::size_t ns = s.spc.size();
+    YearRecord r;
+    r.year = yearsDone();
+    r.count.assign(ns, 0);
+    r.meanHeightM.assign(ns, 0);
+    r.meanVigour.assign(ns, 0);
+    r.crownAreaM2.assign(ns, 0);
+    for (std::size_t p = 0; p < s.pl.size(); ++p) {
+        const std::size_t sp = static_cast<std::size_t>(s.pl.species[p]);
+        ++r.count[sp];
+        r.meanHeightM[sp] += s.pl.height[p];
+        r.meanVigour[sp] += s.pl.vigour[p];
+        r.crownAreaM2[sp] += kPi * s.pl.radius[p] * s.pl.radius[p];
+    }
+    for (std::size_t sp = 0; sp < ns; ++sp)
+        if (r.count[sp] > 0) {
+            r.meanHeightM[sp] /= r.count[sp];
+            r.meanVigour[sp] /= r.count[sp];
+        }
+    return r;
+}
+
+const SimCounters& Simulation::counters() const { return impl_->counters; }
+std::size_t Simulation::droppedInitialPlants() const { return impl_->droppedInitial; }
+const SimParams& Simulation::params() const { return impl_->params; }
+const Biome& Simulation::biome() const { return impl_->biome; }
+std::uint64_t Simulation::seed() const { return impl_->seed; }
+SimArea Simulation::area() const { return impl_->area; }
+const Grid<float>& Simulation::gridGeometry() const { return impl_->seedProb; }
+const std::vector<Plant>& Simulation::relevantCanopy() const { return impl_->canopy; }
+const Grid<float>& Simulation::seedProbability() const { return impl_->seedProb; }
+const Grid<float>& Simulation::canopyTransmission() const { return impl_->canopyTrans; }
+
+Grid<std::int32_t> Simulation::seedPackages() const {
+    Grid<std::int32_t> g(impl_->W, impl_->H, impl_->cell, impl_->ox, impl_->oy, 0);
+    for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = impl_->seedPkg[i];
+    return g;
+}
+
+bool Simulation::leftoverMeans(int ix, int iy, int period, double& sunHours, double& waterMm) const {
+    const Impl& s = *impl_;
+    if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H || period < 0 ||
+        static_cast<std::size_t>(period) >= s.periodMonthMask.size())
+        throw ValidationError("leftoverMeans: cell or period out of range");
+    double temp;
+    return s.leftoverMeans(static_cast<std::size_t>(iy) * s.W + ix, ix, iy, period, sunHours, waterMm, temp);
+}
+
+std::vector<double> Simulation::germinationWeights(int ix, int iy) const {
+    const Impl& s = *impl_;
+    if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H) throw ValidationError("germinationWeights: cell out of range");
+    std::vector<double> w(s.spc.size());
+    s.weightsAt(ix, iy, w.data());
+    return w;
+}
+
+std::uint64_t Simulation::fingerprint() const {
+    if (!impl_->fingerprintReady) {
+        impl_->fingerprintCache = impl_->computeFingerprint();
+        impl_->fingerprintReady = true;
+    }
+    return impl_->fingerprintCache;
+}
+
+namespace {
+std::string hex64(std::uint64_t v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+    return buf;
+}
+}  // namespace
+
+void Simulation::saveState(h5::File& f, const std::string& group) const {
+    const Impl& s = *impl_;
+    const PlantStore& pl = s.pl;
+    const hsize_t n = pl.size();
+    f.ensureGroup(group);
+    f.setAttr(group, "fingerprint", hex64(fingerprint()));
+    f.setAttr(group, "months_done", static_cast<std::int64_t>(s.month));
+    f.setAttr(group, "next_id", hex64(s.nextId));
+    f.setAttr(group, "window_mask", static_cast<std::int64_t>(s.windowMask));
+    f.setAttr(group, "plant_months", static_cast<std::int64_t>(s.counters.plantMonths));
+    f.setAttr(group, "germinated", static_cast<std::int64_t>(s.counters.germinated));
+    f.setAttr(group, "died_background_or_stress", static_cast<std::int64_t>(s.counters.diedBackgroundOrStress));
+    f.setAttr(group, "died_at_canopy", static_cast<std::int64_t>(s.counters.diedAtCanopy));
+    f.setAttr(group, "dropped_initial", static_cast<std::int64_t>(s.droppedInitial));
+    // Ids split in two exact 32-bit halves.
+    std::vector<std::int32_t> idLo(n), idHi(n);
+    for (std::size_t p = 0; p < n; ++p) {
+        idLo[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(pl.id[p]));
+        idHi[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(pl.id[p] >> 32));
+    }
+    f.writeI32(group + "/id_lo", idLo, {n});
+    f.writeI32(group + "/id_hi", idHi, {n});
+    f.writeI32(group + "/species", pl.species, {n});
+    f.writeF64(group + "/x", pl.x, {n});
+    f.writeF64(group + "/y", pl.y, {n});
+    f.writeF64(group + "/growth_age", pl.growthAge, {n});
+    f.writeF64(group + "/pool", pl.pool, {n});
+    f.writeI32(group + "/age_months", pl.ageMonths, {n});
+    f.writeI32(group + "/root_ix", pl.rootIx, {n});
+    f.writeI32(group + "/root_iy", pl.rootIy, {n});
+    f.writeF32(group + "/vigour", pl.vigour, {n});
+    f.writeF32(group + "/sun", pl.sun, {n});
+    f.writeF32(group + "/water", pl.water, {n});
+    // Height and radius are kept bit-exactly (they follow growth age, but only in growth
+    // months, so they cannot be recomputed from it for every plant).
+    f.writeF64(group + "/height", pl.height, {n});
+    f.writeF64(group + "/radius", pl.radius, {n});
+    for (std::size_t g = 0; g < s.deficitSun.size(); ++g) {
+        const hsize_t dims[2] = {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W)};
+        f.writeF32(group + "/deficit_sun_" + std::to_string(g), s.deficitSun[g], {dims[0], dims[1]});
+        f.writeF32(group + "/deficit_water_" + std::to_string(g), s.deficitWater[g], {dims[0], dims[1]});
+    }
+}
+
+void Simulation::loadState(const h5::File& f, const std::string& group) {
+    Impl& s = *impl_;
+    const std::string where = f.path() + ": " + group;
+    if (!f.exists(group)) throw IoError(where + ": no simulation state");
+    const std::string fp = f.attrString(group, "fingerprint");
+    if (fp != hex64(fingerprint()))
+        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed or model "
+                              "parameters; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
+    PlantStore pl;
+    const auto idLo = f.readI32(group + "/id_lo");
+    const auto idHi = f.readI32(group + "/id_hi");
+    pl.species = f.readI32(group + "/species");
+    pl.x = f.readF64(group + "/x");
+    pl.y = f.readF64(group + "/y");
+    pl.growthAge = f.readF64(group + "/growth_age");
+    pl.pool = f.readF64(group + "/pool");
+    pl.ageMonths = f.readI32(group + "/age_months");
+    pl.rootIx = f.readI32(group + "/root_ix");
+    pl.rootIy = f.readI32(group + "/root_iy");
+    pl.vigour = f.readF32(group + "/vigour");
+    pl.sun = f.readF32(group + "/sun");
+    pl.water = f.readF32(group + "/water");
+    pl.height = f.readF64(group + "/height");
+    pl.radius = f.readF64(group + "/radius");
+    const std::size_t n = pl.species.size();
+    for (std::size_t len : {idLo.size(), idHi.size(), pl.x.size(), pl.y.size(), pl.growthAge.size(), pl.pool.size(),
+                            pl.ageMonths.size(), pl.rootIx.size(), pl.rootIy.size(), pl.vigour.size(), pl.sun.size(),
+                            pl.water.size(), pl.height.size(), pl.radius.size()})
+        if (len != n) throw IoError(where + ": plant arrays differ in length");
+    // Rebuild the derived arrays exactly as addPlant does.
+    const Grid<float>& g = s.abio.slopeDeg;
+    for (std::size_t p = 0; p < n; ++p) {
+        if (pl.species[p] < 0 || static_cast<std::size_t>(pl.species[p]) >= s.spc.size() || !s.seedProb.inside(pl.rootIx[p], pl.rootIy[p]))
+            throw IoError(where + ": plant " + std::to_string(p) + " has a bad species or root cell");
+        pl.id.push_back((static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |
+                        static_cast<std::uint32_t>(idLo[p]));
+        pl.groundZ.push_back(s.abio.elevationM.sampleBilinear(pl.x[p], pl.y[p]));
+        const int cx = std::clamp(g.cellX(pl.x[p]), 0, g.width() - 1), cy = std::clamp(g.cellY(pl.y[p]), 0, g.height() - 1);
+        pl.coarse.push_back(static_cast<std::uint32_t>(g.index(cx, cy)));
+        pl.canopyLimit.push_back(s.canopyLimitAt(pl.x[p], pl.y[p]));
+    }
+    for (std::size_t gi = 0; gi < s.deficitSun.size(); ++gi) {
+        auto ds = f.readF32(group + "/deficit_sun_" + std::to_string(gi));
+        auto dw = f.readF32(group + "/deficit_water_" + std::to_string(gi));
+        if (ds.size() != s.cells.size() || dw.size() != s.cells.size()) throw IoError(where + ": accumulator size mismatch");
+        s.deficitSun[gi] = std::move(ds);
+        s.deficitWater[gi] = std::move(dw);
+    }
+    s.pl = std::move(pl);
+    s.month = f.attrInt(group, "months_done");
+    s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
+    s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
+    s.counters.plantMonths = f.attrInt(group, "plant_months");
+    s.counters.germinated = f.attrInt(group, "germinated");
+    s.counters.diedBackgroundOrStress = f.attrInt(group, "died_background_or_stress");
+    s.counters.diedAtCanopy = f.attrInt(group, "died_at_canopy");
+    s.droppedInitial = static_cast<std::size_t>(f.attrInt(group, "dropped_initial"));
+}
+
+std::size_t Simulation::bytesPerCell() const {
+    return sizeof(CellState) + sizeof(float) /*seed probability*/ + sizeof(std::uint16_t) /*package*/ +
+           impl_->deficitSun.size() * 2 * sizeof(float) + sizeof(float) /*transmission copy*/;
+}
+
+std::size_t Simulation::bytesPerPlant() const {
+    // State arrays plus the per-month scratch (bounds, slot, about 1.1 band slots of partials
+    // and band entries, fate).
+    return impl_->pl.bytesPerPlant() + 3 * sizeof(std::int32_t) + sizeof(std::uint32_t) +
+           static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
+           4 * sizeof(std::uint32_t) /*order, radix scratch*/ + sizeof(std::uint32_t) /*single cell*/ + 1;
+}
+
+}  // namespace eco::sim

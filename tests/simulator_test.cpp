@@ -1,1 +1,690 @@
+// The undergrowth simulator (sim/): each process on its own, then integration, determinism
+// across thread counts, checkpoint / resume, and bad inputs.
 #include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "atomic_file.h"
+#include "demo_scene.h"
+#include "error.h"
+#include "processes.h"
+#include "sim_config.h"
+#include "sim_run.h"
+#include "simulator.h"
+#include "test_util.h"
+
+using namespace eco;
+using namespace eco::sim;
+
+namespace {
+
+// Abiotics that are the same everywhere and every month.
+Abiotics uniformAbiotics(int cells, double cellM, double sun, double water, double temp, double slope) {
+    Abiotics a;
+    const Grid<float> like(cells, cells, cellM, 0, 0, 0.f);
+    a.elevationM = Grid<float>::like(like, 50.f);
+    a.slopeDeg = Grid<float>::like(like, static_cast<float>(slope));
+    for (int m = 0; m < 12; ++m) {
+        a.sunHours.months.push_back(Grid<float>::like(like, static_cast<float>(sun)));
+        a.moistureMm.months.push_back(Grid<float>::like(like, static_cast<float>(water)));
+        a.temperatureC.months.push_back(Grid<float>::like(like, static_cast<float>(temp)));
+    }
+    return a;
+}
+
+// A biome whose crowns are tiny (r = 1 mm per metre of height): every plant covers its own
+// cell only, so per-cell processes can be checked by hand.
+Biome pointCrownBiome() {
+    Biome b = defaultBiome();
+    for (auto& s : b.species) {
+        s.allometry.linear = true;
+        s.allometry.linearFactor = 0.001;
+    }
+    return b;
+}
+
+UndergrowthPlant plantAt(const Biome& b, const std::string& species, double x, double y, double h) {
+    UndergrowthPlant p;
+    p.speciesId = b.speciesIndex(species);
+    p.xM = x;
+    p.yM = y;
+    p.heightM = h;
+    return p;
+}
+
+const UndergrowthPlant& bySpecies(const std::vector<UndergrowthPlant>& v, int s) {
+    for (const auto& p : v)
+        if (p.speciesId == s) return p;
+    FAIL("species not found");
+    return v.front();
+}
+
+bool samePlants(const std::vector<UndergrowthPlant>& a, const std::vector<UndergrowthPlant>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        const auto& p = a[i];
+        const auto& q = b[i];
+        if (p.id != q.id || p.speciesId != q.speciesId || std::memcmp(&p.xM, &q.xM, sizeof(double)) != 0 ||
+            std::memcmp(&p.yM, &q.yM, sizeof(double)) != 0 || std::memcmp(&p.heightM, &q.heightM, sizeof(double)) != 0 ||
+            std::memcmp(&p.pool, &q.pool, sizeof(double)) != 0 || std::memcmp(&p.vigour, &q.vigour, sizeof(double)) != 0 ||
+            std::memcmp(&p.growthAgeYears, &q.growthAgeYears, sizeof(double)) != 0 || p.ageYears != q.ageYears)
+            return false;
+    }
+    return true;
+}
+
+// Upper critical value of chi-square with `df` degrees of freedom at one-sided normal
+// quantile z (Wilson-Hilferty; z = 3.09 for significance 0.001).
+double chiSquareCritical(int df, double z) {
+    const double k = df;
+    const double t = 1.0 - 2.0 / (9.0 * k) + z * std::sqrt(2.0 / (9.0 * k));
+    return k * t * t * t;
+}
+
+SimInputs smallDemoScene() {
+    DemoSceneParams p;
+    p.cells = 48;
+    p.seed = 11;
+    return makeDemoScene(p, defaultBiome());
+}
+
+}  // namespace
+
+// --------------------------------------------------------------------------- processes
+
+TEST_CASE("shade: occupants in descending height, each attenuated by every taller one", "[sim][shade]") {
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 10.0, 100.0, 15.0, 5.0);
+    const double x = 5.1, y = 5.1;  // centre of sim cell (25, 25)
+    // Given out of height order on purpose.
+    const std::vector<UndergrowthPlant> init = {plantAt(b, "California Laurel", x, y, 0.5),
+                                                plantAt(b, "Toyon", x, y, 2.0), plantAt(b, "Tanoak", x, y, 1.0)};
+    Simulation sim(in, SimParams{}, 1, init);
+    sim.stepMonth();
+    const auto pl = sim.plants();
+    REQUIRE(pl.size() == 3);
+    const double aToyon = b.species[b.speciesIndex("Toyon")].alpha;
+    const double aTanoak = b.species[b.speciesIndex("Tanoak")].alpha;
+    const double aLaurel = b.species[b.speciesIndex("California Laurel")].alpha;
+    CHECK(bySpecies(pl, b.speciesIndex("Toyon")).sunShare == Approx(10.0).epsilon(1e-6));
+    CHECK(bySpecies(pl, b.speciesIndex("Tanoak")).sunShare == Approx(10.0 * (1 - aToyon)).epsilon(1e-6));
+    CHECK(bySpecies(pl, b.speciesIndex("California Laurel")).sunShare ==
+          Approx(10.0 * (1 - aToyon) * (1 - aTanoak)).epsilon(1e-6));
+    // What reaches the floor is the germination leftover.
+    double sun = 0, water = 0;
+    REQUIRE(sim.leftoverMeans(25, 25, 0, sun, water));
+    CHECK(sun == Approx(10.0 * (1 - aToyon) * (1 - aTanoak) * (1 - aLaurel)).epsilon(1e-6));
+    // A neighbouring free cell keeps everything.
+    REQUIRE(sim.leftoverMeans(20, 25, 0, sun, water));
+    CHECK(sun == Approx(10.0));
+    CHECK(water == Approx(100.0));
+}
+
+TEST_CASE("shade: a canopy tree attenuates the cells under its crown by (1 - alpha)", "[sim][shade]") {
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 10.0, 100.0, 15.0, 5.0);
+    const int fir = b.speciesIndex("Douglas-Fir");
+    in.canopy = {Plant{fir, 5.0, 5.0, 50, 40, 1.0}};
+    Simulation sim(in, SimParams{}, 1, {plantAt(b, "Toyon", 5.1, 5.1, 1.0)});
+    const double keep = 1 - b.species[fir].alpha;
+    CHECK(sim.canopyTransmission()(25, 25) == Approx(keep));
+    CHECK(sim.canopyTransmission()(25, 31) == Approx(1.0));  // 1.1 m from the trunk
+    sim.stepMonth();
+    const auto pl = sim.plants();
+    CHECK(pl[0].sunShare == Approx(10.0 * keep).epsilon(1e-6));
+    // The canopy tree took its demand first: 100 - 4 left, one occupant, one seeding share.
+    CHECK(pl[0].waterShare == Approx(4.0 + (96.0 - 4.0) / 2.0));
+}
+
+TEST_CASE("water: minimum demand in height order, remainder shared with one share for seeding", "[sim][water]") {
+    // Pure function.
+    CHECK(waterShareMm(100, 0, 3, 4) == Approx(4 + 88.0 / 4));
+    CHECK(waterShareMm(100, 2, 3, 4) == Approx(4 + 88.0 / 4));
+    CHECK(waterLeftoverMm(100, 3, 4) == Approx(22.0));
+    // Scarcity: the tallest drink first, nothing is left to share.
+    CHECK(waterShareMm(6, 0, 3, 4) == Approx(4.0));
+    CHECK(waterShareMm(6, 1, 3, 4) == Approx(2.0));
+    CHECK(waterShareMm(6, 2, 3, 4) == Approx(0.0));
+    CHECK(waterLeftoverMm(6, 3, 4) == Approx(0.0));
+    // Canopy trees take their demand, never more.
+    CHECK(waterAfterCanopyMm(10, 2, 4) == Approx(2.0));
+    CHECK(waterAfterCanopyMm(10, 3, 4) == Approx(0.0));
+
+    // In the engine: three occupants of one cell.
+    const Biome b = pointCrownBiome();
+    for (double water : {100.0, 6.0}) {
+        SimInputs in;
+        in.biome = b;
+        in.abiotics = uniformAbiotics(10, 1.0, 10.0, water, 15.0, 5.0);
+        const double x = 5.1, y = 5.1;
+        Simulation sim(in, SimParams{}, 1,
+                       {plantAt(b, "Toyon", x, y, 2.0), plantAt(b, "Tanoak", x, y, 1.0), plantAt(b, "California Laurel", x, y, 0.5)});
+        sim.stepMonth();
+        const auto pl = sim.plants();
+        REQUIRE(pl.size() == 3);
+        const int order[3] = {b.speciesIndex("Toyon"), b.speciesIndex("Tanoak"), b.speciesIndex("California Laurel")};
+        for (int k = 0; k < 3; ++k)
+            CHECK(bySpecies(pl, order[k]).waterShare == Approx(waterShareMm(water, k, 3, 4.0)));
+        double sun = 0, left = 0;
+        REQUIRE(sim.leftoverMeans(25, 25, 0, sun, left));
+        CHECK(left == Approx(waterLeftoverMm(water, 3, 4.0)).margin(1e-6));
+    }
+}
+
+TEST_CASE("vigour: the engine's vigour is Eq. 1 on the plant's mean shares", "[sim][vigour]") {
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 7.0, 60.0, 18.0, 12.0);
+    Simulation sim(in, SimParams{}, 1, {plantAt(b, "Toyon", 5.1, 5.1, 1.0)});
+    sim.stepMonth();
+    const auto p = sim.plants().at(0);
+    CHECK(p.vigour == Approx(b.vigourOf(p.speciesId, p.sunShare, p.waterShare, 18.0, 12.0)).epsilon(1e-6));
+}
+
+TEST_CASE("carbon pool: overflow above capacity, underflow below zero", "[sim][pool]") {
+    const double cap = poolCapacity(3, 0.6, 0.2);
+    CHECK(cap == Approx(0.36));
+    auto s = updatePool(0.3, 0.2, cap);
+    CHECK(s.pool == Approx(cap));
+    CHECK(s.overflow == Approx(0.14));
+    s = updatePool(0.1, 0.2, cap);
+    CHECK(s.pool == Approx(0.3));
+    CHECK(s.overflow == 0);
+    s = updatePool(-0.1, -0.2, cap);
+    CHECK(s.pool == Approx(-0.3));
+    CHECK(s.overflow == 0);
+    // Three months of maximum stress (-alpha a each) empty a full pool exactly.
+    double pool = cap;
+    for (int m = 0; m < 3; ++m) pool = updatePool(pool, -0.6 * 0.2, cap).pool;
+    CHECK(pool == Approx(0.0).margin(1e-12));
+    // Stress mortality is the underflow.
+    CHECK(mortalityProbability(0.001, -0.3) == Approx(0.301));
+    CHECK(mortalityProbability(0.001, 0.2) == Approx(0.001));
+    CHECK(mortalityProbability(0.5, -0.9) == 1.0);
+}
+
+TEST_CASE("growth: smoothstep height reaches max height at max age under ideal vigour", "[sim][growth]") {
+    CHECK(smoothstep(0) == 0);
+    CHECK(smoothstep(0.5) == Approx(0.5));
+    CHECK(smoothstep(1) == 1);
+    CHECK(smoothstep(2) == 1);
+    for (const auto& [maxAge, maxH] : std::vector<std::pair<double, double>>{{6, 0.25}, {150, 9}, {800, 110}}) {
+        // Ideal: one month of overflow every month, every month a growth month.
+        double ga = 0;
+        const int months = static_cast<int>(12 * maxAge);
+        for (int m = 0; m < months; ++m) {
+            ga = advanceGrowthAgeYears(ga, 1.0, true, 1.0);
+            if (m == months / 2 - 1) CHECK(idealHeightM(ga, maxAge, maxH) == Approx(maxH / 2).epsilon(1e-9));
+        }
+        CHECK(ga == Approx(maxAge).epsilon(1e-9));
+        CHECK(idealHeightM(ga, maxAge, maxH) == Approx(maxH).epsilon(1e-9));
+    }
+    // Outside the growth period the overflow does not grow the plant.
+    CHECK(advanceGrowthAgeYears(1.0, 0.5, false, 1.0) == 1.0);
+    // The inverse used for initial plants.
+    CHECK(idealHeightM(growthAgeForHeight(3.0, 150, 9), 150, 9) == Approx(3.0).epsilon(1e-9));
+}
+
+TEST_CASE("mortality: background rate leaves a fraction P_s alive at max age (binomial test)", "[sim][mortality]") {
+    const double ps = 0.01, maxAge = 5.0;  // Western Swordfern
+    const double mu = backgroundMortalityPerMonth(ps, maxAge);
+    CHECK(std::pow(1 - mu, 12 * maxAge) == Approx(ps).epsilon(1e-12));
+    // 20000 plants, the engine's random stream per plant and month.
+    const int n = 20000;
+    int alive = 0;
+    for (int id = 1; id <= n; ++id) {
+        bool dead = false;
+        for (int m = 0; m < 12 * maxAge && !dead; ++m)
+            dead = mortalityUniform(1234, static_cast<std::uint64_t>(id), static_cast<std::uint64_t>(m)) <
+                   mortalityProbability(mu, 0.0);
+        alive += dead ? 0 : 1;
+    }
+    // Two-sided test at significance 0.001: |k - n p| <= 3.29 sigma.
+    const double sigma = std::sqrt(n * ps * (1 - ps));
+    INFO("survivors " << alive << " expected " << n * ps << " sigma " << sigma);
+    CHECK(std::abs(alive - n * ps) <= 3.29 * sigma);
+}
+
+TEST_CASE("engine: ideal vigour fills the pool, then overflow grows the plant in its growth months", "[sim][growth]") {
+    // Redwood Sorrel at its optimum: sun 3.5 h, water share 100 mm (4 + (196 - 4) / 2),
+    // temperature 13.5 C, slope 30: vigour = alpha every month.
+    const Biome b = pointCrownBiome();
+    const int s = b.speciesIndex("Redwood Sorrel");
+    const Species& sp = b.species[s];
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 3.5, 196.0, 13.5, 30.0);
+    UndergrowthPlant p = plantAt(b, "Redwood Sorrel", 5.1, 5.1, 0.0);
+    p.growthAgeYears = 0.5;
+    Simulation sim(in, SimParams{}, 1, {p});
+    const double cap = poolCapacity(3, sp.alpha, b.vigour.a);
+    double expectGrowthAge = 0.5, pool = 0;
+    for (int m = 0; m < 12; ++m) {
+        sim.stepMonth();
+        if (sim.plantCount() == 0) break;  // background mortality can strike: then stop checking
+        const auto q = sim.plants().at(0);
+        CHECK(q.vigour == Approx(sp.alpha).epsilon(1e-6));  // stored as float
+        const PoolStep ps = updatePool(pool, sp.alpha, cap);
+        pool = ps.pool;
+        const bool growing = std::find(sp.growthMonths.begin(), sp.growthMonths.end(), m) != sp.growthMonths.end();
+        expectGrowthAge = advanceGrowthAgeYears(expectGrowthAge, ps.overflow, growing, 1.0);
+        CHECK(q.pool == Approx(pool).epsilon(1e-12));
+        CHECK(q.growthAgeYears == Approx(expectGrowthAge).epsilon(1e-12));
+        CHECK(q.heightM == Approx(idealHeightM(expectGrowthAge, sp.maxAgeYears, sp.maxHeightM)).epsilon(1e-12));
+    }
+}
+
+TEST_CASE("engine: background mortality alone leaves P_s of a cohort at max age (binomial test)", "[sim][mortality]") {
+    // 2000 Redwood Sorrels (max age 6 years) at their optimum, one per cell, crowns of one
+    // cell: the pool never goes negative, so only background mortality acts.
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(20, 1.0, 3.5, 196.0, 13.5, 30.0);
+    std::vector<UndergrowthPlant> cohort;
+    for (int i = 0; i < 2000; ++i) cohort.push_back(plantAt(b, "Redwood Sorrel", 0.1 + 0.4 * (i % 50), 0.1 + 0.4 * (i / 50), 0.01));
+    SimParams params;
+    Simulation sim(in, params, 77, cohort);
+    REQUIRE(sim.plantCount() == 2000);
+    for (int y = 0; y < 6; ++y) sim.stepYear();
+    const double n = 2000, ps = params.survivalAtMaxAge;
+    const double sigma = std::sqrt(n * ps * (1 - ps));
+    INFO("survivors " << sim.plantCount() << " expected " << n * ps);
+    CHECK(std::abs(static_cast<double>(sim.plantCount()) - n * ps) <= 3.29 * sigma);  // significance 0.001
+    CHECK(sim.counters().diedAtCanopy == 0);
+}
+
+TEST_CASE("seedbank: gamma within 4 r, linear to 0 at 12 r, packages of the canopy's sub-biomes", "[sim][seeding]") {
+    CHECK(seedKernel(4.0, 1.0, 4, 12) == 1.0);
+    CHECK(seedKernel(8.0, 1.0, 4, 12) == Approx(0.5));
+    CHECK(seedKernel(12.0, 1.0, 4, 12) == 0.0);
+    const Biome b = defaultBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(30, 1.0, 10.0, 100.0, 15.0, 5.0);
+    const double x = 15.1, y = 15.1;  // centre of sim cell (75, 75)
+    in.canopy = {Plant{b.speciesIndex("Douglas-Fir"), x, y, 50, 40, 1.0}};
+    SimParams params;
+    Simulation sim(in, params, 1);
+    const Grid<float>& prob = sim.seedProbability();
+    const float gamma = static_cast<float>(params.seedingProbability);
+    CHECK(prob(75, 75) == Approx(gamma));
+    CHECK(prob(75 + 20, 75) == Approx(gamma).epsilon(1e-5));      // 4 r
+    CHECK(prob(75, 75 - 20) == Approx(gamma).epsilon(1e-5));      // 4 r, southwards
+    CHECK(prob(75 + 40, 75) == Approx(gamma / 2).epsilon(1e-4));  // 8 r
+    CHECK(prob(75 + 60, 75) == Approx(0.0).margin(1e-9));         // 12 r
+    CHECK(prob(75 + 70, 75) == 0.0f);
+    // Douglas-Fir is a canopy species of sub-biome 1 (Conifer) only: bit 0.
+    const auto pkg = sim.seedPackages();
+    CHECK(pkg(75 + 59, 75) == 1);
+    CHECK(pkg(75 + 61, 75) == 0);
+    // Two overlapping trees add up.
+    in.canopy.push_back(Plant{b.speciesIndex("Coast Live Oak"), x, y, 50, 20, 1.0});
+    Simulation two(in, params, 1);
+    CHECK(two.seedProbability()(75, 75) == Approx(2 * gamma));
+    CHECK(two.seedPackages()(75, 75) == 0b11);  // Conifer and California Oak
+}
+
+TEST_CASE("roulette: rouletteSelect draws in proportion to the weights (chi-square)", "[sim][roulette]") {
+    const double w[5] = {1.0, 0.0, 2.0, 3.0, 4.0};
+    int counts[5] = {};
+    RandomStream rng(99, 7);
+    const int n = 100000;
+    for (int i = 0; i < n; ++i) ++counts[rouletteSelect(w, 5, rng.uniform())];
+    CHECK(counts[1] == 0);
+    double chi2 = 0;
+    for (int i : {0, 2, 3, 4}) {
+        const double e = n * w[i] / 10.0;
+        chi2 += (counts[i] - e) * (counts[i] - e) / e;
+    }
+    CHECK(chi2 < chiSquareCritical(3, 3.09));
+    const double zero[3] = {0, 0, 0};
+    CHECK(rouletteSelect(zero, 3, 0.5) == -1);
+    CHECK(rouletteWeight(-0.1, 10, 1.2) == 0.0);
+    CHECK(rouletteWeight(0.5, 10, 1.2) == Approx(0.5 / std::pow(10.0, 1.2)));
+}
+
+TEST_CASE("germination: seedlings per species follow max(0, vbar / maxage^beta) (chi-square)", "[sim][roulette]") {
+    Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    b.species[fir].alpha = 0.0;  // no shade from the seed tree: every cell has the same resources
+    SimInputs in;
+    in.biome = b;
+    const double S = 6.0, W = 100.0, T = 15.0, slope = 5.0;
+    in.abiotics = uniformAbiotics(30, 1.0, S, W, T, slope);
+    in.canopy = {Plant{fir, 15.0, 15.0, 50, 40, 3.0}};
+    SimParams params;
+    params.seedingProbability = 1.0;
+    params.minWaterDemandMm = 0.0;
+    params.seedingMonth = 0;
+    Simulation sim(in, params, 5);
+    sim.stepMonth();  // January: sweep, then germination
+    const auto pl = sim.plants();
+    REQUIRE(pl.size() > 5000);
+    std::vector<double> expected(b.species.size(), 0.0);
+    double total = 0;
+    for (const Species& s : b.species) {
+        if (std::find(s.subBiomes.begin(), s.subBiomes.end(), 1) == s.subBiomes.end()) continue;
+        expected[s.id] = rouletteWeight(b.vigourOf(s.id, S, W, T, slope), s.maxAgeYears, params.rouletteAgeExponent);
+        total += expected[s.id];
+    }
+    std::vector<int> counts(b.species.size(), 0);
+    for (const auto& p : pl) ++counts[p.speciesId];
+    double chi2 = 0;
+    int df = -1;
+    for (std::size_t s = 0; s < expected.size(); ++s) {
+        if (expected[s] <= 0) {
+            CHECK(counts[s] == 0);
+            continue;
+        }
+        const double e = pl.size() * expected[s] / total;
+        chi2 += (counts[s] - e) * (counts[s] - e) / e;
+        ++df;
+    }
+    REQUIRE(df >= 2);
+    INFO("chi2 " << chi2 << " df " << df);
+    CHECK(chi2 < chiSquareCritical(df, 3.09));
+    // One seedling per germinating cell, in that cell, with finite sizes.
+    for (const auto& p : pl) {
+        CHECK(std::isfinite(p.heightM));
+        CHECK(p.heightM > 0);
+    }
+}
+
+TEST_CASE("germination: a seedling occupies its cell at once and gets resources the next month", "[sim][seeding]") {
+    const Biome b = defaultBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 6.0, 100.0, 15.0, 5.0);
+    in.canopy = {Plant{b.speciesIndex("Redwood"), 5.0, 5.0, 50, 60, 1.0}};
+    SimParams params;
+    params.seedingProbability = 1.0;
+    params.seedingMonth = 0;
+    Simulation sim(in, params, 3);
+    sim.stepMonth();
+    const std::size_t n = sim.plantCount();
+    REQUIRE(n > 100);
+    // No two seedlings share a root cell.
+    std::map<std::pair<int, int>, int> roots;
+    for (const auto& p : sim.plants()) ++roots[{sim.gridGeometry().cellX(p.xM), sim.gridGeometry().cellY(p.yM)}];
+    for (const auto& [cell, k] : roots) CHECK(k == 1);
+    sim.stepMonth();
+    for (const auto& p : sim.plants()) {
+        CHECK(std::isfinite(p.sunShare));
+        CHECK(p.sunShare > 0);
+        CHECK(p.waterShare > 0);
+    }
+}
+
+TEST_CASE("canopy limit: undergrowth reaching the CHM (or the threshold) dies", "[sim][mortality]") {
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 10.0, 100.0, 15.0, 5.0);
+    in.chmM = Grid<float>(10, 10, 1.0, 0, 0, 0.f);
+    in.chmM(2, 2) = 8.f;
+    SimParams params;
+    Simulation sim(in, params, 1,
+                   {plantAt(b, "Tanoak", 2.5, 2.5, 7.9999), plantAt(b, "Tanoak", 7.5, 7.5, 2.9999), plantAt(b, "Tanoak", 7.5, 2.5, 1.0)});
+    // Grow every month until the two tall ones pass their limits (8 m and the 3 m threshold).
+    for (int m = 0; m < 24; ++m) sim.stepMonth();
+    CHECK(sim.counters().diedAtCanopy == 2);
+    for (const auto& p : sim.plants()) CHECK(p.heightM < 3.0);
+}
+
+// --------------------------------------------------------------------------- integration
+
+TEST_CASE("integration: 25 years on a small plot keep every invariant", "[sim][integration]") {
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 30, 30};
+    const Biome b = in.biome;
+    Simulation sim(in, SimParams{}, 7);
+    std::size_t maxPlants = 0;
+    for (int y = 0; y < 25; ++y) {
+        sim.stepYear();
+        const auto pl = sim.plants();
+        maxPlants = std::max(maxPlants, pl.size());
+        const SimArea a = sim.area();
+        for (const auto& p : pl) {
+            const Species& s = b.species[static_cast<std::size_t>(p.speciesId)];
+            const double cap = poolCapacity(3, s.alpha, b.vigour.a);
+            REQUIRE(std::isfinite(p.xM));
+            REQUIRE(std::isfinite(p.heightM));
+            REQUIRE(std::isfinite(p.crownRadiusM));
+            REQUIRE(std::isfinite(p.pool));
+            REQUIRE(std::isfinite(p.vigour));
+            REQUIRE(std::isfinite(p.sunShare));
+            REQUIRE(std::isfinite(p.waterShare));
+            REQUIRE(p.xM >= a.x0);
+            REQUIRE(p.xM < a.x1);
+            REQUIRE(p.yM >= a.y0);
+            REQUIRE(p.yM < a.y1);
+            REQUIRE(p.pool <= cap + 1e-12);
+            REQUIRE(p.pool > -1.0);
+            REQUIRE(p.heightM > 0);
+            REQUIRE(p.heightM <= s.maxHeightM);
+            REQUIRE(p.crownRadiusM == Approx(s.allometry.crownRadiusM(p.heightM)));
+            REQUIRE(p.growthAgeYears <= p.ageYears + 1.0 / 12 + 1e-9);
+            REQUIRE(p.vigour <= s.alpha + 1e-12);
+            REQUIRE(p.vigour >= -s.alpha * b.vigour.a - 1e-12);
+        }
+        const YearRecord r = sim.census();
+        std::int64_t total = 0;
+        for (auto c : r.count) total += c;
+        REQUIRE(total == static_cast<std::int64_t>(pl.size()));
+    }
+    CHECK(maxPlants > 100);
+    CHECK(sim.counters().germinated > 0);
+    CHECK(sim.counters().diedBackgroundOrStress > 0);
+}
+
+TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determinism]") {
+    setParallelThresholds(0, 0);  // exercise every parallel loop on this small scene
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    std::vector<std::vector<UndergrowthPlant>> results;
+    const int before = omp_get_max_threads();
+    for (int threads : {1, 2, 4}) {
+        omp_set_num_threads(threads);
+        Simulation sim(in, SimParams{}, 21);
+        for (int y = 0; y < 12; ++y) sim.stepYear();
+        results.push_back(sim.plants());
+    }
+    omp_set_num_threads(before);
+    setParallelThresholds(20000, 200000);
+    REQUIRE(results[0].size() > 100);
+    CHECK(samePlants(results[0], results[1]));
+    CHECK(samePlants(results[0], results[2]));
+}
+
+TEST_CASE("checkpoint: a resumed run is identical to an uninterrupted one", "[sim][checkpoint]") {
+    test::TempDir dir("simresume");
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 30, 30};
+    Simulation straight(in, SimParams{}, 5);
+    for (int m = 0; m < 12 * 9 + 5; ++m) straight.stepMonth();  // ends mid-year, mid-season
+    Simulation first(in, SimParams{}, 5);
+    for (int m = 0; m < 12 * 4 + 2; ++m) first.stepMonth();
+    {
+        auto f = h5::File::create(dir.file("state.h5"));
+        first.saveState(f, "/state");
+    }
+    Simulation resumed(in, SimParams{}, 5);
+    {
+        auto f = h5::File::openRead(dir.file("state.h5"));
+        resumed.loadState(f, "/state");
+    }
+    CHECK(resumed.monthsDone() == first.monthsDone());
+    for (int m = 0; m < 12 * 5 + 3; ++m) resumed.stepMonth();
+    REQUIRE(resumed.monthsDone() == straight.monthsDone());
+    CHECK(straight.plantCount() > 50);
+    CHECK(samePlants(straight.plants(), resumed.plants()));
+    CHECK(straight.counters().germinated == resumed.counters().germinated);
+
+    // Another seed is another run: its checkpoint is refused.
+    Simulation other(in, SimParams{}, 6);
+    auto f = h5::File::openRead(dir.file("state.h5"));
+    CHECK_THROWS_WITH(other.loadState(f, "/state"), Catch::Contains("another run"));
+}
+
+// --------------------------------------------------------------------------- configuration and CLI
+
+namespace {
+
+void writeText(const std::string& path, const std::string& text) {
+    std::ofstream(path) << text;
+}
+
+// Scene files for the command line: abiotics.h5 and canopy.h5.
+void writeSceneFiles(const test::TempDir& dir) {
+    const SimInputs in = smallDemoScene();
+    writeAbiotics(dir.file("abiotics.h5"), in.abiotics, in.biome, AbioticParams{});
+    auto f = h5::File::create(dir.file("canopy.h5"));
+    writePlants(f, "/canopy", in.canopy, in.biome);
+    f.ensureGroup("/chm");
+    f.writeGrid("/chm/height", in.chmM, "m");
+}
+
+std::string readAll(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
+    const RunConfig def = loadRunConfig(test::sourcePath("configs/sim-default.toml"));
+    CHECK(def.params.cellSizeM == 0.2);
+    CHECK(def.crop.has_value());
+    CHECK(def.years > 0);
+    const RunConfig c = parseRunConfig(
+        "[inputs]\nabiotics = \"a.h5\"\ncanopy = \"c.h5\"\n[run]\nyears = 3\nseed = 9\ncrop = [0, 0, 10, 10]\n"
+        "[model]\nseeding_probability = 0.01\nseeding_month = 8\n",
+        "ok.toml");
+    CHECK(c.seed == 9);
+    CHECK(c.params.seedingProbability == 0.01);
+    CHECK(c.params.seedingMonth == 8);
+    CHECK_THROWS_WITH(parseRunConfig("[model]\nseeding_probabilty = 0.01\n", "typo.toml"),
+                      Catch::Contains("typo.toml") && Catch::Contains("seeding_probabilty"));
+    CHECK_THROWS_WITH(parseRunConfig("[run]\nyears = \"ten\"\n", "type.toml"),
+                      Catch::Contains("type.toml") && Catch::Contains("years"));
+    CHECK_THROWS_WITH(parseRunConfig("[model]\nseeding_probability = 2.0\n", "range.toml"),
+                      Catch::Contains("range.toml") && Catch::Contains("seeding_probability"));
+    CHECK_THROWS_WITH(parseRunConfig("[model]\nseeding_month = 12\n", "m.toml"), Catch::Contains("seeding_month"));
+    CHECK_THROWS_WITH(parseRunConfig("[extra]\nx = 1\n", "top.toml"), Catch::Contains("extra"));
+    CHECK_THROWS_AS(parseRunConfig("[run\n", "broken.toml"), IoError);
+    CHECK_THROWS_WITH(parseArea("1,2,3", "--crop"), Catch::Contains("--crop"));
+    // Parameters round-trip through their TOML record.
+    SimParams p;
+    p.seedingMonth = 3;
+    p.minWaterDemandMm = 5.5;
+    const RunConfig back = parseRunConfig(p.toToml(), "record");
+    CHECK(back.params.seedingMonth == 3);
+    CHECK(back.params.minWaterDemandMm == 5.5);
+}
+
+TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-zero exit", "[sim][cli]") {
+    test::TempDir dir("simcli");
+    writeText(dir.file("typo.toml"), "[model]\ncell_sise_m = 0.2\n");
+    auto r = test::runEco("simulate --config " + dir.file("typo.toml"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("cell_sise_m") && Catch::Contains("typo.toml"));
+
+    r = test::runEco("simulate --abiotics " + dir.file("none.h5") + " --canopy " + dir.file("none2.h5") + " --out " +
+                     dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("none.h5") && Catch::Contains("not found"));
+
+    writeSceneFiles(dir);
+    // A canopy file without a CHM.
+    {
+        const SimInputs in = smallDemoScene();
+        auto f = h5::File::create(dir.file("nochm.h5"));
+        writePlants(f, "/canopy", in.canopy, in.biome);
+    }
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("nochm.h5") + " --out " +
+                     dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("/chm/height"));
+    // A crop outside the terrain.
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 100,100,120,120 --years 1 --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("not inside the abiotics extent"));
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 1,2,x,4 --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("--crop"));
+    // Initial plants with an unknown species, and with a missing column.
+    writeText(dir.file("bad.csv"), "species,x_m,y_m,height_m\nNot A Plant,11,11,0.1\n");
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --initial " + dir.file("bad.csv") + " --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("bad.csv:2") && Catch::Contains("Not A Plant"));
+    writeText(dir.file("nocol.csv"), "species,x_m,y_m\nToyon,11,11\n");
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --initial " + dir.file("nocol.csv") + " --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("height_m"));
+    CHECK_FALSE(std::ifstream(dir.file("o.h5")).good());
+}
+
+TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one", "[sim][cli][checkpoint]") {
+    test::TempDir dir("simrun");
+    writeSceneFiles(dir);
+    const std::string common = "simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                               " --crop 10,10,26,26 --seed 4 ";
+    auto r = test::runEco(common + "--years 8 --snapshot-years 4 --out " + dir.file("full.h5") + " --csv " +
+                          dir.file("full.csv") + " --png " + dir.file("png"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    // First 5 years with checkpoints, then resume to 8.
+    r = test::runEco(common + "--years 5 --checkpoint-every 2 --out " + dir.file("part.h5"));
+    REQUIRE(r.exitCode == 0);
+    r = test::runEco(common + "--years 8 --snapshot-years 4 --checkpoint-every 2 --resume --out " + dir.file("part.h5") +
+                     " --csv " + dir.file("resumed.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("resumed"));
+    const std::string a = readAll(dir.file("full.csv")), b = readAll(dir.file("resumed.csv"));
+    CHECK(a.size() > 200);
+    CHECK(a == b);
+    // The thread count changes nothing.
+    r = test::runEco("--threads 1 " + common + "--years 8 --out " + dir.file("one.h5") + " --csv " + dir.file("one.csv"));
+    REQUIRE(r.exitCode == 0);
+    CHECK(readAll(dir.file("one.csv")) == a);
+
+    auto f = h5::File::openRead(dir.file("full.h5"));
+    CHECK(f.attrString("/", "format") == "eco-simulation");
+    CHECK(f.attrInt("/", "schema_version") == 1);
+    CHECK(f.attrDouble("/", "seeding_probability") == 0.003);
+    CHECK(f.hasAttr("/", "biome_toml"));
+    CHECK(f.exists("/snapshots/year_0004"));
+    CHECK(f.exists("/snapshots/year_0008"));
+    std::vector<hsize_t> dims;
+    f.readI32("/timeseries/count", &dims);
+    CHECK(dims[0] == 9);
+    const auto snap = readSnapshot(f, "/snapshots/year_0008", defaultBiome());
+    CHECK(!snap.empty());
+    const auto back = readInitialPlants(dir.file("full.csv"), defaultBiome());
+    CHECK(back.size() == snap.size());
+    CHECK(std::ifstream(dir.file("png/species_counts.png")).good());
+    CHECK(std::ifstream(dir.file("png/plants_year_0008.png")).good());
+    // The final state restarts a simulation.
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 26, 26};
+    Simulation again(in, SimParams{}, 1, readInitialPlants(dir.file("full.h5"), defaultBiome()));
+    CHECK(again.plantCount() == snap.size());
+}

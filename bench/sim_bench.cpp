@@ -1,0 +1,201 @@
+// Benchmark of the undergrowth simulator (issue 4): plant-months per second per core,
+// 1 -> 2 thread scaling, bytes per plant, wall time of 1 ha x 150 years and of a 1 km2 scene
+// for a shorter span. Writes its figures to stdout and to bench/results/sim_bench.txt (or
+// --out FILE).
+//
+//   bench_sim [--quick] [--hectare-only] [--out FILE]
+//   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
+//       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
+//       /terrain/elevation) of a procedural scene, as inputs for `eco simulate`.
+#include <omp.h>
+
+#include <chrono>
+#include <ctime>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "atomic_file.h"
+#include "demo_scene.h"
+#include "h5io.h"
+#include "plants.h"
+#include "simulator.h"
+#include "terrain_io.h"
+
+using namespace eco;
+using namespace eco::sim;
+
+namespace {
+
+double now() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void makeScene(const std::string& dir, int cells, double cellSize, std::uint64_t seed) {
+    ensureDirectory(dir);
+    DemoSceneParams p;
+    p.cells = cells;
+    p.cellSizeM = cellSize;
+    p.seed = seed;
+    const Biome biome = defaultBiome();
+    const double t0 = now();
+    SimInputs in = makeDemoScene(p, biome);
+    std::fprintf(stderr, "scene %d x %d cells of %.3f m: %zu canopy trees (%.1f s)\n", cells, cells, cellSize, in.canopy.size(),
+                 now() - t0);
+    writeTerrainH5(dir + "/terrain.h5", in.abiotics.elevationM);
+    writeAbiotics(dir + "/abiotics.h5", in.abiotics, biome, AbioticParams{});
+    AtomicOutput out(dir + "/canopy.h5");
+    {
+        h5::File f = h5::File::create(out.tempPath());
+        f.setAttr("/", "format", std::string("eco-canopy"));
+        f.setAttr("/", "note", std::string("procedural stand-in written by bench_sim --make-scene"));
+        writePlants(f, "/canopy", in.canopy, biome);
+        f.ensureGroup("/chm");
+        f.writeGrid("/chm/height", in.chmM, "m");
+        f.ensureGroup("/terrain");
+        f.writeGrid("/terrain/elevation", in.abiotics.elevationM, "m");
+    }
+    out.commit();
+    std::printf("%s/terrain.h5\n%s/abiotics.h5\n%s/canopy.h5\n", dir.c_str(), dir.c_str(), dir.c_str());
+}
+
+double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+struct Timing {
+    double seconds = 0;
+    double cpuSeconds = 0;  // process CPU time of all threads (less sensitive to other load than wall time)
+    std::int64_t plantMonths = 0;
+    std::size_t plants = 0;
+    std::size_t peakPlants = 0;
+    std::size_t bytesPerPlant = 0, bytesPerCell = 0;
+    double setupSeconds = 0;
+    std::vector<std::uint64_t> checksum;
+};
+
+Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads) {
+    omp_set_num_threads(threads);
+    SimInputs in = base;
+    in.area = area;
+    const double t0 = now();
+    Simulation sim(std::move(in), SimParams{}, 42);
+    Timing t;
+    t.setupSeconds = now() - t0;
+    const double t1 = now(), c1 = cpuSeconds();
+    for (int y = 0; y < years; ++y) {
+        sim.stepYear();
+        t.peakPlants = std::max(t.peakPlants, sim.plantCount());
+    }
+    t.seconds = now() - t1;
+    t.cpuSeconds = cpuSeconds() - c1;
+    t.plantMonths = sim.counters().plantMonths;
+    t.plants = sim.plantCount();
+    t.bytesPerPlant = sim.bytesPerPlant();
+    t.bytesPerCell = sim.bytesPerCell();
+    return t;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string outPath = "bench/results/sim_bench.txt", sceneDir;
+    bool quick = false, hectareOnly = false;
+    int cells = 256;
+    double cellSize = 0.914;
+    std::uint64_t seed = 1;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto next = [&]() -> std::string {
+            if (i + 1 >= argc) {
+                std::fprintf(stderr, "%s needs a value\n", a.c_str());
+                std::exit(2);
+            }
+            return argv[++i];
+        };
+        if (a == "--quick") quick = true;
+        else if (a == "--hectare-only") hectareOnly = true;
+        else if (a == "--out") outPath = next();
+        else if (a == "--make-scene") sceneDir = next();
+        else if (a == "--cells") cells = std::atoi(next().c_str());
+        else if (a == "--cell-size") cellSize = std::atof(next().c_str());
+        else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
+        else {
+            std::fprintf(stderr, "unknown argument %s\n", a.c_str());
+            return 2;
+        }
+    }
+    try {
+        if (!sceneDir.empty()) {
+            makeScene(sceneDir, cells, cellSize, seed);
+            return 0;
+        }
+        const int maxThreads = omp_get_max_threads();
+        std::ostringstream rep;
+        rep << "# bench_sim: undergrowth simulator (sim/), " << maxThreads << " hardware threads available\n";
+        // 1 ha scene: 100 m x 100 m of a 128 x 128 terrain at 0.914 m (117 m).
+        const Biome biome = defaultBiome();
+        DemoSceneParams sp;
+        sp.cells = 128;
+        sp.seed = 3;
+        double t0 = now();
+        const SimInputs hectare = makeDemoScene(sp, biome);
+        rep << "1 ha scene: " << hectare.canopy.size() << " canopy trees on 117 m x 117 m, built in " << now() - t0 << " s\n";
+        const SimArea ha{5, 5, 105, 105};
+        const int haYears = quick ? 30 : 150;
+        Timing t1 = runScene(hectare, ha, haYears, 1);
+        Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2) : t1;
+        char line[512];
+        std::snprintf(line, sizeof line,
+                      "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
+                      "final %zu plants\n",
+                      haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, static_cast<long long>(t1.plantMonths),
+                      t1.peakPlants, t1.plants);
+        rep << line;
+        std::snprintf(line, sizeof line, "plant-months per second per core: %.2f M (1 thread), %.2f M per core (2 threads)\n",
+                      t1.plantMonths / t1.seconds / 1e6, t2.plantMonths / t2.seconds / 2e6);
+        rep << line;
+        std::snprintf(line, sizeof line,
+                      "plant-months per CPU second (CPU time of all threads, including OpenMP spin-waiting): %.2f M (1 thread, %.1f CPU s), %.2f M (2 threads, %.1f CPU s)\n",
+                      t1.plantMonths / t1.cpuSeconds / 1e6, t1.cpuSeconds, t2.plantMonths / t2.cpuSeconds / 1e6, t2.cpuSeconds);
+        rep << line;
+        std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
+                      t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
+        rep << line;
+        std::fputs(rep.str().c_str(), stdout);
+        std::fflush(stdout);
+        if (hectareOnly) return 0;
+
+        // 1 km2: 1000 m x 1000 m, abiotics at 2 m to keep the scene build short.
+        DemoSceneParams kp;
+        kp.cells = 512;
+        kp.cellSizeM = 2.0;
+        kp.seed = 5;
+        kp.uniformAbiotics = quick;
+        t0 = now();
+        const SimInputs km = makeDemoScene(kp, biome);
+        std::snprintf(line, sizeof line, "1 km2 scene: %zu canopy trees on 1024 m x 1024 m, built in %.1f s\n", km.canopy.size(),
+                      now() - t0);
+        rep << line;
+        std::fputs(line, stdout);
+        std::fflush(stdout);
+        const int kmYears = quick ? 3 : 10;
+        Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads);
+        std::snprintf(line, sizeof line,
+                      "1 km2 x %d years on %d threads: setup %.1f s, run %.1f s wall (%.1f s per year), %.1f CPU s; %lld "
+                      "plant-months (%.2f M per second per core, %.2f M per CPU second), peak %zu plants, final %zu plants\n",
+                      kmYears, maxThreads, tk.setupSeconds, tk.seconds, tk.seconds / kmYears, tk.cpuSeconds,
+                      static_cast<long long>(tk.plantMonths), tk.plantMonths / tk.seconds / maxThreads / 1e6,
+                      tk.plantMonths / tk.cpuSeconds / 1e6, tk.peakPlants, tk.plants);
+        rep << line;
+        std::fputs(line, stdout);
+        std::ofstream out(outPath);
+        if (out) out << rep.str();
+        else std::fprintf(stderr, "cannot write %s\n", outPath.c_str());
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "bench_sim: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

@@ -1,0 +1,137 @@
+// The simulator's processes as small pure functions (paper §6.1, SPEC §5). The engine in
+// simulator.cpp calls exactly these, and tests/simulator_test.cpp tests each on its own.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "rng.h"
+
+namespace eco::sim {
+
+/// Third-order smoothstep s(x) = 3x^2 - 2x^3 on [0, 1], clamped outside (Eq. 3, with the
+/// paper's "3x^3" typo corrected).
+inline double smoothstep(double x) {
+    x = std::clamp(x, 0.0, 1.0);
+    return x * x * (3.0 - 2.0 * x);
+}
+
+/// Idealised height h_s(t) = s(t / maxAge) * maxHeight (Eq. 3); ages in years, metres.
+inline double idealHeightM(double growthAgeYears, double maxAgeYears, double maxHeightM) {
+    return smoothstep(growthAgeYears / maxAgeYears) * maxHeightM;
+}
+
+/// Inverse of idealHeightM on [0, maxHeight]: the growth age (years) of a plant of height h.
+inline double growthAgeForHeight(double heightM, double maxAgeYears, double maxHeightM) {
+    const double target = std::clamp(heightM / maxHeightM, 0.0, 1.0);
+    double lo = 0.0, hi = 1.0;  // s is monotone on [0, 1]: bisection to double precision
+    for (int i = 0; i < 60; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (smoothstep(mid) < target ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi) * maxAgeYears;
+}
+
+/// Carbon-pool capacity: `stressMonths` months of maximum stress, where the most negative
+/// vigour of Eq. 1 is -alpha * a (g's minimum is -a).
+inline double poolCapacity(double stressMonths, double alpha, double vigourA) {
+    return stressMonths * alpha * vigourA;
+}
+
+/// One month of the carbon pool: pool += vigour; anything above capacity is the overflow
+/// (and the pool is capped at capacity). A negative pool is the underflow (stress).
+struct PoolStep {
+    double pool = 0;
+    double overflow = 0;
+};
+inline PoolStep updatePool(double pool, double vigour, double capacity) {
+    PoolStep s;
+    s.pool = pool + vigour;
+    if (s.pool > capacity) {
+        s.overflow = s.pool - capacity;
+        s.pool = capacity;
+    }
+    return s;
+}
+
+/// Growth age after one month with pool overflow `overflow` (years): the growth age advances
+/// by one month scaled by the overflow (times `monthsPerOverflow`), in the growth period only.
+inline double advanceGrowthAgeYears(double growthAgeYears, double overflow, bool inGrowthPeriod,
+                                    double monthsPerOverflow) {
+    return inGrowthPeriod ? growthAgeYears + overflow * monthsPerOverflow / 12.0 : growthAgeYears;
+}
+
+/// Monthly background mortality mu_b = 1 - P_s^(1 / l), with l the max age in MONTHS, so that
+/// a fraction P_s of a cohort survives to its max age ((1 - mu_b)^l = P_s).
+inline double backgroundMortalityPerMonth(double survivalAtMaxAge, double maxAgeYears) {
+    return 1.0 - std::pow(survivalAtMaxAge, 1.0 / (12.0 * maxAgeYears));
+}
+
+/// mu = min(mu_b + mu_s, 1) with stress mortality mu_s = max(-pool, 0).
+inline double mortalityProbability(double backgroundPerMonth, double pool) {
+    return std::min(backgroundPerMonth + std::max(-pool, 0.0), 1.0);
+}
+
+/// Stream tags of the counter-based generator (one per random process).
+constexpr std::uint64_t kMortalityStreamTag = 0x4D4F5254414C4954ull;    // plant id, counter = month
+constexpr std::uint64_t kGerminationStreamTag = 0x4745524D494E4154ull;  // cell index, counter = year
+
+/// Uniform [0, 1) for the mortality test of plant `plantId` in absolute month `month`.
+inline double mortalityUniform(std::uint64_t seed, std::uint64_t plantId, std::uint64_t month) {
+    const auto b = randomBits(seed, mixStream(plantId, kMortalityStreamTag), month);
+    return bitsToUnit(b[0], b[1]);
+}
+
+/// Seeding kernel of one canopy tree of crown radius r at distance d: 1 within inner * r,
+/// falling linearly to 0 at outer * r, 0 beyond (multiply by gamma for the probability).
+inline double seedKernel(double distanceM, double crownRadiusM, double innerFactor, double outerFactor) {
+    const double inner = innerFactor * crownRadiusM, outer = outerFactor * crownRadiusM;
+    if (distanceM <= inner) return 1.0;
+    if (distanceM >= outer) return 0.0;
+    return (outer - distanceM) / (outer - inner);
+}
+
+/// Germination roulette weight w = max(0, vbar / maxAge^beta) (Eq. 4).
+inline double rouletteWeight(double vbar, double maxAgeYears, double beta) {
+    return std::max(0.0, vbar / std::pow(maxAgeYears, beta));
+}
+
+/// Index chosen by roulette-wheel selection with u in [0, 1): the first i whose cumulative
+/// weight exceeds u * total. -1 when every weight is zero.
+inline int rouletteSelect(const double* weights, int n, double u) {
+    double total = 0;
+    for (int i = 0; i < n; ++i) total += weights[i];
+    if (!(total > 0)) return -1;
+    const double target = u * total;
+    double acc = 0;
+    int last = -1;
+    for (int i = 0; i < n; ++i) {
+        if (weights[i] <= 0) continue;
+        acc += weights[i];
+        last = i;
+        if (target < acc) return i;
+    }
+    return last;  // rounding at the very top of the wheel
+}
+
+/// Water of one cell for the occupant at height rank k (0 = tallest undergrowth) among n
+/// undergrowth occupants, from `availableMm` (after the canopy trees took their demand):
+/// each occupant in height order takes min(demand, what is left); the remainder is split
+/// into n + 1 equal shares, one per occupant and one kept for seeding.
+inline double waterShareMm(double availableMm, int k, int n, double demandMm) {
+    const double first = std::min(demandMm, std::max(0.0, availableMm - k * demandMm));
+    const double remainder = std::max(0.0, availableMm - n * demandMm);
+    return first + remainder / (n + 1);
+}
+/// The seeding share of the same cell: what is left for germination.
+inline double waterLeftoverMm(double availableMm, int n, double demandMm) {
+    return std::max(0.0, availableMm - n * demandMm) / (n + 1);
+}
+/// Water left after `canopyTrees` static trees each took min(demand, what is left).
+inline double waterAfterCanopyMm(double cellMm, int canopyTrees, double demandMm) {
+    return std::max(0.0, cellMm - canopyTrees * demandMm);
+}
+
+}  // namespace eco::sim

@@ -1,0 +1,104 @@
+// Parameters and run configuration of the undergrowth simulator (SPEC §5, paper §6.1).
+//
+// SimParams holds every model constant of the simulation that is not a species property
+// (species properties live in the biome). It is read from the [model] table of a run
+// configuration, validated, and written into every output (HDF5 attributes, checkpoints).
+// RunConfig is the whole run configuration file (configs/sim-*.toml): inputs, run settings,
+// outputs and model parameters. Parsing is strict: an unknown key is an error naming the
+// file and the key. docs/simulator.md describes every key.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace eco::sim {
+
+/// Model constants of the simulation (units in the names). Defaults are the paper's values.
+struct SimParams {
+    /// Edge of a square simulation cell, metres (paper: 20 cm).
+    double cellSizeM = 0.2;
+    /// Water each occupant (canopy tree first, then undergrowth by height) takes from a cell
+    /// before the remainder is shared, mm per month per cell (reference implementation: 4).
+    double minWaterDemandMm = 4.0;
+    /// gamma: yearly germination probability added by a canopy tree inside the inner radius.
+    double seedingProbability = 0.003;
+    /// Seeding kernel: constant gamma within innerFactor * r of a canopy tree of crown radius r ...
+    double seedInnerRadiusFactor = 4.0;
+    /// ... falling linearly to zero at outerFactor * r.
+    double seedOuterRadiusFactor = 12.0;
+    /// beta of the germination roulette weight max(0, vbar_s / maxAge_s^beta).
+    double rouletteAgeExponent = 1.2;
+    /// P_s: expected fraction of a cohort surviving background mortality to its max age.
+    double survivalAtMaxAge = 0.01;
+    /// Carbon pool capacity in months of maximum stress: capacity_s = this * alpha_s * a, where
+    /// -alpha_s * a is the most negative vigour of Eq. 1 (g's minimum is -a).
+    double poolCapacityStressMonths = 3.0;
+    /// Undergrowth dies on reaching the canopy height at its root: the CHM there, or this
+    /// height where the CHM is lower (gaps, open ground). Metres.
+    double canopyThresholdM = 3.0;
+    /// Month (0 = January) at whose end the yearly germination happens; the leftover
+    /// resources of the twelve months up to it form "the previous growing season".
+    int seedingMonth = 7;
+    /// Growth age of a new seedling, months: its height is h_s(this) (Eq. 3).
+    double seedlingGrowthAgeMonths = 1.0;
+    /// Months of growth age gained per unit of carbon-pool overflow (paper: dt * o with dt
+    /// one month, so 1).
+    double growthMonthsPerOverflow = 1.0;
+
+    /// Throws ValidationError naming `source` and the key of the first bad value.
+    void validate(const std::string& source = "SimParams") const;
+    /// TOML text of a [model] table with every field (for records and configs).
+    std::string toToml() const;
+    /// (key, value) pairs in the order of toToml(), values as doubles (for HDF5 attributes).
+    std::vector<std::pair<std::string, double>> namedValues() const;
+};
+
+/// Rectangle in world metres (x east, y north): [x0, x1) x [y0, y1).
+struct SimArea {
+    double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+/// A run configuration file: everything `eco simulate` needs.
+struct RunConfig {
+    std::string sourcePath;     ///< file it was read from ("" when built in code)
+    // [inputs]
+    std::string terrainPath;    ///< optional: terrain (elevation) file; "" = elevation of the abiotics file
+    std::string abioticsPath;   ///< abiotics.h5 (readAbiotics), without canopy shade
+    std::string canopyPath;     ///< canopy.h5: /canopy plant group and /chm/height
+    std::string biomePath;      ///< biome TOML; "" = the embedded Sonoma biome
+    std::string initialPath;    ///< optional initial undergrowth: CSV, or HDF5 "file.h5[:/group]"
+    // [run]
+    int years = 10;
+    std::uint64_t seed = 1;
+    std::optional<SimArea> crop;        ///< sub-area to simulate; none = the whole abiotics extent
+    std::vector<int> snapshotYears;     ///< years (0 = initial state) to snapshot; the last year is always added, years beyond it skipped
+    int checkpointEveryYears = 0;       ///< 0 = no checkpoints
+    // [outputs]
+    std::string outputPath = "simulation.h5";
+    std::string csvPath;        ///< "" = no CSV
+    std::string pngDir;         ///< "" = no PNGs
+    std::string checkpointPath; ///< "" = outputPath + ".checkpoint.h5"
+    // [model]
+    SimParams params;
+
+    /// Checkpoint file actually used.
+    std::string effectiveCheckpointPath() const;
+    /// Throws ValidationError for inconsistent settings (years < 1, bad crop, ...).
+    void validate() const;
+};
+
+/// Read a run configuration (strict). IoError when unreadable or not TOML; ValidationError
+/// naming the file, the line and the key for an unknown key, a wrong type or a bad value.
+RunConfig loadRunConfig(const std::string& path);
+/// Same from TOML text; `sourceName` is used in messages.
+RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName);
+
+/// Parse "x0,y0,x1,y1" (metres); ValidationError naming `what` otherwise.
+SimArea parseArea(const std::string& text, const std::string& what);
+/// Parse "10,20,50" into years; ValidationError naming `what` otherwise.
+std::vector<int> parseYearList(const std::string& text, const std::string& what);
+
+}  // namespace eco::sim

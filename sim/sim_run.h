@@ -1,0 +1,78 @@
+// Running a simulation from a run configuration: reading the inputs, the yearly loop with
+// snapshots, time series and checkpoints, and the outputs (HDF5, CSV, PNG). The HDF5
+// layout is documented in docs/simulator.md. HDF5 calls happen on the calling thread only.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "simulator.h"
+
+namespace eco::sim {
+
+/// Read the files a run configuration names (abiotics, canopy with CHM, optional terrain,
+/// biome). IoError / ValidationError naming the file and the missing dataset.
+SimInputs loadSimInputs(const RunConfig& config, Biome biome);
+/// The biome of a run configuration: the file, or the embedded Sonoma biome.
+Biome loadRunBiome(const RunConfig& config);
+
+/// Initial undergrowth: a CSV with a header naming at least x_m, y_m, height_m and species
+/// (name) or species_id (the CSV written by `eco simulate` and writePlantsCsv both qualify),
+/// or an HDF5 plant group "file.h5[:/group]" (default group: the last snapshot of an
+/// eco-simulation file, else /undergrowth). Species are mapped by name onto the biome.
+std::vector<UndergrowthPlant> readInitialPlants(const std::string& spec, const Biome& biome);
+
+/// Snapshot group (readPlants-compatible, plus id, age, growth_age, vigour, pool, sun_share,
+/// water_share) written into / read from an open file.
+void writeSnapshot(h5::File& file, const std::string& group, int year, const std::vector<UndergrowthPlant>& plants,
+                   const Biome& biome);
+std::vector<UndergrowthPlant> readSnapshot(const h5::File& file, const std::string& group, const Biome& biome);
+
+/// CSV of plants: the columns of writePlantsCsv followed by id, age_years,
+/// growth_age_years, vigour, pool. Atomic.
+void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthPlant>& plants, const Biome& biome);
+
+/// What a run accumulates besides the simulation state.
+struct RunRecord {
+    std::vector<YearRecord> timeseries;  ///< one per complete year, from year 0
+    std::vector<std::pair<int, std::vector<UndergrowthPlant>>> snapshots;
+    double wallSecondsBefore = 0;  ///< wall time of earlier processes (resumed runs)
+    int resumedFromYear = -1;      ///< -1 when not resumed
+};
+
+/// Write the simulation HDF5 (atomic): metadata, snapshots, time series, canopy.
+void writeSimulationH5(const std::string& path, const Simulation& sim, const RunRecord& record,
+                       const RunConfig& config, double wallSeconds, int threads);
+/// Write a checkpoint (atomic): simulation state and the record so far.
+void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRecord& record);
+/// Restore a checkpoint into `sim` (built from the same configuration) and `record`.
+/// IoError when the file is not a checkpoint of this run.
+void readCheckpoint(const std::string& path, Simulation& sim, RunRecord& record);
+
+/// Callbacks of runSimulation (called on the calling thread).
+struct RunHooks {
+    /// After every simulated year (also after the restored year of a resumed run).
+    std::function<void(const Simulation& sim, const RunRecord& record)> onYear;
+    /// Informational messages.
+    std::function<void(const std::string& line)> log;
+    /// Asked after every year; returning true stops the run after writing a checkpoint
+    /// (when checkpoints are enabled) and WITHOUT writing the outputs (tests, signals).
+    std::function<bool()> stopRequested;
+};
+
+struct RunSummary {
+    int years = 0;                  ///< years simulated in total
+    std::size_t finalPlants = 0;
+    double wallSeconds = 0;         ///< this process
+    std::int64_t plantMonths = 0;   ///< this process
+    bool stoppedEarly = false;
+    std::vector<std::string> written;  ///< output files
+};
+
+/// Run a configuration end to end. With `resume`, continue from the checkpoint when it
+/// exists (a missing checkpoint starts from the beginning, with a log line).
+RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& hooks = {});
+
+}  // namespace eco::sim
