@@ -20,6 +20,8 @@ void registerRunCommand(CLI::App& app);        // eco run CONFIG (the whole pipe
 void registerAnalyseCommand(CLI::App& app);    // eco analyse SIM.h5 ... --out DB.h5
 void registerInspectCommand(CLI::App& app);    // eco inspect DB.h5 [--png DIR]
 void registerPcfCommand(CLI::App& app);        // eco pcf POINTS.csv --window x0,y0,x1,y1
+void registerSynthCommand(CLI::App& app);      // eco synth --terrain --canopy --database --out SCENE.h5
+void registerCompareCommand(CLI::App& app);    // eco compare SCENE.h5 DB.h5
 
 /// The whole command line, every subcommand registered.
 std::unique_ptr<CLI::App> makeApp();

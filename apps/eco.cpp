@@ -32,6 +32,8 @@ std::unique_ptr<CLI::App> makeApp() {
     registerAnalyseCommand(*app);
     registerInspectCommand(*app);
     registerPcfCommand(*app);
+    registerSynthCommand(*app);
+    registerCompareCommand(*app);
     return app;
 }
 

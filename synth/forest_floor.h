@@ -1,0 +1,50 @@
+// Forest floor (paper §6.3, SPEC §7): density maps of grasses / forbs and of litter at the
+// terrain's resolution, for a renderer to instance ground cover from.
+//
+//   grass(p)  = suitability(p) x product over crowns covering p of (1 - alpha_s)
+//   litter(p) = min(1, (sum over crowns covering p of alpha_s) / litterFullAlpha)
+//
+// suitability is Eq. 1's response shape (the biome's VigourShape g) of a grass "species"
+// whose optimum and range per abiotic are parameters (the paper gives none; ours are in
+// docs/synth.md), min over the four annual-mean abiotics, clamped to [0, 1]. A crown covers
+// the cells whose centre lies inside (or on) its disc, as applyCanopyShade does; canopy
+// trees and, by default, undergrowth plants shade and drop litter. Both maps are unitless
+// densities in [0, 1]. Deterministic for any number of threads.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "biome.h"
+#include "grid.h"
+#include "plants.h"
+#include "undergrowth.h"
+
+namespace eco {
+
+struct ForestFloorParams {
+    Response grassSun{11.5, 7.0};           ///< hours/day: open, sunny ground suits grass best
+    Response grassMoisture{76.0, 128.0};    ///< mm
+    Response grassTemperature{13.5, 43.0};  ///< degC
+    Response grassSlope{0.0, 50.0};         ///< degrees: flat ground holds soil and grass
+    bool undergrowthShades = true;          ///< undergrowth crowns shade grass and drop litter too
+    double litterFullAlpha = 2.0;           ///< cumulative alpha at which litter density reaches 1
+
+    void validate() const;
+    std::vector<std::pair<std::string, std::string>> asParameters() const;
+};
+
+struct ForestFloor {
+    Grid<float> grass;           ///< grass / forb density, [0, 1]
+    Grid<float> litter;          ///< litter density, [0, 1]
+    Grid<float> suitability;     ///< grass density before shading, [0, 1]
+    Grid<float> cumulativeAlpha; ///< sum of the alphas of the crowns over each cell
+};
+
+/// Forest floor maps on the geometry of `features`. Plants' species index `biome.species`.
+ForestFloor computeForestFloor(const AnnualAbiotics& features, const std::vector<Plant>& canopy,
+                               const std::vector<Plant>& undergrowth, const Biome& biome,
+                               const ForestFloorParams& params);
+
+}  // namespace eco

@@ -1,0 +1,236 @@
+// Undergrowth synthesis (paper §6.2 "Sampling" and "Disk-based refinement", SPEC §7): from a
+// target terrain's canopy and annual abiotics and a biome database (core/biome_db.h),
+// undergrowth plants whose per-region density, species proportions and size histograms
+// match the database, optionally refined towards its pair-correlation functions.
+// docs/synth.md explains every step and parameter.
+//
+// 1. Cluster map. Every cell gets the sub-biome combination of the canopy trees whose
+//    seeding disc (database seeding_radius_factor x crown radius) holds its centre, with
+//    exactly the analyser's rule (docs/analysis.md), and the region of the database whose
+//    centroid is nearest to the cell's annual-mean abiotics (BiomeDatabase::nearestRegion).
+//    It also gets the seeding weight w in [0, 1]: min(1, sum over trees of k(d)), with the
+//    simulator's kernel k = 1 within inner x r, falling linearly to 0 at the seeding radius.
+// 2. Sampling (dart throwing). Region k is to hold N_k = round(density_k x area_k) plants.
+//    In each pass every cell throws darts at a rate proportional to w (scaled so that the
+//    pass brings about `candidateOversample` times what each region still lacks), uniform
+//    inside the cell; darts on a canopy trunk are dropped; each region then accepts its darts
+//    in random order while it is below N_k (the paper's "accept while the region's density is
+//    below the expected density", without the scan-order bias of a sequential sweep).
+//    Species: roulette on the region's proportions restricted to the species whose
+//    sub-biomes meet the cell's combination; height and crown radius: inverse CDFs of the
+//    region's histograms of that species at one common uniform (comonotone, so the
+//    allometric order of height and radius is kept and both histograms are met).
+// 3. Refinement (optional): greedy moves of undergrowth plants (displacements and position
+//    swaps) that lower the distance between the scene's and the database's pair-correlation
+//    functions; canopy trees count in the statistics but never move; a plant never leaves its
+//    region.
+//
+// Determinism: every random number comes from Philox keyed by (seed, pass or sweep, cell or
+// plant); reductions run in a fixed order. Results are bit-identical for any number of
+// OpenMP threads (tested with 1 and 2).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "abiotics.h"
+#include "biome.h"
+#include "biome_db.h"
+#include "grid.h"
+#include "plants.h"
+#include "point_pattern.h"
+
+namespace eco {
+
+// ------------------------------------------------------------------------- inputs
+
+/// Annual means of the abiotic maps on the target terrain (grid.h conventions, one geometry):
+/// the four features of the database, in their units.
+struct AnnualAbiotics {
+    Grid<float> sunHours;      ///< hours of sun per day (the terrain's own, no canopy shade)
+    Grid<float> moistureMm;    ///< soil moisture, mm
+    Grid<float> temperatureC;  ///< degrees Celsius
+    Grid<float> slopeDeg;      ///< degrees
+};
+
+/// Annual means of the monthly maps of `a`, and its slope.
+AnnualAbiotics annualAbiotics(const Abiotics& a);
+
+/// The biome a database was made with (its biome_toml). ValidationError when that biome's
+/// species are not the database's species list, name for name.
+Biome databaseBiome(const BiomeDatabase& db);
+
+/// ValidationError naming `canopySource` and the first offending tree when a tree lies
+/// outside the terrain's extent, has a species outside the biome, or a non-finite or
+/// negative size.
+void validateCanopy(const std::vector<Plant>& canopy, const Grid<float>& terrainM, const Biome& biome,
+                    const std::string& canopySource);
+
+// ------------------------------------------------------------------------- parameters
+
+/// Every parameter of the sampler (recorded in the scene file; docs/synth.md).
+struct SynthParams {
+    std::uint64_t seed = 1;
+    /// Seeding kernel: full weight within this factor x crown radius (the simulator's
+    /// seed_inner_radius_factor); it falls linearly to 0 at the database's seeding radius factor.
+    double seedInnerRadiusFactor = 4.0;
+    /// No undergrowth plant stands within this factor x crown radius of a canopy trunk.
+    double trunkExclusionFactor = 0.1;
+    /// Largest number of dart-throwing passes.
+    int maxPasses = 16;
+    /// Darts thrown per pass per plant a region still lacks (> 1 so that one pass usually
+    /// fills a region; the surplus is dropped uniformly at random).
+    double candidateOversample = 1.25;
+
+    /// ValidationError naming the field when one is out of range.
+    void validate() const;
+    /// (key, value text) of every parameter, as recorded in scene files.
+    std::vector<std::pair<std::string, std::string>> asParameters() const;
+};
+
+// ------------------------------------------------------------------------- cluster map
+
+struct ClusterMap {
+    Grid<std::int32_t> combination;  ///< sub-biome bitmask of the seeding trees, 0 = none
+    Grid<std::int32_t> region;       ///< database region index, -1 = none
+    Grid<float> seedWeight;          ///< dart rate weight w in [0, 1] (0 where no species may grow)
+};
+
+/// Combination labels as the analyser makes them: the OR of speciesMask[species] of every
+/// canopy tree whose disc of radius seedingRadiusFactor x crown radius holds the cell centre
+/// (distance <= radius). Also returns, in `seedWeight` when not null, min(1, sum of the
+/// kernel) with full weight within innerFactor x r. Parallel over bands of rows; identical
+/// for any number of threads.
+Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<Plant>& canopy,
+                                 const std::vector<int>& speciesMask, double seedingRadiusFactor,
+                                 double innerFactor = 0.0, Grid<float>* seedWeight = nullptr);
+
+/// The cluster map of a target terrain. `features` gives the geometry. ValidationError when
+/// the feature grids differ in geometry or the database and biome disagree.
+ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                             const AnnualAbiotics& features, const SynthParams& params);
+
+// ------------------------------------------------------------------------- sampling
+
+/// Outcome of one database region on the target terrain.
+struct RegionSampling {
+    int region = 0;
+    std::int64_t cells = 0;            ///< cells of the target terrain in the region
+    double areaM2 = 0;
+    double targetDensityPerM2 = 0;     ///< from the database
+    std::int64_t targetCount = 0;      ///< round(density x area)
+    std::int64_t placed = 0;           ///< plants placed
+};
+
+struct UndergrowthSample {
+    std::vector<Plant> plants;              ///< sorted by cell (row-major), then pass, then dart
+    std::vector<std::int32_t> plantRegion;  ///< region of each plant
+    std::vector<RegionSampling> regions;    ///< one per database region, in database order
+    int passes = 0;                         ///< passes run
+    std::int64_t darts = 0;                 ///< darts thrown
+    std::int64_t dartsOnTrunks = 0;         ///< dropped: on a canopy trunk
+    double seconds = 0;
+};
+
+/// Dart-throwing sampler (see the top of this file). terrainM gives each plant's ground
+/// elevation and must share the cluster map's geometry.
+UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
+
+/// Height and crown radius from one uniform u in [0, 1): the inverse CDFs (linear inside
+/// bins) of the two histograms at u. A histogram without counts returns -1.
+double histogramQuantile(const DbHistogram& h, double u);
+
+// ------------------------------------------------------------------------- pair correlation
+
+/// Pair sums of a scene per database region, the annulus estimator of core/point_pattern.h
+/// with translation edge correction on each region's window (the union of its cells, as the
+/// analyser uses): both plants in the region, canopy trees included as categories
+/// (category = layer x nSpecies + species, as in the database).
+struct ScenePairStats {
+    DistanceBins bins;
+    int nCategories = 0;
+    struct Region {
+        double areaM2 = 0;
+        std::vector<std::int64_t> count;  ///< [category] plants in the region
+        std::vector<double> weighted;     ///< [i][j][bin] sum of |W| / gamma(u) over ordered pairs (from sampled sources, scaled)
+        double sourceFraction = 1;        ///< share of the undergrowth used as sources (1 = all; see below)
+        double g(int i, int j, int k, const DistanceBins& b, int nCat) const;
+    };
+    std::vector<Region> regions;  ///< per database region
+};
+
+/// Pair sums of the plants inside `window` (all when null) per region of `regionMap`
+/// (labels 0..nRegions-1). With maxSourcesPerRegion > 0, a region of n > max undergrowth
+/// plants uses a random share f = max / n of them as sources (every plant is still a
+/// target; canopy trees are always sources) and divides its sums by f: an unbiased estimate
+/// of S at a cost bounded per region (the sample is a pure function of `seed` and the plant
+/// indices). Parallel over fixed chunks; identical for any number of threads.
+ScenePairStats scenePairStatistics(const std::vector<Plant>& canopy, const std::vector<Plant>& undergrowth,
+                                   const Grid<std::int32_t>& regionMap, int nRegions, int nSpecies,
+                                   const DistanceBins& bins, const RectWindow* window = nullptr,
+                                   std::size_t maxSourcesPerRegion = 0, std::uint64_t seed = 1);
+
+/// Distance between a scene's pair correlation and the database's:
+///   D^2 = sum over regions k, unordered category pairs {i, j} with an undergrowth member,
+///         present in the scene region and stored in the database region,
+///         of omega_kij x mean over bins of (g_scene - g_database)^2,
+/// omega = the pair's share of all such point pairs (n_i n_j, or n_i (n_i - 1) for i = j),
+/// so D is an RMS difference of g weighted by how many pairs each function rests on.
+struct PcfDistance {
+    double overall = 0;
+    std::vector<double> perRegion;    ///< same formula inside each region (0 without pairs)
+    std::vector<double> pairWeight;   ///< per region: its share of the pairs
+};
+PcfDistance pcfDistance(const ScenePairStats& scene, const BiomeDatabase& db);
+
+// ------------------------------------------------------------------------- refinement
+
+struct RefineParams {
+    int sweeps = 4;                 ///< proposals per plant
+    double moveRadiusM = 1.0;       ///< displacement proposals: uniform in a disc of this radius
+    double swapRadiusM = 4.0;       ///< swap proposals: a partner within this distance
+    double swapProbability = 0.5;   ///< share of proposals that are swaps
+    /// Pair correlation matched up to this distance (metres). 0 = automatic: the largest
+    /// database bin edge within which a plant of the densest region has about
+    /// `autoNeighbours` neighbours (the cost of a move grows with that number).
+    double rMaxM = 0;
+    double autoNeighbours = 400;
+    /// Refine only the plants inside this window (world metres) when set; the statistics are
+    /// then those of the regions' cells inside it, and plants outside stay as they are.
+    bool useWindow = false;
+    RectWindow window;
+    /// Sources per region for the before / after distances (scenePairStatistics).
+    std::size_t distanceSources = 20000;
+    std::uint64_t seed = 1;
+
+    void validate() const;
+    std::vector<std::pair<std::string, std::string>> asParameters() const;
+};
+
+struct RefineResult {
+    double distanceBefore = 0;             ///< pcfDistance over all database bins (sampled sources)
+    double distanceAfter = 0;
+    /// The objective: pcfDistance over the bins matched, exact; before, then after each sweep.
+    std::vector<double> objectivePerSweep;
+    std::int64_t movable = 0;              ///< plants that could move (in a region, and in the window)
+    std::int64_t proposals = 0;
+    std::int64_t accepted = 0;
+    double rMaxM = 0;                      ///< range matched
+    double seconds = 0;
+};
+
+/// Progress: sweep done (1-based) of total.
+using RefineProgress = std::function<void(int sweep, int sweeps)>;
+
+/// Move undergrowth plants to lower the pair-correlation distance to the database (see the
+/// top of this file). Plants keep species and size; positions and ground elevation change;
+/// each plant stays in its region, off trunks and inside the terrain. Canopy immutable.
+RefineResult refineUndergrowth(std::vector<Plant>& undergrowth, const std::vector<Plant>& canopy,
+                               const ClusterMap& map, const Grid<float>& terrainM, const BiomeDatabase& db,
+                               const SynthParams& synth, const RefineParams& params,
+                               const RefineProgress& progress = {});
+
+}  // namespace eco

@@ -1,0 +1,725 @@
+// Tests of the undergrowth synthesizer (synth/undergrowth), the scene file, PDB export and
+// comparison (synth/scene), and the `eco synth` / `eco compare` commands.
+//
+// The database is built in memory (no analyser): a flat 200 x 200 m terrain whose sun rises
+// from west to east, Redwoods (sub-biome 1, Conifer) in its western half and Coast Live
+// Oaks (sub-biome 2, California Oak) in its eastern half. The database holds combination 1
+// split into two regions by sun, and combination 2; cells seeded by both (combination 3,
+// absent from the database) are given a stand-in, as BiomeDatabase::nearestRegion does.
+#include <hdf5.h>
+#include <omp.h>
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "abiotics.h"
+#include "biome.h"
+#include "biome_db.h"
+#include "canopy_placer.h"
+#include "error.h"
+#include "forest_floor.h"
+#include "h5io.h"
+#include "scene.h"
+#include "terrain_io.h"
+#include "test_util.h"
+#include "undergrowth.h"
+
+using namespace eco;
+
+namespace {
+
+// ------------------------------------------------------------------ statistics helpers
+
+/// Regularised upper incomplete gamma Q(a, x) (series below a + 1, continued fraction above).
+double gammaQ(double a, double x) {
+    if (x <= 0) return 1.0;
+    const double lnPre = a * std::log(x) - x - std::lgamma(a);
+    if (x < a + 1) {
+        double sum = 1.0 / a, term = sum;
+        for (int n = 1; n < 1000; ++n) {
+            term *= x / (a + n);
+            sum += term;
+            if (std::abs(term) < std::abs(sum) * 1e-15) break;
+        }
+        return 1.0 - sum * std::exp(lnPre);
+    }
+    double b = x + 1 - a, c = 1e300, d = 1 / b, h = d;
+    for (int i = 1; i < 1000; ++i) {
+        const double an = -i * (i - a);
+        b += 2;
+        d = an * d + b;
+        if (std::abs(d) < 1e-300) d = 1e-300;
+        c = b + an / c;
+        if (std::abs(c) < 1e-300) c = 1e-300;
+        d = 1 / d;
+        const double del = d * c;
+        h *= del;
+        if (std::abs(del - 1) < 1e-15) break;
+    }
+    return std::exp(lnPre) * h;
+}
+
+/// Pearson chi-square p-value of `values` against the bin probabilities of a histogram
+/// (bins of expected count < 5 are merged with their neighbour).
+double chiSquarePValue(const DbHistogram& h, const std::vector<double>& values) {
+    const std::size_t nb = h.counts.size();
+    double total = 0;
+    for (double c : h.counts) total += c;
+    std::vector<double> observed(nb, 0.0);
+    for (double v : values) {
+        auto it = std::upper_bound(h.edges.begin(), h.edges.end(), v);
+        std::size_t k = it == h.edges.begin() ? 0 : static_cast<std::size_t>(it - h.edges.begin()) - 1;
+        observed[std::min(k, nb - 1)] += 1;
+    }
+    const double n = static_cast<double>(values.size());
+    std::vector<double> obs, exp;
+    double o = 0, e = 0;
+    for (std::size_t k = 0; k < nb; ++k) {
+        o += observed[k];
+        e += n * h.counts[k] / total;
+        if (e >= 5) {
+            obs.push_back(o);
+            exp.push_back(e);
+            o = e = 0;
+        }
+    }
+    if (e > 0 || o > 0) {
+        if (exp.empty()) return 1.0;
+        obs.back() += o;
+        exp.back() += e;
+    }
+    double chi2 = 0;
+    for (std::size_t k = 0; k < obs.size(); ++k) chi2 += (obs[k] - exp[k]) * (obs[k] - exp[k]) / exp[k];
+    const double dof = static_cast<double>(obs.size()) - 1;
+    return dof > 0 ? gammaQ(dof / 2, chi2 / 2) : 1.0;
+}
+
+// ------------------------------------------------------------------ the test world
+
+constexpr int kSide = 200;   // cells
+constexpr double kCell = 1.0;
+
+std::vector<int> canopyMasks(const Biome& b) {
+    std::vector<int> m(b.species.size(), 0);
+    for (const SubBiome& sb : b.subBiomes)
+        for (const auto& name : sb.canopySpecies) m[static_cast<std::size_t>(b.speciesIndex(name))] |= 1 << (sb.number - 1);
+    return m;
+}
+
+DbHistogram triangleHistogram(double maxValue, int bins, double peakFraction) {
+    DbHistogram h;
+    for (int k = 0; k <= bins; ++k) h.edges.push_back(maxValue * k / bins);
+    for (int k = 0; k < bins; ++k) {
+        const double mid = (k + 0.5) / bins;
+        const double v = mid < peakFraction ? mid / peakFraction : (1 - mid) / (1 - peakFraction);
+        h.counts.push_back(std::round(1000 * v) + 1);
+    }
+    return h;
+}
+
+/// g target: inhibition below `hardCoreM`, 1 beyond.
+DbPairStats pairStats(int source, int target, const DistanceBins& bins, double hardCoreM) {
+    DbPairStats p;
+    p.source = source;
+    p.target = target;
+    p.normalisation = 1.0;
+    for (int k = 0; k < bins.count; ++k) {
+        const double g = bins.hiM(k) <= hardCoreM ? 0.0 : 1.0;
+        p.g.push_back(g);
+        p.translateWeighted.push_back(g * bins.annulusAreaM2(k));
+        p.pairCount.push_back(g * bins.annulusAreaM2(k));
+    }
+    p.separationCount.assign(static_cast<std::size_t>(SeparationBins{}.count), 0.0);
+    return p;
+}
+
+DbRegion makeRegion(const Biome& b, int combination, int cluster, double density, Features centroidRaw,
+                    const std::map<std::string, double>& shares, const DistanceBins& bins, double hardCoreM) {
+    DbRegion r;
+    r.combination = combination;
+    r.cluster = cluster;
+    r.centroidRaw = centroidRaw;
+    r.areaM2 = 10000;
+    r.densityPerM2 = density;
+    const std::size_t ns = b.species.size();
+    r.speciesCount.assign(ns, 0.0);
+    r.speciesProportion.assign(ns, 0.0);
+    r.canopySpeciesCount.assign(ns, 0.0);
+    r.height.resize(ns);
+    r.crownRadius.resize(ns);
+    for (std::size_t s = 0; s < ns; ++s) {
+        const Species& sp = b.species[s];
+        const double hMax = std::min(sp.maxHeightM, 3.0);
+        // Absent species: the edges every region shares, no counts.
+        r.height[s] = triangleHistogram(hMax, 20, 0.5);
+        r.crownRadius[s] = triangleHistogram(sp.allometry.crownRadiusM(hMax), 20, 0.5);
+        std::fill(r.height[s].counts.begin(), r.height[s].counts.end(), 0.0);
+        std::fill(r.crownRadius[s].counts.begin(), r.crownRadius[s].counts.end(), 0.0);
+    }
+    double total = 0;
+    for (const auto& [name, share] : shares) total += share;
+    std::vector<int> present;
+    for (const auto& [name, share] : shares) {
+        const std::size_t s = static_cast<std::size_t>(b.speciesIndex(name));
+        r.speciesProportion[s] = share / total;
+        r.speciesCount[s] = std::round(density * r.areaM2 * share / total);
+        const Species& sp = b.species[s];
+        const double hMax = std::min(sp.maxHeightM, 3.0);
+        r.height[s] = triangleHistogram(hMax, 20, 0.15 + 0.1 * static_cast<double>(s % 5));
+        r.crownRadius[s] = triangleHistogram(sp.allometry.crownRadiusM(hMax), 20, 0.35);
+        present.push_back(static_cast<int>(s));
+    }
+    r.undergrowthCount = density * r.areaM2;
+    std::sort(present.begin(), present.end());
+    for (int i : present)
+        for (int j : present) r.pairs.push_back(pairStats(i, j, bins, hardCoreM));
+    return r;
+}
+
+struct World {
+    Biome biome = defaultBiome();
+    BiomeDatabase db;
+    Grid<float> terrain;
+    AnnualAbiotics features;
+    std::vector<Plant> canopy;
+};
+
+World makeWorld(double hardCoreM = 0.8) {
+    World w;
+    const Biome& b = w.biome;
+    BiomeDatabase& db = w.db;
+    db.codeVersion = "test";
+    db.createdUtc = "2000-01-01T00:00:00Z";
+    db.biomeName = b.name;
+    db.biomeToml = biomeToToml(b);
+    for (const auto& s : b.species) db.speciesNames.push_back(s.name);
+    for (const auto& sb : b.subBiomes) db.subBiomeNames.push_back(sb.name);
+    db.canopySubBiomeMask = canopyMasks(b);
+    db.seedingRadiusFactor = 12;
+    db.pcfBins = DistanceBins{10.0, 40};
+    // Combination 1 (Conifer): two regions by sun; combination 2 (California Oak): one.
+    DbCombination c1;
+    c1.mask = 1;
+    c1.k = 2;
+    c1.firstRegion = 0;
+    c1.featureMean = {9.0, 100.0, 15.0, 0.0};
+    c1.featureStd = {2.0, 1.0, 1.0, 1.0};
+    DbCombination c2;
+    c2.mask = 2;
+    c2.k = 1;
+    c2.firstRegion = 2;
+    c2.featureMean = {9.0, 100.0, 15.0, 0.0};
+    c2.featureStd = {2.0, 1.0, 1.0, 1.0};
+    db.combinations = {c1, c2};
+    db.regions.push_back(makeRegion(b, 1, 0, 1.2, {7.0, 100, 15, 0},
+                                    {{"Western Swordfern", 0.4}, {"Redwood Sorrel", 0.3}, {"Tanoak", 0.2}, {"Toyon", 0.1}},
+                                    db.pcfBins, hardCoreM));
+    db.regions.push_back(makeRegion(b, 1, 1, 0.8, {11.0, 100, 15, 0},
+                                    {{"Toyon", 0.5}, {"California Laurel", 0.3}, {"Western Swordfern", 0.2}}, db.pcfBins,
+                                    hardCoreM));
+    db.regions.push_back(makeRegion(b, 2, 0, 1.5, {9.0, 100, 15, 0},
+                                    {{"Chamise", 0.35}, {"California Sagebrush", 0.35}, {"Toyon", 0.2}, {"Pacific Poison Oak", 0.1}},
+                                    db.pcfBins, hardCoreM));
+    for (auto& c : db.combinations)
+        for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r)
+            for (std::size_t f = 0; f < kFeatureCount; ++f)
+                db.regions[static_cast<std::size_t>(r)].centroidNormalised[f] =
+                    (db.regions[static_cast<std::size_t>(r)].centroidRaw[f] - c.featureMean[f]) / c.featureStd[f];
+
+    // Terrain and annual abiotics: a gentle tilt, sun from 6 (west) to 12 h/day (east).
+    w.terrain = Grid<float>(kSide, kSide, kCell, 0.0, 0.0);
+    w.features.sunHours = Grid<float>::like(w.terrain);
+    w.features.moistureMm = Grid<float>::like(w.terrain, 100.0f);
+    w.features.temperatureC = Grid<float>::like(w.terrain, 15.0f);
+    w.features.slopeDeg = Grid<float>::like(w.terrain, 0.0f);
+    for (int iy = 0; iy < kSide; ++iy)
+        for (int ix = 0; ix < kSide; ++ix) {
+            w.terrain(ix, iy) = static_cast<float>(100.0 + 0.02 * ix + 0.01 * iy);
+            w.features.sunHours(ix, iy) = static_cast<float>(6.0 + 6.0 * (ix + 0.5) / kSide);
+        }
+    // Canopy: Redwoods west, Coast Live Oaks east, on a jittered lattice.
+    const int redwood = b.speciesIndex("Redwood"), oak = b.speciesIndex("Coast Live Oak");
+    for (int j = 0; j < 10; ++j)
+        for (int i = 0; i < 10; ++i) {
+            Plant t;
+            const bool west = i < 5;
+            t.speciesId = west ? redwood : oak;
+            t.xM = 10.0 + 20.0 * i + 3.0 * std::sin(1.7 * j + i);
+            t.yM = 10.0 + 20.0 * j + 3.0 * std::cos(2.3 * i + j);
+            t.heightM = west ? 40.0 : 15.0;
+            t.crownRadiusM = west ? 3.0 : 2.5;
+            t.groundZM = w.terrain.sampleBilinear(t.xM, t.yM);
+            w.canopy.push_back(t);
+        }
+    return w;
+}
+
+/// Files of the world for the command-line tests.
+struct WorldFiles {
+    std::string terrain, canopy, abiotics, db;
+};
+
+WorldFiles writeWorld(const World& w, const test::TempDir& dir) {
+    WorldFiles f{dir.file("terrain.h5"), dir.file("canopy.h5"), dir.file("abiotics.h5"), dir.file("db.h5")};
+    writeTerrainH5(f.terrain, w.terrain);
+    CanopyRecord rec;
+    rec.result.trees = w.canopy;
+    rec.speciesMap = Grid<std::int32_t>::like(w.terrain, -1);
+    rec.chmM = Grid<float>::like(w.terrain, 0.0f);
+    rec.terrainM = w.terrain;
+    rec.terrainSource = f.terrain;
+    writeCanopyFile(f.canopy, rec, w.biome);
+    Abiotics ab;
+    for (int m = 0; m < 12; ++m) {
+        ab.sunHours.months.push_back(w.features.sunHours);
+        ab.moistureMm.months.push_back(w.features.moistureMm);
+        ab.temperatureC.months.push_back(w.features.temperatureC);
+    }
+    ab.slopeDeg = w.features.slopeDeg;
+    ab.elevationM = w.terrain;
+    writeAbiotics(f.abiotics, ab, w.biome, AbioticParams{});
+    writeBiomeDatabase(f.db, w.db);
+    return f;
+}
+
+bool samePlants(const std::vector<Plant>& a, const std::vector<Plant>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if (a[i].speciesId != b[i].speciesId || std::memcmp(&a[i].xM, &b[i].xM, sizeof(double)) != 0 ||
+            std::memcmp(&a[i].yM, &b[i].yM, sizeof(double)) != 0 || a[i].heightM != b[i].heightM ||
+            a[i].crownRadiusM != b[i].crownRadiusM || a[i].groundZM != b[i].groundZM)
+            return false;
+    return true;
+}
+
+}  // namespace
+
+// ======================================================================== cluster map
+
+TEST_CASE("seeding labels match a direct per-cell evaluation of the analyser's rule", "[synth]") {
+    const World w = makeWorld();
+    Grid<float> weight;
+    const Grid<std::int32_t> labels = seedingLabels(w.terrain, w.canopy, w.db.canopySubBiomeMask, 12.0, 4.0, &weight);
+    std::int64_t mismatches = 0;
+    for (int iy = 0; iy < kSide; iy += 3)
+        for (int ix = 0; ix < kSide; ix += 3) {
+            int mask = 0;
+            double k = 0;
+            for (const Plant& t : w.canopy) {
+                const double dx = w.terrain.cellCentreX(ix) - t.xM, dy = w.terrain.cellCentreY(iy) - t.yM;
+                const double R = 12.0 * t.crownRadiusM;
+                if (dx * dx + dy * dy <= R * R) {
+                    mask |= w.db.canopySubBiomeMask[static_cast<std::size_t>(t.speciesId)];
+                    const double d = std::sqrt(dx * dx + dy * dy);
+                    k += d <= 4.0 * t.crownRadiusM ? 1.0 : (R - d) / (8.0 * t.crownRadiusM);
+                }
+            }
+            if (labels(ix, iy) != mask) ++mismatches;
+            CHECK(weight(ix, iy) == Approx(std::min(1.0, k)).margin(1e-4));
+        }
+    CHECK(mismatches == 0);
+    // Both sub-biomes occur, and their overlap.
+    const auto& d = labels.data();
+    CHECK(std::count(d.begin(), d.end(), 1) > 0);
+    CHECK(std::count(d.begin(), d.end(), 2) > 0);
+    CHECK(std::count(d.begin(), d.end(), 3) > 0);
+}
+
+TEST_CASE("the cluster map assigns each cell the database's nearest region", "[synth]") {
+    const World w = makeWorld();
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
+    std::set<int> seen;
+    for (int iy = 0; iy < kSide; iy += 2)
+        for (int ix = 0; ix < kSide; ix += 2) {
+            const int expected = w.db.nearestRegion(map.combination(ix, iy), w.features.sunHours(ix, iy),
+                                                    w.features.moistureMm(ix, iy), w.features.temperatureC(ix, iy),
+                                                    w.features.slopeDeg(ix, iy));
+            REQUIRE(map.region(ix, iy) == expected);
+            seen.insert(expected);
+            if (expected < 0) CHECK(map.seedWeight(ix, iy) == 0.0f);
+        }
+    CHECK(seen.count(0) == 1);
+    CHECK(seen.count(1) == 1);
+    CHECK(seen.count(2) == 1);
+}
+
+// ======================================================================== sampling
+
+TEST_CASE("histogram quantiles invert the histogram's CDF", "[synth]") {
+    DbHistogram h;
+    h.edges = {0, 1, 2, 4};
+    h.counts = {1, 0, 3};
+    CHECK(histogramQuantile(h, 0.0) == Approx(0.0));
+    CHECK(histogramQuantile(h, 0.125) == Approx(0.5));
+    CHECK(histogramQuantile(h, 0.25) == Approx(2.0));
+    CHECK(histogramQuantile(h, 0.625) == Approx(3.0));
+    DbHistogram empty;
+    empty.edges = {0, 1};
+    empty.counts = {0};
+    CHECK(histogramQuantile(empty, 0.5) < 0);
+}
+
+TEST_CASE("synthesized density, species proportions and sizes match the database", "[synth]") {
+    const World w = makeWorld();
+    SynthParams params;
+    params.seed = 11;
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
+    REQUIRE(s.plants.size() > 20000);
+    for (const auto& r : s.regions) {
+        INFO("region " << r.region);
+        CHECK(r.placed == r.targetCount);
+    }
+    // Re-analysed from the plants alone (as eco compare does).
+    const SceneComparison c = compareScene(w.canopy, s.plants, map.region, w.db);
+    int checked = 0;
+    for (const auto& r : c.regions) {
+        if (r.areaM2 < 1000) continue;  // "enough area": at least 1000 m^2 (hundreds of plants)
+        INFO("region " << r.region << ": density " << r.densityPerM2 << " target " << r.targetDensityPerM2);
+        CHECK(std::abs(r.densityRelativeError) <= 0.05);
+        CHECK(r.proportionMaxDifference <= 0.05);
+        ++checked;
+    }
+    CHECK(checked == 3);
+    // No plant on a trunk; every plant inside the terrain, on the terrain's surface.
+    for (const Plant& p : s.plants) {
+        REQUIRE(p.xM >= 0);
+        REQUIRE(p.xM <= kSide * kCell);
+        REQUIRE(p.groundZM == Approx(w.terrain.sampleBilinear(p.xM, p.yM)));
+    }
+    for (const Plant& t : w.canopy)
+        for (const Plant& p : s.plants) {
+            const double dx = p.xM - t.xM, dy = p.yM - t.yM;
+            REQUIRE(dx * dx + dy * dy >= std::pow(params.trunkExclusionFactor * t.crownRadiusM, 2));
+        }
+
+    SECTION("size histograms pass a chi-square test at significance 0.001 (Bonferroni over all tests)") {
+        std::vector<std::vector<std::vector<double>>> heights(w.db.regions.size(), std::vector<std::vector<double>>(w.biome.species.size()));
+        auto radii = heights;
+        for (std::size_t i = 0; i < s.plants.size(); ++i) {
+            const Plant& p = s.plants[i];
+            heights[static_cast<std::size_t>(s.plantRegion[i])][static_cast<std::size_t>(p.speciesId)].push_back(p.heightM);
+            radii[static_cast<std::size_t>(s.plantRegion[i])][static_cast<std::size_t>(p.speciesId)].push_back(p.crownRadiusM);
+        }
+        struct Test {
+            const DbHistogram* h;
+            const std::vector<double>* v;
+            std::string what;
+        };
+        std::vector<Test> tests;
+        for (std::size_t r = 0; r < w.db.regions.size(); ++r)
+            for (std::size_t sp = 0; sp < w.biome.species.size(); ++sp)
+                if (heights[r][sp].size() >= 200) {
+                    tests.push_back({&w.db.regions[r].height[sp], &heights[r][sp], "height"});
+                    tests.push_back({&w.db.regions[r].crownRadius[sp], &radii[r][sp], "radius"});
+                }
+        REQUIRE(tests.size() >= 16);
+        const double alpha = 0.001 / static_cast<double>(tests.size());
+        for (const auto& t : tests) {
+            const double p = chiSquarePValue(*t.h, *t.v);
+            INFO(t.what << " of " << t.v->size() << " plants: p = " << p);
+            CHECK(p > alpha);
+        }
+        // A wrong histogram is rejected: heights compared with another species' histogram.
+        CHECK(chiSquarePValue(w.db.regions[0].height[static_cast<std::size_t>(w.biome.speciesIndex("Tanoak"))],
+                              heights[0][static_cast<std::size_t>(w.biome.speciesIndex("Redwood Sorrel"))]) < alpha);
+    }
+}
+
+TEST_CASE("species respect the seeding sub-biomes of each cell", "[synth]") {
+    const World w = makeWorld();
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
+    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, SynthParams{});
+    for (const Plant& p : s.plants) {
+        const int mask = map.combination(map.combination.cellX(p.xM), map.combination.cellY(p.yM));
+        int speciesMask = 0;
+        for (int b : w.biome.species[static_cast<std::size_t>(p.speciesId)].subBiomes) speciesMask |= 1 << (b - 1);
+        REQUIRE((mask & speciesMask) != 0);
+    }
+}
+
+TEST_CASE("synthesis is identical with 1 and 2 threads", "[synth]") {
+    const World w = makeWorld();
+    SynthParams params;
+    params.seed = 5;
+    RefineParams rp;
+    rp.sweeps = 2;  // both tilings (the second is shifted by half a tile)
+    const int before = omp_get_max_threads();
+    struct Out {
+        ClusterMap map;
+        std::vector<Plant> plants;
+        RefineResult refine;
+        ForestFloor floor;
+    };
+    auto run = [&](int threads) {
+        omp_set_num_threads(threads);
+        Out o;
+        o.map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+        o.plants = sampleUndergrowth(w.db, w.biome, w.canopy, o.map, w.terrain, params).plants;
+        o.refine = refineUndergrowth(o.plants, w.canopy, o.map, w.terrain, w.db, params, rp);
+        o.floor = computeForestFloor(w.features, w.canopy, o.plants, w.biome, ForestFloorParams{});
+        return o;
+    };
+    const Out a = run(1), b = run(2);
+    omp_set_num_threads(before);
+    CHECK(a.map.region.data() == b.map.region.data());
+    CHECK(a.map.combination.data() == b.map.combination.data());
+    CHECK(std::memcmp(a.map.seedWeight.data().data(), b.map.seedWeight.data().data(), a.map.seedWeight.size() * sizeof(float)) == 0);
+    CHECK(samePlants(a.plants, b.plants));
+    CHECK(a.refine.accepted == b.refine.accepted);
+    CHECK(a.refine.objectivePerSweep == b.refine.objectivePerSweep);
+    CHECK(a.floor.grass.data() == b.floor.grass.data());
+    CHECK(a.floor.litter.data() == b.floor.litter.data());
+}
+
+TEST_CASE("another seed gives another scene with the same statistics", "[synth]") {
+    const World w = makeWorld();
+    SynthParams p1, p2;
+    p2.seed = 2;
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, p1);
+    const auto a = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p1);
+    const auto b = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p2);
+    CHECK(a.plants.size() == b.plants.size());
+    CHECK_FALSE(samePlants(a.plants, b.plants));
+}
+
+// ======================================================================== refinement
+
+TEST_CASE("refinement lowers the pair-correlation distance and keeps the canopy, regions and species", "[synth]") {
+    const World w = makeWorld(1.0);  // the database's undergrowth keeps 1 m apart; sampling does not
+    SynthParams params;
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+    UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
+    std::vector<Plant> plants = s.plants;
+    const std::vector<Plant> canopyBefore = w.canopy;
+    RefineParams rp;
+    rp.sweeps = 3;
+    const RefineResult r = refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, params, rp);
+    INFO("distance " << r.distanceBefore << " -> " << r.distanceAfter << ", accepted " << r.accepted << " of " << r.proposals);
+    CHECK(r.distanceAfter < 0.8 * r.distanceBefore);
+    REQUIRE(r.objectivePerSweep.size() == 4);
+    CHECK(r.objectivePerSweep.back() < r.objectivePerSweep.front());
+    CHECK(r.accepted > 0);
+    CHECK(samePlants(w.canopy, canopyBefore));
+    REQUIRE(plants.size() == s.plants.size());
+    for (std::size_t i = 0; i < plants.size(); ++i) {
+        REQUIRE(plants[i].speciesId == s.plants[i].speciesId);
+        REQUIRE(plants[i].heightM == s.plants[i].heightM);
+        const int ix = map.region.cellX(plants[i].xM), iy = map.region.cellY(plants[i].yM);
+        REQUIRE(map.region.inside(ix, iy));
+        REQUIRE(map.region(ix, iy) == s.plantRegion[i]);
+        REQUIRE(plants[i].groundZM == Approx(w.terrain.sampleBilinear(plants[i].xM, plants[i].yM)));
+    }
+    // The distance compareScene reports agrees (same estimator, all sources).
+    const SceneComparison after = compareScene(w.canopy, plants, map.region, w.db, nullptr, 0);
+    CHECK(after.pcfDistance == Approx(r.distanceAfter).epsilon(0.05));
+}
+
+TEST_CASE("refinement inside a window moves only the plants inside it", "[synth]") {
+    const World w = makeWorld(1.0);
+    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
+    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, SynthParams{});
+    std::vector<Plant> plants = s.plants;
+    RefineParams rp;
+    rp.sweeps = 1;
+    rp.useWindow = true;
+    rp.window = RectWindow{50, 50, 100, 100};
+    const RefineResult r = refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, SynthParams{}, rp);
+    CHECK(r.accepted > 0);
+    CHECK(r.distanceAfter < r.distanceBefore);
+    for (std::size_t i = 0; i < plants.size(); ++i) {
+        const bool inside = rp.window.contains(s.plants[i].xM, s.plants[i].yM);
+        if (!inside) REQUIRE((plants[i].xM == s.plants[i].xM && plants[i].yM == s.plants[i].yM));
+        else REQUIRE(rp.window.contains(plants[i].xM, plants[i].yM));
+    }
+}
+
+// ======================================================================== files
+
+TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_files");
+    SceneRecord rec;
+    rec.params.seed = 77;
+    rec.clusterMap = computeClusterMap(w.db, w.biome, w.canopy, w.features, rec.params);
+    rec.sampling = sampleUndergrowth(w.db, w.biome, w.canopy, rec.clusterMap, w.terrain, rec.params);
+    rec.undergrowth = rec.sampling.plants;
+    rec.canopy = w.canopy;
+    rec.terrainM = w.terrain;
+    rec.floor = computeForestFloor(w.features, w.canopy, rec.undergrowth, w.biome, rec.floorParams);
+    rec.databasePath = "in-memory";
+    writeSceneFile(dir.file("scene.h5"), rec, w.biome, w.db);
+    const SceneData d = readSceneFile(dir.file("scene.h5"), w.biome);
+    CHECK(samePlants(d.canopy, rec.canopy));
+    CHECK(samePlants(d.undergrowth, rec.undergrowth));
+    CHECK(d.clusterMap.data() == rec.clusterMap.region.data());
+    CHECK(d.combinationMap.data() == rec.clusterMap.combination.data());
+    CHECK(d.grass.data() == rec.floor.grass.data());
+    CHECK(d.litter.data() == rec.floor.litter.data());
+    CHECK(d.seed == 77);
+    {
+        h5::File f = h5::File::openRead(dir.file("scene.h5"));
+        CHECK(f.attrString("/", "format") == "eco-scene");
+        CHECK(f.attrInt("/", "schema_version") == 1);
+        CHECK(f.attrString("/", "seed_inner_radius_factor") == "4");
+        CHECK(f.attrString("/undergrowth", "layer") == "undergrowth");
+        CHECK(f.readF64("/regions/placed").size() == w.db.regions.size());
+    }
+
+    writePdb(dir.file("scene.pdb"), rec.canopy, rec.undergrowth);
+    const std::vector<PdbSpecies> pdb = readPdb(dir.file("scene.pdb"));
+    std::size_t total = 0;
+    for (const auto& sp : pdb) {
+        total += sp.plants.size();
+        for (const Plant& p : sp.plants) {
+            REQUIRE(p.heightM >= sp.minHeightM - 1e-4);
+            REQUIRE(p.heightM <= sp.maxHeightM + 1e-4);
+        }
+    }
+    CHECK(total == rec.canopy.size() + rec.undergrowth.size());
+    CHECK(std::is_sorted(pdb.begin(), pdb.end(), [](const PdbSpecies& a, const PdbSpecies& b) { return a.speciesId < b.speciesId; }));
+    // The first canopy tree is the first plant of its species block (canopy is written first).
+    const auto it = std::find_if(pdb.begin(), pdb.end(), [&](const PdbSpecies& s) { return s.speciesId == w.canopy[0].speciesId; });
+    REQUIRE(it != pdb.end());
+    CHECK(it->plants[0].xM == Approx(w.canopy[0].xM).margin(1e-4));
+    CHECK(it->plants[0].groundZM == Approx(w.canopy[0].groundZM).margin(1e-4));
+    // A truncated file names the line.
+    {
+        std::ofstream(dir.file("bad.pdb")) << "1\n3 0.1 2.0 0.5\n2\n1 2 3 4 5\n";
+        CHECK_THROWS_WITH(readPdb(dir.file("bad.pdb")), Catch::Contains("bad.pdb") && Catch::Contains("file ends"));
+    }
+
+    writeScenePlantsCsv(dir.file("plants.csv"), rec.canopy, rec.undergrowth, w.biome);
+    std::ifstream csv(dir.file("plants.csv"));
+    std::string header;
+    std::getline(csv, header);
+    CHECK(header == "layer,species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m");
+    std::size_t lines = 0;
+    for (std::string l; std::getline(csv, l);) ++lines;
+    CHECK(lines == total);
+
+    writeScenePng(dir.file("scene.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "test");
+    const RectWindow crop = defaultZoomWindow(w.terrain, 40);
+    writeScenePng(dir.file("zoom.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "zoom", &crop, 400);
+    CHECK(std::filesystem::file_size(dir.file("scene.png")) > 1000);
+    CHECK(std::filesystem::file_size(dir.file("zoom.png")) > 1000);
+}
+
+TEST_CASE("the database's biome must match its species list", "[synth]") {
+    World w = makeWorld();
+    CHECK_NOTHROW(databaseBiome(w.db));
+    std::swap(w.db.speciesNames[0], w.db.speciesNames[1]);
+    CHECK_THROWS_WITH(databaseBiome(w.db), Catch::Contains("species 0"));
+}
+
+// ======================================================================== command line
+
+TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_cli");
+    const WorldFiles f = writeWorld(w, dir);
+    const auto r = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                                " --abiotics " + f.abiotics + " --out " + dir.file("out/scene.h5") + " --png " +
+                                dir.file("png") + " --csv " + dir.file("plants.csv") + " --pdb " + dir.file("plants.pdb") +
+                                " --refine --refine-sweeps 1 --refine-window 80,80,120,120");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("refinement: pair-correlation distance"));
+    for (const char* name : {"out/scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/scene_zoom.png",
+                             "png/grass.png", "png/litter.png", "png/cluster_map.png"})
+        CHECK(std::filesystem::exists(dir.file(name)));
+    const auto c = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("compare.png"));
+    INFO(c.output);
+    REQUIRE(c.exitCode == 0);
+    CHECK_THAT(c.output, Catch::Contains("| region |") && Catch::Contains("pair-correlation distance"));
+    CHECK(std::filesystem::exists(dir.file("compare.png")));
+}
+
+TEST_CASE("eco synth refuses bad inputs with one clear line and no output", "[synth][cli]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_bad");
+    const WorldFiles f = writeWorld(w, dir);
+    const std::string out = dir.file("scene.h5");
+    auto synth = [&](const std::string& terrain, const std::string& canopy, const std::string& db) {
+        return test::runEco("synth --terrain " + terrain + " --canopy " + canopy + " --database " + db + " --abiotics " +
+                            f.abiotics + " --out " + out);
+    };
+
+    SECTION("a database of another schema version") {
+        const std::string bad = dir.file("db_v2.h5");
+        std::filesystem::copy_file(f.db, bad);
+        const hid_t file = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+        REQUIRE(file >= 0);
+        REQUIRE(H5Adelete(file, "schema_version") >= 0);
+        const hid_t space = H5Screate(H5S_SCALAR);
+        const hid_t attr = H5Acreate2(file, "schema_version", H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+        const long long two = 2;
+        H5Awrite(attr, H5T_NATIVE_LLONG, &two);
+        H5Aclose(attr);
+        H5Sclose(space);
+        H5Fclose(file);
+        const auto r = synth(f.terrain, f.canopy, bad);
+        INFO(r.output);
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("db_v2.h5") && Catch::Contains("schema_version") && Catch::Contains("eco: error"));
+    }
+    SECTION("a canopy tree outside the terrain") {
+        std::vector<Plant> trees = w.canopy;
+        trees[3].xM = kSide * kCell + 25.0;
+        CanopyRecord rec;
+        rec.result.trees = trees;
+        rec.speciesMap = Grid<std::int32_t>::like(w.terrain, -1);
+        rec.chmM = Grid<float>::like(w.terrain, 0.0f);
+        rec.terrainM = w.terrain;
+        writeCanopyFile(dir.file("outside.h5"), rec, w.biome);
+        const auto r = synth(f.terrain, dir.file("outside.h5"), f.db);
+        INFO(r.output);
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("outside.h5") && Catch::Contains("canopy tree 3") &&
+                                 Catch::Contains("outside the terrain"));
+    }
+    SECTION("a canopy placed on another terrain") {
+        Grid<float> other(kSide / 2, kSide, kCell, 0, 0, 50.0f);
+        writeTerrainH5(dir.file("other.h5"), other);
+        const auto r = synth(dir.file("other.h5"), f.canopy, f.db);
+        INFO(r.output);
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("canopy.h5") && Catch::Contains("other.h5") &&
+                                 Catch::Contains("was placed on a terrain of"));
+    }
+    SECTION("a missing file") {
+        const auto r = synth(f.terrain, f.canopy, dir.file("nothing.h5"));
+        INFO(r.output);
+        CHECK(r.exitCode != 0);
+        CHECK_THAT(r.output, Catch::Contains("nothing.h5"));
+    }
+    CHECK_FALSE(std::filesystem::exists(out));
+    // No temporary files left beside the output either.
+    for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+        CHECK(e.path().filename().string().find("scene") == std::string::npos);
+}
+
+TEST_CASE("eco compare refuses a scene from another database", "[synth][cli]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_cmp");
+    const WorldFiles f = writeWorld(w, dir);
+    REQUIRE(test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                         " --abiotics " + f.abiotics + " --out " + dir.file("scene.h5"))
+                .exitCode == 0);
+    BiomeDatabase small = w.db;
+    small.regions.resize(1);
+    small.combinations.resize(1);
+    small.combinations[0].k = 1;
+    writeBiomeDatabase(dir.file("small.h5"), small);
+    const auto r = test::runEco("compare " + dir.file("scene.h5") + " " + dir.file("small.h5"));
+    INFO(r.output);
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("another database"));
+}
