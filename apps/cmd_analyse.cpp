@@ -294,6 +294,7 @@ void runAnalyse(const AnalyseArgs& args) {
 struct InspectArgs {
     std::string database;
     std::string pngDir;
+    std::string out;
     int maxPairs = 8;
 };
 
@@ -405,6 +406,10 @@ void runInspect(const InspectArgs& args) {
         }
     }
     std::cout << o.str();
+    if (!args.out.empty()) {
+        writeTextFile(args.out, o.str());
+        std::cout << "wrote summary: " << args.out << "\n";
+    }
     if (!args.pngDir.empty()) {
         ensureDirectory(args.pngDir);
         Progress bar("inspect pictures", static_cast<long>(db.regions.size()));
@@ -453,6 +458,7 @@ void registerInspectCommand(CLI::App& app) {
     cmd->add_option("database", args->database, "Biome database (eco analyse output)")->required();
     cmd->add_option("--png", args->pngDir, "Also plot g(r) of the main species pairs and height histograms per region");
     cmd->add_option("--max-pairs", args->maxPairs, "Species pairs per g(r) plot (default 8)")->check(CLI::Range(1, 64));
+    cmd->add_option("--out", args->out, "Also write the summary to this text file");
     cmd->callback([args] { runInspect(*args); });
 }
 

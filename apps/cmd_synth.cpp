@@ -266,7 +266,7 @@ void runSynth(const SynthArgs& a) {
 }
 
 struct CompareArgs {
-    std::string scene, database, png, window;
+    std::string scene, database, png, window, out;
     std::size_t pcfSources = 20000;
 };
 
@@ -281,10 +281,16 @@ void runCompare(const CompareArgs& a) {
     const SceneComparison c = compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
                                            a.window.empty() ? nullptr : &window, a.pcfSources);
     info("compared in " + num(secondsSince(t), 3) + " s");
-    std::cout << "scene " << a.scene << " (" << scene.canopy.size() << " canopy, " << scene.undergrowth.size()
-              << " undergrowth) against database " << a.database
-              << (a.window.empty() ? std::string() : " inside " + a.window) << "\n\n"
-              << comparisonTable(c, db);
+    std::ostringstream text;
+    text << "scene " << a.scene << " (" << scene.canopy.size() << " canopy, " << scene.undergrowth.size()
+         << " undergrowth) against database " << a.database
+         << (a.window.empty() ? std::string() : " inside " + a.window) << "\n\n"
+         << comparisonTable(c, db);
+    std::cout << text.str();
+    if (!a.out.empty()) {
+        writeTextFile(a.out, text.str());
+        std::cout << "wrote table: " << a.out << "\n";
+    }
     if (!a.png.empty()) {
         writeComparisonPng(a.png, c, db);
         std::cout << "wrote picture: " << a.png << "\n";
@@ -359,6 +365,7 @@ void registerCompareCommand(CLI::App& app) {
     cmd->add_option("database", a->database, "Biome database")->required();
     cmd->add_option("--png", a->png, "Also write a picture of the pair correlations, scene against database");
     cmd->add_option("--window", a->window, "Compare only inside x0,y0,x1,y1 (metres)");
+    cmd->add_option("--out", a->out, "Also write the Markdown table to this file");
     cmd->add_option("--pcf-sources", a->pcfSources,
                     "Pair correlation: at most this many undergrowth plants per region as sources (a random sample; "
                     "every plant is a neighbour); 0 = all")

@@ -29,6 +29,17 @@ void AtomicOutput::commit() {
     committed_ = true;
 }
 
+void writeTextFile(const std::string& path, const std::string& text) {
+    AtomicOutput out(path);
+    {
+        std::FILE* f = std::fopen(out.tempPath().c_str(), "wb");
+        if (!f) throw IoError(path + ": cannot write");
+        const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+        if (std::fclose(f) != 0 || !ok) throw IoError(path + ": error while writing");
+    }
+    out.commit();
+}
+
 void ensureDirectory(const std::string& dir) {
     std::error_code ec;
     std::filesystem::create_directories(dir, ec);

@@ -25,6 +25,9 @@ private:
     bool committed_ = false;
 };
 
+/// Write `text` to `path` atomically (reports, Markdown tables); IoError naming the path.
+void writeTextFile(const std::string& path, const std::string& text);
+
 /// Create a directory and its parents (no-op if it exists); IoError naming it on failure.
 void ensureDirectory(const std::string& dir);
 
