@@ -399,7 +399,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             throw ValidationError("analyse: input " + std::to_string(i) + " (" + in.provenance.path +
                                   "): the window does not overlap the abiotic grid");
         prep[i].window = w;
-        prep[i].combination = combinationLabels(g, in.canopy, speciesMask, params.seedingRadiusFactor);
+        prep[i].combination = seedingLabels(g, in.canopy, speciesMask, params.seedingRadiusFactor);
         for (int iy = 0; iy < g.height(); ++iy)
             for (int ix = 0; ix < g.width(); ++ix) {
                 const std::size_t c = g.index(ix, iy);

@@ -20,6 +20,7 @@
 #include "grid.h"
 #include "plants.h"
 #include "point_pattern.h"
+#include "seeding.h"
 
 namespace eco {
 
@@ -85,11 +86,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
 /// species seeds; 0 for species that cannot be canopy trees.
 std::vector<int> canopySubBiomeMasks(const Biome& biome, CanopyMembership membership);
 
-/// Combination label of each cell of `geometry`: the OR of the masks of every canopy tree
-/// whose seeding disc (radius factor * crown radius, metres) contains the cell centre.
-/// 0 = seeded by none.
-Grid<std::int32_t> combinationLabels(const Grid<float>& geometry, const std::vector<Plant>& canopy,
-                                     const std::vector<int>& speciesMask, double seedingRadiusFactor);
+/// Combination labels: seedingLabels (core/seeding.h), the same the synthesizer uses.
 
 struct KMeansResult {
     std::vector<Features> centroids;

@@ -130,59 +130,6 @@ std::vector<int> canopySubBiomeMasks(const Biome& biome, CanopyMembership member
     return masks;
 }
 
-Grid<std::int32_t> combinationLabels(const Grid<float>& geometry, const std::vector<Plant>& canopy,
-                                     const std::vector<int>& speciesMask, double seedingRadiusFactor) {
-    if (!(seedingRadiusFactor >= 0.0) || !std::isfinite(seedingRadiusFactor))
-        throw ValidationError("combination labels: seeding radius factor must be finite and >= 0");
-    Grid<std::int32_t> labels = Grid<std::int32_t>::like(geometry, 0);
-    const double cs = geometry.cellSizeM();
-    const int w = geometry.width(), h = geometry.height();
-    if (w == 0 || h == 0) return labels;
-    // Bands of rows, each drawn by one thread from the trees that reach it: no two threads
-    // write one cell, and OR does not depend on the order trees are drawn in.
-    constexpr int kBandRows = 32;
-    const int nBands = (h + kBandRows - 1) / kBandRows;
-    struct Extent {
-        int x0, x1, y0, y1;
-    };
-    std::vector<Extent> extent(canopy.size(), Extent{0, -1, 0, -1});
-    std::vector<std::vector<std::uint32_t>> bandTrees(static_cast<std::size_t>(nBands));
-    for (std::size_t t = 0; t < canopy.size(); ++t) {
-        const Plant& p = canopy[t];
-        if (p.speciesId < 0 || static_cast<std::size_t>(p.speciesId) >= speciesMask.size()) continue;
-        if (speciesMask[static_cast<std::size_t>(p.speciesId)] == 0) continue;
-        const double radius = seedingRadiusFactor * p.crownRadiusM;
-        Extent e;
-        e.x0 = std::max(0, static_cast<int>(std::floor((p.xM - radius - geometry.originX()) / cs - 0.5)));
-        e.x1 = std::min(w - 1, static_cast<int>(std::ceil((p.xM + radius - geometry.originX()) / cs - 0.5)));
-        e.y0 = std::max(0, static_cast<int>(std::floor((p.yM - radius - geometry.originY()) / cs - 0.5)));
-        e.y1 = std::min(h - 1, static_cast<int>(std::ceil((p.yM + radius - geometry.originY()) / cs - 0.5)));
-        if (e.x0 > e.x1 || e.y0 > e.y1) continue;
-        extent[t] = e;
-        for (int b = e.y0 / kBandRows; b <= e.y1 / kBandRows; ++b)
-            bandTrees[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(t));
-    }
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int b = 0; b < nBands; ++b) {
-        const int by0 = b * kBandRows, by1 = std::min(h - 1, by0 + kBandRows - 1);
-        for (std::uint32_t t : bandTrees[static_cast<std::size_t>(b)]) {
-            const Plant& p = canopy[t];
-            const Extent& e = extent[t];
-            const std::int32_t mask = speciesMask[static_cast<std::size_t>(p.speciesId)];
-            const double radius = seedingRadiusFactor * p.crownRadiusM;
-            const double r2 = radius * radius;
-            for (int iy = std::max(e.y0, by0); iy <= std::min(e.y1, by1); ++iy) {
-                const double dy = geometry.cellCentreY(iy) - p.yM;
-                for (int ix = e.x0; ix <= e.x1; ++ix) {
-                    const double dx = geometry.cellCentreX(ix) - p.xM;
-                    if (dx * dx + dy * dy <= r2) labels(ix, iy) |= mask;
-                }
-            }
-        }
-    }
-    return labels;
-}
-
 KMeansResult kmeans(const std::vector<Features>& points, int k, std::uint64_t seed, std::uint64_t stream,
                     int restarts, int maxIterations) {
     const std::size_t n = points.size();

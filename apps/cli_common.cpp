@@ -1,5 +1,7 @@
 #include "cli_common.h"
 
+#include "error.h"
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -41,5 +43,39 @@ void Progress::finish() {
 }
 
 void info(const std::string& line) { std::cerr << line << "\n"; }
+
+void AbioticsProgress::operator()(const std::string& stage, double fraction) {
+    if (stage != stage_) {
+        if (bar_) bar_->finish();
+        bar_ = std::make_unique<Progress>("abiotics " + stage, 1000);
+        stage_ = stage;
+    }
+    bar_->update(static_cast<long>(fraction * 1000.0 + 0.5));
+}
+
+void AbioticsProgress::finish() {
+    if (bar_) bar_->finish();
+    bar_.reset();
+}
+
+Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
+                            const std::string& terrainPath, const Biome& biome, const std::string& note) {
+    if (!abioticsPath.empty()) {
+        Abiotics abiotics = readAbiotics(abioticsPath);
+        if (!abiotics.slopeDeg.sameGeometry(terrain))
+            throw ValidationError("abiotics '" + abioticsPath + "' (" + abiotics.slopeDeg.geometryText() +
+                                  ") and terrain '" + terrainPath + "' (" + terrain.geometryText() +
+                                  ") differ in geometry");
+        info("abiotics: " + abioticsPath);
+        return abiotics;
+    }
+    info("no --abiotics: computing the abiotic maps from the terrain with default parameters (" + note + ")");
+    validateElevation(terrain, terrainPath);
+    AbioticsProgress progress;
+    Abiotics abiotics = computeAbiotics(terrain, biome, AbioticParams{},
+                                        [&](const std::string& s, double f) { progress(s, f); });
+    progress.finish();
+    return abiotics;
+}
 
 }  // namespace eco::cli

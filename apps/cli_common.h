@@ -9,6 +9,10 @@
 #include <vector>
 #include <string>
 
+#include "abiotics.h"
+#include "biome.h"
+#include "grid.h"
+
 namespace eco::cli {
 
 // Each cmd_*.cpp adds its subcommands to the top-level app.
@@ -22,6 +26,15 @@ void registerInspectCommand(CLI::App& app);    // eco inspect DB.h5 [--png DIR]
 void registerPcfCommand(CLI::App& app);        // eco pcf POINTS.csv --window x0,y0,x1,y1
 void registerSynthCommand(CLI::App& app);      // eco synth --terrain --canopy --database --out SCENE.h5
 void registerCompareCommand(CLI::App& app);    // eco compare SCENE.h5 DB.h5
+void registerValidateCommand(CLI::App& app);   // eco validate [--quick] [--out DIR]
+
+/// Thrown by a command that completed but must end with a particular non-zero exit status
+/// (e.g. `eco validate` when a check failed); main() prints the message and returns `code`.
+struct ExitStatus {
+    int code;
+    std::string message;
+    ExitStatus(int c, std::string m) : code(c), message(std::move(m)) {}
+};
 
 /// The whole command line, every subcommand registered.
 std::unique_ptr<CLI::App> makeApp();
@@ -49,5 +62,23 @@ private:
 
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);
+
+/// Progress of computeAbiotics: one bar per stage ("abiotics sun", ...).
+class AbioticsProgress {
+public:
+    void operator()(const std::string& stage, double fraction);
+    /// Close the last bar.
+    void finish();
+
+private:
+    std::unique_ptr<Progress> bar_;
+    std::string stage_;
+};
+
+/// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
+/// terrain's geometry, or, when the path is empty, computed with default parameters (as
+/// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.
+Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
+                            const std::string& terrainPath, const Biome& biome, const std::string& note);
 
 }  // namespace eco::cli

@@ -98,18 +98,9 @@ void runAbiotics(const AbioticsArgs& args) {
     info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")") + ", latitude " +
          num(biome.climate.latitudeDeg) + " deg");
 
-    std::unique_ptr<Progress> bar;
-    std::string stage;
-    auto progress = [&](const std::string& s, double fraction) {
-        if (s != stage) {
-            if (bar) bar->finish();
-            bar = std::make_unique<Progress>("abiotics " + s, 1000);
-            stage = s;
-        }
-        bar->update(static_cast<long>(fraction * 1000.0 + 0.5));
-    };
-    const Abiotics maps = computeAbiotics(terrain, biome, params, progress);
-    if (bar) bar->finish();
+    AbioticsProgress progress;
+    const Abiotics maps = computeAbiotics(terrain, biome, params, [&](const std::string& s, double f) { progress(s, f); });
+    progress.finish();
 
     writeAbiotics(args.out, maps, biome, params);
     std::cout << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["

@@ -45,17 +45,12 @@ std::string num(double v, int precision = 6) {
     return os.str();
 }
 
-std::string geometry(const Grid<float>& g) {
-    return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.cellSizeM()) +
-           " m, origin (" + num(g.originX()) + ", " + num(g.originY()) + ")";
-}
-
 /// The CHM and terrain must cover the same cells; CHM heights must be >= 0.
 void checkInputs(const Grid<float>& terrain, const std::string& terrainPath, const Grid<float>& chm,
                  const std::string& chmPath) {
     if (!chm.sameGeometry(terrain))
-        throw ValidationError("CHM '" + chmPath + "' (" + geometry(chm) + ") and terrain '" + terrainPath + "' (" +
-                              geometry(terrain) + ") differ in geometry; they must cover the same cells");
+        throw ValidationError("CHM '" + chmPath + "' (" + chm.geometryText() + ") and terrain '" + terrainPath + "' (" +
+                              terrain.geometryText() + ") differ in geometry; they must cover the same cells");
     for (int iy = 0; iy < chm.height(); ++iy)
         for (int ix = 0; ix < chm.width(); ++ix)
             if (chm(ix, iy) < 0)
@@ -115,36 +110,15 @@ void runCanopy(const CanopyArgs& args) {
     chmOptions.originY = terrain.originY();
     const Grid<float> chm = readTerrain(args.chm, chmOptions);
     checkInputs(terrain, args.terrain, chm, args.chm);
-    info("terrain: " + args.terrain + ": " + geometry(terrain));
+    info("terrain: " + args.terrain + ": " + terrain.geometryText());
     info("CHM: " + args.chm + ": heights " + num(chm.minValue()) + " .. " + num(chm.maxValue()) + " m, " +
          std::to_string(forestedCells(chm, params.canopyThresholdM)) + " cells >= " + num(params.canopyThresholdM) +
          " m (forested)");
     info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")"));
 
     // Abiotics: from the file, or computed from the terrain.
-    Abiotics abiotics;
-    if (!args.abiotics.empty()) {
-        abiotics = readAbiotics(args.abiotics);
-        if (!abiotics.slopeDeg.sameGeometry(terrain))
-            throw ValidationError("abiotics '" + args.abiotics + "' (" + geometry(abiotics.slopeDeg) + ") and terrain '" +
-                                  args.terrain + "' (" + geometry(terrain) + ") differ in geometry");
-        info("abiotics: " + args.abiotics);
-    } else {
-        info("no --abiotics: computing the abiotic maps from the terrain with default parameters (as 'eco abiotics' "
-             "would; give --abiotics FILE to reuse them)");
-        validateElevation(terrain, args.terrain);
-        std::unique_ptr<Progress> bar;
-        std::string stage;
-        abiotics = computeAbiotics(terrain, biome, AbioticParams{}, [&](const std::string& s, double fraction) {
-            if (s != stage) {
-                if (bar) bar->finish();
-                bar = std::make_unique<Progress>("abiotics " + s, 1000);
-                stage = s;
-            }
-            bar->update(static_cast<long>(fraction * 1000.0 + 0.5));
-        });
-        if (bar) bar->finish();
-    }
+    const Abiotics abiotics = abioticsForTerrain(args.abiotics, terrain, args.terrain, biome,
+                                                 "give --abiotics FILE to reuse them");
 
     // Species map and targets.
     const SpeciesMapInputs inputs = speciesMapInputs(abiotics, chm);

@@ -36,11 +36,6 @@ std::string num(double v, int precision = 6) {
     return os.str();
 }
 
-std::string geometry(const Grid<float>& g) {
-    return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.cellSizeM()) +
-           " m, origin (" + num(g.originX()) + ", " + num(g.originY()) + ")";
-}
-
 /// "x0,y0,x1,y1" (or "x,y,side" for a square when `allowSquare`) in metres.
 RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare) {
     std::vector<double> v;
@@ -118,11 +113,11 @@ void runSynth(const SynthArgs& a) {
     readOptions.verticalScale = a.verticalScale;
     readOptions.verticalOffsetM = a.verticalOffsetM;
     const Grid<float> terrain = readTerrain(a.terrain, readOptions);
-    info("terrain: " + a.terrain + ": " + geometry(terrain));
+    info("terrain: " + a.terrain + ": " + terrain.geometryText());
     const CanopyFileData canopyFile = readCanopyFile(a.canopy, biome);
     if (!canopyFile.terrainM.sameGeometry(terrain))
-        throw ValidationError("canopy '" + a.canopy + "' was placed on a terrain of " + geometry(canopyFile.terrainM) +
-                              " but --terrain '" + a.terrain + "' is " + geometry(terrain) +
+        throw ValidationError("canopy '" + a.canopy + "' was placed on a terrain of " + canopyFile.terrainM.geometryText() +
+                              " but --terrain '" + a.terrain + "' is " + terrain.geometryText() +
                               "; give the terrain the canopy was made for");
     validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
     const std::vector<Plant>& canopy = canopyFile.trees;
@@ -131,29 +126,8 @@ void runSynth(const SynthArgs& a) {
         if (!out->empty()) prepareOutput(*out);
     if (!a.pngDir.empty()) ensureDirectory(a.pngDir);
 
-    Abiotics abiotics;
-    if (!a.abiotics.empty()) {
-        abiotics = readAbiotics(a.abiotics);
-        if (!abiotics.slopeDeg.sameGeometry(terrain))
-            throw ValidationError("abiotics '" + a.abiotics + "' (" + geometry(abiotics.slopeDeg) + ") and terrain '" +
-                                  a.terrain + "' (" + geometry(terrain) + ") differ in geometry");
-        info("abiotics: " + a.abiotics);
-    } else {
-        info("no --abiotics: computing the abiotic maps from the terrain with default parameters and the database's "
-             "biome (give --abiotics FILE to reuse them)");
-        validateElevation(terrain, a.terrain);
-        std::unique_ptr<Progress> bar;
-        std::string stage;
-        abiotics = computeAbiotics(terrain, biome, AbioticParams{}, [&](const std::string& s, double fraction) {
-            if (s != stage) {
-                if (bar) bar->finish();
-                bar = std::make_unique<Progress>("abiotics " + s, 1000);
-                stage = s;
-            }
-            bar->update(static_cast<long>(fraction * 1000.0 + 0.5));
-        });
-        if (bar) bar->finish();
-    }
+    const Abiotics abiotics = abioticsForTerrain(a.abiotics, terrain, a.terrain, biome,
+                                                 "the database's biome; give --abiotics FILE to reuse them");
     const AnnualAbiotics features = annualAbiotics(abiotics);
 
     auto t = Clock::now();

@@ -18,12 +18,11 @@
 #include "biome.h"
 #include "eco_version.h"
 #include "generate.h"
+#include "bench_common.h"
 
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using namespace eco::bench;
 
 }  // namespace
 

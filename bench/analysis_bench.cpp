@@ -29,10 +29,13 @@
 #include "point_pattern.h"
 #include "rng.h"
 #include "sim_input.h"
+#include "bench_common.h"
 
 using namespace eco;
 
 namespace {
+
+using namespace eco::bench;
 
 double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
@@ -42,11 +45,6 @@ double cpuNow() {
     timespec ts{};
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-double loadAverage() {
-    double l[1] = {0};
-    return getloadavg(l, 1) == 1 ? l[0] : -1.0;
 }
 
 PointPattern poisson(std::size_t n, const RectWindow& w, std::uint64_t seed) {

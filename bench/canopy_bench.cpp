@@ -30,33 +30,11 @@
 #include "eco_version.h"
 #include "generate.h"
 #include "species_map.h"
+#include "bench_common.h"
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-double processCpuSeconds() {
-    timespec t{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-double loadAverage() {
-    std::ifstream in("/proc/loadavg");
-    double l = -1;
-    in >> l;
-    return l;
-}
-
-std::vector<int> parseSizes(const std::string& s) {
-    std::vector<int> out;
-    std::stringstream ss(s);
-    std::string item;
-    while (std::getline(ss, item, ',')) out.push_back(std::stoi(item));
-    return out;
-}
+using namespace eco::bench;
 
 }  // namespace
 
@@ -151,10 +129,7 @@ int main(int argc, char** argv) {
             std::cout << sec.str() << std::flush;
             report << sec.str();
         }
-        const std::filesystem::path p(outPath);
-        if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
-        std::ofstream(outPath) << report.str();
-        std::cout << "wrote " << outPath << "\n";
+        writeReport(outPath, report.str());
     } catch (const std::exception& e) {
         std::cerr << "bench_canopy: " << e.what() << "\n";
         return 1;

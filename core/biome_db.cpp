@@ -167,7 +167,13 @@ int BiomeDatabase::nearestRegion(int combination, double sunHours, double moistu
                                  double slopeDeg) const {
     const int mask = standInCombination(combination);
     if (mask < 0) return -1;
-    const DbCombination& c = combinations[static_cast<std::size_t>(combinationIndex(mask))];
+    return nearestRegionOf(static_cast<std::size_t>(combinationIndex(mask)), sunHours, moistureMm, temperatureC,
+                           slopeDeg);
+}
+
+int BiomeDatabase::nearestRegionOf(std::size_t combinationIdx, double sunHours, double moistureMm,
+                                   double temperatureC, double slopeDeg) const {
+    const DbCombination& c = combinations[combinationIdx];
     const Features raw = {sunHours, moistureMm, temperatureC, slopeDeg};
     Features z{};
     for (std::size_t f = 0; f < kFeatureCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];

@@ -156,6 +156,10 @@ struct BiomeDatabase {
                       double slopeDeg) const;
     /// The stored combination nearestRegion() uses for `combination`, or -1.
     int standInCombination(int combination) const;
+    /// Region of the stored combination combinations[combinationIdx] whose centroid is
+    /// nearest in the combination's normalised units (the second step of nearestRegion).
+    int nearestRegionOf(std::size_t combinationIdx, double sunHours, double moistureMm, double temperatureC,
+                        double slopeDeg) const;
 };
 
 /// Write a database atomically (temporary file, then rename). IoError on failure.

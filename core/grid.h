@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -102,6 +103,14 @@ public:
     std::vector<T>& data() { return data_; }
     const std::vector<T>& data() const { return data_; }
     void fill(T v) { std::fill(data_.begin(), data_.end(), v); }
+
+    /// "W x H cells of C m, origin (X, Y)": the geometry, for messages.
+    std::string geometryText() const {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "%d x %d cells of %.10g m, origin (%.10g, %.10g)", width_, height_, cellSizeM_,
+                      originX_, originY_);
+        return buf;
+    }
 
     T minValue() const { return data_.empty() ? T{} : *std::min_element(data_.begin(), data_.end()); }
     T maxValue() const { return data_.empty() ? T{} : *std::max_element(data_.begin(), data_.end()); }

@@ -147,8 +147,8 @@ struct TrunkIndex {
     }
 };
 
-/// Nearest region of a cell, the arithmetic of BiomeDatabase::nearestRegion with the
-/// stand-in combination looked up once per mask.
+/// Nearest region of a cell: BiomeDatabase::nearestRegion with the stand-in combination
+/// looked up once per mask.
 struct RegionLookup {
     const BiomeDatabase& db;
     std::vector<std::int32_t> masks;    ///< distinct masks, ascending
@@ -165,29 +165,9 @@ struct RegionLookup {
         if (it == masks.end() || *it != mask) return -1;
         const int ci = combinationIndex[static_cast<std::size_t>(it - masks.begin())];
         if (ci < 0) return -1;
-        const DbCombination& c = db.combinations[static_cast<std::size_t>(ci)];
-        const Features raw = {sun, moisture, temperature, slope};
-        Features z{};
-        for (std::size_t f = 0; f < kFeatureCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];
-        int best = -1;
-        double bestD = std::numeric_limits<double>::infinity();
-        for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r) {
-            const Features& cz = db.regions[static_cast<std::size_t>(r)].centroidNormalised;
-            double d = 0;
-            for (std::size_t f = 0; f < kFeatureCount; ++f) d += (z[f] - cz[f]) * (z[f] - cz[f]);
-            if (d < bestD) {
-                bestD = d;
-                best = r;
-            }
-        }
-        return best < 0 ? c.firstRegion : best;
+        return db.nearestRegionOf(static_cast<std::size_t>(ci), sun, moisture, temperature, slope);
     }
 };
-
-std::string geometryText(const Grid<float>& g) {
-    return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.cellSizeM()) +
-           " m, origin (" + num(g.originX()) + ", " + num(g.originY()) + ")";
-}
 
 }  // namespace
 
@@ -290,174 +270,6 @@ std::vector<std::pair<std::string, std::string>> RefineParams::asParameters() co
 
 // ======================================================================== cluster map
 
-Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<Plant>& canopy,
-                                 const std::vector<int>& speciesMask, double seedingRadiusFactor, double innerFactor,
-                                 Grid<float>* seedWeight) {
-    if (!(seedingRadiusFactor >= 0.0) || !std::isfinite(seedingRadiusFactor))
-        throw ValidationError("seeding labels: seeding radius factor must be finite and >= 0");
-    if (!(innerFactor >= 0.0) || !std::isfinite(innerFactor))
-        throw ValidationError("seeding labels: inner radius factor must be finite and >= 0");
-    Grid<std::int32_t> labels = Grid<std::int32_t>::like(geometry, 0);
-    if (seedWeight) *seedWeight = Grid<float>::like(geometry, 0.0f);
-    const double cs = geometry.cellSizeM();
-    const int w = geometry.width(), h = geometry.height();
-    if (w == 0 || h == 0) return labels;
-    // The sub-biome bits that occur.
-    int allBits = 0;
-    for (int m : speciesMask) allBits |= m;
-    std::vector<int> bits;
-    for (int b = 0; b < 31; ++b)
-        if (allBits & (1 << b)) bits.push_back(b);
-    const std::size_t nBits = bits.size();
-    // Bands of rows, each drawn by one thread from the trees that reach it, in tree order:
-    // no two threads write a cell, and the sums add in the same order for any thread count.
-    constexpr int kBandRows = 16;
-    const int nBands = (h + kBandRows - 1) / kBandRows;
-    struct Extent {
-        int x0, x1, y0, y1;
-    };
-    std::vector<Extent> extent(canopy.size(), Extent{0, -1, 0, -1});
-    std::vector<std::vector<std::uint32_t>> bandTrees(static_cast<std::size_t>(nBands));
-    for (std::size_t t = 0; t < canopy.size(); ++t) {
-        const Plant& p = canopy[t];
-        if (p.speciesId < 0 || static_cast<std::size_t>(p.speciesId) >= speciesMask.size()) continue;
-        if (speciesMask[static_cast<std::size_t>(p.speciesId)] == 0) continue;
-        const double radius = seedingRadiusFactor * p.crownRadiusM;
-        Extent e;
-        e.x0 = std::max(0, static_cast<int>(std::floor((p.xM - radius - geometry.originX()) / cs - 0.5)));
-        e.x1 = std::min(w - 1, static_cast<int>(std::ceil((p.xM + radius - geometry.originX()) / cs - 0.5)));
-        e.y0 = std::max(0, static_cast<int>(std::floor((p.yM - radius - geometry.originY()) / cs - 0.5)));
-        e.y1 = std::min(h - 1, static_cast<int>(std::ceil((p.yM + radius - geometry.originY()) / cs - 0.5)));
-        if (e.x0 > e.x1 || e.y0 > e.y1) continue;
-        extent[t] = e;
-        for (int b = e.y0 / kBandRows; b <= e.y1 / kBandRows; ++b)
-            bandTrees[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(t));
-    }
-    const double invCs = 1.0 / cs;
-    // The cells of row iy whose centre is within sqrt(r2) of the tree: the analyser's exact
-    // test (dx^2 + dy^2 <= r2 in double), at the two ends of a span first guessed with sqrt.
-    auto span = [&](const Plant& p, const Extent& e, double dy, double r2, int& xa, int& xb) {
-        const double rest = r2 - dy * dy;
-        if (rest < 0) return false;
-        const double half = std::sqrt(rest);
-        auto in = [&](int ix) {
-            const double dx = geometry.cellCentreX(ix) - p.xM;
-            return dx * dx + dy * dy <= r2;
-        };
-        // A first guess (the exact test below corrects it by a cell if rounding misled it).
-        const double rel = (p.xM - geometry.originX()) * invCs - 0.5, halfCells = half * invCs;
-        xa = std::clamp(static_cast<int>(std::ceil(rel - halfCells)), e.x0, e.x1);
-        xb = std::clamp(static_cast<int>(std::floor(rel + halfCells)), e.x0, e.x1);
-        while (xa > e.x0 && in(xa - 1)) --xa;
-        while (xa <= e.x1 && !in(xa)) ++xa;
-        while (xb < e.x1 && in(xb + 1)) ++xb;
-        while (xb >= e.x0 && !in(xb)) --xb;
-        return xa <= xb;
-    };
-    const std::size_t W1 = static_cast<std::size_t>(w) + 1;
-#pragma omp parallel
-    {
-        // Per band: per row and bit, +1 / -1 at the ends of every disc span (and of every
-        // inner disc span): O(rows) per tree instead of O(cells).
-        std::vector<std::int32_t> diff(static_cast<std::size_t>(kBandRows) * nBits * W1);
-        std::vector<std::int32_t> innerDiff(seedWeight ? static_cast<std::size_t>(kBandRows) * W1 : 0);
-        std::vector<std::vector<int>> fringe(static_cast<std::size_t>(kBandRows));
-        struct Span {
-            std::uint32_t tree;
-            int iy, xa, xb;
-        };
-        std::vector<Span> spans;  // the band's disc spans, in tree then row order
-#pragma omp for schedule(dynamic, 1)
-        for (int b = 0; b < nBands; ++b) {
-            const int by0 = b * kBandRows, by1 = std::min(h - 1, by0 + kBandRows - 1);
-            std::fill(diff.begin(), diff.end(), 0);
-            std::fill(innerDiff.begin(), innerDiff.end(), 0);
-            spans.clear();
-            for (std::uint32_t t : bandTrees[static_cast<std::size_t>(b)]) {
-                const Plant& p = canopy[t];
-                const Extent& e = extent[t];
-                const int mask = speciesMask[static_cast<std::size_t>(p.speciesId)];
-                const double radius = seedingRadiusFactor * p.crownRadiusM;
-                const double r2 = radius * radius;
-                const double inner = std::min(innerFactor, seedingRadiusFactor) * p.crownRadiusM;
-                for (int iy = std::max(e.y0, by0); iy <= std::min(e.y1, by1); ++iy) {
-                    const double dy = geometry.cellCentreY(iy) - p.yM;
-                    int xa, xb;
-                    if (!span(p, e, dy, r2, xa, xb)) continue;
-                    if (seedWeight) spans.push_back(Span{t, iy, xa, xb});
-                    const std::size_t row = static_cast<std::size_t>(iy - by0);
-                    for (std::size_t k = 0; k < nBits; ++k)
-                        if (mask & (1 << bits[k])) {
-                            std::int32_t* d = &diff[(row * nBits + k) * W1];
-                            ++d[xa];
-                            --d[xb + 1];
-                        }
-                    if (seedWeight && inner > 0 && span(p, e, dy, inner * inner, xa, xb)) {
-                        std::int32_t* d = &innerDiff[row * W1];
-                        ++d[xa];
-                        --d[xb + 1];
-                    }
-                }
-            }
-            for (int iy = by0; iy <= by1; ++iy) {
-                const std::size_t row = static_cast<std::size_t>(iy - by0);
-                std::int32_t* lrow = &labels(0, iy);
-                for (std::size_t k = 0; k < nBits; ++k) {
-                    const std::int32_t* d = &diff[(row * nBits + k) * W1];
-                    const std::int32_t bit = 1 << bits[k];
-                    std::int32_t run = 0;
-                    for (int ix = 0; ix < w; ++ix) {
-                        run += d[ix];
-                        lrow[ix] |= run > 0 ? bit : 0;
-                    }
-                }
-                if (!seedWeight) continue;
-                // Inside an inner disc the weight is 1 (min(1, sum) with a term of 1); the
-                // other seeded cells (the fringe) get the sum of their kernel terms below.
-                float* wrow = &(*seedWeight)(0, iy);
-                auto& fr = fringe[row];
-                fr.clear();
-                std::int32_t run = 0;
-                for (int ix = 0; ix < w; ++ix) {
-                    run += innerDiff[row * W1 + static_cast<std::size_t>(ix)];
-                    if (run > 0) wrow[ix] = 1.0f;
-                    else if (lrow[ix] != 0) fr.push_back(ix);
-                }
-            }
-            if (!seedWeight) continue;
-            // k = (R - d) / (R - inner) in the annulus (single precision; the same arithmetic for
-            // any thread count), added in tree order to the fringe cells of each row.
-            for (const Span& sp : spans) {
-                const auto& fr = fringe[static_cast<std::size_t>(sp.iy - by0)];
-                if (fr.empty()) continue;
-                auto it = std::lower_bound(fr.begin(), fr.end(), sp.xa);
-                if (it == fr.end() || *it > sp.xb) continue;
-                const Plant& p = canopy[sp.tree];
-                const double radius = seedingRadiusFactor * p.crownRadiusM;
-                const double fall = radius - std::min(innerFactor, seedingRadiusFactor) * p.crownRadiusM;
-                const float pxRel = static_cast<float>(p.xM - geometry.originX());
-                const float csf = static_cast<float>(cs), radf = static_cast<float>(radius);
-                const float invFall = fall > 0 ? static_cast<float>(1.0 / fall) : 0.0f;
-                const double dy = geometry.cellCentreY(sp.iy) - p.yM;
-                const float dy2 = static_cast<float>(dy * dy);
-                float* wrow = &(*seedWeight)(0, sp.iy);
-                for (; it != fr.end() && *it <= sp.xb; ++it) {
-                    const int ix = *it;
-                    if (!(fall > 0)) {
-                        wrow[ix] += 1.0f;
-                        continue;
-                    }
-                    const float dx = (static_cast<float>(ix) + 0.5f) * csf - pxRel;
-                    const float k = (radf - std::sqrt(dx * dx + dy2)) * invFall;
-                    wrow[ix] += std::min(1.0f, std::max(0.0f, k));
-                }
-            }
-        }
-    }
-    if (seedWeight)
-        for (float& v : seedWeight->data()) v = std::min(v, 1.0f);
-    return labels;
-}
 
 ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                              const AnnualAbiotics& features, const SynthParams& params) {
@@ -465,8 +277,8 @@ ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const 
     const Grid<float>& g = features.sunHours;
     for (const auto* other : {&features.moistureMm, &features.temperatureC, &features.slopeDeg})
         if (!other->sameGeometry(g))
-            throw ValidationError("cluster map: the annual abiotic maps differ in geometry (" + geometryText(g) + " vs " +
-                                  geometryText(*other) + ")");
+            throw ValidationError("cluster map: the annual abiotic maps differ in geometry (" + g.geometryText() + " vs " +
+                                  other->geometryText() + ")");
     if (static_cast<std::size_t>(db.speciesCount()) != biome.species.size() ||
         db.canopySubBiomeMask.size() != biome.species.size())
         throw ValidationError("cluster map: the database has " + std::to_string(db.speciesCount()) +
@@ -579,7 +391,7 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
     params.validate();
     if (!map.region.sameGeometry(terrainM) || !map.seedWeight.sameGeometry(terrainM) ||
         !map.combination.sameGeometry(terrainM))
-        throw ValidationError("undergrowth sampling: the cluster map and the terrain (" + geometryText(terrainM) +
+        throw ValidationError("undergrowth sampling: the cluster map and the terrain (" + terrainM.geometryText() +
                               ") differ in geometry");
     if (static_cast<std::size_t>(db.speciesCount()) != biome.species.size())
         throw ValidationError("undergrowth sampling: the database and the biome '" + biome.name + "' differ in species");
@@ -1039,7 +851,7 @@ RefineResult refineUndergrowth(std::vector<Plant>& undergrowth, const std::vecto
     params.validate();
     synth.validate();
     if (!map.region.sameGeometry(terrainM))
-        throw ValidationError("refinement: the cluster map and the terrain (" + geometryText(terrainM) + ") differ in geometry");
+        throw ValidationError("refinement: the cluster map and the terrain (" + terrainM.geometryText() + ") differ in geometry");
     const Biome biome = databaseBiome(db);
     const int nS = db.speciesCount();
     const int C = 2 * nS;

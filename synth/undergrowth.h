@@ -41,6 +41,7 @@
 #include "grid.h"
 #include "plants.h"
 #include "point_pattern.h"
+#include "seeding.h"
 
 namespace eco {
 
@@ -97,15 +98,6 @@ struct ClusterMap {
     Grid<std::int32_t> region;       ///< database region index, -1 = none
     Grid<float> seedWeight;          ///< dart rate weight w in [0, 1] (0 where no species may grow)
 };
-
-/// Combination labels as the analyser makes them: the OR of speciesMask[species] of every
-/// canopy tree whose disc of radius seedingRadiusFactor x crown radius holds the cell centre
-/// (distance <= radius). Also returns, in `seedWeight` when not null, min(1, sum of the
-/// kernel) with full weight within innerFactor x r. Parallel over bands of rows; identical
-/// for any number of threads.
-Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<Plant>& canopy,
-                                 const std::vector<int>& speciesMask, double seedingRadiusFactor,
-                                 double innerFactor = 0.0, Grid<float>* seedWeight = nullptr);
 
 /// The cluster map of a target terrain. `features` gives the geometry. ValidationError when
 /// the feature grids differ in geometry or the database and biome disagree.

@@ -142,7 +142,7 @@ TEST_CASE("combination labels: cells within factor x crown radius of each tree g
     const Grid<float> geo(20, 10, 1.0, 100.0, 50.0);
     const std::vector<Plant> canopy = {plant("Redwood", 105, 55, 50, 0.5), plant("Coast Live Oak", 108, 55, 20, 0.5)};
     const auto masks = canopySubBiomeMasks(sonoma(), CanopyMembership::SubBiomeCanopyLists);
-    const auto labels = combinationLabels(geo, canopy, masks, 4.0);  // discs of 2 m
+    const auto labels = seedingLabels(geo, canopy, masks, 4.0);  // discs of 2 m
     for (int iy = 0; iy < 10; ++iy)
         for (int ix = 0; ix < 20; ++ix) {
             const double cx = geo.cellCentreX(ix), cy = geo.cellCentreY(iy);

@@ -1,0 +1,52 @@
+// Small shared pieces of the benchmarks: wall and CPU clocks, machine load, size lists.
+#pragma once
+
+#include <time.h>
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace eco::bench {
+
+using Clock = std::chrono::steady_clock;
+
+inline double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// CPU seconds of the whole process (all threads).
+inline double processCpuSeconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+/// One-minute load average (-1 when unknown): figures measured on a busy machine say so.
+inline double loadAverage() {
+    std::ifstream in("/proc/loadavg");
+    double l = -1;
+    in >> l;
+    return l;
+}
+
+/// "1024,2048,3072" -> {1024, 2048, 3072}.
+inline std::vector<int> parseSizes(const std::string& s) {
+    std::vector<int> out;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, ',')) out.push_back(std::stoi(item));
+    return out;
+}
+
+/// Write the report to `path` (creating its folder) and say so on stdout.
+inline void writeReport(const std::string& path, const std::string& text) {
+    const std::filesystem::path p(path);
+    if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+    std::ofstream(path) << text;
+    std::cout << "wrote " << path << "\n";
+}
+
+}  // namespace eco::bench
