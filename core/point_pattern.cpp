@@ -1,11 +1,14 @@
 #include "point_pattern.h"
 
+#include <flann/flann.hpp>
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -503,6 +506,61 @@ void writePcfCsv(const std::string& path, const PairSums& sums, const std::vecto
         if (std::fclose(f) != 0) throw IoError(path + ": error while writing CSV");
     }
     out.commit();
+}
+
+std::vector<double> nearestNeighbourDistances(const std::vector<double>& x, const std::vector<double>& y) {
+    if (x.size() != y.size()) throw ValidationError("nearest neighbours: x and y differ in length");
+    const std::size_t n = x.size();
+    std::vector<double> out(n, std::numeric_limits<double>::infinity());
+    if (n < 2) return out;
+    // FLANN keeps a pointer to this row-major n x 2 matrix.
+    std::vector<double> xy(2 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        xy[2 * i] = x[i];
+        xy[2 * i + 1] = y[i];
+    }
+    const flann::Matrix<double> points(xy.data(), n, 2);
+    flann::Index<flann::L2_Simple<double>> index(points, flann::KDTreeSingleIndexParams(10));
+    index.buildIndex();
+    // Two neighbours: the point itself and its nearest other (a coincident point can come
+    // first instead of the point itself; either way the second distance is the answer).
+    std::vector<std::size_t> ids(2 * n);
+    std::vector<double> d2(2 * n);
+    flann::Matrix<std::size_t> idm(ids.data(), n, 2);
+    flann::Matrix<double> dm(d2.data(), n, 2);
+    flann::SearchParams search(flann::FLANN_CHECKS_UNLIMITED);
+    search.cores = 1;  // OpenMP parallelism below, over fixed chunks of queries
+    constexpr std::size_t kChunk = 4096;
+    const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+        const std::size_t a = static_cast<std::size_t>(c) * kChunk, m = std::min(kChunk, n - a);
+        flann::Matrix<double> q(xy.data() + 2 * a, m, 2);
+        flann::Matrix<std::size_t> qi(ids.data() + 2 * a, m, 2);
+        flann::Matrix<double> qd(d2.data() + 2 * a, m, 2);
+        index.knnSearch(q, qi, qd, 2, search);
+    }
+    for (std::size_t i = 0; i < n; ++i) out[i] = std::sqrt(d2[2 * i + 1]);
+    return out;
+}
+
+ClarkEvans clarkEvans(const std::vector<double>& x, const std::vector<double>& y, const RectWindow& window) {
+    window.validate("Clark-Evans window");
+    ClarkEvans r;
+    r.n = x.size();
+    if (r.n < 2) {
+        r.meanNearestM = r.expectedM = r.index = std::numeric_limits<double>::quiet_NaN();
+        return r;
+    }
+    const std::vector<double> d = nearestNeighbourDistances(x, y);
+    double sum = 0;
+    for (double v : d) sum += v;  // fixed order
+    const double n = static_cast<double>(r.n);
+    r.meanNearestM = sum / n;
+    const double perimeter = 2.0 * (window.widthM() + window.heightM());
+    r.expectedM = 0.5 * std::sqrt(window.areaM2() / n) + (0.0514 + 0.0412 / std::sqrt(n)) * perimeter / n;
+    r.index = r.meanNearestM / r.expectedM;
+    return r;
 }
 
 }  // namespace eco

@@ -276,6 +276,23 @@ PairSums countPairs(const PointPattern& pattern, const RectWindow& window, const
 /// outside it.
 PointPattern readPointPatternCsv(const std::string& path, const RectWindow* window = nullptr);
 
+/// Distance from every point to its nearest other point (metres), through an exact FLANN
+/// kd-tree; infinity for a pattern of one point. Coincident points have distance 0.
+/// Deterministic: the tree is exact (single index, no randomised search).
+std::vector<double> nearestNeighbourDistances(const std::vector<double>& x, const std::vector<double>& y);
+
+/// Clark and Evans' (1954) aggregation index of a point pattern in a rectangle: the mean
+/// nearest-neighbour distance over its expectation under complete spatial randomness with
+/// Donnelly's (1978) edge correction, E = 0.5 sqrt(A/n) + (0.0514 + 0.0412/sqrt(n)) P/n.
+/// R < 1: clustered; R = 1: random; R > 1: regular. NaN for fewer than two points.
+struct ClarkEvans {
+    std::size_t n = 0;
+    double meanNearestM = 0;    ///< observed mean nearest-neighbour distance
+    double expectedM = 0;       ///< its expectation under CSR (Donnelly)
+    double index = 0;           ///< R = meanNearestM / expectedM
+};
+ClarkEvans clarkEvans(const std::vector<double>& x, const std::vector<double>& y, const RectWindow& window);
+
 /// Write pair correlation as CSV (atomic), one row per ordered type pair and bin:
 /// from,to,r_lo,r_hi,r_mid,pair_count,translate_weighted,normalisation_per_m2,g_trans,g_iso
 /// (g_iso empty when not computed). With more than one type the unmarked pattern follows

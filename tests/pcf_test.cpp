@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -253,6 +254,67 @@ TEST_CASE("pair sums are bit-identical with 1 and 2 threads", "[pcf]") {
     CHECK(a.pairCount == b.pairCount);
     CHECK(a.translateSum == b.translateSum);  // exact, not approximate
     CHECK(a.isotropicSum == b.isotropicSum);
+}
+
+TEST_CASE("nearest-neighbour distances (FLANN kd-tree) equal brute force, for any thread count", "[pcf][nn]") {
+    RandomStream rng(7, 3);
+    std::vector<double> x, y;
+    for (int i = 0; i < 3000; ++i) {
+        x.push_back(50.0 * rng.uniform());
+        y.push_back(20.0 * rng.uniform());
+    }
+    x.push_back(x[10]);  // a coincident pair: distance 0 for both
+    y.push_back(y[10]);
+    const auto d = nearestNeighbourDistances(x, y);
+    REQUIRE(d.size() == x.size());
+    for (std::size_t i = 0; i < x.size(); i += 7) {
+        double best = std::numeric_limits<double>::infinity();
+        for (std::size_t j = 0; j < x.size(); ++j)
+            if (j != i) best = std::min(best, std::hypot(x[i] - x[j], y[i] - y[j]));
+        INFO(i);
+        CHECK(d[i] == Approx(best).margin(1e-12));
+    }
+    CHECK(d[10] == 0.0);
+    CHECK(d.back() == 0.0);
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const auto d1 = nearestNeighbourDistances(x, y);
+    omp_set_num_threads(threads);
+    CHECK(d1 == d);
+    CHECK(std::isinf(nearestNeighbourDistances({1.0}, {2.0})[0]));
+}
+
+TEST_CASE("Clark-Evans index with Donnelly's correction agrees with spatstat's clarkevans", "[pcf][nn]") {
+    // tests/data/pcf/clark_evans_spatstat.csv, written by tests/data/pcf/clark_evans.R.
+    std::ifstream in(fixture("clark_evans_spatstat.csv"));
+    REQUIRE(in.good());
+    std::string line;
+    std::getline(in, line);
+    int rows = 0;
+    while (std::getline(in, line)) {
+        std::stringstream ss(line);
+        std::string name, n, meanNn, index;
+        std::getline(ss, name, ',');
+        std::getline(ss, n, ',');
+        std::getline(ss, meanNn, ',');
+        std::getline(ss, index, ',');
+        const PointPattern p = readPointPatternCsv(fixture(name + "_points.csv"), &kFixtureWindow);
+        const ClarkEvans ce = clarkEvans(p.x, p.y, kFixtureWindow);
+        INFO(name);
+        CHECK(ce.n == std::stoul(n));
+        CHECK(ce.meanNearestM == Approx(std::stod(meanNn)).epsilon(1e-12));
+        CHECK(ce.index == Approx(std::stod(index)).epsilon(1e-12));
+        ++rows;
+    }
+    CHECK(rows == 4);
+    // The shapes: clustered < 1 < regular.
+    const auto index = [&](const std::string& name) {
+        const PointPattern p = readPointPatternCsv(fixture(name + "_points.csv"), &kFixtureWindow);
+        return clarkEvans(p.x, p.y, kFixtureWindow).index;
+    };
+    CHECK(index("thomas") < 0.8);
+    CHECK(index("hardcore") > 1.1);
+    CHECK(std::isnan(clarkEvans({1.0}, {1.0}, kFixtureWindow).index));
 }
 
 TEST_CASE("bad input to the estimator: clear errors", "[pcf][errors]") {
