@@ -108,7 +108,13 @@ LoadedSimulation readSimulation(const std::string& path, const SimulationReadOpt
         throw IoError(std::string(e.what()) + " (abiotics of simulation " + path +
                       (options.abioticsPath.empty() ? "; override with --abiotics" : "") + ")");
     }
-    in.sunHours = ab.sunHours.annualMean();
+    if (!ab.canopyShadeSource.empty())
+        throw ValidationError(abioticsPath + ": its sun is already shaded by the canopy of " + ab.canopyShadeSource +
+                              "; the analyser shades with the simulation's canopy itself: give the terrain's own "
+                              "abiotics (eco abiotics without --canopy)");
+    // Region features: the sun under the simulation's canopy, so that clearings, forest edges
+    // and deep shade can fall into different regions (the synthesizer shades its target alike).
+    in.sunHours = applyCanopyShade(ab.sunHours, shadingTrees(in.canopy, *biome)).annualMean();
     in.moistureMm = ab.moistureMm.annualMean();
     in.temperatureC = ab.temperatureC.annualMean();
     in.slopeDeg = ab.slopeDeg;

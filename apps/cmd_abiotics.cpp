@@ -10,6 +10,7 @@
 #include "abiotics.h"
 #include "atomic_file.h"
 #include "biome.h"
+#include "canopy_placer.h"
 #include "cli_common.h"
 #include "error.h"
 #include "image_out.h"
@@ -33,6 +34,7 @@ struct AbioticsArgs {
     std::string biome;
     std::string out;
     std::string pngDir;
+    std::string canopy;
     double cellSizeM = 0;
     double verticalScale = 1;
     double verticalOffsetM = 0;
@@ -98,13 +100,29 @@ void runAbiotics(const AbioticsArgs& args) {
     info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")") + ", latitude " +
          num(biome.climate.latitudeDeg) + " deg");
 
+    // Read the canopy first: a bad file fails before the long computation.
+    std::vector<Plant> canopy;
+    if (!args.canopy.empty()) {
+        const CanopyFileData c = readCanopyFile(args.canopy, biome);
+        if (!c.terrainM.sameGeometry(terrain))
+            throw ValidationError("canopy '" + args.canopy + "' was placed on a terrain of " + c.terrainM.geometryText() +
+                                  " but --terrain '" + args.terrain + "' is " + terrain.geometryText());
+        canopy = c.trees;
+        info("canopy: " + args.canopy + ": " + std::to_string(canopy.size()) + " trees shade the sun maps");
+    }
+
     AbioticsProgress progress;
-    const Abiotics maps = computeAbiotics(terrain, biome, params, [&](const std::string& s, double f) { progress(s, f); });
+    Abiotics maps = computeAbiotics(terrain, biome, params, [&](const std::string& s, double f) { progress(s, f); });
     progress.finish();
+    if (!args.canopy.empty()) {
+        maps.sunHours = applyCanopyShade(maps.sunHours, shadingTrees(canopy, biome));
+        maps.canopyShadeSource = args.canopy;
+    }
 
     writeAbiotics(args.out, maps, biome, params);
     std::cout << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
-              << terrain.width() << "] hours/day, /moisture mm, /temperature degC)\n";
+              << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
+              << ", /moisture mm, /temperature degC)\n";
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome);
 }
 
@@ -121,6 +139,10 @@ void registerAbioticsCommand(CLI::App& app) {
     cmd->add_option("--biome", args->biome, "Biome TOML (default: the embedded Sonoma biome)");
     cmd->add_option("--out", args->out, "Output HDF5 file, e.g. abiotics.h5 (written atomically)")->required();
     cmd->add_option("--png", args->pngDir, "Also write one PNG per map and month into this directory");
+    cmd->add_option("--canopy", args->canopy,
+                    "Canopy file from 'eco canopy' on this terrain: shade the sun maps under its crowns (each crown "
+                    "x (1 - alpha)); for looking at the light under the canopy. eco simulate, analyse and synth "
+                    "shade with their canopy themselves and want the unshaded file");
     cmd->add_option("--cell-size", args->cellSizeM,
                     "Metres per cell (required for image terrains; checked against .asc / .h5)")
         ->check(CLI::PositiveNumber);

@@ -128,10 +128,19 @@ void runSynth(const SynthArgs& a) {
 
     const Abiotics abiotics = abioticsForTerrain(a.abiotics, terrain, a.terrain, biome,
                                                  "the database's biome; give --abiotics FILE to reuse them");
+    if (!abiotics.canopyShadeSource.empty())
+        throw ValidationError("abiotics '" + a.abiotics + "': its sun is already shaded by the canopy of " +
+                              abiotics.canopyShadeSource + "; eco synth shades with --canopy itself: give the "
+                              "terrain's own abiotics (eco abiotics without --canopy)");
+    // The forest floor works from the open-sky maps (it shades under every crown itself); the
+    // cluster map from the sun under the canopy, as the analyser's regions were made.
     const AnnualAbiotics features = annualAbiotics(abiotics);
+    Abiotics shaded = abiotics;
+    shaded.sunHours = applyCanopyShade(abiotics.sunHours, shadingTrees(canopy, biome));
+    const AnnualAbiotics shadedFeatures = annualAbiotics(shaded);
 
     auto t = Clock::now();
-    const ClusterMap clusters = computeClusterMap(db, biome, canopy, features, params);
+    const ClusterMap clusters = computeClusterMap(db, biome, canopy, shadedFeatures, params);
     const double clusterS = secondsSince(t);
     std::int64_t seeded = 0, labelled = 0;
     for (std::size_t i = 0; i < clusters.region.size(); ++i) {

@@ -610,6 +610,19 @@ MonthlyGrids<float> applyCanopyShade(const MonthlyGrids<float>& sun, const std::
     return out;
 }
 
+std::vector<ShadingTree> shadingTrees(const std::vector<Plant>& canopy, const Biome& biome) {
+    std::vector<ShadingTree> trees;
+    trees.reserve(canopy.size());
+    for (std::size_t i = 0; i < canopy.size(); ++i) {
+        const Plant& p = canopy[i];
+        if (p.speciesId < 0 || static_cast<std::size_t>(p.speciesId) >= biome.species.size())
+            throw ValidationError("canopy tree " + std::to_string(i) + ": species id " + std::to_string(p.speciesId) +
+                                  " is not in biome '" + biome.name + "'");
+        trees.push_back({p.xM, p.yM, p.crownRadiusM, biome.species[static_cast<std::size_t>(p.speciesId)].alpha});
+    }
+    return trees;
+}
+
 // ---------------------------------------------------------------------------------------
 // Moisture
 
@@ -958,6 +971,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
         const std::string root = "/";
         f.setAttr(root, "format", std::string(kFormat));
         f.setAttr(root, "schema_version", kSchemaVersion);
+        f.setAttr(root, "canopy_shade", maps.canopyShadeSource.empty() ? std::string("none") : maps.canopyShadeSource);
         f.setAttr(root, "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr(root, "biome_name", biome.name);
         f.setAttr(root, "months", std::string("plane 0 = January .. plane 11 = December"));
@@ -1007,6 +1021,9 @@ Abiotics readAbiotics(const std::string& path) {
     for (const char* name : {"/elevation", "/slope", "/sun", "/moisture", "/temperature"}) require(name);
 
     Abiotics a;
+    // Files written before the attribute existed hold the terrain's own sun.
+    if (f.hasAttr("/", "canopy_shade") && f.attrString("/", "canopy_shade") != "none")
+        a.canopyShadeSource = f.attrString("/", "canopy_shade");
     const auto eShape = f.shape("/elevation");
     if (eShape.size() != 2)
         throw IoError(path + ": dataset /elevation has rank " + std::to_string(eShape.size()) + ", expected [height][width]");

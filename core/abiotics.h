@@ -15,6 +15,7 @@
 
 #include "biome.h"
 #include "grid.h"
+#include "plants.h"
 
 namespace eco {
 
@@ -90,6 +91,9 @@ struct ShadingTree {
 /// ValidationError for a negative or non-finite radius or an alpha outside [0, 1].
 MonthlyGrids<float> applyCanopyShade(const MonthlyGrids<float>& sun,
                                      const std::vector<ShadingTree>& trees);
+/// Shading trees of a canopy: crown at the trunk, alpha of the tree's species in `biome`.
+/// ValidationError for a species id outside the biome.
+std::vector<ShadingTree> shadingTrees(const std::vector<Plant>& canopy, const Biome& biome);
 
 // ---------------------------------------------------------------------------------------
 // Moisture
@@ -139,6 +143,10 @@ struct Abiotics {
     MonthlyGrids<float> temperatureC;  ///< degrees Celsius
     Grid<float> slopeDeg;              ///< degrees
     Grid<float> elevationM;            ///< metres
+    /// Where the sun planes were shaded by a canopy ("eco abiotics --canopy FILE"): that
+    /// file; empty for the terrain's own sun. The simulator and the analyser apply their
+    /// canopy themselves and refuse shaded input (the shade would count twice).
+    std::string canopyShadeSource;
 };
 
 /// Throws ValidationError unless the elevation grid is at least 3 x 3 with finite values.

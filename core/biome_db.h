@@ -23,7 +23,8 @@
 
 namespace eco {
 
-constexpr int kBiomeDbSchemaVersion = 1;
+/// 2: region features use the canopy-shaded annual sun (1: the terrain's own sun).
+constexpr int kBiomeDbSchemaVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";
 
 constexpr int kFeatureCount = 4;

@@ -204,15 +204,15 @@ TEST_CASE("nearestRegion: nearest centroid in normalised units, stand-in combina
 
 TEST_CASE("reading a database with another schema version or format is a clear IoError", "[biome_db][errors]") {
     eco::test::TempDir dir("db");
-    const std::string v2 = dir.file("v2.h5");
+    const std::string v1 = dir.file("v1.h5");
     {
-        h5::File f = h5::File::create(v2);
+        h5::File f = h5::File::create(v1);
         f.setAttr("/", "format", std::string("eco-biome-db"));
-        f.setAttr("/", "schema_version", static_cast<std::int64_t>(2));
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
     }
-    CHECK_THROWS_AS(readBiomeDatabase(v2), IoError);
-    CHECK_THROWS_WITH(readBiomeDatabase(v2), Catch::Contains("v2.h5") && Catch::Contains("schema_version 2 found") &&
-                                                 Catch::Contains("version 1 expected"));
+    CHECK_THROWS_AS(readBiomeDatabase(v1), IoError);
+    CHECK_THROWS_WITH(readBiomeDatabase(v1), Catch::Contains("v1.h5") && Catch::Contains("schema_version 1 found") &&
+                                                 Catch::Contains("version 2 expected"));
     const std::string other = dir.file("other.h5");
     {
         h5::File f = h5::File::create(other);
@@ -223,7 +223,7 @@ TEST_CASE("reading a database with another schema version or format is a clear I
     {
         h5::File f = h5::File::create(bare);
         f.setAttr("/", "format", std::string("eco-biome-db"));
-        f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(kBiomeDbSchemaVersion));
         f.setAttr("/", "code_version", std::string("x"));
         f.setAttr("/", "created_utc", std::string("x"));
         f.setAttr("/", "biome_name", std::string("x"));

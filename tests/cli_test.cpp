@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "abiotics.h"
 #include "eco_version.h"
 #include "test_util.h"
 
@@ -76,4 +77,36 @@ TEST_CASE("a bad biome file through the CLI names the file, species and field", 
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.output, Catch::Contains("bad.toml") && Catch::Contains("species 'Redwood'") && Catch::Contains("alpha"));
     CHECK_FALSE(std::filesystem::exists(out));
+}
+
+TEST_CASE("eco abiotics --canopy shades the sun under the crowns, and the analyser refuses shaded input", "[cli][canopy]") {
+    eco::test::TempDir dir("abiotics_canopy");
+    const std::string t = dir.file("t.h5"), chm = dir.file("chm.h5"), c = dir.file("c.h5");
+    REQUIRE(runEco("terrain generate --out " + t + " --width 96 --height 80 --seed 3").exitCode == 0);
+    REQUIRE(runEco("chm generate --terrain " + t + " --out " + chm + " --seed 3").exitCode == 0);
+    REQUIRE(runEco("canopy --terrain " + t + " --chm " + chm + " --out " + c).exitCode == 0);
+    const std::string open = dir.file("open.h5"), shaded = dir.file("shaded.h5");
+    REQUIRE(runEco("abiotics --terrain " + t + " --out " + open + " --sun-step 30").exitCode == 0);
+    const auto r = runEco("abiotics --terrain " + t + " --out " + shaded + " --sun-step 30 --canopy " + c);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("under the canopy"));
+    const eco::Abiotics a = eco::readAbiotics(open), b = eco::readAbiotics(shaded);
+    CHECK(a.canopyShadeSource.empty());
+    CHECK(b.canopyShadeSource == c);
+    std::size_t darker = 0, brighter = 0;
+    for (int m = 0; m < 12; ++m)
+        for (std::size_t i = 0; i < a.sunHours[m].size(); ++i) {
+            brighter += b.sunHours[m].data()[i] > a.sunHours[m].data()[i];
+            darker += b.sunHours[m].data()[i] < a.sunHours[m].data()[i];
+        }
+    CHECK(brighter == 0);
+    CHECK(darker > 0);
+    CHECK(b.moistureMm[6].data() == a.moistureMm[6].data());
+    // A canopy from another terrain is refused before any work.
+    const std::string t2 = dir.file("t2.h5");
+    REQUIRE(runEco("terrain generate --out " + t2 + " --width 64 --height 64").exitCode == 0);
+    const auto bad = runEco("abiotics --terrain " + t2 + " --out " + dir.file("x.h5") + " --canopy " + c);
+    CHECK(bad.exitCode != 0);
+    CHECK_THAT(bad.output, Catch::Contains(c) && Catch::Contains("terrain"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("x.h5")));
 }

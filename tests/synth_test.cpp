@@ -653,22 +653,22 @@ TEST_CASE("eco synth refuses bad inputs with one clear line and no output", "[sy
     };
 
     SECTION("a database of another schema version") {
-        const std::string bad = dir.file("db_v2.h5");
+        const std::string bad = dir.file("db_old.h5");
         std::filesystem::copy_file(f.db, bad);
         const hid_t file = H5Fopen(bad.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
         REQUIRE(file >= 0);
         REQUIRE(H5Adelete(file, "schema_version") >= 0);
         const hid_t space = H5Screate(H5S_SCALAR);
         const hid_t attr = H5Acreate2(file, "schema_version", H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT);
-        const long long two = 2;
-        H5Awrite(attr, H5T_NATIVE_LLONG, &two);
+        const long long older = kBiomeDbSchemaVersion - 1;
+        H5Awrite(attr, H5T_NATIVE_LLONG, &older);
         H5Aclose(attr);
         H5Sclose(space);
         H5Fclose(file);
         const auto r = synth(f.terrain, f.canopy, bad);
         INFO(r.output);
         CHECK(r.exitCode != 0);
-        CHECK_THAT(r.output, Catch::Contains("db_v2.h5") && Catch::Contains("schema_version") && Catch::Contains("eco: error"));
+        CHECK_THAT(r.output, Catch::Contains("db_old.h5") && Catch::Contains("schema_version") && Catch::Contains("eco: error"));
     }
     SECTION("a canopy tree outside the terrain") {
         std::vector<Plant> trees = w.canopy;
