@@ -22,7 +22,7 @@ std::atomic<bool> gStop{false};
 extern "C" void onSimulateSignal(int) { gStop = true; }
 
 struct SimulateOptions {
-    std::string config, terrain, abiotics, canopy, biome, crop, snapshotYears, out, csv, png, initial;
+    std::string config, terrain, abiotics, canopy, biome, crop, snapshotYears, out, csv, png, initial, growthRule, competition;
     int years = -1;
     long long seed = -1;
     int checkpointEvery = -1;
@@ -88,10 +88,13 @@ void runSimulate(const SimulateOptions& o) {
     if (!o.csv.empty()) cfg.csvPath = o.csv;
     if (!o.png.empty()) cfg.pngDir = o.png;
     if (o.checkpointEvery >= 0) cfg.checkpointEveryYears = o.checkpointEvery;
+    if (!o.growthRule.empty()) cfg.params.growthRule = sim::parseGrowthRule(o.growthRule, "--growth-rule");
+    if (!o.competition.empty()) cfg.params.competition = sim::parseCompetitionMode(o.competition, "--competition");
     cfg.validate();
 
     info("simulate: " + std::to_string(cfg.years) + " years, seed " + std::to_string(cfg.seed) + ", " +
-         std::to_string(omp_get_max_threads()) + " threads, output " + cfg.outputPath);
+         std::to_string(omp_get_max_threads()) + " threads, growth rule " + sim::growthRuleName(cfg.params.growthRule) +
+         ", competition " + sim::competitionModeName(cfg.params.competition) + ", output " + cfg.outputPath);
     SimProgress progress(cfg.years);
     sim::RunHooks hooks;
     hooks.log = [&](const std::string& s) { info("simulate: " + s); };
@@ -150,6 +153,8 @@ void registerSimulateCommand(CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     sub->add_flag("--resume", opt->resume, "Continue from the checkpoint of this run when it exists");
     sub->add_option("--initial", opt->initial, "Initial undergrowth: PLANTS.csv or PLANTS.h5[:/group]");
+    sub->add_option("--growth-rule", opt->growthRule, "Overflow-to-growth rule: ideal (default) or literal ([model] growth_rule)");
+    sub->add_option("--competition", opt->competition, "Competition model: resources (default) or deussen ([model] competition)");
     sub->callback([opt] { runSimulate(*opt); });
 }
 

@@ -3,7 +3,8 @@
 // for a shorter span. Writes its figures to stdout and to bench/results/sim_bench.txt (or
 // --out FILE).
 //
-//   bench_sim [--quick] [--hectare-only] [--out FILE]
+//   bench_sim [--quick] [--hectare-only] [--years N] [--growth-rule ideal|literal]
+//             [--competition resources|deussen] [--out FILE]
 //   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
 //       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
 //       /terrain/elevation) of a procedural scene, as inputs for `eco simulate`.
@@ -68,6 +69,7 @@ struct Timing {
     double seconds = 0;
     double cpuSeconds = 0;  // process CPU time of all threads (less sensitive to other load than wall time)
     std::int64_t plantMonths = 0;
+    std::int64_t plantCellMonths = 0;  // sweep work: cells occupied, summed over plants and months
     std::size_t plants = 0;
     std::size_t peakPlants = 0;
     std::size_t bytesPerPlant = 0, bytesPerCell = 0;
@@ -75,12 +77,12 @@ struct Timing {
     std::vector<std::uint64_t> checksum;
 };
 
-Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads) {
+Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads, const SimParams& params) {
     omp_set_num_threads(threads);
     SimInputs in = base;
     in.area = area;
     const double t0 = now();
-    Simulation sim(std::move(in), SimParams{}, 42);
+    Simulation sim(std::move(in), params, 42);
     Timing t;
     t.setupSeconds = now() - t0;
     const double t1 = now(), c1 = cpuSeconds();
@@ -91,6 +93,7 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
     t.seconds = now() - t1;
     t.cpuSeconds = cpuSeconds() - c1;
     t.plantMonths = sim.counters().plantMonths;
+    t.plantCellMonths = sim.counters().plantCellMonths;
     t.plants = sim.plantCount();
     t.bytesPerPlant = sim.bytesPerPlant();
     t.bytesPerCell = sim.bytesPerCell();
@@ -102,6 +105,8 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
 int main(int argc, char** argv) {
     std::string outPath = "bench/results/sim_bench.txt", sceneDir;
     bool quick = false, hectareOnly = false;
+    int hectareYears = 0;  // 0 = 150 (30 with --quick)
+    SimParams params;
     int cells = 256;
     double cellSize = 0.914;
     std::uint64_t seed = 1;
@@ -121,6 +126,9 @@ int main(int argc, char** argv) {
         else if (a == "--cells") cells = std::atoi(next().c_str());
         else if (a == "--cell-size") cellSize = std::atof(next().c_str());
         else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
+        else if (a == "--years") hectareYears = std::atoi(next().c_str());
+        else if (a == "--growth-rule") params.growthRule = parseGrowthRule(next(), "--growth-rule");
+        else if (a == "--competition") params.competition = parseCompetitionMode(next(), "--competition");
         else {
             std::fprintf(stderr, "unknown argument %s\n", a.c_str());
             return 2;
@@ -133,7 +141,8 @@ int main(int argc, char** argv) {
         }
         const int maxThreads = omp_get_max_threads();
         std::ostringstream rep;
-        rep << "# bench_sim: undergrowth simulator (sim/), " << maxThreads << " hardware threads available\n";
+        rep << "# bench_sim: undergrowth simulator (sim/), " << maxThreads << " hardware threads available; growth_rule "
+            << growthRuleName(params.growthRule) << ", competition " << competitionModeName(params.competition) << "\n";
         // 1 ha scene: 100 m x 100 m of a 128 x 128 terrain at 0.914 m (117 m).
         const Biome biome = defaultBiome();
         DemoSceneParams sp;
@@ -143,9 +152,9 @@ int main(int argc, char** argv) {
         const SimInputs hectare = makeDemoScene(sp, biome);
         rep << "1 ha scene: " << hectare.canopy.size() << " canopy trees on 117 m x 117 m, built in " << now() - t0 << " s\n";
         const SimArea ha{5, 5, 105, 105};
-        const int haYears = quick ? 30 : 150;
-        Timing t1 = runScene(hectare, ha, haYears, 1);
-        Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2) : t1;
+        const int haYears = hectareYears > 0 ? hectareYears : quick ? 30 : 150;
+        Timing t1 = runScene(hectare, ha, haYears, 1, params);
+        Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2, params) : t1;
         char line[512];
         std::snprintf(line, sizeof line,
                       "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
@@ -159,6 +168,12 @@ int main(int argc, char** argv) {
         std::snprintf(line, sizeof line,
                       "plant-months per CPU second (CPU time of all threads, including OpenMP spin-waiting): %.2f M (1 thread, %.1f CPU s), %.2f M (2 threads, %.1f CPU s)\n",
                       t1.plantMonths / t1.cpuSeconds / 1e6, t1.cpuSeconds, t2.plantMonths / t2.cpuSeconds / 1e6, t2.cpuSeconds);
+        rep << line;
+        std::snprintf(line, sizeof line,
+                      "sweep work: %.2f cells per plant-month; %.2f M plant-cell-months per second per core (1 thread), "
+                      "%.2f M per CPU second\n",
+                      static_cast<double>(t1.plantCellMonths) / t1.plantMonths, t1.plantCellMonths / t1.seconds / 1e6,
+                      t1.plantCellMonths / t1.cpuSeconds / 1e6);
         rep << line;
         std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
                       t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
@@ -181,7 +196,7 @@ int main(int argc, char** argv) {
         std::fputs(line, stdout);
         std::fflush(stdout);
         const int kmYears = quick ? 3 : 10;
-        Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads);
+        Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads, params);
         std::snprintf(line, sizeof line,
                       "1 km2 x %d years on %d threads: setup %.1f s, run %.1f s wall (%.1f s per year), %.1f CPU s; %lld "
                       "plant-months (%.2f M per second per core, %.2f M per CPU second), peak %zu plants, final %zu plants\n",

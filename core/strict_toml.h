@@ -51,6 +51,13 @@ public:
     std::int64_t integerOr(const std::string& key, std::int64_t fallback) { return has(key) ? integer(key) : fallback; }
     std::string stringOr(const std::string& key, const std::string& fallback) { return has(key) ? string(key) : fallback; }
     bool booleanOr(const std::string& key, bool fallback) { return has(key) ? boolean(key) : fallback; }
+    /// Like stringOr, but an empty string is a valid value (e.g. "" = "none" in run configs).
+    std::string possiblyEmptyStringOr(const std::string& key, const std::string& fallback) {
+        if (!has(key)) return fallback;
+        auto s = node(key).value_exact<std::string>();
+        if (!s) fail(key, "expected a string");
+        return *s;
+    }
     /// A sub-table, or nullptr when absent (an error when present but not a table).
     const toml::table* optionalTable(const std::string& key) { return has(key) ? &table(key) : nullptr; }
     const std::string& file() const { return file_; }

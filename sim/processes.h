@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rng.h"
+#include "sim_config.h"
 
 namespace eco::sim {
 
@@ -63,6 +64,20 @@ inline double advanceGrowthAgeYears(double growthAgeYears, double overflow, bool
     return inGrowthPeriod ? growthAgeYears + overflow * monthsPerOverflow / 12.0 : growthAgeYears;
 }
 
+/// Months of growth age gained per unit of pool overflow in a growth month.
+/// Literal (paper as printed): `monthsPerOverflow`. Ideal: also divided by the species'
+/// maximum vigour (alpha_s, as g(0) = 1) and multiplied by 12 / (months in its growth
+/// period), so that a plant whose pool overflows by its maximum vigour in every month of
+/// its growth period gains exactly 12 months of growth age per year and follows Eq. 3
+/// (reaching its max height at its max age). 0 when the species can never grow (no growth
+/// months or alpha_s <= 0).
+inline double growthMonthsPerUnitOverflow(GrowthRule rule, double monthsPerOverflow, double maxVigour,
+                                          int growthPeriodMonths) {
+    if (rule == GrowthRule::Literal) return monthsPerOverflow;
+    if (!(maxVigour > 0) || growthPeriodMonths <= 0) return 0.0;
+    return monthsPerOverflow * 12.0 / (maxVigour * growthPeriodMonths);
+}
+
 /// Monthly background mortality mu_b = 1 - P_s^(1 / l), with l the max age in MONTHS, so that
 /// a fraction P_s of a cohort survives to its max age ((1 - mu_b)^l = P_s).
 inline double backgroundMortalityPerMonth(double survivalAtMaxAge, double maxAgeYears) {
@@ -77,6 +92,32 @@ inline double mortalityProbability(double backgroundPerMonth, double pool) {
 /// Stream tags of the counter-based generator (one per random process).
 constexpr std::uint64_t kMortalityStreamTag = 0x4D4F5254414C4954ull;    // plant id, counter = month
 constexpr std::uint64_t kGerminationStreamTag = 0x4745524D494E4154ull;  // cell index, counter = year
+constexpr std::uint64_t kDominationStreamTag = 0x444F4D494E415445ull;   // plant id, counter = month
+
+/// Deussen et al. 1998 competitive ability: vigour x relative size (height / max height).
+inline double competitiveAbility(double vigour, double heightM, double maxHeightM) {
+    return vigour * (heightM / maxHeightM);
+}
+
+/// Whether two crown circles intersect (strictly: touching circles do not).
+inline bool crownsIntersect(double x1, double y1, double r1, double x2, double y2, double r2) {
+    const double dx = x1 - x2, dy = y1 - y2, rr = r1 + r2;
+    return dx * dx + dy * dy < rr * rr;
+}
+
+/// Probability of surviving one monthly comparison round while dominated by `dominators`
+/// plants, when one year of domination by one plant is survived with `survivalPerYear`:
+/// each domination is an independent monthly test with survival survivalPerYear^(1/12).
+inline double dominatedSurvivalPerMonth(double survivalPerYear, int dominators) {
+    if (dominators <= 0) return 1.0;
+    return std::pow(survivalPerYear, static_cast<double>(dominators) / 12.0);
+}
+
+/// Uniform [0, 1) for the domination test of plant `plantId` in absolute month `month`.
+inline double dominationUniform(std::uint64_t seed, std::uint64_t plantId, std::uint64_t month) {
+    const auto b = randomBits(seed, mixStream(plantId, kDominationStreamTag), month);
+    return bitsToUnit(b[0], b[1]);
+}
 
 /// Uniform [0, 1) for the mortality test of plant `plantId` in absolute month `month`.
 inline double mortalityUniform(std::uint64_t seed, std::uint64_t plantId, std::uint64_t month) {

@@ -1,15 +1,13 @@
 #include "sim_config.h"
 
-#include <toml++/toml.h>
-
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <set>
 #include <sstream>
 
 #include "error.h"
+#include "strict_toml.h"
 
 namespace eco::sim {
 
@@ -27,94 +25,6 @@ std::string fmt(double v) {
     return s;
 }
 
-// Reads one TOML table and remembers the keys it used, so that finish() can reject the rest.
-class Strict {
-public:
-    Strict(const toml::table& t, std::string file, std::string context)
-        : t_(t), file_(std::move(file)), context_(std::move(context)) {}
-
-    [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-        std::string loc = file_;
-        const toml::node* n = t_.get(key);
-        const auto line = n ? n->source().begin.line : t_.source().begin.line;
-        if (line > 0) loc += ":" + std::to_string(line);
-        throw ValidationError(loc + ": [" + context_ + "] key '" + key + "': " + what);
-    }
-    const toml::node* get(const std::string& key) {
-        used_.insert(key);
-        return t_.get(key);
-    }
-    bool has(const std::string& key) const { return t_.contains(key); }
-
-    void number(const std::string& key, double& out) {
-        const toml::node* n = get(key);
-        if (!n) return;
-        if (auto f = n->value_exact<double>()) out = *f;
-        else if (auto i = n->value_exact<std::int64_t>()) out = static_cast<double>(*i);
-        else fail(key, "expected a number");
-        if (!std::isfinite(out)) fail(key, "value is not finite");
-    }
-    void integer(const std::string& key, int& out) {
-        const toml::node* n = get(key);
-        if (!n) return;
-        auto i = n->value_exact<std::int64_t>();
-        if (!i) fail(key, "expected an integer");
-        if (*i < -2147483647 || *i > 2147483647) fail(key, "value out of range");
-        out = static_cast<int>(*i);
-    }
-    void unsignedInt(const std::string& key, std::uint64_t& out) {
-        const toml::node* n = get(key);
-        if (!n) return;
-        auto i = n->value_exact<std::int64_t>();
-        if (!i) fail(key, "expected an integer");
-        if (*i < 0) fail(key, "must not be negative");
-        out = static_cast<std::uint64_t>(*i);
-    }
-    void string(const std::string& key, std::string& out) {
-        const toml::node* n = get(key);
-        if (!n) return;
-        auto s = n->value_exact<std::string>();
-        if (!s) fail(key, "expected a string");
-        out = *s;
-    }
-    std::vector<double> numbers(const std::string& key) {
-        const toml::node* n = get(key);
-        std::vector<double> v;
-        if (!n) return v;
-        const toml::array* a = n->as_array();
-        if (!a) fail(key, "expected an array of numbers");
-        for (const auto& e : *a) {
-            if (auto f = e.value_exact<double>()) v.push_back(*f);
-            else if (auto i = e.value_exact<std::int64_t>()) v.push_back(static_cast<double>(*i));
-            else fail(key, "expected an array of numbers");
-        }
-        return v;
-    }
-    const toml::table* table(const std::string& key) {
-        const toml::node* n = get(key);
-        if (!n) return nullptr;
-        const toml::table* t = n->as_table();
-        if (!t) fail(key, "expected a table");
-        return t;
-    }
-    void finish() const {
-        for (const auto& [k, v] : t_) {
-            const std::string key(k.str());
-            if (!used_.count(key)) {
-                std::string loc = file_;
-                if (v.source().begin.line > 0) loc += ":" + std::to_string(v.source().begin.line);
-                throw ValidationError(loc + ": unknown key '" + key + "' in [" + context_ +
-                                      "] (see docs/simulator.md for the accepted keys)");
-            }
-        }
-    }
-
-private:
-    const toml::table& t_;
-    std::string file_, context_;
-    std::set<std::string> used_;
-};
-
 // The [model] keys, in one place for reading, writing and recording.
 template <typename P, typename F>
 void forEachParam(P& p, F&& f) {
@@ -130,30 +40,103 @@ void forEachParam(P& p, F&& f) {
     f("seeding_month", p.seedingMonth);
     f("seedling_growth_age_months", p.seedlingGrowthAgeMonths);
     f("growth_months_per_overflow", p.growthMonthsPerOverflow);
+    f("deussen_dominated_survival", p.deussenDominatedSurvival);
+}
+
+template <typename E>
+struct EnumName {
+    E value;
+    const char* name;
+};
+constexpr EnumName<GrowthRule> kGrowthRules[] = {{GrowthRule::Ideal, "ideal"}, {GrowthRule::Literal, "literal"}};
+constexpr EnumName<CompetitionMode> kCompetitionModes[] = {{CompetitionMode::Resources, "resources"},
+                                                           {CompetitionMode::Deussen, "deussen"}};
+
+template <typename E, std::size_t N>
+const EnumName<E>* findEnum(const std::string& text, const EnumName<E> (&names)[N]) {
+    for (const auto& n : names)
+        if (text == n.name) return &n;
+    return nullptr;
+}
+// "'text' is not one of "a", "b"" for error messages.
+template <typename E, std::size_t N>
+std::string notOneOf(const std::string& text, const EnumName<E> (&names)[N]) {
+    std::string accepted;
+    for (const auto& n : names) accepted += std::string(accepted.empty() ? "" : ", ") + "\"" + n.name + "\"";
+    return "'" + text + "' is not one of " + accepted;
+}
+// Reads an enum key spelled as one of `names` (absent: `out` unchanged).
+template <typename E, std::size_t N>
+void readEnum(StrictTable& t, const char* key, const EnumName<E> (&names)[N], E& out) {
+    if (!t.has(key)) return;
+    const std::string v = t.string(key);
+    const EnumName<E>* e = findEnum(v, names);
+    if (!e) t.fail(key, notOneOf(v, names));
+    out = e->value;
+}
+template <typename E, std::size_t N>
+E parseEnum(const std::string& text, const EnumName<E> (&names)[N], const std::string& what) {
+    const EnumName<E>* e = findEnum(text, names);
+    if (!e) throw ValidationError(what + ": " + notOneOf(text, names));
+    return e->value;
 }
 
 }  // namespace
 
-void SimParams::validate(const std::string& source) const {
-    auto bad = [&](const char* key, double v, const char* what) {
-        throw ValidationError(source + ": model parameter '" + key + "' = " + fmt(v) + ": " + what);
+const char* growthRuleName(GrowthRule r) {
+    for (const auto& n : kGrowthRules)
+        if (n.value == r) return n.name;
+    return "?";
+}
+const char* competitionModeName(CompetitionMode m) {
+    for (const auto& n : kCompetitionModes)
+        if (n.value == m) return n.name;
+    return "?";
+}
+
+namespace {
+// The first invalid parameter of `p`: its key and what is wrong ("" when all are valid).
+// Shared by SimParams::validate and the config reader (which adds the key's line).
+std::pair<std::string, std::string> firstInvalid(const SimParams& p) {
+    auto bad = [](const char* key, double v, const char* what) {
+        return std::pair<std::string, std::string>(key, "value " + fmt(v) + ": " + what);
     };
-    if (!(cellSizeM > 0.001 && cellSizeM <= 10)) bad("cell_size_m", cellSizeM, "must lie in (0.001, 10] metres");
-    if (!(minWaterDemandMm >= 0)) bad("min_water_demand_mm", minWaterDemandMm, "must not be negative");
-    if (!(seedingProbability >= 0 && seedingProbability <= 1))
-        bad("seeding_probability", seedingProbability, "must lie in [0, 1]");
-    if (!(seedInnerRadiusFactor >= 0)) bad("seed_inner_radius_factor", seedInnerRadiusFactor, "must not be negative");
-    if (!(seedOuterRadiusFactor > seedInnerRadiusFactor))
-        bad("seed_outer_radius_factor", seedOuterRadiusFactor, "must exceed seed_inner_radius_factor");
-    if (!(rouletteAgeExponent >= 0 && rouletteAgeExponent <= 10))
-        bad("roulette_age_exponent", rouletteAgeExponent, "must lie in [0, 10]");
-    if (!(survivalAtMaxAge > 0 && survivalAtMaxAge < 1))
-        bad("survival_at_max_age", survivalAtMaxAge, "must lie in (0, 1)");
-    if (!(poolCapacityStressMonths > 0)) bad("pool_capacity_stress_months", poolCapacityStressMonths, "must be positive");
-    if (!(canopyThresholdM > 0)) bad("canopy_threshold_m", canopyThresholdM, "must be positive");
-    if (seedingMonth < 0 || seedingMonth > 11) bad("seeding_month", seedingMonth, "must lie in 0..11 (0 = January)");
-    if (!(seedlingGrowthAgeMonths > 0)) bad("seedling_growth_age_months", seedlingGrowthAgeMonths, "must be positive");
-    if (!(growthMonthsPerOverflow >= 0)) bad("growth_months_per_overflow", growthMonthsPerOverflow, "must not be negative");
+    if (!(p.cellSizeM > 0.001 && p.cellSizeM <= 10)) return bad("cell_size_m", p.cellSizeM, "must lie in (0.001, 10] metres");
+    if (!(p.minWaterDemandMm >= 0)) return bad("min_water_demand_mm", p.minWaterDemandMm, "must not be negative");
+    if (!(p.seedingProbability >= 0 && p.seedingProbability <= 1))
+        return bad("seeding_probability", p.seedingProbability, "must lie in [0, 1]");
+    if (!(p.seedInnerRadiusFactor >= 0)) return bad("seed_inner_radius_factor", p.seedInnerRadiusFactor, "must not be negative");
+    if (!(p.seedOuterRadiusFactor > p.seedInnerRadiusFactor))
+        return bad("seed_outer_radius_factor", p.seedOuterRadiusFactor, "must exceed seed_inner_radius_factor");
+    if (!(p.rouletteAgeExponent >= 0 && p.rouletteAgeExponent <= 10))
+        return bad("roulette_age_exponent", p.rouletteAgeExponent, "must lie in [0, 10]");
+    if (!(p.survivalAtMaxAge > 0 && p.survivalAtMaxAge < 1))
+        return bad("survival_at_max_age", p.survivalAtMaxAge, "must lie in (0, 1)");
+    if (!(p.poolCapacityStressMonths > 0)) return bad("pool_capacity_stress_months", p.poolCapacityStressMonths, "must be positive");
+    if (!(p.canopyThresholdM > 0)) return bad("canopy_threshold_m", p.canopyThresholdM, "must be positive");
+    if (p.seedingMonth < 0 || p.seedingMonth > 11) return bad("seeding_month", p.seedingMonth, "must lie in 0..11 (0 = January)");
+    if (!(p.seedlingGrowthAgeMonths > 0)) return bad("seedling_growth_age_months", p.seedlingGrowthAgeMonths, "must be positive");
+    if (!(p.growthMonthsPerOverflow >= 0)) return bad("growth_months_per_overflow", p.growthMonthsPerOverflow, "must not be negative");
+    if (!(p.deussenDominatedSurvival >= 0 && p.deussenDominatedSurvival <= 1))
+        return bad("deussen_dominated_survival", p.deussenDominatedSurvival, "must lie in [0, 1]");
+    if (p.growthRule != GrowthRule::Ideal && p.growthRule != GrowthRule::Literal)
+        return bad("growth_rule", static_cast<double>(p.growthRule), "unknown growth rule");
+    if (p.competition != CompetitionMode::Resources && p.competition != CompetitionMode::Deussen)
+        return bad("competition", static_cast<double>(p.competition), "unknown competition mode");
+    return {};
+}
+}  // namespace
+
+GrowthRule parseGrowthRule(const std::string& text, const std::string& what) {
+    return parseEnum(text, kGrowthRules, what);
+}
+CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what) {
+    return parseEnum(text, kCompetitionModes, what);
+}
+
+void SimParams::validate(const std::string& source) const {
+    const auto [key, what] = firstInvalid(*this);
+    if (!key.empty()) throw ValidationError(source + ": model parameter '" + key + "': " + what);
 }
 
 std::string SimParams::toToml() const {
@@ -166,12 +149,16 @@ std::string SimParams::toToml() const {
     const auto pos = s.find(key);
     const auto end = s.find('\n', pos);
     s.replace(pos, end - pos, key + std::to_string(seedingMonth));
+    s += std::string("growth_rule = \"") + growthRuleName(growthRule) + "\"\n";
+    s += std::string("competition = \"") + competitionModeName(competition) + "\"\n";
     return s;
 }
 
 std::vector<std::pair<std::string, double>> SimParams::namedValues() const {
     std::vector<std::pair<std::string, double>> out;
     forEachParam(*this, [&](const char* key, const auto& v) { out.emplace_back(key, static_cast<double>(v)); });
+    out.emplace_back("growth_rule", static_cast<double>(growthRule));   // 0 = ideal, 1 = literal
+    out.emplace_back("competition", static_cast<double>(competition));  // 0 = resources, 1 = deussen
     return out;
 }
 
@@ -196,58 +183,73 @@ void RunConfig::validate() const {
 }
 
 RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName) {
-    toml::table root;
-    try {
-        root = toml::parse(tomlText, sourceName);
-    } catch (const toml::parse_error& e) {
-        throw IoError(sourceName + ":" + std::to_string(e.source().begin.line) + ": invalid TOML: " +
-                      std::string(e.description()));
-    }
+    const toml::table root = parseTomlText(tomlText, sourceName);
     RunConfig c;
     c.sourcePath = sourceName;
-    Strict top(root, sourceName, "top level");
-    if (const toml::table* t = top.table("inputs")) {
-        Strict s(*t, sourceName, "inputs");
-        s.string("terrain", c.terrainPath);
-        s.string("abiotics", c.abioticsPath);
-        s.string("canopy", c.canopyPath);
-        s.string("biome", c.biomePath);
-        s.string("initial", c.initialPath);
+    StrictTable top(root, sourceName, "");
+    if (const toml::table* t = top.optionalTable("inputs")) {
+        StrictTable s(*t, sourceName, "[inputs]");
+        c.terrainPath = s.possiblyEmptyStringOr("terrain", c.terrainPath);
+        c.abioticsPath = s.possiblyEmptyStringOr("abiotics", c.abioticsPath);
+        c.canopyPath = s.possiblyEmptyStringOr("canopy", c.canopyPath);
+        c.biomePath = s.possiblyEmptyStringOr("biome", c.biomePath);
+        c.initialPath = s.possiblyEmptyStringOr("initial", c.initialPath);
         s.finish();
     }
-    if (const toml::table* t = top.table("run")) {
-        Strict s(*t, sourceName, "run");
-        s.integer("years", c.years);
-        s.unsignedInt("seed", c.seed);
+    if (const toml::table* t = top.optionalTable("run")) {
+        StrictTable s(*t, sourceName, "[run]");
+        auto intIn = [&](const char* key, std::int64_t lo, std::int64_t hi, std::int64_t fallback) {
+            const std::int64_t v = s.integerOr(key, fallback);
+            if (v < lo || v > hi) s.fail(key, "value " + std::to_string(v) + " out of range");
+            return v;
+        };
+        c.years = static_cast<int>(intIn("years", -2147483647, 2147483647, c.years));
+        if (s.has("seed")) {
+            const std::int64_t seed = s.integer("seed");
+            if (seed < 0) s.fail("seed", "must not be negative");
+            c.seed = static_cast<std::uint64_t>(seed);
+        }
         if (s.has("crop")) {
-            const auto v = s.numbers("crop");
-            if (v.size() != 4) s.fail("crop", "expected [x0, y0, x1, y1] in metres");
+            const auto v = s.numbers("crop", 4);
             c.crop = SimArea{v[0], v[1], v[2], v[3]};
             if (!(c.crop->x1 > c.crop->x0 && c.crop->y1 > c.crop->y0)) s.fail("crop", "need x0 < x1 and y0 < y1");
         }
-        for (double y : s.numbers("snapshot_years")) {
-            if (y != std::floor(y)) s.fail("snapshot_years", "years must be integers");
-            c.snapshotYears.push_back(static_cast<int>(y));
+        if (s.has("snapshot_years")) {
+            const toml::array& a = s.array("snapshot_years");
+            for (const double y : s.numbers("snapshot_years", a.size())) {
+                if (y != std::floor(y) || std::fabs(y) > 2147483647.0) s.fail("snapshot_years", "years must be integers");
+                c.snapshotYears.push_back(static_cast<int>(y));
+            }
         }
-        s.integer("checkpoint_every_years", c.checkpointEveryYears);
+        c.checkpointEveryYears =
+            static_cast<int>(intIn("checkpoint_every_years", -2147483647, 2147483647, c.checkpointEveryYears));
         s.finish();
     }
-    if (const toml::table* t = top.table("outputs")) {
-        Strict s(*t, sourceName, "outputs");
-        s.string("hdf5", c.outputPath);
-        s.string("csv", c.csvPath);
-        s.string("png_dir", c.pngDir);
-        s.string("checkpoint", c.checkpointPath);
+    if (const toml::table* t = top.optionalTable("outputs")) {
+        StrictTable s(*t, sourceName, "[outputs]");
+        c.outputPath = s.possiblyEmptyStringOr("hdf5", c.outputPath);
+        c.csvPath = s.possiblyEmptyStringOr("csv", c.csvPath);
+        c.pngDir = s.possiblyEmptyStringOr("png_dir", c.pngDir);
+        c.checkpointPath = s.possiblyEmptyStringOr("checkpoint", c.checkpointPath);
         s.finish();
     }
-    if (const toml::table* t = top.table("model")) {
-        Strict s(*t, sourceName, "model");
+    if (const toml::table* t = top.optionalTable("model")) {
+        StrictTable s(*t, sourceName, "[model]");
         forEachParam(c.params, [&](const char* key, auto& v) {
             using T = std::decay_t<decltype(v)>;
-            if constexpr (std::is_same_v<T, int>) s.integer(key, v);
-            else s.number(key, v);
+            if constexpr (std::is_same_v<T, int>) {
+                const std::int64_t i = s.integerOr(key, v);
+                if (i < -2147483647 || i > 2147483647) s.fail(key, "value out of range");
+                v = static_cast<int>(i);
+            } else {
+                v = s.numberOr(key, v);
+            }
         });
+        readEnum(s, "growth_rule", kGrowthRules, c.params.growthRule);
+        readEnum(s, "competition", kCompetitionModes, c.params.competition);
         s.finish();
+        const auto [key, what] = firstInvalid(c.params);
+        if (!key.empty()) s.fail(key, what);  // names the key's line when the file set it
     }
     top.finish();
     c.params.validate(sourceName);

@@ -16,6 +16,31 @@
 
 namespace eco::sim {
 
+/// How carbon-pool overflow becomes growth age ([model] growth_rule).
+enum class GrowthRule {
+    /// Overflow normalised so that a plant at its species' maximum vigour through the whole
+    /// growth period gains exactly 12 months of growth age per year (docs/simulator.md).
+    Ideal,
+    /// The paper's literal rule: growth age += 1 month x overflow, in the growth period only.
+    Literal,
+};
+
+/// How undergrowth plants compete ([model] competition).
+enum class CompetitionMode {
+    /// Per-cell sharing of sunlight and moisture among the occupants (paper §6.1, default).
+    Resources,
+    /// Deussen et al. 1998: vigour on the unshared resources, then every pair of plants whose
+    /// crown circles intersect is compared; the weaker may die (docs/simulator.md).
+    Deussen,
+};
+
+/// TOML spelling of the enums ("ideal", "literal", "resources", "deussen").
+const char* growthRuleName(GrowthRule r);
+const char* competitionModeName(CompetitionMode m);
+/// Parse those spellings; ValidationError naming `what` and the accepted values otherwise.
+GrowthRule parseGrowthRule(const std::string& text, const std::string& what);
+CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what);
+
 /// Model constants of the simulation (units in the names). Defaults are the paper's values.
 struct SimParams {
     /// Edge of a square simulation cell, metres (paper: 20 cm).
@@ -47,6 +72,12 @@ struct SimParams {
     /// Months of growth age gained per unit of carbon-pool overflow (paper: dt * o with dt
     /// one month, so 1).
     double growthMonthsPerOverflow = 1.0;
+    /// Overflow-to-growth rule (see GrowthRule).
+    GrowthRule growthRule = GrowthRule::Ideal;
+    /// Competition model (see CompetitionMode).
+    CompetitionMode competition = CompetitionMode::Resources;
+    /// Deussen mode: probability that a dominated plant survives one comparison round.
+    double deussenDominatedSurvival = 0.5;
 
     /// Throws ValidationError naming `source` and the key of the first bad value.
     void validate(const std::string& source = "SimParams") const;

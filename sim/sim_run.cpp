@@ -53,6 +53,10 @@ SimInputs loadSimInputs(const RunConfig& config, Biome biome) {
     requireFile(config.abioticsPath, "abiotics");
     requireFile(config.canopyPath, "canopy");
     in.abiotics = readAbiotics(config.abioticsPath);
+    if (!in.abiotics.canopyShadeSource.empty())
+        throw ValidationError(config.abioticsPath + ": its sun is already shaded by the canopy of " +
+                              in.abiotics.canopyShadeSource + "; the simulator shades with its canopy itself: give "
+                              "the terrain's own abiotics (eco abiotics without --canopy)");
     if (!config.terrainPath.empty()) {
         requireFile(config.terrainPath, "terrain");
         Grid<float> terrain = readTerrain(config.terrainPath);
@@ -352,7 +356,9 @@ void writeSimulationH5(const std::string& path, const Simulation& sim, const Run
         f.setAttr("/", "germinated", static_cast<std::int64_t>(c.germinated));
         f.setAttr("/", "died_background_or_stress", static_cast<std::int64_t>(c.diedBackgroundOrStress));
         f.setAttr("/", "died_at_canopy", static_cast<std::int64_t>(c.diedAtCanopy));
+        f.setAttr("/", "died_dominated", static_cast<std::int64_t>(c.diedDominated));
         f.setAttr("/", "plant_months", static_cast<std::int64_t>(c.plantMonths));
+        f.setAttr("/", "plant_cell_months", static_cast<std::int64_t>(c.plantCellMonths));
         f.setAttr("/", "units", std::string("metres, years, hours of sun per day, mm of water per month, degrees C"));
         f.ensureGroup("/snapshots");
         for (const auto& [year, plants] : record.snapshots) writeSnapshot(f, yearGroup("/snapshots", year), year, plants, biome);

@@ -19,7 +19,7 @@ namespace {
 
 // Rows per band of the sweep. Fixed (never derived from the thread count), so that the
 // per-band partial sums, and hence every result, are the same for any number of threads.
-constexpr int kBandRows = 32;
+constexpr int kBandRows = 16;
 constexpr double kPi = 3.14159265358979323846;
 // Below these sizes a loop runs on one thread: a fork and join costs more than the work, and
 // far more on a loaded machine. Results never depend on it (see kBandRows).
@@ -29,11 +29,11 @@ std::size_t kParallelCells = 200000;
 // parallel only for this many times more plants.
 constexpr std::size_t kParallelSortFactor = 16;
 
-// Working state of one simulation cell; 16 bytes.
+// Working state of one simulation cell; 12 bytes. The occupant count lives in a dense array
+// of its own (Impl::occupants): the count pass touches nothing else, 2 bytes per cell.
 struct CellState {
     float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
     float transmission = 1.f;        // running product over the undergrowth painted so far this month
-    std::uint16_t occupants = 0;     // undergrowth plants covering the cell (count pass)
     std::uint16_t painted = 0;       // occupants painted so far this month (height rank of the next)
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
 };
@@ -51,8 +51,10 @@ struct SpeciesConst {
     double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
     double capacity = 0;       // carbon pool capacity
     double backgroundMu = 0;   // monthly background mortality
+    double growthPerOverflow = 0;  // months of growth age per unit overflow (growthMonthsPerUnitOverflow)
     double rouletteDenominator = 1;  // maxAge^beta
-    double sunC = 0, sunR = 1, moistC = 0, moistR = 1, tempC = 0, tempR = 1, slopeC = 0, slopeR = 1;
+    // Optima c and reciprocal ranges 1 / r of Eq. 1 (multiplications instead of divisions).
+    double sunC = 0, sunInvR = 1, moistC = 0, moistInvR = 1, tempC = 0, tempInvR = 1, slopeC = 0, slopeInvR = 1;
     bool growthMonth[12] = {};
     int period = 0;            // index into biome.growthPeriods
     std::uint32_t memberMask = 0;      // sub-biomes the species belongs to (bit b = sub-biome b + 1)
@@ -125,7 +127,14 @@ struct Simulation::Impl {
     Grid<float> seedProb;              // also the grid geometry
     Grid<float> canopyTrans;           // copy of the canopy transmission (inspection only)
     std::vector<std::uint16_t> seedPkg;
-    std::vector<std::vector<float>> deficitSun, deficitWater;  // per growth period, per cell
+    std::vector<std::uint16_t> occupants;  // per cell: undergrowth plants covering it (count pass)
+    // Exploited sun and water per cell and growth period since the last germination,
+    // interleaved (cell, period, {sun, water}) so that the last occupant of a cell updates
+    // one cache line: see deficitAt.
+    std::vector<float> deficit;
+    std::size_t periods() const { return periodMonthMask.size(); }
+    float* deficitAt(std::size_t c, std::size_t g) { return &deficit[(c * periods() + g) * 2]; }
+    const float* deficitAt(std::size_t c, std::size_t g) const { return &deficit[(c * periods() + g) * 2]; }
     std::uint32_t windowMask = 0;      // months accumulated since the last germination
 
     // ---- plants and per-month scratch
@@ -137,7 +146,19 @@ struct Simulation::Impl {
     std::vector<std::uint32_t> bandStart;
     std::vector<BandEntry> bandEntries;
     std::vector<std::uint32_t> singleCell;  // per plant: its only cell, or kManyCells
-    std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy
+    std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy, 3 dominated
+    // Deussen competition scratch: abilities and the plant lists of the pair-finding bins.
+    std::vector<double> ability;
+    std::vector<std::int32_t> binX0, binX1, binY0, binY1;
+    // One plant in one bin: what the pair test reads, stored sequentially.
+    struct BinEntry {
+        double x, y, radius, ability;
+        std::int32_t binX0, binY0;  // first bin of the plant's range (pair deduplication)
+        std::uint32_t plant;
+    };
+    std::vector<std::uint32_t> binStart, binFill;
+    std::vector<BinEntry> binEntries;
+    std::vector<std::uint8_t> dominated;
     // Plant indices, tallest first (see sortOrder).
     std::vector<std::uint32_t> order, orderB, keyA, keyB, fillPos;
     std::vector<std::int32_t> bandHi;
@@ -214,10 +235,10 @@ struct Simulation::Impl {
             c.capacity = poolCapacity(params.poolCapacityStressMonths, s.alpha, vigA);
             c.backgroundMu = backgroundMortalityPerMonth(params.survivalAtMaxAge, s.maxAgeYears);
             c.rouletteDenominator = std::pow(s.maxAgeYears, params.rouletteAgeExponent);
-            c.sunC = s.sun.c; c.sunR = s.sun.r;
-            c.moistC = s.moisture.c; c.moistR = s.moisture.r;
-            c.tempC = s.temperature.c; c.tempR = s.temperature.r;
-            c.slopeC = s.slope.c; c.slopeR = s.slope.r;
+            c.sunC = s.sun.c; c.sunInvR = 1.0 / s.sun.r;
+            c.moistC = s.moisture.c; c.moistInvR = 1.0 / s.moisture.r;
+            c.tempC = s.temperature.c; c.tempInvR = 1.0 / s.temperature.r;
+            c.slopeC = s.slope.c; c.slopeInvR = 1.0 / s.slope.r;
             c.period = -1;
             for (std::size_t g = 0; g < biome.growthPeriods.size(); ++g)
                 if (biome.growthPeriods[g].first == s.growthPeriod) c.period = static_cast<int>(g);
@@ -232,6 +253,11 @@ struct Simulation::Impl {
                 for (int m : months) periodsOfMonth[m].push_back(c.period);
             }
             for (int m : months) c.growthMonth[m] = true;
+            int growthMonths = 0;
+            for (bool g : c.growthMonth) growthMonths += g ? 1 : 0;
+            // g's maximum is g(0) = 1, so the species' maximum vigour is alpha_s.
+            c.growthPerOverflow =
+                growthMonthsPerUnitOverflow(params.growthRule, params.growthMonthsPerOverflow, s.alpha, growthMonths);
             for (int b : s.subBiomes) c.memberMask |= 1u << (b - 1);
             c.allometry = s.allometry;
         }
@@ -273,8 +299,8 @@ struct Simulation::Impl {
         const std::size_t n = static_cast<std::size_t>(W) * static_cast<std::size_t>(H);
         cells.assign(n, CellState{});
         seedPkg.assign(n, 0);
-        deficitSun.assign(periodMonthMask.size(), std::vector<float>(n, 0.f));
-        deficitWater.assign(periodMonthMask.size(), std::vector<float>(n, 0.f));
+        occupants.assign(n, 0);
+        deficit.assign(n * periodMonthMask.size() * 2, 0.f);
     }
 
     // Visit the cells whose centres lie within the disc (x, y, r), rows [r0, r1) only, as
@@ -396,8 +422,8 @@ struct Simulation::Impl {
     double vigour(int s, double sun, double water, double temp, double slope) const {
         const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
         // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
-        const double x = std::max(std::max(std::abs(temp - c.tempC) / c.tempR, std::abs(water - c.moistC) / c.moistR),
-                                  std::max(std::abs(sun - c.sunC) / c.sunR, std::abs(slope - c.slopeC) / c.slopeR));
+        const double x = std::max(std::max(std::abs(temp - c.tempC) * c.tempInvR, std::abs(water - c.moistC) * c.moistInvR),
+                                  std::max(std::abs(sun - c.sunC) * c.sunInvR, std::abs(slope - c.slopeC) * c.slopeInvR));
         const double xp = vigPIsFourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, vigP);
         return c.alpha * ((1.0 + vigA) * std::exp(xp * vigLnQ) - vigA);
     }
@@ -613,18 +639,21 @@ struct Simulation::Impl {
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
         for (const BandEntry* e = e0; e != e1; ++e) {
             if (e->cell != kManyCells) {
-                ++cells[e->cell].occupants;
+                ++occupants[e->cell];
                 continue;
             }
             forEachPlantSpan(e->plant, r0, r1, [&](int iy, int a, int z) {
-                CellState* row = &cells[static_cast<std::size_t>(iy) * W];
-                for (int ix = a; ix <= z; ++ix) ++row[ix].occupants;
+                std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
+                for (int ix = a; ix <= z; ++ix) ++row[ix];
             });
         }
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
         const std::vector<int>& periods = periodsOfMonth[m];
+        // Deussen mode: plants see the unshared (canopy-shaded, after canopy water) resources;
+        // the leftovers for germination are the same as in the resources mode.
+        const bool unshared = params.competition == CompetitionMode::Deussen;
         // Share of one occupant in cell (ix, iy); the last occupant leaves the leftover to
         // germination and resets the cell for the next month.
         auto paint = [&](int ix, int iy, float keep, double& sunSum, double& waterSum) {
@@ -633,20 +662,27 @@ struct Simulation::Impl {
             const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
             const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cc];
             const double avail = waterAfterCanopyMm(moistPlane[cc], cs.canopyTrees, demand);
-            const int k = cs.painted, n = cs.occupants;
-            sunSum += base * cs.transmission;
-            waterSum += waterShareMm(avail, k, n, demand);
+            const int k = cs.painted, n = occupants[c];
+            if (unshared) {
+                sunSum += base;
+                waterSum += avail;
+            } else {
+                sunSum += base * cs.transmission;
+                waterSum += waterShareMm(avail, k, n, demand);
+            }
             cs.transmission *= keep;
             if (k + 1 == n) {
                 const double sunLeft = base * cs.transmission;
                 const double waterLeft = waterLeftoverMm(avail, n, demand);
+                const float usedSun = static_cast<float>(base - sunLeft), usedWater = static_cast<float>(avail - waterLeft);
                 for (int g : periods) {
-                    deficitSun[static_cast<std::size_t>(g)][c] += static_cast<float>(base - sunLeft);
-                    deficitWater[static_cast<std::size_t>(g)][c] += static_cast<float>(avail - waterLeft);
+                    float* d = deficitAt(c, static_cast<std::size_t>(g));
+                    d[0] += usedSun;
+                    d[1] += usedWater;
                 }
                 cs.transmission = 1.f;
                 cs.painted = 0;
-                cs.occupants = 0;
+                occupants[c] = 0;
             } else {
                 cs.painted = static_cast<std::uint16_t>(k + 1);
             }
@@ -675,7 +711,8 @@ struct Simulation::Impl {
         fate.assign(n, 0);
         const float* tempPlane = abio.temperatureC[m].data().data();
         const float* slopePlane = abio.slopeDeg.data().data();
-#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
+        std::int64_t cellsVisited = 0;  // an integer sum: the same for any thread count
+#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants) reduction(+ : cellsVisited)
         for (std::size_t p = 0; p < n; ++p) {
             double sunSum = 0, waterSum = 0;
             std::int64_t count = 0;
@@ -684,7 +721,8 @@ struct Simulation::Impl {
                 waterSum += partWater[s];
                 count += partCells[s];
             }
-            const double inv = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
+            cellsVisited += count;
+            const double inv = count == 1 ? 1.0 : count > 0 ? 1.0 / static_cast<double>(count) : 0.0;  // most plants: one cell
             const double sun = sunSum * inv, water = waterSum * inv;
             const int s = pl.species[p];
             const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
@@ -695,7 +733,7 @@ struct Simulation::Impl {
             const PoolStep ps = updatePool(pl.pool[p], v, c.capacity);
             pl.pool[p] = ps.pool;
             if (c.growthMonth[m] && ps.overflow > 0) {
-                pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, params.growthMonthsPerOverflow);
+                pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
                 pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
                 pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
             }
@@ -707,6 +745,87 @@ struct Simulation::Impl {
                 if (mortalityUniform(seed, pl.id[p], static_cast<std::uint64_t>(month)) < mu) fate[p] = 1;
             }
         }
+        counters.plantCellMonths += cellsVisited;
+    }
+
+    // ------------------------------------------------------------------ Deussen competition
+    // Bins of the pair search: a uniform grid of this edge over the area (crowns reaching
+    // beyond it go into the edge bins). Not a model constant: results do not depend on it.
+    static constexpr double kCompetitionBinM = 1.0;
+
+    // Deussen et al. 1998 (docs/simulator.md): every pair of living undergrowth plants whose
+    // crown circles intersect is compared by competitive ability; the weaker is dominated.
+    // Decided from a snapshot of this month's state (after growth and mortality), with one
+    // draw per dominated plant keyed by (seed, plant id, month); no plant's fate depends on
+    // another's fate this month, so the order of evaluation is irrelevant.
+    void compete() {
+        const std::size_t n = pl.size();
+        ability.resize(n);
+        binX0.resize(n);
+        binX1.resize(n);
+        binY0.resize(n);
+        binY1.resize(n);
+        const double bin = kCompetitionBinM;
+        const int nbx = std::max(1, static_cast<int>(std::ceil(W * cell / bin)));
+        const int nby = std::max(1, static_cast<int>(std::ceil(H * cell / bin)));
+        auto binOf = [](double v, int nb) {
+            return static_cast<std::int32_t>(std::clamp(std::floor(v), 0.0, static_cast<double>(nb - 1)));
+        };
+#pragma omp parallel for schedule(static) if (n > kParallelPlants)
+        for (std::size_t p = 0; p < n; ++p) {
+            const SpeciesConst& c = spc[static_cast<std::size_t>(pl.species[p])];
+            ability[p] = competitiveAbility(pl.vigour[p], pl.height[p], c.maxHeightM);
+            const double r = pl.radius[p];
+            binX0[p] = binOf((pl.x[p] - r - ox) / bin, nbx);
+            binX1[p] = binOf((pl.x[p] + r - ox) / bin, nbx);
+            binY0[p] = binOf((pl.y[p] - r - oy) / bin, nby);
+            binY1[p] = binOf((pl.y[p] + r - oy) / bin, nby);
+        }
+        // Counting sort of (plant, bin) pairs into bins, in plant order. Plants that died this
+        // month take no part.
+        const std::size_t nbins = static_cast<std::size_t>(nbx) * static_cast<std::size_t>(nby);
+        binStart.assign(nbins + 1, 0);
+        for (std::size_t p = 0; p < n; ++p) {
+            if (fate[p] != 0) continue;
+            for (int by = binY0[p]; by <= binY1[p]; ++by)
+                for (int bx = binX0[p]; bx <= binX1[p]; ++bx) ++binStart[static_cast<std::size_t>(by) * nbx + bx + 1];
+        }
+        for (std::size_t b = 0; b < nbins; ++b) binStart[b + 1] += binStart[b];
+        binEntries.resize(binStart[nbins]);
+        binFill.assign(binStart.begin(), binStart.end() - 1);
+        for (std::size_t p = 0; p < n; ++p) {
+            if (fate[p] != 0) continue;
+            const BinEntry e{pl.x[p], pl.y[p], pl.radius[p], ability[p], binX0[p], binY0[p], static_cast<std::uint32_t>(p)};
+            for (int by = binY0[p]; by <= binY1[p]; ++by)
+                for (int bx = binX0[p]; bx <= binX1[p]; ++bx) binEntries[binFill[static_cast<std::size_t>(by) * nbx + bx]++] = e;
+        }
+        const double survivalPerYear = params.deussenDominatedSurvival;
+        dominated.assign(n, 0);
+#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
+        for (std::size_t p = 0; p < n; ++p) {
+            if (fate[p] != 0) continue;
+            int dominators = 0;
+            const double ap = ability[p], xp = pl.x[p], yp = pl.y[p], rp = pl.radius[p];
+            const std::int32_t bx0 = binX0[p], by0 = binY0[p];
+            for (int by = by0; by <= binY1[p]; ++by)
+                for (int bx = bx0; bx <= binX1[p]; ++bx) {
+                    const std::size_t b = static_cast<std::size_t>(by) * nbx + bx;
+                    for (std::uint32_t i = binStart[b]; i < binStart[b + 1]; ++i) {
+                        const BinEntry& q = binEntries[i];
+                        // Only stronger plants matter (p itself is not stronger than itself).
+                        // Each pair once: in the first bin both plants share (lowest row and
+                        // column of the overlap of their bin ranges).
+                        if (!(q.ability > ap)) continue;
+                        if (bx != std::max(bx0, q.binX0) || by != std::max(by0, q.binY0)) continue;
+                        if (crownsIntersect(xp, yp, rp, q.x, q.y, q.radius)) ++dominators;
+                    }
+                }
+            if (dominators == 0) continue;
+            const double survive = dominatedSurvivalPerMonth(survivalPerYear, dominators);
+            if (dominationUniform(seed, pl.id[p], static_cast<std::uint64_t>(month)) >= survive) dominated[p] = 1;
+        }
+        for (std::size_t p = 0; p < n; ++p)
+            if (dominated[p]) fate[p] = 3;
     }
 
     void compact() {
@@ -715,6 +834,7 @@ struct Simulation::Impl {
         for (std::size_t p = 0; p < n; ++p) {
             if (fate[p] == 1) ++counters.diedBackgroundOrStress;
             else if (fate[p] == 2) ++counters.diedAtCanopy;
+            else if (fate[p] == 3) ++counters.diedDominated;
             else ++keep;
         }
         if (keep == n) return;
@@ -746,6 +866,7 @@ struct Simulation::Impl {
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             updatePlants(m);
+            if (params.competition == CompetitionMode::Deussen) compete();
             compact();
         }
         windowMask |= 1u << m;
@@ -770,8 +891,9 @@ struct Simulation::Impl {
             tempSum += abio.temperatureC[m].data()[cc];
             ++count;
         }
-        sun = std::max(0.0, sunBase - deficitSun[static_cast<std::size_t>(g)][c]) / count;
-        water = std::max(0.0, waterBase - deficitWater[static_cast<std::size_t>(g)][c]) / count;
+        const float* d = deficitAt(c, static_cast<std::size_t>(g));
+        sun = std::max(0.0, sunBase - d[0]) / count;
+        water = std::max(0.0, waterBase - d[1]) / count;
         temp = tempSum / count;
         return true;
     }
@@ -802,7 +924,7 @@ struct Simulation::Impl {
         }
     }
 
-    // Occupancy count of the current plants into cells[].occupants (band-parallel).
+    // Occupancy count of the current plants into occupants[] (band-parallel).
     void countOccupancy() {
         computeBounds();
         buildBands(false);
@@ -811,9 +933,9 @@ struct Simulation::Impl {
             const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
             for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e)
                 forEachPlantSpan(bandEntries[e].plant, r0, r1, [&](int iy, int a, int z) {
-                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                    std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
                     for (int ix = a; ix <= z; ++ix)
-                        if (row[ix].occupants < 65535) ++row[ix].occupants;
+                        if (row[ix] < 65535) ++row[ix];
                 });
         }
     }
@@ -837,7 +959,7 @@ struct Simulation::Impl {
                     for (int ix = 0; ix < W; ++ix) {
                         const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
                         const float prob = seedProb.data()[c];
-                        if (!(prob > 0) || cells[c].occupants > 0 || seedPkg[c] == 0) continue;
+                        if (!(prob > 0) || occupants[c] > 0 || seedPkg[c] == 0) continue;
                         const auto bits = randomBits(seed, mixStream(c, kGerminationStreamTag), year);
                         const double u = bits[0] * 0x1.0p-32;
                         if (u >= prob) continue;
@@ -855,23 +977,22 @@ struct Simulation::Impl {
         for (const auto& list : perBand)
             for (const Candidate& cd : list) {
                 const std::size_t c = static_cast<std::size_t>(cd.iy) * W + cd.ix;
-                if (cells[c].occupants > 0) continue;
+                if (occupants[c] > 0) continue;
                 addPlant(nextId++, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, 0.0, 0.0);
                 ++counters.germinated;
                 const std::size_t p = pl.size() - 1;
                 int lo, hi;
                 rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
                 forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
-                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                    std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
                     for (int ix = a; ix <= z; ++ix)
-                        if (row[ix].occupants < 65535) ++row[ix].occupants;
+                        if (row[ix] < 65535) ++row[ix];
                 });
             }
 #pragma omp parallel for schedule(dynamic, 65536) if (cells.size() > kParallelCells)
-        for (std::size_t c = 0; c < cells.size(); ++c) cells[c].occupants = 0;
+        for (std::size_t c = 0; c < cells.size(); ++c) occupants[c] = 0;
         // A new season of leftovers starts.
-        for (auto& v : deficitSun) std::fill(v.begin(), v.end(), 0.f);
-        for (auto& v : deficitWater) std::fill(v.begin(), v.end(), 0.f);
+        std::fill(deficit.begin(), deficit.end(), 0.f);
         windowMask = 0;
     }
 
@@ -1032,9 +1153,11 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     f.setAttr(group, "next_id", hex64(s.nextId));
     f.setAttr(group, "window_mask", static_cast<std::int64_t>(s.windowMask));
     f.setAttr(group, "plant_months", static_cast<std::int64_t>(s.counters.plantMonths));
+    f.setAttr(group, "plant_cell_months", static_cast<std::int64_t>(s.counters.plantCellMonths));
     f.setAttr(group, "germinated", static_cast<std::int64_t>(s.counters.germinated));
     f.setAttr(group, "died_background_or_stress", static_cast<std::int64_t>(s.counters.diedBackgroundOrStress));
     f.setAttr(group, "died_at_canopy", static_cast<std::int64_t>(s.counters.diedAtCanopy));
+    f.setAttr(group, "died_dominated", static_cast<std::int64_t>(s.counters.diedDominated));
     f.setAttr(group, "dropped_initial", static_cast<std::int64_t>(s.droppedInitial));
     // Ids split in two exact 32-bit halves.
     std::vector<std::int32_t> idLo(n), idHi(n);
@@ -1059,10 +1182,15 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     // months, so they cannot be recomputed from it for every plant).
     f.writeF64(group + "/height", pl.height, {n});
     f.writeF64(group + "/radius", pl.radius, {n});
-    for (std::size_t g = 0; g < s.deficitSun.size(); ++g) {
+    for (std::size_t g = 0; g < s.periods(); ++g) {
         const hsize_t dims[2] = {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W)};
-        f.writeF32(group + "/deficit_sun_" + std::to_string(g), s.deficitSun[g], {dims[0], dims[1]});
-        f.writeF32(group + "/deficit_water_" + std::to_string(g), s.deficitWater[g], {dims[0], dims[1]});
+        std::vector<float> sun(s.cells.size()), water(s.cells.size());
+        for (std::size_t c = 0; c < s.cells.size(); ++c) {
+            sun[c] = s.deficitAt(c, g)[0];
+            water[c] = s.deficitAt(c, g)[1];
+        }
+        f.writeF32(group + "/deficit_sun_" + std::to_string(g), sun, {dims[0], dims[1]});
+        f.writeF32(group + "/deficit_water_" + std::to_string(g), water, {dims[0], dims[1]});
     }
 }
 
@@ -1107,27 +1235,33 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
         pl.coarse.push_back(static_cast<std::uint32_t>(g.index(cx, cy)));
         pl.canopyLimit.push_back(s.canopyLimitAt(pl.x[p], pl.y[p]));
     }
-    for (std::size_t gi = 0; gi < s.deficitSun.size(); ++gi) {
+    std::vector<float> deficit(s.deficit.size());
+    for (std::size_t gi = 0; gi < s.periods(); ++gi) {
         auto ds = f.readF32(group + "/deficit_sun_" + std::to_string(gi));
         auto dw = f.readF32(group + "/deficit_water_" + std::to_string(gi));
         if (ds.size() != s.cells.size() || dw.size() != s.cells.size()) throw IoError(where + ": accumulator size mismatch");
-        s.deficitSun[gi] = std::move(ds);
-        s.deficitWater[gi] = std::move(dw);
+        for (std::size_t c = 0; c < s.cells.size(); ++c) {
+            deficit[(c * s.periods() + gi) * 2] = ds[c];
+            deficit[(c * s.periods() + gi) * 2 + 1] = dw[c];
+        }
     }
+    s.deficit = std::move(deficit);
     s.pl = std::move(pl);
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
     s.counters.plantMonths = f.attrInt(group, "plant_months");
+    s.counters.plantCellMonths = f.hasAttr(group, "plant_cell_months") ? f.attrInt(group, "plant_cell_months") : 0;
     s.counters.germinated = f.attrInt(group, "germinated");
     s.counters.diedBackgroundOrStress = f.attrInt(group, "died_background_or_stress");
     s.counters.diedAtCanopy = f.attrInt(group, "died_at_canopy");
+    s.counters.diedDominated = f.hasAttr(group, "died_dominated") ? f.attrInt(group, "died_dominated") : 0;
     s.droppedInitial = static_cast<std::size_t>(f.attrInt(group, "dropped_initial"));
 }
 
 std::size_t Simulation::bytesPerCell() const {
-    return sizeof(CellState) + sizeof(float) /*seed probability*/ + sizeof(std::uint16_t) /*package*/ +
-           impl_->deficitSun.size() * 2 * sizeof(float) + sizeof(float) /*transmission copy*/;
+    return sizeof(CellState) + sizeof(std::uint16_t) /*occupants*/ + sizeof(float) /*seed probability*/ +
+           sizeof(std::uint16_t) /*package*/ + impl_->periods() * 2 * sizeof(float) + sizeof(float) /*transmission copy*/;
 }
 
 std::size_t Simulation::bytesPerPlant() const {

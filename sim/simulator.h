@@ -69,9 +69,11 @@ struct YearRecord {
 /// Counters of the run (for progress and benchmarks).
 struct SimCounters {
     std::int64_t plantMonths = 0;   ///< sum over simulated months of the plants alive in it
+    std::int64_t plantCellMonths = 0;  ///< sum over months and plants of the cells each occupied (sweep work)
     std::int64_t germinated = 0;
     std::int64_t diedBackgroundOrStress = 0;
     std::int64_t diedAtCanopy = 0;
+    std::int64_t diedDominated = 0;  ///< Deussen competition mode: dominated plants that died
 };
 
 /// Loops over fewer plants (cells) than these run on one thread, because a fork and join

@@ -257,7 +257,9 @@ TEST_CASE("mortality: background rate leaves a fraction P_s alive at max age (bi
 
 TEST_CASE("engine: ideal vigour fills the pool, then overflow grows the plant in its growth months", "[sim][growth]") {
     // Redwood Sorrel at its optimum: sun 3.5 h, water share 100 mm (4 + (196 - 4) / 2),
-    // temperature 13.5 C, slope 30: vigour = alpha every month.
+    // temperature 13.5 C, slope 30: vigour = alpha every month. Both growth rules: the
+    // literal one (1 month per unit overflow, as before the ideal rule existed) and the
+    // ideal one (12 / (alpha x 9 months of the L period) months per unit overflow).
     const Biome b = pointCrownBiome();
     const int s = b.speciesIndex("Redwood Sorrel");
     const Species& sp = b.species[s];
@@ -266,22 +268,91 @@ TEST_CASE("engine: ideal vigour fills the pool, then overflow grows the plant in
     in.abiotics = uniformAbiotics(10, 1.0, 3.5, 196.0, 13.5, 30.0);
     UndergrowthPlant p = plantAt(b, "Redwood Sorrel", 5.1, 5.1, 0.0);
     p.growthAgeYears = 0.5;
-    Simulation sim(in, SimParams{}, 1, {p});
-    const double cap = poolCapacity(3, sp.alpha, b.vigour.a);
-    double expectGrowthAge = 0.5, pool = 0;
-    for (int m = 0; m < 12; ++m) {
-        sim.stepMonth();
-        if (sim.plantCount() == 0) break;  // background mortality can strike: then stop checking
-        const auto q = sim.plants().at(0);
-        CHECK(q.vigour == Approx(sp.alpha).epsilon(1e-6));  // stored as float
-        const PoolStep ps = updatePool(pool, sp.alpha, cap);
-        pool = ps.pool;
-        const bool growing = std::find(sp.growthMonths.begin(), sp.growthMonths.end(), m) != sp.growthMonths.end();
-        expectGrowthAge = advanceGrowthAgeYears(expectGrowthAge, ps.overflow, growing, 1.0);
-        CHECK(q.pool == Approx(pool).epsilon(1e-12));
-        CHECK(q.growthAgeYears == Approx(expectGrowthAge).epsilon(1e-12));
-        CHECK(q.heightM == Approx(idealHeightM(expectGrowthAge, sp.maxAgeYears, sp.maxHeightM)).epsilon(1e-12));
+    REQUIRE(sp.growthMonths.size() == 9);
+    for (const GrowthRule rule : {GrowthRule::Literal, GrowthRule::Ideal}) {
+        SimParams params;
+        params.growthRule = rule;
+        const double perOverflow = rule == GrowthRule::Literal ? 1.0 : 12.0 / (sp.alpha * 9.0);
+        CHECK(growthMonthsPerUnitOverflow(rule, 1.0, sp.alpha, 9) == Approx(perOverflow).epsilon(1e-15));
+        Simulation sim(in, params, 1, {p});
+        const double cap = poolCapacity(3, sp.alpha, b.vigour.a);
+        double expectGrowthAge = 0.5, pool = 0;
+        for (int m = 0; m < 12; ++m) {
+            sim.stepMonth();
+            if (sim.plantCount() == 0) break;  // background mortality can strike: then stop checking
+            const auto q = sim.plants().at(0);
+            CHECK(q.vigour == Approx(sp.alpha).epsilon(1e-6));  // stored as float
+            const PoolStep ps = updatePool(pool, sp.alpha, cap);
+            pool = ps.pool;
+            const bool growing = std::find(sp.growthMonths.begin(), sp.growthMonths.end(), m) != sp.growthMonths.end();
+            expectGrowthAge = advanceGrowthAgeYears(expectGrowthAge, ps.overflow, growing, perOverflow);
+            CHECK(q.pool == Approx(pool).epsilon(1e-12));
+            CHECK(q.growthAgeYears == Approx(expectGrowthAge).epsilon(1e-12));
+            CHECK(q.heightM == Approx(idealHeightM(expectGrowthAge, sp.maxAgeYears, sp.maxHeightM)).epsilon(1e-12));
+        }
     }
+}
+
+TEST_CASE("growth rule ideal: an unstressed plant follows h_s(t) of Eq. 3 over its whole life", "[sim][growth]") {
+    // A plant alone at its species' optimum (sun, temperature, slope at c; water share at c,
+    // i.e. available water 2c - demand), starting in January with a full pool, real crowns
+    // (it covers many cells, all alike). Background mortality and the canopy limit are
+    // switched off. Tolerance: at every year end the growth age equals the calendar age
+    // (plus the start) to 1e-9 years and the height h_s(t) to 1e-9 relative; within a year
+    // the growth age runs ahead in the growth period and waits outside it, by less than a year.
+    const Biome b = defaultBiome();
+    struct Case {
+        const char* species;
+        int years;
+    };
+    for (const Case cs : {Case{"Western Swordfern", 5}, Case{"Toyon", 150}, Case{"Redwood Sorrel", 6}}) {
+        const int s = b.speciesIndex(cs.species);
+        const Species& sp = b.species[s];
+        SimParams params;
+        params.survivalAtMaxAge = 1.0 - 1e-9;
+        params.canopyThresholdM = 1000.0;
+        SimInputs in;
+        in.biome = b;
+        in.abiotics = uniformAbiotics(12, 1.0, sp.sun.c, 2 * sp.moisture.c - params.minWaterDemandMm, sp.temperature.c,
+                                      sp.slope.c);
+        const double ga0 = 1.0 / 12;
+        UndergrowthPlant p = plantAt(b, cs.species, 6.1, 6.1, idealHeightM(ga0, sp.maxAgeYears, sp.maxHeightM));
+        p.growthAgeYears = ga0;
+        p.pool = poolCapacity(params.poolCapacityStressMonths, sp.alpha, b.vigour.a);
+        Simulation sim(in, params, 3, {p});
+        for (int y = 1; y <= cs.years; ++y) {
+            for (int m = 0; m < 12; ++m) {
+                sim.stepMonth();
+                REQUIRE(sim.plantCount() == 1);
+                const double t = ga0 + (12.0 * (y - 1) + m + 1) / 12.0;
+                CHECK(std::abs(sim.plants()[0].growthAgeYears - t) < 1.0);
+            }
+            const auto q = sim.plants().at(0);
+            INFO(cs.species << " year " << y);
+            CHECK(q.vigour == Approx(sp.alpha).epsilon(1e-6));
+            REQUIRE(q.growthAgeYears == Approx(ga0 + y).epsilon(1e-9));
+            CHECK(q.heightM == Approx(idealHeightM(ga0 + y, sp.maxAgeYears, sp.maxHeightM)).epsilon(1e-9));
+        }
+        // The idealised specimen reaches its maximum height at the end of its lifespan.
+        CHECK(sim.plants().at(0).heightM == Approx(sp.maxHeightM).epsilon(1e-9));
+    }
+    // Literal rule: the same Swordfern gains only alpha x 9 / 12 of a year per year.
+    const int s = b.speciesIndex("Western Swordfern");
+    const Species& sp = b.species[s];
+    SimParams params;
+    params.growthRule = GrowthRule::Literal;
+    params.survivalAtMaxAge = 1.0 - 1e-9;
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(12, 1.0, sp.sun.c, 2 * sp.moisture.c - params.minWaterDemandMm, sp.temperature.c,
+                                  sp.slope.c);
+    UndergrowthPlant p = plantAt(b, "Western Swordfern", 6.1, 6.1, 0.0);
+    p.growthAgeYears = 1.0 / 12;
+    p.pool = poolCapacity(params.poolCapacityStressMonths, sp.alpha, b.vigour.a);
+    Simulation sim(in, params, 3, {p});
+    for (int y = 0; y < 3; ++y) sim.stepYear();
+    REQUIRE(sim.plantCount() == 1);
+    CHECK(sim.plants()[0].growthAgeYears == Approx(1.0 / 12 + 3 * sp.alpha * 9.0 / 12.0).epsilon(1e-9));
 }
 
 TEST_CASE("engine: background mortality alone leaves P_s of a cohort at max age (binomial test)", "[sim][mortality]") {
@@ -442,6 +513,136 @@ TEST_CASE("canopy limit: undergrowth reaching the CHM (or the threshold) dies", 
     for (const auto& p : sim.plants()) CHECK(p.heightM < 3.0);
 }
 
+// --------------------------------------------------------------------------- Deussen competition
+
+namespace {
+
+// Pairs of Toyons (2 m and 0.5 m tall, crown radii about 1.06 m and 0.30 m) whose roots are
+// `gapM` apart, on a grid of pairs 4 m apart, at the Toyon optimum (unshared resources).
+struct PairScene {
+    SimInputs in;
+    std::vector<UndergrowthPlant> plants;
+};
+PairScene toyonPairs(int pairsPerSide, double gapM) {
+    PairScene sc;
+    const Biome b = defaultBiome();
+    const Species& sp = b.species[b.speciesIndex("Toyon")];
+    sc.in.biome = b;
+    sc.in.abiotics = uniformAbiotics(4 * pairsPerSide, 1.0, sp.sun.c, sp.moisture.c, sp.temperature.c, sp.slope.c);
+    for (int j = 0; j < pairsPerSide; ++j)
+        for (int i = 0; i < pairsPerSide; ++i) {
+            sc.plants.push_back(plantAt(b, "Toyon", 4.0 * i + 1.05, 4.0 * j + 1.05, 2.0));
+            sc.plants.push_back(plantAt(b, "Toyon", 4.0 * i + 1.05 + gapM, 4.0 * j + 1.05, 0.5));
+        }
+    return sc;
+}
+
+SimParams deussenParams(double survival) {
+    SimParams p;
+    p.competition = CompetitionMode::Deussen;
+    p.deussenDominatedSurvival = survival;
+    p.survivalAtMaxAge = 1.0 - 1e-9;  // no background mortality
+    p.seedingProbability = 0.0;       // no germination
+    return p;
+}
+
+}  // namespace
+
+TEST_CASE("seeding_probability = 0 disables germination (validation runs from initial plants)", "[sim][seeding]") {
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 30, 30};
+    const Biome b = in.biome;
+    SimParams p;
+    p.seedingProbability = 0.0;
+    Simulation sim(in, p, 7, {plantAt(b, "Toyon", 20.1, 20.1, 0.5), plantAt(b, "Tanoak", 15.1, 15.1, 0.5)});
+    CHECK(sim.seedProbability().data() == std::vector<float>(sim.seedProbability().size(), 0.f));
+    for (int y = 0; y < 3; ++y) sim.stepYear();
+    CHECK(sim.counters().germinated == 0);
+    CHECK(sim.plantCount() <= 2);
+}
+
+TEST_CASE("deussen: ability is vigour x relative height; crowns intersect strictly", "[sim][deussen]") {
+    CHECK(competitiveAbility(0.5, 2.0, 8.0) == Approx(0.125));
+    CHECK(competitiveAbility(-0.1, 2.0, 8.0) < 0);
+    CHECK(crownsIntersect(0, 0, 1, 1.5, 0, 0.6));
+    CHECK_FALSE(crownsIntersect(0, 0, 1, 2.0, 0, 1.0));  // touching
+    CHECK(dominatedSurvivalPerMonth(0.5, 0) == 1.0);
+    CHECK(std::pow(dominatedSurvivalPerMonth(0.5, 1), 12) == Approx(0.5).epsilon(1e-12));
+    CHECK(dominatedSurvivalPerMonth(0.5, 2) == Approx(std::pow(0.5, 2.0 / 12)).epsilon(1e-12));
+}
+
+TEST_CASE("deussen: the weaker of two intersecting plants dies at the expected rate (binomial test)", "[sim][deussen]") {
+    for (const double survival : {0.5, 0.2}) {
+        PairScene sc = toyonPairs(20, 1.0);  // 400 intersecting pairs
+        Simulation sim(sc.in, deussenParams(survival), 17, sc.plants);
+        REQUIRE(sim.plantCount() == 800);
+        sim.stepMonth();
+        {
+            // Unshared resources: the small Toyon under the big one's crown sees the full sun.
+            const auto pl = sim.plants();
+            const Species& sp = sim.biome().species[pl[1].speciesId];
+            CHECK(pl[1].sunShare == Approx(sp.sun.c).epsilon(1e-6));
+            CHECK(pl[1].waterShare == Approx(sp.moisture.c).epsilon(1e-6));
+        }
+        for (int m = 1; m < 12; ++m) sim.stepMonth();
+        int tall = 0, small = 0;
+        for (const auto& p : sim.plants()) (p.heightM > 1.5 ? tall : small)++;
+        CHECK(tall == 400);  // the stronger is never dominated
+        CHECK(sim.counters().diedDominated == 400 - small);
+        CHECK(sim.counters().diedBackgroundOrStress == 0);
+        // One year of domination by one plant is survived with probability `survival`.
+        const double n = 400, sigma = std::sqrt(n * survival * (1 - survival));
+        INFO("survival " << survival << ": " << small << " of 400 dominated plants survived, expected " << n * survival);
+        CHECK(std::abs(small - n * survival) <= 3.29 * sigma);  // two-sided, significance 0.001
+    }
+}
+
+TEST_CASE("deussen: plants whose crowns do not intersect never die of domination", "[sim][deussen]") {
+    PairScene sc = toyonPairs(10, 1.8);  // 1.8 m apart: crowns 1.06 + 0.30 m do not reach
+    Simulation sim(sc.in, deussenParams(0.0), 17, sc.plants);
+    for (int y = 0; y < 2; ++y) sim.stepYear();
+    CHECK(sim.plantCount() == 200);
+    CHECK(sim.counters().diedDominated == 0);
+}
+
+TEST_CASE("deussen: default mode unchanged, and bit-identical results with 1 and 2 threads", "[sim][deussen][determinism]") {
+    CHECK(SimParams{}.competition == CompetitionMode::Resources);
+    CHECK(SimParams{}.growthRule == GrowthRule::Ideal);
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    // The Deussen survival does not touch the resources mode.
+    {
+        SimParams a, b;
+        b.deussenDominatedSurvival = 0.9;
+        Simulation sa(in, a, 21), sb(in, b, 21);
+        for (int y = 0; y < 8; ++y) {
+            sa.stepYear();
+            sb.stepYear();
+        }
+        CHECK(samePlants(sa.plants(), sb.plants()));
+        CHECK(sa.counters().diedDominated == 0);
+    }
+    setParallelThresholds(0, 0);  // exercise every parallel loop on this small scene
+    std::vector<std::vector<UndergrowthPlant>> results;
+    std::vector<std::int64_t> dominated;
+    const int before = omp_get_max_threads();
+    SimParams p;
+    p.competition = CompetitionMode::Deussen;
+    for (int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        Simulation sim(in, p, 21);
+        for (int y = 0; y < 15; ++y) sim.stepYear();
+        results.push_back(sim.plants());
+        dominated.push_back(sim.counters().diedDominated);
+    }
+    omp_set_num_threads(before);
+    setParallelThresholds(20000, 200000);
+    REQUIRE(results[0].size() > 100);
+    CHECK(dominated[0] > 0);
+    CHECK(dominated[0] == dominated[1]);
+    CHECK(samePlants(results[0], results[1]));
+}
+
 // --------------------------------------------------------------------------- integration
 
 TEST_CASE("integration: 25 years on a small plot keep every invariant", "[sim][integration]") {
@@ -474,7 +675,9 @@ TEST_CASE("integration: 25 years on a small plot keep every invariant", "[sim][i
             REQUIRE(p.heightM > 0);
             REQUIRE(p.heightM <= s.maxHeightM);
             REQUIRE(p.crownRadiusM == Approx(s.allometry.crownRadiusM(p.heightM)));
-            REQUIRE(p.growthAgeYears <= p.ageYears + 1.0 / 12 + 1e-9);
+            // The ideal rule concentrates a year's growth in the growth period: the growth age
+            // may run ahead of the age within a year, never by a year.
+            REQUIRE(p.growthAgeYears <= p.ageYears + 1.0 / 12 + 1.0);
             REQUIRE(p.vigour <= s.alpha + 1e-12);
             REQUIRE(p.vigour >= -s.alpha * b.vigour.a - 1e-12);
         }
@@ -590,9 +793,25 @@ TEST_CASE("run config: strict parsing with the file and key named", "[sim][confi
     SimParams p;
     p.seedingMonth = 3;
     p.minWaterDemandMm = 5.5;
+    p.growthRule = GrowthRule::Literal;
+    p.competition = CompetitionMode::Deussen;
+    p.deussenDominatedSurvival = 0.25;
     const RunConfig back = parseRunConfig(p.toToml(), "record");
     CHECK(back.params.seedingMonth == 3);
     CHECK(back.params.minWaterDemandMm == 5.5);
+    CHECK(back.params.growthRule == GrowthRule::Literal);
+    CHECK(back.params.competition == CompetitionMode::Deussen);
+    CHECK(back.params.deussenDominatedSurvival == 0.25);
+    // Enum keys: the accepted spellings only, with the file, line and key named.
+    CHECK_THROWS_WITH(parseRunConfig("[model]\ncell_size_m = 0.2\ngrowth_rule = \"fast\"\n", "enum.toml"),
+                      Catch::Contains("enum.toml:3") && Catch::Contains("growth_rule") && Catch::Contains("\"ideal\""));
+    CHECK_THROWS_WITH(parseRunConfig("[model]\ncompetition = 1\n", "enum.toml"),
+                      Catch::Contains("competition") && Catch::Contains("string"));
+    CHECK_THROWS_WITH(parseRunConfig("[model]\n\ndeussen_dominated_survival = 1.5\n", "range.toml"),
+                      Catch::Contains("range.toml:3") && Catch::Contains("deussen_dominated_survival"));
+    CHECK_THROWS_WITH(parseRunConfig("[outputs]\nhdf5 = 3\n", "type.toml"), Catch::Contains("type.toml:2") && Catch::Contains("hdf5"));
+    // Empty strings are valid for paths ("" = none).
+    CHECK(parseRunConfig("[inputs]\nbiome = \"\"\n", "empty.toml").biomePath.empty());
 }
 
 TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-zero exit", "[sim][cli]") {
@@ -638,6 +857,11 @@ TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-ze
                      " --crop 10,10,20,20 --years 1 --initial " + dir.file("nocol.csv") + " --out " + dir.file("o.h5"));
     CHECK(r.exitCode != 0);
     CHECK_THAT(r.output, Catch::Contains("height_m"));
+    // A misspelt model choice on the command line.
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --competition deusen --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("--competition") && Catch::Contains("deusen") && Catch::Contains("\"deussen\""));
     CHECK_FALSE(std::ifstream(dir.file("o.h5")).good());
 }
 
