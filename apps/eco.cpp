@@ -34,6 +34,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerPcfCommand(*app);
     registerSynthCommand(*app);
     registerCompareCommand(*app);
+    registerValidateCommand(*app);
     return app;
 }
 
@@ -57,6 +58,9 @@ int main(int argc, char** argv) {
         app->parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         return app->exit(e);
+    } catch (const eco::cli::ExitStatus& e) {
+        std::cerr << "eco: " << e.message << "\n";
+        return e.code;
     } catch (const eco::Error& e) {
         std::cerr << "eco: error: " << e.what() << "\n";
         return 1;

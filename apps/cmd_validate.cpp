@@ -1,0 +1,84 @@
+// eco validate: the ecological regression suite (validate/). Parsing, progress and the exit
+// status only; scenarios, checks and the report are in validate/validate.h.
+#include <omp.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli_common.h"
+#include "error.h"
+#include "validate.h"
+
+namespace eco::cli {
+
+namespace {
+
+struct ValidateOptions {
+    bool quick = false;
+    std::string out = "validation";
+    std::string configs;
+    std::vector<std::string> only;
+    int threads = 0;
+};
+
+void runValidate(const ValidateOptions& o) {
+    if (o.threads > 0) omp_set_num_threads(o.threads);
+    validate::SuiteOptions so;
+    so.mode = o.quick ? validate::Mode::Quick : validate::Mode::Full;
+    so.outDir = o.out;
+    if (!o.configs.empty()) {
+        if (!std::filesystem::is_directory(o.configs)) throw IoError(o.configs + ": --configs: not a directory");
+        so.configs.directory = o.configs;
+    } else if (std::filesystem::is_directory("configs/validation")) {
+        so.configs.directory = "configs/validation";
+    }  // else: the copies embedded at build time
+    for (const std::string& item : o.only) {  // --only a,b and --only a --only b
+        std::stringstream ss(item);
+        std::string name;
+        while (std::getline(ss, name, ','))
+            if (!name.empty()) so.only.push_back(name);
+    }
+    so.log = [](const std::string& line) { info(line); };
+    info("validate: " + std::string(validate::modeName(so.mode)) + " run, " + std::to_string(omp_get_max_threads()) +
+         " threads, configurations from " + so.configs.describe() + ", output " + so.outDir);
+    const validate::SuiteResult result = validate::runSuite(so);
+    const auto written = validate::writeReport(result, so.outDir);
+    char line[200];
+    std::snprintf(line, sizeof line, "validate: %d of %d checks passed in %.1f s", result.checkCount() - result.failedCount(),
+                  result.checkCount(), result.seconds);
+    info(line);
+    for (const auto& s : result.scenarios)
+        for (const auto& c : s.checks)
+            if (!c.pass) info("validate: FAILED " + s.name + "/" + c.spec.id);
+    for (const auto& f : written) std::printf("%s\n", f.c_str());
+    std::fflush(stdout);
+    const int status = validate::exitStatus(result);
+    if (status != 0) throw ExitStatus(status, std::to_string(result.failedCount()) + " validation check(s) failed; see " + written.front());
+}
+
+}  // namespace
+
+void registerValidateCommand(CLI::App& app) {
+    auto opt = std::make_shared<ValidateOptions>();
+    CLI::App* sub = app.add_subcommand(
+        "validate",
+        "Ecological regression suite (paper §7.2, Figs. 13-15 and 20; Deussen et al. 1998): self-thinning, succession, "
+        "dynamic equilibrium, gap dynamics, abiotic gradients, the Deussen comparison and Deussen's circle test. Writes "
+        "DIR/report.md and DIR/results.csv. Exit status: 0 all checks passed, 3 a check failed, 1 bad input or error "
+        "(docs/validation.md).");
+    sub->add_flag("--quick", opt->quick, "Small plots and short spans (CI: a few minutes on 2 cores)");
+    sub->add_option("--out", opt->out, "Output directory for report.md, results.csv and the PNGs (default: validation)");
+    sub->add_option("--configs", opt->configs,
+                    "Directory of scenario configurations (default: configs/validation if it exists here, else the "
+                    "copies embedded at build time)");
+    sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
+    sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
+        ->check(CLI::NonNegativeNumber);
+    sub->callback([opt] { runValidate(*opt); });
+}
+
+}  // namespace eco::cli

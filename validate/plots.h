@@ -1,0 +1,23 @@
+// Small x-y plots for the validation report (log-log self-thinning fits, time series).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "image_out.h"
+
+namespace eco::validate {
+
+struct PlotSeries {
+    std::string name;          ///< legend entry ("" = not in the legend)
+    std::vector<double> x, y;
+    Rgb colour{0.f, 0.f, 0.f};
+    bool line = false;         ///< connect the points with lines
+    double pointRadiusPx = 0;  ///< 0 = no markers
+};
+
+/// Axes with ticks and labels, the series, and a legend; ranges from the data. Atomic PNG.
+void writeXYPlotPng(const std::string& path, const std::string& title, const std::string& xLabel,
+                    const std::string& yLabel, const std::vector<PlotSeries>& series);
+
+}  // namespace eco::validate

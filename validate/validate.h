@@ -1,0 +1,79 @@
+// The ecological regression suite (issue 7; paper §7.2, Figs. 13-15 and 20; Deussen et al.
+// 1998 §4.2): scenarios that run the simulator (or, for Deussen's circle test, a small
+// standalone model) and turn emergent behaviour into numbers with stated expectations:
+// self-thinning, succession, dynamic equilibrium, gap dynamics, abiotic gradients, the
+// comparison with Deussen's competition, and Deussen's own self-thinning test.
+// docs/validation.md defines every measure. The front end is `eco validate`.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "validate_config.h"
+
+namespace eco::validate {
+
+/// The outcome of one check.
+struct CheckResult {
+    std::string scenario;  ///< scenario name
+    CheckSpec spec;
+    std::string title;     ///< what was measured, one line
+    double value = 0.0;    ///< NaN when it could not be evaluated (see note)
+    bool pass = false;
+    std::string note;      ///< e.g. why a value is missing
+};
+
+/// A picture of a scenario, written into the output directory.
+struct Figure {
+    std::string file;     ///< relative to the output directory
+    std::string caption;
+};
+
+struct ScenarioResult {
+    std::string name, title, description, configPath, kind;
+    double seconds = 0.0;
+    bool sharesSimulation = false;  ///< uses the forest scene, whose runs are shared between scenarios
+    std::vector<CheckResult> checks;
+    std::vector<Figure> figures;
+    std::vector<std::string> details;  ///< Markdown lines: supporting numbers, definitions
+};
+
+struct SuiteOptions {
+    Mode mode = Mode::Full;
+    std::string outDir = "validation";
+    ConfigSource configs;
+    std::vector<std::string> only;  ///< scenario names to run; empty = all
+    /// Progress and informational lines (stderr in the CLI).
+    std::function<void(const std::string&)> log;
+};
+
+struct SuiteResult {
+    Mode mode = Mode::Full;
+    std::string configSource;
+    std::string biomeName;
+    int threads = 1;
+    double seconds = 0.0;
+    std::string startedUtc;
+    std::vector<ScenarioResult> scenarios;
+
+    int checkCount() const;
+    int failedCount() const;
+    bool allPassed() const { return failedCount() == 0; }
+};
+
+/// Exit status of `eco validate`: 0 when every check passed, kChecksFailedExit otherwise.
+/// (Errors in the input exit with 1 through the CLI's error path, internal errors with 2.)
+constexpr int kChecksFailedExit = 3;
+int exitStatus(const SuiteResult& result);
+
+/// Load the configurations (every file, so a bad file is reported before anything runs),
+/// run the selected scenarios, and write the report into options.outDir. ValidationError
+/// for a bad configuration or an unknown --only name.
+SuiteResult runSuite(const SuiteOptions& options);
+
+/// DIR/report.md (summary table, per-scenario sections with the figures) and
+/// DIR/results.csv (one row per check), both atomic. Returns the paths written.
+std::vector<std::string> writeReport(const SuiteResult& result, const std::string& outDir);
+
+}  // namespace eco::validate

@@ -1,0 +1,196 @@
+// Configurations of the ecological regression suite (configs/validation/*.toml, one file
+// per scenario, docs/validation.md). Parsing is strict: every key is typed and ranged, an
+// unknown key is an error naming the file, the line and the key. Every check states its
+// expectation and tolerance in the file; nothing is hidden in code.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "biome.h"
+#include "deussen_circles.h"
+#include "sim_config.h"
+
+namespace eco::validate {
+
+/// Which sizes and spans to use: small and short for CI, or the paper's set-up.
+enum class Mode { Quick, Full };
+const char* modeName(Mode m);
+
+/// One check's expectation, read from a [checks.NAME] table with exactly one of
+///   expected = E, tolerance = T    pass when |value - E| <= T
+///   min = B                        pass when value >= B
+///   max = B                        pass when value <= B
+/// A value that is not a number (e.g. a species that never occurred) always fails.
+struct CheckSpec {
+    enum class Kind { Approx, AtLeast, AtMost };
+    std::string id;
+    Kind kind = Kind::AtLeast;
+    double target = 0.0;     ///< E or B
+    double tolerance = 0.0;  ///< T (Approx only)
+    std::string units;       ///< optional, for the report
+    std::string why;         ///< optional justification of the bound, for the report
+
+    bool passes(double value) const;
+    /// "-1.5 ± 0.5", ">= 1.2", "<= 0.1".
+    std::string expectedText() const;
+    const char* comparator() const;  ///< "approx", "min", "max"
+};
+
+/// Procedural forest scene shared by several scenarios (the paper's Figs. 14-15 set-up:
+/// undergrowth under a Douglas-Fir / Redwood canopy). Built with sim/demo_scene.h; the
+/// canopy trees' species are reassigned to `canopySpecies` by weight.
+struct ForestSceneConfig {
+    std::string path;
+    std::string title;
+    double terrainCellSizeM = 0.914;
+    double emptyFraction = 0.2;
+    double denseFraction = 0.5;
+    bool uniformAbiotics = false;
+    std::vector<std::string> canopySpecies;
+    std::vector<double> canopyWeights;
+    int snapshotEveryYears = 5;  ///< plant lists kept every this many years (and the last)
+    struct Size {
+        double plotSizeM = 40;
+        int years = 150;
+        std::uint64_t seed = 1;
+    };
+    Size quick, full;
+    const Size& size(Mode m) const { return m == Mode::Quick ? quick : full; }
+    sim::SimParams params;  ///< [model] of the scene (competition must be "resources")
+};
+
+struct SelfThinningSettings {
+    std::string species;
+    double densityPerM2 = 16;
+    double initialHeightMinM = 0.05, initialHeightMaxM = 0.15;
+    /// The thinning phase starts in the first year in which the crowns have closed (crown
+    /// cover, sum of crown areas over the plot area, at least onsetCoverFraction) and the
+    /// yearly mortality exceeds onsetMortalityFactor x the background rate.
+    double onsetCoverFraction = 0.5;
+    double onsetMortalityFactor = 3;
+    int minPlantsInFit = 30;
+    struct Size {
+        double plotSizeM = 20;
+        int years = 60;
+        std::uint64_t seed = 1;
+    };
+    Size quick, full;
+    sim::SimParams params;
+};
+
+struct SuccessionSettings {
+    std::string lateSpecies;                ///< e.g. California Laurel
+    std::vector<std::string> earlySpecies;  ///< e.g. Western Swordfern
+    int earlyYear = 25;                     ///< the late species' starting share is taken here
+    int finalWindowYears = 25;
+    /// "Where suited": cells where the late species' Eq. 1 fitness (vigour / alpha) is at least this.
+    double suitedMinFitness = 0.9;
+};
+
+struct EquilibriumSettings {
+    int windowYears = 25;
+    double leadingMinShare = 0.1;  ///< species with at least this share of the plants are "leading"
+};
+
+struct GapSettings {
+    double edgeBandM = 2.0;      ///< within this distance of the canopy boundary (either side): edge
+    double deepMinDepthM = 4.0;  ///< covered cells at least this far from open ground: deep canopy
+    int windowYears = 25;        ///< densities averaged over the snapshots of these last years
+    double minClassAreaM2 = 20;  ///< a class smaller than this makes the check not evaluable
+};
+
+struct GradientSettings {
+    std::vector<std::string> shadeSpecies, sunSpecies;
+    int windowYears = 25;
+    int minPlants = 10;  ///< a species with fewer plants in the window makes the check not evaluable
+};
+
+struct DeussenComparisonSettings {
+    double pcfRMaxM = 1.0;  ///< short range: g is pooled over [0, pcfRMaxM)
+    int pcfBins = 5;
+    std::string lateSpecies;
+    int earlyYear = 25;
+    int finalWindowYears = 25;
+    double dominatedSurvival = 0.5;  ///< SimParams::deussenDominatedSurvival of the Deussen run
+};
+
+struct CirclesSettings {
+    CirclesParams params;  ///< plantCount, fieldSideM and seed are set per size
+    struct Size {
+        int plantCount = 62500;
+        double fieldSideM = 250;
+        std::uint64_t seed = 1;
+    };
+    Size quick, full;
+};
+
+enum class ScenarioKind {
+    SelfThinning,
+    Succession,
+    Equilibrium,
+    GapDynamics,
+    AbioticGradients,
+    DeussenComparison,
+    DeussenCircles
+};
+const char* scenarioKindName(ScenarioKind k);
+
+/// One scenario file.
+struct ScenarioConfig {
+    std::string path;
+    std::string name;         ///< [scenario] name: used by --only and in the report
+    ScenarioKind kind = ScenarioKind::SelfThinning;
+    std::string title;
+    std::string description;
+    int order = 0;            ///< [scenario] order: position in the report
+    std::string scenePath;    ///< resolved path of the forest scene (forest-based kinds)
+    SelfThinningSettings selfThinning;
+    SuccessionSettings succession;
+    EquilibriumSettings equilibrium;
+    GapSettings gap;
+    GradientSettings gradients;
+    DeussenComparisonSettings deussen;
+    CirclesSettings circles;
+    std::vector<CheckSpec> checks;  ///< in the order the kind defines them
+
+    const CheckSpec& check(const std::string& id) const;
+    /// True for the kinds that run the shared forest scene.
+    bool usesForestScene() const;
+};
+
+/// Check ids each kind computes (each needs a [checks.ID] table).
+std::vector<std::string> checkIdsOf(ScenarioKind k);
+
+/// Parse one scenario file from text; `path` is used in messages and to resolve the scene.
+ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path);
+/// Parse a forest scene file from text.
+ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path);
+
+/// Where the configurations come from: a directory, or the copies embedded at build time.
+struct ConfigSource {
+    std::string directory;  ///< "" = embedded
+    /// Text of file `name` (e.g. "succession.toml"); IoError naming it when missing.
+    std::string read(const std::string& name) const;
+    /// Scenario files (*.toml except scene_*.toml), sorted by name.
+    std::vector<std::string> scenarioFiles() const;
+    /// "configs/validation" or "embedded copy of configs/validation".
+    std::string describe() const;
+    /// Path shown in messages for file `name`.
+    std::string displayPath(const std::string& name) const;
+};
+
+/// The embedded copies of configs/validation/*.toml: (file name, text), sorted by name.
+const std::vector<std::pair<std::string, std::string>>& embeddedConfigs();
+
+/// Every scenario and scene of a source, parsed and cross-checked (scene files exist,
+/// names are unique, species exist in `biome`). Scenarios sorted by order, then name.
+struct SuiteConfig {
+    std::vector<ScenarioConfig> scenarios;
+    std::map<std::string, ForestSceneConfig> scenes;  ///< by scene file name
+};
+SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome);
+
+}  // namespace eco::validate
