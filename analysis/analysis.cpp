@@ -10,17 +10,13 @@
 
 #include "eco_version.h"
 #include "error.h"
+#include "text_format.h"
 
 namespace eco {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream os;
-    os.precision(12);
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 12); }
 
 /// Sources per work item of the pair loop. Fixed, never derived from the thread count, so
 /// that the floating-point sums (per item, then added in item order) are reproducible.

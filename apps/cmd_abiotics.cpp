@@ -15,6 +15,7 @@
 #include "error.h"
 #include "image_out.h"
 #include "terrain_io.h"
+#include "text_format.h"
 
 namespace eco::cli {
 
@@ -41,11 +42,7 @@ struct AbioticsArgs {
     double sunStepMinutes = 10;
 };
 
-std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 /// "sun_01_jan.png" in dir.
 std::string monthlyName(const std::string& dir, const std::string& map, int m) {

@@ -20,17 +20,13 @@
 #include "image_out.h"
 #include "point_pattern.h"
 #include "sim_input.h"
+#include "text_format.h"
 
 namespace eco::cli {
 
 namespace {
 
-std::string num(double v, int precision = 4) {
-    std::ostringstream os;
-    os.precision(precision);
-    os << v;
-    return os.str();
-}
+std::string num(double v, int precision = 4) { return formatNumber(v, precision); }
 
 std::string fixed(double v, int decimals) {
     char buf[64];

@@ -18,6 +18,7 @@
 #include "plants.h"
 #include "species_map.h"
 #include "terrain_io.h"
+#include "text_format.h"
 
 namespace eco::cli {
 
@@ -38,12 +39,7 @@ struct CanopyArgs {
                 *seedHeightOpt = nullptr;
 };
 
-std::string num(double v, int precision = 6) {
-    std::ostringstream os;
-    os.precision(precision);
-    os << v;
-    return os.str();
-}
+std::string num(double v, int precision = 6) { return formatNumber(v, precision); }
 
 /// The CHM and terrain must cover the same cells; CHM heights must be >= 0.
 void checkInputs(const Grid<float>& terrain, const std::string& terrainPath, const Grid<float>& chm,

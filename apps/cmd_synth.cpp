@@ -20,6 +20,7 @@
 #include "image_out.h"
 #include "scene.h"
 #include "terrain_io.h"
+#include "text_format.h"
 #include "undergrowth.h"
 
 namespace eco::cli {
@@ -29,12 +30,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-std::string num(double v, int precision = 6) {
-    std::ostringstream os;
-    os.precision(precision);
-    os << v;
-    return os.str();
-}
+std::string num(double v, int precision = 6) { return formatNumber(v, precision); }
 
 /// "x0,y0,x1,y1" (or "x,y,side" for a square when `allowSquare`) in metres.
 RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare) {

@@ -15,16 +15,13 @@
 #include "h5io.h"
 #include "image_out.h"
 #include "terrain_io.h"
+#include "text_format.h"
 
 namespace eco::cli {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 /// A round number >= maxValue - offset, so 16-bit PNG levels cover the data with a little room.
 double niceScaleAbove(double range) {

@@ -17,6 +17,7 @@
 #include "eco_version.h"
 #include "error.h"
 #include "h5io.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -29,11 +30,7 @@ constexpr std::array<const char*, 12> kMonthNames = {"January", "February", "Mar
                                                      "May",     "June",     "July",      "August",
                                                      "September", "October", "November", "December"};
 
-std::string num(double v) {
-    std::ostringstream s;
-    s << v;
-    return s.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 void requireFinite(double v, const std::string& what) {
     if (!std::isfinite(v)) throw ValidationError(what + " must be finite, got " + num(v));

@@ -12,6 +12,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "rng.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -29,11 +30,7 @@ constexpr std::uint64_t kStreamChmHeightField = 0x63686d0000000001ull;
 constexpr std::uint64_t kStreamChmGapField = 0x63686d0000000002ull;
 constexpr std::uint64_t kStreamChmCandidate = 0x63686d0000000010ull;  // + level
 
-std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 void requirePositive(double v, const char* field) {
     if (!(v > 0) || !std::isfinite(v))

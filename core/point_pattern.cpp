@@ -14,6 +14,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -21,12 +22,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::string num(double v) {
-    std::ostringstream os;
-    os.precision(10);
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 10); }
 
 /// Points per chunk of the parallel pair loops. Fixed (never derived from the thread count)
 /// so that the chunked floating-point sums, added in chunk order, are bit-identical.

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "error.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -147,11 +148,7 @@ public:
             if (!used_.count(std::string(k.str()))) fail(std::string(k.str()), "unknown key");
     }
 
-    static std::string fmt(double v) {
-        std::ostringstream s;
-        s << v;
-        return s.str();
-    }
+    static std::string fmt(double v) { return formatNumber(v); }
 
 private:
     const toml::table& t_;

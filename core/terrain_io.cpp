@@ -16,6 +16,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "h5io.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -37,11 +38,7 @@ std::string exactText(double v) {
     return std::string(buf, res.ptr);
 }
 
-std::string numberText(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string numberText(double v) { return formatNumber(v); }
 
 void requireReadable(const std::string& path) {
     std::FILE* f = std::fopen(path.c_str(), "rb");

@@ -18,6 +18,7 @@
 #include "image_out.h"
 #include "rng.h"
 #include "strict_toml.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -29,11 +30,7 @@ constexpr std::uint64_t kStreamRing = 0x63616e6f70790001ull;  // ring sampling, 
 /// that a crown rarely spans many bands. Only performance depends on it, never results.
 constexpr int kBandRows = 16;
 
-std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }

@@ -5,17 +5,13 @@
 #include <sstream>
 
 #include "error.h"
+#include "text_format.h"
 
 namespace eco {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream os;
-    os.precision(10);
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 10); }
 
 void checkResponse(const Response& r, const std::string& key) {
     if (!std::isfinite(r.c) || !(r.r > 0) || !std::isfinite(r.r))

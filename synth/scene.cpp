@@ -13,17 +13,13 @@
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
+#include "text_format.h"
 
 namespace eco {
 
 namespace {
 
-std::string num(double v, int precision = 10) {
-    std::ostringstream os;
-    os.precision(precision);
-    os << v;
-    return os.str();
-}
+std::string num(double v, int precision = 10) { return formatNumber(v, precision); }
 
 }  // namespace
 

@@ -8,16 +8,13 @@
 
 #include "error.h"
 #include "terrain_io.h"
+#include "text_format.h"
 
 namespace eco {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 6); }
 
 std::string geometryText(const Grid<float>& g) {
     return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.cellSizeM()) +

@@ -12,6 +12,7 @@
 
 #include "error.h"
 #include "rng.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -27,12 +28,7 @@ constexpr std::uint64_t kCountStream = 0x5359434f554e5453ull;   // "SYCOUNTS"
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-std::string num(double v) {
-    std::ostringstream os;
-    os.precision(10);
-    os << v;
-    return os.str();
-}
+std::string num(double v) { return formatNumber(v, 10); }
 
 /// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
 /// combination m can hold species s when mask[s] & m != 0 (the simulator's rule).

@@ -23,6 +23,7 @@
 #include "image_out.h"
 #include "plots.h"
 #include "point_pattern.h"
+#include "text_format.h"
 #include "processes.h"
 #include "rng.h"
 #include "sim_render.h"
@@ -54,13 +55,7 @@ constexpr std::uint64_t kStandStreamTag = 0x5354414E44504C41ull;          // sel
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-std::string num(double v, int precision = 4) {
-    if (std::isnan(v)) return "n/a";
-    std::ostringstream os;
-    os.precision(precision);
-    os << v;
-    return os.str();
-}
+std::string num(double v, int precision = 4) { return std::isnan(v) ? "n/a" : formatNumber(v, precision); }
 
 std::string fixed(double v, int decimals) {
     if (std::isnan(v)) return "n/a";
