@@ -27,12 +27,14 @@ TEST_CASE("eco --version and --help", "[cli]") {
     CHECK_THAT(v.output, Catch::Contains(ECO_VERSION_STRING));
     const auto h = runEco("--help");
     CHECK(h.exitCode == 0);
-    for (const char* cmd : {"terrain", "chm", "abiotics", "canopy", "simulate", "run"})
+    for (const char* cmd : {"terrain", "chm", "abiotics", "canopy", "simulate", "analyse", "inspect", "pcf", "synth",
+                            "compare", "validate", "run"})
         CHECK_THAT(h.output, Catch::Contains(cmd));
 }
 
 TEST_CASE("every command has --help", "[cli]") {
-    for (const char* cmd : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate", "run"}) {
+    for (const char* cmd : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate",
+                            "analyse", "inspect", "pcf", "synth", "compare", "validate", "run"}) {
         INFO(cmd);
         const auto r = runEco(std::string(cmd) + " --help");
         CHECK(r.exitCode == 0);
@@ -109,4 +111,50 @@ TEST_CASE("eco abiotics --canopy shades the sun under the crowns, and the analys
     CHECK(bad.exitCode != 0);
     CHECK_THAT(bad.output, Catch::Contains(c) && Catch::Contains("terrain"));
     CHECK_FALSE(std::filesystem::exists(dir.file("x.h5")));
+}
+
+TEST_CASE("eco run: the whole pipeline on a small scene, with --out-dir, writes the scene and the report", "[cli][run]") {
+    eco::test::TempDir dir("run");
+    const std::string cfg = dir.file("pipeline.toml");
+    {
+        std::ofstream f(cfg);
+        f << "[run]\nout_dir = \"" << dir.file("unused") << "\"\nseed = 4\n"
+          << "[terrain]\nwidth = 112\nheight = 96\ncell_size_m = 0.914\n"
+          << "[chm]\n[abiotics]\nsun_step_minutes = 60\n"
+          << "[canopy]\n"
+          << "[simulate]\nconfig = \"" << eco::test::sourcePath("configs/sim-default.toml") << "\"\nyears = 4\n"
+          << "crop = [10.0, 10.0, 70.0, 70.0]\n"
+          << "[analyse]\nkmax = 3\n"
+          << "[synth]\ntarget_seed = 9\nwidth = 96\nheight = 96\n";
+    }
+    const std::string out = dir.file("out");
+    const auto r = runEco("run " + cfg + " --out-dir " + out);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_FALSE(std::filesystem::exists(dir.file("unused")));
+    for (const char* file : {"terrain.h5", "chm.h5", "abiotics.h5", "canopy.h5", "simulation.h5", "biome-db.h5",
+                             "target/terrain.h5", "target/canopy.h5", "scene.h5", "scene.csv", "scene.pdb",
+                             "compare.md", "report.md", "png/synth/scene.png"}) {
+        INFO(file);
+        CHECK(std::filesystem::exists(out + "/" + file));
+    }
+    std::ifstream in(out + "/report.md");
+    const std::string report((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CHECK_THAT(report, Catch::Contains("| synth |") && Catch::Contains("## Synthesized against the database") &&
+                           Catch::Contains("png/synth/scene.png"));
+    CHECK_THAT(r.output, Catch::Contains("report.md"));
+}
+
+TEST_CASE("eco run: a stage without what it needs is a clear error before anything runs", "[cli][run]") {
+    eco::test::TempDir dir("run_bad");
+    const std::string cfg = dir.file("bad.toml");
+    {
+        std::ofstream f(cfg);
+        f << "[run]\nout_dir = \"" << dir.file("out") << "\"\n[terrain]\n[chm]\n[abiotics]\n[canopy]\n"
+          << "[synth]\ntarget_seed = 2\n";
+    }
+    const auto r = runEco("run " + cfg);
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("bad.toml") && Catch::Contains("[synth]") && Catch::Contains("analyse"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("out/terrain.h5")));
 }
