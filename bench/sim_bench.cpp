@@ -74,8 +74,35 @@ struct Timing {
     std::size_t peakPlants = 0;
     std::size_t bytesPerPlant = 0, bytesPerCell = 0;
     double setupSeconds = 0;
-    std::vector<std::uint64_t> checksum;
+    SimPhaseSeconds phases;
+    std::uint64_t stateHash = 0;  // of the final plants: equal hashes = the same results (optimisations must keep it)
 };
+
+std::string phaseLine(const Timing& t) {
+    const SimPhaseSeconds& p = t.phases;
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "footprints %.2f s, ordering %.2f s, sweep %.2f s, plants %.2f s, competition %.2f s, compaction %.2f s, "
+                  "germination %.2f s",
+                  p.footprints, p.ordering, p.sweep, p.plants, p.competition, p.compaction, p.germination);
+    return line;
+}
+
+// FNV-1a over the bytes of every final plant's fields.
+std::uint64_t hashPlants(const std::vector<UndergrowthPlant>& plants) {
+    std::uint64_t h = 1469598103934665603ull;
+    auto add = [&](const auto& v) {
+        const auto* b = reinterpret_cast<const unsigned char*>(&v);
+        for (std::size_t i = 0; i < sizeof v; ++i) h = (h ^ b[i]) * 1099511628211ull;
+    };
+    for (const UndergrowthPlant& u : plants) {
+        add(u.id);
+        add(u.speciesId);
+        for (double v : {u.xM, u.yM, u.heightM, u.crownRadiusM, u.growthAgeYears, u.vigour, u.pool, u.sunShare, u.waterShare})
+            add(v);
+    }
+    return h;
+}
 
 Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads, const SimParams& params) {
     omp_set_num_threads(threads);
@@ -97,6 +124,8 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
     t.plants = sim.plantCount();
     t.bytesPerPlant = sim.bytesPerPlant();
     t.bytesPerCell = sim.bytesPerCell();
+    t.stateHash = hashPlants(sim.plants());
+    t.phases = sim.phaseSeconds();
     return t;
 }
 
@@ -158,9 +187,10 @@ int main(int argc, char** argv) {
         char line[512];
         std::snprintf(line, sizeof line,
                       "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
-                      "final %zu plants\n",
+                      "final %zu plants; state hash %016llx (1 thread) %016llx (2 threads)\n",
                       haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, static_cast<long long>(t1.plantMonths),
-                      t1.peakPlants, t1.plants);
+                      t1.peakPlants, t1.plants, static_cast<unsigned long long>(t1.stateHash),
+                      static_cast<unsigned long long>(t2.stateHash));
         rep << line;
         std::snprintf(line, sizeof line, "plant-months per second per core: %.2f M (1 thread), %.2f M per core (2 threads)\n",
                       t1.plantMonths / t1.seconds / 1e6, t2.plantMonths / t2.seconds / 2e6);
@@ -175,6 +205,7 @@ int main(int argc, char** argv) {
                       static_cast<double>(t1.plantCellMonths) / t1.plantMonths, t1.plantCellMonths / t1.seconds / 1e6,
                       t1.plantCellMonths / t1.cpuSeconds / 1e6);
         rep << line;
+        rep << "phases, 1 thread: " << phaseLine(t1) << "\nphases, 2 threads: " << phaseLine(t2) << "\n";
         std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
                       t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
         rep << line;
@@ -203,8 +234,9 @@ int main(int argc, char** argv) {
                       kmYears, maxThreads, tk.setupSeconds, tk.seconds, tk.seconds / kmYears, tk.cpuSeconds,
                       static_cast<long long>(tk.plantMonths), tk.plantMonths / tk.seconds / maxThreads / 1e6,
                       tk.plantMonths / tk.cpuSeconds / 1e6, tk.peakPlants, tk.plants);
-        rep << line;
+        rep << line << "phases: " << phaseLine(tk) << "\n";
         std::fputs(line, stdout);
+        std::printf("phases: %s\n", phaseLine(tk).c_str());
         std::ofstream out(outPath);
         if (out) out << rep.str();
         else std::fprintf(stderr, "cannot write %s\n", outPath.c_str());

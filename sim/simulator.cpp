@@ -29,20 +29,29 @@ std::size_t kParallelCells = 200000;
 // parallel only for this many times more plants.
 constexpr std::size_t kParallelSortFactor = 16;
 
-// Working state of one simulation cell; 12 bytes. The occupant count lives in a dense array
-// of its own (Impl::occupants): the count pass touches nothing else, 2 bytes per cell.
+// Working state of one simulation cell; 16 bytes, four to a cache line. The occupant count
+// lives in a dense array of its own (Impl::occupants): the count pass touches nothing else,
+// 2 bytes per cell.
 struct CellState {
     float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
     float transmission = 1.f;        // running product over the undergrowth painted so far this month
     std::uint16_t painted = 0;       // occupants painted so far this month (height rank of the next)
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
+    std::uint32_t coarse = 0;        // abiotics cell containing the cell centre (index into the monthly planes)
+};
+static_assert(sizeof(CellState) == 16, "four cells per cache line");
+
+// A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 when
+// no cell centre of that row lies within the crown.
+struct Span {
+    std::uint32_t start;
+    std::uint32_t len;
 };
 
 // One plant in one band's list: everything the sweep needs, read sequentially.
-constexpr std::uint32_t kManyCells = 0xFFFFFFFFu;
 struct BandEntry {
-    std::uint32_t plant;
-    std::uint32_t cell;  // the only cell of a one-cell plant, else kManyCells
+    std::uint32_t span;  // the plant's footprint span of its first row in the band
+    std::uint32_t rows;  // its rows in the band (consecutive spans)
     std::uint32_t slot;  // partial-sum slot of (plant, band)
     float keep;          // 1 - alpha of the plant's species
 };
@@ -139,13 +148,25 @@ struct Simulation::Impl {
 
     // ---- plants and per-month scratch
     PlantStore pl;
-    std::vector<std::int32_t> rowLo, rowHi, bandLo;
+    // Per plant, this month: footprint rows, first partial-sum slot and first footprint span,
+    // 1 - alpha; packed so that the band lists, which visit the plants in height order (at
+    // random), read one cache line per plant.
+    struct PlantBounds {
+        std::int32_t rowLo, rowHi;
+        std::uint32_t slot, span;
+        float keep;
+    };
+    std::vector<PlantBounds> bounds;
     std::vector<std::uint32_t> slotStart;
     std::vector<double> partSun, partWater;
     std::vector<std::int32_t> partCells;
     std::vector<std::uint32_t> bandStart;
     std::vector<BandEntry> bandEntries;
-    std::vector<std::uint32_t> singleCell;  // per plant: its only cell, or kManyCells
+    // Footprints of this month: plant p covers the spans [spanStart[p], spanStart[p + 1]), one
+    // per row from bounds[p].rowLo to bounds[p].rowHi. Computed once per month in plant order (computeBounds)
+    // and read by the count and paint passes, which visit the plants in height order.
+    std::vector<std::uint32_t> spanStart;
+    std::vector<Span> footprint;
     std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy, 3 dominated
     // Deussen competition scratch: abilities and the plant lists of the pair-finding bins.
     std::vector<double> ability;
@@ -161,11 +182,11 @@ struct Simulation::Impl {
     std::vector<std::uint8_t> dominated;
     // Plant indices, tallest first (see sortOrder).
     std::vector<std::uint32_t> order, orderB, keyA, keyB, fillPos;
-    std::vector<std::int32_t> bandHi;
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
     SimCounters counters;
+    SimPhaseSeconds phaseSeconds;
     std::size_t droppedInitial = 0;
     mutable std::uint64_t fingerprintCache = 0;
     mutable bool fingerprintReady = false;
@@ -298,6 +319,10 @@ struct Simulation::Impl {
                                   static_cast<std::size_t>(g.width());
         const std::size_t n = static_cast<std::size_t>(W) * static_cast<std::size_t>(H);
         cells.assign(n, CellState{});
+        for (int iy = 0; iy < H; ++iy)
+            for (int ix = 0; ix < W; ++ix)
+                cells[static_cast<std::size_t>(iy) * W + ix].coarse =
+                    static_cast<std::uint32_t>(coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]));
         seedPkg.assign(n, 0);
         occupants.assign(n, 0);
         deficit.assign(n * periodMonthMask.size() * 2, 0.f);
@@ -479,41 +504,45 @@ struct Simulation::Impl {
     }
 
     // ------------------------------------------------------------------ the monthly sweep
-    // Footprint rows, bands and partial-sum slots of every plant.
+    // Footprint rows and spans, bands and partial-sum slots of every plant.
     void computeBounds() {
         const std::size_t n = pl.size();
-        rowLo.resize(n);
-        rowHi.resize(n);
-        bandLo.resize(n);
-        bandHi.resize(n);
-        singleCell.resize(n);
+        bounds.resize(n);
         slotStart.resize(n + 1);
+        spanStart.resize(n + 1);
 #pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
         for (std::size_t p = 0; p < n; ++p) {
-            if (pl.radius[p] < 0.5 * cell) {
-                // No other cell centre is closer than half a cell to a point inside its own
-                // cell: the footprint is the root cell (most plants, most months).
-                rowLo[p] = rowHi[p] = pl.rootIy[p];
-                bandLo[p] = bandHi[p] = pl.rootIy[p] / kBandRows;
-                singleCell[p] = static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]);
-                continue;
-            }
-            int lo, hi;
-            rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
-            rowLo[p] = lo;
-            rowHi[p] = hi;
-            bandLo[p] = lo / kBandRows;
-            bandHi[p] = hi / kBandRows;
-            std::uint32_t only = kManyCells;
-            if (lo == hi)
-                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, lo + 1, [&](int iy, int a, int z) {
-                    if (a == z) only = static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a);
-                });
-            singleCell[p] = only;
+            int lo = pl.rootIy[p], hi = lo;
+            // No other cell centre is closer than half a cell to a point inside its own cell:
+            // below that radius the footprint is the root cell (most plants, most months).
+            if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+            bounds[p].rowLo = lo;
+            bounds[p].rowHi = hi;
+            bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
         }
         slotStart[0] = 0;
-        for (std::size_t p = 0; p < n; ++p)
-            slotStart[p + 1] = slotStart[p] + static_cast<std::uint32_t>(bandHi[p] - bandLo[p] + 1);
+        spanStart[0] = 0;
+        for (std::size_t p = 0; p < n; ++p) {
+            PlantBounds& pb = bounds[p];
+            pb.slot = slotStart[p];
+            pb.span = spanStart[p];
+            slotStart[p + 1] = slotStart[p] + static_cast<std::uint32_t>(pb.rowHi / kBandRows - pb.rowLo / kBandRows + 1);
+            spanStart[p + 1] = spanStart[p] + static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
+        }
+        footprint.resize(spanStart[n]);
+#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
+        for (std::size_t p = 0; p < n; ++p) {
+            Span* sp = footprint.data() + spanStart[p];
+            if (pl.radius[p] < 0.5 * cell) {
+                sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                continue;
+            }
+            const int lo = bounds[p].rowLo, hi = bounds[p].rowHi;
+            for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
+            forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
+                sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a), static_cast<std::uint32_t>(z - a + 1)};
+            });
+        }
     }
 
     // Chunks of the parallel counting scatters: fixed size (never derived from the thread
@@ -598,7 +627,7 @@ struct Simulation::Impl {
             std::uint32_t* h = &chunkCounts[c * nb];
             for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
                 const std::uint32_t p = plantAt(i);
-                for (int b = bandLo[p]; b <= bandHi[p]; ++b) ++h[b];
+                for (int b = bounds[p].rowLo / kBandRows, z = bounds[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
             }
         }
         bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
@@ -618,60 +647,79 @@ struct Simulation::Impl {
             std::uint32_t* pos = &chunkCounts[c * nb];
             for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
                 const std::uint32_t p = plantAt(i);
-                const int lo = bandLo[p], hi = bandHi[p];
-                const float keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
-                for (int b = lo; b <= hi; ++b)
-                    bandEntries[pos[b]++] = BandEntry{p, singleCell[p], slotStart[p] + static_cast<std::uint32_t>(b - lo), keep};
+                const PlantBounds pb = bounds[p];
+                const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
+                for (int b = lo; b <= hi; ++b) {
+                    // Rows of the plant within band b.
+                    const int first = std::max(pb.rowLo, b * kBandRows), last = std::min(pb.rowHi, (b + 1) * kBandRows - 1);
+                    bandEntries[pos[b]++] = BandEntry{pb.span + static_cast<std::uint32_t>(first - pb.rowLo),
+                                                      static_cast<std::uint32_t>(last - first + 1),
+                                                      pb.slot + static_cast<std::uint32_t>(b - lo), pb.keep};
+                }
             }
         }
     }
 
-    template <typename F>
-    void forEachPlantSpan(std::uint32_t p, int r0, int r1, F&& fn) const {
-        forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], std::max(r0, rowLo[p]),
-                    std::min(r1, rowHi[p] + 1), fn);
-    }
-
-    // Count pass and paint pass of one band. The band's rows belong to this call only.
+    // One band: count pass, paint pass, finish pass. The band's rows belong to this call only.
+    //  * count: occupants per cell;
+    //  * paint: the entries in height order, each taking its shares of the cells it covers;
+    //  * finish: the band's cells in address order: the leftovers of this month go to the
+    //    germination deficit (growth-period months) and the cells are reset for the next month.
     void sweepBand(int b, int m) {
         const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+        const std::size_t c0 = static_cast<std::size_t>(r0) * W, c1 = static_cast<std::size_t>(r1) * W;
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
-        for (const BandEntry* e = e0; e != e1; ++e) {
-            if (e->cell != kManyCells) {
-                ++occupants[e->cell];
-                continue;
+        // The paint pass reads the band's cells in height order, i.e. at random: ask for them
+        // in address order now, so that they arrive while the count pass runs.
+        for (std::size_t c = c0; c < c1; c += 64 / sizeof(CellState)) __builtin_prefetch(&cells[c], 1, 2);
+        const Span* fp = footprint.data();
+        for (const BandEntry* e = e0; e != e1; ++e)
+            for (const Span* sp = fp + e->span, *se = sp + e->rows; sp != se; ++sp) {
+                std::uint16_t* row = &occupants[sp->start];
+                for (std::uint32_t i = 0; i < sp->len; ++i) ++row[i];
             }
-            forEachPlantSpan(e->plant, r0, r1, [&](int iy, int a, int z) {
-                std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
-                for (int ix = a; ix <= z; ++ix) ++row[ix];
-            });
-        }
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
-        const std::vector<int>& periods = periodsOfMonth[m];
         // Deussen mode: plants see the unshared (canopy-shaded, after canopy water) resources;
         // the leftovers for germination are the same as in the resources mode.
         const bool unshared = params.competition == CompetitionMode::Deussen;
-        // Share of one occupant in cell (ix, iy); the last occupant leaves the leftover to
-        // germination and resets the cell for the next month.
-        auto paint = [&](int ix, int iy, float keep, double& sunSum, double& waterSum) {
-            const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
+        // Share of the next occupant (height rank cs.painted) of cell c.
+        auto paint = [&](std::size_t c, float keep, double& sunSum, double& waterSum) {
             CellState& cs = cells[c];
-            const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
-            const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cc];
-            const double avail = waterAfterCanopyMm(moistPlane[cc], cs.canopyTrees, demand);
-            const int k = cs.painted, n = occupants[c];
+            const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
+            const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
+            const int k = cs.painted;
             if (unshared) {
                 sunSum += base;
                 waterSum += avail;
             } else {
                 sunSum += base * cs.transmission;
-                waterSum += waterShareMm(avail, k, n, demand);
+                waterSum += waterShareMm(avail, k, occupants[c], demand);
             }
             cs.transmission *= keep;
-            if (k + 1 == n) {
+            cs.painted = static_cast<std::uint16_t>(k + 1);
+        };
+        for (const BandEntry* e = e0; e != e1; ++e) {
+            double sunSum = 0, waterSum = 0;
+            std::int32_t count = 0;
+            for (const Span* sp = fp + e->span, *se = sp + e->rows; sp != se; ++sp) {
+                for (std::size_t c = sp->start, z = c + sp->len; c < z; ++c) paint(c, e->keep, sunSum, waterSum);
+                count += static_cast<std::int32_t>(sp->len);
+            }
+            partSun[e->slot] = sunSum;
+            partWater[e->slot] = waterSum;
+            partCells[e->slot] = count;
+        }
+        const std::vector<int>& periods = periodsOfMonth[m];
+        for (std::size_t c = c0; c < c1; ++c) {
+            const int n = occupants[c];
+            if (n == 0) continue;
+            CellState& cs = cells[c];
+            if (!periods.empty()) {
+                const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
+                const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
                 const double sunLeft = base * cs.transmission;
                 const double waterLeft = waterLeftoverMm(avail, n, demand);
                 const float usedSun = static_cast<float>(base - sunLeft), usedWater = static_cast<float>(avail - waterLeft);
@@ -680,29 +728,10 @@ struct Simulation::Impl {
                     d[0] += usedSun;
                     d[1] += usedWater;
                 }
-                cs.transmission = 1.f;
-                cs.painted = 0;
-                occupants[c] = 0;
-            } else {
-                cs.painted = static_cast<std::uint16_t>(k + 1);
             }
-        };
-        for (const BandEntry* e = e0; e != e1; ++e) {
-            double sunSum = 0, waterSum = 0;
-            std::int32_t count = 0;
-            if (e->cell != kManyCells) {
-                paint(static_cast<int>(e->cell % static_cast<std::uint32_t>(W)), static_cast<int>(e->cell / static_cast<std::uint32_t>(W)),
-                      e->keep, sunSum, waterSum);
-                count = 1;
-            } else {
-                forEachPlantSpan(e->plant, r0, r1, [&](int iy, int a, int z) {
-                    for (int ix = a; ix <= z; ++ix) paint(ix, iy, e->keep, sunSum, waterSum);
-                    count += z - a + 1;
-                });
-            }
-            partSun[e->slot] = sunSum;
-            partWater[e->slot] = waterSum;
-            partCells[e->slot] = count;
+            cs.transmission = 1.f;
+            cs.painted = 0;
+            occupants[c] = 0;
         }
     }
 
@@ -856,22 +885,39 @@ struct Simulation::Impl {
     void stepMonth() {
         const int m = static_cast<int>(month % 12);
         const std::size_t n = pl.size();
+        double t = omp_get_wtime();
+        auto lap = [&t](double& phase) {
+            const double now = omp_get_wtime();
+            phase += now - t;
+            t = now;
+        };
         if (n > 0) {
             computeBounds();
+            lap(phaseSeconds.footprints);
             buildBands(true);
+            lap(phaseSeconds.ordering);
             const std::size_t slots = slotStart[n];
             partSun.resize(slots);
             partWater.resize(slots);
             partCells.resize(slots);
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
+            lap(phaseSeconds.sweep);
             updatePlants(m);
-            if (params.competition == CompetitionMode::Deussen) compete();
+            lap(phaseSeconds.plants);
+            if (params.competition == CompetitionMode::Deussen) {
+                compete();
+                lap(phaseSeconds.competition);
+            }
             compact();
+            lap(phaseSeconds.compaction);
         }
         windowMask |= 1u << m;
         counters.plantMonths += static_cast<std::int64_t>(n);
-        if (m == params.seedingMonth) germinate(static_cast<std::uint64_t>(month / 12));
+        if (m == params.seedingMonth) {
+            germinate(static_cast<std::uint64_t>(month / 12));
+            lap(phaseSeconds.germination);
+        }
         ++month;
     }
 
@@ -929,15 +975,15 @@ struct Simulation::Impl {
         computeBounds();
         buildBands(false);
 #pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
-        for (int b = 0; b < bands(); ++b) {
-            const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
-            for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e)
-                forEachPlantSpan(bandEntries[e].plant, r0, r1, [&](int iy, int a, int z) {
-                    std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
-                    for (int ix = a; ix <= z; ++ix)
-                        if (row[ix] < 65535) ++row[ix];
-                });
-        }
+        for (int b = 0; b < bands(); ++b)
+            for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e) {
+                const BandEntry& be = bandEntries[e];
+                for (const Span *sp = footprint.data() + be.span, *se = sp + be.rows; sp != se; ++sp) {
+                    std::uint16_t* row = &occupants[sp->start];
+                    for (std::uint32_t i = 0; i < sp->len; ++i)
+                        if (row[i] < 65535) ++row[i];
+                }
+            }
     }
 
     struct Candidate {
@@ -1094,6 +1140,7 @@ YearRecord Simulation::census() const {
 }
 
 const SimCounters& Simulation::counters() const { return impl_->counters; }
+const SimPhaseSeconds& Simulation::phaseSeconds() const { return impl_->phaseSeconds; }
 std::size_t Simulation::droppedInitialPlants() const { return impl_->droppedInitial; }
 const SimParams& Simulation::params() const { return impl_->params; }
 const Biome& Simulation::biome() const { return impl_->biome; }
@@ -1265,11 +1312,15 @@ std::size_t Simulation::bytesPerCell() const {
 }
 
 std::size_t Simulation::bytesPerPlant() const {
-    // State arrays plus the per-month scratch (bounds, slot, about 1.1 band slots of partials
-    // and band entries, fate).
-    return impl_->pl.bytesPerPlant() + 3 * sizeof(std::int32_t) + sizeof(std::uint32_t) +
+    // State arrays plus the per-month scratch (row and band bounds, slot and span starts, about
+    // 1.1 band slots of partials and band entries, the footprint spans of this month's plants,
+    // order and radix scratch, fate).
+    const Impl& s = *impl_;
+    const double spansPerPlant =
+        s.pl.size() > 0 && s.spanStart.size() == s.pl.size() + 1 ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
+    return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + 2 * sizeof(std::uint32_t) +
            static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
-           4 * sizeof(std::uint32_t) /*order, radix scratch*/ + sizeof(std::uint32_t) /*single cell*/ + 1;
+           static_cast<std::size_t>(spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
 }
 
 }  // namespace eco::sim

@@ -76,6 +76,18 @@ struct SimCounters {
     std::int64_t diedDominated = 0;  ///< Deussen competition mode: dominated plants that died
 };
 
+/// Wall-clock seconds spent in each phase of the monthly step since construction (for
+/// benchmarks and tuning; not part of the state, not saved in checkpoints).
+struct SimPhaseSeconds {
+    double footprints = 0;  ///< rows, bands and row spans of every plant's crown
+    double ordering = 0;    ///< height order and band lists
+    double sweep = 0;       ///< resource sweep: occupancy count, shares, leftovers
+    double plants = 0;      ///< vigour, pool, growth, mortality
+    double competition = 0; ///< Deussen mode: pairwise domination
+    double compaction = 0;  ///< removal of the dead
+    double germination = 0; ///< yearly seeding
+};
+
 /// Loops over fewer plants (cells) than these run on one thread, because a fork and join
 /// costs more than the work. Results never depend on it; tests pass 0 to exercise the
 /// parallel paths on small scenes. Not thread-safe: call before running simulations.
@@ -106,6 +118,7 @@ public:
     /// Census of the current state, recorded as year yearsDone().
     YearRecord census() const;
     const SimCounters& counters() const;
+    const SimPhaseSeconds& phaseSeconds() const;
     std::size_t droppedInitialPlants() const;
 
     const SimParams& params() const;
