@@ -3,7 +3,7 @@
 // for a shorter span. Writes its figures to stdout and to bench/results/sim_bench.txt (or
 // --out FILE).
 //
-//   bench_sim [--quick] [--hectare-only] [--years N] [--growth-rule ideal|literal]
+//   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--growth-rule ideal|literal]
 //             [--competition resources|deussen] [--out FILE]
 //   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
 //       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
@@ -135,6 +135,8 @@ int main(int argc, char** argv) {
     std::string outPath = "bench/results/sim_bench.txt", sceneDir;
     bool quick = false, hectareOnly = false;
     int hectareYears = 0;  // 0 = 150 (30 with --quick)
+    int km2Years = 0;      // 0 = 10 (3 with --quick)
+    bool km2Only = false;
     SimParams params;
     int cells = 256;
     double cellSize = 0.914;
@@ -150,6 +152,8 @@ int main(int argc, char** argv) {
         };
         if (a == "--quick") quick = true;
         else if (a == "--hectare-only") hectareOnly = true;
+        else if (a == "--km2-only") km2Only = true;
+        else if (a == "--km2-years") km2Years = std::atoi(next().c_str());
         else if (a == "--out") outPath = next();
         else if (a == "--make-scene") sceneDir = next();
         else if (a == "--cells") cells = std::atoi(next().c_str());
@@ -172,45 +176,48 @@ int main(int argc, char** argv) {
         std::ostringstream rep;
         rep << "# bench_sim: undergrowth simulator (sim/), " << maxThreads << " hardware threads available; growth_rule "
             << growthRuleName(params.growthRule) << ", competition " << competitionModeName(params.competition) << "\n";
-        // 1 ha scene: 100 m x 100 m of a 128 x 128 terrain at 0.914 m (117 m).
         const Biome biome = defaultBiome();
-        DemoSceneParams sp;
-        sp.cells = 128;
-        sp.seed = 3;
-        double t0 = now();
-        const SimInputs hectare = makeDemoScene(sp, biome);
-        rep << "1 ha scene: " << hectare.canopy.size() << " canopy trees on 117 m x 117 m, built in " << now() - t0 << " s\n";
-        const SimArea ha{5, 5, 105, 105};
-        const int haYears = hectareYears > 0 ? hectareYears : quick ? 30 : 150;
-        Timing t1 = runScene(hectare, ha, haYears, 1, params);
-        Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2, params) : t1;
         char line[512];
-        std::snprintf(line, sizeof line,
-                      "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
-                      "final %zu plants; state hash %016llx (1 thread) %016llx (2 threads)\n",
-                      haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, static_cast<long long>(t1.plantMonths),
-                      t1.peakPlants, t1.plants, static_cast<unsigned long long>(t1.stateHash),
-                      static_cast<unsigned long long>(t2.stateHash));
-        rep << line;
-        std::snprintf(line, sizeof line, "plant-months per second per core: %.2f M (1 thread), %.2f M per core (2 threads)\n",
-                      t1.plantMonths / t1.seconds / 1e6, t2.plantMonths / t2.seconds / 2e6);
-        rep << line;
-        std::snprintf(line, sizeof line,
-                      "plant-months per CPU second (CPU time of all threads, including OpenMP spin-waiting): %.2f M (1 thread, %.1f CPU s), %.2f M (2 threads, %.1f CPU s)\n",
-                      t1.plantMonths / t1.cpuSeconds / 1e6, t1.cpuSeconds, t2.plantMonths / t2.cpuSeconds / 1e6, t2.cpuSeconds);
-        rep << line;
-        std::snprintf(line, sizeof line,
-                      "sweep work: %.2f cells per plant-month; %.2f M plant-cell-months per second per core (1 thread), "
-                      "%.2f M per CPU second\n",
-                      static_cast<double>(t1.plantCellMonths) / t1.plantMonths, t1.plantCellMonths / t1.seconds / 1e6,
-                      t1.plantCellMonths / t1.cpuSeconds / 1e6);
-        rep << line;
-        rep << "phases, 1 thread: " << phaseLine(t1) << "\nphases, 2 threads: " << phaseLine(t2) << "\n";
-        std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
-                      t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
-        rep << line;
-        std::fputs(rep.str().c_str(), stdout);
-        std::fflush(stdout);
+        double t0 = now();
+        if (!km2Only) {
+            // 1 ha scene: 100 m x 100 m of a 128 x 128 terrain at 0.914 m (117 m).
+            DemoSceneParams sp;
+            sp.cells = 128;
+            sp.seed = 3;
+            t0 = now();
+            const SimInputs hectare = makeDemoScene(sp, biome);
+            rep << "1 ha scene: " << hectare.canopy.size() << " canopy trees on 117 m x 117 m, built in " << now() - t0 << " s\n";
+            const SimArea ha{5, 5, 105, 105};
+            const int haYears = hectareYears > 0 ? hectareYears : quick ? 30 : 150;
+            Timing t1 = runScene(hectare, ha, haYears, 1, params);
+            Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2, params) : t1;
+            std::snprintf(line, sizeof line,
+                          "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
+                          "final %zu plants; state hash %016llx (1 thread) %016llx (2 threads)\n",
+                          haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, static_cast<long long>(t1.plantMonths),
+                          t1.peakPlants, t1.plants, static_cast<unsigned long long>(t1.stateHash),
+                          static_cast<unsigned long long>(t2.stateHash));
+            rep << line;
+            std::snprintf(line, sizeof line, "plant-months per second per core: %.2f M (1 thread), %.2f M per core (2 threads)\n",
+                          t1.plantMonths / t1.seconds / 1e6, t2.plantMonths / t2.seconds / 2e6);
+            rep << line;
+            std::snprintf(line, sizeof line,
+                          "plant-months per CPU second (CPU time of all threads, including OpenMP spin-waiting): %.2f M (1 thread, %.1f CPU s), %.2f M (2 threads, %.1f CPU s)\n",
+                          t1.plantMonths / t1.cpuSeconds / 1e6, t1.cpuSeconds, t2.plantMonths / t2.cpuSeconds / 1e6, t2.cpuSeconds);
+            rep << line;
+            std::snprintf(line, sizeof line,
+                          "sweep work: %.2f cells per plant-month; %.2f M plant-cell-months per second per core (1 thread), "
+                          "%.2f M per CPU second\n",
+                          static_cast<double>(t1.plantCellMonths) / t1.plantMonths, t1.plantCellMonths / t1.seconds / 1e6,
+                          t1.plantCellMonths / t1.cpuSeconds / 1e6);
+            rep << line;
+            rep << "phases, 1 thread: " << phaseLine(t1) << "\nphases, 2 threads: " << phaseLine(t2) << "\n";
+            std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
+                          t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
+            rep << line;
+            std::fputs(rep.str().c_str(), stdout);
+            std::fflush(stdout);
+        }
         if (hectareOnly) return 0;
 
         // 1 km2: 1000 m x 1000 m, abiotics at 2 m to keep the scene build short.
@@ -226,7 +233,7 @@ int main(int argc, char** argv) {
         rep << line;
         std::fputs(line, stdout);
         std::fflush(stdout);
-        const int kmYears = quick ? 3 : 10;
+        const int kmYears = km2Years > 0 ? km2Years : quick ? 3 : 10;
         Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads, params);
         std::snprintf(line, sizeof line,
                       "1 km2 x %d years on %d threads: setup %.1f s, run %.1f s wall (%.1f s per year), %.1f CPU s; %lld "

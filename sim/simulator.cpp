@@ -180,8 +180,8 @@ struct Simulation::Impl {
     std::vector<std::uint32_t> binStart, binFill;
     std::vector<BinEntry> binEntries;
     std::vector<std::uint8_t> dominated;
-    // Plant indices, tallest first (see sortOrder).
-    std::vector<std::uint32_t> order, orderB, keyA, keyB, fillPos;
+    // Height keys of the band entries, for the band sorts.
+    std::vector<std::uint32_t> bandKeys;
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
@@ -550,85 +550,88 @@ struct Simulation::Impl {
     static constexpr std::size_t kChunk = 32768;
     std::vector<std::uint32_t> chunkCounts;
 
-    // Height order of all plants, tallest first; ties (equal float heights) by plant index,
-    // which is id order because plants are appended with increasing ids and compaction is
-    // stable. LSD radix sort on the float height (3 passes of 11 bits): O(n) every month,
-    // each pass a stable counting scatter, parallel over fixed chunks.
-    void sortOrder() {
-        const std::size_t n = pl.size();
-        keyA.resize(n);
-        keyB.resize(n);
-        order.resize(n);
-        orderB.resize(n);
-        const bool parallel = n > kParallelSortFactor * kParallelPlants;
-#pragma omp parallel for schedule(static) if (parallel)
-        for (std::size_t p = 0; p < n; ++p) {
-            const float h = static_cast<float>(pl.height[p]);  // heights are >= 0
-            std::uint32_t bits;
-            std::memcpy(&bits, &h, sizeof bits);
-            keyA[p] = ~bits;  // descending
-            order[p] = static_cast<std::uint32_t>(p);
-        }
-        std::uint32_t* keyIn = keyA.data();
-        std::uint32_t* keyOut = keyB.data();
-        std::uint32_t* idxIn = order.data();
-        std::uint32_t* idxOut = orderB.data();
-        constexpr int kDigits = 2048;
-        const std::size_t chunks = (n + kChunk - 1) / kChunk;
-        chunkCounts.resize(chunks * kDigits);
-        for (int shift = 0; shift < 32; shift += 11) {
-            std::fill(chunkCounts.begin(), chunkCounts.end(), 0u);
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-            for (std::size_t c = 0; c < chunks; ++c) {
-                std::uint32_t* h = &chunkCounts[c * kDigits];
-                for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) ++h[(keyIn[i] >> shift) & 2047u];
-            }
-            // Prefix in (digit, chunk) order; skip a pass that would not move anything.
-            std::uint32_t run = 0;
-            bool single = false;
-            for (int d = 0; d < kDigits; ++d) {
-                std::uint32_t total = 0;
-                for (std::size_t c = 0; c < chunks; ++c) {
-                    const std::uint32_t k = chunkCounts[c * kDigits + d];
-                    chunkCounts[c * kDigits + d] = run;
-                    run += k;
-                    total += k;
-                }
-                if (total == n) single = true;
-            }
-            if (single) continue;
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-            for (std::size_t c = 0; c < chunks; ++c) {
-                std::uint32_t* pos = &chunkCounts[c * kDigits];
-                for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
-                    const std::uint32_t at = pos[(keyIn[i] >> shift) & 2047u]++;
-                    keyOut[at] = keyIn[i];
-                    idxOut[at] = idxIn[i];
-                }
-            }
-            std::swap(keyIn, keyOut);
-            std::swap(idxIn, idxOut);
-        }
-        if (idxIn != order.data()) std::copy(idxIn, idxIn + n, order.begin());
+    // Sort key of a plant: descending height as an unsigned integer (heights are >= 0, so
+    // the bits of the float order like the values).
+    std::uint32_t heightKey(std::size_t p) const {
+        const float h = static_cast<float>(pl.height[p]);
+        std::uint32_t bits;
+        std::memcpy(&bits, &h, sizeof bits);
+        return ~bits;
     }
 
-    // Band lists: the plants overlapping each band; in height order when `sorted`. A stable
-    // counting scatter of the (plant, band) pairs by band, parallel over fixed chunks.
+    // Per-thread scratch of the band sorts (reused: no allocation in the steady state).
+    struct SortScratch {
+        std::vector<std::uint32_t> keys;
+        std::vector<BandEntry> entries;
+    };
+    std::vector<SortScratch> sortScratch;
+
+    // Stable sort of one band's entries by key (LSD radix, 8-bit digits; a pass in which every
+    // key has the same digit is skipped; short lists by insertion). Stable, so entries of
+    // equal key keep their order, which is plant-index order.
+    static void sortBand(std::uint32_t* keys, BandEntry* entries, std::size_t n, SortScratch& scr) {
+        if (n < 2) return;
+        if (n <= 32) {
+            for (std::size_t i = 1; i < n; ++i) {
+                const std::uint32_t k = keys[i];
+                const BandEntry e = entries[i];
+                std::size_t j = i;
+                for (; j > 0 && keys[j - 1] > k; --j) {
+                    keys[j] = keys[j - 1];
+                    entries[j] = entries[j - 1];
+                }
+                keys[j] = k;
+                entries[j] = e;
+            }
+            return;
+        }
+        scr.keys.resize(n);
+        scr.entries.resize(n);
+        std::uint32_t* kIn = keys;
+        BandEntry* eIn = entries;
+        std::uint32_t* kOut = scr.keys.data();
+        BandEntry* eOut = scr.entries.data();
+        for (int shift = 0; shift < 32; shift += 8) {
+            std::uint32_t count[256] = {};
+            for (std::size_t i = 0; i < n; ++i) ++count[(kIn[i] >> shift) & 255u];
+            if (count[(kIn[0] >> shift) & 255u] == n) continue;
+            std::uint32_t run = 0;
+            for (std::uint32_t& c : count) {
+                const std::uint32_t k = c;
+                c = run;
+                run += k;
+            }
+            for (std::size_t i = 0; i < n; ++i) {
+                const std::uint32_t at = count[(kIn[i] >> shift) & 255u]++;
+                kOut[at] = kIn[i];
+                eOut[at] = eIn[i];
+            }
+            std::swap(kIn, kOut);
+            std::swap(eIn, eOut);
+        }
+        if (eIn != entries) {
+            std::copy(eIn, eIn + n, entries);
+            std::copy(kIn, kIn + n, keys);
+        }
+    }
+
+    // Band lists: the plants overlapping each band; in height order (tallest first, ties by
+    // plant index, which is id order because plants are appended with increasing ids and
+    // compaction is stable) when `sorted`. A stable counting scatter of the (plant, band)
+    // pairs by band in plant order, parallel over fixed chunks (sequential reads of the
+    // plant arrays), then an independent sort of each band's list, parallel over bands,
+    // in the cache: O(n) every month, and no random access to the plants.
     void buildBands(bool sorted) {
         const int nb = bands();
         const std::size_t n = pl.size();
-        if (sorted) sortOrder();
         const bool parallel = n > kParallelSortFactor * kParallelPlants;
         const std::size_t chunks = (n + kChunk - 1) / kChunk;
         chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
-        auto plantAt = [&](std::size_t i) { return sorted ? order[i] : static_cast<std::uint32_t>(i); };
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* h = &chunkCounts[c * nb];
-            for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
-                const std::uint32_t p = plantAt(i);
+            for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p)
                 for (int b = bounds[p].rowLo / kBandRows, z = bounds[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
-            }
         }
         bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
         std::uint32_t run = 0;
@@ -642,22 +645,31 @@ struct Simulation::Impl {
         }
         bandStart[nb] = run;
         bandEntries.resize(run);
+        if (sorted) bandKeys.resize(run);
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* pos = &chunkCounts[c * nb];
-            for (std::size_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
-                const std::uint32_t p = plantAt(i);
+            for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p) {
                 const PlantBounds pb = bounds[p];
                 const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
+                const std::uint32_t key = sorted ? heightKey(p) : 0;
                 for (int b = lo; b <= hi; ++b) {
                     // Rows of the plant within band b.
                     const int first = std::max(pb.rowLo, b * kBandRows), last = std::min(pb.rowHi, (b + 1) * kBandRows - 1);
-                    bandEntries[pos[b]++] = BandEntry{pb.span + static_cast<std::uint32_t>(first - pb.rowLo),
-                                                      static_cast<std::uint32_t>(last - first + 1),
-                                                      pb.slot + static_cast<std::uint32_t>(b - lo), pb.keep};
+                    const std::uint32_t at = pos[b]++;
+                    bandEntries[at] = BandEntry{pb.span + static_cast<std::uint32_t>(first - pb.rowLo),
+                                                static_cast<std::uint32_t>(last - first + 1),
+                                                pb.slot + static_cast<std::uint32_t>(b - lo), pb.keep};
+                    if (sorted) bandKeys[at] = key;
                 }
             }
         }
+        if (!sorted) return;
+        sortScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
+#pragma omp parallel for schedule(dynamic, 1) if (run > kParallelPlants)
+        for (int b = 0; b < nb; ++b)
+            sortBand(bandKeys.data() + bandStart[b], bandEntries.data() + bandStart[b], bandStart[b + 1] - bandStart[b],
+                     sortScratch[static_cast<std::size_t>(omp_get_thread_num())]);
     }
 
     // One band: count pass, paint pass, finish pass. The band's rows belong to this call only.
@@ -966,7 +978,7 @@ struct Simulation::Impl {
             }
             if (!okG[g]) continue;
             const double vbar = vigour(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
-            w[s] = rouletteWeight(vbar, sc.maxAgeYears, params.rouletteAgeExponent);
+            w[s] = std::max(0.0, vbar / sc.rouletteDenominator);  // rouletteWeight with maxAge^beta precomputed
         }
     }
 
