@@ -86,6 +86,9 @@ struct PlantStore {
         f(id); f(species); f(x); f(y); f(groundZ); f(height); f(radius); f(growthAge); f(pool);
         f(ageMonths); f(rootIx); f(rootIy); f(coarse); f(vigour); f(sun); f(water); f(canopyLimit);
     }
+    void resize(std::size_t n) {
+        forEachArray([n](auto& v) { v.resize(n); });
+    }
     std::size_t bytesPerPlant() {
         std::size_t b = 0;
         forEachArray([&](auto& v) { b += sizeof(typename std::decay_t<decltype(v)>::value_type); });
@@ -460,27 +463,33 @@ struct Simulation::Impl {
 
     void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
                   double ageYears, double pool, double vig) {
+        pl.resize(pl.size() + 1);
+        setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
+    }
+    // Writes plant p of the store (already sized); plants are independent of each other.
+    void setPlant(std::size_t p, std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
+                  double ageYears, double pool, double vig) {
         const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
         const double h = idealHeightM(growthAgeYears, c.maxAgeYears, c.maxHeightM);
         const Grid<float>& g = abio.slopeDeg;
         const int cx = std::clamp(g.cellX(x), 0, g.width() - 1), cy = std::clamp(g.cellY(y), 0, g.height() - 1);
-        pl.id.push_back(id);
-        pl.species.push_back(s);
-        pl.x.push_back(x);
-        pl.y.push_back(y);
-        pl.groundZ.push_back(abio.elevationM.sampleBilinear(x, y));
-        pl.height.push_back(h);
-        pl.radius.push_back(c.allometry.crownRadiusM(h));
-        pl.growthAge.push_back(growthAgeYears);
-        pl.pool.push_back(pool);
-        pl.ageMonths.push_back(static_cast<std::int32_t>(std::lround(ageYears * 12.0)));
-        pl.rootIx.push_back(rootIx);
-        pl.rootIy.push_back(rootIy);
-        pl.coarse.push_back(static_cast<std::uint32_t>(g.index(cx, cy)));
-        pl.vigour.push_back(static_cast<float>(vig));
-        pl.sun.push_back(0.f);
-        pl.water.push_back(0.f);
-        pl.canopyLimit.push_back(canopyLimitAt(x, y));
+        pl.id[p] = id;
+        pl.species[p] = s;
+        pl.x[p] = x;
+        pl.y[p] = y;
+        pl.groundZ[p] = abio.elevationM.sampleBilinear(x, y);
+        pl.height[p] = h;
+        pl.radius[p] = c.allometry.crownRadiusM(h);
+        pl.growthAge[p] = growthAgeYears;
+        pl.pool[p] = pool;
+        pl.ageMonths[p] = static_cast<std::int32_t>(std::lround(ageYears * 12.0));
+        pl.rootIx[p] = rootIx;
+        pl.rootIy[p] = rootIy;
+        pl.coarse[p] = static_cast<std::uint32_t>(g.index(cx, cy));
+        pl.vigour[p] = static_cast<float>(vig);
+        pl.sun[p] = 0.f;
+        pl.water[p] = 0.f;
+        pl.canopyLimit[p] = canopyLimitAt(x, y);
     }
 
     void addInitial(const std::vector<UndergrowthPlant>& initial) {
@@ -1030,27 +1039,44 @@ struct Simulation::Impl {
             }
         }
         // In cell order: a seedling occupies its cells at once, so a later candidate whose
-        // cell an earlier seedling of this year already covers does not germinate.
+        // cell an earlier seedling of this year already covers does not germinate. The
+        // decisions are serial (and cheap); the new plants are then written in parallel, with
+        // ids in cell order.
         const double ga = params.seedlingGrowthAgeMonths / 12.0;
+        std::vector<double> seedlingRadius(ns);
+        for (std::size_t s = 0; s < ns; ++s)
+            seedlingRadius[s] = spc[s].allometry.crownRadiusM(idealHeightM(ga, spc[s].maxAgeYears, spc[s].maxHeightM));
+        std::vector<const Candidate*> accepted;
         for (const auto& list : perBand)
             for (const Candidate& cd : list) {
                 const std::size_t c = static_cast<std::size_t>(cd.iy) * W + cd.ix;
                 if (occupants[c] > 0) continue;
-                addPlant(nextId++, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, 0.0, 0.0);
-                ++counters.germinated;
-                const std::size_t p = pl.size() - 1;
+                accepted.push_back(&cd);
+                const double r = seedlingRadius[static_cast<std::size_t>(cd.species)];
                 int lo, hi;
-                rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
-                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
+                rowRange(cd.y, r, cd.iy, lo, hi);
+                forEachSpan(cd.x, cd.y, r, cd.ix, cd.iy, lo, hi + 1, [&](int iy, int a, int z) {
                     std::uint16_t* row = &occupants[static_cast<std::size_t>(iy) * W];
                     for (int ix = a; ix <= z; ++ix)
                         if (row[ix] < 65535) ++row[ix];
                 });
             }
+        const std::size_t first = pl.size(), k = accepted.size();
+        pl.resize(first + k);
+#pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
+        for (std::size_t i = 0; i < k; ++i) {
+            const Candidate& cd = *accepted[i];
+            setPlant(first + i, nextId + i, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, 0.0, 0.0);
+        }
+        nextId += k;
+        counters.germinated += static_cast<std::int64_t>(k);
+        // The occupancy is cleared for the next sweep, and a new season of leftovers starts.
+        const std::size_t perCell = periods() * 2;
 #pragma omp parallel for schedule(dynamic, 65536) if (cells.size() > kParallelCells)
-        for (std::size_t c = 0; c < cells.size(); ++c) occupants[c] = 0;
-        // A new season of leftovers starts.
-        std::fill(deficit.begin(), deficit.end(), 0.f);
+        for (std::size_t c = 0; c < cells.size(); ++c) {
+            occupants[c] = 0;
+            std::fill_n(deficit.data() + c * perCell, perCell, 0.f);
+        }
         windowMask = 0;
     }
 
