@@ -3,7 +3,8 @@
 // for a shorter span. Writes its figures to stdout and to bench/results/sim_bench.txt (or
 // --out FILE).
 //
-//   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--growth-rule ideal|literal]
+//   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N]
+//             [--growth-rule ideal|literal]
 //             [--competition resources|deussen] [--out FILE]
 //   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
 //       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
@@ -104,7 +105,8 @@ std::uint64_t hashPlants(const std::vector<UndergrowthPlant>& plants) {
     return h;
 }
 
-Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads, const SimParams& params) {
+Timing runScene(const SimInputs& base, const SimArea& area, int years, int threads, const SimParams& params,
+               bool progress = false) {
     omp_set_num_threads(threads);
     SimInputs in = base;
     in.area = area;
@@ -116,6 +118,8 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
     for (int y = 0; y < years; ++y) {
         sim.stepYear();
         t.peakPlants = std::max(t.peakPlants, sim.plantCount());
+        if (progress && (y + 1) % 10 == 0)
+            std::fprintf(stderr, "  year %d: %zu plants, %.1f s\n", y + 1, sim.plantCount(), now() - t1);
     }
     t.seconds = now() - t1;
     t.cpuSeconds = cpuSeconds() - c1;
@@ -234,13 +238,15 @@ int main(int argc, char** argv) {
         std::fputs(line, stdout);
         std::fflush(stdout);
         const int kmYears = km2Years > 0 ? km2Years : quick ? 3 : 10;
-        Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads, params);
+        Timing tk = runScene(km, SimArea{12, 12, 1012, 1012}, kmYears, maxThreads, params, true);
         std::snprintf(line, sizeof line,
                       "1 km2 x %d years on %d threads: setup %.1f s, run %.1f s wall (%.1f s per year), %.1f CPU s; %lld "
-                      "plant-months (%.2f M per second per core, %.2f M per CPU second), peak %zu plants, final %zu plants\n",
+                      "plant-months (%.2f M per second per core, %.2f M per CPU second; %.2f cells per plant-month), peak %zu "
+                      "plants, final %zu plants; state hash %016llx\n",
                       kmYears, maxThreads, tk.setupSeconds, tk.seconds, tk.seconds / kmYears, tk.cpuSeconds,
                       static_cast<long long>(tk.plantMonths), tk.plantMonths / tk.seconds / maxThreads / 1e6,
-                      tk.plantMonths / tk.cpuSeconds / 1e6, tk.peakPlants, tk.plants);
+                      tk.plantMonths / tk.cpuSeconds / 1e6, static_cast<double>(tk.plantCellMonths) / tk.plantMonths,
+                      tk.peakPlants, tk.plants, static_cast<unsigned long long>(tk.stateHash));
         rep << line << "phases: " << phaseLine(tk) << "\n";
         std::fputs(line, stdout);
         std::printf("phases: %s\n", phaseLine(tk).c_str());

@@ -161,6 +161,7 @@ struct Simulation::Impl {
     };
     std::vector<PlantBounds> bounds;
     std::vector<std::uint32_t> slotStart;
+    std::vector<std::uint32_t> chunkSlots, chunkSpans;  // computeBounds: prefix over chunks
     std::vector<double> partSun, partWater;
     std::vector<std::int32_t> partCells;
     std::vector<std::uint32_t> bandStart;
@@ -519,38 +520,59 @@ struct Simulation::Impl {
         bounds.resize(n);
         slotStart.resize(n + 1);
         spanStart.resize(n + 1);
-#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
-        for (std::size_t p = 0; p < n; ++p) {
-            int lo = pl.rootIy[p], hi = lo;
-            // No other cell centre is closer than half a cell to a point inside its own cell:
-            // below that radius the footprint is the root cell (most plants, most months).
-            if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
-            bounds[p].rowLo = lo;
-            bounds[p].rowHi = hi;
-            bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
-        }
-        slotStart[0] = 0;
-        spanStart[0] = 0;
-        for (std::size_t p = 0; p < n; ++p) {
-            PlantBounds& pb = bounds[p];
-            pb.slot = slotStart[p];
-            pb.span = spanStart[p];
-            slotStart[p + 1] = slotStart[p] + static_cast<std::uint32_t>(pb.rowHi / kBandRows - pb.rowLo / kBandRows + 1);
-            spanStart[p + 1] = spanStart[p] + static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
-        }
-        footprint.resize(spanStart[n]);
-#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants)
-        for (std::size_t p = 0; p < n; ++p) {
-            Span* sp = footprint.data() + spanStart[p];
-            if (pl.radius[p] < 0.5 * cell) {
-                sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
-                continue;
+        // Fixed chunks of plants (never derived from the thread count): rows and the chunk's
+        // slot and span totals, then the prefix over chunks, then each chunk's prefixes and
+        // spans. Integer sums: the same for any chunking.
+        constexpr std::size_t kBoundsChunk = 4096;
+        const std::size_t chunks = (n + kBoundsChunk - 1) / kBoundsChunk;
+        chunkSlots.assign(chunks + 1, 0);
+        chunkSpans.assign(chunks + 1, 0);
+#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t slots = 0, spans = 0;
+            for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+                int lo = pl.rootIy[p], hi = lo;
+                // No other cell centre is closer than half a cell to a point inside its own
+                // cell: below that radius the footprint is the root cell (most plants, most
+                // months).
+                if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                bounds[p].rowLo = lo;
+                bounds[p].rowHi = hi;
+                bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
+                slots += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
+                spans += static_cast<std::uint32_t>(hi - lo + 1);
             }
-            const int lo = bounds[p].rowLo, hi = bounds[p].rowHi;
-            for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
-            forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
-                sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a), static_cast<std::uint32_t>(z - a + 1)};
-            });
+            chunkSlots[c + 1] = slots;
+            chunkSpans[c + 1] = spans;
+        }
+        for (std::size_t c = 0; c < chunks; ++c) {
+            chunkSlots[c + 1] += chunkSlots[c];
+            chunkSpans[c + 1] += chunkSpans[c];
+        }
+        slotStart[n] = chunkSlots[chunks];
+        spanStart[n] = chunkSpans[chunks];
+        footprint.resize(spanStart[n]);
+#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t slot = chunkSlots[c], span = chunkSpans[c];
+            for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+                PlantBounds& pb = bounds[p];
+                pb.slot = slotStart[p] = slot;
+                pb.span = spanStart[p] = span;
+                const int lo = pb.rowLo, hi = pb.rowHi;
+                slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
+                span += static_cast<std::uint32_t>(hi - lo + 1);
+                Span* sp = footprint.data() + pb.span;
+                if (pl.radius[p] < 0.5 * cell) {
+                    sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                    continue;
+                }
+                for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
+                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
+                    sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a),
+                                       static_cast<std::uint32_t>(z - a + 1)};
+                });
+            }
         }
     }
 
