@@ -34,12 +34,17 @@ constexpr std::size_t kParallelSortFactor = 16;
 // 2 bytes per cell.
 struct CellState {
     float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
-    float transmission = 1.f;        // running product over the undergrowth painted so far this month
-    std::uint16_t painted = 0;       // occupants painted so far this month (height rank of the next)
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
     std::uint32_t coarse = 0;        // abiotics cell containing the cell centre (index into the monthly planes)
 };
-static_assert(sizeof(CellState) == 16, "four cells per cache line");
+// Per occupied cell of the band being swept (per-thread scratch): what its occupants share.
+struct CellShares {
+    double base;         // canopy-shaded sun
+    double avail;        // water after the canopy trees
+    double rest;         // remainder / (n + 1): each occupant's equal share, and the seeding share
+    float transmission;  // running product over the occupants painted so far
+    std::int32_t painted;  // occupants painted so far (height rank of the next)
+};
 
 // A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 when
 // no cell centre of that row lies within the crown.
@@ -186,6 +191,7 @@ struct Simulation::Impl {
     std::vector<std::uint8_t> dominated;
     // Height keys of the band entries, for the band sorts.
     std::vector<std::uint32_t> bandKeys;
+    std::vector<std::vector<CellShares>> shareScratch;  // per thread (sweepBand)
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
@@ -713,9 +719,6 @@ struct Simulation::Impl {
         const std::size_t c0 = static_cast<std::size_t>(r0) * W, c1 = static_cast<std::size_t>(r1) * W;
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
-        // The paint pass reads the band's cells in height order, i.e. at random: ask for them
-        // in address order now, so that they arrive while the count pass runs.
-        for (std::size_t c = c0; c < c1; c += 64 / sizeof(CellState)) __builtin_prefetch(&cells[c], 1, 2);
         const Span* fp = footprint.data();
         for (const BandEntry* e = e0; e != e1; ++e)
             for (const Span* sp = fp + e->span, *se = sp + e->rows; sp != se; ++sp) {
@@ -725,24 +728,38 @@ struct Simulation::Impl {
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
+        // Prepare: each occupied cell's shaded sun, water after the canopy and seeding share
+        // (the same for all its occupants), once per cell instead of once per occupant.
+        std::vector<CellShares>& sh = shareScratch[static_cast<std::size_t>(omp_get_thread_num())];
+        sh.resize(c1 - c0);
+        for (std::size_t c = c0; c < c1; ++c) {
+            const int n = occupants[c];
+            if (n == 0) continue;
+            const CellState& cs = cells[c];
+            CellShares& x = sh[c - c0];
+            x.base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
+            x.avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
+            x.rest = waterLeftoverMm(x.avail, n, demand);
+            x.transmission = 1.f;
+            x.painted = 0;
+        }
         // Deussen mode: plants see the unshared (canopy-shaded, after canopy water) resources;
         // the leftovers for germination are the same as in the resources mode.
         const bool unshared = params.competition == CompetitionMode::Deussen;
-        // Share of the next occupant (height rank cs.painted) of cell c.
+        CellShares* shb = sh.data() - c0;
+        // Share of the next occupant (height rank x.painted) of cell c: waterShareMm, with its
+        // remainder / (n + 1) = the seeding share precomputed.
         auto paint = [&](std::size_t c, float keep, double& sunSum, double& waterSum) {
-            CellState& cs = cells[c];
-            const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-            const int k = cs.painted;
+            CellShares& x = shb[c];
             if (unshared) {
-                sunSum += base;
-                waterSum += avail;
+                sunSum += x.base;
+                waterSum += x.avail;
             } else {
-                sunSum += base * cs.transmission;
-                waterSum += waterShareMm(avail, k, occupants[c], demand);
+                sunSum += x.base * x.transmission;
+                waterSum += std::min(demand, std::max(0.0, x.avail - x.painted * demand)) + x.rest;
             }
-            cs.transmission *= keep;
-            cs.painted = static_cast<std::uint16_t>(k + 1);
+            x.transmission *= keep;
+            ++x.painted;
         };
         for (const BandEntry* e = e0; e != e1; ++e) {
             double sunSum = 0, waterSum = 0;
@@ -757,23 +774,17 @@ struct Simulation::Impl {
         }
         const std::vector<int>& periods = periodsOfMonth[m];
         for (std::size_t c = c0; c < c1; ++c) {
-            const int n = occupants[c];
-            if (n == 0) continue;
-            CellState& cs = cells[c];
+            if (occupants[c] == 0) continue;
             if (!periods.empty()) {
-                const double base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-                const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-                const double sunLeft = base * cs.transmission;
-                const double waterLeft = waterLeftoverMm(avail, n, demand);
-                const float usedSun = static_cast<float>(base - sunLeft), usedWater = static_cast<float>(avail - waterLeft);
+                const CellShares& x = shb[c];
+                const double sunLeft = x.base * x.transmission;
+                const float usedSun = static_cast<float>(x.base - sunLeft), usedWater = static_cast<float>(x.avail - x.rest);
                 for (int g : periods) {
                     float* d = deficitAt(c, static_cast<std::size_t>(g));
                     d[0] += usedSun;
                     d[1] += usedWater;
                 }
             }
-            cs.transmission = 1.f;
-            cs.painted = 0;
             occupants[c] = 0;
         }
     }
@@ -943,6 +954,7 @@ struct Simulation::Impl {
             partSun.resize(slots);
             partWater.resize(slots);
             partCells.resize(slots);
+            shareScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             lap(phaseSeconds.sweep);
