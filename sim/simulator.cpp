@@ -29,9 +29,9 @@ std::size_t kParallelCells = 200000;
 // parallel only for this many times more plants.
 constexpr std::size_t kParallelSortFactor = 16;
 
-// Working state of one simulation cell; 16 bytes, four to a cache line. The occupant count
-// lives in a dense array of its own (Impl::occupants): the count pass touches nothing else,
-// 2 bytes per cell.
+// Static state of one simulation cell; 12 bytes. The occupant count lives in a dense array
+// of its own (Impl::occupants): the count pass touches nothing else, 2 bytes per cell. What
+// the occupants of a cell share during a month is in the sweep's band scratch (CellShares).
 struct CellState {
     float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
