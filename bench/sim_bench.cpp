@@ -1,7 +1,8 @@
 // Benchmark of the undergrowth simulator (issue 4): plant-months per second per core,
 // 1 -> 2 thread scaling, bytes per plant, wall time of 1 ha x 150 years and of a 1 km2 scene
-// for a shorter span. Writes its figures to stdout and to bench/results/sim_bench.txt (or
-// --out FILE).
+// for a shorter span. Writes its figures to stdout and, for the full report, to
+// bench/results/sim_bench.txt (or --out FILE); --hectare-only and --km2-only write a file
+// only when --out is given, so that a partial run does not replace the full report.
 //
 //   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N]
 //             [--growth-rule ideal|literal]
@@ -11,6 +12,7 @@
 //       /terrain/elevation) of a procedural scene, as inputs for `eco simulate`.
 #include <omp.h>
 
+#include <cerrno>
 #include <chrono>
 #include <ctime>
 #include <cstdio>
@@ -135,8 +137,31 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
 
 }  // namespace
 
+// Writes the report; 0, or 1 with a message when the file cannot be written.
+int writeReport(const std::string& path, const std::string& text) {
+    std::ofstream out(path);
+    if (!(out << text) || !out.flush()) {
+        std::fprintf(stderr, "bench_sim: cannot write %s\n", path.c_str());
+        return 1;
+    }
+    return 0;
+}
+
+// A whole positive integer, or exit 2 naming the flag.
+long positiveInteger(const std::string& flag, const std::string& text) {
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || errno != 0 || v <= 0 || v > 100000) {
+        std::fprintf(stderr, "bench_sim: %s needs a whole number from 1 to 100000, got '%s'\n", flag.c_str(), text.c_str());
+        std::exit(2);
+    }
+    return v;
+}
+
 int main(int argc, char** argv) {
     std::string outPath = "bench/results/sim_bench.txt", sceneDir;
+    bool outGiven = false;
     bool quick = false, hectareOnly = false;
     int hectareYears = 0;  // 0 = 150 (30 with --quick)
     int km2Years = 0;      // 0 = 10 (3 with --quick)
@@ -154,22 +179,38 @@ int main(int argc, char** argv) {
             }
             return argv[++i];
         };
+        if (a == "--help" || a == "-h") {
+            std::printf(
+                "bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N]\n"
+                "          [--growth-rule ideal|literal] [--competition resources|deussen] [--out FILE]\n"
+                "bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]\n"
+                "  Undergrowth simulator benchmark: 1 ha (1 and 2 threads, --years, default 150) and a\n"
+                "  1 km2 scene (all threads, --km2-years, default 10); phases, memory, state hashes.\n");
+            return 0;
+        }
         if (a == "--quick") quick = true;
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
-        else if (a == "--km2-years") km2Years = std::atoi(next().c_str());
-        else if (a == "--out") outPath = next();
+        else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));
+        else if (a == "--out") {
+            outPath = next();
+            outGiven = true;
+        }
         else if (a == "--make-scene") sceneDir = next();
-        else if (a == "--cells") cells = std::atoi(next().c_str());
+        else if (a == "--cells") cells = static_cast<int>(positiveInteger(a, next()));
         else if (a == "--cell-size") cellSize = std::atof(next().c_str());
         else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
-        else if (a == "--years") hectareYears = std::atoi(next().c_str());
+        else if (a == "--years") hectareYears = static_cast<int>(positiveInteger(a, next()));
         else if (a == "--growth-rule") params.growthRule = parseGrowthRule(next(), "--growth-rule");
         else if (a == "--competition") params.competition = parseCompetitionMode(next(), "--competition");
         else {
             std::fprintf(stderr, "unknown argument %s\n", a.c_str());
             return 2;
         }
+    }
+    if (hectareOnly && km2Only) {
+        std::fprintf(stderr, "bench_sim: --hectare-only and --km2-only exclude each other\n");
+        return 2;
     }
     try {
         if (!sceneDir.empty()) {
@@ -222,7 +263,10 @@ int main(int argc, char** argv) {
             std::fputs(rep.str().c_str(), stdout);
             std::fflush(stdout);
         }
-        if (hectareOnly) return 0;
+        if (hectareOnly) {
+            if (!outGiven) return 0;
+            return writeReport(outPath, rep.str());
+        }
 
         // 1 km2: 1000 m x 1000 m, abiotics at 2 m to keep the scene build short.
         DemoSceneParams kp;
@@ -250,9 +294,8 @@ int main(int argc, char** argv) {
         rep << line << "phases: " << phaseLine(tk) << "\n";
         std::fputs(line, stdout);
         std::printf("phases: %s\n", phaseLine(tk).c_str());
-        std::ofstream out(outPath);
-        if (out) out << rep.str();
-        else std::fprintf(stderr, "cannot write %s\n", outPath.c_str());
+        if (km2Only && !outGiven) return 0;
+        if (writeReport(outPath, rep.str()) != 0) return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_sim: %s\n", e.what());
         return 1;
