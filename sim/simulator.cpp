@@ -746,11 +746,11 @@ struct Simulation::Impl {
         // Deussen mode: plants see the unshared (canopy-shaded, after canopy water) resources;
         // the leftovers for germination are the same as in the resources mode.
         const bool unshared = params.competition == CompetitionMode::Deussen;
-        CellShares* shb = sh.data() - c0;
+        CellShares* shares = sh.data();  // the band's cells: index c - c0
         // Share of the next occupant (height rank x.painted) of cell c: waterShareMm, with its
         // remainder / (n + 1) = the seeding share precomputed.
         auto paint = [&](std::size_t c, float keep, double& sunSum, double& waterSum) {
-            CellShares& x = shb[c];
+            CellShares& x = shares[c - c0];
             if (unshared) {
                 sunSum += x.base;
                 waterSum += x.avail;
@@ -776,7 +776,7 @@ struct Simulation::Impl {
         for (std::size_t c = c0; c < c1; ++c) {
             if (occupants[c] == 0) continue;
             if (!periods.empty()) {
-                const CellShares& x = shb[c];
+                const CellShares& x = shares[c - c0];
                 const double sunLeft = x.base * x.transmission;
                 const float usedSun = static_cast<float>(x.base - sunLeft), usedWater = static_cast<float>(x.avail - x.rest);
                 for (int g : periods) {
