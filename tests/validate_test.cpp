@@ -239,6 +239,106 @@ TEST_CASE("A failing check gives a non-zero exit status and a FAIL row in the re
     CHECK(rows.at("demo/good").second == "pass");
 }
 
+TEST_CASE("A known deviation is reported with its value but does not fail the suite", "[validate][report]") {
+    SuiteResult res;
+    res.mode = Mode::Quick;
+    ScenarioResult s;
+    s.name = "demo";
+    s.title = "Demo";
+    s.description = "d";
+    CheckResult ok;
+    ok.scenario = "demo";
+    ok.spec.id = "good";
+    ok.spec.kind = CheckSpec::Kind::AtLeast;
+    ok.spec.target = 1;
+    ok.value = 2;
+    ok.pass = ok.spec.passes(ok.value);
+    s.checks.push_back(ok);
+    CheckResult dev = ok;
+    dev.spec.id = "paper_claim";
+    dev.spec.knownDeviation = "the model as specified cannot reach it";
+    dev.value = 0.25;
+    dev.pass = dev.spec.passes(dev.value);
+    s.checks.push_back(dev);
+    res.scenarios.push_back(s);
+    CHECK_FALSE(dev.pass);
+    CHECK(dev.knownDeviation());
+    CHECK(res.failedCount() == 0);
+    CHECK(res.knownDeviationCount() == 1);
+    CHECK(exitStatus(res) == 0);
+
+    TempDir dir("validate_known_deviation");
+    writeReport(res, dir.path().string());
+    const std::string md = readAll(dir.file("report.md"));
+    CHECK(md.find("| demo | paper_claim | 0.25 | >= 1 | known deviation |") != std::string::npos);
+    CHECK(md.find("Known deviation: the model as specified cannot reach it") != std::string::npos);
+    CHECK(md.find("1 of 2 checks passed") != std::string::npos);
+    const auto rows = readResults(dir.file("results.csv"));
+    CHECK(rows.at("demo/paper_claim").second == "known_deviation");
+    CHECK(rows.at("demo/good").second == "pass");
+
+    // A real failure beside it still fails the suite; a known deviation that passes is a pass.
+    CheckResult bad = ok;
+    bad.spec.id = "bad";
+    bad.value = 0.5;
+    bad.pass = bad.spec.passes(bad.value);
+    res.scenarios[0].checks.push_back(bad);
+    CHECK(res.failedCount() == 1);
+    CHECK(exitStatus(res) == kChecksFailedExit);
+    CheckResult healed = dev;
+    healed.value = 1.5;
+    healed.pass = healed.spec.passes(healed.value);
+    CHECK_FALSE(healed.knownDeviation());
+    CHECK(std::string(healed.outcome()) == "pass");
+}
+
+TEST_CASE("Forest scenarios may measure at their own year; known_deviation is read", "[validate][config]") {
+    const std::string text = R"(
+[scenario]
+name = "eq"
+kind = "equilibrium"
+title = "t"
+description = "d"
+scene = "scene.toml"
+
+[equilibrium]
+window_years = 25
+leading_min_share = 0.1
+
+[quick]
+years = 60
+
+[full]
+years = 300
+
+[checks.total_cv]
+max = 0.1
+known_deviation = "settles late"
+
+[checks.leading_species_cv]
+max = 0.15
+)";
+    const ScenarioConfig c = parseScenarioConfig(text, "eq.toml");
+    CHECK(c.yearsQuick == 60);
+    CHECK(c.yearsFull == 300);
+    CHECK(c.check("total_cv").knownDeviation == "settles late");
+    CHECK(c.check("leading_species_cv").knownDeviation.empty());
+    ForestSceneConfig scene;
+    scene.quick.years = 40;
+    scene.full.years = 150;
+    CHECK(c.measureYear(Mode::Quick, scene) == 60);
+    CHECK(c.measureYear(Mode::Full, scene) == 300);
+    std::string noFull = text;
+    noFull.replace(noFull.find("[full]\nyears = 300\n"), std::string("[full]\nyears = 300\n").size(), "");
+    CHECK(parseScenarioConfig(noFull, "eq.toml").measureYear(Mode::Full, scene) == 150);  // the scene's own
+    std::string extra = text;
+    extra.replace(extra.find("years = 60"), std::string("years = 60").size(), "years = 60\nplot_size_m = 5");
+    CHECK_THROWS_WITH(parseScenarioConfig(extra, "eq.toml"), Catch::Contains("eq.toml") && Catch::Contains("plot_size_m"));
+    std::string zero = text;
+    zero.replace(zero.find("years = 60"), std::string("years = 60").size(), "years = 0");
+    CHECK_THROWS_WITH(parseScenarioConfig(zero, "eq.toml"), Catch::Contains("[quick]") && Catch::Contains("years"));
+}
+
 TEST_CASE("Scenario configurations are strict and name the file and key", "[validate][config]") {
     const ScenarioConfig ok = parseScenarioConfig(kMinimalCircles, "small.toml");
     CHECK(ok.kind == ScenarioKind::DeussenCircles);
@@ -367,15 +467,16 @@ TEST_CASE("eco validate: passing and failing checks give exit status 0 and 3", "
 
 // The whole quick suite, as CI runs it (about 25 s on 2 cores). Hidden from the default
 // Catch run; tests/CMakeLists.txt registers it as the ctest "validate_quick_end_to_end"
-// with the label "validation". It asserts that the suite runs and writes a complete
-// report, and that the checks the model passes reliably do pass; the others are reported
-// (docs/validation.md lists them) but do not fail CI.
+// with the label "validation". It asserts that the suite runs, writes a complete report
+// and exits with 0: every check passes but the one declared a known deviation of the model
+// (succession/late_dominance, docs/validation.md), which is reported and must stay declared.
 TEST_CASE("eco validate --quick runs end to end and writes a complete report", "[.][e2e]") {
     TempDir dir("validate_quick");
     const auto r = runEco("validate --quick --threads 2 --configs " + eco::test::sourcePath("configs/validation") + " --out " +
                           dir.file("out"));
     INFO(r.output);
-    CHECK((r.exitCode == 0 || r.exitCode == kChecksFailedExit));
+    // Every check passes or fails only as a declared known deviation (docs/validation.md, "Status").
+    CHECK(r.exitCode == 0);
     const std::string md = readAll(dir.file("out/report.md"));
     REQUIRE(!md.empty());
     const auto rows = readResults(dir.file("out/results.csv"));
@@ -401,9 +502,12 @@ TEST_CASE("eco validate --quick runs end to end and writes a complete report", "
         pos = end;
     }
     CHECK(figures >= 8);
-    // The checks the model passes reliably (docs/validation.md, "Status").
+    // The checks of the model as it stands (docs/validation.md, "Status").
+    CHECK(rows.at("succession/late_dominance").second == "known_deviation");
     for (const char* id : {"deussen_circles/slope", "deussen_circles/r_squared", "self_thinning/slope",
                            "self_thinning/r_squared", "succession/early_peak_time", "succession/early_decline",
+                           "succession/late_share_gain", "succession/late_cover_overtakes", "equilibrium/total_cv",
+                           "equilibrium/leading_species_cv",
                            "gap_dynamics/edge_vs_deep", "gap_dynamics/clearing_vs_deep", "abiotic_gradients/sun_gap",
                            "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference"}) {
         INFO(id);

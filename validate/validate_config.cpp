@@ -33,7 +33,8 @@ const char* scenarioKindName(ScenarioKind k) {
 std::vector<std::string> checkIdsOf(ScenarioKind k) {
     switch (k) {
         case ScenarioKind::SelfThinning: return {"slope", "r_squared"};
-        case ScenarioKind::Succession: return {"late_share_gain", "late_dominance", "early_peak_time", "early_decline"};
+        case ScenarioKind::Succession:
+            return {"late_share_gain", "late_cover_overtakes", "late_dominance", "early_peak_time", "early_decline"};
         case ScenarioKind::Equilibrium: return {"total_cv", "leading_species_cv"};
         case ScenarioKind::GapDynamics: return {"edge_vs_deep", "clearing_vs_deep"};
         case ScenarioKind::AbioticGradients: return {"sun_gap"};
@@ -132,6 +133,7 @@ CheckSpec parseCheck(const toml::table& t, const std::string& path, const std::s
     if (!hasExpected && s.has("tolerance")) s.fail("tolerance", "only with 'expected'");
     c.units = s.has("units") ? s.string("units") : std::string();
     c.why = s.has("why") ? s.string("why") : std::string();
+    c.knownDeviation = s.has("known_deviation") ? s.string("known_deviation") : std::string();
     s.finish();
     return c;
 }
@@ -232,6 +234,16 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
             s.finish();
         }
     };
+    if (c.usesForestScene()) {
+        // Optional [quick] / [full] with only `years`: measure at another year than the scene's.
+        for (Mode m : {Mode::Quick, Mode::Full}) {
+            const toml::table* t = top.optionalTable(modeName(m));
+            if (!t) continue;
+            StrictTable s(*t, path, std::string("[") + modeName(m) + "]");
+            (m == Mode::Quick ? c.yearsQuick : c.yearsFull) = yearsIn(s, "years", 1, 100000);
+            s.finish();
+        }
+    }
     switch (c.kind) {
         case ScenarioKind::SelfThinning: {
             SelfThinningSettings& st = c.selfThinning;
@@ -427,7 +439,7 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
                 throw ValidationError(shown + ": [comparison] pcf_r_max_m = " + StrictTable::fmt(c.deussen.pcfRMaxM) +
                                       ": must stay below 0.45 x the smallest plot of the scene (" +
                                       StrictTable::fmt(smallest) + " m) for the edge correction");
-            for (int years : {scene.quick.years, scene.full.years}) {
+            for (int years : {c.measureYear(Mode::Quick, scene), c.measureYear(Mode::Full, scene)}) {
                 const int window = c.kind == ScenarioKind::Succession      ? c.succession.finalWindowYears
                                    : c.kind == ScenarioKind::Equilibrium   ? c.equilibrium.windowYears
                                    : c.kind == ScenarioKind::GapDynamics   ? c.gap.windowYears
@@ -435,7 +447,7 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
                                                                            : c.deussen.finalWindowYears;
                 if (window > years)
                     throw ValidationError(shown + ": the window of " + std::to_string(window) + " years is longer than the " +
-                                          std::to_string(years) + " years of the scene " + sceneFile);
+                                          std::to_string(years) + " years measured of the scene " + sceneFile);
             }
         }
         suite.scenarios.push_back(std::move(c));
