@@ -95,6 +95,26 @@ tolerance = 0.2
 min = 0.9
 )";
 
+/// A quick-mode result with one scenario "demo" holding one passing check "good" (value 2, min 1).
+SuiteResult demoSuite() {
+    SuiteResult res;
+    res.mode = Mode::Quick;
+    ScenarioResult s;
+    s.name = "demo";
+    s.title = "Demo";
+    s.description = "d";
+    CheckResult ok;
+    ok.scenario = "demo";
+    ok.spec.id = "good";
+    ok.spec.kind = CheckSpec::Kind::AtLeast;
+    ok.spec.target = 1;
+    ok.value = 2;
+    ok.pass = ok.spec.passes(ok.value);
+    s.checks.push_back(ok);
+    res.scenarios.push_back(s);
+    return res;
+}
+
 }  // namespace
 
 TEST_CASE("fitLine recovers the slope and intercept of an exact line", "[validate][fit]") {
@@ -198,21 +218,8 @@ TEST_CASE("CheckSpec: approx, min and max; NaN never passes", "[validate][report
 }
 
 TEST_CASE("A failing check gives a non-zero exit status and a FAIL row in the report", "[validate][report]") {
-    SuiteResult res;
-    res.mode = Mode::Quick;
-    ScenarioResult s;
-    s.name = "demo";
-    s.title = "Demo";
-    s.description = "d";
-    CheckResult ok;
-    ok.scenario = "demo";
-    ok.spec.id = "good";
-    ok.spec.kind = CheckSpec::Kind::AtLeast;
-    ok.spec.target = 1;
-    ok.value = 2;
-    ok.pass = ok.spec.passes(ok.value);
-    s.checks.push_back(ok);
-    res.scenarios.push_back(s);
+    SuiteResult res = demoSuite();
+    const CheckResult ok = res.scenarios[0].checks[0];
     CHECK(exitStatus(res) == 0);
     CHECK(res.allPassed());
 
@@ -240,27 +247,14 @@ TEST_CASE("A failing check gives a non-zero exit status and a FAIL row in the re
 }
 
 TEST_CASE("A known deviation is reported with its value but does not fail the suite", "[validate][report]") {
-    SuiteResult res;
-    res.mode = Mode::Quick;
-    ScenarioResult s;
-    s.name = "demo";
-    s.title = "Demo";
-    s.description = "d";
-    CheckResult ok;
-    ok.scenario = "demo";
-    ok.spec.id = "good";
-    ok.spec.kind = CheckSpec::Kind::AtLeast;
-    ok.spec.target = 1;
-    ok.value = 2;
-    ok.pass = ok.spec.passes(ok.value);
-    s.checks.push_back(ok);
+    SuiteResult res = demoSuite();
+    const CheckResult ok = res.scenarios[0].checks[0];
     CheckResult dev = ok;
     dev.spec.id = "paper_claim";
     dev.spec.knownDeviation = "the model as specified cannot reach it";
     dev.value = 0.25;
     dev.pass = dev.spec.passes(dev.value);
-    s.checks.push_back(dev);
-    res.scenarios.push_back(s);
+    res.scenarios[0].checks.push_back(dev);
     CHECK_FALSE(dev.pass);
     CHECK(dev.knownDeviation());
     CHECK(res.failedCount() == 0);
