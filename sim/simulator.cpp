@@ -165,6 +165,16 @@ struct Simulation::Impl {
         float keep;
     };
     std::vector<PlantBounds> bounds;
+    // Footprint reuse: a plant's footprint depends only on its root, position and radius,
+    // and the radius changes only in growth months with overflow. prevIndex[p] is the
+    // index of plant p in the last computeBounds (its rows in bounds, its spans in
+    // footprint), or kNoPrev when it must be recomputed (new plant, or the radius changed).
+    // computeBounds swaps bounds / footprint with the prev* copies and copies the spans of
+    // the unchanged plants: the same spans as recomputing them (same inputs).
+    static constexpr std::uint32_t kNoPrev = 0xFFFFFFFFu;
+    std::vector<std::uint32_t> prevIndex;
+    std::vector<PlantBounds> prevBounds;
+    std::vector<Span> prevFootprint;
     std::vector<std::uint32_t> slotStart;
     std::vector<std::uint32_t> chunkSlots, chunkSpans;  // computeBounds: prefix over chunks
     std::vector<double> partSun, partWater;
@@ -471,6 +481,7 @@ struct Simulation::Impl {
     void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
                   double ageYears, double pool, double vig) {
         pl.resize(pl.size() + 1);
+        prevIndex.clear();  // footprints are recomputed (computeBounds)
         setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
     }
     // Writes plant p of the store (already sized); plants are independent of each other.
@@ -523,7 +534,11 @@ struct Simulation::Impl {
     // Footprint rows and spans, bands and partial-sum slots of every plant.
     void computeBounds() {
         const std::size_t n = pl.size();
+        const bool reuse = prevIndex.size() == n;
+        std::swap(bounds, prevBounds);
+        std::swap(footprint, prevFootprint);
         bounds.resize(n);
+        prevIndex.resize(n);
         slotStart.resize(n + 1);
         spanStart.resize(n + 1);
         // Fixed chunks of plants (never derived from the thread count): rows and the chunk's
@@ -541,7 +556,15 @@ struct Simulation::Impl {
                 // No other cell centre is closer than half a cell to a point inside its own
                 // cell: below that radius the footprint is the root cell (most plants, most
                 // months).
-                if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                if (!(pl.radius[p] < 0.5 * cell)) {
+                    const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
+                    if (q != kNoPrev) {
+                        lo = prevBounds[q].rowLo;
+                        hi = prevBounds[q].rowHi;
+                    } else {
+                        rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                    }
+                }
                 bounds[p].rowLo = lo;
                 bounds[p].rowHi = hi;
                 bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
@@ -569,8 +592,14 @@ struct Simulation::Impl {
                 slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
                 span += static_cast<std::uint32_t>(hi - lo + 1);
                 Span* sp = footprint.data() + pb.span;
+                const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
+                prevIndex[p] = static_cast<std::uint32_t>(p);
                 if (pl.radius[p] < 0.5 * cell) {
                     sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                    continue;
+                }
+                if (q != kNoPrev) {  // unchanged since the last computeBounds: the same spans
+                    std::memcpy(sp, prevFootprint.data() + prevBounds[q].span, static_cast<std::size_t>(hi - lo + 1) * sizeof(Span));
                     continue;
                 }
                 for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
@@ -819,6 +848,7 @@ struct Simulation::Impl {
                 pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
                 pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
                 pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
+                prevIndex[p] = kNoPrev;
             }
             ++pl.ageMonths[p];
             if (pl.height[p] >= pl.canopyLimit[p]) {
@@ -934,6 +964,14 @@ struct Simulation::Impl {
                 vp->resize(out);
             }
         });
+        if (prevIndex.size() == n) {
+            std::size_t out = 0;
+            for (std::size_t p = 0; p < n; ++p)
+                if (fate[p] == 0) prevIndex[out++] = prevIndex[p];
+            prevIndex.resize(out);
+        } else {
+            prevIndex.clear();
+        }
     }
 
     void stepMonth() {
@@ -1097,6 +1135,8 @@ struct Simulation::Impl {
             }
         const std::size_t first = pl.size(), k = accepted.size();
         pl.resize(first + k);
+        if (prevIndex.size() == first) prevIndex.resize(first + k, kNoPrev);
+        else prevIndex.clear();
 #pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
         for (std::size_t i = 0; i < k; ++i) {
             const Candidate& cd = *accepted[i];
@@ -1366,6 +1406,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     }
     s.deficit = std::move(deficit);
     s.pl = std::move(pl);
+    s.prevIndex.clear();  // footprints are recomputed (computeBounds)
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
@@ -1390,9 +1431,10 @@ std::size_t Simulation::bytesPerPlant() const {
     const Impl& s = *impl_;
     const double spansPerPlant =
         s.pl.size() > 0 && s.spanStart.size() == s.pl.size() + 1 ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
-    return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + 2 * sizeof(std::uint32_t) +
+    // (Bounds and spans twice: last month's are kept for footprint reuse, with prevIndex.)
+    return impl_->pl.bytesPerPlant() + 2 * sizeof(Impl::PlantBounds) + 3 * sizeof(std::uint32_t) +
            static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
-           static_cast<std::size_t>(spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
+           static_cast<std::size_t>(2 * spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
 }
 
 }  // namespace eco::sim
