@@ -941,37 +941,51 @@ struct Simulation::Impl {
             if (dominated[p]) fate[p] = 3;
     }
 
+    // Runs of surviving plants (first plant, count), in plant order (compact()).
+    struct Run {
+        std::uint32_t from, len;
+    };
+    std::vector<Run> keptRuns;
+
     void compact() {
         const std::size_t n = pl.size();
-        std::size_t keep = 0;
+        // The survivors as runs of consecutive plants: every array is then compacted with one
+        // memmove per run (few plants die in a month) instead of a test per plant and array.
+        keptRuns.clear();
+        std::size_t keep = 0, runStart = 0;
+        std::int64_t died[4] = {};
         for (std::size_t p = 0; p < n; ++p) {
-            if (fate[p] == 1) ++counters.diedBackgroundOrStress;
-            else if (fate[p] == 2) ++counters.diedAtCanopy;
-            else if (fate[p] == 3) ++counters.diedDominated;
-            else ++keep;
+            if (fate[p] == 0) continue;
+            ++died[fate[p] & 3];
+            if (p > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(p - runStart)});
+            keep += p - runStart;
+            runStart = p + 1;
         }
-        if (keep == n) return;
+        counters.diedBackgroundOrStress += died[1];
+        counters.diedAtCanopy += died[2];
+        counters.diedDominated += died[3];
+        if (runStart == 0) return;  // nobody died
+        if (n > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(n - runStart)});
+        keep += n - runStart;
+        auto compactArray = [this, keep](auto& v) {
+            using T = typename std::decay_t<decltype(v)>::value_type;
+            std::size_t out = 0;
+            for (const Run& r : keptRuns) {
+                if (r.from != out) std::memmove(v.data() + out, v.data() + r.from, r.len * sizeof(T));
+                out += r.len;
+            }
+            v.resize(keep);
+        };
         // Arrays are compacted independently of each other: one task per array.
 #pragma omp parallel if (n > kParallelSortFactor * kParallelPlants)
 #pragma omp single
         pl.forEachArray([&](auto& v) {
             auto* vp = &v;
 #pragma omp task firstprivate(vp)
-            {
-                std::size_t out = 0;
-                for (std::size_t p = 0; p < n; ++p)
-                    if (fate[p] == 0) (*vp)[out++] = (*vp)[p];
-                vp->resize(out);
-            }
+            compactArray(*vp);
         });
-        if (prevIndex.size() == n) {
-            std::size_t out = 0;
-            for (std::size_t p = 0; p < n; ++p)
-                if (fate[p] == 0) prevIndex[out++] = prevIndex[p];
-            prevIndex.resize(out);
-        } else {
-            prevIndex.clear();
-        }
+        if (prevIndex.size() == n) compactArray(prevIndex);
+        else prevIndex.clear();
     }
 
     void stepMonth() {
