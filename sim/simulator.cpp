@@ -8,6 +8,9 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include "error.h"
 #include "processes.h"
@@ -60,6 +63,26 @@ struct BandEntry {
     std::uint32_t slot;  // partial-sum slot of (plant, band)
     float keep;          // 1 - alpha of the plant's species
 };
+
+// std::max(0.0, t) and std::min(d, t) without a branch (the compiler emits a compare and a
+// jump for them, which the data mispredicts often in the sweep): MAXSD / MINSD return their
+// first operand when it compares greater / less, else the second, which is exactly
+// std::max(0.0, t) = (0.0 < t ? t : 0.0) and std::min(d, t) = (t < d ? t : d), also for
+// signed zeros and NaN.
+inline double maxZero(double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_max_sd(_mm_set_sd(t), _mm_setzero_pd()));
+#else
+    return std::max(0.0, t);
+#endif
+}
+inline double minOf(double d, double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_min_sd(_mm_set_sd(t), _mm_set_sd(d)));
+#else
+    return std::min(d, t);
+#endif
+}
 
 struct SpeciesConst {
     double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
@@ -202,6 +225,7 @@ struct Simulation::Impl {
     // Height keys of the band entries, for the band sorts.
     std::vector<std::uint32_t> bandKeys;
     std::vector<std::vector<CellShares>> shareScratch;  // per thread (sweepBand)
+    std::vector<std::vector<std::uint32_t>> occupiedScratch;  // per thread (sweepBand): occupied cells of the band
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
@@ -759,16 +783,31 @@ struct Simulation::Impl {
         const double demand = params.minWaterDemandMm;
         // Prepare: each occupied cell's shaded sun, water after the canopy and seeding share
         // (the same for all its occupants), once per cell instead of once per occupant.
-        std::vector<CellShares>& sh = shareScratch[static_cast<std::size_t>(omp_get_thread_num())];
+        const std::size_t thread = static_cast<std::size_t>(omp_get_thread_num());
+        std::vector<CellShares>& sh = shareScratch[thread];
         sh.resize(c1 - c0);
-        for (std::size_t c = c0; c < c1; ++c) {
+        // The band's occupied cells, in address order (a branch-free scan: the prepare and
+        // finish passes then visit only these, without a data-dependent branch per cell).
+        std::vector<std::uint32_t>& occ = occupiedScratch[thread];
+        occ.resize(c1 - c0);
+        std::size_t nOcc = 0;
+        {
+            const std::uint16_t* o = occupants.data() + c0;
+            std::uint32_t* list = occ.data();
+            for (std::size_t i = 0, z = c1 - c0; i < z; ++i) {
+                list[nOcc] = static_cast<std::uint32_t>(i);
+                nOcc += o[i] != 0;
+            }
+        }
+        const std::uint32_t* occList = occ.data();
+        for (std::size_t k = 0; k < nOcc; ++k) {
+            const std::size_t c = c0 + occList[k];
             const int n = occupants[c];
-            if (n == 0) continue;
             const CellState& cs = cells[c];
             CellShares& x = sh[c - c0];
             x.base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            x.avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-            x.rest = waterLeftoverMm(x.avail, n, demand);
+            x.avail = maxZero(moistPlane[cs.coarse] - cs.canopyTrees * demand);  // waterAfterCanopyMm
+            x.rest = maxZero(x.avail - n * demand) / (n + 1);                   // waterLeftoverMm
             x.transmission = 1.f;
             x.painted = 0;
         }
@@ -785,7 +824,7 @@ struct Simulation::Impl {
                 waterSum += x.avail;
             } else {
                 sunSum += x.base * x.transmission;
-                waterSum += std::min(demand, std::max(0.0, x.avail - x.painted * demand)) + x.rest;
+                waterSum += minOf(demand, maxZero(x.avail - x.painted * demand)) + x.rest;  // waterShareMm
             }
             x.transmission *= keep;
             ++x.painted;
@@ -802,9 +841,9 @@ struct Simulation::Impl {
             partCells[e->slot] = count;
         }
         const std::vector<int>& periods = periodsOfMonth[m];
-        for (std::size_t c = c0; c < c1; ++c) {
-            if (occupants[c] == 0) continue;
-            if (!periods.empty()) {
+        if (!periods.empty())
+            for (std::size_t k = 0; k < nOcc; ++k) {
+                const std::size_t c = c0 + occList[k];
                 const CellShares& x = shares[c - c0];
                 const double sunLeft = x.base * x.transmission;
                 const float usedSun = static_cast<float>(x.base - sunLeft), usedWater = static_cast<float>(x.avail - x.rest);
@@ -814,8 +853,7 @@ struct Simulation::Impl {
                     d[1] += usedWater;
                 }
             }
-            occupants[c] = 0;
-        }
+        std::fill(occupants.begin() + static_cast<std::ptrdiff_t>(c0), occupants.begin() + static_cast<std::ptrdiff_t>(c1), 0);
     }
 
     void updatePlants(int m) {
@@ -1007,6 +1045,7 @@ struct Simulation::Impl {
             partWater.resize(slots);
             partCells.resize(slots);
             shareScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
+            occupiedScratch.resize(shareScratch.size());
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             lap(phaseSeconds.sweep);
