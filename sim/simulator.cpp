@@ -8,6 +8,9 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include "error.h"
 #include "processes.h"
@@ -60,6 +63,26 @@ struct BandEntry {
     std::uint32_t slot;  // partial-sum slot of (plant, band)
     float keep;          // 1 - alpha of the plant's species
 };
+
+// std::max(0.0, t) and std::min(d, t) without a branch (the compiler emits a compare and a
+// jump for them, which the data mispredicts often in the sweep): MAXSD / MINSD return their
+// first operand when it compares greater / less, else the second, which is exactly
+// std::max(0.0, t) = (0.0 < t ? t : 0.0) and std::min(d, t) = (t < d ? t : d), also for
+// signed zeros and NaN.
+inline double maxZero(double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_max_sd(_mm_set_sd(t), _mm_setzero_pd()));
+#else
+    return std::max(0.0, t);
+#endif
+}
+inline double minOf(double d, double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_min_sd(_mm_set_sd(t), _mm_set_sd(d)));
+#else
+    return std::min(d, t);
+#endif
+}
 
 struct SpeciesConst {
     double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
@@ -165,6 +188,16 @@ struct Simulation::Impl {
         float keep;
     };
     std::vector<PlantBounds> bounds;
+    // Footprint reuse: a plant's footprint depends only on its root, position and radius,
+    // and the radius changes only in growth months with overflow. prevIndex[p] is the
+    // index of plant p in the last computeBounds (its rows in bounds, its spans in
+    // footprint), or kNoPrev when it must be recomputed (new plant, or the radius changed).
+    // computeBounds swaps bounds / footprint with the prev* copies and copies the spans of
+    // the unchanged plants: the same spans as recomputing them (same inputs).
+    static constexpr std::uint32_t kNoPrev = 0xFFFFFFFFu;
+    std::vector<std::uint32_t> prevIndex;
+    std::vector<PlantBounds> prevBounds;
+    std::vector<Span> prevFootprint;
     std::vector<std::uint32_t> slotStart;
     std::vector<std::uint32_t> chunkSlots, chunkSpans;  // computeBounds: prefix over chunks
     std::vector<double> partSun, partWater;
@@ -192,6 +225,7 @@ struct Simulation::Impl {
     // Height keys of the band entries, for the band sorts.
     std::vector<std::uint32_t> bandKeys;
     std::vector<std::vector<CellShares>> shareScratch;  // per thread (sweepBand)
+    std::vector<std::vector<std::uint32_t>> occupiedScratch;  // per thread (sweepBand): occupied cells of the band
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
@@ -471,6 +505,7 @@ struct Simulation::Impl {
     void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
                   double ageYears, double pool, double vig) {
         pl.resize(pl.size() + 1);
+        prevIndex.clear();  // footprints are recomputed (computeBounds)
         setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
     }
     // Writes plant p of the store (already sized); plants are independent of each other.
@@ -523,7 +558,11 @@ struct Simulation::Impl {
     // Footprint rows and spans, bands and partial-sum slots of every plant.
     void computeBounds() {
         const std::size_t n = pl.size();
+        const bool reuse = prevIndex.size() == n;
+        std::swap(bounds, prevBounds);
+        std::swap(footprint, prevFootprint);
         bounds.resize(n);
+        prevIndex.resize(n);
         slotStart.resize(n + 1);
         spanStart.resize(n + 1);
         // Fixed chunks of plants (never derived from the thread count): rows and the chunk's
@@ -541,7 +580,15 @@ struct Simulation::Impl {
                 // No other cell centre is closer than half a cell to a point inside its own
                 // cell: below that radius the footprint is the root cell (most plants, most
                 // months).
-                if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                if (!(pl.radius[p] < 0.5 * cell)) {
+                    const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
+                    if (q != kNoPrev) {
+                        lo = prevBounds[q].rowLo;
+                        hi = prevBounds[q].rowHi;
+                    } else {
+                        rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                    }
+                }
                 bounds[p].rowLo = lo;
                 bounds[p].rowHi = hi;
                 bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
@@ -569,8 +616,14 @@ struct Simulation::Impl {
                 slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
                 span += static_cast<std::uint32_t>(hi - lo + 1);
                 Span* sp = footprint.data() + pb.span;
+                const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
+                prevIndex[p] = static_cast<std::uint32_t>(p);
                 if (pl.radius[p] < 0.5 * cell) {
                     sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                    continue;
+                }
+                if (q != kNoPrev) {  // unchanged since the last computeBounds: the same spans
+                    std::memcpy(sp, prevFootprint.data() + prevBounds[q].span, static_cast<std::size_t>(hi - lo + 1) * sizeof(Span));
                     continue;
                 }
                 for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
@@ -730,16 +783,31 @@ struct Simulation::Impl {
         const double demand = params.minWaterDemandMm;
         // Prepare: each occupied cell's shaded sun, water after the canopy and seeding share
         // (the same for all its occupants), once per cell instead of once per occupant.
-        std::vector<CellShares>& sh = shareScratch[static_cast<std::size_t>(omp_get_thread_num())];
+        const std::size_t thread = static_cast<std::size_t>(omp_get_thread_num());
+        std::vector<CellShares>& sh = shareScratch[thread];
         sh.resize(c1 - c0);
-        for (std::size_t c = c0; c < c1; ++c) {
+        // The band's occupied cells, in address order (a branch-free scan: the prepare and
+        // finish passes then visit only these, without a data-dependent branch per cell).
+        std::vector<std::uint32_t>& occ = occupiedScratch[thread];
+        occ.resize(c1 - c0);
+        std::size_t nOcc = 0;
+        {
+            const std::uint16_t* o = occupants.data() + c0;
+            std::uint32_t* list = occ.data();
+            for (std::size_t i = 0, z = c1 - c0; i < z; ++i) {
+                list[nOcc] = static_cast<std::uint32_t>(i);
+                nOcc += o[i] != 0;
+            }
+        }
+        const std::uint32_t* occList = occ.data();
+        for (std::size_t k = 0; k < nOcc; ++k) {
+            const std::size_t c = c0 + occList[k];
             const int n = occupants[c];
-            if (n == 0) continue;
             const CellState& cs = cells[c];
             CellShares& x = sh[c - c0];
             x.base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            x.avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-            x.rest = waterLeftoverMm(x.avail, n, demand);
+            x.avail = maxZero(moistPlane[cs.coarse] - cs.canopyTrees * demand);  // waterAfterCanopyMm
+            x.rest = maxZero(x.avail - n * demand) / (n + 1);                   // waterLeftoverMm
             x.transmission = 1.f;
             x.painted = 0;
         }
@@ -756,7 +824,7 @@ struct Simulation::Impl {
                 waterSum += x.avail;
             } else {
                 sunSum += x.base * x.transmission;
-                waterSum += std::min(demand, std::max(0.0, x.avail - x.painted * demand)) + x.rest;
+                waterSum += minOf(demand, maxZero(x.avail - x.painted * demand)) + x.rest;  // waterShareMm
             }
             x.transmission *= keep;
             ++x.painted;
@@ -773,9 +841,9 @@ struct Simulation::Impl {
             partCells[e->slot] = count;
         }
         const std::vector<int>& periods = periodsOfMonth[m];
-        for (std::size_t c = c0; c < c1; ++c) {
-            if (occupants[c] == 0) continue;
-            if (!periods.empty()) {
+        if (!periods.empty())
+            for (std::size_t k = 0; k < nOcc; ++k) {
+                const std::size_t c = c0 + occList[k];
                 const CellShares& x = shares[c - c0];
                 const double sunLeft = x.base * x.transmission;
                 const float usedSun = static_cast<float>(x.base - sunLeft), usedWater = static_cast<float>(x.avail - x.rest);
@@ -785,8 +853,7 @@ struct Simulation::Impl {
                     d[1] += usedWater;
                 }
             }
-            occupants[c] = 0;
-        }
+        std::fill(occupants.begin() + static_cast<std::ptrdiff_t>(c0), occupants.begin() + static_cast<std::ptrdiff_t>(c1), 0);
     }
 
     void updatePlants(int m) {
@@ -819,6 +886,7 @@ struct Simulation::Impl {
                 pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
                 pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
                 pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
+                prevIndex[p] = kNoPrev;
             }
             ++pl.ageMonths[p];
             if (pl.height[p] >= pl.canopyLimit[p]) {
@@ -911,29 +979,51 @@ struct Simulation::Impl {
             if (dominated[p]) fate[p] = 3;
     }
 
+    // Runs of surviving plants (first plant, count), in plant order (compact()).
+    struct Run {
+        std::uint32_t from, len;
+    };
+    std::vector<Run> keptRuns;
+
     void compact() {
         const std::size_t n = pl.size();
-        std::size_t keep = 0;
+        // The survivors as runs of consecutive plants: every array is then compacted with one
+        // memmove per run (few plants die in a month) instead of a test per plant and array.
+        keptRuns.clear();
+        std::size_t keep = 0, runStart = 0;
+        std::int64_t died[4] = {};
         for (std::size_t p = 0; p < n; ++p) {
-            if (fate[p] == 1) ++counters.diedBackgroundOrStress;
-            else if (fate[p] == 2) ++counters.diedAtCanopy;
-            else if (fate[p] == 3) ++counters.diedDominated;
-            else ++keep;
+            if (fate[p] == 0) continue;
+            ++died[fate[p] & 3];
+            if (p > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(p - runStart)});
+            keep += p - runStart;
+            runStart = p + 1;
         }
-        if (keep == n) return;
+        counters.diedBackgroundOrStress += died[1];
+        counters.diedAtCanopy += died[2];
+        counters.diedDominated += died[3];
+        if (runStart == 0) return;  // nobody died
+        if (n > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(n - runStart)});
+        keep += n - runStart;
+        auto compactArray = [this, keep](auto& v) {
+            using T = typename std::decay_t<decltype(v)>::value_type;
+            std::size_t out = 0;
+            for (const Run& r : keptRuns) {
+                if (r.from != out) std::memmove(v.data() + out, v.data() + r.from, r.len * sizeof(T));
+                out += r.len;
+            }
+            v.resize(keep);
+        };
         // Arrays are compacted independently of each other: one task per array.
 #pragma omp parallel if (n > kParallelSortFactor * kParallelPlants)
 #pragma omp single
         pl.forEachArray([&](auto& v) {
             auto* vp = &v;
 #pragma omp task firstprivate(vp)
-            {
-                std::size_t out = 0;
-                for (std::size_t p = 0; p < n; ++p)
-                    if (fate[p] == 0) (*vp)[out++] = (*vp)[p];
-                vp->resize(out);
-            }
+            compactArray(*vp);
         });
+        if (prevIndex.size() == n) compactArray(prevIndex);
+        else prevIndex.clear();
     }
 
     void stepMonth() {
@@ -955,6 +1045,7 @@ struct Simulation::Impl {
             partWater.resize(slots);
             partCells.resize(slots);
             shareScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
+            occupiedScratch.resize(shareScratch.size());
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             lap(phaseSeconds.sweep);
@@ -1097,6 +1188,8 @@ struct Simulation::Impl {
             }
         const std::size_t first = pl.size(), k = accepted.size();
         pl.resize(first + k);
+        if (prevIndex.size() == first) prevIndex.resize(first + k, kNoPrev);
+        else prevIndex.clear();
 #pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
         for (std::size_t i = 0; i < k; ++i) {
             const Candidate& cd = *accepted[i];
@@ -1366,6 +1459,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     }
     s.deficit = std::move(deficit);
     s.pl = std::move(pl);
+    s.prevIndex.clear();  // footprints are recomputed (computeBounds)
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
@@ -1390,9 +1484,10 @@ std::size_t Simulation::bytesPerPlant() const {
     const Impl& s = *impl_;
     const double spansPerPlant =
         s.pl.size() > 0 && s.spanStart.size() == s.pl.size() + 1 ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
-    return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + 2 * sizeof(std::uint32_t) +
+    // (Bounds and spans twice: last month's are kept for footprint reuse, with prevIndex.)
+    return impl_->pl.bytesPerPlant() + 2 * sizeof(Impl::PlantBounds) + 3 * sizeof(std::uint32_t) +
            static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
-           static_cast<std::size_t>(spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
+           static_cast<std::size_t>(2 * spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
 }
 
 }  // namespace eco::sim
