@@ -56,13 +56,31 @@ struct Span {
     std::uint32_t len;
 };
 
-// One plant in one band's list: everything the sweep needs, read sequentially.
+// One plant in one band's list: everything the sweep needs, read sequentially. The plant's
+// first row in the band is inline, so that a plant covering one row (most plants) needs no
+// read of the footprint array, which the height-ordered lists visit at random.
 struct BandEntry {
-    std::uint32_t span;  // the plant's footprint span of its first row in the band
-    std::uint32_t rows;  // its rows in the band (consecutive spans)
-    std::uint32_t slot;  // partial-sum slot of (plant, band)
-    float keep;          // 1 - alpha of the plant's species
+    std::uint32_t start;   // first cell of the plant's first row in the band
+    std::uint32_t packed;  // that row's length (bits 0-15), rows in the band (16-20), species (21-31)
+    std::uint32_t span;    // footprint span of that first row (the plant's further rows follow it)
+    std::uint32_t slot;    // partial-sum slot of (plant, band)
+
+    static constexpr std::uint32_t kMaxLen = 0xFFFF, kMaxSpecies = 0x7FF;
+    static BandEntry make(Span first, std::uint32_t span, std::uint32_t rows, std::uint32_t slot, std::uint32_t species) {
+        return BandEntry{first.start, first.len | rows << 16 | species << 21, span, slot};
+    }
+    std::uint32_t len() const { return packed & 0xFFFFu; }
+    std::uint32_t rows() const { return (packed >> 16) & 0x1Fu; }
+    std::uint32_t species() const { return packed >> 21; }
+    // fn(first cell, cells) for each row of the entry, top to bottom.
+    template <typename F>
+    void forEachRow(const Span* footprint, F&& fn) const {
+        fn(static_cast<std::size_t>(start), len());
+        for (const Span *sp = footprint + span + 1, *se = footprint + span + rows(); sp < se; ++sp)
+            fn(static_cast<std::size_t>(sp->start), sp->len);
+    }
 };
+static_assert(sizeof(BandEntry) == 16);
 
 // std::max(0.0, t) and std::min(d, t) without a branch (the compiler emits a compare and a
 // jump for them, which the data mispredicts often in the sweep): MAXSD / MINSD return their
@@ -179,13 +197,10 @@ struct Simulation::Impl {
 
     // ---- plants and per-month scratch
     PlantStore pl;
-    // Per plant, this month: footprint rows, first partial-sum slot and first footprint span,
-    // 1 - alpha; packed so that the band lists, which visit the plants in height order (at
-    // random), read one cache line per plant.
+    // Per plant, this month: footprint rows, first partial-sum slot and first footprint span.
     struct PlantBounds {
         std::int32_t rowLo, rowHi;
         std::uint32_t slot, span;
-        float keep;
     };
     std::vector<PlantBounds> bounds;
     // Footprint reuse: a plant's footprint depends only on its root, position and radius,
@@ -204,6 +219,7 @@ struct Simulation::Impl {
     std::vector<std::int32_t> partCells;
     std::vector<std::uint32_t> bandStart;
     std::vector<BandEntry> bandEntries;
+    std::vector<float> speciesKeep;  // 1 - alpha per species (the sweep's attenuation)
     // Footprints of this month: plant p covers the spans [spanStart[p], spanStart[p + 1]), one
     // per row from bounds[p].rowLo to bounds[p].rowHi. Computed once per month in plant order (computeBounds)
     // and read by the count and paint passes, which visit the plants in height order.
@@ -288,11 +304,16 @@ struct Simulation::Impl {
             for (std::size_t g = 0; g < periodMonthMask.size(); ++g)
                 if (periodMonthMask[g] & (1u << m)) periodsOfMonth[m].push_back(static_cast<int>(g));
         }
+        if (biome.species.size() > BandEntry::kMaxSpecies + 1)
+            throw ValidationError("simulation: the biome has " + std::to_string(biome.species.size()) + " species; at most " +
+                                  std::to_string(BandEntry::kMaxSpecies + 1) + " are supported");
         spc.assign(biome.species.size(), {});
+        speciesKeep.assign(biome.species.size(), 1.f);
         for (std::size_t i = 0; i < biome.species.size(); ++i) {
             const Species& s = biome.species[i];
             SpeciesConst& c = spc[i];
             c.alpha = s.alpha;
+            speciesKeep[i] = static_cast<float>(1.0 - s.alpha);
             c.maxAgeYears = s.maxAgeYears;
             c.maxHeightM = s.maxHeightM;
             if (!(s.maxAgeYears > 0) || !(s.maxHeightM > 0))
@@ -347,8 +368,11 @@ struct Simulation::Impl {
         W = static_cast<int>(std::floor((area.x1 - area.x0) / cell + 1e-9));
         H = static_cast<int>(std::floor((area.y1 - area.y0) / cell + 1e-9));
         if (W < 1 || H < 1) throw ValidationError("simulation: area is smaller than one cell of " + std::to_string(cell) + " m");
-        if (W > 65535 * 4 || static_cast<double>(W) * H > 4.0e9)
-            throw ValidationError("simulation: area of " + std::to_string(W) + " x " + std::to_string(H) + " cells is too large");
+        // Footprint rows are at most W cells, stored in 16 bits (BandEntry).
+        if (W > static_cast<int>(BandEntry::kMaxLen) || static_cast<double>(W) * H > 4.0e9)
+            throw ValidationError("simulation: area of " + std::to_string(W) + " x " + std::to_string(H) + " cells of " +
+                                  std::to_string(cell) + " m is too large (at most " + std::to_string(BandEntry::kMaxLen) +
+                                  " cells wide and 4e9 cells): simulate it in parts or with larger cells");
         ox = area.x0;
         oy = area.y0;
         // The grid covers whole cells; the area's upper edges are trimmed to them.
@@ -591,7 +615,6 @@ struct Simulation::Impl {
                 }
                 bounds[p].rowLo = lo;
                 bounds[p].rowHi = hi;
-                bounds[p].keep = static_cast<float>(1.0 - spc[static_cast<std::size_t>(pl.species[p])].alpha);
                 slots += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
                 spans += static_cast<std::uint32_t>(hi - lo + 1);
             }
@@ -743,13 +766,14 @@ struct Simulation::Impl {
                 const PlantBounds pb = bounds[p];
                 const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
                 const std::uint32_t key = sorted ? heightKey(p) : 0;
+                const std::uint32_t species = static_cast<std::uint32_t>(pl.species[p]);
                 for (int b = lo; b <= hi; ++b) {
                     // Rows of the plant within band b.
                     const int first = std::max(pb.rowLo, b * kBandRows), last = std::min(pb.rowHi, (b + 1) * kBandRows - 1);
                     const std::uint32_t at = pos[b]++;
-                    bandEntries[at] = BandEntry{pb.span + static_cast<std::uint32_t>(first - pb.rowLo),
-                                                static_cast<std::uint32_t>(last - first + 1),
-                                                pb.slot + static_cast<std::uint32_t>(b - lo), pb.keep};
+                    const std::uint32_t span = pb.span + static_cast<std::uint32_t>(first - pb.rowLo);
+                    bandEntries[at] = BandEntry::make(footprint[span], span, static_cast<std::uint32_t>(last - first + 1),
+                                                      pb.slot + static_cast<std::uint32_t>(b - lo), species);
                     if (sorted) bandKeys[at] = key;
                 }
             }
@@ -773,11 +797,12 @@ struct Simulation::Impl {
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
         const Span* fp = footprint.data();
+        std::uint16_t* occupied = occupants.data();
         for (const BandEntry* e = e0; e != e1; ++e)
-            for (const Span* sp = fp + e->span, *se = sp + e->rows; sp != se; ++sp) {
-                std::uint16_t* row = &occupants[sp->start];
-                for (std::uint32_t i = 0; i < sp->len; ++i) ++row[i];
-            }
+            e->forEachRow(fp, [occupied](std::size_t start, std::uint32_t len) {
+                std::uint16_t* row = occupied + start;
+                for (std::uint32_t i = 0; i < len; ++i) ++row[i];
+            });
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
@@ -829,13 +854,15 @@ struct Simulation::Impl {
             x.transmission *= keep;
             ++x.painted;
         };
+        const float* keepOf = speciesKeep.data();
         for (const BandEntry* e = e0; e != e1; ++e) {
             double sunSum = 0, waterSum = 0;
             std::int32_t count = 0;
-            for (const Span* sp = fp + e->span, *se = sp + e->rows; sp != se; ++sp) {
-                for (std::size_t c = sp->start, z = c + sp->len; c < z; ++c) paint(c, e->keep, sunSum, waterSum);
-                count += static_cast<std::int32_t>(sp->len);
-            }
+            const float keep = keepOf[e->species()];
+            e->forEachRow(fp, [&](std::size_t start, std::uint32_t len) {
+                for (std::size_t c = start, z = c + len; c < z; ++c) paint(c, keep, sunSum, waterSum);
+                count += static_cast<std::int32_t>(len);
+            });
             partSun[e->slot] = sunSum;
             partWater[e->slot] = waterSum;
             partCells[e->slot] = count;
@@ -1123,12 +1150,11 @@ struct Simulation::Impl {
 #pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
         for (int b = 0; b < bands(); ++b)
             for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e) {
-                const BandEntry& be = bandEntries[e];
-                for (const Span *sp = footprint.data() + be.span, *se = sp + be.rows; sp != se; ++sp) {
-                    std::uint16_t* row = &occupants[sp->start];
-                    for (std::uint32_t i = 0; i < sp->len; ++i)
+                bandEntries[e].forEachRow(footprint.data(), [this](std::size_t start, std::uint32_t len) {
+                    std::uint16_t* row = &occupants[start];
+                    for (std::uint32_t i = 0; i < len; ++i)
                         if (row[i] < 65535) ++row[i];
-                }
+                });
             }
     }
 

@@ -561,6 +561,35 @@ TEST_CASE("seeding_probability = 0 disables germination (validation runs from in
     CHECK(sim.plantCount() <= 2);
 }
 
+TEST_CASE("limits: a grid over 65535 cells wide or a biome of over 2048 species is refused, naming the limit", "[sim][config]") {
+    SimInputs wide;
+    wide.biome = defaultBiome();
+    wide.abiotics = uniformAbiotics(4, 4000.0, 8, 50, 15, 0);  // 16 km: 80 000 cells of 0.2 m
+    try {
+        Simulation sim(wide, SimParams{}, 1);
+        FAIL("a grid of 80 000 cells across was accepted");
+    } catch (const ValidationError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("80000 x 80000 cells") && Catch::Contains("65535 cells wide"));
+    }
+    wide.area = SimArea{0, 0, 13000, 0.4};  // 65 000 x 2 cells: inside the limit
+    CHECK_NOTHROW(Simulation(wide, SimParams{}, 1));
+
+    SimInputs many = smallDemoScene();
+    const Species first = many.biome.species.front();
+    while (many.biome.species.size() <= 2048) {
+        Species s = first;
+        s.id = static_cast<int>(many.biome.species.size());
+        s.name = "copy " + std::to_string(s.id);
+        many.biome.species.push_back(s);
+    }
+    try {
+        Simulation sim(many, SimParams{}, 1);
+        FAIL("a biome of 2049 species was accepted");
+    } catch (const ValidationError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("2049 species") && Catch::Contains("at most 2048"));
+    }
+}
+
 TEST_CASE("deussen: ability is vigour x relative height; crowns intersect strictly", "[sim][deussen]") {
     CHECK(competitiveAbility(0.5, 2.0, 8.0) == Approx(0.125));
     CHECK(competitiveAbility(-0.1, 2.0, 8.0) < 0);
