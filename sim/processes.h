@@ -7,10 +7,34 @@
 #include <cstdint>
 #include <vector>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include "rng.h"
 #include "sim_config.h"
 
 namespace eco::sim {
+
+// std::max(0.0, t) and std::min(d, t) without a branch (the compiler emits a compare and a
+// jump for them, which the data mispredicts often in the sweep): MAXSD / MINSD return their
+// first operand when it compares greater / less, else the second, which is exactly
+// std::max(0.0, t) = (0.0 < t ? t : 0.0) and std::min(d, t) = (t < d ? t : d), also for
+// signed zeros and NaN.
+inline double maxZero(double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_max_sd(_mm_set_sd(t), _mm_setzero_pd()));
+#else
+    return std::max(0.0, t);
+#endif
+}
+inline double minOf(double d, double t) {
+#ifdef __SSE2__
+    return _mm_cvtsd_f64(_mm_min_sd(_mm_set_sd(t), _mm_set_sd(d)));
+#else
+    return std::min(d, t);
+#endif
+}
 
 /// Third-order smoothstep s(x) = 3x^2 - 2x^3 on [0, 1], clamped outside (Eq. 3, with the
 /// paper's "3x^3" typo corrected).
@@ -157,22 +181,23 @@ inline int rouletteSelect(const double* weights, int n, double u) {
     return last;  // rounding at the very top of the wheel
 }
 
+/// Rank k's minimum-demand share: min(demand, what the k taller occupants left).
+inline double waterDemandShareMm(double availableMm, int k, double demandMm) {
+    return minOf(demandMm, maxZero(availableMm - k * demandMm));
+}
+/// One equal share of the remainder (also the seeding share).
+inline double waterLeftoverMm(double availableMm, int n, double demandMm) {
+    return maxZero(availableMm - n * demandMm) / (n + 1);
+}
 /// Water of one cell for the occupant at height rank k (0 = tallest undergrowth) among n
 /// undergrowth occupants, from `availableMm` (after the canopy trees took their demand):
 /// each occupant in height order takes min(demand, what is left); the remainder is split
 /// into n + 1 equal shares, one per occupant and one kept for seeding.
 inline double waterShareMm(double availableMm, int k, int n, double demandMm) {
-    const double first = std::min(demandMm, std::max(0.0, availableMm - k * demandMm));
-    const double remainder = std::max(0.0, availableMm - n * demandMm);
-    return first + remainder / (n + 1);
+    return waterDemandShareMm(availableMm, k, demandMm) + waterLeftoverMm(availableMm, n, demandMm);
 }
-/// The seeding share of the same cell: what is left for germination.
-inline double waterLeftoverMm(double availableMm, int n, double demandMm) {
-    return std::max(0.0, availableMm - n * demandMm) / (n + 1);
-}
-/// Water left after `canopyTrees` static trees each took min(demand, what is left).
 inline double waterAfterCanopyMm(double cellMm, int canopyTrees, double demandMm) {
-    return std::max(0.0, cellMm - canopyTrees * demandMm);
+    return maxZero(cellMm - canopyTrees * demandMm);
 }
 
 }  // namespace eco::sim

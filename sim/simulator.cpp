@@ -8,9 +8,6 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 
 #include "error.h"
 #include "processes.h"
@@ -82,26 +79,6 @@ struct BandEntry {
     }
 };
 static_assert(sizeof(BandEntry) == 16);
-
-// std::max(0.0, t) and std::min(d, t) without a branch (the compiler emits a compare and a
-// jump for them, which the data mispredicts often in the sweep): MAXSD / MINSD return their
-// first operand when it compares greater / less, else the second, which is exactly
-// std::max(0.0, t) = (0.0 < t ? t : 0.0) and std::min(d, t) = (t < d ? t : d), also for
-// signed zeros and NaN.
-inline double maxZero(double t) {
-#ifdef __SSE2__
-    return _mm_cvtsd_f64(_mm_max_sd(_mm_set_sd(t), _mm_setzero_pd()));
-#else
-    return std::max(0.0, t);
-#endif
-}
-inline double minOf(double d, double t) {
-#ifdef __SSE2__
-    return _mm_cvtsd_f64(_mm_min_sd(_mm_set_sd(t), _mm_set_sd(d)));
-#else
-    return std::min(d, t);
-#endif
-}
 
 struct SpeciesConst {
     double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
@@ -832,8 +809,8 @@ struct Simulation::Impl {
             const CellState& cs = cells[c];
             CellShares& x = sh[c - c0];
             x.base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            x.avail = maxZero(moistPlane[cs.coarse] - cs.canopyTrees * demand);  // waterAfterCanopyMm
-            x.rest = maxZero(x.avail - n * demand) / (n + 1);                   // waterLeftoverMm
+            x.avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
+            x.rest = waterLeftoverMm(x.avail, n, demand);
             x.transmission = 1.f;
             x.painted = 0;
         }
@@ -850,7 +827,7 @@ struct Simulation::Impl {
                 waterSum += x.avail;
             } else {
                 sunSum += x.base * x.transmission;
-                waterSum += minOf(demand, maxZero(x.avail - x.painted * demand)) + x.rest;  // waterShareMm
+                waterSum += waterDemandShareMm(x.avail, x.painted, demand) + x.rest;  // waterShareMm
             }
             x.transmission *= keep;
             ++x.painted;
