@@ -10,6 +10,7 @@
 #include <numeric>
 
 #include "error.h"
+#include "paint.h"
 #include "processes.h"
 #include "rng.h"
 
@@ -30,25 +31,37 @@ std::size_t kParallelCells = 200000;
 // more, 2 threads cut band lists and compaction by 10-25 %; 16 kept them serial).
 constexpr std::size_t kParallelSortFactor = 2;
 
-// Static state of one simulation cell; 12 bytes. The occupant count lives in a dense array
-// of its own (Impl::occupants): the count pass touches nothing else, 2 bytes per cell. What
-// the occupants of a cell share during a month is in the sweep's band scratch (CellShares).
+// Static state of one simulation cell; 12 bytes. The sweep counts a band's occupants and
+// keeps what they share during a month in its band scratch (BandScratch); germination
+// keeps its count in Impl::occupants.
 struct CellState {
     float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
     std::uint32_t coarse = 0;        // abiotics cell containing the cell centre (index into the monthly planes)
 };
-// Per occupied cell of the band being swept (per-thread scratch): what its occupants share.
-struct CellShares {
-    double base;         // canopy-shaded sun
-    double avail;        // water after the canopy trees
-    double rest;         // remainder / (n + 1): each occupant's equal share, and the seeding share
-    float transmission;  // running product over the occupants painted so far
-    std::int32_t painted;  // occupants painted so far (height rank of the next)
+// Per-thread scratch of the band being swept: what the occupants of its cells share, one
+// array per field (BandCells, paint.h), and the band's occupied cells.
+struct BandScratch {
+    std::vector<double> base, avail, rest;
+    std::vector<float> transmission;
+    std::vector<std::int32_t> painted;
+    std::vector<std::uint32_t> occupied;
+    std::vector<std::int32_t> diff, count;  // countBand: difference array (n + 1, kept zero) and occupants
+    void resize(std::size_t n) {
+        if (diff.size() < n + 1) diff.resize(n + 1, 0);
+        count.resize(n);
+        base.resize(n);
+        avail.resize(n);
+        rest.resize(n);
+        transmission.resize(n);
+        painted.resize(n);
+        occupied.resize(n);
+    }
+    BandCells cells() { return BandCells{base.data(), avail.data(), rest.data(), transmission.data(), painted.data()}; }
 };
 
-// A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 when
-// no cell centre of that row lies within the crown.
+// A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 (and
+// start the row's first cell) when no cell centre of that row lies within the crown.
 struct Span {
     std::uint32_t start;
     std::uint32_t len;
@@ -163,7 +176,7 @@ struct Simulation::Impl {
     Grid<float> seedProb;              // also the grid geometry
     Grid<float> canopyTrans;           // copy of the canopy transmission (inspection only)
     std::vector<std::uint16_t> seedPkg;
-    std::vector<std::uint16_t> occupants;  // per cell: undergrowth plants covering it (count pass)
+    std::vector<std::uint16_t> occupants;  // per cell: undergrowth plants covering it (germination)
     // Exploited sun and water per cell and growth period since the last germination,
     // interleaved (cell, period, {sun, water}) so that the last occupant of a cell updates
     // one cache line: see deficitAt.
@@ -218,8 +231,7 @@ struct Simulation::Impl {
     std::vector<std::uint8_t> dominated;
     // Height keys of the band entries, for the band sorts.
     std::vector<std::uint32_t> bandKeys;
-    std::vector<std::vector<CellShares>> shareScratch;  // per thread (sweepBand)
-    std::vector<std::vector<std::uint32_t>> occupiedScratch;  // per thread (sweepBand): occupied cells of the band
+    std::vector<BandScratch> bandScratch;  // per thread (sweepBand)
 
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
@@ -627,7 +639,7 @@ struct Simulation::Impl {
                     std::memcpy(sp, prevFootprint.data() + prevBounds[q].span, static_cast<std::size_t>(hi - lo + 1) * sizeof(Span));
                     continue;
                 }
-                for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{0, 0};
+                for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(lo + r) * W), 0};
                 forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
                     sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a),
                                        static_cast<std::uint32_t>(z - a + 1)};
@@ -764,101 +776,131 @@ struct Simulation::Impl {
                      sortScratch[static_cast<std::size_t>(omp_get_thread_num())]);
     }
 
-    // One band: count pass, paint pass, finish pass. The band's rows belong to this call only.
-    //  * count: occupants per cell;
-    //  * paint: the entries in height order, each taking its shares of the cells it covers;
-    //  * finish: the band's cells in address order: the leftovers of this month go to the
-    //    germination deficit (growth-period months) and the cells are reset for the next month.
-    void sweepBand(int b, int m) {
+    // Occupants of the cells of band b into scr.count (band-relative), and the band's occupied
+    // cells, in address order, into scr.occupied; returns how many. A difference array: each
+    // row span adds 1 at its first cell and -1 after its last (two writes whatever its length,
+    // no loop over the span), then one prefix-sum pass over the band counts every cell and
+    // lists the occupied ones (branch-free) and leaves the difference array zero for the next
+    // band. Exact: integer sums.
+    std::size_t countBand(int b, BandScratch& scr) const {
         const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
-        const std::size_t c0 = static_cast<std::size_t>(r0) * W, c1 = static_cast<std::size_t>(r1) * W;
+        const std::size_t c0 = static_cast<std::size_t>(r0) * W, nc = static_cast<std::size_t>(r1 - r0) * W;
+        scr.resize(nc);
+        std::int32_t* diff = scr.diff.data() - c0;  // indexed by cell
+        const Span* fp = footprint.data();
+        for (const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandStart[b + 1]; e != z; ++e)
+            e->forEachRow(fp, [diff](std::size_t start, std::uint32_t len) {
+                ++diff[start];
+                --diff[start + len];
+            });
+        std::int32_t* d = scr.diff.data();
+        std::int32_t* count = scr.count.data();
+        std::uint32_t* list = scr.occupied.data();
+        std::size_t nOcc = 0;
+        std::int32_t run = 0;
+        for (std::size_t i = 0; i < nc; ++i) {
+            run += d[i];
+            d[i] = 0;
+            count[i] = run;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += run != 0;
+        }
+        d[nc] = 0;
+        return nOcc;
+    }
+
+    // One band: count, prepare, paint, finish. The band's rows belong to this call only.
+    //  * count: occupants per cell and the occupied cells (countBand);
+    //  * prepare: each occupied cell's resources and seeding share;
+    //  * paint: the entries in height order, each taking its shares of the cells it covers;
+    //  * finish: the occupied cells in address order: the leftovers of this month go to the
+    //    germination deficit (growth-period months).
+    void sweepBand(int b, int m) {
+        const std::size_t c0 = static_cast<std::size_t>(b) * kBandRows * W;
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
         const Span* fp = footprint.data();
-        std::uint16_t* occupied = occupants.data();
-        for (const BandEntry* e = e0; e != e1; ++e)
-            e->forEachRow(fp, [occupied](std::size_t start, std::uint32_t len) {
-                std::uint16_t* row = occupied + start;
-                for (std::uint32_t i = 0; i < len; ++i) ++row[i];
-            });
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
+        BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
+        const std::size_t nOcc = countBand(b, scr);
         // Prepare: each occupied cell's shaded sun, water after the canopy and seeding share
         // (the same for all its occupants), once per cell instead of once per occupant.
-        const std::size_t thread = static_cast<std::size_t>(omp_get_thread_num());
-        std::vector<CellShares>& sh = shareScratch[thread];
-        sh.resize(c1 - c0);
-        // The band's occupied cells, in address order (a branch-free scan: the prepare and
-        // finish passes then visit only these, without a data-dependent branch per cell).
-        std::vector<std::uint32_t>& occ = occupiedScratch[thread];
-        occ.resize(c1 - c0);
-        std::size_t nOcc = 0;
-        {
-            const std::uint16_t* o = occupants.data() + c0;
-            std::uint32_t* list = occ.data();
-            for (std::size_t i = 0, z = c1 - c0; i < z; ++i) {
-                list[nOcc] = static_cast<std::uint32_t>(i);
-                nOcc += o[i] != 0;
-            }
-        }
-        const std::uint32_t* occList = occ.data();
+        const std::uint32_t* occList = scr.occupied.data();
+        const BandCells bc = scr.cells();
         for (std::size_t k = 0; k < nOcc; ++k) {
-            const std::size_t c = c0 + occList[k];
-            const int n = occupants[c];
+            const std::size_t i = occList[k], c = c0 + i;
+            const int n = scr.count[i];
             const CellState& cs = cells[c];
-            CellShares& x = sh[c - c0];
-            x.base = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            x.avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-            x.rest = waterLeftoverMm(x.avail, n, demand);
-            x.transmission = 1.f;
-            x.painted = 0;
+            const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
+            scr.base[i] = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
+            scr.avail[i] = avail;
+            scr.rest[i] = waterLeftoverMm(avail, n, demand);
+            bc.transmission[i] = 1.f;
+            bc.painted[i] = 0;
         }
-        // Deussen mode: plants see the unshared (canopy-shaded, after canopy water) resources;
-        // the leftovers for germination are the same as in the resources mode.
+        // Paint: every entry in height order takes its shares of its cells (paint.h). Deussen
+        // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
+        // leftovers for germination are the same as in the resources mode.
         const bool unshared = params.competition == CompetitionMode::Deussen;
-        CellShares* shares = sh.data();  // the band's cells: index c - c0
-        // Share of the next occupant (height rank x.painted) of cell c: waterShareMm, with its
-        // remainder / (n + 1) = the seeding share precomputed.
-        auto paint = [&](std::size_t c, float keep, double& sunSum, double& waterSum) {
-            CellShares& x = shares[c - c0];
-            if (unshared) {
-                sunSum += x.base;
-                waterSum += x.avail;
-            } else {
-                sunSum += x.base * x.transmission;
-                waterSum += waterDemandShareMm(x.avail, x.painted, demand) + x.rest;  // waterShareMm
-            }
-            x.transmission *= keep;
-            ++x.painted;
-        };
         const float* keepOf = speciesKeep.data();
+        double* sunOut = partSun.data();
+        double* waterOut = partWater.data();
+        std::int32_t* cellsOut = partCells.data();
         for (const BandEntry* e = e0; e != e1; ++e) {
-            double sunSum = 0, waterSum = 0;
-            std::int32_t count = 0;
             const float keep = keepOf[e->species()];
-            e->forEachRow(fp, [&](std::size_t start, std::uint32_t len) {
-                for (std::size_t c = start, z = c + len; c < z; ++c) paint(c, keep, sunSum, waterSum);
-                count += static_cast<std::int32_t>(len);
-            });
-            partSun[e->slot] = sunSum;
-            partWater[e->slot] = waterSum;
-            partCells[e->slot] = count;
+            const std::size_t first = e->start - c0;
+            const std::uint32_t len = e->len(), rows = e->rows();
+            double sunSum, waterSum;
+            std::int32_t count = static_cast<std::int32_t>(len);
+            if (unshared) {
+                sunSum = 0;
+                waterSum = 0;
+                e->forEachRow(fp, [&](std::size_t start, std::uint32_t n) {
+                    for (std::size_t i = start - c0, z = i + n; i < z; ++i) {
+                        sunSum += bc.base[i];
+                        waterSum += bc.avail[i];
+                        bc.transmission[i] *= keep;
+                        ++bc.painted[i];
+                    }
+                });
+                count = 0;
+                e->forEachRow(fp, [&](std::size_t, std::uint32_t n) { count += static_cast<std::int32_t>(n); });
+            } else if (rows == 1 && len == 1) {
+                // One cell (most plants): lane 0 alone, and (x + 0) + (0 + 0) = x for x >= 0.
+                sunSum = bc.base[first] * static_cast<double>(bc.transmission[first]);
+                waterSum = waterDemandShareMm(bc.avail[first], bc.painted[first], demand) + bc.rest[first];
+                bc.transmission[first] *= keep;
+                ++bc.painted[first];
+            } else {
+                PaintLanes lanes;
+                lanes.span(bc, first, len, keep, demand);
+                for (const Span *sp = fp + e->span + 1, *se = fp + e->span + rows; sp < se; ++sp) {
+                    lanes.span(bc, sp->start - c0, sp->len, keep, demand);
+                    count += static_cast<std::int32_t>(sp->len);
+                }
+                sunSum = lanes.sunTotal();
+                waterSum = lanes.waterTotal();
+            }
+            sunOut[e->slot] = sunSum;
+            waterOut[e->slot] = waterSum;
+            cellsOut[e->slot] = count;
         }
+        // Finish: this month's leftovers go to the germination deficit.
         const std::vector<int>& periods = periodsOfMonth[m];
         if (!periods.empty())
             for (std::size_t k = 0; k < nOcc; ++k) {
-                const std::size_t c = c0 + occList[k];
-                const CellShares& x = shares[c - c0];
-                const double sunLeft = x.base * x.transmission;
-                const float usedSun = static_cast<float>(x.base - sunLeft), usedWater = static_cast<float>(x.avail - x.rest);
+                const std::size_t i = occList[k];
+                const double base = scr.base[i];
+                const double sunLeft = base * bc.transmission[i];
+                const float usedSun = static_cast<float>(base - sunLeft), usedWater = static_cast<float>(scr.avail[i] - scr.rest[i]);
                 for (int g : periods) {
-                    float* d = deficitAt(c, static_cast<std::size_t>(g));
+                    float* d = deficitAt(c0 + i, static_cast<std::size_t>(g));
                     d[0] += usedSun;
                     d[1] += usedWater;
                 }
             }
-        std::fill(occupants.begin() + static_cast<std::ptrdiff_t>(c0), occupants.begin() + static_cast<std::ptrdiff_t>(c1), 0);
     }
 
     void updatePlants(int m) {
@@ -1049,8 +1091,7 @@ struct Simulation::Impl {
             partSun.resize(slots);
             partWater.resize(slots);
             partCells.resize(slots);
-            shareScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
-            occupiedScratch.resize(shareScratch.size());
+            bandScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             lap(phaseSeconds.sweep);
@@ -1121,19 +1162,20 @@ struct Simulation::Impl {
         }
     }
 
-    // Occupancy count of the current plants into occupants[] (band-parallel).
+    // Occupancy count of the current plants into occupants[] (band-parallel), saturating.
     void countOccupancy() {
         computeBounds();
         buildBands(false);
+        bandScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
-        for (int b = 0; b < bands(); ++b)
-            for (std::uint32_t e = bandStart[b]; e < bandStart[b + 1]; ++e) {
-                bandEntries[e].forEachRow(footprint.data(), [this](std::size_t start, std::uint32_t len) {
-                    std::uint16_t* row = &occupants[start];
-                    for (std::uint32_t i = 0; i < len; ++i)
-                        if (row[i] < 65535) ++row[i];
-                });
-            }
+        for (int b = 0; b < bands(); ++b) {
+            BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
+            countBand(b, scr);
+            const std::size_t c0 = static_cast<std::size_t>(b) * kBandRows * W;
+            const std::size_t nc = static_cast<std::size_t>(std::min(H, (b + 1) * kBandRows) - b * kBandRows) * W;
+            for (std::size_t i = 0; i < nc; ++i)
+                occupants[c0 + i] = static_cast<std::uint16_t>(std::min<std::int32_t>(scr.count[i], 0xFFFF));
+        }
     }
 
     struct Candidate {

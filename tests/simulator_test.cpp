@@ -12,6 +12,7 @@
 #include "atomic_file.h"
 #include "demo_scene.h"
 #include "error.h"
+#include "paint.h"
 #include "processes.h"
 #include "sim_config.h"
 #include "sim_run.h"
@@ -177,6 +178,74 @@ TEST_CASE("water: minimum demand in height order, remainder shared with one shar
         double sun = 0, left = 0;
         REQUIRE(sim.leftoverMeans(25, 25, 0, sun, left));
         CHECK(left == Approx(waterLeftoverMm(water, 3, 4.0)).margin(1e-6));
+    }
+}
+
+TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the per-cell shares", "[sim][water][shade]") {
+    // One band row of 64 cells painted by a stack of plants over random spans: the SSE2 kernel
+    // (where built) and the portable one must agree bit for bit on every sum and cell, and each
+    // cell's water must be waterShareMm of its height rank.
+    constexpr std::size_t kCells = 64;
+    constexpr int kPlants = 40;
+    constexpr double kDemand = 4.0;
+    std::uint64_t state = 0x9E3779B97F4A7C15ull;
+    auto next = [&state](std::uint64_t bound) {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        return state % bound;
+    };
+    std::vector<double> base(kCells), avail(kCells), rest(kCells);
+    std::vector<int> occupants(kCells, 0);
+    struct PlantSpan {
+        std::size_t first, len;
+        float keep;
+    };
+    std::vector<PlantSpan> spans;
+    for (int p = 0; p < kPlants; ++p) {
+        const std::size_t first = next(kCells), len = 1 + next(std::min<std::uint64_t>(9, kCells - first));
+        spans.push_back({first, len, 1.f - static_cast<float>(next(90)) / 100.f});
+        for (std::size_t c = first; c < first + len; ++c) ++occupants[c];
+    }
+    for (std::size_t c = 0; c < kCells; ++c) {
+        base[c] = 50.0 + static_cast<double>(next(100000)) / 977.0;
+        avail[c] = static_cast<double>(next(6000)) / 97.0;  // from scarce to plenty for up to 40 occupants
+        rest[c] = waterLeftoverMm(avail[c], occupants[c], kDemand);
+    }
+    auto paint = [&](auto lanesType, std::vector<double>& sums, std::vector<float>& trans, std::vector<std::int32_t>& painted) {
+        trans.assign(kCells, 1.f);
+        painted.assign(kCells, 0);
+        const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
+        for (const PlantSpan& s : spans) {
+            decltype(lanesType) lanes;
+            // Two spans per plant when it is long enough: the lanes restart with each span.
+            const std::size_t split = s.len / 2;
+            lanes.span(bc, s.first, split, s.keep, kDemand);
+            lanes.span(bc, s.first + split, s.len - split, s.keep, kDemand);
+            sums.push_back(lanes.sunTotal());
+            sums.push_back(lanes.waterTotal());
+        }
+    };
+    std::vector<double> sumsScalar, sumsFast;
+    std::vector<float> transScalar, transFast;
+    std::vector<std::int32_t> paintedScalar, paintedFast;
+    paint(PaintLanesScalar{}, sumsScalar, transScalar, paintedScalar);
+    paint(PaintLanes{}, sumsFast, transFast, paintedFast);
+    REQUIRE(sumsScalar.size() == sumsFast.size());
+    CHECK(std::memcmp(sumsScalar.data(), sumsFast.data(), sumsScalar.size() * sizeof(double)) == 0);
+    CHECK(std::memcmp(transScalar.data(), transFast.data(), kCells * sizeof(float)) == 0);
+    CHECK(paintedFast == paintedScalar);
+    for (std::size_t c = 0; c < kCells; ++c) CHECK(paintedFast[c] == occupants[c]);
+    // A one-cell plant alone under the stack gets exactly the cell's formulas.
+    std::vector<float> trans(kCells, 1.f);
+    std::vector<std::int32_t> painted(kCells, 0);
+    const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
+    for (int k = 0; k < occupants[7]; ++k) {
+        const double sunExpected = base[7] * static_cast<double>(trans[7]);
+        PaintLanes lanes;
+        lanes.span(bc, 7, 1, 0.5f, kDemand);
+        CHECK(lanes.sunTotal() == sunExpected);
+        CHECK(lanes.waterTotal() == Approx(waterShareMm(avail[7], k, occupants[7], kDemand)).epsilon(1e-12));
     }
 }
 
