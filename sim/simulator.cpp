@@ -46,10 +46,9 @@ struct BandScratch {
     std::vector<float> transmission;
     std::vector<std::int32_t> painted;
     std::vector<std::uint32_t> occupied;
-    std::vector<std::int32_t> diff, count;  // countBand: difference array (n + 1, kept zero) and occupants
+    std::vector<std::int32_t> diff;  // scatterBand: difference array of the occupancy (n + 1 cells, kept zero)
     void resize(std::size_t n) {
         if (diff.size() < n + 1) diff.resize(n + 1, 0);
-        count.resize(n);
         base.resize(n);
         avail.resize(n);
         rest.resize(n);
@@ -776,13 +775,12 @@ struct Simulation::Impl {
                      sortScratch[static_cast<std::size_t>(omp_get_thread_num())]);
     }
 
-    // Occupants of the cells of band b into scr.count (band-relative), and the band's occupied
-    // cells, in address order, into scr.occupied; returns how many. A difference array: each
-    // row span adds 1 at its first cell and -1 after its last (two writes whatever its length,
-    // no loop over the span), then one prefix-sum pass over the band counts every cell and
-    // lists the occupied ones (branch-free) and leaves the difference array zero for the next
-    // band. Exact: integer sums.
-    std::size_t countBand(int b, BandScratch& scr) const {
+    // The occupancy count of band b as a difference array (scr.diff, band-relative, kept zero
+    // between bands): each row span adds 1 at its first cell and -1 after its last, two
+    // writes whatever its length and no loop over its cells. A prefix sum over the band then
+    // gives every cell's occupants (the sweep's prepare pass, countOccupancy), and leaves
+    // scr.diff zero again. Exact: integer sums. Returns the band's first cell and cell count.
+    std::pair<std::size_t, std::size_t> scatterBand(int b, BandScratch& scr) const {
         const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
         const std::size_t c0 = static_cast<std::size_t>(r0) * W, nc = static_cast<std::size_t>(r1 - r0) * W;
         scr.resize(nc);
@@ -793,20 +791,8 @@ struct Simulation::Impl {
                 ++diff[start];
                 --diff[start + len];
             });
-        std::int32_t* d = scr.diff.data();
-        std::int32_t* count = scr.count.data();
-        std::uint32_t* list = scr.occupied.data();
-        std::size_t nOcc = 0;
-        std::int32_t run = 0;
-        for (std::size_t i = 0; i < nc; ++i) {
-            run += d[i];
-            d[i] = 0;
-            count[i] = run;
-            list[nOcc] = static_cast<std::uint32_t>(i);
-            nOcc += run != 0;
-        }
-        d[nc] = 0;
-        return nOcc;
+        scr.diff[nc] = 0;  // the -1 after the band's last cell
+        return {c0, nc};
     }
 
     // One band: count, prepare, paint, finish. The band's rows belong to this call only.
@@ -824,22 +810,34 @@ struct Simulation::Impl {
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
         BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
-        const std::size_t nOcc = countBand(b, scr);
-        // Prepare: each occupied cell's shaded sun, water after the canopy and seeding share
-        // (the same for all its occupants), once per cell instead of once per occupant.
-        const std::uint32_t* occList = scr.occupied.data();
+        const std::size_t nc = scatterBand(b, scr).second;
+        // Prepare, over the band's cells in address order: the prefix sum of the difference
+        // array gives the cell's occupants n; an occupied cell goes on the list of occupied
+        // cells (branch-free) and gets its shaded sun, its water after the canopy and the
+        // seeding share, once per cell instead of once per occupant (an empty cell's values
+        // are computed too, and never read).
         const BandCells bc = scr.cells();
-        for (std::size_t k = 0; k < nOcc; ++k) {
-            const std::size_t i = occList[k], c = c0 + i;
-            const int n = scr.count[i];
-            const CellState& cs = cells[c];
-            const double avail = waterAfterCanopyMm(moistPlane[cs.coarse], cs.canopyTrees, demand);
-            scr.base[i] = static_cast<double>(cs.canopyTransmission) * sunPlane[cs.coarse];
-            scr.avail[i] = avail;
-            scr.rest[i] = waterLeftoverMm(avail, n, demand);
+        double* base = scr.base.data();
+        double* availOut = scr.avail.data();
+        double* rest = scr.rest.data();
+        std::int32_t* diff = scr.diff.data();
+        std::uint32_t* list = scr.occupied.data();
+        const CellState* cs = cells.data() + c0;
+        std::size_t nOcc = 0;
+        std::int32_t n = 0;
+        for (std::size_t i = 0; i < nc; ++i) {
+            n += diff[i];
+            diff[i] = 0;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += n != 0;
+            const double avail = waterAfterCanopyMm(moistPlane[cs[i].coarse], cs[i].canopyTrees, demand);
+            base[i] = static_cast<double>(cs[i].canopyTransmission) * sunPlane[cs[i].coarse];
+            availOut[i] = avail;
+            rest[i] = waterLeftoverMm(avail, n, demand);
             bc.transmission[i] = 1.f;
             bc.painted[i] = 0;
         }
+        const std::uint32_t* occList = list;
         // Paint: every entry in height order takes its shares of its cells (paint.h). Deussen
         // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
         // leftovers for germination are the same as in the resources mode.
@@ -1170,11 +1168,13 @@ struct Simulation::Impl {
 #pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
         for (int b = 0; b < bands(); ++b) {
             BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
-            countBand(b, scr);
-            const std::size_t c0 = static_cast<std::size_t>(b) * kBandRows * W;
-            const std::size_t nc = static_cast<std::size_t>(std::min(H, (b + 1) * kBandRows) - b * kBandRows) * W;
-            for (std::size_t i = 0; i < nc; ++i)
-                occupants[c0 + i] = static_cast<std::uint16_t>(std::min<std::int32_t>(scr.count[i], 0xFFFF));
+            const auto [c0, nc] = scatterBand(b, scr);
+            std::int32_t n = 0;
+            for (std::size_t i = 0; i < nc; ++i) {
+                n += scr.diff[i];
+                scr.diff[i] = 0;
+                occupants[c0 + i] = static_cast<std::uint16_t>(std::min<std::int32_t>(n, 0xFFFF));
+            }
         }
     }
 
