@@ -7,7 +7,12 @@
 
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 namespace eco {
 
@@ -86,6 +91,55 @@ inline std::uint64_t mixStream(std::uint64_t a, std::uint64_t b) {
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return z ^ (z >> 31);
+}
+
+/// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
+/// counter, four at a time where SSE2 is available (integer arithmetic: the same bits as
+/// randomBits, which tests/rng_test.cpp checks).
+inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std::uint64_t counter, std::size_t n,
+                            std::uint32_t* word0, std::uint32_t* word1) {
+    std::size_t i = 0;
+#ifdef __SSE2__
+    const __m128i mul0 = _mm_set1_epi32(static_cast<int>(0xD2511F53u)), mul1 = _mm_set1_epi32(static_cast<int>(0xCD9E8D57u));
+    // 32 x 32 -> 64-bit products of four lanes: low and high words, lane order kept.
+    auto mulHiLo = [](__m128i a, __m128i m, __m128i& hi, __m128i& lo) {
+        const __m128i even = _mm_mul_epu32(a, m);                                        // lanes 0, 2
+        const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(a, 32), _mm_srli_epi64(m, 32));  // lanes 1, 3
+        lo = _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
+        hi = _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x0D), _mm_shuffle_epi32(odd, 0x0D));
+    };
+    for (; i + 4 <= n; i += 4) {
+        __m128i c0 = _mm_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(counter)));
+        __m128i c1 = _mm_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(counter >> 32)));
+        __m128i c2 = _mm_set_epi32(static_cast<int>(static_cast<std::uint32_t>(stream[i + 3])),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 2])),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 1])),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i])));
+        __m128i c3 = _mm_set_epi32(static_cast<int>(static_cast<std::uint32_t>(stream[i + 3] >> 32)),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 2] >> 32)),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 1] >> 32)),
+                                   static_cast<int>(static_cast<std::uint32_t>(stream[i] >> 32)));
+        std::uint32_t key0 = static_cast<std::uint32_t>(seed), key1 = static_cast<std::uint32_t>(seed >> 32);
+        for (int round = 0; round < 10; ++round) {
+            __m128i hi0, lo0, hi1, lo1;
+            mulHiLo(c0, mul0, hi0, lo0);
+            mulHiLo(c2, mul1, hi1, lo1);
+            c0 = _mm_xor_si128(_mm_xor_si128(hi1, c1), _mm_set1_epi32(static_cast<int>(key0)));
+            c1 = lo1;
+            c2 = _mm_xor_si128(_mm_xor_si128(hi0, c3), _mm_set1_epi32(static_cast<int>(key1)));
+            c3 = lo0;
+            key0 += 0x9E3779B9u;
+            key1 += 0xBB67AE85u;
+        }
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(word0 + i), c0);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(word1 + i), c1);
+    }
+#endif
+    for (; i < n; ++i) {
+        const auto b = randomBits(seed, stream[i], counter);
+        word0[i] = b[0];
+        word1[i] = b[1];
+    }
 }
 
 }  // namespace eco

@@ -148,6 +148,15 @@ inline double mortalityUniform(std::uint64_t seed, std::uint64_t plantId, std::u
     const auto b = randomBits(seed, mixStream(plantId, kMortalityStreamTag), month);
     return bitsToUnit(b[0], b[1]);
 }
+/// mortalityUniform of plants id[0 .. n) (n <= kMortalityBatch) into u, four at a time.
+constexpr std::size_t kMortalityBatch = 256;
+inline void mortalityUniforms(std::uint64_t seed, const std::uint64_t* id, std::uint64_t month, std::size_t n, double* u) {
+    std::uint64_t stream[kMortalityBatch];
+    std::uint32_t w0[kMortalityBatch], w1[kMortalityBatch];
+    for (std::size_t i = 0; i < n; ++i) stream[i] = mixStream(id[i], kMortalityStreamTag);
+    randomBitsBatch(seed, stream, month, n, w0, w1);
+    for (std::size_t i = 0; i < n; ++i) u[i] = bitsToUnit(w0[i], w1[i]);
+}
 
 /// Seeding kernel of one canopy tree of crown radius r at distance d: 1 within inner * r,
 /// falling linearly to 0 at outer * r, 0 beyond (multiply by gamma for the probability).

@@ -10,6 +10,7 @@
 #include <numeric>
 
 #include "error.h"
+#include "batch_exp.h"
 #include "paint.h"
 #include "processes.h"
 #include "rng.h"
@@ -501,14 +502,17 @@ struct Simulation::Impl {
     }
 
     // ------------------------------------------------------------------ plants
-    double vigour(int s, double sun, double water, double temp, double slope) const {
+    // Vigour (Eq. 1) in two steps, so that the monthly update can take the exp of a whole
+    // block of plants at once (batch_exp.h): the exponent, then the vigour from its exp.
+    // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
+    double vigourExponent(int s, double sun, double water, double temp, double slope) const {
         const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
-        // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
         const double x = std::max(std::max(std::abs(temp - c.tempC) * c.tempInvR, std::abs(water - c.moistC) * c.moistInvR),
                                   std::max(std::abs(sun - c.sunC) * c.sunInvR, std::abs(slope - c.slopeC) * c.slopeInvR));
         const double xp = vigPIsFourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, vigP);
-        return c.alpha * ((1.0 + vigA) * std::exp(xp * vigLnQ) - vigA);
+        return xp * vigLnQ;
     }
+    double vigourFromExp(int s, double e) const { return spc[static_cast<std::size_t>(s)].alpha * ((1.0 + vigA) * e - vigA); }
 
     float canopyLimitAt(double x, double y) const {
         const int ix = std::clamp(chm.cellX(x), 0, chm.width() - 1), iy = std::clamp(chm.cellY(y), 0, chm.height() - 1);
@@ -901,44 +905,60 @@ struct Simulation::Impl {
             }
     }
 
+    // Plants per block of the monthly update: the vigour exponents of a block are gathered,
+    // their exps taken in one vectorised loop (batchExp), then each plant is updated. A plant's
+    // result depends on its own data only, so the blocking changes no result.
+    static constexpr std::size_t kPlantBlock = kMortalityBatch;
+
     void updatePlants(int m) {
         const std::size_t n = pl.size();
         fate.assign(n, 0);
         const float* tempPlane = abio.temperatureC[m].data().data();
         const float* slopePlane = abio.slopeDeg.data().data();
+        const std::size_t blocks = (n + kPlantBlock - 1) / kPlantBlock;
         std::int64_t cellsVisited = 0;  // an integer sum: the same for any thread count
-#pragma omp parallel for schedule(dynamic, 2048) if (n > kParallelPlants) reduction(+ : cellsVisited)
-        for (std::size_t p = 0; p < n; ++p) {
-            double sunSum = 0, waterSum = 0;
-            std::int64_t count = 0;
-            for (std::uint32_t s = slotStart[p]; s < slotStart[p + 1]; ++s) {
-                sunSum += partSun[s];
-                waterSum += partWater[s];
-                count += partCells[s];
+#pragma omp parallel for schedule(dynamic, 8) if (n > kParallelPlants) reduction(+ : cellsVisited)
+        for (std::size_t blk = 0; blk < blocks; ++blk) {
+            const std::size_t p0 = blk * kPlantBlock, p1 = std::min(n, p0 + kPlantBlock);
+            double arg[kPlantBlock], ex[kPlantBlock];
+            for (std::size_t p = p0; p < p1; ++p) {
+                double sunSum = 0, waterSum = 0;
+                std::int64_t count = 0;
+                for (std::uint32_t s = slotStart[p]; s < slotStart[p + 1]; ++s) {
+                    sunSum += partSun[s];
+                    waterSum += partWater[s];
+                    count += partCells[s];
+                }
+                cellsVisited += count;
+                const double inv = count == 1 ? 1.0 : count > 0 ? 1.0 / static_cast<double>(count) : 0.0;  // most plants: one cell
+                const double sun = sunSum * inv, water = waterSum * inv;
+                pl.sun[p] = static_cast<float>(sun);
+                pl.water[p] = static_cast<float>(water);
+                arg[p - p0] = vigourExponent(pl.species[p], sun, water, tempPlane[pl.coarse[p]], slopePlane[pl.coarse[p]]);
             }
-            cellsVisited += count;
-            const double inv = count == 1 ? 1.0 : count > 0 ? 1.0 / static_cast<double>(count) : 0.0;  // most plants: one cell
-            const double sun = sunSum * inv, water = waterSum * inv;
-            const int s = pl.species[p];
-            const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
-            const double v = vigour(s, sun, water, tempPlane[pl.coarse[p]], slopePlane[pl.coarse[p]]);
-            pl.sun[p] = static_cast<float>(sun);
-            pl.water[p] = static_cast<float>(water);
-            pl.vigour[p] = static_cast<float>(v);
-            const PoolStep ps = updatePool(pl.pool[p], v, c.capacity);
-            pl.pool[p] = ps.pool;
-            if (c.growthMonth[m] && ps.overflow > 0) {
-                pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
-                pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
-                pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
-                prevIndex[p] = kNoPrev;
-            }
-            ++pl.ageMonths[p];
-            if (pl.height[p] >= pl.canopyLimit[p]) {
-                fate[p] = 2;
-            } else {
-                const double mu = mortalityProbability(c.backgroundMu, pl.pool[p]);
-                if (mortalityUniform(seed, pl.id[p], static_cast<std::uint64_t>(month)) < mu) fate[p] = 1;
+            batchExp(arg, ex, p1 - p0);
+            double draw[kPlantBlock];  // mortality uniforms (drawn for every plant, used unless it reached the canopy)
+            mortalityUniforms(seed, pl.id.data() + p0, static_cast<std::uint64_t>(month), p1 - p0, draw);
+            for (std::size_t p = p0; p < p1; ++p) {
+                const int s = pl.species[p];
+                const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
+                const double v = vigourFromExp(s, ex[p - p0]);
+                pl.vigour[p] = static_cast<float>(v);
+                const PoolStep ps = updatePool(pl.pool[p], v, c.capacity);
+                pl.pool[p] = ps.pool;
+                if (c.growthMonth[m] && ps.overflow > 0) {
+                    pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
+                    pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
+                    pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
+                    prevIndex[p] = kNoPrev;
+                }
+                ++pl.ageMonths[p];
+                if (pl.height[p] >= pl.canopyLimit[p]) {
+                    fate[p] = 2;
+                } else {
+                    const double mu = mortalityProbability(c.backgroundMu, pl.pool[p]);
+                    if (draw[p - p0] < mu) fate[p] = 1;
+                }
             }
         }
         counters.plantCellMonths += cellsVisited;
@@ -1134,7 +1154,9 @@ struct Simulation::Impl {
         return true;
     }
 
-    void weightsAt(int ix, int iy, double* w) const {
+    // Germination weights of every species at cell (ix, iy) into w; `arg` is scratch of the
+    // same size (the vigour exponents, whose exps are taken in one batch).
+    void weightsAt(int ix, int iy, double* w, double* arg) const {
         const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
         const std::uint32_t pkg = seedPkg[c];
         const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
@@ -1145,8 +1167,10 @@ struct Simulation::Impl {
         const int periods = std::min<int>(32, static_cast<int>(periodMonthMask.size()));
         for (int g = 0; g < periods; ++g) okG[g] = false;
         bool computed[32] = {};
-        for (std::size_t s = 0; s < spc.size(); ++s) {
-            w[s] = 0;
+        const std::size_t ns = spc.size();
+        for (std::size_t s = 0; s < ns; ++s) {
+            w[s] = 0;  // not a candidate
+            arg[s] = 0;
             const SpeciesConst& sc = spc[s];
             if (!(sc.memberMask & pkg) || sc.period >= periods) continue;
             const int g = sc.period;
@@ -1155,9 +1179,15 @@ struct Simulation::Impl {
                 computed[g] = true;
             }
             if (!okG[g]) continue;
-            const double vbar = vigour(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
-            w[s] = std::max(0.0, vbar / sc.rouletteDenominator);  // rouletteWeight with maxAge^beta precomputed
+            w[s] = 1;
+            arg[s] = vigourExponent(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
         }
+        batchExp(arg, arg, ns);
+        for (std::size_t s = 0; s < ns; ++s)
+            if (w[s] != 0) {  // rouletteWeight, with maxAge^beta precomputed
+                const double vbar = vigourFromExp(static_cast<int>(s), arg[s]);
+                w[s] = std::max(0.0, vbar / spc[s].rouletteDenominator);
+            }
     }
 
     // Occupancy count of the current plants into occupants[] (band-parallel), saturating.
@@ -1189,7 +1219,7 @@ struct Simulation::Impl {
         std::vector<std::vector<Candidate>> perBand(static_cast<std::size_t>(bands()));
 #pragma omp parallel if (cells.size() > kParallelCells)
         {
-            std::vector<double> w(ns);
+            std::vector<double> w(ns), arg(ns);
 #pragma omp for schedule(dynamic, 1)
             for (int b = 0; b < bands(); ++b) {
                 const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
@@ -1201,7 +1231,7 @@ struct Simulation::Impl {
                         const auto bits = randomBits(seed, mixStream(c, kGerminationStreamTag), year);
                         const double u = bits[0] * 0x1.0p-32;
                         if (u >= prob) continue;
-                        weightsAt(ix, iy, w.data());
+                        weightsAt(ix, iy, w.data(), arg.data());
                         const int s = rouletteSelect(w.data(), static_cast<int>(ns), bits[1] * 0x1.0p-32);
                         if (s < 0) continue;
                         perBand[static_cast<std::size_t>(b)].push_back(
@@ -1380,8 +1410,8 @@ bool Simulation::leftoverMeans(int ix, int iy, int period, double& sunHours, dou
 std::vector<double> Simulation::germinationWeights(int ix, int iy) const {
     const Impl& s = *impl_;
     if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H) throw ValidationError("germinationWeights: cell out of range");
-    std::vector<double> w(s.spc.size());
-    s.weightsAt(ix, iy, w.data());
+    std::vector<double> w(s.spc.size()), arg(s.spc.size());
+    s.weightsAt(ix, iy, w.data(), arg.data());
     return w;
 }
 

@@ -31,6 +31,23 @@ TEST_CASE("rng: randomBits packs (seed, stream, counter) into key and counter", 
     CHECK(a == b);
 }
 
+TEST_CASE("rng: randomBitsBatch gives randomBits' words for every stream, at any batch length", "[rng]") {
+    const std::uint64_t seed = 0x0123456789abcdefull;
+    std::vector<std::uint64_t> streams;
+    for (std::uint64_t i = 0; i < 23; ++i) streams.push_back(eco::mixStream(i, 77) ^ (i << 60));  // high words set too
+    for (std::uint64_t counter : {std::uint64_t{0}, std::uint64_t{1799}, std::uint64_t{0xfedcba9876543210ull}})
+        for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{4}, std::size_t{7}, streams.size()}) {
+            std::vector<std::uint32_t> w0(n + 1, 0xDEADBEEFu), w1(n + 1, 0xDEADBEEFu);
+            eco::randomBitsBatch(seed, streams.data(), counter, n, w0.data(), w1.data());
+            for (std::size_t i = 0; i < n; ++i) {
+                const auto b = eco::randomBits(seed, streams[i], counter);
+                CHECK(w0[i] == b[0]);
+                CHECK(w1[i] == b[1]);
+            }
+            CHECK(w0[n] == 0xDEADBEEFu);  // nothing written past n
+        }
+}
+
 TEST_CASE("rng: streams are deterministic and block-addressable", "[rng]") {
     RandomStream a(42, 7), b(42, 7);
     std::vector<std::uint32_t> first;

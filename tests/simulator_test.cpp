@@ -3,14 +3,17 @@
 #include <catch2/catch.hpp>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
 #include "atomic_file.h"
 #include "demo_scene.h"
+#include "batch_exp.h"
 #include "error.h"
 #include "paint.h"
 #include "processes.h"
@@ -247,6 +250,24 @@ TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the
         CHECK(lanes.sunTotal() == sunExpected);
         CHECK(lanes.waterTotal() == Approx(waterShareMm(avail[7], k, occupants[7], kDemand)).epsilon(1e-12));
     }
+}
+
+TEST_CASE("vigour exp: batchExp is within 2 ulp of std::exp, and its vector and scalar forms agree bit for bit", "[sim][vigour]") {
+    // The vigour exponent ln(q) x^p is <= 0; the whole clamped range is checked.
+    std::vector<double> x;
+    for (int i = 0; i <= 200000; ++i) x.push_back(-708.0 + 1417.0 * i / 200000.0);
+    for (double v : {0.0, -0.0, -1e-300, 1e-17, -0.5 * std::log(2.0), 0.5 * std::log(2.0), -745.0, 800.0}) x.push_back(v);
+    std::vector<double> y(x.size());
+    batchExp(x.data(), y.data(), x.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        const double scalar = batchExpOne(x[i]);
+        CHECK(std::memcmp(&y[i], &scalar, sizeof(double)) == 0);
+        const double clamped = std::min(std::max(x[i], -708.0), 709.0), ref = std::exp(clamped);
+        worst = std::max(worst, std::abs(y[i] - ref) / ref);
+    }
+    CHECK(worst <= 2 * std::numeric_limits<double>::epsilon());
+    CHECK(batchExpOne(0.0) == 1.0);
 }
 
 TEST_CASE("vigour: the engine's vigour is Eq. 1 on the plant's mean shares", "[sim][vigour]") {
