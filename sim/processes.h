@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -151,6 +152,7 @@ inline double mortalityUniform(std::uint64_t seed, std::uint64_t plantId, std::u
 /// mortalityUniform of plants id[0 .. n) (n <= kMortalityBatch) into u, four at a time.
 constexpr std::size_t kMortalityBatch = 256;
 inline void mortalityUniforms(std::uint64_t seed, const std::uint64_t* id, std::uint64_t month, std::size_t n, double* u) {
+    assert(n <= kMortalityBatch);
     std::uint64_t stream[kMortalityBatch];
     std::uint32_t w0[kMortalityBatch], w1[kMortalityBatch];
     for (std::size_t i = 0; i < n; ++i) stream[i] = mixStream(id[i], kMortalityStreamTag);

@@ -800,8 +800,8 @@ struct Simulation::Impl {
     }
 
     // One band: count, prepare, paint, finish. The band's rows belong to this call only.
-    //  * count: occupants per cell and the occupied cells (countBand);
-    //  * prepare: each occupied cell's resources and seeding share;
+    //  * count: the band's difference array of occupants (scatterBand);
+    //  * prepare: every cell's occupants, resources and seeding share, and the occupied cells;
     //  * paint: the entries in height order, each taking its shares of the cells it covers;
     //  * finish: the occupied cells in address order: the leftovers of this month go to the
     //    germination deficit (growth-period months).
@@ -859,6 +859,7 @@ struct Simulation::Impl {
             if (unshared) {
                 sunSum = 0;
                 waterSum = 0;
+                count = 0;
                 e->forEachRow(fp, [&](std::size_t start, std::uint32_t n) {
                     for (std::size_t i = start - c0, z = i + n; i < z; ++i) {
                         sunSum += bc.base[i];
@@ -866,9 +867,8 @@ struct Simulation::Impl {
                         bc.transmission[i] *= keep;
                         ++bc.painted[i];
                     }
+                    count += static_cast<std::int32_t>(n);
                 });
-                count = 0;
-                e->forEachRow(fp, [&](std::size_t, std::uint32_t n) { count += static_cast<std::int32_t>(n); });
             } else if (rows == 1 && len == 1) {
                 // One cell (most plants): lane 0 alone, and (x + 0) + (0 + 0) = x for x >= 0.
                 sunSum = bc.base[first] * static_cast<double>(bc.transmission[first]);
@@ -894,9 +894,8 @@ struct Simulation::Impl {
         if (!periods.empty())
             for (std::size_t k = 0; k < nOcc; ++k) {
                 const std::size_t i = occList[k];
-                const double base = scr.base[i];
-                const double sunLeft = base * bc.transmission[i];
-                const float usedSun = static_cast<float>(base - sunLeft), usedWater = static_cast<float>(scr.avail[i] - scr.rest[i]);
+                const double sunLeft = bc.base[i] * bc.transmission[i];
+                const float usedSun = static_cast<float>(bc.base[i] - sunLeft), usedWater = static_cast<float>(bc.avail[i] - bc.rest[i]);
                 for (int g : periods) {
                     float* d = deficitAt(c0 + i, static_cast<std::size_t>(g));
                     d[0] += usedSun;
