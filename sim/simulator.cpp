@@ -10,7 +10,8 @@
 #include <numeric>
 
 #include "error.h"
-#include "batch_exp.h"
+#include "batch_math.h"
+#include "footprint.h"
 #include "paint.h"
 #include "processes.h"
 #include "rng.h"
@@ -58,13 +59,6 @@ struct BandScratch {
         occupied.resize(n);
     }
     BandCells cells() { return BandCells{base.data(), avail.data(), rest.data(), transmission.data(), painted.data()}; }
-};
-
-// A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 (and
-// start the row's first cell) when no cell centre of that row lies within the crown.
-struct Span {
-    std::uint32_t start;
-    std::uint32_t len;
 };
 
 // One plant in one band's list: everything the sweep needs, read sequentially. The plant's
@@ -152,7 +146,7 @@ std::uint64_t hashVector(std::uint64_t h, const std::vector<T>& v) {
 
 }  // namespace
 
-struct Simulation::Impl {
+struct Simulation::Impl : CellGrid {
     // ---- fixed inputs
     Biome biome;
     SimParams params;
@@ -167,9 +161,7 @@ struct Simulation::Impl {
     double vigA = 0.2, vigLnQ = std::log(0.01), vigP = 4.5;
     bool vigPIsFourAndHalf = true;  // x^4.5 as x^4 sqrt(x): exact to an ulp and 5x faster than pow
 
-    // ---- simulation grid
-    int W = 0, H = 0;
-    double cell = 0.2, ox = 0, oy = 0;
+    // ---- simulation grid (W, H, cell, ox, oy and the footprint geometry: the CellGrid base)
     std::vector<int> coarseCol;        // per sim column: abiotics column
     std::vector<std::size_t> coarseRowOffset;  // per sim row: abiotics row * abiotics width
     std::vector<CellState> cells;
@@ -197,11 +189,14 @@ struct Simulation::Impl {
     // Footprint reuse: a plant's footprint depends only on its root, position and radius,
     // and the radius changes only in growth months with overflow. prevIndex[p] is the
     // index of plant p in the last computeBounds (its rows in bounds, its spans in
-    // footprint), or kNoPrev when it must be recomputed (new plant, or the radius changed).
-    // computeBounds swaps bounds / footprint with the prev* copies and copies the spans of
-    // the unchanged plants: the same spans as recomputing them (same inputs).
+    // footprint), or kNoPrev when it must be recomputed (new plant, or a radius outside
+    // prevRange[p]). computeBounds swaps bounds / footprint with the prev* copies and copies
+    // the spans of the unchanged plants: the same spans as recomputing them.
+    // prevRange[p]: radii for which the footprint is the one computed last (footprintRange):
+    // a plant that grows within it keeps its spans (most growth months of most plants).
     static constexpr std::uint32_t kNoPrev = 0xFFFFFFFFu;
     std::vector<std::uint32_t> prevIndex;
+    std::vector<RadiusRange> prevRange;
     std::vector<PlantBounds> prevBounds;
     std::vector<Span> prevFootprint;
     std::vector<std::uint32_t> slotStart;
@@ -386,45 +381,6 @@ struct Simulation::Impl {
         deficit.assign(n * periodMonthMask.size() * 2, 0.f);
     }
 
-    // Visit the cells whose centres lie within the disc (x, y, r), rows [r0, r1) only, as
-    // row spans fn(iy, ixFirst, ixLast). When (rootIx, rootIy) >= 0 the root cell is always
-    // part of the footprint ("at least its own cell").
-    template <typename F>
-    void forEachSpan(double x, double y, double r, int rootIx, int rootIy, int r0, int r1, F&& fn) const {
-        const double r2 = r * r;
-        for (int iy = r0; iy < r1; ++iy) {
-            const double dy = oy + (iy + 0.5) * cell - y;
-            int a = 1, b = 0;
-            if (dy * dy <= r2) {
-                const double half = std::sqrt(r2 - dy * dy);
-                const double fa = std::ceil((x - half - ox) / cell - 0.5);
-                const double fb = std::floor((x + half - ox) / cell - 0.5);
-                a = static_cast<int>(std::max(fa, -1.0));
-                b = static_cast<int>(std::min(fb, static_cast<double>(W)));
-            }
-            if (iy == rootIy) {
-                if (a > b) a = b = rootIx;
-                else { a = std::min(a, rootIx); b = std::max(b, rootIx); }
-            }
-            a = std::max(a, 0);
-            b = std::min(b, W - 1);
-            if (a <= b) fn(iy, a, b);
-        }
-    }
-    // Rows [lo, hi] whose centres may lie within r of y (plus the root row), clamped.
-    void rowRange(double y, double r, int rootIy, int& lo, int& hi) const {
-        const double flo = std::ceil((y - r - oy) / cell - 0.5);
-        const double fhi = std::floor((y + r - oy) / cell - 0.5);
-        lo = static_cast<int>(std::clamp(flo, -1.0, static_cast<double>(H)));
-        hi = static_cast<int>(std::clamp(fhi, -1.0, static_cast<double>(H)));
-        if (rootIy >= 0) {
-            lo = std::min(lo, rootIy);
-            hi = std::max(hi, rootIy);
-        }
-        lo = std::max(lo, 0);
-        hi = std::min(hi, H - 1);
-    }
-
     void setupCanopy(const std::vector<Plant>& trees) {
         // Keep the trees whose crown or seeding disc reaches the area, in input order.
         canopy.clear();
@@ -503,7 +459,7 @@ struct Simulation::Impl {
 
     // ------------------------------------------------------------------ plants
     // Vigour (Eq. 1) in two steps, so that the monthly update can take the exp of a whole
-    // block of plants at once (batch_exp.h): the exponent, then the vigour from its exp.
+    // block of plants at once (batch_math.h): the exponent, then the vigour from its exp.
     // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
     double vigourExponent(int s, double sun, double water, double temp, double slope) const {
         const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
@@ -513,6 +469,15 @@ struct Simulation::Impl {
         return xp * vigLnQ;
     }
     double vigourFromExp(int s, double e) const { return spc[static_cast<std::size_t>(s)].alpha * ((1.0 + vigA) * e - vigA); }
+
+    // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
+    // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator
+    // comes from here or from its block form in updatePlants (the same operations).
+    double crownRadius(int s, double h) const {
+        const Allometry& al = spc[static_cast<std::size_t>(s)].allometry;
+        if (!(h > 0)) return 0.0;
+        return al.linear ? al.linearFactor * h : batchExpOne(al.a + al.b * batchLogOne(h));
+    }
 
     float canopyLimitAt(double x, double y) const {
         const int ix = std::clamp(chm.cellX(x), 0, chm.width() - 1), iy = std::clamp(chm.cellY(y), 0, chm.height() - 1);
@@ -538,7 +503,7 @@ struct Simulation::Impl {
         pl.y[p] = y;
         pl.groundZ[p] = abio.elevationM.sampleBilinear(x, y);
         pl.height[p] = h;
-        pl.radius[p] = c.allometry.crownRadiusM(h);
+        pl.radius[p] = crownRadius(s, h);
         pl.growthAge[p] = growthAgeYears;
         pl.pool[p] = pool;
         pl.ageMonths[p] = static_cast<std::int32_t>(std::lround(ageYears * 12.0));
@@ -580,6 +545,7 @@ struct Simulation::Impl {
         std::swap(footprint, prevFootprint);
         bounds.resize(n);
         prevIndex.resize(n);
+        prevRange.resize(n);
         slotStart.resize(n + 1);
         spanStart.resize(n + 1);
         // Fixed chunks of plants (never derived from the thread count): rows and the chunk's
@@ -636,17 +602,16 @@ struct Simulation::Impl {
                 prevIndex[p] = static_cast<std::uint32_t>(p);
                 if (pl.radius[p] < 0.5 * cell) {
                     sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                    if (q == kNoPrev) prevRange[p] = RadiusRange{-HUGE_VAL, std::nextafter(0.5 * cell, 0.0)};
                     continue;
                 }
                 if (q != kNoPrev) {  // unchanged since the last computeBounds: the same spans
                     std::memcpy(sp, prevFootprint.data() + prevBounds[q].span, static_cast<std::size_t>(hi - lo + 1) * sizeof(Span));
                     continue;
                 }
-                for (int r = 0; r <= hi - lo; ++r) sp[r] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(lo + r) * W), 0};
-                forEachSpan(pl.x[p], pl.y[p], pl.radius[p], pl.rootIx[p], pl.rootIy[p], lo, hi + 1, [&](int iy, int a, int z) {
-                    sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a),
-                                       static_cast<std::uint32_t>(z - a + 1)};
-                });
+                const double x = pl.x[p], y = pl.y[p], r = pl.radius[p];
+                footprintSpans(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
+                prevRange[p] = footprintRange(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
             }
         }
     }
@@ -909,6 +874,13 @@ struct Simulation::Impl {
     // result depends on its own data only, so the blocking changes no result.
     static constexpr std::size_t kPlantBlock = kMortalityBatch;
 
+    // A grown plant's new radius; its footprint is recomputed unless the radius stays within
+    // the range of its last footprint (footprintRange).
+    void setGrownRadius(std::size_t p, double r) {
+        pl.radius[p] = r;
+        if (!(r >= prevRange[p].lo && r <= prevRange[p].hi)) prevIndex[p] = kNoPrev;
+    }
+
     void updatePlants(int m) {
         const std::size_t n = pl.size();
         fate.assign(n, 0);
@@ -938,6 +910,9 @@ struct Simulation::Impl {
             batchExp(arg, ex, p1 - p0);
             double draw[kPlantBlock];  // mortality uniforms (drawn for every plant, used unless it reached the canopy)
             mortalityUniforms(seed, pl.id.data() + p0, static_cast<std::uint64_t>(month), p1 - p0, draw);
+            std::uint32_t grown[kPlantBlock];  // plants whose radius is exp(a + b ln h), computed after the loop
+            double lnArg[kPlantBlock];
+            std::size_t nGrown = 0;
             for (std::size_t p = p0; p < p1; ++p) {
                 const int s = pl.species[p];
                 const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
@@ -947,9 +922,15 @@ struct Simulation::Impl {
                 pl.pool[p] = ps.pool;
                 if (c.growthMonth[m] && ps.overflow > 0) {
                     pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
-                    pl.height[p] = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
-                    pl.radius[p] = c.allometry.crownRadiusM(pl.height[p]);
-                    prevIndex[p] = kNoPrev;
+                    const double h = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
+                    pl.height[p] = h;
+                    if (c.allometry.linear || !(h > 0)) {
+                        setGrownRadius(p, crownRadius(s, h));
+                    } else {  // exp(a + b ln h) for the block at once, below
+                        grown[nGrown] = static_cast<std::uint32_t>(p);
+                        lnArg[nGrown] = h;
+                        ++nGrown;
+                    }
                 }
                 ++pl.ageMonths[p];
                 if (pl.height[p] >= pl.canopyLimit[p]) {
@@ -959,6 +940,14 @@ struct Simulation::Impl {
                     if (draw[p - p0] < mu) fate[p] = 1;
                 }
             }
+            // The grown plants' crown radii, crownRadius in blocks: log, a + b ln h, exp.
+            batchLog(lnArg, lnArg, nGrown);
+            for (std::size_t k = 0; k < nGrown; ++k) {
+                const Allometry& al = spc[static_cast<std::size_t>(pl.species[grown[k]])].allometry;
+                lnArg[k] = al.a + al.b * lnArg[k];
+            }
+            batchExp(lnArg, lnArg, nGrown);
+            for (std::size_t k = 0; k < nGrown; ++k) setGrownRadius(grown[k], lnArg[k]);
         }
         counters.plantCellMonths += cellsVisited;
     }
@@ -1086,8 +1075,12 @@ struct Simulation::Impl {
 #pragma omp task firstprivate(vp)
             compactArray(*vp);
         });
-        if (prevIndex.size() == n) compactArray(prevIndex);
-        else prevIndex.clear();
+        if (prevIndex.size() == n) {
+            compactArray(prevIndex);
+            compactArray(prevRange);
+        } else {
+            prevIndex.clear();
+        }
     }
 
     void stepMonth() {
@@ -1245,7 +1238,7 @@ struct Simulation::Impl {
         const double ga = params.seedlingGrowthAgeMonths / 12.0;
         std::vector<double> seedlingRadius(ns);
         for (std::size_t s = 0; s < ns; ++s)
-            seedlingRadius[s] = spc[s].allometry.crownRadiusM(idealHeightM(ga, spc[s].maxAgeYears, spc[s].maxHeightM));
+            seedlingRadius[s] = crownRadius(static_cast<int>(s), idealHeightM(ga, spc[s].maxAgeYears, spc[s].maxHeightM));
         std::vector<const Candidate*> accepted;
         for (const auto& list : perBand)
             for (const Candidate& cd : list) {
@@ -1263,8 +1256,12 @@ struct Simulation::Impl {
             }
         const std::size_t first = pl.size(), k = accepted.size();
         pl.resize(first + k);
-        if (prevIndex.size() == first) prevIndex.resize(first + k, kNoPrev);
-        else prevIndex.clear();
+        if (prevIndex.size() == first) {
+            prevIndex.resize(first + k, kNoPrev);
+            prevRange.resize(first + k);
+        } else {
+            prevIndex.clear();
+        }
 #pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
         for (std::size_t i = 0; i < k; ++i) {
             const Candidate& cd = *accepted[i];

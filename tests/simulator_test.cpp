@@ -9,12 +9,14 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <random>
 #include <sstream>
 
 #include "atomic_file.h"
 #include "demo_scene.h"
-#include "batch_exp.h"
+#include "batch_math.h"
 #include "error.h"
+#include "footprint.h"
 #include "paint.h"
 #include "processes.h"
 #include "sim_config.h"
@@ -268,6 +270,92 @@ TEST_CASE("vigour exp: batchExp is within 2 ulp of std::exp, and its vector and 
     }
     CHECK(worst <= 2 * std::numeric_limits<double>::epsilon());
     CHECK(batchExpOne(0.0) == 1.0);
+}
+
+TEST_CASE("crown radius log: batchLog is within 2 ulp of std::log, and its vector and scalar forms agree bit for bit", "[sim][growth]") {
+    std::vector<double> x;
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> exponent(-700.0, 700.0);
+    for (int i = 0; i < 200000; ++i) x.push_back(std::exp(exponent(rng)));
+    for (int i = 0; i <= 100000; ++i) x.push_back(0.5 + 1.5 * i / 100000.0);  // heights around 1 m, and both ends of m
+    for (int i = -500; i <= 500; ++i) x.push_back(1.0 + i * 1e-13);
+    for (double v : {1.0, 2.0, 0.5, std::sqrt(0.5), std::sqrt(2.0), std::numeric_limits<double>::min(),
+                     std::numeric_limits<double>::max(), 1e-310, 5e-324})
+        x.push_back(v);
+    std::vector<double> y(x.size());
+    batchLog(x.data(), y.data(), x.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        const double scalar = batchLogOne(x[i]);
+        CHECK(std::memcmp(&y[i], &scalar, sizeof(double)) == 0);
+        const double ref = std::log(x[i]);
+        if (ref == 0) {
+            CHECK(y[i] == 0);
+            continue;
+        }
+        const double ulp = std::nextafter(std::abs(ref), HUGE_VAL) - std::abs(ref);
+        worst = std::max(worst, std::abs(y[i] - ref) / ulp);
+    }
+    CHECK(worst <= 2.0);
+    CHECK(batchLogOne(0.0) == -HUGE_VAL);
+    CHECK(std::isnan(batchLogOne(-1.0)));
+    CHECK(batchLogOne(HUGE_VAL) == HUGE_VAL);
+}
+
+TEST_CASE("footprints: every radius of footprintRange gives the same spans, and most ranges are more than one radius", "[sim][footprint]") {
+    CellGrid g;
+    g.W = 60;
+    g.H = 50;
+    g.cell = 0.2;
+    g.ox = 1000.25;  // large coordinates: rounding must not matter
+    g.oy = -37.5;
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int nonTrivial = 0, cases = 0;
+    for (int t = 0; t < 4000; ++t) {
+        // Plants anywhere, edges included; radii from half a cell to 15 cells.
+        const double x = g.ox + u(rng) * g.W * g.cell, y = g.oy + u(rng) * g.H * g.cell;
+        const int ix = std::min(g.W - 1, static_cast<int>((x - g.ox) / g.cell)), iy = std::min(g.H - 1, static_cast<int>((y - g.oy) / g.cell));
+        const double r = g.cell * (0.5 + 14.5 * u(rng) * u(rng));
+        int lo, hi;
+        g.rowRange(y, r, iy, lo, hi);
+        std::vector<Span> sp(static_cast<std::size_t>(hi - lo + 1));
+        g.footprintSpans(x, y, r, ix, iy, lo, hi, sp.data());
+        const RadiusRange range = g.footprintRange(x, y, r, ix, iy, lo, hi, sp.data());
+        REQUIRE(range.lo == r);
+        REQUIRE(range.hi >= r);
+        ++cases;
+        if (range.hi > r) ++nonTrivial;
+        // Radii across the range (its ends included) give the same rows and spans.
+        for (int k = 0; k <= 8; ++k) {
+            const double rk = k == 8 ? range.hi : r + (range.hi - r) * u(rng);
+            if (!(rk < HUGE_VAL)) continue;
+            int lo2, hi2;
+            g.rowRange(y, rk, iy, lo2, hi2);
+            REQUIRE(lo2 == lo);
+            REQUIRE(hi2 == hi);
+            std::vector<Span> sp2(sp.size());
+            g.footprintSpans(x, y, rk, ix, iy, lo, hi, sp2.data());
+            for (std::size_t j = 0; j < sp.size(); ++j) {
+                REQUIRE(sp2[j].start == sp[j].start);
+                REQUIRE(sp2[j].len == sp[j].len);
+            }
+        }
+        // Just past the range (the probe is 1e-9 below the exact boundary), the footprint
+        // grows: the range is not needlessly short.
+        if (range.hi > r && range.hi < HUGE_VAL) {
+            const double past = range.hi * (1.0 + 1e-8);
+            int lo3, hi3;
+            g.rowRange(y, past, iy, lo3, hi3);
+            std::size_t cells = 0, cells3 = 0;
+            for (const Span& s : sp) cells += s.len;
+            std::vector<Span> sp3(static_cast<std::size_t>(hi3 - lo3 + 1));
+            g.footprintSpans(x, y, past, ix, iy, lo3, hi3, sp3.data());
+            for (const Span& s : sp3) cells3 += s.len;
+            CHECK((lo3 != lo || hi3 != hi || cells3 > cells));
+        }
+    }
+    CHECK(nonTrivial > cases * 9 / 10);
 }
 
 TEST_CASE("vigour: the engine's vigour is Eq. 1 on the plant's mean shares", "[sim][vigour]") {

@@ -1,0 +1,135 @@
+// Footprints on the simulation grid: the cells a crown disc covers, as row spans (paper §6.1,
+// SPEC §5: "occupants: plants whose crown covers the cell"), and the radii over which a
+// plant's footprint stays the same, so that a growing plant's spans are recomputed only when
+// they change (docs/simulator.md, "Footprints").
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+namespace eco::sim {
+
+// A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 (and
+// start the row's first cell) when no cell centre of that row lies within the crown.
+struct Span {
+    std::uint32_t start;
+    std::uint32_t len;
+};
+
+// Closed interval of crown radii.
+struct RadiusRange {
+    double lo, hi;
+};
+
+// Geometry of the simulation grid: W x H cells of edge `cell`, cell (0, 0) with its lower
+// corner at (ox, oy); cell index iy * W + ix.
+struct CellGrid {
+    int W = 0, H = 0;
+    double cell = 0.2, ox = 0, oy = 0;
+
+    // Visit the cells whose centres lie within the disc (x, y, r), rows [r0, r1) only, as
+    // row spans fn(iy, ixFirst, ixLast). When (rootIx, rootIy) >= 0 the root cell is always
+    // part of the footprint ("at least its own cell").
+    template <typename F>
+    void forEachSpan(double x, double y, double r, int rootIx, int rootIy, int r0, int r1, F&& fn) const {
+        const double r2 = r * r;
+        for (int iy = r0; iy < r1; ++iy) {
+            const double dy = oy + (iy + 0.5) * cell - y;
+            int a = 1, b = 0;
+            if (dy * dy <= r2) {
+                const double half = std::sqrt(r2 - dy * dy);
+                const double fa = std::ceil((x - half - ox) / cell - 0.5);
+                const double fb = std::floor((x + half - ox) / cell - 0.5);
+                a = static_cast<int>(std::max(fa, -1.0));
+                b = static_cast<int>(std::min(fb, static_cast<double>(W)));
+            }
+            if (iy == rootIy) {
+                if (a > b) a = b = rootIx;
+                else { a = std::min(a, rootIx); b = std::max(b, rootIx); }
+            }
+            a = std::max(a, 0);
+            b = std::min(b, W - 1);
+            if (a <= b) fn(iy, a, b);
+        }
+    }
+
+    // Rows [lo, hi] whose centres may lie within r of y (plus the root row), clamped.
+    void rowRange(double y, double r, int rootIy, int& lo, int& hi) const {
+        const double flo = std::ceil((y - r - oy) / cell - 0.5);
+        const double fhi = std::floor((y + r - oy) / cell - 0.5);
+        lo = static_cast<int>(std::clamp(flo, -1.0, static_cast<double>(H)));
+        hi = static_cast<int>(std::clamp(fhi, -1.0, static_cast<double>(H)));
+        if (rootIy >= 0) {
+            lo = std::min(lo, rootIy);
+            hi = std::max(hi, rootIy);
+        }
+        lo = std::max(lo, 0);
+        hi = std::min(hi, H - 1);
+    }
+
+    // The spans of the footprint of the crown (x, y, r) rooted in (rootIx, rootIy), rows lo..hi
+    // (rowRange), into sp[0 .. hi - lo]: one span per row, length 0 for a row none of whose
+    // cell centres lies within the crown.
+    void footprintSpans(double x, double y, double r, int rootIx, int rootIy, int lo, int hi, Span* sp) const {
+        for (int k = 0; k <= hi - lo; ++k) sp[k] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(lo + k) * W), 0};
+        forEachSpan(x, y, r, rootIx, rootIy, lo, hi + 1, [&](int iy, int a, int z) {
+            sp[iy - lo] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a), static_cast<std::uint32_t>(z - a + 1)};
+        });
+    }
+
+    // Radii [r, rHi] for which the footprint of the crown (x, y, r) is the one just computed
+    // (rows lo..hi, spans sp). The rows and every row's span are monotone in the radius: each
+    // step of rowRange and forEachSpan (square, difference, sqrt, division, ceil / floor,
+    // min / max with the root cell, clamping) is monotone in floating point too. So a
+    // footprint that is the same at r and at a probe radius is the same at every radius in
+    // between. The probe is just below the distance to the nearest cell centre (or row
+    // centre) outside the footprint, where the exact disc would first gain a cell; if the
+    // rounding already differs there, the range is r alone.
+    RadiusRange footprintRange(double x, double y, double r, int rootIx, int rootIy, int lo, int hi, const Span* sp) const {
+        auto dx2 = [&](int ix) {
+            const double d = ox + (ix + 0.5) * cell - x;
+            return d * d;
+        };
+        auto dy2 = [&](int iy) {
+            const double d = oy + (iy + 0.5) * cell - y;
+            return d * d;
+        };
+        double d2 = HUGE_VAL;
+        if (lo > 0) d2 = std::min(d2, dy2(lo - 1));
+        if (hi < H - 1) d2 = std::min(d2, dy2(hi + 1));
+        int filled = 0;
+        for (int iy = lo; iy <= hi; ++iy) {
+            const Span s = sp[iy - lo];
+            const double rowD2 = dy2(iy);
+            if (s.len == 0) {  // the row's nearest cell centre
+                const int ix = std::clamp(static_cast<int>(std::floor((x - ox) / cell)), 0, W - 1);
+                d2 = std::min(d2, rowD2 + dx2(ix));
+                continue;
+            }
+            ++filled;
+            const int a = static_cast<int>(s.start - static_cast<std::uint32_t>(iy) * static_cast<std::uint32_t>(W));
+            const int b = a + static_cast<int>(s.len) - 1;
+            if (a > 0) d2 = std::min(d2, rowD2 + dx2(a - 1));
+            if (b < W - 1) d2 = std::min(d2, rowD2 + dx2(b + 1));
+        }
+        if (!(d2 < HUGE_VAL)) return RadiusRange{r, HUGE_VAL};  // the footprint is the whole grid
+        const double probe = std::sqrt(d2) * (1.0 - 1e-9);
+        if (!(probe > r)) return RadiusRange{r, r};
+        int plo, phi;
+        rowRange(y, probe, rootIy, plo, phi);
+        if (plo != lo || phi != hi) return RadiusRange{r, r};
+        bool same = true;
+        int rows = 0;
+        forEachSpan(x, y, probe, rootIx, rootIy, lo, hi + 1, [&](int iy, int a, int z) {
+            const Span s = sp[iy - lo];
+            ++rows;
+            same = same && s.start == static_cast<std::uint32_t>(static_cast<std::size_t>(iy) * W + a) &&
+                   s.len == static_cast<std::uint32_t>(z - a + 1);
+        });
+        return same && rows == filled ? RadiusRange{r, probe} : RadiusRange{r, r};
+    }
+};
+
+}  // namespace eco::sim
