@@ -3,6 +3,9 @@
 #include "simulator.h"
 
 #include <omp.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
@@ -794,18 +797,42 @@ struct Simulation::Impl : CellGrid {
         const CellState* cs = cells.data() + c0;
         std::size_t nOcc = 0;
         std::int32_t n = 0;
-        for (std::size_t i = 0; i < nc; ++i) {
+        std::size_t i = 0;
+#ifdef __SSE2__
+        // Two cells at a time: the operations of the scalar loop below, lane by lane (the
+        // same bits; MAXPD has maxZero's operand order, and n + 1 is exact in either form).
+        const __m128d dem = _mm_set1_pd(demand), zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
+        for (; i + 2 <= nc; i += 2) {
+            const std::int32_t n0 = n + diff[i], n1 = n0 + diff[i + 1];
+            n = n1;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += n0 != 0;
+            list[nOcc] = static_cast<std::uint32_t>(i + 1);
+            nOcc += n1 != 0;
+            const CellState& ca = cs[i];
+            const CellState& cb = cs[i + 1];
+            const __m128d trees = _mm_set_pd(cb.canopyTrees, ca.canopyTrees);
+            const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(moistPlane[cb.coarse], moistPlane[ca.coarse]), _mm_mul_pd(trees, dem)), zero);
+            const __m128d occ = _mm_set_pd(n1, n0);
+            _mm_storeu_pd(base + i, _mm_mul_pd(_mm_set_pd(cb.canopyTransmission, ca.canopyTransmission),
+                                               _mm_set_pd(sunPlane[cb.coarse], sunPlane[ca.coarse])));
+            _mm_storeu_pd(availOut + i, avail);
+            _mm_storeu_pd(rest + i, _mm_div_pd(_mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero), _mm_add_pd(occ, one)));
+        }
+#endif
+        for (; i < nc; ++i) {
             n += diff[i];
-            diff[i] = 0;
             list[nOcc] = static_cast<std::uint32_t>(i);
             nOcc += n != 0;
             const double avail = waterAfterCanopyMm(moistPlane[cs[i].coarse], cs[i].canopyTrees, demand);
             base[i] = static_cast<double>(cs[i].canopyTransmission) * sunPlane[cs[i].coarse];
             availOut[i] = avail;
             rest[i] = waterLeftoverMm(avail, n, demand);
-            bc.transmission[i] = 1.f;
-            bc.painted[i] = 0;
         }
+        // Bulk stores (vector-wide) rather than three more scalar stores per cell above.
+        std::fill_n(diff, nc, 0);
+        std::fill_n(bc.transmission, nc, 1.f);
+        std::fill_n(bc.painted, nc, 0);
         const std::uint32_t* occList = list;
         // Paint: every entry in height order takes its shares of its cells (paint.h). Deussen
         // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
@@ -893,15 +920,19 @@ struct Simulation::Impl : CellGrid {
             const std::size_t p0 = blk * kPlantBlock, p1 = std::min(n, p0 + kPlantBlock);
             double arg[kPlantBlock], ex[kPlantBlock];
             for (std::size_t p = p0; p < p1; ++p) {
-                double sunSum = 0, waterSum = 0;
-                std::int64_t count = 0;
-                for (std::uint32_t s = slotStart[p]; s < slotStart[p + 1]; ++s) {
+                // Every plant has a slot in at least one band (its root's); most in one only.
+                const std::uint32_t s0 = slotStart[p], s1 = slotStart[p + 1];
+                double sunSum = 0.0 + partSun[s0], waterSum = 0.0 + partWater[s0];
+                std::int64_t count = partCells[s0];
+                for (std::uint32_t s = s0 + 1; s < s1; ++s) {
                     sunSum += partSun[s];
                     waterSum += partWater[s];
                     count += partCells[s];
                 }
                 cellsVisited += count;
-                const double inv = count == 1 ? 1.0 : count > 0 ? 1.0 / static_cast<double>(count) : 0.0;  // most plants: one cell
+                // Always the division (1 / 1 is exact): a test for the many one-cell plants
+                // would be a branch mispredicted about every other plant.
+                const double inv = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
                 const double sun = sunSum * inv, water = waterSum * inv;
                 pl.sun[p] = static_cast<float>(sun);
                 pl.water[p] = static_cast<float>(water);
