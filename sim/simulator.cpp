@@ -183,37 +183,33 @@ struct Simulation::Impl : CellGrid {
 
     // ---- plants and per-month scratch
     PlantStore pl;
-    // Per plant, this month: footprint rows, first partial-sum slot and first footprint span.
+    // Per plant: footprint rows, first partial-sum slot (this month) and first span of its
+    // footprint in the pool `footprint`.
     struct PlantBounds {
         std::int32_t rowLo, rowHi;
         std::uint32_t slot, span;
     };
+    // Footprints persist across months (computeBounds): a plant's footprint depends only on
+    // its root, position and radius, and its radius changes only in growth months with
+    // overflow. fpRange[p] holds the radii for which plant p's footprint (rows in bounds[p],
+    // spans in the pool from bounds[p].span) is valid (footprintRange), or kNoFootprint when
+    // it must be computed (new plant, or a radius outside the range). A plant that grows
+    // within its range keeps its spans (most growth months of most plants); the spans of a
+    // recomputed or dead plant are left in the pool, which is repacked in plant order when
+    // such garbage outgrows the live spans. bounds and fpRange are compacted with the
+    // plants; both are empty (all footprints to compute) after addPlant or loadState.
+    static constexpr RadiusRange kNoFootprint{HUGE_VAL, -HUGE_VAL};
+    static bool hasFootprint(const RadiusRange& r) { return r.lo <= r.hi; }
     std::vector<PlantBounds> bounds;
-    // Footprint reuse: a plant's footprint depends only on its root, position and radius,
-    // and the radius changes only in growth months with overflow. prevIndex[p] is the
-    // index of plant p in the last computeBounds (its rows in bounds, its spans in
-    // footprint), or kNoPrev when it must be recomputed (new plant, or a radius outside
-    // prevRange[p]). computeBounds swaps bounds / footprint with the prev* copies and copies
-    // the spans of the unchanged plants: the same spans as recomputing them.
-    // prevRange[p]: radii for which the footprint is the one computed last (footprintRange):
-    // a plant that grows within it keeps its spans (most growth months of most plants).
-    static constexpr std::uint32_t kNoPrev = 0xFFFFFFFFu;
-    std::vector<std::uint32_t> prevIndex;
-    std::vector<RadiusRange> prevRange;
-    std::vector<PlantBounds> prevBounds;
-    std::vector<Span> prevFootprint;
+    std::vector<RadiusRange> fpRange;
+    std::vector<Span> footprint, repackScratch;
     std::vector<std::uint32_t> slotStart;
-    std::vector<std::uint32_t> chunkSlots, chunkSpans;  // computeBounds: prefix over chunks
+    std::vector<std::uint32_t> chunkSlots, chunkNew, chunkKept;  // computeBounds: prefix over chunks
     std::vector<double> partSun, partWater;
     std::vector<std::int32_t> partCells;
     std::vector<std::uint32_t> bandStart;
     std::vector<BandEntry> bandEntries;
     std::vector<float> speciesKeep;  // 1 - alpha per species (the sweep's attenuation)
-    // Footprints of this month: plant p covers the spans [spanStart[p], spanStart[p + 1]), one
-    // per row from bounds[p].rowLo to bounds[p].rowHi. Computed once per month in plant order (computeBounds)
-    // and read by the count and paint passes, which visit the plants in height order.
-    std::vector<std::uint32_t> spanStart;
-    std::vector<Span> footprint;
     std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy, 3 dominated
     // Deussen competition scratch: abilities and the plant lists of the pair-finding bins.
     std::vector<double> ability;
@@ -490,7 +486,7 @@ struct Simulation::Impl : CellGrid {
     void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
                   double ageYears, double pool, double vig) {
         pl.resize(pl.size() + 1);
-        prevIndex.clear();  // footprints are recomputed (computeBounds)
+        fpRange.clear();  // footprints are recomputed (computeBounds)
         setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
     }
     // Writes plant p of the store (already sized); plants are independent of each other.
@@ -540,81 +536,95 @@ struct Simulation::Impl : CellGrid {
     }
 
     // ------------------------------------------------------------------ the monthly sweep
-    // Footprint rows and spans, bands and partial-sum slots of every plant.
+    // Footprint rows and spans of the plants without one, and every plant's partial-sum
+    // slots. Fixed chunks of plants (never derived from the thread count): rows and the
+    // chunk's totals (slots, new spans, kept spans), then the prefix over chunks, then each
+    // chunk's prefixes and new spans. Integer sums and a pool layout that are the same for
+    // any chunking and thread count (and results never depend on the layout).
     void computeBounds() {
         const std::size_t n = pl.size();
-        const bool reuse = prevIndex.size() == n;
-        std::swap(bounds, prevBounds);
-        std::swap(footprint, prevFootprint);
-        bounds.resize(n);
-        prevIndex.resize(n);
-        prevRange.resize(n);
+        if (fpRange.size() != n) {
+            fpRange.assign(n, kNoFootprint);
+            bounds.resize(n);
+        }
         slotStart.resize(n + 1);
-        spanStart.resize(n + 1);
-        // Fixed chunks of plants (never derived from the thread count): rows and the chunk's
-        // slot and span totals, then the prefix over chunks, then each chunk's prefixes and
-        // spans. Integer sums: the same for any chunking.
         constexpr std::size_t kBoundsChunk = 4096;
         const std::size_t chunks = (n + kBoundsChunk - 1) / kBoundsChunk;
         chunkSlots.assign(chunks + 1, 0);
-        chunkSpans.assign(chunks + 1, 0);
+        chunkNew.assign(chunks + 1, 0);
+        chunkKept.assign(chunks + 1, 0);
 #pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
         for (std::size_t c = 0; c < chunks; ++c) {
-            std::uint32_t slots = 0, spans = 0;
+            std::uint32_t slots = 0, fresh = 0, kept = 0;
             for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
-                int lo = pl.rootIy[p], hi = lo;
-                // No other cell centre is closer than half a cell to a point inside its own
-                // cell: below that radius the footprint is the root cell (most plants, most
-                // months).
-                if (!(pl.radius[p] < 0.5 * cell)) {
-                    const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
-                    if (q != kNoPrev) {
-                        lo = prevBounds[q].rowLo;
-                        hi = prevBounds[q].rowHi;
-                    } else {
-                        rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
-                    }
+                PlantBounds& pb = bounds[p];
+                if (hasFootprint(fpRange[p])) {
+                    kept += static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
+                } else {
+                    int lo = pl.rootIy[p], hi = lo;
+                    // No other cell centre is closer than half a cell to a point inside its
+                    // own cell: below that radius the footprint is the root cell (most
+                    // plants, most months).
+                    if (!(pl.radius[p] < 0.5 * cell)) rowRange(pl.y[p], pl.radius[p], pl.rootIy[p], lo, hi);
+                    pb.rowLo = lo;
+                    pb.rowHi = hi;
+                    fresh += static_cast<std::uint32_t>(hi - lo + 1);
                 }
-                bounds[p].rowLo = lo;
-                bounds[p].rowHi = hi;
-                slots += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
-                spans += static_cast<std::uint32_t>(hi - lo + 1);
+                slots += static_cast<std::uint32_t>(pb.rowHi / kBandRows - pb.rowLo / kBandRows + 1);
             }
             chunkSlots[c + 1] = slots;
-            chunkSpans[c + 1] = spans;
+            chunkNew[c + 1] = fresh;
+            chunkKept[c + 1] = kept;
         }
         for (std::size_t c = 0; c < chunks; ++c) {
             chunkSlots[c + 1] += chunkSlots[c];
-            chunkSpans[c + 1] += chunkSpans[c];
+            chunkNew[c + 1] += chunkNew[c];
+            chunkKept[c + 1] += chunkKept[c];
         }
         slotStart[n] = chunkSlots[chunks];
-        spanStart[n] = chunkSpans[chunks];
-        footprint.resize(spanStart[n]);
+        const std::size_t kept = chunkKept[chunks], fresh = chunkNew[chunks];
+        // Repack when the dead spans (of dead plants and of recomputed footprints) outnumber
+        // the live ones: the kept footprints in plant order, then the new ones after them.
+        if (footprint.size() > 2 * kept + 4096) {
+            repackScratch.resize(kept + fresh);
+#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+            for (std::size_t c = 0; c < chunks; ++c) {
+                std::uint32_t at = chunkKept[c];
+                for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+                    if (!hasFootprint(fpRange[p])) continue;
+                    PlantBounds& pb = bounds[p];
+                    const std::uint32_t rows = static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
+                    std::copy_n(footprint.data() + pb.span, rows, repackScratch.data() + at);
+                    pb.span = at;
+                    at += rows;
+                }
+            }
+            std::swap(footprint, repackScratch);
+            footprint.resize(kept);
+        }
+        const std::size_t base = footprint.size();
+        if (base + fresh > 0xFFFFFFFFu) throw ValidationError("simulation: over 2^32 footprint spans; use a smaller area");
+        footprint.resize(base + fresh);
 #pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
         for (std::size_t c = 0; c < chunks; ++c) {
-            std::uint32_t slot = chunkSlots[c], span = chunkSpans[c];
+            std::uint32_t slot = chunkSlots[c], span = static_cast<std::uint32_t>(base + chunkNew[c]);
             for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
                 PlantBounds& pb = bounds[p];
                 pb.slot = slotStart[p] = slot;
-                pb.span = spanStart[p] = span;
                 const int lo = pb.rowLo, hi = pb.rowHi;
                 slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
+                if (hasFootprint(fpRange[p])) continue;  // unchanged: the same spans as recomputing them
+                pb.span = span;
                 span += static_cast<std::uint32_t>(hi - lo + 1);
                 Span* sp = footprint.data() + pb.span;
-                const std::uint32_t q = reuse ? prevIndex[p] : kNoPrev;
-                prevIndex[p] = static_cast<std::uint32_t>(p);
                 if (pl.radius[p] < 0.5 * cell) {
                     sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
-                    if (q == kNoPrev) prevRange[p] = RadiusRange{-HUGE_VAL, std::nextafter(0.5 * cell, 0.0)};
-                    continue;
-                }
-                if (q != kNoPrev) {  // unchanged since the last computeBounds: the same spans
-                    std::memcpy(sp, prevFootprint.data() + prevBounds[q].span, static_cast<std::size_t>(hi - lo + 1) * sizeof(Span));
+                    fpRange[p] = RadiusRange{-HUGE_VAL, std::nextafter(0.5 * cell, 0.0)};
                     continue;
                 }
                 const double x = pl.x[p], y = pl.y[p], r = pl.radius[p];
                 footprintSpans(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
-                prevRange[p] = footprintRange(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
+                fpRange[p] = footprintRange(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
             }
         }
     }
@@ -905,7 +915,7 @@ struct Simulation::Impl : CellGrid {
     // the range of its last footprint (footprintRange).
     void setGrownRadius(std::size_t p, double r) {
         pl.radius[p] = r;
-        if (!(r >= prevRange[p].lo && r <= prevRange[p].hi)) prevIndex[p] = kNoPrev;
+        if (!(r >= fpRange[p].lo && r <= fpRange[p].hi)) fpRange[p] = kNoFootprint;
     }
 
     void updatePlants(int m) {
@@ -1106,11 +1116,11 @@ struct Simulation::Impl : CellGrid {
 #pragma omp task firstprivate(vp)
             compactArray(*vp);
         });
-        if (prevIndex.size() == n) {
-            compactArray(prevIndex);
-            compactArray(prevRange);
+        if (fpRange.size() == n) {
+            compactArray(fpRange);
+            compactArray(bounds);
         } else {
-            prevIndex.clear();
+            fpRange.clear();
         }
     }
 
@@ -1287,11 +1297,11 @@ struct Simulation::Impl : CellGrid {
             }
         const std::size_t first = pl.size(), k = accepted.size();
         pl.resize(first + k);
-        if (prevIndex.size() == first) {
-            prevIndex.resize(first + k, kNoPrev);
-            prevRange.resize(first + k);
+        if (fpRange.size() == first) {
+            fpRange.resize(first + k, kNoFootprint);
+            bounds.resize(first + k);
         } else {
-            prevIndex.clear();
+            fpRange.clear();
         }
 #pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
         for (std::size_t i = 0; i < k; ++i) {
@@ -1562,7 +1572,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     }
     s.deficit = std::move(deficit);
     s.pl = std::move(pl);
-    s.prevIndex.clear();  // footprints are recomputed (computeBounds)
+    s.fpRange.clear();  // footprints are recomputed (computeBounds)
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
@@ -1581,14 +1591,13 @@ std::size_t Simulation::bytesPerCell() const {
 }
 
 std::size_t Simulation::bytesPerPlant() const {
-    // State arrays plus the per-month scratch (row and band bounds, slot and span starts, about
-    // 1.1 band slots of partials and band entries, the footprint spans of this month's plants,
-    // order and radix scratch, fate).
+    // State arrays plus the per-plant scratch: row and band bounds, the footprint's radius
+    // range, slot starts, about 1.1 band slots of partials and band entries, the span pool
+    // (its live and dead spans, and the repack copy), order and radix scratch, fate.
     const Impl& s = *impl_;
     const double spansPerPlant =
-        s.pl.size() > 0 && s.spanStart.size() == s.pl.size() + 1 ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
-    // (Bounds and spans twice: last month's are kept for footprint reuse, with prevIndex.)
-    return impl_->pl.bytesPerPlant() + 2 * sizeof(Impl::PlantBounds) + 3 * sizeof(std::uint32_t) +
+        s.pl.size() > 0 && s.fpRange.size() == s.pl.size() ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
+    return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + sizeof(RadiusRange) + sizeof(std::uint32_t) +
            static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
            static_cast<std::size_t>(2 * spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
 }
