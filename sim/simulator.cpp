@@ -601,6 +601,7 @@ struct Simulation::Impl : CellGrid {
             }
             std::swap(footprint, repackScratch);
             footprint.resize(kept);
+            std::vector<Span>().swap(repackScratch);  // the old pool's memory back (a repack is rare)
         }
         const std::size_t base = footprint.size();
         if (base + fresh > 0xFFFFFFFFu) throw ValidationError("simulation: over 2^32 footprint spans; use a smaller area");
@@ -1593,13 +1594,14 @@ std::size_t Simulation::bytesPerCell() const {
 std::size_t Simulation::bytesPerPlant() const {
     // State arrays plus the per-plant scratch: row and band bounds, the footprint's radius
     // range, slot starts, about 1.1 band slots of partials and band entries, the span pool
-    // (its live and dead spans, and the repack copy), order and radix scratch, fate.
+    // (live and dead spans; a repack briefly holds a second, live-only copy), order and
+    // radix scratch, fate.
     const Impl& s = *impl_;
     const double spansPerPlant =
         s.pl.size() > 0 && s.fpRange.size() == s.pl.size() ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
     return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + sizeof(RadiusRange) + sizeof(std::uint32_t) +
            static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
-           static_cast<std::size_t>(2 * spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
+           static_cast<std::size_t>(spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
 }
 
 }  // namespace eco::sim
