@@ -26,6 +26,9 @@ namespace {
 // Rows per band of the sweep. Fixed (never derived from the thread count), so that the
 // per-band partial sums, and hence every result, are the same for any number of threads.
 constexpr int kBandRows = 16;
+// At most this many growth periods (named, and species' own months): germination keeps
+// sets of them in 32-bit masks.
+constexpr std::size_t kMaxGrowthPeriods = 32;
 constexpr double kPi = 3.14159265358979323846;
 // Below these sizes a loop runs on one thread: a fork and join costs more than the work, and
 // far more on a loaded machine. Results never depend on it (see kBandRows).
@@ -335,6 +338,10 @@ struct Simulation::Impl : CellGrid {
             for (const std::string& name : sb.canopySpecies)
                 for (std::size_t i = 0; i < biome.species.size(); ++i)
                     if (biome.species[i].name == name) spc[i].canopySeedMask |= 1u << (sb.number - 1);
+        if (periodMonthMask.size() > kMaxGrowthPeriods)
+            throw ValidationError("simulation: the biome has " + std::to_string(periodMonthMask.size()) +
+                                  " growth periods (named, and species' own growth months); at most " +
+                                  std::to_string(kMaxGrowthPeriods) + " are supported");
     }
 
     void setupGrid(const std::optional<SimArea>& requested) {
@@ -828,7 +835,9 @@ struct Simulation::Impl : CellGrid {
             _mm_storeu_pd(base + i, _mm_mul_pd(_mm_set_pd(cb.canopyTransmission, ca.canopyTransmission),
                                                _mm_set_pd(sunPlane[cb.coarse], sunPlane[ca.coarse])));
             _mm_storeu_pd(availOut + i, avail);
-            _mm_storeu_pd(rest + i, _mm_div_pd(_mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero), _mm_add_pd(occ, one)));
+            // The division only when a lane has water beyond the demands (0 / (n + 1) is 0).
+            const __m128d spare = _mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero);
+            _mm_storeu_pd(rest + i, _mm_movemask_pd(_mm_cmpgt_pd(spare, zero)) ? _mm_div_pd(spare, _mm_add_pd(occ, one)) : zero);
         }
 #endif
         for (; i < nc; ++i) {
@@ -894,17 +903,47 @@ struct Simulation::Impl : CellGrid {
         }
         // Finish: this month's leftovers go to the germination deficit.
         const std::vector<int>& periods = periodsOfMonth[m];
-        if (!periods.empty())
+        if (periods.empty()) return;
+        // The month's periods are usually consecutive (all of them, in the default biome):
+        // then a cell's deficits of these periods are one run of floats, updated by one
+        // vector add (each float gets the same single addition as below).
+        const int g0 = periods.front(), np = static_cast<int>(periods.size());
+        const bool run = periods.back() - g0 + 1 == np;
+        float* deficitRun = deficitAt(c0, static_cast<std::size_t>(g0));
+        const std::size_t stride = this->periods() * 2;
+        auto used = [&bc](std::size_t i, float& usedSun, float& usedWater) {
+            const double sunLeft = bc.base[i] * bc.transmission[i];
+            usedSun = static_cast<float>(bc.base[i] - sunLeft);
+            usedWater = static_cast<float>(bc.avail[i] - bc.rest[i]);
+        };
+#ifdef __SSE2__
+        if (run && np <= 2) {
             for (std::size_t k = 0; k < nOcc; ++k) {
                 const std::size_t i = occList[k];
-                const double sunLeft = bc.base[i] * bc.transmission[i];
-                const float usedSun = static_cast<float>(bc.base[i] - sunLeft), usedWater = static_cast<float>(bc.avail[i] - bc.rest[i]);
-                for (int g : periods) {
-                    float* d = deficitAt(c0 + i, static_cast<std::size_t>(g));
-                    d[0] += usedSun;
-                    d[1] += usedWater;
+                float usedSun, usedWater;
+                used(i, usedSun, usedWater);
+                float* d = deficitRun + i * stride;
+                const __m128 add = _mm_setr_ps(usedSun, usedWater, usedSun, usedWater);
+                if (np == 2) {
+                    _mm_storeu_ps(d, _mm_add_ps(_mm_loadu_ps(d), add));
+                } else {
+                    const __m128d pair = _mm_load_sd(reinterpret_cast<const double*>(d));
+                    _mm_store_sd(reinterpret_cast<double*>(d), _mm_castps_pd(_mm_add_ps(_mm_castpd_ps(pair), add)));
                 }
             }
+            return;
+        }
+#endif
+        for (std::size_t k = 0; k < nOcc; ++k) {
+            const std::size_t i = occList[k];
+            float usedSun, usedWater;
+            used(i, usedSun, usedWater);
+            for (int g : periods) {
+                float* d = deficitAt(c0 + i, static_cast<std::size_t>(g));
+                d[0] += usedSun;
+                d[1] += usedWater;
+            }
+        }
     }
 
     // Plants per block of the monthly update: the vigour exponents of a block are gathered,
@@ -1166,26 +1205,47 @@ struct Simulation::Impl : CellGrid {
     }
 
     // ------------------------------------------------------------------ germination
-    // Mean leftover sun, water and temperature of cell c over the months of period g in the
-    // window; false when the window holds none of its months.
-    bool leftoverMeans(std::size_t c, int ix, int iy, int g, double& sun, double& water, double& temp) const {
-        const std::uint32_t months = windowMask & periodMonthMask[static_cast<std::size_t>(g)];
-        if (!months) return false;
+    // Mean leftover sun, water and temperature of cell c over the months in the window of
+    // each growth period g in `wanted` (bit g): into sun[g], water[g], temp[g], with ok[g]
+    // false when the window holds none of g's months. One pass over the months: each month's
+    // abiotics are read once and added to every wanted period containing it, each period's
+    // sums in month order (the same sums as a pass per period).
+    void seasonMeans(std::size_t c, int ix, int iy, std::uint32_t wanted, double* sun, double* water, double* temp, bool* ok) const {
         const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
-        double sunBase = 0, waterBase = 0, tempSum = 0;
-        int count = 0;
-        for (int m = 0; m < 12; ++m) {
-            if (!(months & (1u << m))) continue;
-            sunBase += static_cast<double>(cells[c].canopyTransmission) * abio.sunHours[m].data()[cc];
-            waterBase += waterAfterCanopyMm(abio.moistureMm[m].data()[cc], cells[c].canopyTrees, params.minWaterDemandMm);
-            tempSum += abio.temperatureC[m].data()[cc];
-            ++count;
+        const double transmission = cells[c].canopyTransmission;
+        const int trees = cells[c].canopyTrees;
+        double sunBase[kMaxGrowthPeriods], waterBase[kMaxGrowthPeriods], tempSum[kMaxGrowthPeriods];
+        int count[kMaxGrowthPeriods];
+        std::uint32_t months = 0;
+        for (std::uint32_t rest = wanted; rest; rest &= rest - 1) {
+            const int g = __builtin_ctz(rest);
+            sunBase[g] = waterBase[g] = tempSum[g] = 0;
+            count[g] = 0;
+            months |= windowMask & periodMonthMask[static_cast<std::size_t>(g)];
         }
-        const float* d = deficitAt(c, static_cast<std::size_t>(g));
-        sun = std::max(0.0, sunBase - d[0]) / count;
-        water = std::max(0.0, waterBase - d[1]) / count;
-        temp = tempSum / count;
-        return true;
+        for (; months; months &= months - 1) {
+            const int m = __builtin_ctz(months);
+            const double s = transmission * abio.sunHours[m].data()[cc];
+            const double w = waterAfterCanopyMm(abio.moistureMm[m].data()[cc], trees, params.minWaterDemandMm);
+            const double t = abio.temperatureC[m].data()[cc];
+            for (std::uint32_t rest = wanted; rest; rest &= rest - 1) {
+                const int g = __builtin_ctz(rest);
+                if (!(periodMonthMask[static_cast<std::size_t>(g)] & (1u << m))) continue;
+                sunBase[g] += s;
+                waterBase[g] += w;
+                tempSum[g] += t;
+                ++count[g];
+            }
+        }
+        for (std::uint32_t rest = wanted; rest; rest &= rest - 1) {
+            const int g = __builtin_ctz(rest);
+            ok[g] = count[g] > 0;
+            if (!ok[g]) continue;
+            const float* d = deficitAt(c, static_cast<std::size_t>(g));
+            sun[g] = std::max(0.0, sunBase[g] - d[0]) / count[g];
+            water[g] = std::max(0.0, waterBase[g] - d[1]) / count[g];
+            temp[g] = tempSum[g] / count[g];
+        }
     }
 
     // Germination weights of every species at cell (ix, iy) into w; `arg` is scratch of the
@@ -1195,23 +1255,21 @@ struct Simulation::Impl : CellGrid {
         const std::uint32_t pkg = seedPkg[c];
         const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
         const double slope = abio.slopeDeg.data()[cc];
-        // Means per growth period, computed once.
-        double sunG[32], waterG[32], tempG[32];
-        bool okG[32];
-        const int periods = std::min<int>(32, static_cast<int>(periodMonthMask.size()));
-        for (int g = 0; g < periods; ++g) okG[g] = false;
-        bool computed[32] = {};
+        const int periods = static_cast<int>(periodMonthMask.size());
         const std::size_t ns = spc.size();
+        // The growth periods of the candidate species, whose means are computed once.
+        std::uint32_t wanted = 0;
+        for (std::size_t s = 0; s < ns; ++s)
+            if ((spc[s].memberMask & pkg) && spc[s].period < periods) wanted |= 1u << spc[s].period;
+        double sunG[kMaxGrowthPeriods], waterG[kMaxGrowthPeriods], tempG[kMaxGrowthPeriods];
+        bool okG[kMaxGrowthPeriods];
+        seasonMeans(c, ix, iy, wanted, sunG, waterG, tempG, okG);
         for (std::size_t s = 0; s < ns; ++s) {
             w[s] = 0;  // not a candidate
             arg[s] = 0;
             const SpeciesConst& sc = spc[s];
             if (!(sc.memberMask & pkg) || sc.period >= periods) continue;
             const int g = sc.period;
-            if (!computed[g]) {
-                okG[g] = leftoverMeans(c, ix, iy, g, sunG[g], waterG[g], tempG[g]);
-                computed[g] = true;
-            }
             if (!okG[g]) continue;
             w[s] = 1;
             arg[s] = vigourExponent(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
@@ -1254,23 +1312,49 @@ struct Simulation::Impl : CellGrid {
 #pragma omp parallel if (cells.size() > kParallelCells)
         {
             std::vector<double> w(ns), arg(ns);
+            // A row's free seeded cells, their streams and the first two words of their draws.
+            std::vector<int> rowCells(static_cast<std::size_t>(W));
+            std::vector<std::uint64_t> rowStreams(static_cast<std::size_t>(W));
+            std::vector<std::uint32_t> word0(static_cast<std::size_t>(W)), word1(static_cast<std::size_t>(W));
 #pragma omp for schedule(dynamic, 1)
             for (int b = 0; b < bands(); ++b) {
                 const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
-                for (int iy = r0; iy < r1; ++iy)
+                for (int iy = r0; iy < r1; ++iy) {
+                    const std::size_t rowStart = static_cast<std::size_t>(iy) * W;
+                    std::size_t free = 0;
                     for (int ix = 0; ix < W; ++ix) {
-                        const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
-                        const float prob = seedProb.data()[c];
-                        if (!(prob > 0) || occupants[c] > 0 || seedPkg[c] == 0) continue;
-                        const auto bits = randomBits(seed, mixStream(c, kGerminationStreamTag), year);
-                        const double u = bits[0] * 0x1.0p-32;
-                        if (u >= prob) continue;
+                        const std::size_t c = rowStart + static_cast<std::size_t>(ix);
+                        if (!(seedProb.data()[c] > 0) || occupants[c] > 0 || seedPkg[c] == 0) continue;
+                        rowCells[free] = ix;
+                        rowStreams[free] = mixStream(c, kGerminationStreamTag);
+                        ++free;
+                    }
+                    // Word 0 decides whether the cell germinates (most do not): drawn for the
+                    // row at once (randomBitsBatch: the same bits as randomBits), the other
+                    // words only for the cells that germinate.
+                    randomBitsBatch(seed, rowStreams.data(), year, free, word0.data(), word1.data());
+                    // The germinating cells, whose state (read at random, mostly from memory)
+                    // is fetched for all of them before the first is evaluated.
+                    std::size_t sprouting = 0;
+                    for (std::size_t k = 0; k < free; ++k) {
+                        const std::size_t c = rowStart + static_cast<std::size_t>(rowCells[k]);
+                        if (word0[k] * 0x1.0p-32 >= seedProb.data()[c]) continue;
+                        __builtin_prefetch(&cells[c]);
+                        __builtin_prefetch(deficitAt(c, 0));
+                        rowCells[sprouting] = rowCells[k];
+                        rowStreams[sprouting] = rowStreams[k];
+                        ++sprouting;
+                    }
+                    for (std::size_t k = 0; k < sprouting; ++k) {
+                        const int ix = rowCells[k];
+                        const auto bits = randomBits(seed, rowStreams[k], year);
                         weightsAt(ix, iy, w.data(), arg.data());
                         const int s = rouletteSelect(w.data(), static_cast<int>(ns), bits[1] * 0x1.0p-32);
                         if (s < 0) continue;
                         perBand[static_cast<std::size_t>(b)].push_back(
                             {ix, iy, s, ox + (ix + bits[2] * 0x1.0p-32) * cell, oy + (iy + bits[3] * 0x1.0p-32) * cell});
                     }
+                }
             }
         }
         // In cell order: a seedling occupies its cells at once, so a later candidate whose
@@ -1311,13 +1395,12 @@ struct Simulation::Impl : CellGrid {
         }
         nextId += k;
         counters.germinated += static_cast<std::int64_t>(k);
-        // The occupancy is cleared for the next sweep, and a new season of leftovers starts.
-        const std::size_t perCell = periods() * 2;
-#pragma omp parallel for schedule(dynamic, 65536) if (cells.size() > kParallelCells)
-        for (std::size_t c = 0; c < cells.size(); ++c) {
-            occupants[c] = 0;
-            std::fill_n(deficit.data() + c * perCell, perCell, 0.f);
-        }
+        // A new season of leftovers starts. (The occupancy needs no clearing: countOccupancy
+        // writes every cell.)
+        const std::size_t perChunk = 65536 * periods() * 2, chunks = (deficit.size() + perChunk - 1) / perChunk;
+#pragma omp parallel for schedule(dynamic, 1) if (cells.size() > kParallelCells)
+        for (std::size_t k = 0; k < chunks; ++k)
+            std::fill(deficit.data() + k * perChunk, deficit.data() + std::min(deficit.size(), (k + 1) * perChunk), 0.f);
         windowMask = 0;
     }
 
@@ -1441,8 +1524,12 @@ bool Simulation::leftoverMeans(int ix, int iy, int period, double& sunHours, dou
     if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H || period < 0 ||
         static_cast<std::size_t>(period) >= s.periodMonthMask.size())
         throw ValidationError("leftoverMeans: cell or period out of range");
-    double temp;
-    return s.leftoverMeans(static_cast<std::size_t>(iy) * s.W + ix, ix, iy, period, sunHours, waterMm, temp);
+    double sun[kMaxGrowthPeriods], water[kMaxGrowthPeriods], temp[kMaxGrowthPeriods];
+    bool ok[kMaxGrowthPeriods];
+    s.seasonMeans(static_cast<std::size_t>(iy) * s.W + ix, ix, iy, 1u << period, sun, water, temp, ok);
+    sunHours = sun[period];
+    waterMm = water[period];
+    return ok[period];
 }
 
 std::vector<double> Simulation::germinationWeights(int ix, int iy) const {

@@ -739,7 +739,7 @@ TEST_CASE("seeding_probability = 0 disables germination (validation runs from in
     CHECK(sim.plantCount() <= 2);
 }
 
-TEST_CASE("limits: a grid over 65535 cells wide or a biome of over 2048 species is refused, naming the limit", "[sim][config]") {
+TEST_CASE("limits: a grid over 65535 cells wide a biome of over 2048 species or of over 32 growth periods is refused, naming the limit", "[sim][config]") {
     SimInputs wide;
     wide.biome = defaultBiome();
     wide.abiotics = uniformAbiotics(4, 4000.0, 8, 50, 15, 0);  // 16 km: 80 000 cells of 0.2 m
@@ -766,6 +766,26 @@ TEST_CASE("limits: a grid over 65535 cells wide or a biome of over 2048 species 
     } catch (const ValidationError& e) {
         CHECK_THAT(e.what(), Catch::Contains("2049 species") && Catch::Contains("at most 2048"));
     }
+
+    // Every species with growth months of its own adds a growth period; germination keeps
+    // sets of periods in 32-bit masks.
+    SimInputs periods = smallDemoScene();
+    for (std::size_t own = 0; periods.biome.growthPeriods.size() + own <= 32; ++own) {
+        Species s = first;
+        s.id = static_cast<int>(periods.biome.species.size());
+        s.name = "own months " + std::to_string(own);
+        s.growthPeriod = s.name;
+        s.growthMonths = {static_cast<int>(own % 12)};
+        periods.biome.species.push_back(s);
+    }
+    try {
+        Simulation sim(periods, SimParams{}, 1);
+        FAIL("a biome of 33 growth periods was accepted");
+    } catch (const ValidationError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("33 growth periods") && Catch::Contains("at most 32"));
+    }
+    periods.biome.species.pop_back();  // 32 periods
+    CHECK_NOTHROW(Simulation(periods, SimParams{}, 1));
 }
 
 TEST_CASE("deussen: ability is vigour x relative height; crowns intersect strictly", "[sim][deussen]") {
