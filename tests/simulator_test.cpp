@@ -739,7 +739,7 @@ TEST_CASE("seeding_probability = 0 disables germination (validation runs from in
     CHECK(sim.plantCount() <= 2);
 }
 
-TEST_CASE("limits: a grid over 65535 cells wide a biome of over 2048 species or of over 32 growth periods is refused, naming the limit", "[sim][config]") {
+TEST_CASE("limits: a grid over 65535 cells wide, a biome of over 2048 species or of over 32 growth periods is refused, naming the limit", "[sim][config]") {
     SimInputs wide;
     wide.biome = defaultBiome();
     wide.abiotics = uniformAbiotics(4, 4000.0, 8, 50, 15, 0);  // 16 km: 80 000 cells of 0.2 m
