@@ -752,38 +752,37 @@ TEST_CASE("limits: a grid over 65535 cells wide, a biome of over 2048 species or
     wide.area = SimArea{0, 0, 13000, 0.4};  // 65 000 x 2 cells: inside the limit
     CHECK_NOTHROW(Simulation(wide, SimParams{}, 1));
 
-    SimInputs many = smallDemoScene();
-    const Species first = many.biome.species.front();
-    while (many.biome.species.size() <= 2048) {
+    // A copy of the scene's first species appended under a new name (and, when `ownMonth`
+    // >= 0, with that growth month as a period of its own).
+    const Species first = smallDemoScene().biome.species.front();
+    auto addSpecies = [&first](SimInputs& in, const std::string& name, int ownMonth) {
         Species s = first;
-        s.id = static_cast<int>(many.biome.species.size());
-        s.name = "copy " + std::to_string(s.id);
-        many.biome.species.push_back(s);
-    }
-    try {
-        Simulation sim(many, SimParams{}, 1);
-        FAIL("a biome of 2049 species was accepted");
-    } catch (const ValidationError& e) {
-        CHECK_THAT(e.what(), Catch::Contains("2049 species") && Catch::Contains("at most 2048"));
-    }
+        s.id = static_cast<int>(in.biome.species.size());
+        s.name = name;
+        if (ownMonth >= 0) {
+            s.growthPeriod = name;
+            s.growthMonths = {ownMonth};
+        }
+        in.biome.species.push_back(s);
+    };
+    auto refused = [](const SimInputs& in, const std::string& count, const std::string& limit) {
+        try {
+            Simulation sim(in, SimParams{}, 1);
+            FAIL("a biome of " + count + " was accepted");
+        } catch (const ValidationError& e) {
+            CHECK_THAT(e.what(), Catch::Contains(count) && Catch::Contains(limit));
+        }
+    };
+    SimInputs many = smallDemoScene();
+    while (many.biome.species.size() <= 2048) addSpecies(many, "copy " + std::to_string(many.biome.species.size()), -1);
+    refused(many, "2049 species", "at most 2048");
 
     // Every species with growth months of its own adds a growth period; germination keeps
     // sets of periods in 32-bit masks.
     SimInputs periods = smallDemoScene();
-    for (std::size_t own = 0; periods.biome.growthPeriods.size() + own <= 32; ++own) {
-        Species s = first;
-        s.id = static_cast<int>(periods.biome.species.size());
-        s.name = "own months " + std::to_string(own);
-        s.growthPeriod = s.name;
-        s.growthMonths = {static_cast<int>(own % 12)};
-        periods.biome.species.push_back(s);
-    }
-    try {
-        Simulation sim(periods, SimParams{}, 1);
-        FAIL("a biome of 33 growth periods was accepted");
-    } catch (const ValidationError& e) {
-        CHECK_THAT(e.what(), Catch::Contains("33 growth periods") && Catch::Contains("at most 32"));
-    }
+    for (std::size_t own = 0; periods.biome.growthPeriods.size() + own <= 32; ++own)
+        addSpecies(periods, "own months " + std::to_string(own), static_cast<int>(own % 12));
+    refused(periods, "33 growth periods", "at most 32");
     periods.biome.species.pop_back();  // 32 periods
     CHECK_NOTHROW(Simulation(periods, SimParams{}, 1));
 }
