@@ -100,39 +100,40 @@ inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std
                             std::uint32_t* word0, std::uint32_t* word1) {
     std::size_t i = 0;
 #ifdef __SSE2__
-    const __m128i mul0 = _mm_set1_epi32(static_cast<int>(0xD2511F53u)), mul1 = _mm_set1_epi32(static_cast<int>(0xCD9E8D57u));
-    // 32 x 32 -> 64-bit products of four lanes: low and high words, lane order kept.
-    auto mulHiLo = [](__m128i a, __m128i m, __m128i& hi, __m128i& lo) {
-        const __m128i even = _mm_mul_epu32(a, m);                                        // lanes 0, 2
-        const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(a, 32), _mm_srli_epi64(m, 32));  // lanes 1, 3
-        lo = _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
-        hi = _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x0D), _mm_shuffle_epi32(odd, 0x0D));
+    // Each 32-bit word of the state is kept in the low half of a 64-bit lane, streams (i, i + 2)
+    // in register A and (i + 1, i + 3) in register B: PMULUDQ then gives a lane's whole 64-bit
+    // product, whose high word is one shift away and whose low word is in place. High halves
+    // of the lanes hold garbage (products, XORs of them) that no later step reads: PMULUDQ
+    // reads low halves only, and the results are packed from the low halves.
+    const __m128i mul0 = _mm_set1_epi64x(0xD2511F53), mul1 = _mm_set1_epi64x(0xCD9E8D57);
+    auto pack = [](__m128i a, __m128i b) {  // low halves of a (lanes 0, 2) and b (1, 3) in stream order
+        return _mm_unpacklo_epi32(_mm_shuffle_epi32(a, 0x08), _mm_shuffle_epi32(b, 0x08));
     };
     for (; i + 4 <= n; i += 4) {
-        __m128i c0 = _mm_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(counter)));
-        __m128i c1 = _mm_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(counter >> 32)));
-        __m128i c2 = _mm_set_epi32(static_cast<int>(static_cast<std::uint32_t>(stream[i + 3])),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 2])),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 1])),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i])));
-        __m128i c3 = _mm_set_epi32(static_cast<int>(static_cast<std::uint32_t>(stream[i + 3] >> 32)),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 2] >> 32)),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i + 1] >> 32)),
-                                   static_cast<int>(static_cast<std::uint32_t>(stream[i] >> 32)));
+        const __m128i ctr0 = _mm_set1_epi64x(static_cast<std::uint32_t>(counter));
+        const __m128i ctr1 = _mm_set1_epi64x(static_cast<std::uint32_t>(counter >> 32));
+        __m128i c0a = ctr0, c0b = ctr0, c1a = ctr1, c1b = ctr1;
+        __m128i c2a = _mm_set_epi64x(static_cast<long long>(stream[i + 2]), static_cast<long long>(stream[i]));
+        __m128i c2b = _mm_set_epi64x(static_cast<long long>(stream[i + 3]), static_cast<long long>(stream[i + 1]));
+        __m128i c3a = _mm_srli_epi64(c2a, 32), c3b = _mm_srli_epi64(c2b, 32);
         std::uint32_t key0 = static_cast<std::uint32_t>(seed), key1 = static_cast<std::uint32_t>(seed >> 32);
         for (int round = 0; round < 10; ++round) {
-            __m128i hi0, lo0, hi1, lo1;
-            mulHiLo(c0, mul0, hi0, lo0);
-            mulHiLo(c2, mul1, hi1, lo1);
-            c0 = _mm_xor_si128(_mm_xor_si128(hi1, c1), _mm_set1_epi32(static_cast<int>(key0)));
-            c1 = lo1;
-            c2 = _mm_xor_si128(_mm_xor_si128(hi0, c3), _mm_set1_epi32(static_cast<int>(key1)));
-            c3 = lo0;
+            const __m128i k0 = _mm_set1_epi64x(key0), k1 = _mm_set1_epi64x(key1);
+            const __m128i p0a = _mm_mul_epu32(c0a, mul0), p0b = _mm_mul_epu32(c0b, mul0);
+            const __m128i p1a = _mm_mul_epu32(c2a, mul1), p1b = _mm_mul_epu32(c2b, mul1);
+            c0a = _mm_xor_si128(_mm_xor_si128(_mm_srli_epi64(p1a, 32), c1a), k0);
+            c0b = _mm_xor_si128(_mm_xor_si128(_mm_srli_epi64(p1b, 32), c1b), k0);
+            c1a = p1a;
+            c1b = p1b;
+            c2a = _mm_xor_si128(_mm_xor_si128(_mm_srli_epi64(p0a, 32), c3a), k1);
+            c2b = _mm_xor_si128(_mm_xor_si128(_mm_srli_epi64(p0b, 32), c3b), k1);
+            c3a = p0a;
+            c3b = p0b;
             key0 += 0x9E3779B9u;
             key1 += 0xBB67AE85u;
         }
-        _mm_storeu_si128(reinterpret_cast<__m128i*>(word0 + i), c0);
-        _mm_storeu_si128(reinterpret_cast<__m128i*>(word1 + i), c1);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(word0 + i), pack(c0a, c0b));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(word1 + i), pack(c1a, c1b));
     }
 #endif
     for (; i < n; ++i) {
