@@ -4,13 +4,15 @@
 // bench/results/sim_bench.txt (or --out FILE); --hectare-only and --km2-only write a file
 // only when --out is given, so that a partial run does not replace the full report.
 //
-//   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N]
+//   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--repeat N]
 //             [--growth-rule ideal|literal]
 //             [--competition resources|deussen] [--out FILE]
 //   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
 //       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
 //       /terrain/elevation) of a procedural scene, as inputs for `eco simulate`.
 #include <omp.h>
+
+#include <algorithm>
 
 #include <cerrno>
 #include <chrono>
@@ -21,6 +23,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "atomic_file.h"
 #include "demo_scene.h"
@@ -135,6 +138,38 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
     return t;
 }
 
+// Runs of one configuration repeated: the least and the median wall time, and all of them.
+struct Repeated {
+    std::vector<Timing> runs;
+    const Timing& fastest() const {
+        std::size_t best = 0;
+        for (std::size_t i = 1; i < runs.size(); ++i)
+            if (runs[i].seconds < runs[best].seconds) best = i;
+        return runs[best];
+    }
+    double median() const {
+        std::vector<double> t;
+        for (const Timing& r : runs) t.push_back(r.seconds);
+        std::sort(t.begin(), t.end());
+        const std::size_t n = t.size();
+        return n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
+    }
+    std::string all() const {
+        std::string s;
+        char b[32];
+        for (const Timing& r : runs) {
+            std::snprintf(b, sizeof b, "%s%.1f", s.empty() ? "" : ", ", r.seconds);
+            s += b;
+        }
+        return s + " s";
+    }
+    bool sameHash(std::uint64_t h) const {
+        for (const Timing& r : runs)
+            if (r.stateHash != h) return false;
+        return true;
+    }
+};
+
 }  // namespace
 
 // Writes the report; 0, or 1 with a message when the file cannot be written.
@@ -165,6 +200,7 @@ int main(int argc, char** argv) {
     bool quick = false, hectareOnly = false;
     int hectareYears = 0;  // 0 = 150 (30 with --quick)
     int km2Years = 0;      // 0 = 10 (3 with --quick)
+    int repeat = 0;        // 0 = 3 (1 with --quick)
     bool km2Only = false;
     SimParams params;
     int cells = 256;
@@ -181,17 +217,20 @@ int main(int argc, char** argv) {
         };
         if (a == "--help" || a == "-h") {
             std::printf(
-                "bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N]\n"
+                "bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--repeat N]\n"
                 "          [--growth-rule ideal|literal] [--competition resources|deussen] [--out FILE]\n"
                 "bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]\n"
                 "  Undergrowth simulator benchmark: 1 ha (1 and 2 threads, --years, default 150) and a\n"
-                "  1 km2 scene (all threads, --km2-years, default 10); phases, memory, state hashes.\n");
+                "  1 km2 scene (all threads, --km2-years, default 10); phases, memory, state hashes.\n"
+                "  --repeat N: the 1 ha runs N times each, 1 and 2 threads alternating (default 3, 1 with\n"
+                "  --quick); the least and the median wall time are reported, and every run's.\n");
             return 0;
         }
         if (a == "--quick") quick = true;
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
         else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));
+        else if (a == "--repeat") repeat = static_cast<int>(positiveInteger(a, next()));
         else if (a == "--out") {
             outPath = next();
             outGiven = true;
@@ -234,17 +273,37 @@ int main(int argc, char** argv) {
             rep << "1 ha scene: " << hectare.canopy.size() << " canopy trees on 117 m x 117 m, built in " << now() - t0 << " s\n";
             const SimArea ha{5, 5, 105, 105};
             const int haYears = hectareYears > 0 ? hectareYears : quick ? 30 : 150;
-            Timing t1 = runScene(hectare, ha, haYears, 1, params);
-            Timing t2 = maxThreads >= 2 ? runScene(hectare, ha, haYears, 2, params) : t1;
+            // Alternating 1- and 2-thread runs, so that both see the machine's slower and faster
+            // spells alike (on the shared VM the same binary varies by 10-30 % between runs).
+            const int reps = repeat > 0 ? repeat : quick ? 1 : 3;
+            Repeated r1, r2;
+            for (int r = 0; r < reps; ++r) {
+                r1.runs.push_back(runScene(hectare, ha, haYears, 1, params));
+                if (maxThreads >= 2) r2.runs.push_back(runScene(hectare, ha, haYears, 2, params));
+                std::fprintf(stderr, "  1 ha run %d of %d: 1 thread %.1f s", r + 1, reps, r1.runs.back().seconds);
+                if (maxThreads >= 2) std::fprintf(stderr, ", 2 threads %.1f s", r2.runs.back().seconds);
+                std::fprintf(stderr, "\n");
+            }
+            if (r2.runs.empty()) r2 = r1;
+            const Timing& t1 = r1.fastest();
+            const Timing& t2 = r2.fastest();
+            const bool identical = r1.sameHash(t1.stateHash) && r2.sameHash(t1.stateHash);
             std::snprintf(line, sizeof line,
-                          "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f); %lld plant-months, peak %zu plants, "
-                          "final %zu plants; state hash %016llx (1 thread) %016llx (2 threads)\n",
-                          haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, static_cast<long long>(t1.plantMonths),
+                          "1 ha x %d years: 1 thread %.1f s, 2 threads %.1f s (speed-up %.2f; least of %d runs each); %lld "
+                          "plant-months, peak %zu plants, final %zu plants; state hash %016llx (1 thread) %016llx (2 threads), %s\n",
+                          haYears, t1.seconds, t2.seconds, t1.seconds / t2.seconds, reps, static_cast<long long>(t1.plantMonths),
                           t1.peakPlants, t1.plants, static_cast<unsigned long long>(t1.stateHash),
-                          static_cast<unsigned long long>(t2.stateHash));
+                          static_cast<unsigned long long>(t2.stateHash),
+                          identical ? "the same in every run" : "DIFFERENT between runs (a reproducibility bug)");
             rep << line;
-            std::snprintf(line, sizeof line, "plant-months per second per core: %.2f M (1 thread), %.2f M per core (2 threads)\n",
-                          t1.plantMonths / t1.seconds / 1e6, t2.plantMonths / t2.seconds / 2e6);
+            std::snprintf(line, sizeof line, "1 ha runs: 1 thread %s (median %.1f s); 2 threads %s (median %.1f s)\n",
+                          r1.all().c_str(), r1.median(), r2.all().c_str(), r2.median());
+            rep << line;
+            std::snprintf(line, sizeof line,
+                          "plant-months per second per core: %.2f M (1 thread; %.2f M at the median), %.2f M per core (2 threads; "
+                          "%.2f M at the median)\n",
+                          t1.plantMonths / t1.seconds / 1e6, t1.plantMonths / r1.median() / 1e6, t2.plantMonths / t2.seconds / 2e6,
+                          t2.plantMonths / r2.median() / 2e6);
             rep << line;
             std::snprintf(line, sizeof line,
                           "plant-months per CPU second (CPU time of all threads, including OpenMP spin-waiting): %.2f M (1 thread, %.1f CPU s), %.2f M (2 threads, %.1f CPU s)\n",
@@ -256,12 +315,16 @@ int main(int argc, char** argv) {
                           static_cast<double>(t1.plantCellMonths) / t1.plantMonths, t1.plantCellMonths / t1.seconds / 1e6,
                           t1.plantCellMonths / t1.cpuSeconds / 1e6);
             rep << line;
-            rep << "phases, 1 thread: " << phaseLine(t1) << "\nphases, 2 threads: " << phaseLine(t2) << "\n";
+            rep << "phases, 1 thread (fastest run): " << phaseLine(t1) << "\nphases, 2 threads (fastest run): " << phaseLine(t2) << "\n";
             std::snprintf(line, sizeof line, "memory: %zu bytes per plant, %zu bytes per 0.2 m cell (%.1f MB per ha)\n",
                           t1.bytesPerPlant, t1.bytesPerCell, t1.bytesPerCell * 250000.0 / 1e6);
             rep << line;
             std::fputs(rep.str().c_str(), stdout);
             std::fflush(stdout);
+            if (!identical) {
+                std::fprintf(stderr, "bench_sim: the state hash differs between runs of the same scene and seed\n");
+                return 1;
+            }
         }
         if (hectareOnly) {
             if (!outGiven) return 0;
