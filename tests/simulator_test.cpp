@@ -302,6 +302,25 @@ TEST_CASE("crown radius log: batchLog is within 2 ulp of std::log, and its vecto
     CHECK(batchLogOne(HUGE_VAL) == HUGE_VAL);
 }
 
+TEST_CASE("footprints: ceilClamped and floorClamped equal std::ceil / std::floor then clamping", "[sim][footprint]") {
+    // Integers, halves, values next to integers, both signs, beyond the bounds, huge values.
+    std::vector<double> ts = {0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300, HUGE_VAL, -HUGE_VAL};
+    for (int k = -12; k <= 12; ++k) {
+        const double v = k * 0.5;
+        ts.insert(ts.end(), {v, std::nextafter(v, HUGE_VAL), std::nextafter(v, -HUGE_VAL), v + 0.25, v - 1e-9});
+    }
+    eco::RandomStream rs(11, 0);
+    for (int k = 0; k < 2000; ++k) ts.push_back(rs.uniform(-8.0, 8.0));
+    for (const double t : ts)
+        for (const auto& [lo, hi] : {std::pair{-1, 3}, std::pair{-2, 5}, std::pair{0, 0}, std::pair{-4, -2}}) {
+            CAPTURE(t, lo, hi);
+            CHECK(ceilClamped(t, lo, hi) == static_cast<int>(std::clamp(std::ceil(t), double(lo), double(hi))));
+            CHECK(floorClamped(t, lo, hi) == static_cast<int>(std::clamp(std::floor(t), double(lo), double(hi))));
+        }
+    CHECK(ceilClamped(std::nan(""), -1, 7) == 7);
+    CHECK(floorClamped(std::nan(""), -2, 9) == 9);
+}
+
 TEST_CASE("footprints: every radius of footprintRange gives the same spans, and most ranges are more than one radius", "[sim][footprint]") {
     CellGrid g;
     g.W = 60;
