@@ -38,9 +38,6 @@ std::size_t kParallelCells = 200000;
 // only for this many times more plants (2: on the benchmark hectare, 40 000 plants and
 // more, 2 threads cut band lists and compaction by 10-25 %; 16 kept them serial).
 constexpr std::size_t kParallelSortFactor = 2;
-// The count pass reads the footprint spans of a band's entries in height order, i.e. at
-// random: it prefetches those of the entry this many places ahead.
-constexpr std::ptrdiff_t kSpanPrefetch = 16;
 
 // Static state of one simulation cell; 12 bytes. The sweep counts a band's occupants and
 // keeps what they share during a month in its band scratch (BandScratch); germination
@@ -222,8 +219,9 @@ struct Simulation::Impl : CellGrid {
     std::vector<std::uint32_t> binStart, binFill;
     std::vector<BinEntry> binEntries;
     std::vector<std::uint8_t> dominated;
-    // Height keys of the band entries, for the band sorts.
-    std::vector<std::uint32_t> bandKeys;
+    // The band sorts' records, one per band entry: height key (high 32 bits) and the entry's
+    // index in its band's list (low 32 bits); after the sort, each band's paint order.
+    std::vector<std::uint64_t> bandOrder;
     std::vector<BandScratch> bandScratch;  // per thread (sweepBand)
 
     std::int64_t month = 0;
@@ -648,67 +646,51 @@ struct Simulation::Impl : CellGrid {
     }
 
     // Per-thread scratch of the band sorts (reused: no allocation in the steady state).
-    struct SortScratch {
-        std::vector<std::uint32_t> keys;
-        std::vector<BandEntry> entries;
-    };
-    std::vector<SortScratch> sortScratch;
+    std::vector<std::vector<std::uint64_t>> sortScratch;
 
-    // Stable sort of one band's entries by key (LSD radix, 8-bit digits; a pass in which every
-    // key has the same digit is skipped; short lists by insertion). Stable, so entries of
-    // equal key keep their order, which is plant-index order.
-    static void sortBand(std::uint32_t* keys, BandEntry* entries, std::size_t n, SortScratch& scr) {
+    // Sort of one band's records (height key << 32 | entry index) into ascending order, i.e.
+    // by key, ties in entry order (plant-index order): LSD radix on the key's four 8-bit
+    // digits (the records enter in index order, so a stable sort by key is the full order);
+    // a pass in which every key has the same digit is skipped; short lists by insertion. The
+    // entries themselves stay where the scatter put them: 8-byte records move instead of
+    // 16-byte entries and their keys, and the sweep reads the entries through the order.
+    static void sortBand(std::uint64_t* rec, std::size_t n, std::vector<std::uint64_t>& scratch) {
         if (n < 2) return;
         if (n <= 32) {
             for (std::size_t i = 1; i < n; ++i) {
-                const std::uint32_t k = keys[i];
-                const BandEntry e = entries[i];
+                const std::uint64_t r = rec[i];
                 std::size_t j = i;
-                for (; j > 0 && keys[j - 1] > k; --j) {
-                    keys[j] = keys[j - 1];
-                    entries[j] = entries[j - 1];
-                }
-                keys[j] = k;
-                entries[j] = e;
+                for (; j > 0 && rec[j - 1] > r; --j) rec[j] = rec[j - 1];
+                rec[j] = r;
             }
             return;
         }
-        scr.keys.resize(n);
-        scr.entries.resize(n);
-        std::uint32_t* kIn = keys;
-        BandEntry* eIn = entries;
-        std::uint32_t* kOut = scr.keys.data();
-        BandEntry* eOut = scr.entries.data();
-        for (int shift = 0; shift < 32; shift += 8) {
+        scratch.resize(n);
+        std::uint64_t* in = rec;
+        std::uint64_t* out = scratch.data();
+        for (int shift = 32; shift < 64; shift += 8) {
             std::uint32_t count[256] = {};
-            for (std::size_t i = 0; i < n; ++i) ++count[(kIn[i] >> shift) & 255u];
-            if (count[(kIn[0] >> shift) & 255u] == n) continue;
+            for (std::size_t i = 0; i < n; ++i) ++count[(in[i] >> shift) & 255u];
+            if (count[(in[0] >> shift) & 255u] == n) continue;
             std::uint32_t run = 0;
             for (std::uint32_t& c : count) {
                 const std::uint32_t k = c;
                 c = run;
                 run += k;
             }
-            for (std::size_t i = 0; i < n; ++i) {
-                const std::uint32_t at = count[(kIn[i] >> shift) & 255u]++;
-                kOut[at] = kIn[i];
-                eOut[at] = eIn[i];
-            }
-            std::swap(kIn, kOut);
-            std::swap(eIn, eOut);
+            for (std::size_t i = 0; i < n; ++i) out[count[(in[i] >> shift) & 255u]++] = in[i];
+            std::swap(in, out);
         }
-        if (eIn != entries) {
-            std::copy(eIn, eIn + n, entries);
-            std::copy(kIn, kIn + n, keys);
-        }
+        if (in != rec) std::copy(in, in + n, rec);
     }
 
-    // Band lists: the plants overlapping each band; in height order (tallest first, ties by
-    // plant index, which is id order because plants are appended with increasing ids and
-    // compaction is stable) when `sorted`. A stable counting scatter of the (plant, band)
-    // pairs by band in plant order, parallel over fixed chunks (sequential reads of the
-    // plant arrays), then an independent sort of each band's list, parallel over bands,
-    // in the cache: O(n) every month, and no random access to the plants.
+    // Band lists: the plants overlapping each band, in plant order, and when `sorted` each
+    // band's paint order in bandOrder: height order (tallest first, ties by plant index,
+    // which is id order because plants are appended with increasing ids and compaction is
+    // stable). A stable counting scatter of the (plant, band) pairs by band in plant order,
+    // parallel over fixed chunks (sequential reads of the plant arrays), then an independent
+    // sort of each band's records, parallel over bands, in the cache: O(n) every month, and
+    // no random access to the plants.
     void buildBands(bool sorted) {
         const int nb = bands();
         const std::size_t n = pl.size();
@@ -733,7 +715,7 @@ struct Simulation::Impl : CellGrid {
         }
         bandStart[nb] = run;
         bandEntries.resize(run);
-        if (sorted) bandKeys.resize(run);
+        if (sorted) bandOrder.resize(run);
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* pos = &chunkCounts[c * nb];
@@ -749,7 +731,7 @@ struct Simulation::Impl : CellGrid {
                     const std::uint32_t span = pb.span + static_cast<std::uint32_t>(first - pb.rowLo);
                     bandEntries[at] = BandEntry::make(footprint[span], span, static_cast<std::uint32_t>(last - first + 1),
                                                       pb.slot + static_cast<std::uint32_t>(b - lo), species);
-                    if (sorted) bandKeys[at] = key;
+                    if (sorted) bandOrder[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandStart[b]);
                 }
             }
         }
@@ -757,7 +739,7 @@ struct Simulation::Impl : CellGrid {
         sortScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (run > kParallelPlants)
         for (int b = 0; b < nb; ++b)
-            sortBand(bandKeys.data() + bandStart[b], bandEntries.data() + bandStart[b], bandStart[b + 1] - bandStart[b],
+            sortBand(bandOrder.data() + bandStart[b], bandStart[b + 1] - bandStart[b],
                      sortScratch[static_cast<std::size_t>(omp_get_thread_num())]);
     }
 
@@ -765,21 +747,20 @@ struct Simulation::Impl : CellGrid {
     // between bands): each row span adds 1 at its first cell and -1 after its last, two
     // writes whatever its length and no loop over its cells. A prefix sum over the band then
     // gives every cell's occupants (the sweep's prepare pass, countOccupancy), and leaves
-    // scr.diff zero again. Exact: integer sums. Returns the band's first cell and cell count.
+    // scr.diff zero again. Exact: integer sums. The entries are read as the scatter left them,
+    // in plant order (the order does not matter to integer sums), so their footprint spans
+    // are read in address order. Returns the band's first cell and cell count.
     std::pair<std::size_t, std::size_t> scatterBand(int b, BandScratch& scr) const {
         const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
         const std::size_t c0 = static_cast<std::size_t>(r0) * W, nc = static_cast<std::size_t>(r1 - r0) * W;
         scr.resize(nc);
         std::int32_t* diff = scr.diff.data() - c0;  // indexed by cell
         const Span* fp = footprint.data();
-        const BandEntry* z = bandEntries.data() + bandStart[b + 1];
-        for (const BandEntry* e = bandEntries.data() + bandStart[b]; e != z; ++e) {
-            if (z - e > kSpanPrefetch) __builtin_prefetch(fp + e[kSpanPrefetch].span + 1);
+        for (const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandStart[b + 1]; e != z; ++e)
             e->forEachRow(fp, [diff](std::size_t start, std::uint32_t len) {
                 ++diff[start];
                 --diff[start + len];
             });
-        }
         scr.diff[nc] = 0;  // the -1 after the band's last cell
         return {c0, nc};
     }
@@ -864,7 +845,9 @@ struct Simulation::Impl : CellGrid {
         double* sunOut = partSun.data();
         double* waterOut = partWater.data();
         std::int32_t* cellsOut = partCells.data();
-        for (const BandEntry* e = e0; e != e1; ++e) {
+        const std::uint64_t* order = bandOrder.data() + bandStart[b];
+        for (std::size_t k = 0, ne = static_cast<std::size_t>(e1 - e0); k < ne; ++k) {
+            const BandEntry* e = e0 + static_cast<std::uint32_t>(order[k]);
             const float keep = keepOf[e->species()];
             const std::size_t first = e->start - c0;
             const std::uint32_t len = e->len(), rows = e->rows();
