@@ -47,17 +47,24 @@ struct CellState {
     std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
     std::uint32_t coarse = 0;        // abiotics cell containing the cell centre (index into the monthly planes)
 };
-// Per-thread scratch of the band being swept: what the occupants of each cell share (one
-// CellShare record per cell, paint.h), and the band's occupied cells.
+// Per-thread scratch of the band being swept: what the occupants of its cells share, one
+// array per field (BandCells, paint.h), and the band's occupied cells.
 struct BandScratch {
-    std::vector<CellShare> share;
+    std::vector<double> base, avail, rest;
+    std::vector<float> transmission;
+    std::vector<std::int32_t> painted;
     std::vector<std::uint32_t> occupied;
     std::vector<std::int32_t> diff;  // scatterBand: difference array of the occupancy (n + 1 cells, kept zero)
     void resize(std::size_t n) {
         if (diff.size() < n + 1) diff.resize(n + 1, 0);
-        share.resize(n);
+        base.resize(n);
+        avail.resize(n);
+        rest.resize(n);
+        transmission.resize(n);
+        painted.resize(n);
         occupied.resize(n);
     }
+    BandCells cells() { return BandCells{base.data(), avail.data(), rest.data(), transmission.data(), painted.data()}; }
 };
 
 // One plant in one band's list: everything the sweep needs, read sequentially. The plant's
@@ -786,7 +793,10 @@ struct Simulation::Impl : CellGrid {
         // cells (branch-free) and gets its shaded sun, its water after the canopy and the
         // seeding share, once per cell instead of once per occupant (an empty cell's values
         // are computed too, and never read).
-        CellShare* share = scr.share.data();
+        const BandCells bc = scr.cells();
+        double* base = scr.base.data();
+        double* availOut = scr.avail.data();
+        double* rest = scr.rest.data();
         std::int32_t* diff = scr.diff.data();
         std::uint32_t* list = scr.occupied.data();
         const CellState* cs = cells.data() + c0;
@@ -797,10 +807,6 @@ struct Simulation::Impl : CellGrid {
         // Two cells at a time: the operations of the scalar loop below, lane by lane (the
         // same bits; MAXPD has maxZero's operand order, and n + 1 is exact in either form).
         const __m128d dem = _mm_set1_pd(demand), zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
-        // A fresh record's transmission (1.f) and painted count (0) as the high half of its
-        // second 16 bytes.
-        const CellShare fresh{0, 0, 0, 1.f, 0};
-        const __m128d freshTail = _mm_load1_pd(reinterpret_cast<const double*>(&fresh.transmission));
         for (; i + 2 <= nc; i += 2) {
             const std::int32_t n0 = n + diff[i], n1 = n0 + diff[i + 1];
             n = n1;
@@ -813,18 +819,12 @@ struct Simulation::Impl : CellGrid {
             const __m128d trees = _mm_set_pd(cb.canopyTrees, ca.canopyTrees);
             const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(moistPlane[cb.coarse], moistPlane[ca.coarse]), _mm_mul_pd(trees, dem)), zero);
             const __m128d occ = _mm_set_pd(n1, n0);
-            const __m128d base = _mm_mul_pd(_mm_set_pd(cb.canopyTransmission, ca.canopyTransmission),
-                                            _mm_set_pd(sunPlane[cb.coarse], sunPlane[ca.coarse]));
+            _mm_storeu_pd(base + i, _mm_mul_pd(_mm_set_pd(cb.canopyTransmission, ca.canopyTransmission),
+                                               _mm_set_pd(sunPlane[cb.coarse], sunPlane[ca.coarse])));
+            _mm_storeu_pd(availOut + i, avail);
             // The division only when a lane has water beyond the demands (0 / (n + 1) is 0).
             const __m128d spare = _mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero);
-            const __m128d rest = _mm_movemask_pd(_mm_cmpgt_pd(spare, zero)) ? _mm_div_pd(spare, _mm_add_pd(occ, one)) : zero;
-            // Each record as two 16-byte stores: {base, avail}, {rest, transmission | painted}.
-            double* ra = &share[i].base;
-            double* rb = &share[i + 1].base;
-            _mm_store_pd(ra, _mm_unpacklo_pd(base, avail));
-            _mm_store_pd(ra + 2, _mm_unpacklo_pd(rest, freshTail));
-            _mm_store_pd(rb, _mm_unpackhi_pd(base, avail));
-            _mm_store_pd(rb + 2, _mm_unpackhi_pd(rest, freshTail));
+            _mm_storeu_pd(rest + i, _mm_movemask_pd(_mm_cmpgt_pd(spare, zero)) ? _mm_div_pd(spare, _mm_add_pd(occ, one)) : zero);
         }
 #endif
         for (; i < nc; ++i) {
@@ -832,10 +832,14 @@ struct Simulation::Impl : CellGrid {
             list[nOcc] = static_cast<std::uint32_t>(i);
             nOcc += n != 0;
             const double avail = waterAfterCanopyMm(moistPlane[cs[i].coarse], cs[i].canopyTrees, demand);
-            share[i] = CellShare{static_cast<double>(cs[i].canopyTransmission) * sunPlane[cs[i].coarse], avail,
-                                 waterLeftoverMm(avail, n, demand), 1.f, 0};
+            base[i] = static_cast<double>(cs[i].canopyTransmission) * sunPlane[cs[i].coarse];
+            availOut[i] = avail;
+            rest[i] = waterLeftoverMm(avail, n, demand);
         }
-        std::fill_n(diff, nc, 0);  // a bulk store (vector-wide) rather than one more scalar store per cell above
+        // Bulk stores (vector-wide) rather than three more scalar stores per cell above.
+        std::fill_n(diff, nc, 0);
+        std::fill_n(bc.transmission, nc, 1.f);
+        std::fill_n(bc.painted, nc, 0);
         const std::uint32_t* occList = list;
         // Paint: every entry in height order takes its shares of its cells (paint.h). Deussen
         // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
@@ -858,26 +862,25 @@ struct Simulation::Impl : CellGrid {
                 waterSum = 0;
                 count = 0;
                 e->forEachRow(fp, [&](std::size_t start, std::uint32_t n) {
-                    for (CellShare *sc = share + (start - c0), *z = sc + n; sc != z; ++sc) {
-                        sunSum += sc->base;
-                        waterSum += sc->avail;
-                        sc->transmission *= keep;
-                        ++sc->painted;
+                    for (std::size_t i = start - c0, z = i + n; i < z; ++i) {
+                        sunSum += bc.base[i];
+                        waterSum += bc.avail[i];
+                        bc.transmission[i] *= keep;
+                        ++bc.painted[i];
                     }
                     count += static_cast<std::int32_t>(n);
                 });
             } else if (rows == 1 && len == 1) {
                 // One cell (most plants): lane 0 alone, and (x + 0) + (0 + 0) = x for x >= 0.
-                CellShare& sc = share[first];
-                sunSum = sc.base * static_cast<double>(sc.transmission);
-                waterSum = waterDemandShareMm(sc.avail, sc.painted, demand) + sc.rest;
-                sc.transmission *= keep;
-                ++sc.painted;
+                sunSum = bc.base[first] * static_cast<double>(bc.transmission[first]);
+                waterSum = waterDemandShareMm(bc.avail[first], bc.painted[first], demand) + bc.rest[first];
+                bc.transmission[first] *= keep;
+                ++bc.painted[first];
             } else {
                 PaintLanes lanes;
-                lanes.span(share + first, len, keep, demand);
+                lanes.span(bc, first, len, keep, demand);
                 for (const Span *sp = fp + e->span + 1, *se = fp + e->span + rows; sp < se; ++sp) {
-                    lanes.span(share + (sp->start - c0), sp->len, keep, demand);
+                    lanes.span(bc, sp->start - c0, sp->len, keep, demand);
                     count += static_cast<std::int32_t>(sp->len);
                 }
                 sunSum = lanes.sunTotal();
@@ -897,11 +900,10 @@ struct Simulation::Impl : CellGrid {
         const bool run = periods.back() - g0 + 1 == np;
         float* deficitRun = deficitAt(c0, static_cast<std::size_t>(g0));
         const std::size_t stride = this->periods() * 2;
-        auto used = [share](std::size_t i, float& usedSun, float& usedWater) {
-            const CellShare& sc = share[i];
-            const double sunLeft = sc.base * sc.transmission;
-            usedSun = static_cast<float>(sc.base - sunLeft);
-            usedWater = static_cast<float>(sc.avail - sc.rest);
+        auto used = [&bc](std::size_t i, float& usedSun, float& usedWater) {
+            const double sunLeft = bc.base[i] * bc.transmission[i];
+            usedSun = static_cast<float>(bc.base[i] - sunLeft);
+            usedWater = static_cast<float>(bc.avail[i] - bc.rest[i]);
         };
 #ifdef __SSE2__
         if (run && np <= 2) {

@@ -186,11 +186,10 @@ TEST_CASE("water: minimum demand in height order, remainder shared with one shar
     }
 }
 
-TEST_CASE("paint: the kernel sums in four lanes in a fixed order and gives the per-cell shares", "[sim][water][shade]") {
-    // One band row of 64 cells painted by a stack of plants over random spans, each plant in
-    // two row spans: the kernel's sums must equal, bit for bit, lane sums written out here
-    // (cell i of a span into lane i mod 4, total (l0 + l1) + (l2 + l3)), every cell's
-    // transmission the product of the keeps and its painted count its occupants.
+TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the per-cell shares", "[sim][water][shade]") {
+    // One band row of 64 cells painted by a stack of plants over random spans: the SSE2 kernel
+    // (where built) and the portable one must agree bit for bit on every sum and cell, and each
+    // cell's water must be waterShareMm of its height rank.
     constexpr std::size_t kCells = 64;
     constexpr int kPlants = 40;
     constexpr double kDemand = 4.0;
@@ -213,50 +212,43 @@ TEST_CASE("paint: the kernel sums in four lanes in a fixed order and gives the p
         spans.push_back({first, len, 1.f - static_cast<float>(next(90)) / 100.f});
         for (std::size_t c = first; c < first + len; ++c) ++occupants[c];
     }
-    std::vector<CellShare> cells(kCells);
     for (std::size_t c = 0; c < kCells; ++c) {
         base[c] = 50.0 + static_cast<double>(next(100000)) / 977.0;
         avail[c] = static_cast<double>(next(6000)) / 97.0;  // from scarce to plenty for up to 40 occupants
         rest[c] = waterLeftoverMm(avail[c], occupants[c], kDemand);
-        cells[c] = CellShare{base[c], avail[c], rest[c], 1.f, 0};
     }
-    std::vector<float> trans(kCells, 1.f);
-    std::vector<int> painted(kCells, 0);
-    for (const PlantSpan& s : spans) {
-        // The reference: the same per-cell formulas, lanes restarting with each span.
-        double sunLane[4] = {0, 0, 0, 0}, waterLane[4] = {0, 0, 0, 0};
-        const std::size_t split = s.len / 2;
-        for (const auto& [from, len] : {std::pair{s.first, split}, std::pair{s.first + split, s.len - split}})
-            for (std::size_t i = 0; i < len; ++i) {
-                const std::size_t c = from + i;
-                sunLane[i % 4] += base[c] * static_cast<double>(trans[c]);
-                waterLane[i % 4] += waterDemandShareMm(avail[c], painted[c], kDemand) + rest[c];
-                trans[c] *= s.keep;
-                ++painted[c];
-            }
-        PaintLanes lanes;
-        lanes.span(cells.data() + s.first, split, s.keep, kDemand);
-        lanes.span(cells.data() + s.first + split, s.len - split, s.keep, kDemand);
-        const double sunRef = (sunLane[0] + sunLane[1]) + (sunLane[2] + sunLane[3]);
-        const double waterRef = (waterLane[0] + waterLane[1]) + (waterLane[2] + waterLane[3]);
-        const double sunGot = lanes.sunTotal(), waterGot = lanes.waterTotal();
-        CHECK(std::memcmp(&sunGot, &sunRef, sizeof(double)) == 0);
-        CHECK(std::memcmp(&waterGot, &waterRef, sizeof(double)) == 0);
-    }
-    for (std::size_t c = 0; c < kCells; ++c) {
-        CHECK(std::memcmp(&cells[c].transmission, &trans[c], sizeof(float)) == 0);
-        CHECK(cells[c].painted == occupants[c]);
-        CHECK(cells[c].base == base[c]);  // read-only fields untouched
-        CHECK(cells[c].rest == rest[c]);
-    }
+    auto paint = [&](auto lanesType, std::vector<double>& sums, std::vector<float>& trans, std::vector<std::int32_t>& painted) {
+        trans.assign(kCells, 1.f);
+        painted.assign(kCells, 0);
+        const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
+        for (const PlantSpan& s : spans) {
+            decltype(lanesType) lanes;
+            // Two spans per plant when it is long enough: the lanes restart with each span.
+            const std::size_t split = s.len / 2;
+            lanes.span(bc, s.first, split, s.keep, kDemand);
+            lanes.span(bc, s.first + split, s.len - split, s.keep, kDemand);
+            sums.push_back(lanes.sunTotal());
+            sums.push_back(lanes.waterTotal());
+        }
+    };
+    std::vector<double> sumsScalar, sumsFast;
+    std::vector<float> transScalar, transFast;
+    std::vector<std::int32_t> paintedScalar, paintedFast;
+    paint(PaintLanesScalar{}, sumsScalar, transScalar, paintedScalar);
+    paint(PaintLanes{}, sumsFast, transFast, paintedFast);
+    REQUIRE(sumsScalar.size() == sumsFast.size());
+    CHECK(std::memcmp(sumsScalar.data(), sumsFast.data(), sumsScalar.size() * sizeof(double)) == 0);
+    CHECK(std::memcmp(transScalar.data(), transFast.data(), kCells * sizeof(float)) == 0);
+    CHECK(paintedFast == paintedScalar);
+    for (std::size_t c = 0; c < kCells; ++c) CHECK(paintedFast[c] == occupants[c]);
     // A one-cell plant alone under the stack gets exactly the cell's formulas.
-    CellShare& c7 = cells[7];
-    c7.transmission = 1.f;
-    c7.painted = 0;
+    std::vector<float> trans(kCells, 1.f);
+    std::vector<std::int32_t> painted(kCells, 0);
+    const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
     for (int k = 0; k < occupants[7]; ++k) {
-        const double sunExpected = base[7] * static_cast<double>(c7.transmission);
+        const double sunExpected = base[7] * static_cast<double>(trans[7]);
         PaintLanes lanes;
-        lanes.span(&c7, 1, 0.5f, kDemand);
+        lanes.span(bc, 7, 1, 0.5f, kDemand);
         CHECK(lanes.sunTotal() == sunExpected);
         CHECK(lanes.waterTotal() == Approx(waterShareMm(avail[7], k, occupants[7], kDemand)).epsilon(1e-12));
     }
