@@ -21,6 +21,9 @@
 
 namespace eco::sim {
 
+/// Cells past a span's end that a paint kernel may read and store back unchanged.
+constexpr std::size_t kPaintPad = 3;
+
 /// What the occupants of a band's cells share during a month, one array per field (index:
 /// cell - first cell of the band). Filled by the sweep's prepare pass.
 struct BandCells {
@@ -51,7 +54,12 @@ struct PaintLanesScalar {
 
 #ifdef __SSE2__
 /// SSE2 kernel: lanes 0-1 and 2-3 in two registers per sum; the same operations, lane by
-/// lane, as PaintLanesScalar (MINPD / MAXPD have the operand order of minOf / maxZero).
+/// lane, as PaintLanesScalar (MINPD / MAXPD have the operand order of minOf / maxZero). A
+/// span is taken four cells at a time with no branch on its length: the last group is
+/// masked, its cells past the span's end adding +0 to their lanes (every lane is a sum of
+/// values >= 0, so x + 0 is x) and getting their own transmission and count stored back.
+/// It therefore reads and rewrites up to kPaintPad cells past a span's end: the arrays must
+/// extend that far (BandScratch pads them), and nothing else may change those cells meanwhile.
 struct PaintLanesSse2 {
     __m128d sun01 = _mm_setzero_pd(), sun23 = _mm_setzero_pd();
     __m128d water01 = _mm_setzero_pd(), water23 = _mm_setzero_pd();
@@ -65,37 +73,22 @@ struct PaintLanesSse2 {
     void span(const BandCells& b, std::size_t c, std::size_t len, float keep, double demandMm) {
         const __m128d demand = _mm_set1_pd(demandMm);
         const __m128 keep4 = _mm_set1_ps(keep);
-        const __m128i one = _mm_set1_epi32(1);
-        std::size_t i = 0;
-        for (; i + 4 <= len; i += 4, c += 4) {
+        const __m128i lane = _mm_setr_epi32(0, 1, 2, 3);
+        for (std::size_t i = 0; i < len; i += 4, c += 4) {
+            // All ones in the lanes of cells inside the span (position i + lane < len).
+            const int left = static_cast<int>(len - i < 4 ? len - i : 4);
+            const __m128i in = _mm_cmpgt_epi32(_mm_set1_epi32(left), lane);
+            const __m128d in01 = _mm_castsi128_pd(_mm_unpacklo_epi32(in, in));
+            const __m128d in23 = _mm_castsi128_pd(_mm_unpackhi_epi32(in, in));
             const __m128 t = _mm_loadu_ps(b.transmission + c);
             const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.painted + c));
-            sun01 = _mm_add_pd(sun01, _mm_mul_pd(_mm_loadu_pd(b.base + c), _mm_cvtps_pd(t)));
-            sun23 = _mm_add_pd(sun23, _mm_mul_pd(_mm_loadu_pd(b.base + c + 2), _mm_cvtps_pd(_mm_movehl_ps(t, t))));
-            water01 = _mm_add_pd(water01, waterPair(b, c, k, demand));
-            water23 = _mm_add_pd(water23, waterPair(b, c + 2, _mm_shuffle_epi32(k, 0xEE), demand));
-            _mm_storeu_ps(b.transmission + c, _mm_mul_ps(t, keep4));
-            _mm_storeu_si128(reinterpret_cast<__m128i*>(b.painted + c), _mm_add_epi32(k, one));
-        }
-        const std::size_t tail = len - i;
-        if (tail & 2u) {  // lanes 0 and 1
-            const __m128 t = _mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(b.transmission + c)));
-            const __m128i k = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(b.painted + c));
-            sun01 = _mm_add_pd(sun01, _mm_mul_pd(_mm_loadu_pd(b.base + c), _mm_cvtps_pd(t)));
-            water01 = _mm_add_pd(water01, waterPair(b, c, k, demand));
-            _mm_store_sd(reinterpret_cast<double*>(b.transmission + c), _mm_castps_pd(_mm_mul_ps(t, keep4)));
-            _mm_storel_epi64(reinterpret_cast<__m128i*>(b.painted + c), _mm_add_epi32(k, one));
-            c += 2;
-        }
-        if (tail & 1u) {  // lane 0 (tail 1) or lane 2 (tail 3)
-            const double s = b.base[c] * static_cast<double>(b.transmission[c]);
-            const double w = waterDemandShareMm(b.avail[c], b.painted[c], demandMm) + b.rest[c];
-            __m128d& sunLane = (tail & 2u) ? sun23 : sun01;
-            __m128d& waterLane = (tail & 2u) ? water23 : water01;
-            sunLane = _mm_add_sd(sunLane, _mm_set_sd(s));
-            waterLane = _mm_add_sd(waterLane, _mm_set_sd(w));
-            b.transmission[c] *= keep;
-            ++b.painted[c];
+            sun01 = _mm_add_pd(sun01, _mm_and_pd(in01, _mm_mul_pd(_mm_loadu_pd(b.base + c), _mm_cvtps_pd(t))));
+            sun23 = _mm_add_pd(sun23, _mm_and_pd(in23, _mm_mul_pd(_mm_loadu_pd(b.base + c + 2), _mm_cvtps_pd(_mm_movehl_ps(t, t)))));
+            water01 = _mm_add_pd(water01, _mm_and_pd(in01, waterPair(b, c, k, demand)));
+            water23 = _mm_add_pd(water23, _mm_and_pd(in23, waterPair(b, c + 2, _mm_shuffle_epi32(k, 0xEE), demand)));
+            const __m128 inPs = _mm_castsi128_ps(in);
+            _mm_storeu_ps(b.transmission + c, _mm_or_ps(_mm_and_ps(inPs, _mm_mul_ps(t, keep4)), _mm_andnot_ps(inPs, t)));
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(b.painted + c), _mm_sub_epi32(k, in));  // k - (-1) inside
         }
     }
     static double total(__m128d a, __m128d b) {

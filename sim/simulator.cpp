@@ -57,11 +57,11 @@ struct BandScratch {
     std::vector<std::int32_t> diff;  // scatterBand: difference array of the occupancy (n + 1 cells, kept zero)
     void resize(std::size_t n) {
         if (diff.size() < n + 1) diff.resize(n + 1, 0);
-        base.resize(n);
-        avail.resize(n);
-        rest.resize(n);
-        transmission.resize(n);
-        painted.resize(n);
+        base.resize(n + kPaintPad);  // the paint kernel's padding (paint.h)
+        avail.resize(n + kPaintPad);
+        rest.resize(n + kPaintPad);
+        transmission.resize(n + kPaintPad);
+        painted.resize(n + kPaintPad);
         occupied.resize(n);
     }
     BandCells cells() { return BandCells{base.data(), avail.data(), rest.data(), transmission.data(), painted.data()}; }

@@ -217,9 +217,20 @@ TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the
         avail[c] = static_cast<double>(next(6000)) / 97.0;  // from scarce to plenty for up to 40 occupants
         rest[c] = waterLeftoverMm(avail[c], occupants[c], kDemand);
     }
+    // The arrays as the sweep pads them (kPaintPad cells past the last; the SSE2 kernel reads
+    // and stores them back unchanged); the padding holds values a kernel must not disturb.
+    for (std::size_t c = 0; c < kPaintPad; ++c) {
+        base.push_back(1e300);
+        avail.push_back(-1e300);
+        rest.push_back(1e300);
+    }
     auto paint = [&](auto lanesType, std::vector<double>& sums, std::vector<float>& trans, std::vector<std::int32_t>& painted) {
-        trans.assign(kCells, 1.f);
-        painted.assign(kCells, 0);
+        trans.assign(kCells + kPaintPad, 1.f);
+        painted.assign(kCells + kPaintPad, 0);
+        for (std::size_t c = kCells; c < kCells + kPaintPad; ++c) {
+            trans[c] = 0.375f;
+            painted[c] = 1000;
+        }
         const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
         for (const PlantSpan& s : spans) {
             decltype(lanesType) lanes;
@@ -238,12 +249,16 @@ TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the
     paint(PaintLanes{}, sumsFast, transFast, paintedFast);
     REQUIRE(sumsScalar.size() == sumsFast.size());
     CHECK(std::memcmp(sumsScalar.data(), sumsFast.data(), sumsScalar.size() * sizeof(double)) == 0);
-    CHECK(std::memcmp(transScalar.data(), transFast.data(), kCells * sizeof(float)) == 0);
+    CHECK(std::memcmp(transScalar.data(), transFast.data(), (kCells + kPaintPad) * sizeof(float)) == 0);
     CHECK(paintedFast == paintedScalar);
     for (std::size_t c = 0; c < kCells; ++c) CHECK(paintedFast[c] == occupants[c]);
+    for (std::size_t c = kCells; c < kCells + kPaintPad; ++c) {  // the padding as it was
+        CHECK(transFast[c] == 0.375f);
+        CHECK(paintedFast[c] == 1000);
+    }
     // A one-cell plant alone under the stack gets exactly the cell's formulas.
-    std::vector<float> trans(kCells, 1.f);
-    std::vector<std::int32_t> painted(kCells, 0);
+    std::vector<float> trans(kCells + kPaintPad, 1.f);
+    std::vector<std::int32_t> painted(kCells + kPaintPad, 0);
     const BandCells bc{base.data(), avail.data(), rest.data(), trans.data(), painted.data()};
     for (int k = 0; k < occupants[7]; ++k) {
         const double sunExpected = base[7] * static_cast<double>(trans[7]);
