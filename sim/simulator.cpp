@@ -772,6 +772,69 @@ struct Simulation::Impl : CellGrid {
         return {c0, nc};
     }
 
+    // The paint pass of a band (sweepBand): its entries in height order (`order`), each taking
+    // its shares of its cells with the kernel Lanes (paint.h). Inlined into one function per
+    // kernel, so that the AVX2 one is compiled for AVX2 throughout.
+    template <typename Lanes>
+    __attribute__((always_inline)) inline void paintEntries(const BandEntry* e0, std::size_t ne, const std::uint64_t* order,
+                                                            std::size_t c0, const BandCells& bc, double demand, bool unshared) {
+        const Span* fp = footprint.data();
+        const float* keepOf = speciesKeep.data();
+        double* sunOut = partSun.data();
+        double* waterOut = partWater.data();
+        std::int32_t* cellsOut = partCells.data();
+        for (std::size_t k = 0; k < ne; ++k) {
+            const BandEntry* e = e0 + static_cast<std::uint32_t>(order[k]);
+            const float keep = keepOf[e->species()];
+            const std::size_t first = e->start - c0;
+            const std::uint32_t len = e->len(), rows = e->rows();
+            double sunSum, waterSum;
+            std::int32_t count = static_cast<std::int32_t>(len);
+            if (unshared) {
+                sunSum = 0;
+                waterSum = 0;
+                count = 0;
+                e->forEachRow(fp, [&](std::size_t start, std::uint32_t n) {
+                    for (std::size_t i = start - c0, z = i + n; i < z; ++i) {
+                        sunSum += bc.base[i];
+                        waterSum += bc.avail[i];
+                        bc.transmission[i] *= keep;
+                        ++bc.painted[i];
+                    }
+                    count += static_cast<std::int32_t>(n);
+                });
+            } else if (rows == 1 && len == 1) {
+                // One cell (most plants): lane 0 alone, and (x + 0) + (0 + 0) = x for x >= 0.
+                sunSum = bc.base[first] * static_cast<double>(bc.transmission[first]);
+                waterSum = waterDemandShareMm(bc.avail[first], bc.painted[first], demand) + bc.rest[first];
+                bc.transmission[first] *= keep;
+                ++bc.painted[first];
+            } else {
+                Lanes lanes;
+                lanes.span(bc, first, len, keep, demand);
+                for (const Span *sp = fp + e->span + 1, *se = fp + e->span + rows; sp < se; ++sp) {
+                    lanes.span(bc, sp->start - c0, sp->len, keep, demand);
+                    count += static_cast<std::int32_t>(sp->len);
+                }
+                sunSum = lanes.sunTotal();
+                waterSum = lanes.waterTotal();
+            }
+            sunOut[e->slot] = sunSum;
+            waterOut[e->slot] = waterSum;
+            cellsOut[e->slot] = count;
+        }
+    }
+    void paintDefault(const BandEntry* e0, std::size_t ne, const std::uint64_t* order, std::size_t c0, const BandCells& bc,
+                      double demand, bool unshared) {
+        paintEntries<PaintLanes>(e0, ne, order, c0, bc, demand, unshared);
+    }
+#ifdef ECO_PAINT_AVX2
+    ECO_TARGET_AVX2 void paintAvx2(const BandEntry* e0, std::size_t ne, const std::uint64_t* order, std::size_t c0,
+                                   const BandCells& bc, double demand, bool unshared) {
+        paintEntries<PaintLanesAvx2>(e0, ne, order, c0, bc, demand, unshared);
+    }
+#endif
+
     // One band: count, prepare, paint, finish. The band's rows belong to this call only.
     //  * count: the band's difference array of occupants (scatterBand);
     //  * prepare: every cell's occupants, resources and seeding share, and the occupied cells;
@@ -782,7 +845,6 @@ struct Simulation::Impl : CellGrid {
         const std::size_t c0 = static_cast<std::size_t>(b) * kBandRows * W;
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
-        const Span* fp = footprint.data();
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
@@ -845,51 +907,14 @@ struct Simulation::Impl : CellGrid {
         // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
         // leftovers for germination are the same as in the resources mode.
         const bool unshared = params.competition == CompetitionMode::Deussen;
-        const float* keepOf = speciesKeep.data();
-        double* sunOut = partSun.data();
-        double* waterOut = partWater.data();
-        std::int32_t* cellsOut = partCells.data();
         const std::uint64_t* order = bandOrder.data() + bandStart[b];
-        for (std::size_t k = 0, ne = static_cast<std::size_t>(e1 - e0); k < ne; ++k) {
-            const BandEntry* e = e0 + static_cast<std::uint32_t>(order[k]);
-            const float keep = keepOf[e->species()];
-            const std::size_t first = e->start - c0;
-            const std::uint32_t len = e->len(), rows = e->rows();
-            double sunSum, waterSum;
-            std::int32_t count = static_cast<std::int32_t>(len);
-            if (unshared) {
-                sunSum = 0;
-                waterSum = 0;
-                count = 0;
-                e->forEachRow(fp, [&](std::size_t start, std::uint32_t n) {
-                    for (std::size_t i = start - c0, z = i + n; i < z; ++i) {
-                        sunSum += bc.base[i];
-                        waterSum += bc.avail[i];
-                        bc.transmission[i] *= keep;
-                        ++bc.painted[i];
-                    }
-                    count += static_cast<std::int32_t>(n);
-                });
-            } else if (rows == 1 && len == 1) {
-                // One cell (most plants): lane 0 alone, and (x + 0) + (0 + 0) = x for x >= 0.
-                sunSum = bc.base[first] * static_cast<double>(bc.transmission[first]);
-                waterSum = waterDemandShareMm(bc.avail[first], bc.painted[first], demand) + bc.rest[first];
-                bc.transmission[first] *= keep;
-                ++bc.painted[first];
-            } else {
-                PaintLanes lanes;
-                lanes.span(bc, first, len, keep, demand);
-                for (const Span *sp = fp + e->span + 1, *se = fp + e->span + rows; sp < se; ++sp) {
-                    lanes.span(bc, sp->start - c0, sp->len, keep, demand);
-                    count += static_cast<std::int32_t>(sp->len);
-                }
-                sunSum = lanes.sunTotal();
-                waterSum = lanes.waterTotal();
-            }
-            sunOut[e->slot] = sunSum;
-            waterOut[e->slot] = waterSum;
-            cellsOut[e->slot] = count;
-        }
+        const std::size_t ne = static_cast<std::size_t>(e1 - e0);
+#ifdef ECO_PAINT_AVX2
+        if (paintKernelAvx2()) paintAvx2(e0, ne, order, c0, bc, demand, unshared);
+        else paintDefault(e0, ne, order, c0, bc, demand, unshared);
+#else
+        paintDefault(e0, ne, order, c0, bc, demand, unshared);
+#endif
         // Finish: this month's leftovers go to the germination deficit.
         const std::vector<int>& periods = periodsOfMonth[m];
         if (periods.empty()) return;
@@ -1438,6 +1463,19 @@ struct Simulation::Impl : CellGrid {
 };
 
 // ====================================================================== public API
+
+#ifdef ECO_PAINT_AVX2
+namespace {
+bool gPaintAvx2 = __builtin_cpu_supports("avx2");
+}
+bool paintKernelAvx2() { return gPaintAvx2; }
+bool setPaintKernelAvx2(bool on) {
+    gPaintAvx2 = on && __builtin_cpu_supports("avx2");
+    return gPaintAvx2;
+}
+#else
+bool setPaintKernelAvx2(bool) { return false; }
+#endif
 
 void setParallelThresholds(std::size_t plants, std::size_t cells) {
     kParallelPlants = plants;

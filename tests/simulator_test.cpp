@@ -247,6 +247,20 @@ TEST_CASE("paint: the vectorised kernel gives the portable kernel's bits and the
     std::vector<std::int32_t> paintedScalar, paintedFast;
     paint(PaintLanesScalar{}, sumsScalar, transScalar, paintedScalar);
     paint(PaintLanes{}, sumsFast, transFast, paintedFast);
+#ifdef ECO_PAINT_AVX2
+    if (setPaintKernelAvx2(true)) {  // the processor has AVX2: its kernel gives the same bits too
+        std::vector<double> sumsAvx2;
+        std::vector<float> transAvx2;
+        std::vector<std::int32_t> paintedAvx2;
+        paint(PaintLanesAvx2{}, sumsAvx2, transAvx2, paintedAvx2);
+        REQUIRE(sumsAvx2.size() == sumsScalar.size());
+        CHECK(std::memcmp(sumsScalar.data(), sumsAvx2.data(), sumsScalar.size() * sizeof(double)) == 0);
+        CHECK(std::memcmp(transScalar.data(), transAvx2.data(), (kCells + kPaintPad) * sizeof(float)) == 0);
+        CHECK(paintedAvx2 == paintedScalar);
+    } else {
+        WARN("no AVX2 on this processor: the AVX2 paint kernel is not checked here");
+    }
+#endif
     REQUIRE(sumsScalar.size() == sumsFast.size());
     CHECK(std::memcmp(sumsScalar.data(), sumsFast.data(), sumsScalar.size() * sizeof(double)) == 0);
     CHECK(std::memcmp(transScalar.data(), transFast.data(), (kCells + kPaintPad) * sizeof(float)) == 0);
@@ -949,6 +963,25 @@ TEST_CASE("integration: 25 years on a small plot keep every invariant", "[sim][i
     CHECK(maxPlants > 100);
     CHECK(sim.counters().germinated > 0);
     CHECK(sim.counters().diedBackgroundOrStress > 0);
+}
+
+TEST_CASE("determinism: the AVX2 and the SSE2 paint kernels give identical plants", "[sim][determinism]") {
+    // 30 years of ideal growth: crowns of many cells, so that the kernels' full and masked
+    // groups of four are all exercised.
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    std::vector<std::vector<UndergrowthPlant>> results;
+    bool avx2 = false;
+    for (bool on : {false, true}) {
+        avx2 = setPaintKernelAvx2(on);
+        Simulation sim(in, SimParams{}, 5);
+        for (int y = 0; y < 30; ++y) sim.stepYear();
+        results.push_back(sim.plants());
+    }
+    setPaintKernelAvx2(true);  // back to the default: AVX2 where the processor has it
+    if (!avx2) WARN("no AVX2 on this processor: both runs used the SSE2 kernel");
+    REQUIRE(results[0].size() > 100);
+    CHECK(samePlants(results[0], results[1]));
 }
 
 TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determinism]") {
