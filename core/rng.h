@@ -10,8 +10,13 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "cpu.h"
+
 #ifdef __SSE2__
 #include <emmintrin.h>
+#endif
+#ifdef ECO_HAVE_AVX2_KERNELS
+#include <immintrin.h>
 #endif
 
 namespace eco {
@@ -96,9 +101,56 @@ inline std::uint64_t mixStream(std::uint64_t a, std::uint64_t b) {
 /// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
 /// counter, four at a time where SSE2 is available (integer arithmetic: the same bits as
 /// randomBits, which tests/rng_test.cpp checks).
+#ifdef ECO_HAVE_AVX2_KERNELS
+/// randomBitsBatch's SSE2 loop on eight streams at a time (AVX2, chosen at run time:
+/// core/cpu.h): the same layout in each 128-bit half (streams i, i + 2 | i + 4, i + 6 in
+/// register A, i + 1, i + 3 | i + 5, i + 7 in B), so that the in-half shuffles pack them in
+/// stream order. Returns how many leading streams it did (n rounded down to a multiple of 8).
+ECO_TARGET_AVX2 inline std::size_t randomBitsBatchAvx2(std::uint64_t seed, const std::uint64_t* stream,
+                                                       std::uint64_t counter, std::size_t n, std::uint32_t* word0,
+                                                       std::uint32_t* word1) {
+    const __m256i mul0 = _mm256_set1_epi64x(0xD2511F53), mul1 = _mm256_set1_epi64x(0xCD9E8D57);
+    auto ll = [](std::uint64_t v) { return static_cast<long long>(v); };
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        const __m256i ctr0 = _mm256_set1_epi64x(static_cast<std::uint32_t>(counter));
+        const __m256i ctr1 = _mm256_set1_epi64x(static_cast<std::uint32_t>(counter >> 32));
+        __m256i c0a = ctr0, c0b = ctr0, c1a = ctr1, c1b = ctr1;
+        __m256i c2a = _mm256_set_epi64x(ll(stream[i + 6]), ll(stream[i + 4]), ll(stream[i + 2]), ll(stream[i]));
+        __m256i c2b = _mm256_set_epi64x(ll(stream[i + 7]), ll(stream[i + 5]), ll(stream[i + 3]), ll(stream[i + 1]));
+        __m256i c3a = _mm256_srli_epi64(c2a, 32), c3b = _mm256_srli_epi64(c2b, 32);
+        std::uint32_t key0 = static_cast<std::uint32_t>(seed), key1 = static_cast<std::uint32_t>(seed >> 32);
+        for (int round = 0; round < 10; ++round) {
+            const __m256i k0 = _mm256_set1_epi64x(key0), k1 = _mm256_set1_epi64x(key1);
+            const __m256i p0a = _mm256_mul_epu32(c0a, mul0), p0b = _mm256_mul_epu32(c0b, mul0);
+            const __m256i p1a = _mm256_mul_epu32(c2a, mul1), p1b = _mm256_mul_epu32(c2b, mul1);
+            c0a = _mm256_xor_si256(_mm256_xor_si256(_mm256_srli_epi64(p1a, 32), c1a), k0);
+            c0b = _mm256_xor_si256(_mm256_xor_si256(_mm256_srli_epi64(p1b, 32), c1b), k0);
+            c1a = p1a;
+            c1b = p1b;
+            c2a = _mm256_xor_si256(_mm256_xor_si256(_mm256_srli_epi64(p0a, 32), c3a), k1);
+            c2b = _mm256_xor_si256(_mm256_xor_si256(_mm256_srli_epi64(p0b, 32), c3b), k1);
+            c3a = p0a;
+            c3b = p0b;
+            key0 += 0x9E3779B9u;
+            key1 += 0xBB67AE85u;
+        }
+        // Low halves of a (lanes 0, 2 of each half) and b (1, 3) in stream order.
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word0 + i),
+                            _mm256_unpacklo_epi32(_mm256_shuffle_epi32(c0a, 0x08), _mm256_shuffle_epi32(c0b, 0x08)));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word1 + i),
+                            _mm256_unpacklo_epi32(_mm256_shuffle_epi32(c1a, 0x08), _mm256_shuffle_epi32(c1b, 0x08)));
+    }
+    return i;
+}
+#endif
+
 inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std::uint64_t counter, std::size_t n,
                             std::uint32_t* word0, std::uint32_t* word1) {
     std::size_t i = 0;
+#ifdef ECO_HAVE_AVX2_KERNELS
+    if (avx2Kernels()) i = randomBitsBatchAvx2(seed, stream, counter, n, word0, word1);
+#endif
 #ifdef __SSE2__
     // Each 32-bit word of the state is kept in the low half of a 64-bit lane, streams (i, i + 2)
     // in register A and (i + 1, i + 3) in register B: PMULUDQ then gives a lane's whole 64-bit

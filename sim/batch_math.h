@@ -21,8 +21,13 @@
 #include <cstring>
 #include <limits>
 
+#include "cpu.h"
+
 #ifdef __SSE2__
 #include <emmintrin.h>
+#endif
+#ifdef ECO_HAVE_AVX2_KERNELS
+#include <immintrin.h>
 #endif
 
 namespace eco::sim {
@@ -76,8 +81,34 @@ inline __m128d batchExpPair(__m128d x) {
 }
 #endif
 
+#ifdef ECO_HAVE_AVX2_KERNELS
+// Four lanes of batchExpOne (AVX2, chosen at run time: core/cpu.h): the same operations in
+// the same order, hence the same bits. Returns how many leading values it did (n rounded
+// down to a multiple of 4).
+ECO_TARGET_AVX2 inline std::size_t batchExpAvx2(const double* x, double* y, std::size_t n) {
+    using C = BatchExpConst;
+    const __m256d shift = _mm256_set1_pd(C::kShift);
+    std::size_t i = 0;
+    for (; i + 4 <= n; i += 4) {
+        const __m256d v = _mm256_min_pd(_mm256_max_pd(_mm256_loadu_pd(x + i), _mm256_set1_pd(C::kLo)), _mm256_set1_pd(C::kHi));
+        const __m256d kd = _mm256_add_pd(_mm256_mul_pd(v, _mm256_set1_pd(C::kLog2e)), shift);
+        const __m256d k = _mm256_sub_pd(kd, shift);
+        const __m256d r = _mm256_sub_pd(_mm256_sub_pd(v, _mm256_mul_pd(k, _mm256_set1_pd(C::kLn2Hi))),
+                                        _mm256_mul_pd(k, _mm256_set1_pd(C::kLn2Lo)));
+        __m256d p = _mm256_set1_pd(C::kLead);
+        for (double c : C::kCoeff) p = _mm256_add_pd(_mm256_mul_pd(p, r), _mm256_set1_pd(c));
+        const __m256i scale = _mm256_slli_epi64(_mm256_add_epi64(_mm256_castpd_si256(kd), _mm256_set1_epi64x(1023)), 52);
+        _mm256_storeu_pd(y + i, _mm256_mul_pd(p, _mm256_castsi256_pd(scale)));
+    }
+    return i;
+}
+#endif
+
 inline void batchExp(const double* x, double* y, std::size_t n) {
     std::size_t i = 0;
+#ifdef ECO_HAVE_AVX2_KERNELS
+    if (avx2Kernels()) i = batchExpAvx2(x, y, n);
+#endif
 #ifdef __SSE2__
     for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, batchExpPair(_mm_loadu_pd(x + i)));
 #endif

@@ -13,12 +13,13 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "cpu.h"
 #include "processes.h"
 
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
-#if defined(__GNUC__) && defined(__x86_64__)
+#ifdef ECO_HAVE_AVX2_KERNELS
 #include <immintrin.h>
 #endif
 
@@ -107,10 +108,8 @@ using PaintLanes = PaintLanesSse2;
 using PaintLanes = PaintLanesScalar;
 #endif
 
-#if defined(__GNUC__) && defined(__x86_64__)
-#define ECO_PAINT_AVX2 1
-#define ECO_TARGET_AVX2 __attribute__((target("avx2")))
-/// AVX2 kernel, chosen at run time on processors that have AVX2 (paintKernelAvx2): lanes 0-3
+#ifdef ECO_HAVE_AVX2_KERNELS
+/// AVX2 kernel, chosen at run time on processors that have AVX2 (core/cpu.h): lanes 0-3
 /// in one register per sum, otherwise the SSE2 kernel's operations (masked last group, the
 /// same padding), lane by lane: the same bits (tested).
 struct PaintLanesAvx2 {
@@ -147,10 +146,6 @@ struct PaintLanesAvx2 {
     ECO_TARGET_AVX2 double sunTotal() const { return total(sun); }
     ECO_TARGET_AVX2 double waterTotal() const { return total(water); }
 };
-
-/// Whether the sweep uses PaintLanesAvx2: the processor has AVX2, unless a test turned it
-/// off (setPaintKernelAvx2). Results are the same either way.
-bool paintKernelAvx2();
 #endif
 
 }  // namespace eco::sim

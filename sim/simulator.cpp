@@ -828,7 +828,7 @@ struct Simulation::Impl : CellGrid {
                       double demand, bool unshared) {
         paintEntries<PaintLanes>(e0, ne, order, c0, bc, demand, unshared);
     }
-#ifdef ECO_PAINT_AVX2
+#ifdef ECO_HAVE_AVX2_KERNELS
     ECO_TARGET_AVX2 void paintAvx2(const BandEntry* e0, std::size_t ne, const std::uint64_t* order, std::size_t c0,
                                    const BandCells& bc, double demand, bool unshared) {
         paintEntries<PaintLanesAvx2>(e0, ne, order, c0, bc, demand, unshared);
@@ -909,8 +909,8 @@ struct Simulation::Impl : CellGrid {
         const bool unshared = params.competition == CompetitionMode::Deussen;
         const std::uint64_t* order = bandOrder.data() + bandStart[b];
         const std::size_t ne = static_cast<std::size_t>(e1 - e0);
-#ifdef ECO_PAINT_AVX2
-        if (paintKernelAvx2()) paintAvx2(e0, ne, order, c0, bc, demand, unshared);
+#ifdef ECO_HAVE_AVX2_KERNELS
+        if (avx2Kernels()) paintAvx2(e0, ne, order, c0, bc, demand, unshared);
         else paintDefault(e0, ne, order, c0, bc, demand, unshared);
 #else
         paintDefault(e0, ne, order, c0, bc, demand, unshared);
@@ -1463,19 +1463,6 @@ struct Simulation::Impl : CellGrid {
 };
 
 // ====================================================================== public API
-
-#ifdef ECO_PAINT_AVX2
-namespace {
-bool gPaintAvx2 = __builtin_cpu_supports("avx2");
-}
-bool paintKernelAvx2() { return gPaintAvx2; }
-bool setPaintKernelAvx2(bool on) {
-    gPaintAvx2 = on && __builtin_cpu_supports("avx2");
-    return gPaintAvx2;
-}
-#else
-bool setPaintKernelAvx2(bool) { return false; }
-#endif
 
 void setParallelThresholds(std::size_t plants, std::size_t cells) {
     kParallelPlants = plants;

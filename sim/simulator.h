@@ -92,9 +92,6 @@ struct SimPhaseSeconds {
 /// costs more than the work. Results never depend on it; tests pass 0 to exercise the
 /// parallel paths on small scenes. Not thread-safe: call before running simulations.
 void setParallelThresholds(std::size_t plants, std::size_t cells);
-/// Tests: whether the sweep may use its AVX2 paint kernel (default: when the processor has
-/// AVX2). Returns whether it now does. Results are the same either way.
-bool setPaintKernelAvx2(bool on);
 
 class Simulation {
 public:

@@ -35,8 +35,12 @@ TEST_CASE("rng: randomBitsBatch gives randomBits' words for every stream, at any
     const std::uint64_t seed = 0x0123456789abcdefull;
     std::vector<std::uint64_t> streams;
     for (std::uint64_t i = 0; i < 23; ++i) streams.push_back(eco::mixStream(i, 77) ^ (i << 60));  // high words set too
+    // The SSE2 form and, where the processor has AVX2, the AVX2 form (core/cpu.h).
+    for (bool avx2 : {false, true}) {
+        if (eco::setAvx2Kernels(avx2) != avx2) WARN("no AVX2 on this processor: its form of randomBitsBatch is not checked");
     for (std::uint64_t counter : {std::uint64_t{0}, std::uint64_t{1799}, std::uint64_t{0xfedcba9876543210ull}})
-        for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{4}, std::size_t{7}, streams.size()}) {
+        for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{4}, std::size_t{7}, std::size_t{8}, std::size_t{13},
+                              streams.size()}) {
             std::vector<std::uint32_t> w0(n + 1, 0xDEADBEEFu), w1(n + 1, 0xDEADBEEFu);
             eco::randomBitsBatch(seed, streams.data(), counter, n, w0.data(), w1.data());
             for (std::size_t i = 0; i < n; ++i) {
@@ -46,6 +50,8 @@ TEST_CASE("rng: randomBitsBatch gives randomBits' words for every stream, at any
             }
             CHECK(w0[n] == 0xDEADBEEFu);  // nothing written past n
         }
+    }
+    eco::setAvx2Kernels(true);  // back to the default
 }
 
 TEST_CASE("rng: streams are deterministic and block-addressable", "[rng]") {
