@@ -835,6 +835,46 @@ struct Simulation::Impl : CellGrid {
     }
 #endif
 
+#ifdef ECO_HAVE_AVX2_KERNELS
+    // The prepare pass of sweepBand four cells at a time (AVX2, chosen at run time): the
+    // operations of its SSE2 loop, lane by lane (the same bits). Continues the running count
+    // n and the occupied list (nOcc entries); returns the cells done (nc rounded down to a
+    // multiple of 4).
+    static ECO_TARGET_AVX2 std::size_t prepareAvx2(std::size_t nc, const std::int32_t* diff, const CellState* cs,
+                                                   const float* sunPlane, const float* moistPlane, double demand,
+                                                   std::uint32_t* list, double* base, double* availOut, double* rest,
+                                                   std::int32_t& n, std::size_t& nOcc) {
+        const __m256d dem = _mm256_set1_pd(demand), zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+        std::size_t i = 0;
+        for (; i + 4 <= nc; i += 4) {
+            const std::int32_t n0 = n + diff[i], n1 = n0 + diff[i + 1], n2 = n1 + diff[i + 2], n3 = n2 + diff[i + 3];
+            n = n3;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += n0 != 0;
+            list[nOcc] = static_cast<std::uint32_t>(i + 1);
+            nOcc += n1 != 0;
+            list[nOcc] = static_cast<std::uint32_t>(i + 2);
+            nOcc += n2 != 0;
+            list[nOcc] = static_cast<std::uint32_t>(i + 3);
+            nOcc += n3 != 0;
+            const CellState &c0 = cs[i], &c1 = cs[i + 1], &c2 = cs[i + 2], &c3 = cs[i + 3];
+            const __m256d trees = _mm256_set_pd(c3.canopyTrees, c2.canopyTrees, c1.canopyTrees, c0.canopyTrees);
+            const __m256d moist = _mm256_set_pd(moistPlane[c3.coarse], moistPlane[c2.coarse], moistPlane[c1.coarse], moistPlane[c0.coarse]);
+            const __m256d avail = _mm256_max_pd(_mm256_sub_pd(moist, _mm256_mul_pd(trees, dem)), zero);
+            const __m256d occ = _mm256_set_pd(n3, n2, n1, n0);
+            const __m256d trans = _mm256_set_pd(c3.canopyTransmission, c2.canopyTransmission, c1.canopyTransmission, c0.canopyTransmission);
+            const __m256d sun = _mm256_set_pd(sunPlane[c3.coarse], sunPlane[c2.coarse], sunPlane[c1.coarse], sunPlane[c0.coarse]);
+            _mm256_storeu_pd(base + i, _mm256_mul_pd(trans, sun));
+            _mm256_storeu_pd(availOut + i, avail);
+            const __m256d spare = _mm256_max_pd(_mm256_sub_pd(avail, _mm256_mul_pd(occ, dem)), zero);
+            _mm256_storeu_pd(rest + i, _mm256_movemask_pd(_mm256_cmp_pd(spare, zero, _CMP_GT_OQ))
+                                           ? _mm256_div_pd(spare, _mm256_add_pd(occ, one))
+                                           : zero);
+        }
+        return i;
+    }
+#endif
+
     // One band: count, prepare, paint, finish. The band's rows belong to this call only.
     //  * count: the band's difference array of occupants (scatterBand);
     //  * prepare: every cell's occupants, resources and seeding share, and the occupied cells;
@@ -865,6 +905,9 @@ struct Simulation::Impl : CellGrid {
         std::size_t nOcc = 0;
         std::int32_t n = 0;
         std::size_t i = 0;
+#ifdef ECO_HAVE_AVX2_KERNELS
+        if (avx2Kernels()) i = prepareAvx2(nc, diff, cs, sunPlane, moistPlane, demand, list, base, availOut, rest, n, nOcc);
+#endif
 #ifdef __SSE2__
         // Two cells at a time: the operations of the scalar loop below, lane by lane (the
         // same bits; MAXPD has maxZero's operand order, and n + 1 is exact in either form).
