@@ -64,6 +64,20 @@ struct PaintLanesScalar {
 /// values >= 0, so x + 0 is x) and getting their own transmission and count stored back.
 /// It therefore reads and rewrites up to kPaintPad cells past a span's end: the arrays must
 /// extend that far (BandScratch pads them), and nothing else may change those cells meanwhile.
+// The masked group of four cells at c of the vector kernels: all ones in the 32-bit lanes
+// of the cells inside the span (`remaining` = cells of the span from c on, >= 1).
+inline __m128i paintGroupMask(std::size_t remaining) {
+    const int inside = static_cast<int>(remaining < 4 ? remaining : 4);
+    return _mm_cmpgt_epi32(_mm_set1_epi32(inside), _mm_setr_epi32(0, 1, 2, 3));
+}
+// The group's transmissions (t) and painted counts (k) stored back: times keep and plus 1
+// inside the span, unchanged outside it.
+inline void paintGroupStore(const BandCells& b, std::size_t c, __m128 t, __m128i k, __m128 keep4, __m128i in) {
+    const __m128 inPs = _mm_castsi128_ps(in);
+    _mm_storeu_ps(b.transmission + c, _mm_or_ps(_mm_and_ps(inPs, _mm_mul_ps(t, keep4)), _mm_andnot_ps(inPs, t)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(b.painted + c), _mm_sub_epi32(k, in));  // k - (-1) inside
+}
+
 struct PaintLanesSse2 {
     __m128d sun01 = _mm_setzero_pd(), sun23 = _mm_setzero_pd();
     __m128d water01 = _mm_setzero_pd(), water23 = _mm_setzero_pd();
@@ -77,11 +91,8 @@ struct PaintLanesSse2 {
     void span(const BandCells& b, std::size_t c, std::size_t len, float keep, double demandMm) {
         const __m128d demand = _mm_set1_pd(demandMm);
         const __m128 keep4 = _mm_set1_ps(keep);
-        const __m128i lane = _mm_setr_epi32(0, 1, 2, 3);
         for (std::size_t i = 0; i < len; i += 4, c += 4) {
-            // All ones in the lanes of cells inside the span (position i + lane < len).
-            const int left = static_cast<int>(len - i < 4 ? len - i : 4);
-            const __m128i in = _mm_cmpgt_epi32(_mm_set1_epi32(left), lane);
+            const __m128i in = paintGroupMask(len - i);
             const __m128d in01 = _mm_castsi128_pd(_mm_unpacklo_epi32(in, in));
             const __m128d in23 = _mm_castsi128_pd(_mm_unpackhi_epi32(in, in));
             const __m128 t = _mm_loadu_ps(b.transmission + c);
@@ -90,9 +101,7 @@ struct PaintLanesSse2 {
             sun23 = _mm_add_pd(sun23, _mm_and_pd(in23, _mm_mul_pd(_mm_loadu_pd(b.base + c + 2), _mm_cvtps_pd(_mm_movehl_ps(t, t)))));
             water01 = _mm_add_pd(water01, _mm_and_pd(in01, waterPair(b, c, k, demand)));
             water23 = _mm_add_pd(water23, _mm_and_pd(in23, waterPair(b, c + 2, _mm_shuffle_epi32(k, 0xEE), demand)));
-            const __m128 inPs = _mm_castsi128_ps(in);
-            _mm_storeu_ps(b.transmission + c, _mm_or_ps(_mm_and_ps(inPs, _mm_mul_ps(t, keep4)), _mm_andnot_ps(inPs, t)));
-            _mm_storeu_si128(reinterpret_cast<__m128i*>(b.painted + c), _mm_sub_epi32(k, in));  // k - (-1) inside
+            paintGroupStore(b, c, t, k, keep4, in);
         }
     }
     static double total(__m128d a, __m128d b) {
@@ -120,10 +129,8 @@ struct PaintLanesAvx2 {
     ECO_TARGET_AVX2 void span(const BandCells& b, std::size_t c, std::size_t len, float keep, double demandMm) {
         const __m256d demand = _mm256_set1_pd(demandMm);
         const __m128 keep4 = _mm_set1_ps(keep);
-        const __m128i lane = _mm_setr_epi32(0, 1, 2, 3);
         for (std::size_t i = 0; i < len; i += 4, c += 4) {
-            const int left = static_cast<int>(len - i < 4 ? len - i : 4);
-            const __m128i in = _mm_cmpgt_epi32(_mm_set1_epi32(left), lane);
+            const __m128i in = paintGroupMask(len - i);
             const __m256d in4 = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(in));  // -1 -> all 64 bits set
             const __m128 t = _mm_loadu_ps(b.transmission + c);
             const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.painted + c));
@@ -132,9 +139,7 @@ struct PaintLanesAvx2 {
             const __m256d spare = _mm256_max_pd(_mm256_sub_pd(_mm256_loadu_pd(b.avail + c), taken), _mm256_setzero_pd());
             const __m256d w = _mm256_add_pd(_mm256_min_pd(spare, demand), _mm256_loadu_pd(b.rest + c));
             water = _mm256_add_pd(water, _mm256_and_pd(in4, w));
-            const __m128 inPs = _mm_castsi128_ps(in);
-            _mm_storeu_ps(b.transmission + c, _mm_or_ps(_mm_and_ps(inPs, _mm_mul_ps(t, keep4)), _mm_andnot_ps(inPs, t)));
-            _mm_storeu_si128(reinterpret_cast<__m128i*>(b.painted + c), _mm_sub_epi32(k, in));
+            paintGroupStore(b, c, t, k, keep4, in);
         }
     }
     ECO_TARGET_AVX2 static double total(__m256d v) {
