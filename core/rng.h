@@ -98,9 +98,6 @@ inline std::uint64_t mixStream(std::uint64_t a, std::uint64_t b) {
     return z ^ (z >> 31);
 }
 
-/// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
-/// counter, four at a time where SSE2 is available (integer arithmetic: the same bits as
-/// randomBits, which tests/rng_test.cpp checks).
 #ifdef ECO_HAVE_AVX2_KERNELS
 /// randomBitsBatch's SSE2 loop on eight streams at a time (AVX2, chosen at run time:
 /// core/cpu.h): the same layout in each 128-bit half (streams i, i + 2 | i + 4, i + 6 in
@@ -145,6 +142,12 @@ ECO_TARGET_AVX2 inline std::size_t randomBitsBatchAvx2(std::uint64_t seed, const
 }
 #endif
 
+/// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
+/// counter, eight at a time with AVX2 (chosen at run time), four with SSE2 (integer
+/// arithmetic: the same bits as randomBits, which tests/rng_test.cpp checks for both forms).
+/// The AVX2 loop is the SSE2 one at double width; the two are kept side by side rather than
+/// behind a shared template, whose intrinsics would need GCC to inline across target
+/// attributes in a fixed order.
 inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std::uint64_t counter, std::size_t n,
                             std::uint32_t* word0, std::uint32_t* word1) {
     std::size_t i = 0;
