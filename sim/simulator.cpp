@@ -41,14 +41,6 @@ constexpr std::size_t kParallelSortFactor = 2;
 // The paint pass prefetches the band entry this many places ahead in height order.
 constexpr std::size_t kPaintPrefetch = 8;
 
-// Static state of one simulation cell; 12 bytes. The sweep counts a band's occupants and
-// keeps what they share during a month in its band scratch (BandScratch); germination
-// keeps its count in Impl::occupants.
-struct CellState {
-    float canopyTransmission = 1.f;  // product of (1 - alpha) of covering canopy trees
-    std::uint8_t canopyTrees = 0;    // canopy trees covering the cell (saturates at 255)
-    std::uint32_t coarse = 0;        // abiotics cell containing the cell centre (index into the monthly planes)
-};
 // Per-thread scratch of the band being swept: what the occupants of its cells share, one
 // array per field (BandCells, paint.h), and the band's occupied cells.
 struct BandScratch {
@@ -64,7 +56,7 @@ struct BandScratch {
         rest.resize(n + kPaintPad);
         transmission.resize(n + kPaintPad);
         painted.resize(n + kPaintPad);
-        occupied.resize(n);
+        occupied.resize(n + 3);  // room for the vector prepare's packed stores
     }
     BandCells cells() { return BandCells{base.data(), avail.data(), rest.data(), transmission.data(), painted.data()}; }
 };
@@ -94,6 +86,26 @@ struct BandEntry {
     }
 };
 static_assert(sizeof(BandEntry) == 16);
+
+#ifdef ECO_HAVE_AVX2_KERNELS
+// PSHUFB controls that pack the 32-bit lanes set in a 4-bit mask to the front (zeros after).
+struct PackLanes {
+    alignas(16) std::uint8_t control[16][16];
+    constexpr PackLanes() : control() {
+        for (int m = 0; m < 16; ++m) {
+            int out = 0;
+            for (int lane = 0; lane < 4; ++lane)
+                if (m >> lane & 1) {
+                    for (int b = 0; b < 4; ++b) control[m][out * 4 + b] = static_cast<std::uint8_t>(lane * 4 + b);
+                    ++out;
+                }
+            for (; out < 4; ++out)
+                for (int b = 0; b < 4; ++b) control[m][out * 4 + b] = 0x80;
+        }
+    }
+};
+constexpr PackLanes kPackLanes{};
+#endif
 
 struct SpeciesConst {
     double alpha = 0, maxAgeYears = 1, maxHeightM = 1;
@@ -172,9 +184,14 @@ struct Simulation::Impl : CellGrid {
     // ---- simulation grid (W, H, cell, ox, oy and the footprint geometry: the CellGrid base)
     std::vector<int> coarseCol;        // per sim column: abiotics column
     std::vector<std::size_t> coarseRowOffset;  // per sim row: abiotics row * abiotics width
-    std::vector<CellState> cells;
+    // Static state of the cells (5 bytes a cell; the abiotics cell of cell (ix, iy) is
+    // coarseRowOffset[iy] + coarseCol[ix]). The sweep counts a band's occupants and keeps what
+    // they share during a month in its band scratch (BandScratch); germination keeps its
+    // count in occupants.
+    Grid<float> canopyTrans;           // per cell: product of (1 - alpha) of the covering canopy trees
+    std::vector<std::uint8_t> canopyTrees;  // per cell: canopy trees covering it (saturates at 255)
     Grid<float> seedProb;              // also the grid geometry
-    Grid<float> canopyTrans;           // copy of the canopy transmission (inspection only)
+    std::size_t cellCount() const { return canopyTrees.size(); }
     std::vector<std::uint16_t> seedPkg;
     std::vector<std::uint16_t> occupants;  // per cell: undergrowth plants covering it (germination)
     // Exploited sun and water per cell and growth period since the last germination,
@@ -380,11 +397,8 @@ struct Simulation::Impl : CellGrid {
             coarseRowOffset[iy] = static_cast<std::size_t>(std::clamp(g.cellY(seedProb.cellCentreY(iy)), 0, g.height() - 1)) *
                                   static_cast<std::size_t>(g.width());
         const std::size_t n = static_cast<std::size_t>(W) * static_cast<std::size_t>(H);
-        cells.assign(n, CellState{});
-        for (int iy = 0; iy < H; ++iy)
-            for (int ix = 0; ix < W; ++ix)
-                cells[static_cast<std::size_t>(iy) * W + ix].coarse =
-                    static_cast<std::uint32_t>(coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]));
+        canopyTrans = Grid<float>(W, H, cell, ox, oy, 1.f);
+        canopyTrees.assign(n, 0);
         seedPkg.assign(n, 0);
         occupants.assign(n, 0);
         deficit.assign(n * periodMonthMask.size() * 2, 0.f);
@@ -434,10 +448,11 @@ struct Simulation::Impl : CellGrid {
                 if (t.crownRadiusM > 0 && lo <= hi)
                     forEachSpan(t.xM, t.yM, t.crownRadiusM, -1, -1, std::max(lo, r0), std::min(hi + 1, r1),
                                 [&](int iy, int a, int e) {
-                                    CellState* row = &cells[static_cast<std::size_t>(iy) * W];
+                                    float* trans = &canopyTrans.data()[static_cast<std::size_t>(iy) * W];
+                                    std::uint8_t* count = &canopyTrees[static_cast<std::size_t>(iy) * W];
                                     for (int ix = a; ix <= e; ++ix) {
-                                        row[ix].canopyTransmission *= keep;
-                                        if (row[ix].canopyTrees < 255) ++row[ix].canopyTrees;
+                                        trans[ix] *= keep;
+                                        if (count[ix] < 255) ++count[ix];
                                     }
                                 });
                 if (sc.canopySeedMask == 0 || !(t.crownRadiusM > 0) || !(gamma > 0)) continue;
@@ -462,8 +477,6 @@ struct Simulation::Impl : CellGrid {
                     v = std::min(v, 1.f);
                 }
         }
-        canopyTrans = Grid<float>(W, H, cell, ox, oy, 1.f);
-        for (std::size_t i = 0; i < cells.size(); ++i) canopyTrans.data()[i] = cells[i].canopyTransmission;
     }
 
     // ------------------------------------------------------------------ plants
@@ -841,35 +854,71 @@ struct Simulation::Impl : CellGrid {
     }
 #endif
 
+    // The prepare pass's view of one row of a band: its cells are the band-relative cells
+    // [i0, i0 + W), and the row's inputs are indexed by the cell's column j = i - i0.
+    struct PrepareRow {
+        std::size_t i0;
+        const int* col;              // abiotics column of each column (coarseCol)
+        const float* trans;          // canopy transmission
+        const std::uint8_t* trees;   // canopy trees
+        const float* sun;            // the month's planes at the row's abiotics row
+        const float* moist;
+    };
+    // The prepare pass's outputs (band scratch, band-relative) and its running state: the
+    // occupants n of the last cell done and the occupied cells listed so far.
+    struct PrepareOut {
+        std::int32_t* diff;  // read, and left zero
+        std::uint32_t* list;
+        double *base, *avail, *rest;
+        float* transmission;    // set to 1 (the paint's running product)
+        std::int32_t* painted;  // set to 0
+        std::int32_t n;
+        std::size_t nOcc;
+    };
+
 #ifdef ECO_HAVE_AVX2_KERNELS
-    // The prepare pass of sweepBand four cells at a time (AVX2, chosen at run time): the
-    // operations of its SSE2 loop, lane by lane (the same bits). Continues the running count
-    // n and the occupied list (nOcc entries); returns the cells done (nc rounded down to a
-    // multiple of 4).
-    static ECO_TARGET_AVX2 std::size_t prepareAvx2(std::size_t nc, const std::int32_t* diff, const CellState* cs,
-                                                   const float* sunPlane, const float* moistPlane, double demand,
-                                                   std::uint32_t* list, double* base, double* availOut, double* rest,
-                                                   std::int32_t& n, std::size_t& nOcc) {
+    // Cells [i, end) of a row of the prepare pass four at a time (AVX2, chosen at run time):
+    // the operations of its SSE2 loop, lane by lane (the same bits: every conversion to
+    // double is exact). Returns the first cell not done (fewer than 4 before end).
+    static ECO_TARGET_AVX2 std::size_t prepareAvx2(std::size_t i, std::size_t end, const PrepareRow& r, double demand,
+                                                   PrepareOut& o) {
         const __m256d dem = _mm256_set1_pd(demand), zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
-        std::size_t i = 0;
-        for (; i + 4 <= nc; i += 4) {
-            const std::int32_t n0 = n + diff[i], n1 = n0 + diff[i + 1], n2 = n1 + diff[i + 2], n3 = n2 + diff[i + 3];
-            n = n3;
-            list[nOcc] = static_cast<std::uint32_t>(i);
-            nOcc += n0 != 0;
-            list[nOcc] = static_cast<std::uint32_t>(i + 1);
-            nOcc += n1 != 0;
-            list[nOcc] = static_cast<std::uint32_t>(i + 2);
-            nOcc += n2 != 0;
-            list[nOcc] = static_cast<std::uint32_t>(i + 3);
-            nOcc += n3 != 0;
-            const CellState &c0 = cs[i], &c1 = cs[i + 1], &c2 = cs[i + 2], &c3 = cs[i + 3];
-            const __m256d trees = _mm256_set_pd(c3.canopyTrees, c2.canopyTrees, c1.canopyTrees, c0.canopyTrees);
-            const __m256d moist = _mm256_set_pd(moistPlane[c3.coarse], moistPlane[c2.coarse], moistPlane[c1.coarse], moistPlane[c0.coarse]);
+        const __m128i step = _mm_setr_epi32(0, 1, 2, 3);
+        // Pointers in locals: the stores through them could otherwise alias o.
+        std::int32_t* diff = o.diff;
+        std::uint32_t* list = o.list;
+        double *base = o.base, *availOut = o.avail, *rest = o.rest;
+        float* transmission = o.transmission;
+        std::int32_t* painted = o.painted;
+        __m128i n = _mm_set1_epi32(o.n);  // the last cell's occupants, in every lane
+        std::size_t nOcc = o.nOcc;
+        for (; i + 4 <= end; i += 4) {
+            const std::size_t j = i - r.i0;
+            // Occupants of the four cells: the running count plus the prefix sums of diff.
+            __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(diff + i));
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(diff + i), _mm_setzero_si128());
+            _mm_storeu_ps(transmission + i, _mm_set1_ps(1.f));
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(painted + i), _mm_setzero_si128());
+            d = _mm_add_epi32(d, _mm_slli_si128(d, 4));
+            d = _mm_add_epi32(d, _mm_slli_si128(d, 8));
+            const __m128i counts = _mm_add_epi32(n, d);
+            n = _mm_shuffle_epi32(counts, 0xFF);
+            // The occupied ones appended to the list: their indices packed to the front (the
+            // list has room for 3 more entries past its end).
+            const int occupied = ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(counts, _mm_setzero_si128()))) & 15;
+            const __m128i idx = _mm_add_epi32(_mm_set1_epi32(static_cast<std::int32_t>(i)), step);
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(list + nOcc),
+                             _mm_shuffle_epi8(idx, _mm_load_si128(reinterpret_cast<const __m128i*>(kPackLanes.control[occupied]))));
+            nOcc += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(occupied)));
+            const __m128i cols = _mm_loadu_si128(reinterpret_cast<const __m128i*>(r.col + j));
+            std::int32_t treeBytes;
+            std::memcpy(&treeBytes, r.trees + j, sizeof treeBytes);
+            const __m256d trees = _mm256_cvtepi32_pd(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(treeBytes)));
+            const __m256d moist = _mm256_cvtps_pd(_mm_i32gather_ps(r.moist, cols, 4));
             const __m256d avail = _mm256_max_pd(_mm256_sub_pd(moist, _mm256_mul_pd(trees, dem)), zero);
-            const __m256d occ = _mm256_set_pd(n3, n2, n1, n0);
-            const __m256d trans = _mm256_set_pd(c3.canopyTransmission, c2.canopyTransmission, c1.canopyTransmission, c0.canopyTransmission);
-            const __m256d sun = _mm256_set_pd(sunPlane[c3.coarse], sunPlane[c2.coarse], sunPlane[c1.coarse], sunPlane[c0.coarse]);
+            const __m256d occ = _mm256_cvtepi32_pd(counts);
+            const __m256d trans = _mm256_cvtps_pd(_mm_loadu_ps(r.trans + j));
+            const __m256d sun = _mm256_cvtps_pd(_mm_i32gather_ps(r.sun, cols, 4));
             _mm256_storeu_pd(base + i, _mm256_mul_pd(trans, sun));
             _mm256_storeu_pd(availOut + i, avail);
             const __m256d spare = _mm256_max_pd(_mm256_sub_pd(avail, _mm256_mul_pd(occ, dem)), zero);
@@ -877,9 +926,66 @@ struct Simulation::Impl : CellGrid {
                                            ? _mm256_div_pd(spare, _mm256_add_pd(occ, one))
                                            : zero);
         }
+        o.n = _mm_cvtsi128_si32(n);
+        o.nOcc = nOcc;
         return i;
     }
 #endif
+
+    // Cells [i, end) of a row of the prepare pass: the prefix sum of the difference array
+    // gives the cell's occupants n; an occupied cell goes on the list of occupied cells
+    // (branch-free) and gets its shaded sun, its water after the canopy and the seeding
+    // share, once per cell instead of once per occupant (an empty cell's values are computed
+    // too, and never read).
+    static void prepareRow(std::size_t i, std::size_t end, const PrepareRow& r, double demand, PrepareOut& o) {
+#ifdef ECO_HAVE_AVX2_KERNELS
+        if (avx2Kernels()) i = prepareAvx2(i, end, r, demand, o);
+#endif
+        std::int32_t n = o.n;
+        std::size_t nOcc = o.nOcc;
+        std::uint32_t* list = o.list;
+#ifdef __SSE2__
+        // Two cells at a time: the operations of the scalar loop below, lane by lane (the
+        // same bits; MAXPD has maxZero's operand order, and n + 1 is exact in either form).
+        const __m128d dem = _mm_set1_pd(demand), zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
+        for (; i + 2 <= end; i += 2) {
+            const std::size_t j = i - r.i0;
+            const std::int32_t n0 = n + o.diff[i], n1 = n0 + o.diff[i + 1];
+            n = n1;
+            o.diff[i] = o.diff[i + 1] = 0;
+            o.transmission[i] = o.transmission[i + 1] = 1.f;
+            o.painted[i] = o.painted[i + 1] = 0;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += n0 != 0;
+            list[nOcc] = static_cast<std::uint32_t>(i + 1);
+            nOcc += n1 != 0;
+            const int ca = r.col[j], cb = r.col[j + 1];
+            const __m128d trees = _mm_set_pd(r.trees[j + 1], r.trees[j]);
+            const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(r.moist[cb], r.moist[ca]), _mm_mul_pd(trees, dem)), zero);
+            const __m128d occ = _mm_set_pd(n1, n0);
+            _mm_storeu_pd(o.base + i, _mm_mul_pd(_mm_set_pd(r.trans[j + 1], r.trans[j]), _mm_set_pd(r.sun[cb], r.sun[ca])));
+            _mm_storeu_pd(o.avail + i, avail);
+            // The division only when a lane has water beyond the demands (0 / (n + 1) is 0).
+            const __m128d spare = _mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero);
+            _mm_storeu_pd(o.rest + i, _mm_movemask_pd(_mm_cmpgt_pd(spare, zero)) ? _mm_div_pd(spare, _mm_add_pd(occ, one)) : zero);
+        }
+#endif
+        for (; i < end; ++i) {
+            const std::size_t j = i - r.i0;
+            n += o.diff[i];
+            o.diff[i] = 0;
+            o.transmission[i] = 1.f;
+            o.painted[i] = 0;
+            list[nOcc] = static_cast<std::uint32_t>(i);
+            nOcc += n != 0;
+            const double avail = waterAfterCanopyMm(r.moist[r.col[j]], r.trees[j], demand);
+            o.base[i] = static_cast<double>(r.trans[j]) * r.sun[r.col[j]];
+            o.avail[i] = avail;
+            o.rest[i] = waterLeftoverMm(avail, n, demand);
+        }
+        o.n = n;
+        o.nOcc = nOcc;
+    }
 
     // One band: count, prepare, paint, finish. The band's rows belong to this call only.
     //  * count: the band's difference array of occupants (scatterBand);
@@ -888,70 +994,27 @@ struct Simulation::Impl : CellGrid {
     //  * finish: the occupied cells in address order: the leftovers of this month go to the
     //    germination deficit (growth-period months).
     void sweepBand(int b, int m) {
-        const std::size_t c0 = static_cast<std::size_t>(b) * kBandRows * W;
+        const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
+        const std::size_t c0 = static_cast<std::size_t>(r0) * W;
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
         const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
         BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
-        const std::size_t nc = scatterBand(b, scr).second;
-        // Prepare, over the band's cells in address order: the prefix sum of the difference
-        // array gives the cell's occupants n; an occupied cell goes on the list of occupied
-        // cells (branch-free) and gets its shaded sun, its water after the canopy and the
-        // seeding share, once per cell instead of once per occupant (an empty cell's values
-        // are computed too, and never read).
+        scatterBand(b, scr);
+        // Prepare, row by row over the band's cells in address order (prepareRow).
         const BandCells bc = scr.cells();
-        double* base = scr.base.data();
-        double* availOut = scr.avail.data();
-        double* rest = scr.rest.data();
-        std::int32_t* diff = scr.diff.data();
-        std::uint32_t* list = scr.occupied.data();
-        const CellState* cs = cells.data() + c0;
-        std::size_t nOcc = 0;
-        std::int32_t n = 0;
-        std::size_t i = 0;
-#ifdef ECO_HAVE_AVX2_KERNELS
-        if (avx2Kernels()) i = prepareAvx2(nc, diff, cs, sunPlane, moistPlane, demand, list, base, availOut, rest, n, nOcc);
-#endif
-#ifdef __SSE2__
-        // Two cells at a time: the operations of the scalar loop below, lane by lane (the
-        // same bits; MAXPD has maxZero's operand order, and n + 1 is exact in either form).
-        const __m128d dem = _mm_set1_pd(demand), zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
-        for (; i + 2 <= nc; i += 2) {
-            const std::int32_t n0 = n + diff[i], n1 = n0 + diff[i + 1];
-            n = n1;
-            list[nOcc] = static_cast<std::uint32_t>(i);
-            nOcc += n0 != 0;
-            list[nOcc] = static_cast<std::uint32_t>(i + 1);
-            nOcc += n1 != 0;
-            const CellState& ca = cs[i];
-            const CellState& cb = cs[i + 1];
-            const __m128d trees = _mm_set_pd(cb.canopyTrees, ca.canopyTrees);
-            const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(moistPlane[cb.coarse], moistPlane[ca.coarse]), _mm_mul_pd(trees, dem)), zero);
-            const __m128d occ = _mm_set_pd(n1, n0);
-            _mm_storeu_pd(base + i, _mm_mul_pd(_mm_set_pd(cb.canopyTransmission, ca.canopyTransmission),
-                                               _mm_set_pd(sunPlane[cb.coarse], sunPlane[ca.coarse])));
-            _mm_storeu_pd(availOut + i, avail);
-            // The division only when a lane has water beyond the demands (0 / (n + 1) is 0).
-            const __m128d spare = _mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero);
-            _mm_storeu_pd(rest + i, _mm_movemask_pd(_mm_cmpgt_pd(spare, zero)) ? _mm_div_pd(spare, _mm_add_pd(occ, one)) : zero);
+        PrepareOut po{scr.diff.data(), scr.occupied.data(), scr.base.data(), scr.avail.data(), scr.rest.data(),
+                      bc.transmission, bc.painted, 0, 0};
+        for (int iy = r0; iy < r1; ++iy) {
+            const std::size_t i0 = static_cast<std::size_t>(iy - r0) * W;
+            const PrepareRow row{i0, coarseCol.data(), canopyTrans.data().data() + c0 + i0, canopyTrees.data() + c0 + i0,
+                                 sunPlane + coarseRowOffset[iy], moistPlane + coarseRowOffset[iy]};
+            prepareRow(i0, i0 + W, row, demand, po);
         }
-#endif
-        for (; i < nc; ++i) {
-            n += diff[i];
-            list[nOcc] = static_cast<std::uint32_t>(i);
-            nOcc += n != 0;
-            const double avail = waterAfterCanopyMm(moistPlane[cs[i].coarse], cs[i].canopyTrees, demand);
-            base[i] = static_cast<double>(cs[i].canopyTransmission) * sunPlane[cs[i].coarse];
-            availOut[i] = avail;
-            rest[i] = waterLeftoverMm(avail, n, demand);
-        }
-        // Bulk stores (vector-wide) rather than three more scalar stores per cell above.
-        std::fill_n(diff, nc, 0);
-        std::fill_n(bc.transmission, nc, 1.f);
-        std::fill_n(bc.painted, nc, 0);
-        const std::uint32_t* occList = list;
+        const std::size_t nOcc = po.nOcc;
+        const std::uint32_t* occList = po.list;
         // Paint: every entry in height order takes its shares of its cells (paint.h). Deussen
         // mode: plants see the unshared (canopy-shaded, after canopy water) resources; the
         // leftovers for germination are the same as in the resources mode.
@@ -1275,8 +1338,8 @@ struct Simulation::Impl : CellGrid {
     // sums in month order (the same sums as a pass per period).
     void seasonMeans(std::size_t c, int ix, int iy, std::uint32_t wanted, double* sun, double* water, double* temp, bool* ok) const {
         const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
-        const double transmission = cells[c].canopyTransmission;
-        const int trees = cells[c].canopyTrees;
+        const double transmission = canopyTrans.data()[c];
+        const int trees = canopyTrees[c];
         double sunBase[kMaxGrowthPeriods], waterBase[kMaxGrowthPeriods], tempSum[kMaxGrowthPeriods];
         int count[kMaxGrowthPeriods];
         std::uint32_t months = 0;
@@ -1372,7 +1435,7 @@ struct Simulation::Impl : CellGrid {
         countOccupancy();
         const std::size_t ns = spc.size();
         std::vector<std::vector<Candidate>> perBand(static_cast<std::size_t>(bands()));
-#pragma omp parallel if (cells.size() > kParallelCells)
+#pragma omp parallel if (cellCount() > kParallelCells)
         {
             std::vector<double> w(ns), arg(ns);
             // A row's free seeded cells, their streams and the first two words of their draws.
@@ -1402,7 +1465,8 @@ struct Simulation::Impl : CellGrid {
                     for (std::size_t k = 0; k < free; ++k) {
                         const std::size_t c = rowStart + static_cast<std::size_t>(rowCells[k]);
                         if (word0[k] * 0x1.0p-32 >= seedProb.data()[c]) continue;
-                        __builtin_prefetch(&cells[c]);
+                        __builtin_prefetch(&canopyTrans.data()[c]);
+                        __builtin_prefetch(&canopyTrees[c]);
                         __builtin_prefetch(deficitAt(c, 0));
                         rowCells[sprouting] = rowCells[k];
                         rowStreams[sprouting] = rowStreams[k];
@@ -1461,7 +1525,7 @@ struct Simulation::Impl : CellGrid {
         // A new season of leftovers starts. (The occupancy needs no clearing: countOccupancy
         // writes every cell.)
         const std::size_t perChunk = 65536 * periods() * 2, chunks = (deficit.size() + perChunk - 1) / perChunk;
-#pragma omp parallel for schedule(dynamic, 1) if (cells.size() > kParallelCells)
+#pragma omp parallel for schedule(dynamic, 1) if (cellCount() > kParallelCells)
         for (std::size_t k = 0; k < chunks; ++k)
             std::fill(deficit.data() + k * perChunk, deficit.data() + std::min(deficit.size(), (k + 1) * perChunk), 0.f);
         windowMask = 0;
@@ -1660,8 +1724,8 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     f.writeF64(group + "/radius", pl.radius, {n});
     for (std::size_t g = 0; g < s.periods(); ++g) {
         const hsize_t dims[2] = {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W)};
-        std::vector<float> sun(s.cells.size()), water(s.cells.size());
-        for (std::size_t c = 0; c < s.cells.size(); ++c) {
+        std::vector<float> sun(s.cellCount()), water(s.cellCount());
+        for (std::size_t c = 0; c < s.cellCount(); ++c) {
             sun[c] = s.deficitAt(c, g)[0];
             water[c] = s.deficitAt(c, g)[1];
         }
@@ -1715,8 +1779,8 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     for (std::size_t gi = 0; gi < s.periods(); ++gi) {
         auto ds = f.readF32(group + "/deficit_sun_" + std::to_string(gi));
         auto dw = f.readF32(group + "/deficit_water_" + std::to_string(gi));
-        if (ds.size() != s.cells.size() || dw.size() != s.cells.size()) throw IoError(where + ": accumulator size mismatch");
-        for (std::size_t c = 0; c < s.cells.size(); ++c) {
+        if (ds.size() != s.cellCount() || dw.size() != s.cellCount()) throw IoError(where + ": accumulator size mismatch");
+        for (std::size_t c = 0; c < s.cellCount(); ++c) {
             deficit[(c * s.periods() + gi) * 2] = ds[c];
             deficit[(c * s.periods() + gi) * 2 + 1] = dw[c];
         }
@@ -1737,8 +1801,8 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
 }
 
 std::size_t Simulation::bytesPerCell() const {
-    return sizeof(CellState) + sizeof(std::uint16_t) /*occupants*/ + sizeof(float) /*seed probability*/ +
-           sizeof(std::uint16_t) /*package*/ + impl_->periods() * 2 * sizeof(float) + sizeof(float) /*transmission copy*/;
+    return sizeof(float) /*canopy transmission*/ + sizeof(std::uint8_t) /*canopy trees*/ + sizeof(std::uint16_t) /*occupants*/ +
+           sizeof(float) /*seed probability*/ + sizeof(std::uint16_t) /*package*/ + impl_->periods() * 2 * sizeof(float);
 }
 
 std::size_t Simulation::bytesPerPlant() const {
