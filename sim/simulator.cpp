@@ -40,6 +40,7 @@ std::size_t kParallelCells = 200000;
 constexpr std::size_t kParallelSortFactor = 2;
 // The paint pass prefetches the band entry this many places ahead in height order.
 constexpr std::size_t kPaintPrefetch = 8;
+constexpr std::size_t kFinishPrefetch = 32;
 
 // Per-thread scratch of the band being swept: what the occupants of its cells share, one
 // array per field (BandCells, paint.h), and the band's occupied cells.
@@ -1046,6 +1047,7 @@ struct Simulation::Impl : CellGrid {
         if (run && np <= 2) {
             for (std::size_t k = 0; k < nOcc; ++k) {
                 const std::size_t i = occList[k];
+                if (k + kFinishPrefetch < nOcc) __builtin_prefetch(deficitRun + occList[k + kFinishPrefetch] * stride, 1);
                 float usedSun, usedWater;
                 used(i, usedSun, usedWater);
                 float* d = deficitRun + i * stride;
