@@ -671,12 +671,36 @@ struct Simulation::Impl : CellGrid {
     // Per-thread scratch of the band sorts (reused: no allocation in the steady state).
     std::vector<std::vector<std::uint64_t>> sortScratch;
 
+    // LSD radix passes over the records' keys (bits 32-63) in digits of Bits bits, from in
+    // to out and back; a pass in which every key has the same digit is skipped. Returns the
+    // array holding the sorted records.
+    template <int Bits>
+    static std::uint64_t* radixPasses(std::uint64_t* in, std::uint64_t* out, std::size_t n) {
+        constexpr std::uint64_t mask = (std::uint64_t{1} << Bits) - 1;
+        for (int shift = 32; shift < 64; shift += Bits) {
+            std::uint32_t count[mask + 1] = {};
+            for (std::size_t i = 0; i < n; ++i) ++count[(in[i] >> shift) & mask];
+            if (count[(in[0] >> shift) & mask] == n) continue;
+            std::uint32_t run = 0;
+            for (std::uint32_t& c : count) {
+                const std::uint32_t k = c;
+                c = run;
+                run += k;
+            }
+            for (std::size_t i = 0; i < n; ++i) out[count[(in[i] >> shift) & mask]++] = in[i];
+            std::swap(in, out);
+        }
+        return in;
+    }
+
     // Sort of one band's records (height key << 32 | entry index) into ascending order, i.e.
-    // by key, ties in entry order (plant-index order): LSD radix on the key's four 8-bit
-    // digits (the records enter in index order, so a stable sort by key is the full order);
-    // a pass in which every key has the same digit is skipped; short lists by insertion. The
-    // entries themselves stay where the scatter put them: 8-byte records move instead of
-    // 16-byte entries and their keys, and the sweep reads the entries through the order.
+    // by key, ties in entry order (plant-index order): LSD radix on the key (the records
+    // enter in index order, so a stable sort by key is the full order), in three passes of
+    // 11-bit digits (four 8-bit passes took 5 % longer on the benchmark hectare's lists of
+    // about 1 800), or four of 8 bits for lists too short to fill 2048 counters; short lists
+    // by insertion. The entries themselves stay where the scatter put them: 8-byte records
+    // move instead of 16-byte entries and their keys, and the sweep reads the entries
+    // through the order.
     static void sortBand(std::uint64_t* rec, std::size_t n, std::vector<std::uint64_t>& scratch) {
         if (n < 2) return;
         if (n <= 32) {
@@ -689,22 +713,8 @@ struct Simulation::Impl : CellGrid {
             return;
         }
         scratch.resize(n);
-        std::uint64_t* in = rec;
-        std::uint64_t* out = scratch.data();
-        for (int shift = 32; shift < 64; shift += 8) {
-            std::uint32_t count[256] = {};
-            for (std::size_t i = 0; i < n; ++i) ++count[(in[i] >> shift) & 255u];
-            if (count[(in[0] >> shift) & 255u] == n) continue;
-            std::uint32_t run = 0;
-            for (std::uint32_t& c : count) {
-                const std::uint32_t k = c;
-                c = run;
-                run += k;
-            }
-            for (std::size_t i = 0; i < n; ++i) out[count[(in[i] >> shift) & 255u]++] = in[i];
-            std::swap(in, out);
-        }
-        if (in != rec) std::copy(in, in + n, rec);
+        const std::uint64_t* sorted = n < 512 ? radixPasses<8>(rec, scratch.data(), n) : radixPasses<11>(rec, scratch.data(), n);
+        if (sorted != rec) std::copy(sorted, sorted + n, rec);
     }
 
     // Band lists: the plants overlapping each band, in plant order, and when `sorted` each
