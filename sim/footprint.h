@@ -9,6 +9,12 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "cpu.h"
+
+#ifdef ECO_HAVE_AVX2_KERNELS
+#include <immintrin.h>
+#endif
+
 namespace eco::sim {
 
 // A row span of a plant's footprint: cells [start, start + len) of one grid row; len 0 (and
@@ -48,29 +54,86 @@ struct CellGrid {
     int W = 0, H = 0;
     double cell = 0.2, ox = 0, oy = 0;
 
+    // Rows per call of rowBounds in forEachSpan (a multiple of 4).
+    static constexpr int kRowChunk = 32;
+
+    // The columns of the cell centres within the disc (x, y, r) on rows r0 .. r0 + n - 1
+    // (n <= kRowChunk): a[k] .. b[k] for row r0 + k, a = max(ceil(.), -1) and
+    // b = min(floor(.), W) (the other bounds change nothing in forEachSpan: an a beyond
+    // W + 1 or a b below -2 is past the other end); a = 1, b = 0 for a row none of whose
+    // points lies within the disc.
+    void rowBoundsScalar(double x, double y, double r, int r0, int n, int* a, int* b) const {
+        const double r2 = r * r;
+        for (int k = 0; k < n; ++k) {
+            const double dy = oy + (r0 + k + 0.5) * cell - y;
+            a[k] = 1;
+            b[k] = 0;
+            if (dy * dy <= r2) {
+                const double half = std::sqrt(r2 - dy * dy);
+                a[k] = ceilClamped((x - half - ox) / cell - 0.5, -1, W + 1);
+                b[k] = floorClamped((x + half - ox) / cell - 0.5, -2, W);
+            }
+        }
+    }
+#ifdef ECO_HAVE_AVX2_KERNELS
+    // rowBoundsScalar four rows at a time (AVX2): its operations lane by lane, so the same
+    // integers. Writes a and b up to n rounded up to a multiple of 4.
+    ECO_TARGET_AVX2 void rowBoundsAvx2(double x, double y, double r, int r0, int n, int* a, int* b) const {
+        const __m256d r2 = _mm256_set1_pd(r * r), halfCell = _mm256_set1_pd(0.5), cellW = _mm256_set1_pd(cell);
+        const __m256d xv = _mm256_set1_pd(x), yv = _mm256_set1_pd(y), oxv = _mm256_set1_pd(ox), oyv = _mm256_set1_pd(oy);
+        const __m256d aLo = _mm256_set1_pd(-1.0), aHi = _mm256_set1_pd(W + 1.0);
+        const __m256d bLo = _mm256_set1_pd(-2.0), bHi = _mm256_set1_pd(static_cast<double>(W));
+        const __m256d one = _mm256_set1_pd(1.0);
+        for (int k = 0; k < n; k += 4) {
+            const __m256d iy = _mm256_cvtepi32_pd(_mm_add_epi32(_mm_set1_epi32(r0 + k), _mm_setr_epi32(0, 1, 2, 3)));
+            const __m256d dy = _mm256_sub_pd(_mm256_add_pd(oyv, _mm256_mul_pd(_mm256_add_pd(iy, halfCell), cellW)), yv);
+            const __m256d dy2 = _mm256_mul_pd(dy, dy);
+            const __m256d inside = _mm256_cmp_pd(dy2, r2, _CMP_LE_OQ);
+            // NaN in the lanes outside the disc; replaced by (1, 0) below.
+            const __m256d half = _mm256_sqrt_pd(_mm256_sub_pd(r2, dy2));
+            const __m256d ta = _mm256_sub_pd(_mm256_div_pd(_mm256_sub_pd(_mm256_sub_pd(xv, half), oxv), cellW), halfCell);
+            const __m256d tb = _mm256_sub_pd(_mm256_div_pd(_mm256_sub_pd(_mm256_add_pd(xv, half), oxv), cellW), halfCell);
+            // clampForRounding: min(hi, t) is hi for a NaN t (MINPD returns its second
+            // operand), then max with lo; then the truncation corrected by one where it
+            // moved the wrong way (ceilClamped, floorClamped).
+            const __m256d ca = _mm256_max_pd(_mm256_min_pd(ta, aHi), aLo);
+            const __m256d cb = _mm256_max_pd(_mm256_min_pd(tb, bHi), bLo);
+            const __m256d ia = _mm256_cvtepi32_pd(_mm256_cvttpd_epi32(ca));
+            const __m256d ib = _mm256_cvtepi32_pd(_mm256_cvttpd_epi32(cb));
+            const __m256d ceilA = _mm256_add_pd(ia, _mm256_and_pd(_mm256_cmp_pd(ia, ca, _CMP_LT_OQ), one));
+            const __m256d floorB = _mm256_sub_pd(ib, _mm256_and_pd(_mm256_cmp_pd(cb, ib, _CMP_LT_OQ), one));
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(a + k), _mm256_cvttpd_epi32(_mm256_blendv_pd(one, ceilA, inside)));
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(b + k),
+                             _mm256_cvttpd_epi32(_mm256_blendv_pd(_mm256_setzero_pd(), floorB, inside)));
+        }
+    }
+#endif
+    void rowBounds(double x, double y, double r, int r0, int n, int* a, int* b) const {
+#ifdef ECO_HAVE_AVX2_KERNELS
+        if (avx2Kernels()) return rowBoundsAvx2(x, y, r, r0, n, a, b);
+#endif
+        rowBoundsScalar(x, y, r, r0, n, a, b);
+    }
+
     // Visit the cells whose centres lie within the disc (x, y, r), rows [r0, r1) only, as
     // row spans fn(iy, ixFirst, ixLast). When (rootIx, rootIy) >= 0 the root cell is always
     // part of the footprint ("at least its own cell").
     template <typename F>
     void forEachSpan(double x, double y, double r, int rootIx, int rootIy, int r0, int r1, F&& fn) const {
-        const double r2 = r * r;
-        for (int iy = r0; iy < r1; ++iy) {
-            const double dy = oy + (iy + 0.5) * cell - y;
-            int a = 1, b = 0;
-            if (dy * dy <= r2) {
-                const double half = std::sqrt(r2 - dy * dy);
-                // a = max(ceil(.), -1), b = min(floor(.), W); the other bounds change
-                // nothing below (an a beyond W + 1 or a b below -2 is past the other end).
-                a = ceilClamped((x - half - ox) / cell - 0.5, -1, W + 1);
-                b = floorClamped((x + half - ox) / cell - 0.5, -2, W);
+        int as[kRowChunk], bs[kRowChunk];
+        for (int c0 = r0; c0 < r1; c0 += kRowChunk) {
+            const int c1 = std::min(r1, c0 + kRowChunk);
+            rowBounds(x, y, r, c0, c1 - c0, as, bs);
+            for (int iy = c0; iy < c1; ++iy) {
+                int a = as[iy - c0], b = bs[iy - c0];
+                if (iy == rootIy) {
+                    if (a > b) a = b = rootIx;
+                    else { a = std::min(a, rootIx); b = std::max(b, rootIx); }
+                }
+                a = std::max(a, 0);
+                b = std::min(b, W - 1);
+                if (a <= b) fn(iy, a, b);
             }
-            if (iy == rootIy) {
-                if (a > b) a = b = rootIx;
-                else { a = std::min(a, rootIx); b = std::max(b, rootIx); }
-            }
-            a = std::max(a, 0);
-            b = std::min(b, W - 1);
-            if (a <= b) fn(iy, a, b);
         }
     }
 

@@ -355,6 +355,45 @@ TEST_CASE("footprints: ceilClamped and floorClamped equal std::ceil / std::floor
     CHECK(floorClamped(std::nan(""), -2, 9) == 9);
 }
 
+TEST_CASE("footprints: the AVX2 row bounds equal the scalar ones", "[sim][footprint]") {
+#ifdef ECO_HAVE_AVX2_KERNELS
+    if (!eco::setAvx2Kernels(true)) {
+        WARN("no AVX2 on this processor: its form of rowBounds is not checked");
+        return;
+    }
+    CellGrid g;
+    g.W = 70;
+    g.H = 64;
+    g.cell = 0.2;
+    g.ox = 5000.3;  // large coordinates: the same rounding in both forms
+    g.oy = -123.9;
+    eco::RandomStream rs(5, 0);
+    int inside = 0, outside = 0;
+    for (int t = 0; t < 20000; ++t) {
+        // Discs inside, across the edges and beyond them; radii from 0 to 40 cells; chunks of
+        // 1 to kRowChunk rows anywhere, also outside the grid (the AVX2 form writes rows up to
+        // a multiple of 4, so the arrays are full chunks).
+        const double x = g.ox + rs.uniform(-0.3, 1.3) * g.W * g.cell, y = g.oy + rs.uniform(-0.3, 1.3) * g.H * g.cell;
+        const double r = t % 50 == 0 ? 0.0 : g.cell * 40.0 * rs.uniform(0.0, 1.0) * rs.uniform(0.0, 1.0);
+        const int n = 1 + static_cast<int>(rs.uniform(0.0, 1.0) * CellGrid::kRowChunk) % CellGrid::kRowChunk;
+        const int r0 = static_cast<int>(rs.uniform(-10.0, g.H + 10.0));
+        int aS[CellGrid::kRowChunk], bS[CellGrid::kRowChunk], aV[CellGrid::kRowChunk], bV[CellGrid::kRowChunk];
+        g.rowBoundsScalar(x, y, r, r0, n, aS, bS);
+        g.rowBoundsAvx2(x, y, r, r0, n, aV, bV);
+        for (int k = 0; k < n; ++k) {
+            CAPTURE(x, y, r, r0, n, k);
+            REQUIRE(aV[k] == aS[k]);
+            REQUIRE(bV[k] == bS[k]);
+            (aS[k] <= bS[k] ? inside : outside)++;
+        }
+    }
+    CHECK(inside > 10000);  // both kinds of rows were met
+    CHECK(outside > 10000);
+#else
+    WARN("not an x86-64 GCC build: no AVX2 form of rowBounds");
+#endif
+}
+
 TEST_CASE("footprints: every radius of footprintRange gives the same spans, and most ranges are more than one radius", "[sim][footprint]") {
     CellGrid g;
     g.W = 60;
