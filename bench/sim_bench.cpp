@@ -6,7 +6,7 @@
 //
 //   bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--repeat N]
 //             [--growth-rule ideal|literal]
-//             [--competition resources|deussen] [--out FILE]
+//             [--competition resources|deussen] [--parallel-thresholds P,C] [--out FILE]
 //   bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]
 //       writes DIR/terrain.h5, DIR/abiotics.h5, DIR/canopy.h5 (/canopy, /chm/height,
 //       /terrain/elevation) of a procedural scene, as inputs for `eco simulate`.
@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -183,12 +184,12 @@ int writeReport(const std::string& path, const std::string& text) {
 }
 
 // A whole positive integer, or exit 2 naming the flag.
-long positiveInteger(const std::string& flag, const std::string& text) {
+long positiveInteger(const std::string& flag, const std::string& text, long maxValue = 100000) {
     char* end = nullptr;
     errno = 0;
     const long v = std::strtol(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0' || errno != 0 || v <= 0 || v > 100000) {
-        std::fprintf(stderr, "bench_sim: %s needs a whole number from 1 to 100000, got '%s'\n", flag.c_str(), text.c_str());
+    if (text.empty() || *end != '\0' || errno != 0 || v <= 0 || v > maxValue) {
+        std::fprintf(stderr, "bench_sim: %s needs a whole number from 1 to %ld, got '%s'\n", flag.c_str(), maxValue, text.c_str());
         std::exit(2);
     }
     return v;
@@ -206,6 +207,7 @@ int main(int argc, char** argv) {
     int cells = 256;
     double cellSize = 0.914;
     std::uint64_t seed = 1;
+    std::optional<std::pair<std::size_t, std::size_t>> thresholds;  // --parallel-thresholds
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -218,12 +220,15 @@ int main(int argc, char** argv) {
         if (a == "--help" || a == "-h") {
             std::printf(
                 "bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--repeat N]\n"
-                "          [--growth-rule ideal|literal] [--competition resources|deussen] [--out FILE]\n"
+                "          [--growth-rule ideal|literal] [--competition resources|deussen]\n"
+                "          [--parallel-thresholds P,C] [--out FILE]\n"
                 "bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]\n"
                 "  Undergrowth simulator benchmark: 1 ha (1 and 2 threads, --years, default 150) and a\n"
                 "  1 km2 scene (all threads, --km2-years, default 10); phases, memory, state hashes.\n"
                 "  --repeat N: the 1 ha runs N times each, 1 and 2 threads alternating (default 3, 1 with\n"
-                "  --quick); the least and the median wall time are reported, and every run's.\n");
+                "  --quick); the least and the median wall time are reported, and every run's.\n"
+                "  --parallel-thresholds P,C: loops over fewer than P plants or C cells run on one thread\n"
+                "  (the simulator's defaults otherwise; results never depend on them).\n");
             return 0;
         }
         if (a == "--quick") quick = true;
@@ -242,6 +247,16 @@ int main(int argc, char** argv) {
         else if (a == "--years") hectareYears = static_cast<int>(positiveInteger(a, next()));
         else if (a == "--growth-rule") params.growthRule = parseGrowthRule(next(), "--growth-rule");
         else if (a == "--competition") params.competition = parseCompetitionMode(next(), "--competition");
+        else if (a == "--parallel-thresholds") {
+            const std::string v = next();
+            const std::size_t comma = v.find(',');
+            if (comma == std::string::npos) {
+                std::fprintf(stderr, "bench_sim: --parallel-thresholds needs P,C (plants, cells), got '%s'\n", v.c_str());
+                return 2;
+            }
+            thresholds = {static_cast<std::size_t>(positiveInteger(a, v.substr(0, comma), 1000000000)),
+                          static_cast<std::size_t>(positiveInteger(a, v.substr(comma + 1), 1000000000))};
+        }
         else {
             std::fprintf(stderr, "unknown argument %s\n", a.c_str());
             return 2;
@@ -259,7 +274,12 @@ int main(int argc, char** argv) {
         const int maxThreads = omp_get_max_threads();
         std::ostringstream rep;
         rep << "# bench_sim: undergrowth simulator (sim/), " << maxThreads << " hardware threads available; growth_rule "
-            << growthRuleName(params.growthRule) << ", competition " << competitionModeName(params.competition) << "\n";
+            << growthRuleName(params.growthRule) << ", competition " << competitionModeName(params.competition);
+        if (thresholds) {
+            setParallelThresholds(thresholds->first, thresholds->second);
+            rep << "; parallel thresholds " << thresholds->first << " plants, " << thresholds->second << " cells";
+        }
+        rep << "\n";
         const Biome biome = defaultBiome();
         char line[512];
         double t0 = now();

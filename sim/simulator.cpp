@@ -1321,7 +1321,9 @@ struct Simulation::Impl : CellGrid {
             partWater.resize(slots);
             partCells.resize(slots);
             bandScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
-#pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants)
+            // The sweep's prepare pass visits every cell whatever the number of plants: it goes
+            // parallel for many cells as well as for many plants (big crowns, few plants).
+#pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants || cellCount() > kParallelCells)
             for (int b = 0; b < bands(); ++b) sweepBand(b, m);
             lap(phaseSeconds.sweep);
             updatePlants(m);
