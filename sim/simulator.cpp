@@ -661,8 +661,8 @@ struct Simulation::Impl : CellGrid {
 
     // Sort key of a plant: descending height as an unsigned integer (heights are >= 0, so
     // the bits of the float order like the values).
-    std::uint32_t heightKey(std::size_t p) const {
-        const float h = static_cast<float>(pl.height[p]);
+    static std::uint32_t heightKeyOf(double height) {
+        const float h = static_cast<float>(height);
         std::uint32_t bits;
         std::memcpy(&bits, &h, sizeof bits);
         return ~bits;
@@ -730,11 +730,12 @@ struct Simulation::Impl : CellGrid {
         const bool parallel = n > kParallelSortFactor * kParallelPlants;
         const std::size_t chunks = (n + kChunk - 1) / kChunk;
         chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
+        const PlantBounds* boundsOf = bounds.data();
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* h = &chunkCounts[c * nb];
             for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p)
-                for (int b = bounds[p].rowLo / kBandRows, z = bounds[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
+                for (int b = boundsOf[p].rowLo / kBandRows, z = boundsOf[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
         }
         bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
         std::uint32_t run = 0;
@@ -749,22 +750,37 @@ struct Simulation::Impl : CellGrid {
         bandStart[nb] = run;
         bandEntries.resize(run);
         if (sorted) bandOrder.resize(run);
+        // The arrays in locals: the stores into the entries could otherwise alias the vectors'
+        // pointers, which the compiler would then reload for every plant.
+        const Span* spans = footprint.data();
+        const double* heights = pl.height.data();
+        const std::int32_t* speciesOf = pl.species.data();
+        const std::uint32_t* bandFirst = bandStart.data();
+        BandEntry* entries = bandEntries.data();
+        std::uint64_t* records = sorted ? bandOrder.data() : nullptr;
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* pos = &chunkCounts[c * nb];
             for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p) {
-                const PlantBounds pb = bounds[p];
+                const PlantBounds pb = boundsOf[p];
                 const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
-                const std::uint32_t key = sorted ? heightKey(p) : 0;
-                const std::uint32_t species = static_cast<std::uint32_t>(pl.species[p]);
+                const std::uint32_t key = records ? heightKeyOf(heights[p]) : 0;
+                const std::uint32_t species = static_cast<std::uint32_t>(speciesOf[p]);
+                if (lo == hi) {  // one band (most plants): all its rows, from its first span
+                    const std::uint32_t at = pos[lo]++;
+                    entries[at] = BandEntry::make(spans[pb.span], pb.span, static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1), pb.slot,
+                                                  species);
+                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[lo]);
+                    continue;
+                }
                 for (int b = lo; b <= hi; ++b) {
                     // Rows of the plant within band b.
                     const int first = std::max(pb.rowLo, b * kBandRows), last = std::min(pb.rowHi, (b + 1) * kBandRows - 1);
                     const std::uint32_t at = pos[b]++;
                     const std::uint32_t span = pb.span + static_cast<std::uint32_t>(first - pb.rowLo);
-                    bandEntries[at] = BandEntry::make(footprint[span], span, static_cast<std::uint32_t>(last - first + 1),
-                                                      pb.slot + static_cast<std::uint32_t>(b - lo), species);
-                    if (sorted) bandOrder[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandStart[b]);
+                    entries[at] = BandEntry::make(spans[span], span, static_cast<std::uint32_t>(last - first + 1),
+                                                  pb.slot + static_cast<std::uint32_t>(b - lo), species);
+                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b]);
                 }
             }
         }
