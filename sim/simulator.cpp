@@ -630,15 +630,20 @@ struct Simulation::Impl : CellGrid {
         const std::size_t base = footprint.size();
         if (base + fresh > 0xFFFFFFFFu) throw ValidationError("simulation: over 2^32 footprint spans; use a smaller area");
         footprint.resize(base + fresh);
+        // The arrays in locals (fewer reloads in the loop, whose rare recomputations call
+        // big inlined functions).
+        PlantBounds* boundsOf = bounds.data();
+        std::uint32_t* slotOf = slotStart.data();
+        const RadiusRange* rangeOf = fpRange.data();
 #pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t slot = chunkSlots[c], span = static_cast<std::uint32_t>(base + chunkNew[c]);
             for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
-                PlantBounds& pb = bounds[p];
-                pb.slot = slotStart[p] = slot;
+                PlantBounds& pb = boundsOf[p];
+                pb.slot = slotOf[p] = slot;
                 const int lo = pb.rowLo, hi = pb.rowHi;
                 slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
-                if (hasFootprint(fpRange[p])) continue;  // unchanged: the same spans as recomputing them
+                if (__builtin_expect(hasFootprint(rangeOf[p]), 1)) continue;  // unchanged: the same spans as recomputing them
                 pb.span = span;
                 span += static_cast<std::uint32_t>(hi - lo + 1);
                 Span* sp = footprint.data() + pb.span;
