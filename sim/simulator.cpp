@@ -31,9 +31,11 @@ constexpr int kBandRows = 16;
 constexpr std::size_t kMaxGrowthPeriods = 32;
 constexpr double kPi = 3.14159265358979323846;
 // Below these sizes a loop runs on one thread: a fork and join costs more than the work, and
-// far more on a loaded machine. Results never depend on it (see kBandRows).
-std::size_t kParallelPlants = 20000;
-std::size_t kParallelCells = 200000;
+// far more on a loaded machine. Results never depend on it (see kBandRows). 5000 and 50000:
+// on 2 threads the benchmark hectare's 150 years took 6.3-6.4 s against 6.6-8.7 s with
+// 20000 and 200000, whose late decades (11 000 - 20 000 big crowns) ran on one thread.
+std::size_t kParallelPlants = kDefaultParallelPlants;
+std::size_t kParallelCells = kDefaultParallelCells;
 // The O(n) scatters (band lists, compaction) have little work per plant: they go parallel
 // only for this many times more plants (2: on the benchmark hectare, 40 000 plants and
 // more, 2 threads cut band lists and compaction by 10-25 %; 16 kept them serial).

@@ -92,6 +92,8 @@ struct SimPhaseSeconds {
 /// costs more than the work. Results never depend on it; tests pass 0 to exercise the
 /// parallel paths on small scenes. Not thread-safe: call before running simulations.
 void setParallelThresholds(std::size_t plants, std::size_t cells);
+/// The defaults of setParallelThresholds (measured on the benchmark hectare, docs/simulator.md).
+inline constexpr std::size_t kDefaultParallelPlants = 5000, kDefaultParallelCells = 50000;
 
 class Simulation {
 public:

@@ -954,7 +954,7 @@ TEST_CASE("deussen: default mode unchanged, and bit-identical results with 1 and
         dominated.push_back(sim.counters().diedDominated);
     }
     omp_set_num_threads(before);
-    setParallelThresholds(20000, 200000);
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
     REQUIRE(results[0].size() > 100);
     CHECK(dominated[0] > 0);
     CHECK(dominated[0] == dominated[1]);
@@ -1041,7 +1041,7 @@ TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determ
         results.push_back(sim.plants());
     }
     omp_set_num_threads(before);
-    setParallelThresholds(20000, 200000);
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
     REQUIRE(results[0].size() > 100);
     CHECK(samePlants(results[0], results[1]));
     CHECK(samePlants(results[0], results[2]));
