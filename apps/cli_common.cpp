@@ -4,7 +4,10 @@
 
 #include <unistd.h>
 
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 namespace eco::cli {
@@ -43,6 +46,30 @@ void Progress::finish() {
 }
 
 void info(const std::string& line) { std::cerr << line << "\n"; }
+
+namespace {
+CLI::Validator numberCheck(bool zeroAllowed) {
+    return CLI::Validator(
+        [zeroAllowed](std::string& text) -> std::string {
+            char* end = nullptr;
+            errno = 0;
+            const double v = std::strtod(text.c_str(), &end);
+            if (text.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) return "'" + text + "' is not a number";
+            if (zeroAllowed ? v < 0 : v <= 0) return std::string("must be ") + (zeroAllowed ? ">= 0" : "> 0") + ", got " + text;
+            return "";
+        },
+        zeroAllowed ? "NUMBER >= 0" : "NUMBER > 0");
+}
+}  // namespace
+
+const CLI::Validator& positiveNumber() {
+    static const CLI::Validator v = numberCheck(false);
+    return v;
+}
+const CLI::Validator& nonNegativeNumber() {
+    static const CLI::Validator v = numberCheck(true);
+    return v;
+}
 
 void AbioticsProgress::operator()(const std::string& stage, double fraction) {
     if (stage != stage_) {

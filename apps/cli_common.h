@@ -60,6 +60,12 @@ private:
     std::chrono::steady_clock::time_point start_;
 };
 
+/// Option checks with plain messages ("--years: must be > 0, got -3"; "'abc' is not a
+/// number"): CLI11's PositiveNumber and NonNegativeNumber print their whole double range
+/// instead. The value must be a finite number, and > 0 or >= 0.
+const CLI::Validator& positiveNumber();
+const CLI::Validator& nonNegativeNumber();
+
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);
 

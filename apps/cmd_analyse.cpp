@@ -437,15 +437,15 @@ void registerAnalyseCommand(CLI::App& app) {
     cmd->add_option("--out", args->out, "Output biome database, e.g. biome-db.h5 (written atomically)")->required();
     cmd->add_option("--kmax", args->kMax, "Largest number of k-means clusters tried per combination (default 6)")
         ->check(CLI::Range(1, 64));
-    cmd->add_option("--year", args->year, "Snapshot year to analyse (default: the last)")->check(CLI::NonNegativeNumber);
+    cmd->add_option("--year", args->year, "Snapshot year to analyse (default: the last)")->check(nonNegativeNumber());
     cmd->add_option("--abiotics", args->abiotics,
                     "Abiotics file(s) replacing those the simulations name: one for all, or one per simulation in order");
-    cmd->add_option("--seed", args->seed, "Seed of k-means++ and sampling (default 1)")->check(CLI::NonNegativeNumber);
-    cmd->add_option("--rmax", args->rMaxM, "Largest pair distance, m (default 10)")->check(CLI::PositiveNumber);
+    cmd->add_option("--seed", args->seed, "Seed of k-means++ and sampling (default 1)")->check(nonNegativeNumber());
+    cmd->add_option("--rmax", args->rMaxM, "Largest pair distance, m (default 10)")->check(positiveNumber());
     cmd->add_option("--bins", args->bins, "Distance bins of the pair correlation (default 40)")->check(CLI::Range(1, 100000));
     cmd->add_option("--seeding-radius-factor", args->seedingRadiusFactor,
                     "Canopy trees seed cells within this factor x crown radius (default: the simulation's, else 12)")
-        ->check(CLI::PositiveNumber);
+        ->check(positiveNumber());
     cmd->add_flag("--species-sub-biomes", args->speciesSubBiomes,
                   "Label cells by the canopy species' own sub_biomes instead of the sub-biomes' canopy lists");
     cmd->callback([args] { runAnalyse(*args); });
@@ -471,7 +471,7 @@ void registerPcfCommand(CLI::App& app) {
     cmd->add_option("points", args->points, "CSV with a header x,y[,species] (x_m, y_m also accepted), metres")->required();
     cmd->add_option("--window", args->window, "Observation window x0,y0,x1,y1 in metres")->required();
     cmd->add_option("--rmax", args->rMaxM, "Largest distance, m (default: a quarter of the shorter side; at most half)")
-        ->check(CLI::PositiveNumber);
+        ->check(positiveNumber());
     cmd->add_option("--bins", args->bins, "Number of distance bins")->check(CLI::Range(1, 100000))->capture_default_str();
     cmd->add_option("--out", args->out, "Output CSV (default POINTS_pcf.csv); the plot goes beside it as .png");
     cmd->callback([args] { runPcf(*args); });

@@ -226,7 +226,7 @@ void registerCanopyCommand(CLI::App& app) {
                     "TOML with placer parameters ([canopy] table or top-level keys; unknown keys are errors)");
     args->seedOpt = cmd->add_option("--seed", args->seed, "Random seed of the ring seeding")->capture_default_str();
     args->maxIterationsOpt =
-        cmd->add_option("--max-iterations", args->maxIterations, "Iteration cap (default 30)")->check(CLI::NonNegativeNumber);
+        cmd->add_option("--max-iterations", args->maxIterations, "Iteration cap (default 30)")->check(nonNegativeNumber());
     args->minVisibleOpt = cmd->add_option("--min-visible-fraction", args->minVisibleFraction,
                                           "Remove trees whose visible crown is below this fraction of the disc (0.2)");
     args->moveOpt = cmd->add_option("--move-factor", args->moveFactor,
@@ -241,7 +241,7 @@ void registerCanopyCommand(CLI::App& app) {
     args->seedHeightOpt = cmd->add_option("--min-seed-height", args->minSeedHeightM,
                                           "Trees stand only where the CHM is >= this, metres (3)");
     cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for image inputs)")
-        ->check(CLI::PositiveNumber);
+        ->check(positiveNumber());
     cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")
         ->capture_default_str();
     cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrain only: metres added after scaling")

@@ -142,15 +142,15 @@ void registerSimulateCommand(CLI::App& app) {
     sub->add_option("--abiotics", opt->abiotics, "Abiotics HDF5 (eco abiotics), without canopy shade");
     sub->add_option("--canopy", opt->canopy, "Canopy HDF5 (eco canopy): /canopy plants and /chm/height");
     sub->add_option("--biome", opt->biome, "Biome TOML (default: the embedded Sonoma biome)");
-    sub->add_option("--years", opt->years, "Years to simulate")->check(CLI::PositiveNumber);
-    sub->add_option("--seed", opt->seed, "Random seed")->check(CLI::NonNegativeNumber);
+    sub->add_option("--years", opt->years, "Years to simulate")->check(positiveNumber());
+    sub->add_option("--seed", opt->seed, "Random seed")->check(nonNegativeNumber());
     sub->add_option("--crop", opt->crop, "Area to simulate: x0,y0,x1,y1 in world metres");
     sub->add_option("--snapshot-years", opt->snapshotYears, "Years to snapshot, e.g. 25,50,75 (the last is always added)");
     sub->add_option("--out", opt->out, "Output HDF5");
     sub->add_option("--csv", opt->csv, "CSV of the final plants");
     sub->add_option("--png", opt->png, "Directory for PNG renders of the snapshots and the species plot");
     sub->add_option("--checkpoint-every", opt->checkpointEvery, "Write a checkpoint every N years (0 = never)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegativeNumber());
     sub->add_flag("--resume", opt->resume, "Continue from the checkpoint of this run when it exists");
     sub->add_option("--initial", opt->initial, "Initial undergrowth: PLANTS.csv or PLANTS.h5[:/group]");
     sub->add_option("--growth-rule", opt->growthRule, "Overflow-to-growth rule: ideal (default) or literal ([model] growth_rule)");

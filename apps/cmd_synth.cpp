@@ -327,7 +327,7 @@ void registerSynthCommand(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--no-undergrowth-shade", a->noUndergrowthShade,
                   "Forest floor: only canopy crowns shade the grass and drop litter");
-    cmd->add_option("--cell-size", a->cellSizeM, "Metres per cell (required for image terrains)")->check(CLI::PositiveNumber);
+    cmd->add_option("--cell-size", a->cellSizeM, "Metres per cell (required for image terrains)")->check(positiveNumber());
     cmd->add_option("--vertical-scale", a->verticalScale, "Image terrain only: metres per stored unit")->capture_default_str();
     cmd->add_option("--vertical-offset", a->verticalOffsetM, "Image terrain only: metres added after scaling")
         ->capture_default_str();

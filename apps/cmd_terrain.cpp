@@ -269,11 +269,11 @@ void addTerrainReadOptions(CLI::App* cmd, double& cellSize, double& scale, doubl
     cmd->add_option("--cell-size", cellSize,
                     "Metres per cell. Required when the terrain is an image; for .asc/.h5 it is read from "
                     "the file and, if given, must agree")
-        ->check(CLI::PositiveNumber);
+        ->check(positiveNumber());
     cmd->add_option("--vertical-scale", scale,
                     "Image terrains only: metres per stored unit (16-bit PNG values are 0..1), "
                     "elevation = value * scale + offset")
-        ->check(CLI::PositiveNumber);
+        ->check(positiveNumber());
     cmd->add_option("--vertical-offset", offset, "Image terrains only: metres added after scaling");
 }
 
@@ -298,17 +298,17 @@ void registerTerrainCommands(CLI::App& app) {
             ->capture_default_str();
         gen->add_option("--height", a->params.height, "Rows (cells along y, north)")->check(CLI::Range(2, 1 << 16))
             ->capture_default_str();
-        gen->add_option("--cell-size", a->params.cellSizeM, "Metres per cell")->check(CLI::PositiveNumber)
+        gen->add_option("--cell-size", a->params.cellSizeM, "Metres per cell")->check(positiveNumber())
             ->capture_default_str();
         gen->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
         gen->add_option("--relief", a->params.reliefM, "Height range of the hills above the valley rim (m)")
-            ->check(CLI::NonNegativeNumber)->capture_default_str();
+            ->check(nonNegativeNumber())->capture_default_str();
         gen->add_option("--valley-depth", a->params.valleyDepthM, "Depth of the valley below the lowest hills (m)")
-            ->check(CLI::PositiveNumber)->capture_default_str();
+            ->check(positiveNumber())->capture_default_str();
         a->scaleOpt = gen->add_option("--vertical-scale", a->verticalScale,
                                       "Image outputs: metres per stored unit (default: PNG a round number above "
                                       "the highest elevation, TIFF/EXR 1). Printed; give it back when reading")
-                          ->check(CLI::PositiveNumber);
+                          ->check(positiveNumber());
         a->offsetOpt = gen->add_option("--vertical-offset", a->verticalOffset,
                                        "Image outputs: metres subtracted before scaling (default 0)");
         gen->add_option("--png", a->pngDir, "Also write elevation and hillshade pictures into this directory");
@@ -324,11 +324,11 @@ void registerTerrainCommands(CLI::App& app) {
         conv->add_option("OUT", a->out, "Output terrain (written atomically)")->required();
         conv->add_option("--cell-size", a->cellSize,
                          "Metres per cell: required for image inputs; checked against .asc/.h5 inputs")
-            ->check(CLI::PositiveNumber);
+            ->check(positiveNumber());
         a->scaleOpt = conv->add_option("--vertical-scale", a->verticalScale,
                                        "Metres per stored image unit: elevation = value * scale + offset "
                                        "(PNG output default: chosen and printed)")
-                          ->check(CLI::PositiveNumber);
+                          ->check(positiveNumber());
         a->offsetOpt = conv->add_option("--vertical-offset", a->verticalOffset, "Metres added after scaling");
         conv->callback([a] { runTerrainConvert(*a); });
     }
@@ -363,12 +363,12 @@ void registerTerrainCommands(CLI::App& app) {
             ->check(CLI::Range(0.0, 1.0))->capture_default_str()->excludes(sketchOpt);
         gen->add_option("--seed", a->chm.seed, "Seed of the tree placement and heights")->capture_default_str();
         gen->add_option("--dense-spacing", a->chm.denseSpacingM, "Typical tree spacing in Dense areas (m)")
-            ->check(CLI::PositiveNumber)->capture_default_str();
+            ->check(positiveNumber())->capture_default_str();
         gen->add_option("--sparse-spacing", a->chm.sparseSpacingM, "Typical tree spacing in Sparse areas (m)")
-            ->check(CLI::PositiveNumber)->capture_default_str();
-        gen->add_option("--min-height", a->chm.minHeightM, "Shortest canopy tree (m)")->check(CLI::PositiveNumber)
+            ->check(positiveNumber())->capture_default_str();
+        gen->add_option("--min-height", a->chm.minHeightM, "Shortest canopy tree (m)")->check(positiveNumber())
             ->capture_default_str();
-        gen->add_option("--max-height", a->chm.maxHeightM, "Tallest canopy tree (m)")->check(CLI::PositiveNumber)
+        gen->add_option("--max-height", a->chm.maxHeightM, "Tallest canopy tree (m)")->check(positiveNumber())
             ->capture_default_str();
         gen->add_option("--png", a->pngDir, "Also write pictures of the CHM and the sketch into this directory");
         gen->callback([a] { runChmGenerate(*a); });

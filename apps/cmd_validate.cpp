@@ -80,7 +80,7 @@ void registerValidateCommand(CLI::App& app) {
                     "copies embedded at build time)");
     sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
     sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegativeNumber());
     sub->callback([opt] { runValidate(*opt); });
 }
 

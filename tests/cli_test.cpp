@@ -48,6 +48,23 @@ TEST_CASE("no command or an unknown one is an error", "[cli]") {
     CHECK(r.exitCode != 0);
 }
 
+TEST_CASE("a bad number for a flag names the flag and the value", "[cli]") {
+    const auto notNumber = runEco("simulate --years abc");
+    CHECK(notNumber.exitCode != 0);
+    CHECK_THAT(notNumber.output, Catch::Contains("--years: 'abc' is not a number"));
+    CHECK_THAT(notNumber.output, !Catch::Contains("179769"));  // not CLI11's whole double range
+    const auto negative = runEco("simulate --years -3");
+    CHECK(negative.exitCode != 0);
+    CHECK_THAT(negative.output, Catch::Contains("--years: must be > 0, got -3"));
+    const auto zero = runEco("terrain generate --cell-size 0 --out unused.h5");
+    CHECK(zero.exitCode != 0);
+    CHECK_THAT(zero.output, Catch::Contains("--cell-size: must be > 0, got 0"));
+    const auto huge = runEco("simulate --seed 1e400");
+    CHECK(huge.exitCode != 0);
+    CHECK_THAT(huge.output, Catch::Contains("--seed: '1e400' is not a number"));
+    CHECK_FALSE(std::filesystem::exists("unused.h5"));
+}
+
 TEST_CASE("a missing terrain gives one line naming it and leaves no output", "[cli]") {
     eco::test::TempDir dir("cli");
     const std::string out = dir.file("abiotics.h5");
