@@ -1310,18 +1310,22 @@ struct Simulation::Impl : CellGrid {
             v.resize(keep);
         };
         // Arrays are compacted independently of each other: one task per array.
+        const bool footprints = fpRange.size() == n;
+        if (!footprints) fpRange.clear();
 #pragma omp parallel if (n > kParallelSortFactor * kParallelPlants)
 #pragma omp single
-        pl.forEachArray([&](auto& v) {
-            auto* vp = &v;
+        {
+            pl.forEachArray([&](auto& v) {
+                auto* vp = &v;
 #pragma omp task firstprivate(vp)
-            compactArray(*vp);
-        });
-        if (fpRange.size() == n) {
-            compactArray(fpRange);
-            compactArray(bounds);
-        } else {
-            fpRange.clear();
+                compactArray(*vp);
+            });
+            if (footprints) {
+#pragma omp task
+                compactArray(fpRange);
+#pragma omp task
+                compactArray(bounds);
+            }
         }
     }
 
