@@ -661,9 +661,12 @@ struct Simulation::Impl : CellGrid {
         }
     }
 
-    // Chunks of the parallel counting scatters: fixed size (never derived from the thread
-    // count), and a scatter is stable whatever the chunking, so results do not depend on it.
-    static constexpr std::size_t kChunk = 32768;
+    // Chunks of the parallel counting scatters: sized from the plant count, never from the
+    // thread count, and a scatter is stable whatever the chunking, so results do not depend
+    // on it. Plants per chunk: n / 16 within [4096, 32768], so that a hectare's 10 000 - 70 000
+    // plants make enough chunks for the threads to share evenly, and a km2's millions not
+    // too many per-chunk histograms (chunks x bands counters).
+    static std::size_t scatterChunk(std::size_t n) { return std::clamp<std::size_t>(n / 16, 4096, 32768); }
     std::vector<std::uint32_t> chunkCounts;
 
     // Sort key of a plant: descending height as an unsigned integer (heights are >= 0, so
@@ -735,6 +738,7 @@ struct Simulation::Impl : CellGrid {
         const int nb = bands();
         const std::size_t n = pl.size();
         const bool parallel = n > kParallelSortFactor * kParallelPlants;
+        const std::size_t kChunk = scatterChunk(n);
         const std::size_t chunks = (n + kChunk - 1) / kChunk;
         chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
         const PlantBounds* boundsOf = bounds.data();
