@@ -738,14 +738,14 @@ struct Simulation::Impl : CellGrid {
         const int nb = bands();
         const std::size_t n = pl.size();
         const bool parallel = n > kParallelSortFactor * kParallelPlants;
-        const std::size_t kChunk = scatterChunk(n);
-        const std::size_t chunks = (n + kChunk - 1) / kChunk;
+        const std::size_t chunk = scatterChunk(n);
+        const std::size_t chunks = (n + chunk - 1) / chunk;
         chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
         const PlantBounds* boundsOf = bounds.data();
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* h = &chunkCounts[c * nb];
-            for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p)
+            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p)
                 for (int b = boundsOf[p].rowLo / kBandRows, z = boundsOf[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
         }
         bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
@@ -772,7 +772,7 @@ struct Simulation::Impl : CellGrid {
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t* pos = &chunkCounts[c * nb];
-            for (std::size_t p = c * kChunk, e = std::min(n, p + kChunk); p < e; ++p) {
+            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 const PlantBounds pb = boundsOf[p];
                 const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
                 const std::uint32_t key = records ? heightKeyOf(heights[p]) : 0;
