@@ -682,22 +682,29 @@ struct Simulation::Impl : CellGrid {
     std::vector<std::vector<std::uint64_t>> sortScratch;
 
     // LSD radix passes over the records' keys (bits 32-63) in digits of Bits bits, from in
-    // to out and back; a pass in which every key has the same digit is skipped. Returns the
-    // array holding the sorted records.
+    // to out and back; a pass in which every key has the same digit is skipped. The counts
+    // of every digit are taken in one read of the records, before the first pass. Returns
+    // the array holding the sorted records.
     template <int Bits>
     static std::uint64_t* radixPasses(std::uint64_t* in, std::uint64_t* out, std::size_t n) {
         constexpr std::uint64_t mask = (std::uint64_t{1} << Bits) - 1;
-        for (int shift = 32; shift < 64; shift += Bits) {
-            std::uint32_t count[mask + 1] = {};
-            for (std::size_t i = 0; i < n; ++i) ++count[(in[i] >> shift) & mask];
-            if (count[(in[0] >> shift) & mask] == n) continue;
+        constexpr int passes = (32 + Bits - 1) / Bits;
+        std::uint32_t count[passes][mask + 1] = {};
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::uint64_t key = in[i] >> 32;
+            for (int d = 0; d < passes; ++d) ++count[d][(key >> (d * Bits)) & mask];
+        }
+        for (int d = 0; d < passes; ++d) {
+            const int shift = 32 + d * Bits;
+            std::uint32_t* c = count[d];
+            if (c[(in[0] >> shift) & mask] == n) continue;
             std::uint32_t run = 0;
-            for (std::uint32_t& c : count) {
-                const std::uint32_t k = c;
-                c = run;
+            for (std::uint64_t v = 0; v <= mask; ++v) {
+                const std::uint32_t k = c[v];
+                c[v] = run;
                 run += k;
             }
-            for (std::size_t i = 0; i < n; ++i) out[count[(in[i] >> shift) & mask]++] = in[i];
+            for (std::size_t i = 0; i < n; ++i) out[c[(in[i] >> shift) & mask]++] = in[i];
             std::swap(in, out);
         }
         return in;
