@@ -214,7 +214,7 @@ struct Simulation::Impl : CellGrid {
         std::int32_t rowLo, rowHi;
         std::uint32_t slot, span;
     };
-    // Footprints persist across months (computeBounds): a plant's footprint depends only on
+    // Footprints persist across months (buildBands): a plant's footprint depends only on
     // its root, position and radius, and its radius changes only in growth months with
     // overflow. fpRange[p] holds the radii for which plant p's footprint (rows in bounds[p],
     // spans in the pool from bounds[p].span) is valid (footprintRange), or kNoFootprint when
@@ -229,7 +229,7 @@ struct Simulation::Impl : CellGrid {
     std::vector<RadiusRange> fpRange;
     std::vector<Span> footprint, repackScratch;
     std::vector<std::uint32_t> slotStart;
-    std::vector<std::uint32_t> chunkSlots, chunkNew, chunkKept;  // computeBounds: prefix over chunks
+    std::vector<std::uint32_t> chunkSlots, chunkNew, chunkKept;  // buildBands: prefix over chunks
     std::vector<double> partSun, partWater;
     std::vector<std::int32_t> partCells;
     std::vector<std::uint32_t> bandStart;
@@ -512,7 +512,7 @@ struct Simulation::Impl : CellGrid {
     void addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
                   double ageYears, double pool, double vig) {
         pl.resize(pl.size() + 1);
-        fpRange.clear();  // footprints are recomputed (computeBounds)
+        fpRange.clear();  // footprints are recomputed (buildBands)
         setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
     }
     // Writes plant p of the store (already sized); plants are independent of each other.
@@ -562,27 +562,38 @@ struct Simulation::Impl : CellGrid {
     }
 
     // ------------------------------------------------------------------ the monthly sweep
-    // Footprint rows and spans of the plants without one, and every plant's partial-sum
-    // slots. Fixed chunks of plants (never derived from the thread count): rows and the
-    // chunk's totals (slots, new spans, kept spans), then the prefix over chunks, then each
-    // chunk's prefixes and new spans. Integer sums and a pool layout that are the same for
-    // any chunking and thread count (and results never depend on the layout).
-    void computeBounds() {
+    // The month's layout: footprint rows and spans of the plants without one, every plant's
+    // partial-sum slots, and the band lists: the plants overlapping each band, in plant
+    // order, with (when `sorted`) each band's sort records in bandOrder (sortBands puts them
+    // in paint order). Two passes over the plants, parallel over fixed chunks of plants
+    // (scatterChunk: never derived from the thread count):
+    //  1. rows, and the chunk's totals: slots, new spans, kept spans and plants per band;
+    //  2. after the prefixes over chunks (and over bands), each plant's slots, its new spans
+    //     when its footprint was recomputed, and its entries in the bands' lists: a stable
+    //     counting scatter of the (plant, band) pairs by band (sequential reads of the plant
+    //     arrays).
+    // Integer sums and a pool layout that are the same for any chunking and thread count
+    // (and results never depend on the layout).
+    void buildBands(bool sorted) {
         const std::size_t n = pl.size();
         if (fpRange.size() != n) {
             fpRange.assign(n, kNoFootprint);
             bounds.resize(n);
         }
         slotStart.resize(n + 1);
-        constexpr std::size_t kBoundsChunk = 4096;
-        const std::size_t chunks = (n + kBoundsChunk - 1) / kBoundsChunk;
+        const int nb = bands();
+        const std::size_t chunk = scatterChunk(n);
+        const std::size_t chunks = (n + chunk - 1) / chunk;
         chunkSlots.assign(chunks + 1, 0);
         chunkNew.assign(chunks + 1, 0);
         chunkKept.assign(chunks + 1, 0);
-#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+        chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
+        const bool parallel = n > kParallelPlants;
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t slots = 0, fresh = 0, kept = 0;
-            for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+            std::uint32_t* h = &chunkCounts[c * nb];
+            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 PlantBounds& pb = bounds[p];
                 if (hasFootprint(fpRange[p])) {
                     kept += static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
@@ -596,7 +607,9 @@ struct Simulation::Impl : CellGrid {
                     pb.rowHi = hi;
                     fresh += static_cast<std::uint32_t>(hi - lo + 1);
                 }
-                slots += static_cast<std::uint32_t>(pb.rowHi / kBandRows - pb.rowLo / kBandRows + 1);
+                const int b0 = pb.rowLo / kBandRows, b1 = pb.rowHi / kBandRows;
+                slots += static_cast<std::uint32_t>(b1 - b0 + 1);
+                for (int b = b0; b <= b1; ++b) ++h[b];
             }
             chunkSlots[c + 1] = slots;
             chunkNew[c + 1] = fresh;
@@ -608,15 +621,30 @@ struct Simulation::Impl : CellGrid {
             chunkKept[c + 1] += chunkKept[c];
         }
         slotStart[n] = chunkSlots[chunks];
+        // Each (chunk, band)'s first position in the band lists: bands in order, chunks in
+        // order within a band.
+        bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
+        std::uint32_t run = 0;
+        for (int b = 0; b < nb; ++b) {
+            bandStart[b] = run;
+            for (std::size_t c = 0; c < chunks; ++c) {
+                const std::uint32_t k = chunkCounts[c * nb + b];
+                chunkCounts[c * nb + b] = run;
+                run += k;
+            }
+        }
+        bandStart[nb] = run;
+        bandEntries.resize(run);
+        if (sorted) bandOrder.resize(run);
         const std::size_t kept = chunkKept[chunks], fresh = chunkNew[chunks];
         // Repack when the dead spans (of dead plants and of recomputed footprints) outnumber
         // the live ones: the kept footprints in plant order, then the new ones after them.
         if (footprint.size() > 2 * kept + 4096) {
             repackScratch.resize(kept + fresh);
-#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
             for (std::size_t c = 0; c < chunks; ++c) {
                 std::uint32_t at = chunkKept[c];
-                for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+                for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                     if (!hasFootprint(fpRange[p])) continue;
                     PlantBounds& pb = bounds[p];
                     const std::uint32_t rows = static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
@@ -632,31 +660,57 @@ struct Simulation::Impl : CellGrid {
         const std::size_t base = footprint.size();
         if (base + fresh > 0xFFFFFFFFu) throw ValidationError("simulation: over 2^32 footprint spans; use a smaller area");
         footprint.resize(base + fresh);
-        // The arrays in locals (fewer reloads in the loop, whose rare recomputations call
-        // big inlined functions).
+        // The arrays in locals: the stores into the entries and spans could otherwise alias the
+        // vectors' pointers, which the compiler would then reload for every plant.
         PlantBounds* boundsOf = bounds.data();
         std::uint32_t* slotOf = slotStart.data();
-        const RadiusRange* rangeOf = fpRange.data();
-#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelPlants)
+        RadiusRange* rangeOf = fpRange.data();
+        Span* spans = footprint.data();
+        const double* heights = pl.height.data();
+        const std::int32_t* speciesOf = pl.species.data();
+        const std::uint32_t* bandFirst = bandStart.data();
+        BandEntry* entries = bandEntries.data();
+        std::uint64_t* records = sorted ? bandOrder.data() : nullptr;
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
         for (std::size_t c = 0; c < chunks; ++c) {
             std::uint32_t slot = chunkSlots[c], span = static_cast<std::uint32_t>(base + chunkNew[c]);
-            for (std::size_t p = c * kBoundsChunk, e = std::min(n, p + kBoundsChunk); p < e; ++p) {
+            std::uint32_t* pos = &chunkCounts[c * nb];
+            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 PlantBounds& pb = boundsOf[p];
                 pb.slot = slotOf[p] = slot;
                 const int lo = pb.rowLo, hi = pb.rowHi;
-                slot += static_cast<std::uint32_t>(hi / kBandRows - lo / kBandRows + 1);
-                if (__builtin_expect(hasFootprint(rangeOf[p]), 1)) continue;  // unchanged: the same spans as recomputing them
-                pb.span = span;
-                span += static_cast<std::uint32_t>(hi - lo + 1);
-                Span* sp = footprint.data() + pb.span;
-                if (pl.radius[p] < 0.5 * cell) {
-                    sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
-                    fpRange[p] = RadiusRange{-HUGE_VAL, std::nextafter(0.5 * cell, 0.0)};
+                const int b0 = lo / kBandRows, b1 = hi / kBandRows;
+                slot += static_cast<std::uint32_t>(b1 - b0 + 1);
+                if (__builtin_expect(!hasFootprint(rangeOf[p]), 0)) {
+                    pb.span = span;
+                    span += static_cast<std::uint32_t>(hi - lo + 1);
+                    Span* sp = spans + pb.span;
+                    if (pl.radius[p] < 0.5 * cell) {
+                        sp[0] = Span{static_cast<std::uint32_t>(static_cast<std::size_t>(pl.rootIy[p]) * W + pl.rootIx[p]), 1};
+                        rangeOf[p] = RadiusRange{-HUGE_VAL, std::nextafter(0.5 * cell, 0.0)};
+                    } else {
+                        const double x = pl.x[p], y = pl.y[p], r = pl.radius[p];
+                        footprintSpans(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
+                        rangeOf[p] = footprintRange(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
+                    }
+                }
+                const std::uint32_t key = records ? heightKeyOf(heights[p]) : 0;
+                const std::uint32_t species = static_cast<std::uint32_t>(speciesOf[p]);
+                if (b0 == b1) {  // one band (most plants): all its rows, from its first span
+                    const std::uint32_t at = pos[b0]++;
+                    entries[at] = BandEntry::make(spans[pb.span], pb.span, static_cast<std::uint32_t>(hi - lo + 1), pb.slot, species);
+                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b0]);
                     continue;
                 }
-                const double x = pl.x[p], y = pl.y[p], r = pl.radius[p];
-                footprintSpans(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
-                fpRange[p] = footprintRange(x, y, r, pl.rootIx[p], pl.rootIy[p], lo, hi, sp);
+                for (int b = b0; b <= b1; ++b) {
+                    // Rows of the plant within band b.
+                    const int first = std::max(lo, b * kBandRows), last = std::min(hi, (b + 1) * kBandRows - 1);
+                    const std::uint32_t at = pos[b]++;
+                    const std::uint32_t sp = pb.span + static_cast<std::uint32_t>(first - lo);
+                    entries[at] = BandEntry::make(spans[sp], sp, static_cast<std::uint32_t>(last - first + 1),
+                                                  pb.slot + static_cast<std::uint32_t>(b - b0), species);
+                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b]);
+                }
             }
         }
     }
@@ -734,75 +788,13 @@ struct Simulation::Impl : CellGrid {
         if (sorted != rec) std::copy(sorted, sorted + n, rec);
     }
 
-    // Band lists: the plants overlapping each band, in plant order, and when `sorted` each
-    // band's paint order in bandOrder: height order (tallest first, ties by plant index,
-    // which is id order because plants are appended with increasing ids and compaction is
-    // stable). A stable counting scatter of the (plant, band) pairs by band in plant order,
-    // parallel over fixed chunks (sequential reads of the plant arrays), then an independent
-    // sort of each band's records, parallel over bands, in the cache: O(n) every month, and
-    // no random access to the plants.
-    void buildBands(bool sorted) {
+    // Each band's records into paint order: height order (tallest first, ties by plant
+    // index, which is id order because plants are appended with increasing ids and
+    // compaction is stable); an independent sort of each band's records, parallel over
+    // bands, in the cache.
+    void sortBands() {
         const int nb = bands();
-        const std::size_t n = pl.size();
-        const bool parallel = n > kParallelSortFactor * kParallelPlants;
-        const std::size_t chunk = scatterChunk(n);
-        const std::size_t chunks = (n + chunk - 1) / chunk;
-        chunkCounts.assign(chunks * static_cast<std::size_t>(nb), 0u);
-        const PlantBounds* boundsOf = bounds.data();
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-        for (std::size_t c = 0; c < chunks; ++c) {
-            std::uint32_t* h = &chunkCounts[c * nb];
-            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p)
-                for (int b = boundsOf[p].rowLo / kBandRows, z = boundsOf[p].rowHi / kBandRows; b <= z; ++b) ++h[b];
-        }
-        bandStart.assign(static_cast<std::size_t>(nb) + 1, 0);
-        std::uint32_t run = 0;
-        for (int b = 0; b < nb; ++b) {
-            bandStart[b] = run;
-            for (std::size_t c = 0; c < chunks; ++c) {
-                const std::uint32_t k = chunkCounts[c * nb + b];
-                chunkCounts[c * nb + b] = run;
-                run += k;
-            }
-        }
-        bandStart[nb] = run;
-        bandEntries.resize(run);
-        if (sorted) bandOrder.resize(run);
-        // The arrays in locals: the stores into the entries could otherwise alias the vectors'
-        // pointers, which the compiler would then reload for every plant.
-        const Span* spans = footprint.data();
-        const double* heights = pl.height.data();
-        const std::int32_t* speciesOf = pl.species.data();
-        const std::uint32_t* bandFirst = bandStart.data();
-        BandEntry* entries = bandEntries.data();
-        std::uint64_t* records = sorted ? bandOrder.data() : nullptr;
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-        for (std::size_t c = 0; c < chunks; ++c) {
-            std::uint32_t* pos = &chunkCounts[c * nb];
-            for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
-                const PlantBounds pb = boundsOf[p];
-                const int lo = pb.rowLo / kBandRows, hi = pb.rowHi / kBandRows;
-                const std::uint32_t key = records ? heightKeyOf(heights[p]) : 0;
-                const std::uint32_t species = static_cast<std::uint32_t>(speciesOf[p]);
-                if (lo == hi) {  // one band (most plants): all its rows, from its first span
-                    const std::uint32_t at = pos[lo]++;
-                    entries[at] = BandEntry::make(spans[pb.span], pb.span, static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1), pb.slot,
-                                                  species);
-                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[lo]);
-                    continue;
-                }
-                for (int b = lo; b <= hi; ++b) {
-                    // Rows of the plant within band b.
-                    const int first = std::max(pb.rowLo, b * kBandRows), last = std::min(pb.rowHi, (b + 1) * kBandRows - 1);
-                    const std::uint32_t at = pos[b]++;
-                    const std::uint32_t span = pb.span + static_cast<std::uint32_t>(first - pb.rowLo);
-                    entries[at] = BandEntry::make(spans[span], span, static_cast<std::uint32_t>(last - first + 1),
-                                                  pb.slot + static_cast<std::uint32_t>(b - lo), species);
-                    if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b]);
-                }
-            }
-        }
-        if (!sorted) return;
+        const std::size_t run = bandOrder.size();
         sortScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (run > kParallelPlants)
         for (int b = 0; b < nb; ++b)
@@ -1350,9 +1342,9 @@ struct Simulation::Impl : CellGrid {
             t = now;
         };
         if (n > 0) {
-            computeBounds();
-            lap(phaseSeconds.footprints);
             buildBands(true);
+            lap(phaseSeconds.footprints);
+            sortBands();
             lap(phaseSeconds.ordering);
             const std::size_t slots = slotStart[n];
             partSun.resize(slots);
@@ -1462,7 +1454,6 @@ struct Simulation::Impl : CellGrid {
 
     // Occupancy count of the current plants into occupants[] (band-parallel), saturating.
     void countOccupancy() {
-        computeBounds();
         buildBands(false);
         bandScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (bandEntries.size() > kParallelPlants)
@@ -1839,7 +1830,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     }
     s.deficit = std::move(deficit);
     s.pl = std::move(pl);
-    s.fpRange.clear();  // footprints are recomputed (computeBounds)
+    s.fpRange.clear();  // footprints are recomputed (buildBands)
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));

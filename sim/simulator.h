@@ -79,8 +79,8 @@ struct SimCounters {
 /// Wall-clock seconds spent in each phase of the monthly step since construction (for
 /// benchmarks and tuning; not part of the state, not saved in checkpoints).
 struct SimPhaseSeconds {
-    double footprints = 0;  ///< rows, bands and row spans of every plant's crown
-    double ordering = 0;    ///< height order and band lists
+    double footprints = 0;  ///< rows and row spans of every plant's crown, its slots and band-list entries
+    double ordering = 0;    ///< height order within each band
     double sweep = 0;       ///< resource sweep: occupancy count, shares, leftovers
     double plants = 0;      ///< vigour, pool, growth, mortality
     double competition = 0; ///< Deussen mode: pairwise domination
