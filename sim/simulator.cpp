@@ -52,6 +52,7 @@ struct BandScratch {
     std::vector<std::int32_t> painted;
     std::vector<std::uint32_t> occupied;
     std::vector<std::int32_t> diff;  // scatterBand: difference array of the occupancy (n + 1 cells, kept zero)
+    std::vector<float> sunRow, moistRow;  // the month's abiotics of one row, per column (sweepBand)
     void resize(std::size_t n) {
         if (diff.size() < n + 1) diff.resize(n + 1, 0);
         base.resize(n + kPaintPad);  // the paint kernel's padding (paint.h)
@@ -895,11 +896,10 @@ struct Simulation::Impl : CellGrid {
     // [i0, i0 + W), and the row's inputs are indexed by the cell's column j = i - i0.
     struct PrepareRow {
         std::size_t i0;
-        const int* col;              // abiotics column of each column (coarseCol)
         const float* trans;          // canopy transmission
         const std::uint8_t* trees;   // canopy trees
-        const float* sun;            // the month's planes at the row's abiotics row
-        const float* moist;
+        const float* sun;            // the month's sun and moisture of each column (the row's
+        const float* moist;          // abiotics row, expanded by sweepBand)
     };
     // The prepare pass's outputs (band scratch, band-relative) and its running state: the
     // occupants n of the last cell done and the occupied cells listed so far.
@@ -947,15 +947,14 @@ struct Simulation::Impl : CellGrid {
             _mm_storeu_si128(reinterpret_cast<__m128i*>(list + nOcc),
                              _mm_shuffle_epi8(idx, _mm_load_si128(reinterpret_cast<const __m128i*>(kPackLanes.control[occupied]))));
             nOcc += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(occupied)));
-            const __m128i cols = _mm_loadu_si128(reinterpret_cast<const __m128i*>(r.col + j));
             std::int32_t treeBytes;
             std::memcpy(&treeBytes, r.trees + j, sizeof treeBytes);
             const __m256d trees = _mm256_cvtepi32_pd(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(treeBytes)));
-            const __m256d moist = _mm256_cvtps_pd(_mm_i32gather_ps(r.moist, cols, 4));
+            const __m256d moist = _mm256_cvtps_pd(_mm_loadu_ps(r.moist + j));
             const __m256d avail = _mm256_max_pd(_mm256_sub_pd(moist, _mm256_mul_pd(trees, dem)), zero);
             const __m256d occ = _mm256_cvtepi32_pd(counts);
             const __m256d trans = _mm256_cvtps_pd(_mm_loadu_ps(r.trans + j));
-            const __m256d sun = _mm256_cvtps_pd(_mm_i32gather_ps(r.sun, cols, 4));
+            const __m256d sun = _mm256_cvtps_pd(_mm_loadu_ps(r.sun + j));
             _mm256_storeu_pd(base + i, _mm256_mul_pd(trans, sun));
             _mm256_storeu_pd(availOut + i, avail);
             const __m256d spare = _mm256_max_pd(_mm256_sub_pd(avail, _mm256_mul_pd(occ, dem)), zero);
@@ -996,11 +995,10 @@ struct Simulation::Impl : CellGrid {
             nOcc += n0 != 0;
             list[nOcc] = static_cast<std::uint32_t>(i + 1);
             nOcc += n1 != 0;
-            const int ca = r.col[j], cb = r.col[j + 1];
             const __m128d trees = _mm_set_pd(r.trees[j + 1], r.trees[j]);
-            const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(r.moist[cb], r.moist[ca]), _mm_mul_pd(trees, dem)), zero);
+            const __m128d avail = _mm_max_pd(_mm_sub_pd(_mm_set_pd(r.moist[j + 1], r.moist[j]), _mm_mul_pd(trees, dem)), zero);
             const __m128d occ = _mm_set_pd(n1, n0);
-            _mm_storeu_pd(o.base + i, _mm_mul_pd(_mm_set_pd(r.trans[j + 1], r.trans[j]), _mm_set_pd(r.sun[cb], r.sun[ca])));
+            _mm_storeu_pd(o.base + i, _mm_mul_pd(_mm_set_pd(r.trans[j + 1], r.trans[j]), _mm_set_pd(r.sun[j + 1], r.sun[j])));
             _mm_storeu_pd(o.avail + i, avail);
             // The division only when a lane has water beyond the demands (0 / (n + 1) is 0).
             const __m128d spare = _mm_max_pd(_mm_sub_pd(avail, _mm_mul_pd(occ, dem)), zero);
@@ -1015,8 +1013,8 @@ struct Simulation::Impl : CellGrid {
             o.painted[i] = 0;
             list[nOcc] = static_cast<std::uint32_t>(i);
             nOcc += n != 0;
-            const double avail = waterAfterCanopyMm(r.moist[r.col[j]], r.trees[j], demand);
-            o.base[i] = static_cast<double>(r.trans[j]) * r.sun[r.col[j]];
+            const double avail = waterAfterCanopyMm(r.moist[j], r.trees[j], demand);
+            o.base[i] = static_cast<double>(r.trans[j]) * r.sun[j];
             o.avail[i] = avail;
             o.rest[i] = waterLeftoverMm(avail, n, demand);
         }
@@ -1040,14 +1038,27 @@ struct Simulation::Impl : CellGrid {
         const double demand = params.minWaterDemandMm;
         BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
         scatterBand(b, scr);
-        // Prepare, row by row over the band's cells in address order (prepareRow).
+        // Prepare, row by row over the band's cells in address order (prepareRow). The month's
+        // sun and moisture of a row's columns are read once per abiotics row (several rows of
+        // cells share one), instead of once per cell from the abiotics grid.
         const BandCells bc = scr.cells();
         PrepareOut po{scr.diff.data(), scr.occupied.data(), scr.base.data(), scr.avail.data(), scr.rest.data(),
                       bc.transmission, bc.painted, 0, 0};
+        scr.sunRow.resize(static_cast<std::size_t>(W));
+        scr.moistRow.resize(static_cast<std::size_t>(W));
+        std::size_t expanded = SIZE_MAX;
         for (int iy = r0; iy < r1; ++iy) {
+            if (coarseRowOffset[iy] != expanded) {
+                expanded = coarseRowOffset[iy];
+                const float *sun = sunPlane + expanded, *moist = moistPlane + expanded;
+                for (int ix = 0; ix < W; ++ix) {
+                    scr.sunRow[ix] = sun[coarseCol[ix]];
+                    scr.moistRow[ix] = moist[coarseCol[ix]];
+                }
+            }
             const std::size_t i0 = static_cast<std::size_t>(iy - r0) * W;
-            const PrepareRow row{i0, coarseCol.data(), canopyTrans.data().data() + c0 + i0, canopyTrees.data() + c0 + i0,
-                                 sunPlane + coarseRowOffset[iy], moistPlane + coarseRowOffset[iy]};
+            const PrepareRow row{i0, canopyTrans.data().data() + c0 + i0, canopyTrees.data() + c0 + i0, scr.sunRow.data(),
+                                 scr.moistRow.data()};
             prepareRow(i0, i0 + W, row, demand, po);
         }
         const std::size_t nOcc = po.nOcc;
