@@ -16,6 +16,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <cstdio>
 #include <cstdlib>
@@ -139,9 +140,36 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
     return t;
 }
 
+// A fixed piece of work that does not depend on the simulator's code: a random walk over a
+// 2 MB array (in the caches, as the hectare's arrays are) with a square root and a division
+// per step, on one thread. Timed before each 1-thread hectare run: on a shared VM the same
+// binary's time varies by 10-40 % with the host's load, and this kernel's time moves with it,
+// so a reader can tell a slow run of the machine from a slow version of the code.
+double referenceKernelSeconds() {
+    constexpr std::size_t kSize = std::size_t{1} << 18, kMask = kSize - 1;
+    std::vector<double> a(kSize);
+    for (std::size_t i = 0; i < kSize; ++i) a[i] = 1.0 + 0.5 * static_cast<double>(i);
+    std::uint64_t x = 0x9E3779B97F4A7C15ull;
+    double acc = 0;
+    const double t0 = now();
+    for (long k = 0; k < 60000000; ++k) {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        const std::size_t i = static_cast<std::size_t>(x) & kMask;
+        acc += std::sqrt(a[i]) / (1.0 + a[(i * 7 + 1) & kMask]);
+        a[i] = 1.0 + acc * 1e-12;
+    }
+    const double t = now() - t0;
+    volatile double sink = acc;  // keeps the loop
+    (void)sink;
+    return t;
+}
+
 // Runs of one configuration repeated: the least and the median wall time, and all of them.
 struct Repeated {
     std::vector<Timing> runs;
+    std::vector<double> reference;  // referenceKernelSeconds before each run (1-thread runs only)
     const Timing& fastest() const {
         std::size_t best = 0;
         for (std::size_t i = 1; i < runs.size(); ++i)
@@ -298,9 +326,11 @@ int main(int argc, char** argv) {
             const int reps = repeat > 0 ? repeat : quick ? 1 : 3;
             Repeated r1, r2;
             for (int r = 0; r < reps; ++r) {
+                r1.reference.push_back(referenceKernelSeconds());
                 r1.runs.push_back(runScene(hectare, ha, haYears, 1, params));
                 if (maxThreads >= 2) r2.runs.push_back(runScene(hectare, ha, haYears, 2, params));
-                std::fprintf(stderr, "  1 ha run %d of %d: 1 thread %.1f s", r + 1, reps, r1.runs.back().seconds);
+                std::fprintf(stderr, "  1 ha run %d of %d: reference kernel %.2f s, 1 thread %.1f s", r + 1, reps,
+                             r1.reference.back(), r1.runs.back().seconds);
                 if (maxThreads >= 2) std::fprintf(stderr, ", 2 threads %.1f s", r2.runs.back().seconds);
                 std::fprintf(stderr, "\n");
             }
@@ -319,6 +349,18 @@ int main(int argc, char** argv) {
             std::snprintf(line, sizeof line, "1 ha runs: 1 thread %s (median %.1f s); 2 threads %s (median %.1f s)\n",
                           r1.all().c_str(), r1.median(), r2.all().c_str(), r2.median());
             rep << line;
+            {
+                std::string refs;
+                for (double t : r1.reference) {
+                    std::snprintf(line, sizeof line, "%s%.3f", refs.empty() ? "" : ", ", t);
+                    refs += line;
+                }
+                std::snprintf(line, sizeof line,
+                              "reference kernel before each 1-thread run (fixed work, independent of the simulator; its time "
+                              "tracks the machine's speed): %s s\n",
+                              refs.c_str());
+                rep << line;
+            }
             std::snprintf(line, sizeof line,
                           "plant-months per second per core: %.2f M (1 thread; %.2f M at the median), %.2f M per core (2 threads; "
                           "%.2f M at the median)\n",
