@@ -487,14 +487,23 @@ struct Simulation::Impl : CellGrid {
     // Vigour (Eq. 1) in two steps, so that the monthly update can take the exp of a whole
     // block of plants at once (batch_math.h): the exponent, then the vigour from its exp.
     // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
+    // The shape of Eq. 1 (p, ln q, a), copied into locals by the monthly update.
+    struct VigourShape {
+        bool fourAndHalf;  // p = 4.5: x^4 sqrt(x) instead of pow
+        double p, lnQ, a;
+        double exponent(const SpeciesConst& c, double sun, double water, double temp, double slope) const {
+            const double x = std::max(std::max(std::abs(temp - c.tempC) * c.tempInvR, std::abs(water - c.moistC) * c.moistInvR),
+                                      std::max(std::abs(sun - c.sunC) * c.sunInvR, std::abs(slope - c.slopeC) * c.slopeInvR));
+            const double xp = fourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, p);
+            return xp * lnQ;
+        }
+        double fromExp(const SpeciesConst& c, double e) const { return c.alpha * ((1.0 + a) * e - a); }
+    };
+    VigourShape vigourShape() const { return VigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
     double vigourExponent(int s, double sun, double water, double temp, double slope) const {
-        const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
-        const double x = std::max(std::max(std::abs(temp - c.tempC) * c.tempInvR, std::abs(water - c.moistC) * c.moistInvR),
-                                  std::max(std::abs(sun - c.sunC) * c.sunInvR, std::abs(slope - c.slopeC) * c.slopeInvR));
-        const double xp = vigPIsFourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, vigP);
-        return xp * vigLnQ;
+        return vigourShape().exponent(spc[static_cast<std::size_t>(s)], sun, water, temp, slope);
     }
-    double vigourFromExp(int s, double e) const { return spc[static_cast<std::size_t>(s)].alpha * ((1.0 + vigA) * e - vigA); }
+    double vigourFromExp(int s, double e) const { return vigourShape().fromExp(spc[static_cast<std::size_t>(s)], e); }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator
@@ -1126,13 +1135,6 @@ struct Simulation::Impl : CellGrid {
     // result depends on its own data only, so the blocking changes no result.
     static constexpr std::size_t kPlantBlock = kMortalityBatch;
 
-    // A grown plant's new radius; its footprint is recomputed unless the radius stays within
-    // the range of its last footprint (footprintRange).
-    void setGrownRadius(std::size_t p, double r) {
-        pl.radius[p] = r;
-        if (!(r >= fpRange[p].lo && r <= fpRange[p].hi)) fpRange[p] = kNoFootprint;
-    }
-
     void updatePlants(int m) {
         const std::size_t n = pl.size();
         fate.assign(n, 0);
@@ -1140,46 +1142,70 @@ struct Simulation::Impl : CellGrid {
         const float* slopePlane = abio.slopeDeg.data().data();
         const std::size_t blocks = (n + kPlantBlock - 1) / kPlantBlock;
         std::int64_t cellsVisited = 0;  // an integer sum: the same for any thread count
+        // Every array in a local: the stores into them (fate's bytes may alias anything) would
+        // otherwise make the compiler reload each vector's pointer after every store.
+        const VigourShape vig = vigourShape();
+        const SpeciesConst* species = spc.data();
+        const std::uint32_t* slotOf = slotStart.data();
+        const double *sunPart = partSun.data(), *waterPart = partWater.data();
+        const std::int32_t* cellsPart = partCells.data();
+        const std::int32_t* speciesOf = pl.species.data();
+        const std::uint32_t* coarseOf = pl.coarse.data();
+        const std::uint64_t* idOf = pl.id.data();
+        const float* canopyLimitOf = pl.canopyLimit.data();
+        float *sunOf = pl.sun.data(), *waterOf = pl.water.data(), *vigourOf = pl.vigour.data();
+        double *poolOf = pl.pool.data(), *growthAgeOf = pl.growthAge.data(), *heightOf = pl.height.data();
+        double* radiusOf = pl.radius.data();
+        std::int32_t* ageOf = pl.ageMonths.data();
+        RadiusRange* rangeOf = fpRange.data();
+        std::uint8_t* fateOf = fate.data();
+        const std::uint64_t month0 = static_cast<std::uint64_t>(month), seed0 = seed;
 #pragma omp parallel for schedule(dynamic, 8) if (n > kParallelPlants) reduction(+ : cellsVisited)
         for (std::size_t blk = 0; blk < blocks; ++blk) {
             const std::size_t p0 = blk * kPlantBlock, p1 = std::min(n, p0 + kPlantBlock);
             double arg[kPlantBlock], ex[kPlantBlock];
             for (std::size_t p = p0; p < p1; ++p) {
                 // Every plant has a slot in at least one band (its root's); most in one only.
-                const std::uint32_t s0 = slotStart[p], s1 = slotStart[p + 1];
-                double sunSum = 0.0 + partSun[s0], waterSum = 0.0 + partWater[s0];
-                std::int64_t count = partCells[s0];
+                const std::uint32_t s0 = slotOf[p], s1 = slotOf[p + 1];
+                double sunSum = 0.0 + sunPart[s0], waterSum = 0.0 + waterPart[s0];
+                std::int64_t count = cellsPart[s0];
                 for (std::uint32_t s = s0 + 1; s < s1; ++s) {
-                    sunSum += partSun[s];
-                    waterSum += partWater[s];
-                    count += partCells[s];
+                    sunSum += sunPart[s];
+                    waterSum += waterPart[s];
+                    count += cellsPart[s];
                 }
                 cellsVisited += count;
                 // Always the division (1 / 1 is exact): a test for the many one-cell plants
                 // would be a branch mispredicted about every other plant.
                 const double inv = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
                 const double sun = sunSum * inv, water = waterSum * inv;
-                pl.sun[p] = static_cast<float>(sun);
-                pl.water[p] = static_cast<float>(water);
-                arg[p - p0] = vigourExponent(pl.species[p], sun, water, tempPlane[pl.coarse[p]], slopePlane[pl.coarse[p]]);
+                sunOf[p] = static_cast<float>(sun);
+                waterOf[p] = static_cast<float>(water);
+                arg[p - p0] = vig.exponent(species[speciesOf[p]], sun, water, tempPlane[coarseOf[p]], slopePlane[coarseOf[p]]);
             }
             batchExp(arg, ex, p1 - p0);
             double draw[kPlantBlock];  // mortality uniforms (drawn for every plant, used unless it reached the canopy)
-            mortalityUniforms(seed, pl.id.data() + p0, static_cast<std::uint64_t>(month), p1 - p0, draw);
+            mortalityUniforms(seed0, idOf + p0, month0, p1 - p0, draw);
             std::uint32_t grown[kPlantBlock];  // plants whose radius is exp(a + b ln h), computed after the loop
             double lnArg[kPlantBlock];
             std::size_t nGrown = 0;
+            // A grown plant's new radius; its footprint is recomputed unless the radius stays
+            // within the range of its last footprint (footprintRange).
+            auto setGrownRadius = [radiusOf, rangeOf](std::size_t p, double r) {
+                radiusOf[p] = r;
+                if (!(r >= rangeOf[p].lo && r <= rangeOf[p].hi)) rangeOf[p] = kNoFootprint;
+            };
             for (std::size_t p = p0; p < p1; ++p) {
-                const int s = pl.species[p];
-                const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
-                const double v = vigourFromExp(s, ex[p - p0]);
-                pl.vigour[p] = static_cast<float>(v);
-                const PoolStep ps = updatePool(pl.pool[p], v, c.capacity);
-                pl.pool[p] = ps.pool;
+                const int s = speciesOf[p];
+                const SpeciesConst& c = species[s];
+                const double v = vig.fromExp(c, ex[p - p0]);
+                vigourOf[p] = static_cast<float>(v);
+                const PoolStep ps = updatePool(poolOf[p], v, c.capacity);
+                poolOf[p] = ps.pool;
                 if (c.growthMonth[m] && ps.overflow > 0) {
-                    pl.growthAge[p] = advanceGrowthAgeYears(pl.growthAge[p], ps.overflow, true, c.growthPerOverflow);
-                    const double h = idealHeightM(pl.growthAge[p], c.maxAgeYears, c.maxHeightM);
-                    pl.height[p] = h;
+                    growthAgeOf[p] = advanceGrowthAgeYears(growthAgeOf[p], ps.overflow, true, c.growthPerOverflow);
+                    const double h = idealHeightM(growthAgeOf[p], c.maxAgeYears, c.maxHeightM);
+                    heightOf[p] = h;
                     if (c.allometry.linear || !(h > 0)) {
                         setGrownRadius(p, crownRadius(s, h));
                     } else {  // exp(a + b ln h) for the block at once, below
@@ -1188,18 +1214,18 @@ struct Simulation::Impl : CellGrid {
                         ++nGrown;
                     }
                 }
-                ++pl.ageMonths[p];
-                if (pl.height[p] >= pl.canopyLimit[p]) {
-                    fate[p] = 2;
+                ++ageOf[p];
+                if (heightOf[p] >= canopyLimitOf[p]) {
+                    fateOf[p] = 2;
                 } else {
-                    const double mu = mortalityProbability(c.backgroundMu, pl.pool[p]);
-                    if (draw[p - p0] < mu) fate[p] = 1;
+                    const double mu = mortalityProbability(c.backgroundMu, poolOf[p]);
+                    if (draw[p - p0] < mu) fateOf[p] = 1;
                 }
             }
             // The grown plants' crown radii, crownRadius in blocks: log, a + b ln h, exp.
             batchLog(lnArg, lnArg, nGrown);
             for (std::size_t k = 0; k < nGrown; ++k) {
-                const Allometry& al = spc[static_cast<std::size_t>(pl.species[grown[k]])].allometry;
+                const Allometry& al = species[speciesOf[grown[k]]].allometry;
                 lnArg[k] = al.a + al.b * lnArg[k];
             }
             batchExp(lnArg, lnArg, nGrown);
