@@ -1455,9 +1455,13 @@ struct Simulation::Impl : CellGrid {
         }
     }
 
-    // Germination weights of every species at cell (ix, iy) into w; `arg` is scratch of the
-    // same size (the vigour exponents, whose exps are taken in one batch).
-    void weightsAt(int ix, int iy, double* w, double* arg) const {
+    // Germination weights of every species at cell (ix, iy) into w; `arg` and `cand` are
+    // scratch of the same size. The candidates (species of the cell's seed packages whose
+    // growth period has months in the window) are listed first, and only their vigour
+    // exponents computed, their exps taken in one batch (batchExp gives every element the same
+    // bits wherever it stands), and their weights set; the others are 0, as rouletteSelect
+    // expects (adding 0 changes none of its sums).
+    void weightsAt(int ix, int iy, double* w, double* arg, int* cand) const {
         const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
         const std::uint32_t pkg = seedPkg[c];
         const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
@@ -1466,27 +1470,34 @@ struct Simulation::Impl : CellGrid {
         const std::size_t ns = spc.size();
         // The growth periods of the candidate species, whose means are computed once.
         std::uint32_t wanted = 0;
-        for (std::size_t s = 0; s < ns; ++s)
-            if ((spc[s].memberMask & pkg) && spc[s].period < periods) wanted |= 1u << spc[s].period;
+        std::size_t nc = 0;
+        for (std::size_t s = 0; s < ns; ++s) {
+            w[s] = 0;
+            if ((spc[s].memberMask & pkg) && spc[s].period < periods) {
+                wanted |= 1u << spc[s].period;
+                cand[nc++] = static_cast<int>(s);
+            }
+        }
         double sunG[kMaxGrowthPeriods], waterG[kMaxGrowthPeriods], tempG[kMaxGrowthPeriods];
         bool okG[kMaxGrowthPeriods];
         seasonMeans(c, ix, iy, wanted, sunG, waterG, tempG, okG);
-        for (std::size_t s = 0; s < ns; ++s) {
-            w[s] = 0;  // not a candidate
-            arg[s] = 0;
-            const SpeciesConst& sc = spc[s];
-            if (!(sc.memberMask & pkg) || sc.period >= periods) continue;
+        const VigourShape vig = vigourShape();
+        std::size_t na = 0;
+        for (std::size_t k = 0; k < nc; ++k) {
+            const int s = cand[k];
+            const SpeciesConst& sc = spc[static_cast<std::size_t>(s)];
             const int g = sc.period;
             if (!okG[g]) continue;
-            w[s] = 1;
-            arg[s] = vigourExponent(static_cast<int>(s), sunG[g], waterG[g], tempG[g], slope);
+            cand[na] = s;
+            arg[na] = vig.exponent(sc, sunG[g], waterG[g], tempG[g], slope);
+            ++na;
         }
-        batchExp(arg, arg, ns);
-        for (std::size_t s = 0; s < ns; ++s)
-            if (w[s] != 0) {  // rouletteWeight, with maxAge^beta precomputed
-                const double vbar = vigourFromExp(static_cast<int>(s), arg[s]);
-                w[s] = std::max(0.0, vbar / spc[s].rouletteDenominator);
-            }
+        batchExp(arg, arg, na);
+        for (std::size_t k = 0; k < na; ++k) {  // rouletteWeight, with maxAge^beta precomputed
+            const SpeciesConst& sc = spc[static_cast<std::size_t>(cand[k])];
+            const double vbar = vig.fromExp(sc, arg[k]);
+            w[cand[k]] = std::max(0.0, vbar / sc.rouletteDenominator);
+        }
     }
 
     // Occupancy count of the current plants into occupants[] (band-parallel), saturating.
@@ -1518,6 +1529,7 @@ struct Simulation::Impl : CellGrid {
 #pragma omp parallel if (cellCount() > kParallelCells)
         {
             std::vector<double> w(ns), arg(ns);
+            std::vector<int> cand(ns);
             // A row's free seeded cells, their streams and the first two words of their draws.
             std::vector<int> rowCells(static_cast<std::size_t>(W));
             std::vector<std::uint64_t> rowStreams(static_cast<std::size_t>(W));
@@ -1555,7 +1567,7 @@ struct Simulation::Impl : CellGrid {
                     for (std::size_t k = 0; k < sprouting; ++k) {
                         const int ix = rowCells[k];
                         const auto bits = randomBits(seed, rowStreams[k], year);
-                        weightsAt(ix, iy, w.data(), arg.data());
+                        weightsAt(ix, iy, w.data(), arg.data(), cand.data());
                         const int s = rouletteSelect(w.data(), static_cast<int>(ns), bits[1] * 0x1.0p-32);
                         if (s < 0) continue;
                         perBand[static_cast<std::size_t>(b)].push_back(
@@ -1743,7 +1755,8 @@ std::vector<double> Simulation::germinationWeights(int ix, int iy) const {
     const Impl& s = *impl_;
     if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H) throw ValidationError("germinationWeights: cell out of range");
     std::vector<double> w(s.spc.size()), arg(s.spc.size());
-    s.weightsAt(ix, iy, w.data(), arg.data());
+    std::vector<int> cand(s.spc.size());
+    s.weightsAt(ix, iy, w.data(), arg.data(), cand.data());
     return w;
 }
 
