@@ -141,18 +141,19 @@ Timing runScene(const SimInputs& base, const SimArea& area, int years, int threa
 }
 
 // A fixed piece of work that does not depend on the simulator's code: a random walk over a
-// 2 MB array (in the caches, as the hectare's arrays are) with a square root and a division
-// per step, on one thread. Timed before each 1-thread hectare run: on a shared VM the same
-// binary's time varies by 10-40 % with the host's load, and this kernel's time moves with it,
-// so a reader can tell a slow run of the machine from a slow version of the code.
+// 16 MB array (about the hectare's working set, so in the shared last-level cache, as the
+// simulator's arrays are) with a square root and a division per step, on one thread. Timed
+// before each 1-thread hectare run: on a shared VM the same binary's time varies by 10-50 %
+// with the host's load, and this kernel's time moves with it (though not in proportion), so
+// a reader can tell a slow phase of the machine from a slower version of the code.
 double referenceKernelSeconds() {
-    constexpr std::size_t kSize = std::size_t{1} << 18, kMask = kSize - 1;
+    constexpr std::size_t kSize = std::size_t{1} << 21, kMask = kSize - 1;
     std::vector<double> a(kSize);
     for (std::size_t i = 0; i < kSize; ++i) a[i] = 1.0 + 0.5 * static_cast<double>(i);
     std::uint64_t x = 0x9E3779B97F4A7C15ull;
     double acc = 0;
     const double t0 = now();
-    for (long k = 0; k < 60000000; ++k) {
+    for (long k = 0; k < 12000000; ++k) {
         x ^= x << 13;
         x ^= x >> 7;
         x ^= x << 17;
