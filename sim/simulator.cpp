@@ -43,6 +43,7 @@ constexpr std::size_t kParallelSortFactor = 2;
 // The paint pass prefetches the band entry this many places ahead in height order.
 constexpr std::size_t kPaintPrefetch = 8;
 constexpr std::size_t kFinishPrefetch = 32;
+constexpr std::ptrdiff_t kScatterPrefetch = 16;
 
 // Per-thread scratch of the band being swept: what the occupants of its cells share, one
 // array per field (BandCells, paint.h), and the band's occupied cells.
@@ -825,11 +826,16 @@ struct Simulation::Impl : CellGrid {
         scr.resize(nc);
         std::int32_t* diff = scr.diff.data() - c0;  // indexed by cell
         const Span* fp = footprint.data();
-        for (const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandStart[b + 1]; e != z; ++e)
+        const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandStart[b + 1];
+        for (; e != z; ++e) {
+            // The footprint rows beyond the first are read from the span pool, where the band's
+            // plants are spread among the others: fetched kScatterPrefetch entries ahead.
+            if (z - e > kScatterPrefetch) __builtin_prefetch(fp + e[kScatterPrefetch].span + 1);
             e->forEachRow(fp, [diff](std::size_t start, std::uint32_t len) {
                 ++diff[start];
                 --diff[start + len];
             });
+        }
         scr.diff[nc] = 0;  // the -1 after the band's last cell
         return {c0, nc};
     }
