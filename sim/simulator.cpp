@@ -488,7 +488,8 @@ struct Simulation::Impl : CellGrid {
     // Vigour (Eq. 1) in two steps, so that the monthly update can take the exp of a whole
     // block of plants at once (batch_math.h): the exponent, then the vigour from its exp.
     // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
-    // The shape of Eq. 1 (p, ln q, a), copied into locals by the monthly update.
+    // VigourShape holds Eq. 1's shape (p, ln q, a) by value, so that the monthly update and
+    // germination keep it in locals.
     struct VigourShape {
         bool fourAndHalf;  // p = 4.5: x^4 sqrt(x) instead of pow
         double p, lnQ, a;
@@ -501,10 +502,6 @@ struct Simulation::Impl : CellGrid {
         double fromExp(const SpeciesConst& c, double e) const { return c.alpha * ((1.0 + a) * e - a); }
     };
     VigourShape vigourShape() const { return VigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
-    double vigourExponent(int s, double sun, double water, double temp, double slope) const {
-        return vigourShape().exponent(spc[static_cast<std::size_t>(s)], sun, water, temp, slope);
-    }
-    double vigourFromExp(int s, double e) const { return vigourShape().fromExp(spc[static_cast<std::size_t>(s)], e); }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator
