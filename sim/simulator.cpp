@@ -210,23 +210,26 @@ struct Simulation::Impl : CellGrid {
 
     // ---- plants and per-month scratch
     PlantStore pl;
-    // Per plant: footprint rows, first partial-sum slot (this month) and first span of its
-    // footprint in the pool `footprint`.
+    // Per plant: footprint rows and first span of its footprint in the pool `footprint`, or
+    // kNoSpan when the footprint must be computed. The band-list passes read these 12 bytes
+    // only; the radius range (fpRange) is read by the plants that grew.
     struct PlantBounds {
         std::int32_t rowLo, rowHi;
-        std::uint32_t slot, span;
+        std::uint32_t span;
     };
+    static constexpr std::uint32_t kNoSpan = 0xFFFFFFFFu;
+    static constexpr PlantBounds kNoBounds{0, 0, kNoSpan};
+    static bool hasFootprint(const PlantBounds& b) { return b.span != kNoSpan; }
     // Footprints persist across months (buildBands): a plant's footprint depends only on
     // its root, position and radius, and its radius changes only in growth months with
     // overflow. fpRange[p] holds the radii for which plant p's footprint (rows in bounds[p],
-    // spans in the pool from bounds[p].span) is valid (footprintRange), or kNoFootprint when
-    // it must be computed (new plant, or a radius outside the range). A plant that grows
+    // spans in the pool from bounds[p].span) is valid (footprintRange); bounds[p].span is
+    // kNoSpan when it must be computed (new plant, or a radius outside the range). A plant that grows
     // within its range keeps its spans (most growth months of most plants); the spans of a
     // recomputed or dead plant are left in the pool, which is repacked in plant order when
     // such garbage outgrows the live spans. bounds and fpRange are compacted with the
     // plants; both are empty (all footprints to compute) after addPlant or loadState.
     static constexpr RadiusRange kNoFootprint{HUGE_VAL, -HUGE_VAL};
-    static bool hasFootprint(const RadiusRange& r) { return r.lo <= r.hi; }
     std::vector<PlantBounds> bounds;
     std::vector<RadiusRange> fpRange;
     std::vector<Span> footprint, repackScratch;
@@ -586,7 +589,7 @@ struct Simulation::Impl : CellGrid {
         const std::size_t n = pl.size();
         if (fpRange.size() != n) {
             fpRange.assign(n, kNoFootprint);
-            bounds.resize(n);
+            bounds.assign(n, kNoBounds);
         }
         slotStart.resize(n + 1);
         const int nb = bands();
@@ -603,7 +606,7 @@ struct Simulation::Impl : CellGrid {
             std::uint32_t* h = &chunkCounts[c * nb];
             for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 PlantBounds& pb = bounds[p];
-                if (hasFootprint(fpRange[p])) {
+                if (hasFootprint(pb)) {
                     kept += static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
                 } else {
                     int lo = pl.rootIy[p], hi = lo;
@@ -653,8 +656,8 @@ struct Simulation::Impl : CellGrid {
             for (std::size_t c = 0; c < chunks; ++c) {
                 std::uint32_t at = chunkKept[c];
                 for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
-                    if (!hasFootprint(fpRange[p])) continue;
                     PlantBounds& pb = bounds[p];
+                    if (!hasFootprint(pb)) continue;
                     const std::uint32_t rows = static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
                     std::copy_n(footprint.data() + pb.span, rows, repackScratch.data() + at);
                     pb.span = at;
@@ -685,11 +688,11 @@ struct Simulation::Impl : CellGrid {
             std::uint32_t* pos = &chunkCounts[c * nb];
             for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 PlantBounds& pb = boundsOf[p];
-                pb.slot = slotOf[p] = slot;
+                const std::uint32_t firstSlot = slotOf[p] = slot;
                 const int lo = pb.rowLo, hi = pb.rowHi;
                 const int b0 = lo / kBandRows, b1 = hi / kBandRows;
                 slot += static_cast<std::uint32_t>(b1 - b0 + 1);
-                if (__builtin_expect(!hasFootprint(rangeOf[p]), 0)) {
+                if (__builtin_expect(!hasFootprint(pb), 0)) {
                     pb.span = span;
                     span += static_cast<std::uint32_t>(hi - lo + 1);
                     Span* sp = spans + pb.span;
@@ -706,7 +709,7 @@ struct Simulation::Impl : CellGrid {
                 const std::uint32_t species = static_cast<std::uint32_t>(speciesOf[p]);
                 if (b0 == b1) {  // one band (most plants): all its rows, from its first span
                     const std::uint32_t at = pos[b0]++;
-                    entries[at] = BandEntry::make(spans[pb.span], pb.span, static_cast<std::uint32_t>(hi - lo + 1), pb.slot, species);
+                    entries[at] = BandEntry::make(spans[pb.span], pb.span, static_cast<std::uint32_t>(hi - lo + 1), firstSlot, species);
                     if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b0]);
                     continue;
                 }
@@ -716,7 +719,7 @@ struct Simulation::Impl : CellGrid {
                     const std::uint32_t at = pos[b]++;
                     const std::uint32_t sp = pb.span + static_cast<std::uint32_t>(first - lo);
                     entries[at] = BandEntry::make(spans[sp], sp, static_cast<std::uint32_t>(last - first + 1),
-                                                  pb.slot + static_cast<std::uint32_t>(b - b0), species);
+                                                  firstSlot + static_cast<std::uint32_t>(b - b0), species);
                     if (records) records[at] = static_cast<std::uint64_t>(key) << 32 | (at - bandFirst[b]);
                 }
             }
@@ -1160,7 +1163,8 @@ struct Simulation::Impl : CellGrid {
         double *poolOf = pl.pool.data(), *growthAgeOf = pl.growthAge.data(), *heightOf = pl.height.data();
         double* radiusOf = pl.radius.data();
         std::int32_t* ageOf = pl.ageMonths.data();
-        RadiusRange* rangeOf = fpRange.data();
+        const RadiusRange* rangeOf = fpRange.data();
+        PlantBounds* boundsOf = bounds.data();
         std::uint8_t* fateOf = fate.data();
         const std::uint64_t month0 = static_cast<std::uint64_t>(month), seed0 = seed;
 #pragma omp parallel for schedule(dynamic, 8) if (n > kParallelPlants) reduction(+ : cellsVisited)
@@ -1194,9 +1198,9 @@ struct Simulation::Impl : CellGrid {
             std::size_t nGrown = 0;
             // A grown plant's new radius; its footprint is recomputed unless the radius stays
             // within the range of its last footprint (footprintRange).
-            auto setGrownRadius = [radiusOf, rangeOf](std::size_t p, double r) {
+            auto setGrownRadius = [radiusOf, rangeOf, boundsOf](std::size_t p, double r) {
                 radiusOf[p] = r;
-                if (!(r >= rangeOf[p].lo && r <= rangeOf[p].hi)) rangeOf[p] = kNoFootprint;
+                if (!(r >= rangeOf[p].lo && r <= rangeOf[p].hi)) boundsOf[p].span = kNoSpan;
             };
             for (std::size_t p = p0; p < p1; ++p) {
                 const int s = speciesOf[p];
@@ -1606,7 +1610,7 @@ struct Simulation::Impl : CellGrid {
         pl.resize(first + k);
         if (fpRange.size() == first) {
             fpRange.resize(first + k, kNoFootprint);
-            bounds.resize(first + k);
+            bounds.resize(first + k, kNoBounds);
         } else {
             fpRange.clear();
         }
