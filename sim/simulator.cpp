@@ -40,6 +40,9 @@ std::size_t kParallelCells = kDefaultParallelCells;
 // only for this many times more plants (2: on the benchmark hectare, 40 000 plants and
 // more, 2 threads cut band lists and compaction by 10-25 %; 16 kept them serial).
 constexpr std::size_t kParallelSortFactor = 2;
+// The dead are removed from the plant store once they are more than 1 / kCompactShare of it
+// (compactIfDue). Results never depend on it.
+constexpr std::size_t kCompactShare = 8;
 // The paint pass prefetches the band entry this many places ahead in height order.
 constexpr std::size_t kPaintPrefetch = 8;
 constexpr std::size_t kFinishPrefetch = 32;
@@ -54,6 +57,7 @@ struct BandScratch {
     std::vector<std::uint32_t> occupied;
     std::vector<std::int32_t> diff;  // scatterBand: difference array of the occupancy (n + 1 cells, kept zero)
     std::vector<float> sunRow, moistRow;  // the month's abiotics of one row, per column (sweepBand)
+    std::vector<std::uint32_t> remap;     // filterBand: each entry's new index
     void resize(std::size_t n) {
         if (diff.size() < n + 1) diff.resize(n + 1, 0);
         base.resize(n + kPaintPad);  // the paint kernel's padding (paint.h)
@@ -240,7 +244,17 @@ struct Simulation::Impl : CellGrid {
     std::vector<std::uint32_t> bandStart;
     std::vector<BandEntry> bandEntries;
     std::vector<float> speciesKeep;  // 1 - alpha per species (the sweep's attenuation)
-    std::vector<std::uint8_t> fate;  // 0 alive, 1 died (background / stress), 2 reached the canopy, 3 dominated
+    // Per plant: 0 alive, 1 died (background / stress), 2 reached the canopy, 3 dominated.
+    // The dead stay in the store, skipped by every pass, until compact() removes them
+    // (deadPending of them; see settleDead): the same results as removing them at once.
+    std::vector<std::uint8_t> fate;
+    std::size_t deadPending = 0;
+    // The month's layout (band lists, their paint order, slots) can serve the next month
+    // too when no plant grew and none was added or moved: only the entries of the plants
+    // that died meanwhile (their slots marked in slotDead) are dropped (filterBand).
+    bool layoutReusable = false;
+    std::vector<std::uint8_t> slotDead;
+    std::vector<std::uint32_t> bandEnd;  // each band's list ends here (bandStart[b + 1] until entries are dropped)
     // Deussen competition scratch: abilities and the plant lists of the pair-finding bins.
     std::vector<double> ability;
     std::vector<std::int32_t> binX0, binX1, binY0, binY1;
@@ -524,6 +538,8 @@ struct Simulation::Impl : CellGrid {
                   double ageYears, double pool, double vig) {
         pl.resize(pl.size() + 1);
         fpRange.clear();  // footprints are recomputed (buildBands)
+        fate.resize(pl.size(), 0);
+        layoutReusable = false;
         setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
     }
     // Writes plant p of the store (already sized); plants are independent of each other.
@@ -587,6 +603,8 @@ struct Simulation::Impl : CellGrid {
     // (and results never depend on the layout).
     void buildBands(bool sorted) {
         const std::size_t n = pl.size();
+        layoutReusable = false;  // stepMonth sets it again after its sort
+        const std::uint8_t* deadOf = fate.data();  // fate.size() == n
         if (fpRange.size() != n) {
             fpRange.assign(n, kNoFootprint);
             bounds.assign(n, kNoBounds);
@@ -605,6 +623,7 @@ struct Simulation::Impl : CellGrid {
             std::uint32_t slots = 0, fresh = 0, kept = 0;
             std::uint32_t* h = &chunkCounts[c * nb];
             for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
+                if (deadOf[p]) continue;  // no slots, no entries
                 PlantBounds& pb = bounds[p];
                 if (hasFootprint(pb)) {
                     kept += static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
@@ -645,6 +664,7 @@ struct Simulation::Impl : CellGrid {
             }
         }
         bandStart[nb] = run;
+        bandEnd.assign(bandStart.begin() + 1, bandStart.end());
         bandEntries.resize(run);
         if (sorted) bandOrder.resize(run);
         const std::size_t kept = chunkKept[chunks], fresh = chunkNew[chunks];
@@ -657,6 +677,7 @@ struct Simulation::Impl : CellGrid {
                 std::uint32_t at = chunkKept[c];
                 for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                     PlantBounds& pb = bounds[p];
+                    if (deadOf[p]) pb = kNoBounds;  // its spans are not copied (pass 1 did not count them)
                     if (!hasFootprint(pb)) continue;
                     const std::uint32_t rows = static_cast<std::uint32_t>(pb.rowHi - pb.rowLo + 1);
                     std::copy_n(footprint.data() + pb.span, rows, repackScratch.data() + at);
@@ -689,6 +710,7 @@ struct Simulation::Impl : CellGrid {
             for (std::size_t p = c * chunk, e = std::min(n, p + chunk); p < e; ++p) {
                 PlantBounds& pb = boundsOf[p];
                 const std::uint32_t firstSlot = slotOf[p] = slot;
+                if (deadOf[p]) continue;
                 const int lo = pb.rowLo, hi = pb.rowHi;
                 const int b0 = lo / kBandRows, b1 = hi / kBandRows;
                 slot += static_cast<std::uint32_t>(b1 - b0 + 1);
@@ -809,7 +831,7 @@ struct Simulation::Impl : CellGrid {
         sortScratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel for schedule(dynamic, 1) if (run > kParallelPlants)
         for (int b = 0; b < nb; ++b)
-            sortBand(bandOrder.data() + bandStart[b], bandStart[b + 1] - bandStart[b],
+            sortBand(bandOrder.data() + bandStart[b], bandEnd[b] - bandStart[b],
                      sortScratch[static_cast<std::size_t>(omp_get_thread_num())]);
     }
 
@@ -826,7 +848,7 @@ struct Simulation::Impl : CellGrid {
         scr.resize(nc);
         std::int32_t* diff = scr.diff.data() - c0;  // indexed by cell
         const Span* fp = footprint.data();
-        const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandStart[b + 1];
+        const BandEntry *e = bandEntries.data() + bandStart[b], *z = bandEntries.data() + bandEnd[b];
         for (; e != z; ++e) {
             // The footprint rows beyond the first are read from the span pool, where the band's
             // plants are spread among the others: fetched kScatterPrefetch entries ahead.
@@ -838,6 +860,37 @@ struct Simulation::Impl : CellGrid {
         }
         scr.diff[nc] = 0;  // the -1 after the band's last cell
         return {c0, nc};
+    }
+
+    // Band b's list and paint order without the entries whose slots are marked dead: both
+    // filtered in place, stably, so the survivors keep their order (that of a fresh
+    // buildBands and sortBands: the same plants, heights, footprints and slots) and the
+    // order records are renumbered to the entries' new places.
+    void filterBand(int b, std::vector<std::uint32_t>& remap) {
+        constexpr std::uint32_t kDropped = 0xFFFFFFFFu;
+        BandEntry* e = bandEntries.data() + bandStart[b];
+        const std::size_t n = bandEnd[b] - bandStart[b];
+        const std::uint8_t* dead = slotDead.data();
+        remap.resize(n);
+        std::uint32_t* to = remap.data();
+        std::size_t out = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const BandEntry x = e[i];
+            const bool drop = dead[x.slot] != 0;
+            to[i] = drop ? kDropped : static_cast<std::uint32_t>(out);
+            e[out] = x;
+            out += !drop;
+        }
+        if (out == n) return;
+        bandEnd[b] = bandStart[b] + static_cast<std::uint32_t>(out);
+        std::uint64_t* rec = bandOrder.data() + bandStart[b];
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::uint64_t r = rec[i];
+            const std::uint32_t at = to[static_cast<std::uint32_t>(r)];
+            rec[kept] = (r & ~std::uint64_t{0xFFFFFFFFu}) | at;
+            kept += at != kDropped;
+        }
     }
 
     // The paint pass of a band (sweepBand): its entries in height order (`order`), each taking
@@ -1043,15 +1096,18 @@ struct Simulation::Impl : CellGrid {
     //  * paint: the entries in height order, each taking its shares of the cells it covers;
     //  * finish: the occupied cells in address order: the leftovers of this month go to the
     //    germination deficit (growth-period months).
-    void sweepBand(int b, int m) {
+    //  When the layout is reused (`reuse`), the entries of plants that died since it was built
+    //  are dropped first (filterBand).
+    void sweepBand(int b, int m, bool reuse) {
         const int r0 = b * kBandRows, r1 = std::min(H, r0 + kBandRows);
         const std::size_t c0 = static_cast<std::size_t>(r0) * W;
+        BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
+        if (reuse) filterBand(b, scr.remap);
         const BandEntry* e0 = bandEntries.data() + bandStart[b];
-        const BandEntry* e1 = bandEntries.data() + bandStart[b + 1];
+        const BandEntry* e1 = bandEntries.data() + bandEnd[b];
         const float* sunPlane = abio.sunHours[m].data().data();
         const float* moistPlane = abio.moistureMm[m].data().data();
         const double demand = params.minWaterDemandMm;
-        BandScratch& scr = bandScratch[static_cast<std::size_t>(omp_get_thread_num())];
         scatterBand(b, scr);
         // Prepare, row by row over the band's cells in address order (prepareRow). The month's
         // sun and moisture of a row's columns are read once per abiotics row (several rows of
@@ -1141,9 +1197,10 @@ struct Simulation::Impl : CellGrid {
     // result depends on its own data only, so the blocking changes no result.
     static constexpr std::size_t kPlantBlock = kMortalityBatch;
 
-    void updatePlants(int m) {
+    // Plants that died in an earlier month (still in the store) are skipped; those dying now
+    // get their fate, and their slots are marked in slotDead. Returns the plants that grew.
+    std::size_t updatePlants(int m) {
         const std::size_t n = pl.size();
-        fate.assign(n, 0);
         const float* tempPlane = abio.temperatureC[m].data().data();
         const float* slopePlane = abio.slopeDeg.data().data();
         const std::size_t blocks = (n + kPlantBlock - 1) / kPlantBlock;
@@ -1166,13 +1223,22 @@ struct Simulation::Impl : CellGrid {
         const RadiusRange* rangeOf = fpRange.data();
         PlantBounds* boundsOf = bounds.data();
         std::uint8_t* fateOf = fate.data();
+        std::uint8_t* slotDeadOf = slotDead.data();
         const std::uint64_t month0 = static_cast<std::uint64_t>(month), seed0 = seed;
-#pragma omp parallel for schedule(dynamic, 8) if (n > kParallelPlants) reduction(+ : cellsVisited)
+        std::int64_t died[3] = {};
+        std::size_t grewCount = 0;
+#pragma omp parallel for schedule(dynamic, 8) if (n > kParallelPlants) reduction(+ : cellsVisited, grewCount, died[:3])
         for (std::size_t blk = 0; blk < blocks; ++blk) {
             const std::size_t p0 = blk * kPlantBlock, p1 = std::min(n, p0 + kPlantBlock);
             double arg[kPlantBlock], ex[kPlantBlock];
             for (std::size_t p = p0; p < p1; ++p) {
-                // Every plant has a slot in at least one band (its root's); most in one only.
+                // The dead of earlier months (a few per cent, none in most months: see
+                // compactIfDue) are skipped; their exponent is a placeholder.
+                if (fateOf[p]) {
+                    arg[p - p0] = 0;
+                    continue;
+                }
+                // Every living plant has a slot in at least one band (its root's); most in one only.
                 const std::uint32_t s0 = slotOf[p], s1 = slotOf[p + 1];
                 double sunSum = 0.0 + sunPart[s0], waterSum = 0.0 + waterPart[s0];
                 std::int64_t count = cellsPart[s0];
@@ -1203,6 +1269,7 @@ struct Simulation::Impl : CellGrid {
                 if (!(r >= rangeOf[p].lo && r <= rangeOf[p].hi)) boundsOf[p].span = kNoSpan;
             };
             for (std::size_t p = p0; p < p1; ++p) {
+                if (fateOf[p]) continue;
                 const int s = speciesOf[p];
                 const SpeciesConst& c = species[s];
                 const double v = vig.fromExp(c, ex[p - p0]);
@@ -1210,6 +1277,7 @@ struct Simulation::Impl : CellGrid {
                 const PoolStep ps = updatePool(poolOf[p], v, c.capacity);
                 poolOf[p] = ps.pool;
                 if (c.growthMonth[m] && ps.overflow > 0) {
+                    ++grewCount;
                     growthAgeOf[p] = advanceGrowthAgeYears(growthAgeOf[p], ps.overflow, true, c.growthPerOverflow);
                     const double h = idealHeightM(growthAgeOf[p], c.maxAgeYears, c.maxHeightM);
                     heightOf[p] = h;
@@ -1222,11 +1290,17 @@ struct Simulation::Impl : CellGrid {
                     }
                 }
                 ++ageOf[p];
+                std::uint8_t f = 0;
                 if (heightOf[p] >= canopyLimitOf[p]) {
-                    fateOf[p] = 2;
+                    f = 2;
                 } else {
                     const double mu = mortalityProbability(c.backgroundMu, poolOf[p]);
-                    if (draw[p - p0] < mu) fateOf[p] = 1;
+                    if (draw[p - p0] < mu) f = 1;
+                }
+                if (f) {
+                    fateOf[p] = f;
+                    ++died[f];
+                    for (std::uint32_t sl = slotOf[p]; sl < slotOf[p + 1]; ++sl) slotDeadOf[sl] = 1;
                 }
             }
             // The grown plants' crown radii, crownRadius in blocks: log, a + b ln h, exp.
@@ -1239,6 +1313,10 @@ struct Simulation::Impl : CellGrid {
             for (std::size_t k = 0; k < nGrown; ++k) setGrownRadius(grown[k], lnArg[k]);
         }
         counters.plantCellMonths += cellsVisited;
+        counters.diedBackgroundOrStress += died[1];
+        counters.diedAtCanopy += died[2];
+        deadPending += static_cast<std::size_t>(died[1] + died[2]);
+        return grewCount;
     }
 
     // ------------------------------------------------------------------ Deussen competition
@@ -1318,7 +1396,12 @@ struct Simulation::Impl : CellGrid {
             if (dominationUniform(seed, pl.id[p], static_cast<std::uint64_t>(month)) >= survive) dominated[p] = 1;
         }
         for (std::size_t p = 0; p < n; ++p)
-            if (dominated[p]) fate[p] = 3;
+            if (dominated[p]) {
+                fate[p] = 3;
+                ++counters.diedDominated;
+                ++deadPending;
+                for (std::uint32_t sl = slotStart[p]; sl < slotStart[p + 1]; ++sl) slotDead[sl] = 1;
+            }
     }
 
     // Runs of surviving plants (first plant, count), in plant order (compact()).
@@ -1327,24 +1410,22 @@ struct Simulation::Impl : CellGrid {
     };
     std::vector<Run> keptRuns;
 
+    // Removes the dead (fate != 0) from the store, keeping the order of the living.
     void compact() {
         const std::size_t n = pl.size();
+        if (deadPending == 0) return;
+        deadPending = 0;
+        layoutReusable = false;  // the plants move: their slots and entries are rebuilt
         // The survivors as runs of consecutive plants: every array is then compacted with one
         // memmove per run (few plants die in a month) instead of a test per plant and array.
         keptRuns.clear();
         std::size_t keep = 0, runStart = 0;
-        std::int64_t died[4] = {};
         for (std::size_t p = 0; p < n; ++p) {
             if (fate[p] == 0) continue;
-            ++died[fate[p] & 3];
             if (p > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(p - runStart)});
             keep += p - runStart;
             runStart = p + 1;
         }
-        counters.diedBackgroundOrStress += died[1];
-        counters.diedAtCanopy += died[2];
-        counters.diedDominated += died[3];
-        if (runStart == 0) return;  // nobody died
         if (n > runStart) keptRuns.push_back(Run{static_cast<std::uint32_t>(runStart), static_cast<std::uint32_t>(n - runStart)});
         keep += n - runStart;
         auto compactArray = [this, keep](auto& v) {
@@ -1374,22 +1455,43 @@ struct Simulation::Impl : CellGrid {
                 compactArray(bounds);
             }
         }
+        fate.assign(keep, 0);
     }
+
+    // The dead leave the store at once when they are many, or before anything outside the
+    // monthly step reads it (settleDead). Between, the passes skip them: a compaction moves
+    // every array of the plants behind the first dead one, so doing it every few months
+    // instead of every month saves most of that traffic. A layout the next month can reuse
+    // is kept until a quarter of the plants are dead.
+    void compactIfDue() {
+        const std::size_t n = pl.size();
+        if (deadPending == n || deadPending * (layoutReusable ? 4 : kCompactShare) >= n) compact();
+    }
+    void settleDead() { compact(); }
 
     void stepMonth() {
         const int m = static_cast<int>(month % 12);
-        const std::size_t n = pl.size();
         double t = omp_get_wtime();
         auto lap = [&t](double& phase) {
             const double now = omp_get_wtime();
             phase += now - t;
             t = now;
         };
+        fate.resize(pl.size(), 0);
+        compactIfDue();  // all dead, or many (a checkpoint or census may also have settled them)
+        const std::size_t n = pl.size(), alive = n - deadPending;
         if (n > 0) {
-            buildBands(true);
-            lap(phaseSeconds.footprints);
-            sortBands();
-            lap(phaseSeconds.ordering);
+            // The layout: reused from last month when no plant grew and none was added since
+            // (only the dead's entries are dropped, in sweepBand), built and sorted otherwise.
+            const bool reuse = layoutReusable;
+            if (!reuse) {
+                buildBands(true);
+                lap(phaseSeconds.footprints);
+                sortBands();
+                lap(phaseSeconds.ordering);
+                slotDead.assign(slotStart[n], 0);
+                layoutReusable = true;
+            }
             const std::size_t slots = slotStart[n];
             partSun.resize(slots);
             partWater.resize(slots);
@@ -1398,19 +1500,19 @@ struct Simulation::Impl : CellGrid {
             // The sweep's prepare pass visits every cell whatever the number of plants: it goes
             // parallel for many cells as well as for many plants (big crowns, few plants).
 #pragma omp parallel for schedule(dynamic, 1) if (slots > kParallelPlants || cellCount() > kParallelCells)
-            for (int b = 0; b < bands(); ++b) sweepBand(b, m);
+            for (int b = 0; b < bands(); ++b) sweepBand(b, m, reuse);
             lap(phaseSeconds.sweep);
-            updatePlants(m);
+            if (updatePlants(m) > 0) layoutReusable = false;  // heights and crowns changed
             lap(phaseSeconds.plants);
             if (params.competition == CompetitionMode::Deussen) {
                 compete();
                 lap(phaseSeconds.competition);
             }
-            compact();
+            compactIfDue();
             lap(phaseSeconds.compaction);
         }
         windowMask |= 1u << m;
-        counters.plantMonths += static_cast<std::int64_t>(n);
+        counters.plantMonths += static_cast<std::int64_t>(alive);
         if (m == params.seedingMonth) {
             germinate(static_cast<std::uint64_t>(month / 12));
             lap(phaseSeconds.germination);
@@ -1608,6 +1710,7 @@ struct Simulation::Impl : CellGrid {
             }
         const std::size_t first = pl.size(), k = accepted.size();
         pl.resize(first + k);
+        fate.resize(first + k, 0);
         if (fpRange.size() == first) {
             fpRange.resize(first + k, kNoFootprint);
             bounds.resize(first + k, kNoBounds);
@@ -1695,15 +1798,20 @@ void Simulation::stepYear() {
     for (int i = 0; i < 12; ++i) impl_->stepMonth();
 }
 std::int64_t Simulation::monthsDone() const { return impl_->month; }
-std::size_t Simulation::plantCount() const { return impl_->pl.size(); }
+// The observers below see the living plants only: those that take the store's order settle
+// the dead first (settleDead: the state the monthly step would reach anyway), which changes
+// nothing observable. Like the rest of the class, not for concurrent use.
+std::size_t Simulation::plantCount() const { return impl_->pl.size() - impl_->deadPending; }
 
 std::vector<UndergrowthPlant> Simulation::plants() const {
+    impl_->settleDead();
     std::vector<UndergrowthPlant> out(impl_->pl.size());
     for (std::size_t p = 0; p < out.size(); ++p) out[p] = impl_->plantAt(p);
     return out;
 }
 
 YearRecord Simulation::census() const {
+    impl_->settleDead();
     const Impl& s = *impl_;
     const std::size_t ns = s.spc.size();
     YearRecord r;
@@ -1784,6 +1892,7 @@ std::string hex64(std::uint64_t v) {
 }  // namespace
 
 void Simulation::saveState(h5::File& f, const std::string& group) const {
+    impl_->settleDead();
     const Impl& s = *impl_;
     const PlantStore& pl = s.pl;
     const hsize_t n = pl.size();
@@ -1888,6 +1997,9 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     s.deficit = std::move(deficit);
     s.pl = std::move(pl);
     s.fpRange.clear();  // footprints are recomputed (buildBands)
+    s.fate.assign(s.pl.size(), 0);
+    s.deadPending = 0;
+    s.layoutReusable = false;
     s.month = f.attrInt(group, "months_done");
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));

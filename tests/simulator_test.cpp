@@ -1047,6 +1047,46 @@ TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determ
     CHECK(samePlants(results[0], results[2]));
 }
 
+TEST_CASE("dead kept between compactions, layouts reused: observing the run every month changes nothing", "[sim][determinism]") {
+    // Run a steps years only: the dead stay in the store until many, and the months after
+    // a month without growth (June to August in the Sonoma biome) reuse the layout. Run b
+    // reads its plants every month, which settles the dead at once and so rebuilds every
+    // layout: the same plants and counters, whatever the thread count.
+    setParallelThresholds(0, 0);
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    const int before = omp_get_max_threads();
+    for (int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        Simulation a(in, SimParams{}, 17), b(in, SimParams{}, 17);
+        for (int y = 0; y < 15; ++y) a.stepYear();
+        std::size_t seenAlive = 0;
+        for (int m = 0; m < 15 * 12; ++m) {
+            b.stepMonth();
+            const std::size_t counted = b.plantCount();
+            const std::vector<UndergrowthPlant> now = b.plants();
+            REQUIRE(now.size() == counted);
+            std::int64_t censusTotal = 0;
+            for (std::int32_t c : b.census().count) censusTotal += c;
+            REQUIRE(censusTotal == static_cast<std::int64_t>(counted));
+            seenAlive += counted;
+        }
+        CHECK(seenAlive > 0);
+        const std::vector<UndergrowthPlant> pa = a.plants(), pb = b.plants();
+        REQUIRE(pa.size() > 100);
+        CHECK(samePlants(pa, pb));
+        const SimCounters &ca = a.counters(), &cb = b.counters();
+        CHECK(ca.plantMonths == cb.plantMonths);
+        CHECK(ca.plantCellMonths == cb.plantCellMonths);
+        CHECK(ca.germinated == cb.germinated);
+        CHECK(ca.diedBackgroundOrStress == cb.diedBackgroundOrStress);
+        CHECK(ca.diedAtCanopy == cb.diedAtCanopy);
+        CHECK(ca.diedBackgroundOrStress + ca.diedAtCanopy > 100);
+    }
+    omp_set_num_threads(before);
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
+}
+
 TEST_CASE("checkpoint: a resumed run is identical to an uninterrupted one", "[sim][checkpoint]") {
     test::TempDir dir("simresume");
     SimInputs in = smallDemoScene();
