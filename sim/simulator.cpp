@@ -2021,13 +2021,16 @@ std::size_t Simulation::bytesPerPlant() const {
     // State arrays plus the per-plant scratch: row and band bounds, the footprint's radius
     // range, slot starts, about 1.1 band slots of partials and band entries, the span pool
     // (live and dead spans; a repack briefly holds a second, live-only copy), order and
-    // radix scratch, fate.
+    // radix scratch, fate and the slots' dead marks. Per living plant: the dead still in the
+    // store (at most an eighth of it, compactIfDue) are counted in.
     const Impl& s = *impl_;
-    const double spansPerPlant =
-        s.pl.size() > 0 && s.fpRange.size() == s.pl.size() ? static_cast<double>(s.footprint.size()) / s.pl.size() : 1.0;
-    return impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + sizeof(RadiusRange) + sizeof(std::uint32_t) +
-           static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry))) +
-           static_cast<std::size_t>(spansPerPlant * sizeof(Span)) + 4 * sizeof(std::uint32_t) + 1;
+    const std::size_t n = s.pl.size(), alive = n - s.deadPending;
+    if (alive == 0) return 0;
+    const double spans = s.fpRange.size() == n ? static_cast<double>(s.footprint.size()) : static_cast<double>(alive);
+    const std::size_t perStored = impl_->pl.bytesPerPlant() + sizeof(Impl::PlantBounds) + sizeof(RadiusRange) + sizeof(std::uint32_t) +
+                                  static_cast<std::size_t>(1.1 * (2 * sizeof(double) + sizeof(std::int32_t) + sizeof(BandEntry) + 1)) +
+                                  4 * sizeof(std::uint32_t) + 1;
+    return static_cast<std::size_t>((static_cast<double>(perStored) * n + spans * sizeof(Span)) / alive + 0.5);
 }
 
 }  // namespace eco::sim
