@@ -136,7 +136,9 @@ struct PlantStore {
     std::vector<std::uint64_t> id;
     std::vector<std::int32_t> species;
     std::vector<double> x, y, groundZ, height, radius, growthAge, pool;
-    std::vector<std::int32_t> ageMonths, rootIx, rootIy;
+    // birthMonth: the months done at which the plant's age was 0 (its age is month - birthMonth,
+    // so the monthly update need not touch it; negative for initial plants older than the run).
+    std::vector<std::int32_t> birthMonth, rootIx, rootIy;
     std::vector<std::uint32_t> coarse;  // abiotics cell of the root
     std::vector<float> vigour, sun, water, canopyLimit;
 
@@ -144,7 +146,7 @@ struct PlantStore {
     template <typename F>
     void forEachArray(F&& f) {
         f(id); f(species); f(x); f(y); f(groundZ); f(height); f(radius); f(growthAge); f(pool);
-        f(ageMonths); f(rootIx); f(rootIy); f(coarse); f(vigour); f(sun); f(water); f(canopyLimit);
+        f(birthMonth); f(rootIx); f(rootIy); f(coarse); f(vigour); f(sun); f(water); f(canopyLimit);
     }
     void resize(std::size_t n) {
         forEachArray([n](auto& v) { v.resize(n); });
@@ -540,11 +542,12 @@ struct Simulation::Impl : CellGrid {
         fpRange.clear();  // footprints are recomputed (buildBands)
         fate.resize(pl.size(), 0);
         layoutReusable = false;
-        setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, pool, vig);
+        setPlant(pl.size() - 1, id, s, x, y, rootIx, rootIy, growthAgeYears, ageYears, month, pool, vig);
     }
-    // Writes plant p of the store (already sized); plants are independent of each other.
+    // Writes plant p of the store (already sized); plants are independent of each other. The
+    // plant is ageYears old when `monthsDone` months are done.
     void setPlant(std::size_t p, std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,
-                  double ageYears, double pool, double vig) {
+                  double ageYears, std::int64_t monthsDone, double pool, double vig) {
         const SpeciesConst& c = spc[static_cast<std::size_t>(s)];
         const double h = idealHeightM(growthAgeYears, c.maxAgeYears, c.maxHeightM);
         const Grid<float>& g = abio.slopeDeg;
@@ -558,7 +561,7 @@ struct Simulation::Impl : CellGrid {
         pl.radius[p] = crownRadius(s, h);
         pl.growthAge[p] = growthAgeYears;
         pl.pool[p] = pool;
-        pl.ageMonths[p] = static_cast<std::int32_t>(std::lround(ageYears * 12.0));
+        pl.birthMonth[p] = static_cast<std::int32_t>(monthsDone - std::lround(ageYears * 12.0));
         pl.rootIx[p] = rootIx;
         pl.rootIy[p] = rootIy;
         pl.coarse[p] = static_cast<std::uint32_t>(g.index(cx, cy));
@@ -1219,7 +1222,6 @@ struct Simulation::Impl : CellGrid {
         float *sunOf = pl.sun.data(), *waterOf = pl.water.data(), *vigourOf = pl.vigour.data();
         double *poolOf = pl.pool.data(), *growthAgeOf = pl.growthAge.data(), *heightOf = pl.height.data();
         double* radiusOf = pl.radius.data();
-        std::int32_t* ageOf = pl.ageMonths.data();
         const RadiusRange* rangeOf = fpRange.data();
         PlantBounds* boundsOf = bounds.data();
         std::uint8_t* fateOf = fate.data();
@@ -1289,7 +1291,6 @@ struct Simulation::Impl : CellGrid {
                         ++nGrown;
                     }
                 }
-                ++ageOf[p];
                 std::uint8_t f = 0;
                 if (heightOf[p] >= canopyLimitOf[p]) {
                     f = 2;
@@ -1720,7 +1721,8 @@ struct Simulation::Impl : CellGrid {
 #pragma omp parallel for schedule(dynamic, 4096) if (k > kParallelPlants)
         for (std::size_t i = 0; i < k; ++i) {
             const Candidate& cd = *accepted[i];
-            setPlant(first + i, nextId + i, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, 0.0, 0.0);
+            // Age 0 once this month is done (germination ends the month's step).
+            setPlant(first + i, nextId + i, cd.species, cd.x, cd.y, cd.ix, cd.iy, ga, 0.0, month + 1, 0.0, 0.0);
         }
         nextId += k;
         counters.germinated += static_cast<std::int64_t>(k);
@@ -1743,7 +1745,7 @@ struct Simulation::Impl : CellGrid {
         u.groundZM = pl.groundZ[p];
         u.heightM = pl.height[p];
         u.crownRadiusM = pl.radius[p];
-        u.ageYears = pl.ageMonths[p] / 12.0;
+        u.ageYears = static_cast<double>(month - pl.birthMonth[p]) / 12.0;
         u.growthAgeYears = pl.growthAge[p];
         u.vigour = pl.vigour[p];
         u.pool = pl.pool[p];
@@ -1921,7 +1923,9 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     f.writeF64(group + "/y", pl.y, {n});
     f.writeF64(group + "/growth_age", pl.growthAge, {n});
     f.writeF64(group + "/pool", pl.pool, {n});
-    f.writeI32(group + "/age_months", pl.ageMonths, {n});
+    std::vector<std::int32_t> ageMonths(n);
+    for (std::size_t p = 0; p < n; ++p) ageMonths[p] = static_cast<std::int32_t>(s.month - pl.birthMonth[p]);
+    f.writeI32(group + "/age_months", ageMonths, {n});
     f.writeI32(group + "/root_ix", pl.rootIx, {n});
     f.writeI32(group + "/root_iy", pl.rootIy, {n});
     f.writeF32(group + "/vigour", pl.vigour, {n});
@@ -1959,7 +1963,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     pl.y = f.readF64(group + "/y");
     pl.growthAge = f.readF64(group + "/growth_age");
     pl.pool = f.readF64(group + "/pool");
-    pl.ageMonths = f.readI32(group + "/age_months");
+    pl.birthMonth = f.readI32(group + "/age_months");  // ages here; birth months once the month is read, below
     pl.rootIx = f.readI32(group + "/root_ix");
     pl.rootIy = f.readI32(group + "/root_iy");
     pl.vigour = f.readF32(group + "/vigour");
@@ -1969,7 +1973,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     pl.radius = f.readF64(group + "/radius");
     const std::size_t n = pl.species.size();
     for (std::size_t len : {idLo.size(), idHi.size(), pl.x.size(), pl.y.size(), pl.growthAge.size(), pl.pool.size(),
-                            pl.ageMonths.size(), pl.rootIx.size(), pl.rootIy.size(), pl.vigour.size(), pl.sun.size(),
+                            pl.birthMonth.size(), pl.rootIx.size(), pl.rootIy.size(), pl.vigour.size(), pl.sun.size(),
                             pl.water.size(), pl.height.size(), pl.radius.size()})
         if (len != n) throw IoError(where + ": plant arrays differ in length");
     // Rebuild the derived arrays exactly as addPlant does.
@@ -2001,6 +2005,7 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     s.deadPending = 0;
     s.layoutReusable = false;
     s.month = f.attrInt(group, "months_done");
+    for (std::int32_t& b : s.pl.birthMonth) b = static_cast<std::int32_t>(s.month - b);
     s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
     s.counters.plantMonths = f.attrInt(group, "plant_months");
