@@ -1,7 +1,9 @@
 #include "atomic_file.h"
 
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <filesystem>
 #include <system_error>
@@ -22,11 +24,38 @@ AtomicOutput::~AtomicOutput() {
     if (!committed_) std::remove(temp_.c_str());
 }
 
+namespace {
+
+// The temporaries of `finalPath` that processes killed before their commit left behind (a
+// kill -9 skips the destructor; a killed simulation's checkpoint can be gigabytes): removed.
+// Only names of the form AtomicOutput gives, and only when no process of that id runs on
+// this machine; anything unexpected is left alone (this never fails the output).
+void removeStaleTemporaries(const std::filesystem::path& finalPath) {
+    const std::filesystem::path dir = finalPath.has_parent_path() ? finalPath.parent_path() : std::filesystem::path(".");
+    const std::string prefix = "." + finalPath.filename().string() + ".tmp";
+    std::error_code ec;
+    std::filesystem::directory_iterator it(dir, ec);
+    for (const std::filesystem::directory_iterator end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string digits = name.substr(prefix.size());
+        if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+        const pid_t pid = static_cast<pid_t>(std::stol(digits));
+        if (pid <= 0 || pid == ::getpid()) continue;
+        if (::kill(pid, 0) == 0 || errno != ESRCH) continue;  // running (or not ours to ask about)
+        std::error_code removeError;
+        std::filesystem::remove(it->path(), removeError);
+    }
+}
+
+}  // namespace
+
 void AtomicOutput::commit() {
     std::error_code ec;
     std::filesystem::rename(temp_, final_, ec);
     if (ec) throw IoError(final_ + ": cannot move finished output into place: " + ec.message());
     committed_ = true;
+    removeStaleTemporaries(final_);
 }
 
 void writeTextFile(const std::string& path, const std::string& text) {

@@ -16,7 +16,9 @@ public:
 
     const std::string& tempPath() const { return temp_; }
     const std::string& finalPath() const { return final_; }
-    /// Atomically replace finalPath with the temporary file. Throws IoError on failure.
+    /// Atomically replace finalPath with the temporary file. Throws IoError on failure. Then
+    /// removes the temporaries of finalPath left by processes that no longer run (killed
+    /// before their own commit or cleanup).
     void commit();
 
 private:

@@ -2,6 +2,8 @@
 // across thread counts, checkpoint / resume, and bad inputs.
 #include <catch2/catch.hpp>
 #include <omp.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -1085,6 +1087,33 @@ TEST_CASE("dead kept between compactions, layouts reused: observing the run ever
     }
     omp_set_num_threads(before);
     setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
+}
+
+TEST_CASE("atomic output: a commit removes the temporaries of killed writers, not of running ones", "[sim][checkpoint]") {
+    // A kill -9 during a checkpoint leaves ".<name>.tmp<pid>" beside it; the next commit of
+    // that output removes it when process <pid> no longer runs.
+    eco::test::TempDir dir("atomic_output");
+    const std::string target = dir.file("run.h5.checkpoint.h5");
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) ::_exit(0);
+    int status = 0;
+    REQUIRE(::waitpid(child, &status, 0) == child);  // reaped: no process of that id runs now
+    auto touch = [](const std::string& path) { std::ofstream(path) << "partial"; };
+    const std::string stale = dir.file(".run.h5.checkpoint.h5.tmp" + std::to_string(child));
+    const std::string running = dir.file(".run.h5.checkpoint.h5.tmp" + std::to_string(::getppid()));
+    const std::string other = dir.file(".other.h5.tmp" + std::to_string(child));
+    const std::string odd = dir.file(".run.h5.checkpoint.h5.tmpXYZ");
+    for (const std::string& f : {stale, running, other, odd}) touch(f);
+    eco::writeTextFile(target, "complete");
+    std::ifstream in(target);
+    std::string text;
+    in >> text;
+    CHECK(text == "complete");
+    CHECK_FALSE(std::filesystem::exists(stale));
+    CHECK(std::filesystem::exists(running));  // its writer may still commit
+    CHECK(std::filesystem::exists(other));    // another output's
+    CHECK(std::filesystem::exists(odd));      // not a name AtomicOutput gives
 }
 
 TEST_CASE("checkpoint: a resumed run is identical to an uninterrupted one", "[sim][checkpoint]") {
