@@ -270,6 +270,10 @@ struct Simulation::Impl : CellGrid {
     // that died meanwhile (their slots marked in slotDead) are dropped (filterBand).
     bool layoutReusable = false;
     std::vector<std::uint8_t> slotDead;
+    // Marks the slots of plant p, which has just died (slotOf: slotStart, dead: slotDead).
+    static void markSlotsDead(const std::uint32_t* slotOf, std::uint8_t* dead, std::size_t p) {
+        std::fill(dead + slotOf[p], dead + slotOf[p + 1], std::uint8_t{1});
+    }
     std::vector<std::uint32_t> bandEnd;  // each band's list ends here (bandStart[b + 1] until entries are dropped)
     // Deussen competition scratch: abilities and the plant lists of the pair-finding bins.
     std::vector<double> ability;
@@ -1315,7 +1319,7 @@ struct Simulation::Impl : CellGrid {
                 if (f) {
                     fateOf[p] = f;
                     ++died[f];
-                    for (std::uint32_t sl = slotOf[p]; sl < slotOf[p + 1]; ++sl) slotDeadOf[sl] = 1;
+                    markSlotsDead(slotOf, slotDeadOf, p);
                 }
             }
             // The grown plants' crown radii, crownRadius in blocks: log, a + b ln h, exp.
@@ -1415,7 +1419,7 @@ struct Simulation::Impl : CellGrid {
                 fate[p] = 3;
                 ++counters.diedDominated;
                 ++deadPending;
-                for (std::uint32_t sl = slotStart[p]; sl < slotStart[p + 1]; ++sl) slotDead[sl] = 1;
+                markSlotsDead(slotStart.data(), slotDead.data(), p);
             }
     }
 
