@@ -305,6 +305,71 @@ void pairStatistics(const AnalysisInput& in, const PreparedInput& prep, int nReg
     }
 }
 
+/// Cell pairs of each region by (context of the first cell, context of the second,
+/// distance bin of their centres), both cells in the region and the same input. Source
+/// cells: every k-th cell of the region (k = ceil(cells / contextPairSampleCells)), in input
+/// then cell order; every cell within rmax is a target. Integer counts: identical for any
+/// thread count.
+void contextCellPairs(const std::vector<PreparedInput>& prep, const std::vector<Grid<std::uint8_t>>& contextOf,
+                      const AnalysisParams& params, std::vector<DbRegion>& regions) {
+    const std::size_t nR = regions.size();
+    const std::size_t nCtx = static_cast<std::size_t>(params.contextBins.count());
+    const std::size_t nb = static_cast<std::size_t>(params.pcfBins.count);
+    const std::size_t perRegion = nCtx * nCtx * nb;
+    for (DbRegion& r : regions) r.contextCellPairs.assign(perRegion, 0.0);
+    if (nR == 0) return;
+    std::vector<std::int64_t> stride(nR), seen(nR, 0);
+    for (std::size_t k = 0; k < nR; ++k)
+        stride[k] = std::max<std::int64_t>(1, (regions[k].cellCount + params.contextPairSampleCells - 1) /
+                                                  params.contextPairSampleCells);
+    for (std::size_t i = 0; i < prep.size(); ++i) {
+        const Grid<std::int32_t>& reg = prep[i].region;
+        const Grid<std::uint8_t>& ctx = contextOf[i];
+        const double cs = reg.cellSizeM();
+        const int lag = static_cast<int>(std::ceil(params.pcfBins.rMaxM / cs));
+        struct Lag {
+            int dx, dy, bin;
+        };
+        std::vector<Lag> lags;
+        for (int dy = -lag; dy <= lag; ++dy)
+            for (int dx = -lag; dx <= lag; ++dx) {
+                const int b = params.pcfBins.binOf(cs * std::sqrt(double(dx) * dx + double(dy) * dy));
+                if (b >= 0) lags.push_back({dx, dy, b});
+            }
+        std::vector<std::uint32_t> sources;
+        for (std::size_t c = 0; c < reg.data().size(); ++c) {
+            const std::int32_t k = reg.data()[c];
+            if (k >= 0 && seen[static_cast<std::size_t>(k)]++ % stride[static_cast<std::size_t>(k)] == 0)
+                sources.push_back(static_cast<std::uint32_t>(c));
+        }
+        const int w = reg.width(), h = reg.height();
+        const std::ptrdiff_t nSrc = static_cast<std::ptrdiff_t>(sources.size());
+        std::vector<std::int64_t> total(nR * perRegion, 0);
+#pragma omp parallel
+        {
+            std::vector<std::int64_t> local(nR * perRegion, 0);
+#pragma omp for schedule(static)
+            for (std::ptrdiff_t j = 0; j < nSrc; ++j) {
+                const std::uint32_t c = sources[static_cast<std::size_t>(j)];
+                const int ix = static_cast<int>(c % static_cast<std::uint32_t>(w)), iy = static_cast<int>(c / static_cast<std::uint32_t>(w));
+                const std::int32_t k = reg.data()[c];
+                std::int64_t* row = local.data() + static_cast<std::size_t>(k) * perRegion +
+                                    static_cast<std::size_t>(ctx.data()[c]) * nCtx * nb;
+                for (const Lag& l : lags) {
+                    const int x = ix + l.dx, y = iy + l.dy;
+                    if (x < 0 || y < 0 || x >= w || y >= h || reg(x, y) != k) continue;
+                    ++row[static_cast<std::size_t>(ctx(x, y)) * nb + static_cast<std::size_t>(l.bin)];
+                }
+            }
+#pragma omp critical(eco_context_pairs)
+            for (std::size_t q = 0; q < local.size(); ++q) total[q] += local[q];
+        }
+        for (std::size_t k = 0; k < nR; ++k)
+            for (std::size_t q = 0; q < perRegion; ++q)
+                regions[k].contextCellPairs[q] += static_cast<double>(total[k * perRegion + q]);
+    }
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -328,6 +393,9 @@ void AnalysisParams::validate() const {
     separationBins.validate("analysis parameter separation bins");
     if (heightBins < 1 || heightBins > 10000) fail("height_bins", std::to_string(heightBins), "must be in 1..10000");
     if (radiusBins < 1 || radiusBins > 10000) fail("radius_bins", std::to_string(radiusBins), "must be in 1..10000");
+    contextBins.validate("analysis parameter context_edges_m");
+    if (contextPairSampleCells < 1)
+        fail("context_pair_sample_cells", std::to_string(contextPairSampleCells), "must be >= 1");
 }
 
 std::vector<std::pair<std::string, std::string>> AnalysisParams::asParameters() const {
@@ -353,6 +421,13 @@ std::vector<std::pair<std::string, std::string>> AnalysisParams::asParameters() 
         {"separation_edge_rule", "sources nearer the input window's edge than separation_max + r_source + max r_target are left out"},
         {"height_bins", std::to_string(heightBins)},
         {"radius_bins", std::to_string(radiusBins)},
+        {"context_edges_m", [this] {
+             std::string t;
+             for (double e : contextBins.edgesM) t += (t.empty() ? "" : ",") + num(e);
+             return t;
+         }()},
+        {"context_depth", "signed distance (m) from a cell centre to the canopy cover edge, + under cover (core/canopy_context.h)"},
+        {"context_pair_sample_cells", std::to_string(contextPairSampleCells)},
     };
 }
 
@@ -378,6 +453,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     db.seedingRadiusFactor = params.seedingRadiusFactor;
     db.pcfBins = params.pcfBins;
     db.separationBins = params.separationBins;
+    db.contextBins = params.contextBins;
     db.parameters = params.asParameters();
 
     // 1. Combination labels of every analysed cell.
@@ -501,6 +577,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
 
     // 3. Counts, proportions and size histograms.
     const int nRegions = static_cast<int>(db.regions.size());
+    const std::size_t nCtx = static_cast<std::size_t>(params.contextBins.count());
     // Histogram ranges per species: 0 .. the largest value of that species in any input
     // (undergrowth plants are small: the species' maximum would waste the bins), the same
     // edges in every region; a species absent everywhere gets its maximum height.
@@ -525,11 +602,24 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             r.height.push_back(emptyHistogram(topHeight[static_cast<std::size_t>(s)], params.heightBins));
             r.crownRadius.push_back(emptyHistogram(topRadius[static_cast<std::size_t>(s)], params.radiusBins));
         }
+        r.heightCovered = r.height;
+        r.contextAreaM2.assign(nCtx, 0.0);
+        r.contextSpeciesCount.assign(static_cast<std::size_t>(ns) * nCtx, 0.0);
     }
+    std::vector<Grid<std::uint8_t>> contextOf(inputs.size());
+    for (std::size_t i = 0; i < inputs.size(); ++i) {
+        contextOf[i] = canopyContextMap(canopyDepthMap(inputs[i].sunHours, inputs[i].canopy), params.contextBins);
+        const double cellArea = inputs[i].sunHours.cellSizeM() * inputs[i].sunHours.cellSizeM();
+        const auto& reg = prep[i].region.data();
+        for (std::size_t c = 0; c < reg.size(); ++c)
+            if (reg[c] >= 0) db.regions[static_cast<std::size_t>(reg[c])].contextAreaM2[contextOf[i].data()[c]] += cellArea;
+    }
+    contextCellPairs(prep, contextOf, params, db.regions);
     std::vector<char> categoryPresent(static_cast<std::size_t>(2 * ns), 0);
     for (std::size_t i = 0; i < inputs.size(); ++i) {
         const AnalysisInput& in = inputs[i];
         const PreparedInput& p = prep[i];
+        const CanopyCover cover(in.canopy);
         DbInput prov = in.provenance;
         prov.window = p.window;
         prov.undergrowthPlants = prov.canopyTrees = prov.unlabelledPlants = 0;
@@ -558,6 +648,8 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
                 r.speciesCount[s] += 1;
                 addToHistogram(r.height[s], pl.heightM);
                 addToHistogram(r.crownRadius[s], pl.crownRadiusM);
+                r.contextSpeciesCount[s * nCtx + contextOf[i](ix, iy)] += 1;
+                if (cover.covered(pl.xM, pl.yM)) addToHistogram(r.heightCovered[s], pl.heightM);
             }
         db.inputs.push_back(std::move(prov));
     }

@@ -17,6 +17,7 @@
 
 #include "biome.h"
 #include "biome_db.h"
+#include "canopy_context.h"
 #include "grid.h"
 #include "plants.h"
 #include "point_pattern.h"
@@ -52,6 +53,10 @@ struct AnalysisParams {
     SeparationBins separationBins{-12.0, 4.0, 64};  ///< disk separation: -12..4 m in 0.25 m bins
     int heightBins = 20;                ///< per species, 0 .. its tallest undergrowth plant in any input
     int radiusBins = 20;                ///< per species, 0 .. its widest undergrowth crown in any input
+    // Canopy context (core/canopy_context.h)
+    CanopyContextBins contextBins;      ///< bins of the signed depth under the canopy cover
+    /// Context cell pairs: at most this many source cells per region (every k-th cell).
+    int contextPairSampleCells = 20000;
 
     /// ValidationError naming the parameter and value when one is out of range.
     void validate() const;

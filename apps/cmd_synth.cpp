@@ -71,6 +71,7 @@ void prepareOutput(const std::string& path) {
 
 struct SynthArgs {
     std::string terrain, canopy, database, out, abiotics, pngDir, csv, pdb, zoom, refineWindow;
+    std::string method = "structured";
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     bool refine = false;
     SynthParams params;
@@ -83,6 +84,7 @@ void runSynth(const SynthArgs& a) {
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
     SynthParams params = a.params;
+    params.method = parseSynthMethod(a.method);
     params.validate();
     RefineParams refineParams = a.refineParams;
     refineParams.seed = params.seed;
@@ -150,6 +152,21 @@ void runSynth(const SynthArgs& a) {
     info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +
          std::to_string(sample.passes) + " passes (" + std::to_string(sample.darts) + " darts, " +
          std::to_string(sample.dartsOnTrunks) + " on trunks)");
+    for (const std::string& w : sample.warnings) info("warning: database " + a.database + ": " + w);
+    if (params.method == SynthMethod::Structured) {
+        for (const RegionStructure& st : sample.structure) {
+            const RegionSampling& rs = sample.regions[static_cast<std::size_t>(st.region)];
+            if (rs.cells == 0) continue;
+            std::string text = "structure: region " + std::to_string(st.region) + ": ";
+            if (st.scales == 0) text += "no clustering beyond the canopy context";
+            for (int k = 0; k < st.scales; ++k)
+                text += (k ? "; " : "") + std::string("clusters of sigma ") + num(st.sigmaM[k], 3) + " m, " +
+                        num(st.parentsPerM2[k] * 100.0, 3) + " per 100 m2, pooled excess " + num(st.pooledAmplitude[k], 3);
+            text += "; pooled g fit RMS " + num(st.pooledFitRms, 3) + " (canopy context alone " + num(st.pooledContextRms, 3) + ")";
+            info(text);
+        }
+        info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+    }
     std::vector<Plant> undergrowth = std::move(sample.plants);
     sample.plants.clear();
 
@@ -315,6 +332,11 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
     cmd->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
+    cmd->add_option("--method", a->method,
+                    "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "
+                    "database's pair correlation; heights below the crown above, radius by allometry) or 'darts' "
+                    "(the earlier uniform darts with sizes from the histograms)")
+        ->capture_default_str();
     cmd->add_option("--max-passes", a->params.maxPasses, "Largest number of dart-throwing passes")->capture_default_str();
     cmd->add_option("--seed-inner-radius-factor", a->params.seedInnerRadiusFactor,
                     "Seeding kernel: full weight within this x crown radius")

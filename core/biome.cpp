@@ -22,6 +22,12 @@ double Allometry::crownRadiusM(double heightM) const {
     return linear ? linearFactor * heightM : std::exp(a + b * std::log(heightM));
 }
 
+double Allometry::heightForCrownRadiusM(double crownRadiusM) const {
+    if (crownRadiusM <= 0.0) return 0.0;
+    if (linear) return linearFactor > 0 ? crownRadiusM / linearFactor : 0.0;
+    return b != 0.0 ? std::exp((std::log(crownRadiusM) - a) / b) : 0.0;
+}
+
 double VigourShape::g(double d, double r) const {
     return (1.0 + a) * std::exp(std::pow(std::abs(d) / r, p) * std::log(q)) - a;
 }

@@ -23,6 +23,9 @@ struct Allometry {
     double linearFactor = 0.0;
     /// Crown radius in metres for a plant of height heightM metres.
     double crownRadiusM(double heightM) const;
+    /// The inverse: height in metres of a plant of crown radius crownRadiusM (0 for r <= 0;
+    /// the allometry is increasing when b > 0 / linearFactor > 0, as every biome's is).
+    double heightForCrownRadiusM(double crownRadiusM) const;
 };
 
 struct Species {

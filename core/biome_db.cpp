@@ -200,6 +200,17 @@ std::string utcTimestamp() {
     return buf;
 }
 
+bool BiomeDatabase::hasContext() const {
+    if (schemaVersion < 3 || contextBins.edgesM.empty()) return false;
+    const std::size_t nc = static_cast<std::size_t>(contextBins.count()), ns = speciesNames.size();
+    const std::size_t nb = static_cast<std::size_t>(pcfBins.count);
+    for (const DbRegion& r : regions)
+        if (r.contextAreaM2.size() != nc || r.contextSpeciesCount.size() != ns * nc || r.heightCovered.size() != ns ||
+            r.contextCellPairs.size() != nc * nc * nb)
+            return false;
+    return true;
+}
+
 // ---------------------------------------------------------------------------------------
 // Writing
 
@@ -211,11 +222,21 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         throw ValidationError(path + ": canopy sub-biome masks (" + std::to_string(db.canopySubBiomeMask.size()) +
                               ") do not match the species (" + std::to_string(ns) + ")");
 
+    // A database without canopy-context statistics (every region's empty, e.g. one built
+    // in code from other statistics) is written as schema 2, which has none.
+    bool anyContext = false;
+    for (const auto& r : db.regions)
+        anyContext = anyContext || !r.contextAreaM2.empty() || !r.contextSpeciesCount.empty() ||
+                     !r.heightCovered.empty() || !r.contextCellPairs.empty();
+    const bool withContext = db.hasContext();
+    if (anyContext && !withContext)
+        throw ValidationError(path + ": canopy context statistics are missing in some regions or have the wrong size");
+
     AtomicOutput out(path);
     {
         h5::File f = h5::File::create(out.tempPath());
         f.setAttr("/", "format", std::string(kBiomeDbFormat));
-        f.setAttr("/", "schema_version", static_cast<std::int64_t>(kBiomeDbSchemaVersion));
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(withContext ? kBiomeDbSchemaVersion : 2));
         f.setAttr("/", "code_version", db.codeVersion);
         f.setAttr("/", "created_utc", db.createdUtc);
         f.setAttr("/", "biome_name", db.biomeName);
@@ -261,6 +282,11 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         for (std::size_t k = 0; k < nb; ++k) annulus[k] = db.pcfBins.annulusAreaM2(static_cast<int>(k));
         f.writeF64("/bins/pcf_annulus_area_m2", annulus, {hs(nb)});
         f.writeF64("/bins/separation_edges_m", db.separationBins.edgesM(), {hs(nsep + 1)});
+        const std::size_t nctx = static_cast<std::size_t>(db.contextBins.count());
+        if (withContext) {
+            db.contextBins.validate(path + ": canopy context bins");
+            f.writeF64("/bins/context_edges_m", db.contextBins.edgesM, {hs(nctx - 1)});
+        }
 
         f.ensureGroup("/inputs");
         f.setAttr("/inputs", "count", static_cast<std::int64_t>(db.inputs.size()));
@@ -372,6 +398,24 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
                 for (const auto& h : hists) over.push_back(h.overflow);
                 f.writeF64(stem + "_overflow", over, {hs(ns)});
             }
+            if (withContext) {
+            f.writeF64(g + "/context_area_m2", r.contextAreaM2, {hs(nctx)});
+            f.writeF64(g + "/context_species_count", r.contextSpeciesCount, {hs(ns), hs(nctx)});
+            {
+                const std::size_t bins = ns ? r.height[0].counts.size() : 0;
+                for (std::size_t s = 0; s < ns; ++s)
+                    if (r.heightCovered[s].counts.size() != bins)
+                        throw ValidationError(path + ": region " + std::to_string(ri) +
+                                              ": heights under crowns must have the bins of the heights");
+                f.writeF64(g + "/height_covered_counts",
+                           flatten(r.heightCovered, bins, [](const DbHistogram& h) -> const std::vector<double>& { return h.counts; }),
+                           {hs(ns), hs(bins)});
+                std::vector<double> over;
+                for (const auto& h : r.heightCovered) over.push_back(h.overflow);
+                f.writeF64(g + "/height_covered_overflow", over, {hs(ns)});
+            }
+            f.writeF64(g + "/context_cell_pairs", r.contextCellPairs, {hs(nctx), hs(nctx), hs(nb)});
+            }
             const std::size_t np = r.pairs.size();
             std::vector<std::int32_t> src, tgt;
             std::vector<double> norm, under, sources;
@@ -421,9 +465,10 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         throw IoError(path + ": not a biome database (format '" + format + "', expected '" + kBiomeDbFormat + "')");
     if (!f.hasAttr("/", "schema_version")) throw IoError(path + ": root attribute 'schema_version' is missing");
     const std::int64_t version = f.attrInt("/", "schema_version");
-    if (version != kBiomeDbSchemaVersion)
-        throw IoError(path + ": biome database schema_version " + std::to_string(version) + " found, version " +
-                      std::to_string(kBiomeDbSchemaVersion) + " expected (re-run eco analyse with this version)");
+    if (version < kBiomeDbOldestReadableVersion || version > kBiomeDbSchemaVersion)
+        throw IoError(path + ": biome database schema_version " + std::to_string(version) + " found, versions " +
+                      std::to_string(kBiomeDbOldestReadableVersion) + ".." + std::to_string(kBiomeDbSchemaVersion) +
+                      " can be read (re-run eco analyse with this version)");
 
     const Reader rd(f);
     BiomeDatabase db;
@@ -463,6 +508,19 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const std::size_t nsep = static_cast<std::size_t>(db.separationBins.count);
     rd.f64("/bins/pcf_edges_m", {nb + 1});
     rd.f64("/bins/separation_edges_m", {nsep + 1});
+    std::size_t nctx = 0;
+    if (version >= 3) {
+        const std::size_t ne = rd.length("/bins/context_edges_m");
+        db.contextBins.edgesM = rd.f64("/bins/context_edges_m", {ne});
+        try {
+            db.contextBins.validate(path + ": /bins/context_edges_m");
+        } catch (const ValidationError& e) {
+            throw IoError(e.what());
+        }
+        nctx = static_cast<std::size_t>(db.contextBins.count());
+    } else {
+        db.contextBins.edgesM.clear();
+    }
 
     const std::size_t nIn = static_cast<std::size_t>(f.attrInt("/inputs", "count"));
     for (std::size_t i = 0; i < nIn; ++i) {
@@ -558,6 +616,19 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
             auto& hists = which == 0 ? r.height : r.crownRadius;
             for (std::size_t s = 0; s < ns; ++s)
                 hists.push_back(DbHistogram{rowOf(edges, s, bins + 1), rowOf(counts, s, bins), over[s]});
+        }
+        if (version >= 3) {
+            r.contextAreaM2 = rd.f64(g + "/context_area_m2", {nctx});
+            r.contextSpeciesCount = rd.f64(g + "/context_species_count", {ns, nctx});
+            const std::size_t bins = ns ? r.height[0].counts.size() : 0;
+            const auto cc = rd.f64(g + "/height_covered_counts", {ns, bins});
+            const auto co = rd.f64(g + "/height_covered_overflow", {ns});
+            for (std::size_t s = 0; s < ns; ++s) r.heightCovered.push_back(DbHistogram{r.height[s].edges, rowOf(cc, s, bins), co[s]});
+            r.contextCellPairs = rd.f64(g + "/context_cell_pairs", {nctx, nctx, nb});
+            for (const auto* v : {&r.contextAreaM2, &r.contextSpeciesCount, &r.contextCellPairs})
+                for (double x : *v)
+                    if (!(x >= 0) || !std::isfinite(x))
+                        throw IoError(path + ": " + g + ": canopy context statistics must be finite and non-negative");
         }
         const std::string pg = g + "/pairs";
         const std::size_t np = rd.length(pg + "/source");

@@ -19,12 +19,17 @@
 #include <utility>
 #include <vector>
 
+#include "canopy_context.h"
 #include "point_pattern.h"
 
 namespace eco {
 
+/// 3: canopy context per region (density of each species by depth under the canopy cover,
+///    heights under crowns, cell pairs by context for the context part of g(r));
 /// 2: region features use the canopy-shaded annual sun (1: the terrain's own sun).
-constexpr int kBiomeDbSchemaVersion = 2;
+/// Version 2 files are still read (without the context statistics: hasContext() false).
+constexpr int kBiomeDbSchemaVersion = 3;
+constexpr int kBiomeDbOldestReadableVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";
 
 constexpr int kFeatureCount = 4;
@@ -112,6 +117,13 @@ struct DbRegion {
     std::vector<DbHistogram> height;         ///< [nSpecies] undergrowth height, m
     std::vector<DbHistogram> crownRadius;    ///< [nSpecies] undergrowth crown radius, m
     std::vector<DbPairStats> pairs;          ///< sorted by (source, target)
+    // Canopy context (schema 3; empty in version 2 files). C = contextBins.count().
+    std::vector<double> contextAreaM2;         ///< [C] area of the region's cells in each context bin
+    std::vector<double> contextSpeciesCount;   ///< [nSpecies][C] undergrowth plants by species and context of their cell
+    std::vector<DbHistogram> heightCovered;    ///< [nSpecies] heights of the plants under a crown (edges of `height`)
+    /// [C][C][pcf bins] cell pairs (both in the region, same input) by the contexts of the two
+    /// cells and the distance of their centres: the context part of g(r) (docs/database.md).
+    std::vector<double> contextCellPairs;
 
     /// Pair statistics of source -> target, or nullptr when that pair did not occur.
     const DbPairStats* pair(int source, int target) const;
@@ -131,6 +143,11 @@ struct BiomeDatabase {
     double seedingRadiusFactor = 12;          ///< a tree seeds cells within factor * crown radius
     DistanceBins pcfBins;
     SeparationBins separationBins;
+    /// Bins of the signed depth under the canopy cover (core/canopy_context.h); schema 3.
+    CanopyContextBins contextBins;
+    /// True when every region carries the canopy-context statistics (schema 3 files; a
+    /// database built in code without them, or read from a version 2 file, has none).
+    bool hasContext() const;
     /// Every analysis parameter, as (name, value text); docs/database.md lists them.
     std::vector<std::pair<std::string, std::string>> parameters;
     std::vector<DbInput> inputs;

@@ -11,12 +11,15 @@
 #include <sstream>
 
 #include "error.h"
+#include "sampling_detail.h"
 #include "rng.h"
 #include "text_format.h"
 
 namespace eco {
 
 namespace {
+
+using namespace synth_detail;
 
 // Stream families of the counter-based generator (rng.h); each is mixed with the pass or
 // sweep and the cell or plant, so no two draws share a counter.
@@ -29,38 +32,6 @@ using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 std::string num(double v) { return formatNumber(v, 10); }
-
-/// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
-/// combination m can hold species s when mask[s] & m != 0 (the simulator's rule).
-std::vector<int> speciesSubBiomeMasks(const Biome& biome) {
-    std::vector<int> m(biome.species.size(), 0);
-    for (std::size_t s = 0; s < biome.species.size(); ++s)
-        for (int b : biome.species[s].subBiomes)
-            if (b >= 1 && b <= 30) m[s] |= 1 << (b - 1);
-    return m;
-}
-
-/// Distinct values of an int grid, ascending. Rows in parallel, merged in row order.
-std::vector<std::int32_t> distinctValues(const Grid<std::int32_t>& g) {
-    const int h = g.height(), w = g.width();
-    std::vector<std::vector<std::int32_t>> rows(static_cast<std::size_t>(h));
-#pragma omp parallel for schedule(static)
-    for (int iy = 0; iy < h; ++iy) {
-        auto& v = rows[static_cast<std::size_t>(iy)];
-        std::int32_t last = std::numeric_limits<std::int32_t>::min();
-        for (int ix = 0; ix < w; ++ix) {
-            const std::int32_t x = g(ix, iy);
-            if (x == last) continue;
-            last = x;
-            if (std::find(v.begin(), v.end(), x) == v.end()) v.push_back(x);
-        }
-    }
-    std::vector<std::int32_t> all;
-    for (auto& r : rows) all.insert(all.end(), r.begin(), r.end());
-    std::sort(all.begin(), all.end());
-    all.erase(std::unique(all.begin(), all.end()), all.end());
-    return all;
-}
 
 /// Species roulette of every (region, combination) pair that occurs: cumulative weights of
 /// the region's proportions restricted to the species the combination admits.
@@ -111,36 +82,6 @@ private:
     std::vector<std::int32_t> masks_;
     int nSpecies_, nMasks_;
     std::vector<double> cumulative_;
-};
-
-/// Trunks as a point grid, for the exclusion discs.
-struct TrunkIndex {
-    PointGrid grid;
-    std::vector<double> radius2;  ///< per sorted point: exclusion radius^2
-    double maxRadius = 0;
-
-    TrunkIndex(const std::vector<Plant>& canopy, double factor) {
-        if (!(factor > 0) || canopy.empty()) return;
-        std::vector<double> x, y, r2;
-        for (const auto& t : canopy) {
-            x.push_back(t.xM);
-            y.push_back(t.yM);
-            const double r = factor * t.crownRadiusM;
-            r2.push_back(r * r);
-            maxRadius = std::max(maxRadius, r);
-        }
-        if (!(maxRadius > 0)) return;
-        grid = PointGrid(x, y, std::max(1.0, 2.0 * maxRadius));
-        radius2 = grid.permuted(r2);
-    }
-    bool onTrunk(double x, double y) const {
-        if (!(maxRadius > 0)) return false;
-        bool hit = false;
-        grid.forEachWithin(x, y, maxRadius, [&](std::size_t s, double, double, double d2) {
-            if (d2 < radius2[s]) hit = true;
-        });
-        return hit;
-    }
 };
 
 /// Nearest region of a cell: BiomeDatabase::nearestRegion with the stand-in combination
@@ -226,14 +167,31 @@ void SynthParams::validate() const {
         throw ValidationError("synthesis: max_passes must be in 1..10000, got " + std::to_string(maxPasses));
     if (!(candidateOversample >= 1) || !std::isfinite(candidateOversample) || candidateOversample > 100)
         throw ValidationError("synthesis: candidate_oversample must be in [1, 100], got " + num(candidateOversample));
+    if (!(clusterSigmaMinM > 0) || !(clusterSigmaMaxM >= clusterSigmaMinM) || !std::isfinite(clusterSigmaMaxM) ||
+        clusterSigmaMaxM > 1000)
+        throw ValidationError("synthesis: cluster_sigma_min_m / cluster_sigma_max_m must satisfy 0 < min <= max <= 1000, got " +
+                              num(clusterSigmaMinM) + " / " + num(clusterSigmaMaxM));
+    if (clusterMinPlants < 0) throw ValidationError("synthesis: cluster_min_plants must be >= 0, got " + std::to_string(clusterMinPlants));
+}
+
+const char* toString(SynthMethod m) { return m == SynthMethod::Darts ? "darts" : "structured"; }
+
+SynthMethod parseSynthMethod(const std::string& name) {
+    if (name == "structured") return SynthMethod::Structured;
+    if (name == "darts") return SynthMethod::Darts;
+    throw ValidationError("synthesis: method '" + name + "' is not known (structured or darts)");
 }
 
 std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() const {
-    return {{"seed", std::to_string(seed)},
+    return {{"method", toString(method)},
+            {"seed", std::to_string(seed)},
             {"seed_inner_radius_factor", num(seedInnerRadiusFactor)},
             {"trunk_exclusion_factor", num(trunkExclusionFactor)},
             {"max_passes", std::to_string(maxPasses)},
-            {"candidate_oversample", num(candidateOversample)}};
+            {"candidate_oversample", num(candidateOversample)},
+            {"cluster_sigma_min_m", num(clusterSigmaMinM)},
+            {"cluster_sigma_max_m", num(clusterSigmaMaxM)},
+            {"cluster_min_plants", std::to_string(clusterMinPlants)}};
 }
 
 void RefineParams::validate() const {
@@ -346,39 +304,6 @@ inline DartDraw drawDart(std::uint64_t seed, std::uint64_t cellStream, int j) {
     return d;
 }
 
-/// Poisson(lambda) by inversion, one uniform per piece of at most 100 of the mean (so that
-/// exp(-lambda) never underflows); capped at `cap`.
-inline int poissonCount(RandomStream& rs, double lambda, int cap, double expNegLambda = -1) {
-    if (expNegLambda >= 0 && lambda <= 100.0) {  // one piece, exp(-lambda) given
-        const double u = rs.uniform();
-        double p = expNegLambda, cdf = p;
-        int k = 0;
-        while (u > cdf && k < cap) {
-            ++k;
-            p *= lambda / k;
-            cdf += p;
-            if (p < 1e-300 && k > lambda) break;
-        }
-        return k;
-    }
-    int n = 0;
-    while (lambda > 0 && n < cap) {
-        const double piece = std::min(lambda, 100.0);
-        lambda -= piece;
-        const double u = rs.uniform();
-        double p = std::exp(-piece), cdf = p;
-        int k = 0;
-        while (u > cdf && k < cap) {
-            ++k;
-            p *= piece / k;
-            cdf += p;
-            if (p < 1e-300 && k > piece) break;  // numerically exhausted
-        }
-        n += k;
-    }
-    return std::min(n, cap);
-}
-
 }  // namespace
 
 UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
@@ -402,6 +327,7 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
     if (static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h) >= (std::uint64_t{1} << 32))
         throw ValidationError("undergrowth sampling: terrain of " + std::to_string(w) + " x " + std::to_string(h) +
                               " cells is too large (at most 2^32 cells)");
+    if (params.method == SynthMethod::Structured) return sampleStructured(db, biome, canopy, map, terrainM, params);
     const double cs = terrainM.cellSizeM();
     const double cellArea = cs * cs;
     const int nRegions = static_cast<int>(db.regions.size());

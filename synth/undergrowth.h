@@ -71,8 +71,24 @@ void validateCanopy(const std::vector<Plant>& canopy, const Grid<float>& terrain
 
 // ------------------------------------------------------------------------- parameters
 
+/// How undergrowth positions, species and sizes are drawn (docs/synth.md section 2).
+enum class SynthMethod {
+    /// Conditioned on the canopy and on each other (default): per species, density by canopy
+    /// context (depth under the cover) and a clustered (two-scale Thomas) field fitted to
+    /// the database's pair correlation; heights by context, below the crown above, crown
+    /// radius by allometry. Needs a schema-3 database for the context statistics.
+    Structured,
+    /// The earlier sampler: uniform darts weighted by the seeding kernel, species by the
+    /// region's shares, height and radius from their histograms at one uniform.
+    Darts,
+};
+const char* toString(SynthMethod m);
+/// "structured" or "darts"; ValidationError naming the value otherwise.
+SynthMethod parseSynthMethod(const std::string& name);
+
 /// Every parameter of the sampler (recorded in the scene file; docs/synth.md).
 struct SynthParams {
+    SynthMethod method = SynthMethod::Structured;
     std::uint64_t seed = 1;
     /// Seeding kernel: full weight within this factor x crown radius (the simulator's
     /// seed_inner_radius_factor); it falls linearly to 0 at the database's seeding radius factor.
@@ -84,6 +100,13 @@ struct SynthParams {
     /// Darts thrown per pass per plant a region still lacks (> 1 so that one pass usually
     /// fills a region; the surplus is dropped uniformly at random).
     double candidateOversample = 1.25;
+    // Structured sampler: the cluster fields' scales are searched on a log grid in
+    // [clusterSigmaMinM, clusterSigmaMaxM] (Thomas kernel standard deviation, m).
+    double clusterSigmaMinM = 0.2;
+    double clusterSigmaMaxM = 8.0;
+    /// Species with fewer plants in a region than this get the region's pooled clustering
+    /// instead of a fit to their own (noisy) g.
+    int clusterMinPlants = 50;
 
     /// ValidationError naming the field when one is out of range.
     void validate() const;
@@ -116,6 +139,20 @@ struct RegionSampling {
     std::int64_t placed = 0;           ///< plants placed
 };
 
+/// The structured sampler's model of one region, fitted to the database (docs/synth.md):
+/// g_s(r) = g_context,s(r) x (1 + sum_k a_sk^2 B_k exp(-r^2 / (4 sigma_k^2))), species
+/// sharing the cluster parents of scale k (cross terms a_sk a_tk B_k).
+struct RegionStructure {
+    int region = 0;
+    int scales = 0;                       ///< cluster fields used (0, 1 or 2)
+    double sigmaM[2] = {0, 0};            ///< Thomas kernel standard deviation of field k, m
+    double parentsPerM2[2] = {0, 0};      ///< kappa_k
+    double pooledAmplitude[2] = {0, 0};   ///< fitted excess of pooled g at r = 0 from field k
+    std::vector<double> attachment;       ///< [nSpecies][2] a_sk: share of species s's plants in field k's clusters
+    double pooledFitRms = 0;              ///< RMS of the pooled g fit over the database bins
+    double pooledContextRms = 0;          ///< RMS of the context-only model (no clusters), for comparison
+};
+
 struct UndergrowthSample {
     std::vector<Plant> plants;              ///< sorted by cell (row-major), then pass, then dart
     std::vector<std::int32_t> plantRegion;  ///< region of each plant
@@ -124,7 +161,18 @@ struct UndergrowthSample {
     std::int64_t darts = 0;                 ///< darts thrown
     std::int64_t dartsOnTrunks = 0;         ///< dropped: on a canopy trunk
     double seconds = 0;
+    std::vector<RegionStructure> structure; ///< structured sampler: the model of each region
+    std::int64_t heightsLimitedByCrown = 0; ///< structured: plants whose height draw was capped below a crown
+    std::vector<std::string> warnings;      ///< e.g. an old database read with its known limits
 };
+
+/// The structured sampler's model of database region `region` (see RegionStructure).
+RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const SynthParams& params);
+
+/// Context part of g(r) of a region: for every database distance bin, the g an inhomogeneous
+/// Poisson pattern with the region's per-context densities would have (species `species`,
+/// or all undergrowth pooled when species < 0). 1 everywhere for a database without context.
+std::vector<double> contextPcf(const BiomeDatabase& db, int region, int species);
 
 /// Dart-throwing sampler (see the top of this file). terrainM gives each plant's ground
 /// elevation and must share the cluster map's geometry.

@@ -84,8 +84,15 @@ BiomeDatabase sampleDb() {
         p.separationUnderflow = 3;
         p.separationSources = 2;
         r.pairs = {p};
+        // Canopy context: 2 bins (edge at 0 m), 2 species, 4 distance bins.
+        r.contextAreaM2 = {30, 20};
+        r.contextSpeciesCount = {2, 1, 0, 1};
+        r.heightCovered = {DbHistogram{{0, 0.5, 1}, {0, 1}, 0}, DbHistogram{{0, 10, 20}, {0, 0}, 0}};
+        r.contextCellPairs.assign(2 * 2 * 4, 0.0);
+        for (std::size_t i = 0; i < r.contextCellPairs.size(); ++i) r.contextCellPairs[i] = static_cast<double>(i % 5);
         return r;
     };
+    db.contextBins.edgesM = {0.0};
     db.regions = {region(1, 0, {-1, 0, 0, 0}, c1), region(1, 1, {1, 0, 0, 0}, c1), region(3, 0, {0, 0, 0, 0}, c3)};
     return db;
 }
@@ -120,6 +127,8 @@ TEST_CASE("biome database round trip keeps every field", "[biome_db]") {
     CHECK(b.separationBins.minM == a.separationBins.minM);
     CHECK(b.separationBins.maxM == a.separationBins.maxM);
     CHECK(b.separationBins.count == a.separationBins.count);
+    CHECK(b.hasContext());
+    CHECK(b.contextBins.edgesM == a.contextBins.edgesM);
     CHECK(b.parameters == a.parameters);
     REQUIRE(b.inputs.size() == 1);
     CHECK(b.inputs[0].path == "sim.h5");
@@ -164,7 +173,12 @@ TEST_CASE("biome database round trip keeps every field", "[biome_db]") {
             CHECK(y.height[s].counts == x.height[s].counts);
             CHECK(y.crownRadius[s].counts == x.crownRadius[s].counts);
             CHECK(y.crownRadius[s].overflow == x.crownRadius[s].overflow);
+            CHECK(y.heightCovered[s].edges == x.height[s].edges);
+            CHECK(y.heightCovered[s].counts == x.heightCovered[s].counts);
         }
+        CHECK(y.contextAreaM2 == x.contextAreaM2);
+        CHECK(y.contextSpeciesCount == x.contextSpeciesCount);
+        CHECK(y.contextCellPairs == x.contextCellPairs);
         REQUIRE(y.pairs.size() == 1);
         const DbPairStats* p = y.pair(0, 3);
         REQUIRE(p != nullptr);
@@ -212,7 +226,7 @@ TEST_CASE("reading a database with another schema version or format is a clear I
     }
     CHECK_THROWS_AS(readBiomeDatabase(v1), IoError);
     CHECK_THROWS_WITH(readBiomeDatabase(v1), Catch::Contains("v1.h5") && Catch::Contains("schema_version 1 found") &&
-                                                 Catch::Contains("version 2 expected"));
+                                                 Catch::Contains("versions 2..3 can be read"));
     const std::string other = dir.file("other.h5");
     {
         h5::File f = h5::File::create(other);

@@ -1,0 +1,181 @@
+#include "canopy_context.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "error.h"
+
+namespace eco {
+
+int CanopyContextBins::binOf(double depthM) const {
+    return static_cast<int>(std::upper_bound(edgesM.begin(), edgesM.end(), depthM) - edgesM.begin());
+}
+
+std::string CanopyContextBins::label(int k) const {
+    char buf[96];
+    if (k <= 0)
+        std::snprintf(buf, sizeof buf, "< %g m", edgesM.front());
+    else if (k >= count() - 1)
+        std::snprintf(buf, sizeof buf, ">= %g m", edgesM.back());
+    else
+        std::snprintf(buf, sizeof buf, "[%g, %g) m", edgesM[static_cast<std::size_t>(k - 1)], edgesM[static_cast<std::size_t>(k)]);
+    return buf;
+}
+
+void CanopyContextBins::validate(const std::string& what) const {
+    if (edgesM.empty() || edgesM.size() > 64)
+        throw ValidationError(what + ": canopy context bins need 1..64 edges, got " + std::to_string(edgesM.size()));
+    for (std::size_t i = 0; i < edgesM.size(); ++i) {
+        if (!std::isfinite(edgesM[i]))
+            throw ValidationError(what + ": canopy context edge " + std::to_string(i) + " is not finite");
+        if (i > 0 && !(edgesM[i] > edgesM[i - 1]))
+            throw ValidationError(what + ": canopy context edges must be strictly ascending (edge " + std::to_string(i) +
+                                  ")");
+    }
+}
+
+Grid<std::uint8_t> canopyCoverMask(const Grid<float>& geometry, const std::vector<Plant>& canopy) {
+    Grid<std::uint8_t> mask = Grid<std::uint8_t>::like(geometry, 0);
+    const double cs = geometry.cellSizeM();
+    const int w = geometry.width(), h = geometry.height();
+    for (const Plant& t : canopy) {
+        const double r = t.crownRadiusM;
+        if (!(r > 0)) continue;
+        const int y0 = std::max(0, static_cast<int>(std::floor((t.yM - r - geometry.originY()) / cs - 0.5)));
+        const int y1 = std::min(h - 1, static_cast<int>(std::ceil((t.yM + r - geometry.originY()) / cs - 0.5)));
+        for (int iy = y0; iy <= y1; ++iy) {
+            const double dy = geometry.cellCentreY(iy) - t.yM;
+            const double span2 = r * r - dy * dy;
+            if (!(span2 > 0)) continue;
+            const double half = std::sqrt(span2);
+            int x0 = std::max(0, static_cast<int>(std::floor((t.xM - half - geometry.originX()) / cs - 0.5)));
+            int x1 = std::min(w - 1, static_cast<int>(std::ceil((t.xM + half - geometry.originX()) / cs - 0.5)));
+            for (int ix = x0; ix <= x1; ++ix) {
+                const double dx = geometry.cellCentreX(ix) - t.xM;
+                if (dx * dx + dy * dy < r * r) mask(ix, iy) = 1;
+            }
+        }
+    }
+    return mask;
+}
+
+namespace {
+
+constexpr double kFar = 1e20;
+
+/// Squared Euclidean distance transform of one line (Felzenszwalb & Huttenlocher 2012):
+/// d[q] = min_p (q - p)^2 + f[p]. v and z are scratch of n and n + 1.
+void distanceTransform1d(const double* f, int n, double* d, int* v, double* z) {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    int k = 0;
+    v[0] = 0;
+    z[0] = -inf;
+    z[1] = inf;
+    auto meet = [&](int q, int p) { return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * (q - p)); };
+    for (int q = 1; q < n; ++q) {
+        double s = meet(q, v[k]);
+        while (s <= z[k]) {  // z[0] = -inf ends the loop
+            --k;
+            s = meet(q, v[k]);
+        }
+        ++k;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = inf;
+    }
+    k = 0;
+    for (int q = 0; q < n; ++q) {
+        while (z[k + 1] < q) ++k;
+        const double dq = q - v[k];
+        d[q] = dq * dq + f[v[k]];
+    }
+}
+
+/// Squared distance (in cells^2) from every cell to the nearest cell with mask == target;
+/// kFar where there is none.
+std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8_t target) {
+    const int w = mask.width(), h = mask.height();
+    std::vector<double> g(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+#pragma omp parallel
+    {
+        std::vector<double> f(static_cast<std::size_t>(h)), d(static_cast<std::size_t>(h)), z(static_cast<std::size_t>(h) + 1);
+        std::vector<int> v(static_cast<std::size_t>(h));
+#pragma omp for schedule(static)
+        for (int ix = 0; ix < w; ++ix) {
+            for (int iy = 0; iy < h; ++iy) f[static_cast<std::size_t>(iy)] = mask(ix, iy) == target ? 0.0 : kFar;
+            distanceTransform1d(f.data(), h, d.data(), v.data(), z.data());
+            for (int iy = 0; iy < h; ++iy) g[mask.index(ix, iy)] = d[static_cast<std::size_t>(iy)];
+        }
+    }
+#pragma omp parallel
+    {
+        std::vector<double> d(static_cast<std::size_t>(w)), z(static_cast<std::size_t>(w) + 1);
+        std::vector<int> v(static_cast<std::size_t>(w));
+#pragma omp for schedule(static)
+        for (int iy = 0; iy < h; ++iy) {
+            double* row = g.data() + mask.index(0, iy);
+            distanceTransform1d(row, w, d.data(), v.data(), z.data());
+            std::copy(d.begin(), d.end(), row);
+        }
+    }
+    return g;
+}
+
+}  // namespace
+
+Grid<float> canopyDepthMap(const Grid<float>& geometry, const std::vector<Plant>& canopy) {
+    const Grid<std::uint8_t> mask = canopyCoverMask(geometry, canopy);
+    Grid<float> depth = Grid<float>::like(geometry, 0.0f);
+    if (mask.empty()) return depth;
+    const std::vector<double> toCovered = squaredDistanceTo(mask, 1), toOpen = squaredDistanceTo(mask, 0);
+    const double cs = geometry.cellSizeM();
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(mask.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+        const std::size_t c = static_cast<std::size_t>(i);
+        const bool covered = mask.data()[c] != 0;
+        const double d2 = covered ? toOpen[c] : toCovered[c];
+        double dm = d2 >= kFar * 0.5 ? kCanopyDepthCapM : (std::sqrt(d2) - 0.5) * cs;
+        dm = std::min(dm, kCanopyDepthCapM);
+        depth.data()[c] = static_cast<float>(covered ? dm : -dm);
+    }
+    return depth;
+}
+
+Grid<std::uint8_t> canopyContextMap(const Grid<float>& depthM, const CanopyContextBins& bins) {
+    Grid<std::uint8_t> ctx = Grid<std::uint8_t>::like(depthM, 0);
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(depthM.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < n; ++i)
+        ctx.data()[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(bins.binOf(depthM.data()[static_cast<std::size_t>(i)]));
+    return ctx;
+}
+
+CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
+    std::vector<double> x, y, r, hgt;
+    for (const Plant& t : canopy) {
+        if (!(t.crownRadiusM > 0)) continue;
+        x.push_back(t.xM);
+        y.push_back(t.yM);
+        r.push_back(t.crownRadiusM);
+        hgt.push_back(t.heightM);
+        maxRadius_ = std::max(maxRadius_, t.crownRadiusM);
+    }
+    if (x.empty()) return;
+    grid_ = PointGrid(x, y, std::max(1.0, maxRadius_));
+    radius_ = grid_.permuted(r);
+    height_ = grid_.permuted(hgt);
+}
+
+double CanopyCover::lowestCrownAboveM(double xM, double yM) const {
+    double lowest = kNone;
+    if (!(maxRadius_ > 0)) return lowest;
+    grid_.forEachWithin(xM, yM, maxRadius_, [&](std::size_t s, double, double, double d2) {
+        if (d2 < radius_[s] * radius_[s]) lowest = std::min(lowest, height_[s]);
+    });
+    return lowest;
+}
+
+}  // namespace eco

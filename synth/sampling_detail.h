@@ -1,0 +1,138 @@
+// Pieces shared by the synthesizer's samplers (synth/undergrowth.cpp: the dart sampler and
+// refinement; synth/structured_sampler.cpp: the structured sampler). Private to synth/.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "biome.h"
+#include "grid.h"
+#include "plants.h"
+#include "point_pattern.h"
+#include "rng.h"
+#include "undergrowth.h"
+
+namespace eco::synth_detail {
+
+/// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
+/// combination m can hold species s when mask[s] & m != 0 (the simulator's rule).
+inline std::vector<int> speciesSubBiomeMasks(const Biome& biome) {
+    std::vector<int> m(biome.species.size(), 0);
+    for (std::size_t s = 0; s < biome.species.size(); ++s)
+        for (int b : biome.species[s].subBiomes)
+            if (b >= 1 && b <= 30) m[s] |= 1 << (b - 1);
+    return m;
+}
+
+/// Distinct values of an int grid, ascending. Rows in parallel, merged in row order.
+inline std::vector<std::int32_t> distinctValues(const Grid<std::int32_t>& g) {
+    const int h = g.height(), w = g.width();
+    std::vector<std::vector<std::int32_t>> rows(static_cast<std::size_t>(h));
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy) {
+        auto& v = rows[static_cast<std::size_t>(iy)];
+        std::int32_t last = std::numeric_limits<std::int32_t>::min();
+        for (int ix = 0; ix < w; ++ix) {
+            const std::int32_t x = g(ix, iy);
+            if (x == last) continue;
+            last = x;
+            if (std::find(v.begin(), v.end(), x) == v.end()) v.push_back(x);
+        }
+    }
+    std::vector<std::int32_t> all;
+    for (auto& r : rows) all.insert(all.end(), r.begin(), r.end());
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    return all;
+}
+
+/// Trunks as a point grid, for the exclusion discs.
+struct TrunkIndex {
+    PointGrid grid;
+    std::vector<double> radius2;  ///< per sorted point: exclusion radius^2
+    double maxRadius = 0;
+
+    TrunkIndex(const std::vector<Plant>& canopy, double factor) {
+        if (!(factor > 0) || canopy.empty()) return;
+        std::vector<double> x, y, r2;
+        for (const auto& t : canopy) {
+            x.push_back(t.xM);
+            y.push_back(t.yM);
+            const double r = factor * t.crownRadiusM;
+            r2.push_back(r * r);
+            maxRadius = std::max(maxRadius, r);
+        }
+        if (!(maxRadius > 0)) return;
+        grid = PointGrid(x, y, std::max(1.0, 2.0 * maxRadius));
+        radius2 = grid.permuted(r2);
+    }
+    bool onTrunk(double x, double y) const {
+        if (!(maxRadius > 0)) return false;
+        bool hit = false;
+        grid.forEachWithin(x, y, maxRadius, [&](std::size_t s, double, double, double d2) {
+            if (d2 < radius2[s]) hit = true;
+        });
+        return hit;
+    }
+};
+
+/// Poisson(lambda) by inversion, one uniform per piece of at most 100 of the mean (so that
+/// exp(-lambda) never underflows); capped at `cap`.
+inline int poissonCount(RandomStream& rs, double lambda, int cap, double expNegLambda = -1) {
+    if (expNegLambda >= 0 && lambda <= 100.0) {  // one piece, exp(-lambda) given
+        const double u = rs.uniform();
+        double p = expNegLambda, cdf = p;
+        int k = 0;
+        while (u > cdf && k < cap) {
+            ++k;
+            p *= lambda / k;
+            cdf += p;
+            if (p < 1e-300 && k > lambda) break;
+        }
+        return k;
+    }
+    int n = 0;
+    while (lambda > 0 && n < cap) {
+        const double piece = std::min(lambda, 100.0);
+        lambda -= piece;
+        const double u = rs.uniform();
+        double p = std::exp(-piece), cdf = p;
+        int k = 0;
+        while (u > cdf && k < cap) {
+            ++k;
+            p *= piece / k;
+            cdf += p;
+            if (p < 1e-300 && k > piece) break;  // numerically exhausted
+        }
+        n += k;
+    }
+    return std::min(n, cap);
+}
+
+
+/// Cells that a trunk's exclusion disc may reach: only candidates there need the trunk query.
+inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std::vector<Plant>& canopy, double factor) {
+    Grid<std::uint8_t> near = Grid<std::uint8_t>::like(geometry, 0);
+    if (!(factor > 0)) return near;
+    const int w = geometry.width(), h = geometry.height();
+    for (const Plant& t : canopy) {
+        const double re = factor * t.crownRadiusM;
+        const int x0 = std::max(0, geometry.cellX(t.xM - re)), x1 = std::min(w - 1, geometry.cellX(t.xM + re));
+        const int y0 = std::max(0, geometry.cellY(t.yM - re)), y1 = std::min(h - 1, geometry.cellY(t.yM + re));
+        for (int iy = y0; iy <= y1; ++iy)
+            for (int ix = x0; ix <= x1; ++ix) near(ix, iy) = 1;
+    }
+    return near;
+}
+
+}  // namespace eco::synth_detail
+
+namespace eco {
+/// The structured sampler (synth/structured_sampler.cpp); sampleUndergrowth calls it after
+/// checking the inputs when params.method is Structured.
+UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                                   const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
+}  // namespace eco

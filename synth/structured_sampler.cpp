@@ -1,0 +1,739 @@
+// The structured undergrowth sampler (docs/synth.md section 2): plants placed conditioned on
+// the canopy (density of each species by its depth under the canopy cover) and on each
+// other (a clustered Cox process whose pair correlation is fitted to the database's), sizes
+// drawn by context below the crown above, crown radius by allometry.
+//
+// Model of a region, species s, point u:
+//   lambda_s(u) = m_s rho_s(ctx(u)) w(u) x [ (1 - sum_k a_sk) + sum_k a_sk Lambda_k(u) ],
+//   Lambda_k(u) = (1 / kappa_k) sum over parents c of field k of N(u - c; sigma_k^2 I),
+// rho_s(c) the database density of s in context bin c, w the seeding kernel, m_s the scale
+// that gives the region's count, parents Poisson(kappa_k) shared by every species. Its pair
+// correlation is g_context(r) x (1 + sum_k a_sk a_tk B_k exp(-r^2 / 4 sigma_k^2)),
+// B_k = 1 / (4 pi kappa_k sigma_k^2), so (sigma_k, B_k) are fitted to the pooled g of the
+// region divided by its context part, and a_sk to each species' own g.
+//
+// Sampling: in a first pass each cell throws Poisson darts for the free part and Poisson
+// parents for the cluster fields; each parent throws offspring of each attached species
+// (Gaussian displacement), thinned by lambda_s at the landing point. Every candidate carries a
+// random key; each (region, species) keeps its lowest keys up to its quota. Later passes
+// throw free darts for what is still missing. Everything is keyed by (seed, pass, cell,
+// dart): identical for any thread count.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "canopy_context.h"
+#include "error.h"
+#include "rng.h"
+#include "sampling_detail.h"
+#include "undergrowth.h"
+
+namespace eco {
+
+using namespace synth_detail;
+
+namespace {
+
+constexpr std::uint64_t kFreeStream = 0x5354465245454453ull;       // "STFREEDS"
+constexpr std::uint64_t kParentStream = 0x5354504152454e54ull;     // "STPARENT"
+constexpr std::uint64_t kOffspringStream = 0x53544f4646535052ull;  // "STOFFSPR"
+constexpr std::uint64_t kSizeStream = 0x5354534953495a45ull;       // "STSISIZE"
+constexpr double kPi = 3.14159265358979323846;
+
+using Clock = std::chrono::steady_clock;
+
+/// Values of g at bins where the weights are 0 filled by linear interpolation between the
+/// nearest defined bins (constant beyond them); 1 everywhere when none is defined.
+std::vector<double> fillUndefined(std::vector<double> v, const std::vector<char>& defined) {
+    const std::size_t n = v.size();
+    std::vector<std::size_t> idx;
+    for (std::size_t i = 0; i < n; ++i)
+        if (defined[i]) idx.push_back(i);
+    if (idx.empty()) return std::vector<double>(n, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (defined[i]) continue;
+        const auto it = std::lower_bound(idx.begin(), idx.end(), i);
+        if (it == idx.begin())
+            v[i] = v[idx.front()];
+        else if (it == idx.end())
+            v[i] = v[idx.back()];
+        else {
+            const std::size_t hi = *it, lo = *(it - 1);
+            const double t = double(i - lo) / double(hi - lo);
+            v[i] = v[lo] * (1 - t) + v[hi] * t;
+        }
+    }
+    return v;
+}
+
+/// Per context bin: density (plants per m^2) of species s (or pooled when s < 0).
+std::vector<double> contextDensity(const BiomeDatabase& db, const DbRegion& r, int species) {
+    const std::size_t nc = static_cast<std::size_t>(db.contextBins.count());
+    const std::size_t ns = static_cast<std::size_t>(db.speciesCount());
+    std::vector<double> rho(nc, 0.0);
+    for (std::size_t c = 0; c < nc; ++c) {
+        if (!(r.contextAreaM2[c] > 0)) continue;
+        double n = 0;
+        for (std::size_t s = 0; s < ns; ++s)
+            if (species < 0 || s == static_cast<std::size_t>(species)) n += r.contextSpeciesCount[s * nc + c];
+        rho[c] = n / r.contextAreaM2[c];
+    }
+    return rho;
+}
+
+/// Observed g of the region: pooled undergrowth (species < 0) or species s with itself.
+/// Empty when the database lacks it.
+std::vector<double> observedPcf(const BiomeDatabase& db, const DbRegion& r, int species) {
+    const int ns = db.speciesCount();
+    const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
+    if (species >= 0) {
+        const DbPairStats* p = r.pair(species, species);
+        if (p == nullptr || !(p->normalisation > 0)) return {};
+        return p->g;
+    }
+    std::vector<double> tw(nb, 0.0);
+    double norm = 0;
+    for (const DbPairStats& p : r.pairs) {
+        if (p.source >= ns || p.target >= ns) continue;
+        for (std::size_t b = 0; b < nb; ++b) tw[b] += p.translateWeighted[b];
+        norm += p.normalisation;
+    }
+    if (!(norm > 0)) return {};
+    for (std::size_t b = 0; b < nb; ++b) tw[b] = annulusPcf(tw[b], db.pcfBins.annulusAreaM2(static_cast<int>(b)), norm);
+    return tw;
+}
+
+struct Fit {
+    double amp[2] = {0, 0};
+    double sse = std::numeric_limits<double>::infinity();
+};
+
+/// Least squares of y ~ sum_k amp_k x_k with amp >= 0 over two (or one) basis vectors.
+Fit nonNegativeFit(const std::vector<double>& y, const std::vector<double>& x0, const std::vector<double>* x1) {
+    auto sseOf = [&](double a0, double a1) {
+        double e = 0;
+        for (std::size_t b = 0; b < y.size(); ++b) {
+            const double d = y[b] - a0 * x0[b] - (x1 ? a1 * (*x1)[b] : 0.0);
+            e += d * d;
+        }
+        return e;
+    };
+    Fit best;
+    auto consider = [&](double a0, double a1) {
+        if (!(a0 >= 0) || !(a1 >= 0)) return;
+        const double e = sseOf(a0, a1);
+        if (e < best.sse) {
+            best.sse = e;
+            best.amp[0] = a0;
+            best.amp[1] = a1;
+        }
+    };
+    double s00 = 0, s11 = 0, s01 = 0, t0 = 0, t1 = 0;
+    for (std::size_t b = 0; b < y.size(); ++b) {
+        s00 += x0[b] * x0[b];
+        t0 += x0[b] * y[b];
+        if (x1) {
+            s11 += (*x1)[b] * (*x1)[b];
+            s01 += x0[b] * (*x1)[b];
+            t1 += (*x1)[b] * y[b];
+        }
+    }
+    consider(0, 0);
+    if (s00 > 0) consider(std::max(0.0, t0 / s00), 0);
+    if (x1 && s11 > 0) consider(0, std::max(0.0, t1 / s11));
+    if (x1) {
+        const double det = s00 * s11 - s01 * s01;
+        if (std::abs(det) > 1e-12 * std::max(1e-300, s00 * s11)) consider((t0 * s11 - t1 * s01) / det, (t1 * s00 - t0 * s01) / det);
+    }
+    return best;
+}
+
+}  // namespace
+
+std::vector<double> contextPcf(const BiomeDatabase& db, int region, int species) {
+    const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
+    if (!db.hasContext() || region < 0 || static_cast<std::size_t>(region) >= db.regions.size())
+        return std::vector<double>(nb, 1.0);
+    const DbRegion& r = db.regions[static_cast<std::size_t>(region)];
+    const std::size_t nc = static_cast<std::size_t>(db.contextBins.count());
+    const std::vector<double> rho = contextDensity(db, r, species);
+    double area = 0, n = 0;
+    for (std::size_t c = 0; c < nc; ++c) {
+        area += r.contextAreaM2[c];
+        n += rho[c] * r.contextAreaM2[c];
+    }
+    if (!(area > 0) || !(n > 0)) return std::vector<double>(nb, 1.0);
+    const double mean = n / area;
+    std::vector<double> g(nb, 1.0);
+    std::vector<char> defined(nb, 0);
+    for (std::size_t b = 0; b < nb; ++b) {
+        double num = 0, den = 0;
+        for (std::size_t c1 = 0; c1 < nc; ++c1)
+            for (std::size_t c2 = 0; c2 < nc; ++c2) {
+                const double p = r.contextCellPairs[(c1 * nc + c2) * nb + b];
+                num += p * rho[c1] * rho[c2];
+                den += p;
+            }
+        if (den > 0) {
+            g[b] = num / den / (mean * mean);
+            defined[b] = 1;
+        }
+    }
+    return fillUndefined(g, defined);
+}
+
+RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const SynthParams& params) {
+    const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
+    const std::size_t ns = static_cast<std::size_t>(db.speciesCount());
+    const DbRegion& r = db.regions.at(static_cast<std::size_t>(region));
+    RegionStructure st;
+    st.region = region;
+    st.attachment.assign(ns * 2, 0.0);
+    const std::vector<double> gPool = observedPcf(db, r, -1);
+    if (gPool.size() != nb || !(r.undergrowthCount >= 2)) return st;
+    const std::vector<double> ctxPool = contextPcf(db, region, -1);
+    for (std::size_t b = 0; b < nb; ++b) {
+        const double d = gPool[b] - ctxPool[b];
+        st.pooledContextRms += d * d;
+    }
+    st.pooledContextRms = std::sqrt(st.pooledContextRms / double(nb));
+
+    // Scales: a log grid; fit the pooled g = g_ctx (1 + B1 f1 + B2 f2), f = exp(-r^2 / 4 sigma^2).
+    constexpr int kGrid = 24;
+    std::vector<double> sigmas(kGrid);
+    for (int i = 0; i < kGrid; ++i)
+        sigmas[static_cast<std::size_t>(i)] =
+            params.clusterSigmaMinM * std::pow(params.clusterSigmaMaxM / params.clusterSigmaMinM, double(i) / (kGrid - 1));
+    auto basis = [&](double sigma, const std::vector<double>& ctx) {
+        std::vector<double> f(nb);
+        for (std::size_t b = 0; b < nb; ++b) {
+            const double rm = db.pcfBins.midM(static_cast<int>(b));
+            f[b] = ctx[b] * std::exp(-rm * rm / (4 * sigma * sigma));
+        }
+        return f;
+    };
+    std::vector<double> yPool(nb);
+    for (std::size_t b = 0; b < nb; ++b) yPool[b] = gPool[b] - ctxPool[b];
+    Fit best;
+    double bestS[2] = {0, 0};
+    for (int i = 0; i < kGrid; ++i) {
+        const auto f1 = basis(sigmas[static_cast<std::size_t>(i)], ctxPool);
+        const Fit one = nonNegativeFit(yPool, f1, nullptr);
+        if (one.sse < best.sse * (1 - 1e-12)) {
+            best = one;
+            bestS[0] = sigmas[static_cast<std::size_t>(i)];
+            bestS[1] = 0;
+        }
+        for (int j = i + 2; j < kGrid; ++j) {  // the second scale at least two grid steps larger
+            const auto f2 = basis(sigmas[static_cast<std::size_t>(j)], ctxPool);
+            const Fit two = nonNegativeFit(yPool, f1, &f2);
+            if (two.sse < best.sse * (1 - 1e-9)) {
+                best = two;
+                bestS[0] = sigmas[static_cast<std::size_t>(i)];
+                bestS[1] = sigmas[static_cast<std::size_t>(j)];
+            }
+        }
+    }
+    st.pooledFitRms = std::sqrt(best.sse / double(nb));
+    // Keep the fields with an amplitude; field 0 is the finer.
+    for (int k = 0; k < 2; ++k)
+        if (best.amp[k] > 1e-6 && bestS[k] > 0) {
+            st.sigmaM[st.scales] = bestS[k];
+            st.pooledAmplitude[st.scales] = best.amp[k];
+            ++st.scales;
+        }
+    if (st.scales == 0) return st;
+
+    // Species amplitudes at the chosen scales (their own g over their own context part).
+    std::vector<double> c(ns * 2, 0.0);
+    std::vector<double> share(ns, 0.0);
+    for (std::size_t s = 0; s < ns; ++s) share[s] = r.undergrowthCount > 0 ? r.speciesCount[s] / r.undergrowthCount : 0.0;
+    for (std::size_t s = 0; s < ns; ++s) {
+        if (!(r.speciesCount[s] > 0)) continue;
+        const std::vector<double> gs = observedPcf(db, r, static_cast<int>(s));
+        double amp[2] = {st.pooledAmplitude[0], st.pooledAmplitude[1]};
+        if (r.speciesCount[s] >= params.clusterMinPlants && gs.size() == nb) {
+            const std::vector<double> ctx = contextPcf(db, region, static_cast<int>(s));
+            std::vector<double> y(nb);
+            for (std::size_t b = 0; b < nb; ++b) y[b] = gs[b] - ctx[b];
+            const auto f1 = basis(st.sigmaM[0], ctx);
+            if (st.scales == 2) {
+                const auto f2 = basis(st.sigmaM[1], ctx);
+                const Fit fs = nonNegativeFit(y, f1, &f2);
+                amp[0] = fs.amp[0];
+                amp[1] = fs.amp[1];
+            } else {
+                amp[0] = nonNegativeFit(y, f1, nullptr).amp[0];
+            }
+        }
+        for (int k = 0; k < st.scales; ++k) c[s * 2 + static_cast<std::size_t>(k)] = std::sqrt(std::max(0.0, amp[k]));
+    }
+    // Scale the species so that the pooled amplitude is met: (sum_s p_s a_sk)^2 B_k = P_k.
+    double gamma[2] = {0, 0};
+    for (int k = 0; k < st.scales; ++k) {
+        double sum = 0;
+        for (std::size_t s = 0; s < ns; ++s) sum += share[s] * c[s * 2 + static_cast<std::size_t>(k)];
+        gamma[k] = sum > 0 ? std::sqrt(st.pooledAmplitude[k]) / sum : 0.0;
+    }
+    // One field amplitude B for both scales, as small as lets every species' a_s1 + a_s2 <= 1.
+    double m = 0;
+    for (std::size_t s = 0; s < ns; ++s) {
+        double t = 0;
+        for (int k = 0; k < st.scales; ++k) t += gamma[k] * c[s * 2 + static_cast<std::size_t>(k)];
+        m = std::max(m, t);
+    }
+    if (!(m > 0)) {
+        st.scales = 0;
+        return st;
+    }
+    for (int k = 0; k < st.scales; ++k) {
+        const double bField = m * m;
+        st.parentsPerM2[k] = 1.0 / (4 * kPi * st.sigmaM[k] * st.sigmaM[k] * bField);
+        for (std::size_t s = 0; s < ns; ++s)
+            st.attachment[s * 2 + static_cast<std::size_t>(k)] = gamma[k] * c[s * 2 + static_cast<std::size_t>(k)] / m;
+    }
+    return st;
+}
+
+namespace {
+
+/// A candidate plant.
+struct Candidate {
+    std::uint64_t key;   ///< random priority: each (region, species) keeps its lowest keys
+    float dx, dy;        ///< position relative to the terrain origin, m
+    std::uint32_t cell;  ///< cell index of the position
+    std::uint16_t species;
+    std::uint16_t pass;
+};
+
+/// Per (region, mask index, context): cumulative weights over species (the roulette of the
+/// free darts) of rate_s = factor_rs x rho_rs(ctx), restricted to the species of the mask.
+struct RateTable {
+    std::size_t nMasks = 0, nCtx = 0, nSpecies = 0;
+    std::vector<double> cumulative;  ///< [region][mask][ctx][species]
+    const double* row(std::size_t r, std::size_t m, std::size_t c) const {
+        return &cumulative[((r * nMasks + m) * nCtx + c) * nSpecies];
+    }
+    double total(std::size_t r, std::size_t m, std::size_t c) const { return row(r, m, c)[nSpecies - 1]; }
+    int pick(std::size_t r, std::size_t m, std::size_t c, double u) const {
+        const double* cum = row(r, m, c);
+        const double t = cum[nSpecies - 1];
+        if (!(t > 0)) return -1;
+        int s = static_cast<int>(std::upper_bound(cum, cum + nSpecies, u * t) - cum);
+        if (s >= static_cast<int>(nSpecies)) s = static_cast<int>(nSpecies) - 1;
+        while (s > 0 && cum[s] == cum[s - 1]) --s;
+        return s;
+    }
+};
+
+/// Height at cumulative share u of a height histogram. Inside a bin the height is not
+/// spread linearly: the bin's crown radii (allometry of its edges) are spread as the
+/// radius histogram spreads them, and mapped back to heights. The simulator's radius is
+/// the allometry of its height, so the radius histogram carries the shape of the heights
+/// inside the (coarser at small sizes) height bins. Linear inside the bin without it.
+double heightQuantile(const DbHistogram& h, const DbHistogram* radius, const Allometry& allometry, double u) {
+    double total = h.overflow;
+    for (double c : h.counts) total += c;
+    if (!(total > 0) || h.edges.size() != h.counts.size() + 1) return -1;
+    const double target = u * total;
+    double cum = 0;
+    for (std::size_t k = 0; k < h.counts.size(); ++k) {
+        const double c = h.counts[k];
+        if (c > 0 && cum + c > target) {
+            const double t = (target - cum) / c, lo = h.edges[k], hi = h.edges[k + 1];
+            if (radius != nullptr) {
+                double rTotal = radius->overflow, below = 0, fa = 0, fb = 0;
+                for (double x : radius->counts) rTotal += x;
+                const double ra = allometry.crownRadiusM(lo), rb = allometry.crownRadiusM(hi);
+                for (std::size_t j = 0; j < radius->counts.size(); ++j) {
+                    const double a = radius->edges[j], b = radius->edges[j + 1], n = radius->counts[j];
+                    auto part = [&](double x) { return x >= b ? n : (x > a ? n * (x - a) / (b - a) : 0.0); };
+                    fa += part(ra);
+                    fb += part(rb);
+                    below += n;
+                }
+                (void)below;
+                if (rTotal > 0 && fb - fa > 1e-12 * rTotal) {
+                    const double rq = histogramQuantile(*radius, (fa + t * (fb - fa)) / rTotal);
+                    const double hq = allometry.heightForCrownRadiusM(rq);
+                    if (hq >= lo && hq <= hi) return hq;
+                }
+            }
+            return lo + t * (hi - lo);
+        }
+        cum += c;
+    }
+    return h.edges.back();
+}
+
+}  // namespace
+
+UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                                   const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params) {
+    const auto t0 = Clock::now();
+    UndergrowthSample out;
+    const int w = terrainM.width(), h = terrainM.height();
+    const double cs = terrainM.cellSizeM(), cellArea = cs * cs;
+    const std::size_t nR = db.regions.size();
+    const std::size_t nS = static_cast<std::size_t>(db.speciesCount());
+    const bool withContext = db.hasContext();
+    if (!withContext)
+        out.warnings.push_back("the database (schema " + std::to_string(db.schemaVersion) +
+                               ") has no canopy-context statistics: densities do not follow the depth under the canopy, "
+                               "heights are not split under crowns and open, and clustering is fitted to g without its "
+                               "context part (re-run eco analyse for schema " + std::to_string(kBiomeDbSchemaVersion) + ")");
+    const CanopyContextBins bins = withContext ? db.contextBins : CanopyContextBins{{}};
+    const std::size_t nCtx = withContext ? static_cast<std::size_t>(bins.count()) : 1;
+    Grid<std::uint8_t> ctx = withContext ? canopyContextMap(canopyDepthMap(terrainM, canopy), bins)
+                                         : Grid<std::uint8_t>::like(terrainM, 0);
+
+    // Per region: the fitted structure and the per-context densities rho[r][s][c].
+    out.structure.resize(nR);
+    std::vector<double> rho(nR * nS * nCtx, 0.0), rhoMax(nR * nS, 0.0);
+    for (std::size_t r = 0; r < nR; ++r) {
+        const DbRegion& reg = db.regions[r];
+        out.structure[r] = fitRegionStructure(db, static_cast<int>(r), params);
+        for (std::size_t s = 0; s < nS; ++s) {
+            if (!(reg.speciesCount[s] > 0)) continue;
+            if (withContext) {
+                const std::vector<double> d = contextDensity(db, reg, static_cast<int>(s));
+                // Context bins the region's cells never reached: the species' mean density.
+                for (std::size_t c = 0; c < nCtx; ++c)
+                    rho[(r * nS + s) * nCtx + c] = reg.contextAreaM2[c] > 0 ? d[c] : reg.speciesCount[s] / std::max(reg.areaM2, 1e-300);
+            } else {
+                rho[(r * nS + s) * nCtx] = reg.densityPerM2 * reg.speciesProportion[s];
+            }
+            for (std::size_t c = 0; c < nCtx; ++c) rhoMax[r * nS + s] = std::max(rhoMax[r * nS + s], rho[(r * nS + s) * nCtx + c]);
+        }
+    }
+
+    // Masks (combinations) and which species each admits.
+    const std::vector<std::int32_t> masks = distinctValues(map.combination);
+    const std::vector<int> subMask = speciesSubBiomeMasks(biome);
+    auto maskIndex = [&](std::int32_t m) {
+        const auto it = std::lower_bound(masks.begin(), masks.end(), m);
+        return (it != masks.end() && *it == m) ? static_cast<std::size_t>(it - masks.begin()) : std::size_t(-1);
+    };
+    Grid<std::uint16_t> maskIdx = Grid<std::uint16_t>::like(terrainM, 0);
+    if (masks.size() > 65535) throw ValidationError("undergrowth sampling: more than 65535 sub-biome combinations");
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) maskIdx(ix, iy) = static_cast<std::uint16_t>(maskIndex(map.combination(ix, iy)));
+    auto admits = [&](std::size_t m, std::size_t s) { return (subMask[s] & masks[m]) != 0; };
+
+    // Expected count of each (region, species) at density rho x w over the cells that admit
+    // it: E[r][s]; rows in parallel, added in row order.
+    std::vector<double> rowE(static_cast<std::size_t>(h) * nR * nS, 0.0);
+    std::vector<std::int64_t> rowCells(static_cast<std::size_t>(h) * nR, 0);
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            const int r = map.region(ix, iy);
+            if (r < 0 || static_cast<std::size_t>(r) >= nR) continue;
+            ++rowCells[static_cast<std::size_t>(iy) * nR + static_cast<std::size_t>(r)];
+            const float wgt = map.seedWeight(ix, iy);
+            if (!(wgt > 0)) continue;
+            const std::size_t m = maskIdx(ix, iy), c = ctx(ix, iy);
+            double* e = &rowE[(static_cast<std::size_t>(iy) * nR + static_cast<std::size_t>(r)) * nS];
+            for (std::size_t s = 0; s < nS; ++s)
+                if (admits(m, s)) e[s] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+        }
+    std::vector<double> expected(nR * nS, 0.0);
+    out.regions.resize(nR);
+    std::vector<std::int64_t> quota(nR * nS, 0), placed(nR * nS, 0);
+    for (std::size_t r = 0; r < nR; ++r) {
+        RegionSampling& rs = out.regions[r];
+        rs.region = static_cast<int>(r);
+        for (int iy = 0; iy < h; ++iy) {
+            rs.cells += rowCells[static_cast<std::size_t>(iy) * nR + r];
+            for (std::size_t s = 0; s < nS; ++s) expected[r * nS + s] += rowE[(static_cast<std::size_t>(iy) * nR + r) * nS + s];
+        }
+        rs.areaM2 = static_cast<double>(rs.cells) * cellArea;
+        // Quotas: the expected count of each species at its per-context densities over the
+        // cells here that admit it (the region's mean density when the target has the
+        // database's mix of contexts, more plants where it has more of the dense contexts).
+        std::int64_t n = 0;
+        for (std::size_t s = 0; s < nS; ++s) {
+            quota[r * nS + s] = static_cast<std::int64_t>(std::llround(expected[r * nS + s]));
+            n += quota[r * nS + s];
+        }
+        rs.targetCount = n;
+        rs.targetDensityPerM2 = rs.areaM2 > 0 ? double(n) / rs.areaM2 : 0.0;
+    }
+
+    const TrunkIndex trunks(canopy, params.trunkExclusionFactor);
+    const Grid<std::uint8_t> nearTrunk = nearTrunkCells(terrainM, canopy, params.trunkExclusionFactor);
+    const double ox = terrainM.originX(), oy = terrainM.originY();
+    auto onTrunk = [&](std::size_t cell, double x, double y) { return nearTrunk.data()[cell] != 0 && trunks.onTrunk(x, y); };
+    // Target intensity of species s at a cell (per m^2), before the oversampling factor.
+    std::vector<double> scale(nR * nS, 0.0);
+    for (std::size_t i = 0; i < nR * nS; ++i) scale[i] = expected[i] > 0 ? double(quota[i]) / expected[i] : 0.0;
+    auto intensity = [&](std::size_t cell, std::size_t s) -> double {
+        const int r = map.region.data()[cell];
+        if (r < 0 || !admits(maskIdx.data()[cell], s)) return 0.0;
+        if (!(map.seedWeight.data()[cell] > 0)) return 0.0;
+        return scale[static_cast<std::size_t>(r) * nS + s] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + ctx.data()[cell]];
+    };
+
+    std::vector<Candidate> accepted;
+    for (int pass = 0; pass < params.maxPasses; ++pass) {
+        // Free-dart rate factor per (region, species): the free share of the model in the
+        // first pass, the missing plants in later ones.
+        std::vector<double> freeFactor(nR * nS, 0.0);
+        bool any = false;
+        for (std::size_t r = 0; r < nR; ++r)
+            for (std::size_t s = 0; s < nS; ++s) {
+                const std::size_t i = r * nS + s;
+                const std::int64_t missing = quota[i] - placed[i];
+                if (missing <= 0 || !(expected[i] > 0)) continue;
+                any = true;
+                if (pass == 0) {
+                    double attached = 0;
+                    for (int k = 0; k < out.structure[r].scales; ++k) attached += out.structure[r].attachment[s * 2 + static_cast<std::size_t>(k)];
+                    freeFactor[i] = params.candidateOversample * scale[i] * std::max(0.0, 1.0 - attached);
+                } else {
+                    freeFactor[i] = params.candidateOversample * double(missing) / expected[i];
+                }
+            }
+        if (!any) break;
+        out.passes = pass + 1;
+        RateTable table;
+        table.nMasks = masks.size();
+        table.nCtx = nCtx;
+        table.nSpecies = nS;
+        table.cumulative.assign(nR * masks.size() * nCtx * nS, 0.0);
+        for (std::size_t r = 0; r < nR; ++r)
+            for (std::size_t m = 0; m < masks.size(); ++m)
+                for (std::size_t c = 0; c < nCtx; ++c) {
+                    double acc = 0;
+                    double* row = &table.cumulative[((r * masks.size() + m) * nCtx + c) * nS];
+                    for (std::size_t s = 0; s < nS; ++s) {
+                        if (admits(m, s)) acc += freeFactor[r * nS + s] * rho[(r * nS + s) * nCtx + c];
+                        row[s] = acc;
+                    }
+                }
+
+        std::vector<std::vector<Candidate>> rowCand(static_cast<std::size_t>(h));
+        std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
+        const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
+#pragma omp parallel for schedule(dynamic, 8)
+        for (int iy = 0; iy < h; ++iy) {
+            auto& cand = rowCand[static_cast<std::size_t>(iy)];
+            for (int ix = 0; ix < w; ++ix) {
+                const int r = map.region(ix, iy);
+                if (r < 0) continue;
+                const std::size_t cell = terrainM.index(ix, iy);
+                const float wgt = map.seedWeight.data()[cell];
+                if (!(wgt > 0)) continue;
+                const std::size_t m = maskIdx.data()[cell], c = ctx.data()[cell];
+                // Free darts.
+                const double lambdaFree = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
+                if (lambdaFree > 0) {
+                    const std::uint64_t stream = mixStream(freeStream, cell);
+                    RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
+                    const int n = poissonCount(counter, lambdaFree, 65535);
+                    for (int j = 0; j < n; ++j) {
+                        // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
+                        RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
+                        const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
+                        const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
+                        const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
+                        ++rowThrown[static_cast<std::size_t>(iy)];
+                        if (s < 0) continue;
+                        if (onTrunk(cell, x, y)) {
+                            ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                            continue;
+                        }
+                        cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
+                                                 static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
+                                                 static_cast<std::uint16_t>(pass)});
+                    }
+                }
+                if (pass != 0) continue;
+                // Cluster parents of each field, and their offspring.
+                const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
+                for (int k = 0; k < st.scales; ++k) {
+                    const std::uint64_t pStream = mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), cell);
+                    RandomStream prs(params.seed, pStream, 0);
+                    const int nParents = poissonCount(prs, st.parentsPerM2[k] * cellArea, 65535);
+                    for (int j = 0; j < nParents; ++j) {
+                        const double px = ox + (ix + prs.uniform()) * cs, py = oy + (iy + prs.uniform()) * cs;
+                        for (std::size_t s = 0; s < nS; ++s) {
+                            const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
+                            const std::size_t i = static_cast<std::size_t>(r) * nS + s;
+                            const double lmax = scale[i] * rhoMax[i];
+                            if (!(a > 0) || !(lmax > 0) || quota[i] <= 0) continue;
+                            const std::uint64_t oStream =
+                                mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(k)), cell),
+                                          static_cast<std::uint64_t>(j) * nS + s);
+                            RandomStream ors(params.seed, oStream, 0);
+                            const int n = poissonCount(ors, params.candidateOversample * a * lmax / st.parentsPerM2[k], 65535);
+                            for (int o = 0; o < n; ++o) {
+                                const double x = px + st.sigmaM[k] * ors.normal(), y = py + st.sigmaM[k] * ors.normal();
+                                const double uThin = ors.uniform();
+                                const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
+                                ++rowThrown[static_cast<std::size_t>(iy)];
+                                const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
+                                if (!terrainM.inside(cx, cy)) continue;
+                                const std::size_t oc = terrainM.index(cx, cy);
+                                if (!(uThin * lmax < intensity(oc, s))) continue;
+                                if (onTrunk(oc, x, y)) {
+                                    ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                                    continue;
+                                }
+                                cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
+                                                         static_cast<std::uint32_t>(oc), static_cast<std::uint16_t>(s),
+                                                         static_cast<std::uint16_t>(pass)});
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Each (region, species) keeps its lowest keys up to what it still misses.
+        std::vector<std::vector<std::uint64_t>> keys(nR * nS);
+        for (int iy = 0; iy < h; ++iy) {
+            out.darts += rowThrown[static_cast<std::size_t>(iy)];
+            out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
+            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)])
+                keys[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species].push_back(cnd.key);
+        }
+        std::vector<std::uint64_t> threshold(nR * nS, std::numeric_limits<std::uint64_t>::max());
+        std::vector<std::int64_t> equalQuota(nR * nS, std::numeric_limits<std::int64_t>::max());
+        for (std::size_t i = 0; i < nR * nS; ++i) {
+            auto& k = keys[i];
+            const std::int64_t missing = quota[i] - placed[i];
+            if (missing <= 0) {
+                threshold[i] = 0;
+                equalQuota[i] = 0;
+                continue;
+            }
+            if (static_cast<std::int64_t>(k.size()) <= missing) continue;
+            std::nth_element(k.begin(), k.begin() + (missing - 1), k.end());
+            threshold[i] = k[static_cast<std::size_t>(missing - 1)];
+            std::int64_t less = 0;
+            for (std::uint64_t v : k) less += v < threshold[i];
+            equalQuota[i] = missing - less;
+            std::vector<std::uint64_t>().swap(k);
+        }
+        for (int iy = 0; iy < h; ++iy) {
+            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) {
+                const std::size_t i = static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species;
+                if (cnd.key < threshold[i] || (cnd.key == threshold[i] && equalQuota[i]-- > 0)) {
+                    accepted.push_back(cnd);
+                    ++placed[i];
+                }
+            }
+            std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
+        }
+    }
+    std::sort(accepted.begin(), accepted.end(), [](const Candidate& a, const Candidate& b) {
+        if (a.cell != b.cell) return a.cell < b.cell;
+        if (a.key != b.key) return a.key < b.key;
+        return a.pass < b.pass;
+    });
+    for (std::size_t r = 0; r < nR; ++r)
+        for (std::size_t s = 0; s < nS; ++s) out.regions[r].placed += placed[r * nS + s];
+
+    // Sizes: height from the region's histogram of the plant's context (under a crown or in
+    // the open), truncated below the lowest crown above; crown radius by allometry.
+    std::vector<DbHistogram> pooledHeight(nS);
+    for (const auto& reg : db.regions)
+        for (std::size_t s = 0; s < nS; ++s) {
+            const DbHistogram& src = reg.height[s];
+            DbHistogram& dst = pooledHeight[s];
+            if (dst.edges.empty()) {
+                dst.edges = src.edges;
+                dst.counts.assign(src.counts.size(), 0.0);
+            }
+            if (dst.counts.size() != src.counts.size()) continue;
+            for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
+            dst.overflow += src.overflow;
+        }
+    // Open-ground histograms: all heights less those under crowns.
+    std::vector<DbHistogram> openHeight;
+    if (withContext)
+        for (std::size_t r = 0; r < nR; ++r)
+            for (std::size_t s = 0; s < nS; ++s) {
+                DbHistogram o = db.regions[r].height[s];
+                const DbHistogram& cov = db.regions[r].heightCovered[s];
+                for (std::size_t k = 0; k < o.counts.size() && k < cov.counts.size(); ++k) o.counts[k] = std::max(0.0, o.counts[k] - cov.counts[k]);
+                o.overflow = std::max(0.0, o.overflow - cov.overflow);
+                openHeight.push_back(std::move(o));
+            }
+    const CanopyCover cover(canopy);
+    auto mass = [](const DbHistogram& hst) {
+        double t = hst.overflow;
+        for (double c : hst.counts) t += c;
+        return t;
+    };
+    auto cdfAt = [](const DbHistogram& hst, double x) {  // share of the histogram below x
+        double total = hst.overflow, below = 0;
+        for (double c : hst.counts) total += c;
+        if (!(total > 0)) return 0.0;
+        for (std::size_t k = 0; k < hst.counts.size(); ++k) {
+            const double lo = hst.edges[k], hi = hst.edges[k + 1];
+            if (x >= hi)
+                below += hst.counts[k];
+            else if (x > lo)
+                below += hst.counts[k] * (x - lo) / (hi - lo);
+        }
+        return below / total;
+    };
+    const std::int64_t nPlants = static_cast<std::int64_t>(accepted.size());
+    out.plants.resize(accepted.size());
+    out.plantRegion.resize(accepted.size());
+    std::int64_t limited = 0;
+#pragma omp parallel for schedule(static) reduction(+ : limited)
+    for (std::int64_t i = 0; i < nPlants; ++i) {
+        const Candidate& cnd = accepted[static_cast<std::size_t>(i)];
+        const std::size_t s = cnd.species;
+        const int r = map.region.data()[cnd.cell];
+        Plant p;
+        p.speciesId = static_cast<int>(s);
+        p.xM = ox + static_cast<double>(cnd.dx);
+        p.yM = oy + static_cast<double>(cnd.dy);
+        p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
+        const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
+        const bool covered = limit < CanopyCover::kNone;
+        const DbHistogram* hist = nullptr;
+        if (withContext) {
+            const DbHistogram& ctxH = covered ? db.regions[static_cast<std::size_t>(r)].heightCovered[s]
+                                              : openHeight[static_cast<std::size_t>(r) * nS + s];
+            if (mass(ctxH) > 0) hist = &ctxH;
+        }
+        if (hist == nullptr && mass(db.regions[static_cast<std::size_t>(r)].height[s]) > 0) hist = &db.regions[static_cast<std::size_t>(r)].height[s];
+        if (hist == nullptr && mass(pooledHeight[s]) > 0) hist = &pooledHeight[s];
+        RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
+        const double u = rs.uniform();
+        const Allometry& allometry = biome.species[s].allometry;
+        const DbHistogram& radiusHist = db.regions[static_cast<std::size_t>(r)].crownRadius[s];
+        double height;
+        if (hist != nullptr) {
+            const double top = covered ? cdfAt(*hist, limit) : 1.0;
+            if (top > 0) {
+                height = heightQuantile(*hist, mass(radiusHist) > 0 ? &radiusHist : nullptr, allometry, u * top);
+                if (covered && !(height < limit)) height = histogramQuantile(*hist, u * top);
+                if (covered && top < 1.0) ++limited;
+            } else {
+                height = u * limit;  // the species never grew this low: below the crown, uniformly
+                ++limited;
+            }
+        } else {
+            height = 0.5 * biome.species[s].maxHeightM;
+            if (covered) height = std::min(height, u * limit);
+        }
+        if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
+        p.heightM = std::max(0.0, height);
+        p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
+        out.plants[static_cast<std::size_t>(i)] = p;
+        out.plantRegion[static_cast<std::size_t>(i)] = r;
+    }
+    out.heightsLimitedByCrown = limited;
+    out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return out;
+}
+
+}  // namespace eco
