@@ -23,6 +23,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <unordered_map>
 
 #include "canopy_context.h"
 #include "error.h"
@@ -191,6 +192,28 @@ RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const Sy
     RegionStructure st;
     st.region = region;
     st.attachment.assign(ns * 2, 0.0);
+    // Inhibition per species pair: leading bins with g below hardCoreG where a Poisson
+    // pattern would have had enough pairs for that to be no accident.
+    {
+        std::vector<double> hc(ns * ns, 0.0);
+        bool any = false;
+        for (const DbPairStats& p : r.pairs) {
+            if (p.source >= static_cast<int>(ns) || p.target >= static_cast<int>(ns) || !(p.normalisation > 0)) continue;
+            double d = 0;
+            for (std::size_t b = 0; b < nb; ++b) {
+                const double expectedPairs = db.pcfBins.annulusAreaM2(static_cast<int>(b)) * p.normalisation;
+                if (!(p.g[b] < params.hardCoreG) || expectedPairs < params.hardCoreMinExpectedPairs) break;
+                d = db.pcfBins.hiM(static_cast<int>(b));
+            }
+            if (d > 0) {
+                const std::size_t i = static_cast<std::size_t>(p.source), j = static_cast<std::size_t>(p.target);
+                hc[i * ns + j] = std::max(hc[i * ns + j], d);
+                hc[j * ns + i] = std::max(hc[j * ns + i], d);
+                any = true;
+            }
+        }
+        if (any) st.hardCoreM = std::move(hc);
+    }
     const std::vector<double> gPool = observedPcf(db, r, -1);
     if (gPool.size() != nb || !(r.undergrowthCount >= 2)) return st;
     const std::vector<double> ctxPool = contextPcf(db, region, -1);
@@ -368,6 +391,41 @@ double heightQuantile(const DbHistogram& h, const DbHistogram* radius, const All
     return h.edges.back();
 }
 
+/// Placed plants in buckets, for the hard-core test of random sequential adsorption.
+struct HardCore {
+    const std::vector<RegionStructure>& structure;
+    std::size_t nSpecies;
+    double maxM = 0;
+    std::unordered_map<std::uint64_t, std::vector<Candidate>> buckets;
+
+    HardCore(const std::vector<RegionStructure>& st, std::size_t ns) : structure(st), nSpecies(ns) {
+        for (const RegionStructure& r : st)
+            for (double d : r.hardCoreM) maxM = std::max(maxM, d);
+    }
+    static std::uint64_t bucketKey(long long bx, long long by) {
+        return (static_cast<std::uint64_t>(bx + (1LL << 31)) << 32) | static_cast<std::uint64_t>((by + (1LL << 31)) & 0xffffffffLL);
+    }
+    /// Places the candidate unless a placed plant is nearer than their pair's hard core.
+    bool admit(const Candidate& c, int region) {
+        const auto& hc = structure[static_cast<std::size_t>(region)].hardCoreM;
+        const long long bx = static_cast<long long>(std::floor(c.dx / maxM)), by = static_cast<long long>(std::floor(c.dy / maxM));
+        if (!hc.empty())
+            for (long long y = by - 1; y <= by + 1; ++y)
+                for (long long x = bx - 1; x <= bx + 1; ++x) {
+                    const auto it = buckets.find(bucketKey(x, y));
+                    if (it == buckets.end()) continue;
+                    for (const Candidate& o : it->second) {
+                        const double d = hc[c.species * nSpecies + o.species];
+                        if (!(d > 0)) continue;
+                        const double ddx = double(o.dx) - double(c.dx), ddy = double(o.dy) - double(c.dy);
+                        if (ddx * ddx + ddy * ddy < d * d) return false;
+                    }
+                }
+        buckets[bucketKey(bx, by)].push_back(c);
+        return true;
+    }
+};
+
 }  // namespace
 
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
@@ -477,6 +535,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         return scale[static_cast<std::size_t>(r) * nS + s] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + ctx.data()[cell]];
     };
 
+    HardCore hardCore(out.structure, nS);
     std::vector<Candidate> accepted;
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Free-dart rate factor per (region, species): the free share of the model in the
@@ -618,15 +677,30 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             equalQuota[i] = missing - less;
             std::vector<std::uint64_t>().swap(k);
         }
+        std::vector<Candidate> passAccepted;
         for (int iy = 0; iy < h; ++iy) {
             for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) {
                 const std::size_t i = static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species;
-                if (cnd.key < threshold[i] || (cnd.key == threshold[i] && equalQuota[i]-- > 0)) {
-                    accepted.push_back(cnd);
-                    ++placed[i];
-                }
+                if (cnd.key < threshold[i] || (cnd.key == threshold[i] && equalQuota[i]-- > 0)) passAccepted.push_back(cnd);
             }
             std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
+        }
+        // Inhibition: in ascending key order, a candidate closer than the hard-core distance
+        // to a plant already placed is dropped (random sequential adsorption); later passes
+        // throw darts for what is missing.
+        if (hardCore.maxM > 0) {
+            std::sort(passAccepted.begin(), passAccepted.end(), [](const Candidate& a, const Candidate& b) {
+                return a.key != b.key ? a.key < b.key : a.cell < b.cell;
+            });
+            std::vector<Candidate> kept;
+            for (const Candidate& cnd : passAccepted)
+                if (hardCore.admit(cnd, map.region.data()[cnd.cell])) kept.push_back(cnd);
+            out.dartsInhibited += static_cast<std::int64_t>(passAccepted.size() - kept.size());
+            passAccepted.swap(kept);
+        }
+        for (const Candidate& cnd : passAccepted) {
+            ++placed[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species];
+            accepted.push_back(cnd);
         }
     }
     std::sort(accepted.begin(), accepted.end(), [](const Candidate& a, const Candidate& b) {

@@ -171,6 +171,10 @@ void SynthParams::validate() const {
         clusterSigmaMaxM > 1000)
         throw ValidationError("synthesis: cluster_sigma_min_m / cluster_sigma_max_m must satisfy 0 < min <= max <= 1000, got " +
                               num(clusterSigmaMinM) + " / " + num(clusterSigmaMaxM));
+    if (!(hardCoreG >= 0) || !(hardCoreG <= 1))
+        throw ValidationError("synthesis: hard_core_g must be in [0, 1], got " + num(hardCoreG));
+    if (!(hardCoreMinExpectedPairs >= 0) || !std::isfinite(hardCoreMinExpectedPairs))
+        throw ValidationError("synthesis: hard_core_min_expected_pairs must be finite and >= 0, got " + num(hardCoreMinExpectedPairs));
     if (clusterMinPlants < 0) throw ValidationError("synthesis: cluster_min_plants must be >= 0, got " + std::to_string(clusterMinPlants));
 }
 
@@ -191,7 +195,9 @@ std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() con
             {"candidate_oversample", num(candidateOversample)},
             {"cluster_sigma_min_m", num(clusterSigmaMinM)},
             {"cluster_sigma_max_m", num(clusterSigmaMaxM)},
-            {"cluster_min_plants", std::to_string(clusterMinPlants)}};
+            {"cluster_min_plants", std::to_string(clusterMinPlants)},
+            {"hard_core_g", num(hardCoreG)},
+            {"hard_core_min_expected_pairs", num(hardCoreMinExpectedPairs)}};
 }
 
 void RefineParams::validate() const {

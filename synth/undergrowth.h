@@ -107,6 +107,10 @@ struct SynthParams {
     /// Species with fewer plants in a region than this get the region's pooled clustering
     /// instead of a fit to their own (noisy) g.
     int clusterMinPlants = 50;
+    /// Inhibition: g below this in the leading bins of a species pair ...
+    double hardCoreG = 0.25;
+    /// ... where a Poisson pattern would have had at least this many pairs per bin.
+    double hardCoreMinExpectedPairs = 10;
 
     /// ValidationError naming the field when one is out of range.
     void validate() const;
@@ -151,6 +155,11 @@ struct RegionStructure {
     std::vector<double> attachment;       ///< [nSpecies][2] a_sk: share of species s's plants in field k's clusters
     double pooledFitRms = 0;              ///< RMS of the pooled g fit over the database bins
     double pooledContextRms = 0;          ///< RMS of the context-only model (no clusters), for comparison
+    /// [nSpecies][nSpecies] hard-core distance (m) between two plants of species s and t: the
+    /// upper edge of the leading distance bins where the database's g_st is below
+    /// `hardCoreG` although at least `hardCoreMinExpectedPairs` pairs were expected there
+    /// (0: no inhibition). Empty when no pair shows one.
+    std::vector<double> hardCoreM;
 };
 
 struct UndergrowthSample {
@@ -163,6 +172,7 @@ struct UndergrowthSample {
     double seconds = 0;
     std::vector<RegionStructure> structure; ///< structured sampler: the model of each region
     std::int64_t heightsLimitedByCrown = 0; ///< structured: plants whose height draw was capped below a crown
+    std::int64_t dartsInhibited = 0;        ///< structured: candidates dropped by a hard-core distance
     std::vector<std::string> warnings;      ///< e.g. an old database read with its known limits
 };
 
