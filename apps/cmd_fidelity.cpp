@@ -271,9 +271,13 @@ void runFidelity(FidelityArgs a) {
         stages.run("database from A", database,
                    {"analyse", simA, "--out", database, "--seed", std::to_string(a.analyseSeed), "--kmax", std::to_string(a.kmax)});
     }
+    // Output names: fidelity.md, fidelity-refined.md (4 sweeps), fidelity-refined-32sweeps.md ...
+    const std::string variant =
+        a.refine ? (a.refineSweeps == 4 ? std::string("-refined") : "-refined-" + std::to_string(a.refineSweeps) + "sweeps")
+                 : std::string();
     std::string scene = a.scene;
     if (scene.empty()) {
-        scene = at(a.refine ? "scene-refined.h5" : "scene.h5");
+        scene = at("scene" + variant + ".h5");
         std::vector<std::string> s = {"synth", "--terrain", terrain, "--canopy", canopy, "--database", database,
                                       "--abiotics", abiotics, "--out", scene, "--seed", std::to_string(a.synthSeed)};
         if (a.refine)
@@ -334,11 +338,11 @@ void runFidelity(FidelityArgs a) {
     std::ostringstream heading;
     heading << "## Fidelity: " << scene << " against held-out " << simB << "\n\n"
             << "eco " << ECO_VERSION_STRING << ", " << utcTimestamp() << ". Reference A: " << simA
-            << (haveDb ? "; database: " + database : std::string()) << (a.refine ? "; refined" : "") << ".";
+            << (haveDb ? "; database: " + database : std::string()) << (a.refine ? "; refined in the plot, " + std::to_string(a.refineSweeps) + " sweeps" : std::string()) << ".";
     const std::string md = fidelityMarkdown(report, heading.str());
     std::cout << md;
-    const std::string outMd = a.outMd.empty() ? at(a.refine ? "fidelity-refined.md" : "fidelity.md") : a.outMd;
-    const std::string outCsv = a.outCsv.empty() ? at(a.refine ? "fidelity-refined.csv" : "fidelity.csv") : a.outCsv;
+    const std::string outMd = a.outMd.empty() ? at("fidelity" + variant + ".md") : a.outMd;
+    const std::string outCsv = a.outCsv.empty() ? at("fidelity" + variant + ".csv") : a.outCsv;
     writeTextFile(outMd, md);
     writeFidelityCsv(outCsv, report);
     info("fidelity: wrote " + outMd + " and " + outCsv);

@@ -483,15 +483,17 @@ std::vector<std::pair<std::string, double>> scopeDistances(const PatternSummary:
         const double w = static_cast<double>(b.radiusRatio[s].size());
         dMed += w * std::abs(sortedQuantile(x.radiusRatio[s], 0.5) - sortedQuantile(b.radiusRatio[s], 0.5));
         dP5 += w * std::abs(sortedQuantile(x.radiusRatio[s], 0.05) - sortedQuantile(b.radiusRatio[s], 0.05));
-        double q = 0;  // the whole distribution: quantiles 5, 10, ..., 95 %
-        for (int k = 1; k <= 19; ++k)
-            q += std::abs(sortedQuantile(x.radiusRatio[s], 0.05 * k) - sortedQuantile(b.radiusRatio[s], 0.05 * k));
+        // The whole distribution: quantiles 5, 10, ..., 95 % of ln(ratio), so that the long
+        // upper tail of independently drawn sizes (ratios of 10 and more) does not swamp it.
+        const auto lnq = [](const std::vector<double>& v, double q) { return std::log(std::max(1e-3, sortedQuantile(v, q))); };
+        double q = 0;
+        for (int k = 1; k <= 19; ++k) q += std::abs(lnq(x.radiusRatio[s], 0.05 * k) - lnq(b.radiusRatio[s], 0.05 * k));
         dQ += w * q / 19.0;
         rw += w;
     }
     out.emplace_back("radius / allometric radius, median (|difference|, weighted)", rw > 0 ? dMed / rw : kNaN);
     out.emplace_back("radius / allometric radius, 5th percentile (|difference|, weighted)", rw > 0 ? dP5 / rw : kNaN);
-    out.emplace_back("radius / allometric radius, quantiles 5-95 % (mean |difference|, weighted)", rw > 0 ? dQ / rw : kNaN);
+    out.emplace_back("radius / allometric radius, quantiles 5-95 % (mean |ln difference|, weighted)", rw > 0 ? dQ / rw : kNaN);
     // Heights against the canopy.
     out.emplace_back("share taller than the crown above (|difference|)",
                      std::abs((nx > 0 ? share(x.tallerThanCrown, nx) : 0.0) - share(b.tallerThanCrown, nbT)));
