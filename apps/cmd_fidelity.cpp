@@ -83,8 +83,9 @@ void readConfig(FidelityArgs& a) {
     StrictTable top(root, a.config, "");
     StrictTable t(top.table("fidelity"), a.config, "[fidelity]");
     const auto str = [&](const char* key, const char* option, std::string& v) {
-        if (t.has(key) && !a.set(option)) v = t.string(key);
-        else if (t.has(key)) t.string(key);
+        if (!t.has(key)) return;
+        const std::string x = t.string(key);
+        if (!a.set(option)) v = x;
     };
     const auto integer = [&](const char* key, const char* option, std::int64_t& v, std::int64_t lo) {
         if (!t.has(key)) return;
@@ -125,7 +126,13 @@ void readConfig(FidelityArgs& a) {
         const auto v = t.strings("canopy_targets");
         if (!a.set("--target")) a.canopyTargets = v;
     }
-    if (t.has("refine") && !a.set("--refine")) a.refine = t.boolean("refine");
+    if (t.has("refine")) {
+        const bool x = t.boolean("refine");
+        if (!a.set("--refine")) a.refine = x;
+    }
+    std::int64_t csrSeed = 1;
+    integer("csr_seed", "--csr-seed", csrSeed, 0);
+    if (t.has("csr_seed") && !a.set("--csr-seed")) a.params.csrSeed = static_cast<std::uint64_t>(csrSeed);
     std::int64_t sweeps = a.refineSweeps;
     integer("refine_sweeps", "--refine-sweeps", sweeps, 1);
     a.refineSweeps = static_cast<int>(sweeps);
