@@ -260,12 +260,13 @@ void runFidelity(FidelityArgs a) {
             stages.run("canopy", canopy, c);
         }
     }
-    // The two simulations of the plot.
+    // The two simulations of the plot. Every output path is given, so that none of the
+    // simulation configuration's own [outputs] (out/demo/... in sim-default.toml) is written.
     const auto simulate = [&](const std::string& label, std::int64_t seed) {
         const std::string out = at("sim-" + label + ".h5");
         stages.run("simulation " + label + " (seed " + std::to_string(seed) + ")", out,
                    {"simulate", "--config", a.simConfig, "--terrain", terrain, "--abiotics", abiotics, "--canopy", canopy,
-                    "--out", out, "--csv", at("sim-" + label + ".csv"), "--seed", std::to_string(seed), "--years",
+                    "--out", out, "--csv", at("sim-" + label + ".csv"), "--png", at("png/sim-" + label), "--seed", std::to_string(seed), "--years",
                     std::to_string(a.years), "--crop", a.crop, "--checkpoint-every", "0"});
         return out;
     };
@@ -280,7 +281,7 @@ void runFidelity(FidelityArgs a) {
     }
     // Output names: fidelity.md, fidelity-refined.md (4 sweeps), fidelity-refined-32sweeps.md ...
     const std::string variant =
-        a.refine ? (a.refineSweeps == 4 ? std::string("-refined") : "-refined-" + std::to_string(a.refineSweeps) + "sweeps")
+        a.refine && a.scene.empty() ? (a.refineSweeps == 4 ? std::string("-refined") : "-refined-" + std::to_string(a.refineSweeps) + "sweeps")
                  : std::string();
     std::string scene = a.scene;
     if (scene.empty()) {

@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include "biome.h"
@@ -326,4 +327,31 @@ TEST_CASE("fidelity: score ranges over seeds 1-20", "[.seeds]") {
     WARN("uniform scene score " << uMin << " .. " << uMax << "; Thomas scene score " << tMin << " .. " << tMax
                                 << "; uniform L score min " << lMin << "; CSR RMS(L - r) max " << csrLMax
                                 << " m, |index| max " << csrIdxMax << " m");
+}
+
+TEST_CASE("eco fidelity end to end on a tiny plot: stages cached, same bits for 1 thread", "[fidelity][cli]") {
+    // 64 x 64 cells, a 40 m plot, one simulated year: every stage in about 5 s.
+    test::TempDir dir("fidelity_e2e");
+    const std::string common = "fidelity --width 64 --height 64 --crop 5,5,45,45 --years 1 --sun-step 60 --sim-config " +
+                               test::sourcePath("configs/sim-default.toml") + " --out-dir " + dir.file("out");
+    auto r = test::runEco(common);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("| figure | scope | scene | replicate | CSR | score |") != std::string::npos);
+    CHECK(r.output.find("reusing") == std::string::npos);
+    CHECK(std::filesystem::exists(dir.file("out/fidelity.md")));
+    CHECK(std::filesystem::exists(dir.file("out/sim-A.h5.cmd")));
+    r = test::runEco("--threads 1 " + common + " --out-csv " + dir.file("again.csv"));
+    REQUIRE(r.exitCode == 0);
+    std::size_t reused = 0;
+    for (std::size_t at = r.output.find("reusing"); at != std::string::npos; at = r.output.find("reusing", at + 1)) ++reused;
+    CHECK(reused == 8);  // terrain, CHM, abiotics, canopy, A, B, database, scene
+    std::ifstream a(dir.file("out/fidelity.csv")), b(dir.file("again.csv"));
+    const std::string ta((std::istreambuf_iterator<char>(a)), {}), tb((std::istreambuf_iterator<char>(b)), {});
+    CHECK(!ta.empty());
+    CHECK(ta == tb);
+    // Another seed for B: only B and what follows it are redone.
+    r = test::runEco(common + " --seed-b 5");
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("simulation A (seed 1): reusing") != std::string::npos);
+    CHECK(r.output.find("simulation B (seed 5): reusing") == std::string::npos);
 }
