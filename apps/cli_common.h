@@ -27,6 +27,7 @@ void registerPcfCommand(CLI::App& app);        // eco pcf POINTS.csv --window x0
 void registerSynthCommand(CLI::App& app);      // eco synth --terrain --canopy --database --out SCENE.h5
 void registerCompareCommand(CLI::App& app);    // eco compare SCENE.h5 DB.h5
 void registerValidateCommand(CLI::App& app);   // eco validate [--quick] [--out DIR]
+void registerFidelityCommand(CLI::App& app);   // eco fidelity [--config F] [--scene S --reference A --replicate B]
 
 /// Thrown by a command that completed but must end with a particular non-zero exit status
 /// (e.g. `eco validate` when a check failed); main() prints the message and returns `code`.

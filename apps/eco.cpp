@@ -35,6 +35,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerSynthCommand(*app);
     registerCompareCommand(*app);
     registerValidateCommand(*app);
+    registerFidelityCommand(*app);
     return app;
 }
 
