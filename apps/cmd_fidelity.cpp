@@ -42,6 +42,7 @@ struct FidelityArgs {
     std::string outMd, outCsv;
     bool refine = false;
     int refineSweeps = 4;
+    std::string synthMethod = "structured";
     // Settings (defaults reproduce configs/demo.toml's first scene and plot).
     std::int64_t terrainSeed = 1, seedA = 1, seedB = 2, synthSeed = 1, analyseSeed = 1;
     std::int64_t width = 512, height = 512, years = 150, kmax = 6;
@@ -136,6 +137,10 @@ void readConfig(FidelityArgs& a) {
     std::int64_t sweeps = a.refineSweeps;
     integer("refine_sweeps", "--refine-sweeps", sweeps, 1);
     a.refineSweeps = static_cast<int>(sweeps);
+    if (t.has("synth_method")) {
+        const std::string m = t.string("synth_method");
+        if (!a.set("--synth-method")) a.synthMethod = m;
+    }
     positive("edge_band_m", "--edge-band", a.params.edgeBandM);
     t.finish();
     top.finish();
@@ -185,7 +190,10 @@ class StageRunner {
 public:
     void run(const std::string& name, const std::string& output, const std::vector<std::string>& args) {
         const std::string stamp = output + ".cmd";
-        const std::string cmd = quoted(args);
+        // The code's identity joins the command: a database of an older schema (or files of
+        // another eco version) is made again rather than reused.
+        const std::string cmd = quoted(args) + "\n# eco " + ECO_VERSION_STRING + ", biome database schema " +
+                                std::to_string(kBiomeDbSchemaVersion);
         if (!rerun_ && std::filesystem::exists(output) && std::filesystem::exists(stamp) && readText(stamp) == cmd + "\n") {
             info("fidelity: " + name + ": reusing " + output + " (made with the same settings)");
             return;
@@ -280,14 +288,17 @@ void runFidelity(FidelityArgs a) {
                    {"analyse", simA, "--out", database, "--seed", std::to_string(a.analyseSeed), "--kmax", std::to_string(a.kmax)});
     }
     // Output names: fidelity.md, fidelity-refined.md (4 sweeps), fidelity-refined-32sweeps.md ...
-    const std::string variant =
+    std::string variant =
         a.refine && a.scene.empty() ? (a.refineSweeps == 4 ? std::string("-refined") : "-refined-" + std::to_string(a.refineSweeps) + "sweeps")
                  : std::string();
+    parseSynthMethod(a.synthMethod);  // a clear error for an unknown method, before any stage
+    if (a.scene.empty() && a.synthMethod != "structured") variant = "-" + a.synthMethod + variant;
     std::string scene = a.scene;
     if (scene.empty()) {
         scene = at("scene" + variant + ".h5");
         std::vector<std::string> s = {"synth", "--terrain", terrain, "--canopy", canopy, "--database", database,
-                                      "--abiotics", abiotics, "--out", scene, "--seed", std::to_string(a.synthSeed)};
+                                      "--abiotics", abiotics, "--out", scene, "--seed", std::to_string(a.synthSeed),
+                                      "--method", a.synthMethod};
         if (a.refine)
             s.insert(s.end(), {"--refine", "--refine-window", a.crop, "--refine-sweeps", std::to_string(a.refineSweeps)});
         stages.run(a.refine ? "synthesis (refined in the plot)" : "synthesis", scene, s);
@@ -387,6 +398,10 @@ void registerFidelityCommand(CLI::App& app) {
     CLI::Option* refine = cmd->add_flag("--refine", a->refine, "Synthesize with --refine (inside the plot)");
     refine->each([a](const std::string&) { a->given.insert("--refine"); });
     opt("--refine-sweeps", a->refineSweeps, "Refinement sweeps")->capture_default_str()->check(CLI::PositiveNumber);
+    opt("--synth-method", a->synthMethod,
+        "Undergrowth sampler of the synthesis: structured (default) or darts (the earlier one); outputs of darts are "
+        "named scene-darts*.h5, fidelity-darts*.md")
+        ->capture_default_str();
     opt("--seed-a", a->seedA, "Seed of simulation A")->capture_default_str()->check(nonNegativeNumber());
     opt("--seed-b", a->seedB, "Seed of simulation B")->capture_default_str()->check(nonNegativeNumber());
     opt("--synth-seed", a->synthSeed, "Seed of the synthesis")->capture_default_str()->check(nonNegativeNumber());
