@@ -538,9 +538,12 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     HardCore hardCore(out.structure, nS);
     std::vector<Candidate> accepted;
     for (int pass = 0; pass < params.maxPasses; ++pass) {
-        // Free-dart rate factor per (region, species): the free share of the model in the
-        // first pass, the missing plants in later ones.
-        std::vector<double> freeFactor(nR * nS, 0.0);
+        // Rate factor per (region, species): the oversampling times the share of its quota
+        // still missing. Every pass draws from the same model: the free part, and offspring
+        // of the same cluster parents (their streams do not depend on the pass), so the
+        // plants of all passes together are one thinned realisation of it, conditioned on
+        // one parent field (a later pass with parents of its own would dilute the clustering).
+        std::vector<double> passFactor(nR * nS, 0.0), freeFactor(nR * nS, 0.0);
         bool any = false;
         for (std::size_t r = 0; r < nR; ++r)
             for (std::size_t s = 0; s < nS; ++s) {
@@ -548,13 +551,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const std::int64_t missing = quota[i] - placed[i];
                 if (missing <= 0 || !(expected[i] > 0)) continue;
                 any = true;
-                if (pass == 0) {
-                    double attached = 0;
-                    for (int k = 0; k < out.structure[r].scales; ++k) attached += out.structure[r].attachment[s * 2 + static_cast<std::size_t>(k)];
-                    freeFactor[i] = params.candidateOversample * scale[i] * std::max(0.0, 1.0 - attached);
-                } else {
-                    freeFactor[i] = params.candidateOversample * double(missing) / expected[i];
-                }
+                passFactor[i] = params.candidateOversample * double(missing) / double(quota[i]);
+                double attached = 0;
+                for (int k = 0; k < out.structure[r].scales; ++k) attached += out.structure[r].attachment[s * 2 + static_cast<std::size_t>(k)];
+                freeFactor[i] = passFactor[i] * scale[i] * std::max(0.0, 1.0 - attached);
             }
         if (!any) break;
         out.passes = pass + 1;
@@ -610,8 +610,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                                                  static_cast<std::uint16_t>(pass)});
                     }
                 }
-                if (pass != 0) continue;
-                // Cluster parents of each field, and their offspring.
+                // Cluster parents of each field (the same in every pass), and their offspring.
                 const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
                 for (int k = 0; k < st.scales; ++k) {
                     const std::uint64_t pStream = mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), cell);
@@ -623,12 +622,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                             const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
                             const std::size_t i = static_cast<std::size_t>(r) * nS + s;
                             const double lmax = scale[i] * rhoMax[i];
-                            if (!(a > 0) || !(lmax > 0) || quota[i] <= 0) continue;
-                            const std::uint64_t oStream =
-                                mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(k)), cell),
-                                          static_cast<std::uint64_t>(j) * nS + s);
+                            if (!(a > 0) || !(lmax > 0) || !(passFactor[i] > 0)) continue;
+                            const std::uint64_t oStream = mixStream(
+                                mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
+                                          cell),
+                                static_cast<std::uint64_t>(j) * nS + s);
                             RandomStream ors(params.seed, oStream, 0);
-                            const int n = poissonCount(ors, params.candidateOversample * a * lmax / st.parentsPerM2[k], 65535);
+                            const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
                             for (int o = 0; o < n; ++o) {
                                 const double x = px + st.sigmaM[k] * ors.normal(), y = py + st.sigmaM[k] * ors.normal();
                                 const double uThin = ors.uniform();
