@@ -15,6 +15,7 @@
 #include "error.h"
 #include "fit.h"
 #include "rng.h"
+#include "scenario.h"
 #include "test_util.h"
 #include "validate.h"
 #include "validate_config.h"
@@ -335,10 +336,12 @@ max = 0.15
 
 TEST_CASE("Scenario configurations are strict and name the file and key", "[validate][config]") {
     const ScenarioConfig ok = parseScenarioConfig(kMinimalCircles, "small.toml");
-    CHECK(ok.kind == ScenarioKind::DeussenCircles);
+    CHECK(ok.kind == "deussen_circles");
+    CHECK(!ok.usesForestScene());
+    REQUIRE(ok.scenario);
+    CHECK(ok.scenario->checkIds() == std::vector<std::string>{"slope", "r_squared"});
     CHECK(ok.checks.size() == 2);
     CHECK(ok.check("slope").tolerance == 0.2);
-    CHECK(ok.circles.quick.plantCount == 4000);
 
     const std::string base = kMinimalCircles;
     auto replaced = [&](const std::string& from, const std::string& to) {
@@ -354,6 +357,9 @@ TEST_CASE("Scenario configurations are strict and name the file and key", "[vali
                       Catch::Contains("r_squared") && Catch::Contains("missing"));
     CHECK_THROWS_WITH(parseScenarioConfig(replaced("tolerance = 0.2", "tolerance = 0.2\nmin = 3"), "c.toml"),
                       Catch::Contains("[checks.slope]") && Catch::Contains("exactly one"));
+    // The kind's own [quick] / [full] sizes are read (and ranged) by its class (scenarios/deussen_circles.cpp).
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced("plant_count = 4000", "plant_count = 1"), "c.toml"),
+                      Catch::Contains("c.toml") && Catch::Contains("[quick]") && Catch::Contains("plant_count"));
     CHECK_THROWS_WITH(parseScenarioConfig(replaced("limit_radius_m = 3.0", "limit_radius_m = 0.05"), "c.toml"),
                       Catch::Contains("c.toml") && Catch::Contains("limit_radius_m"));
     CHECK_THROWS_AS(parseScenarioConfig("[scenario\nname = 1", "c.toml"), IoError);
@@ -400,7 +406,7 @@ TEST_CASE("The shipped configurations load and every scenario has its checks", "
     std::set<std::string> names;
     for (const auto& s : suite.scenarios) {
         names.insert(s.name);
-        CHECK(s.checks.size() == checkIdsOf(s.kind).size());
+        CHECK(s.checks.size() == s.scenario->checkIds().size());
     }
     for (const char* n : {"self_thinning", "succession", "equilibrium", "gap_dynamics", "abiotic_gradients",
                           "deussen_comparison", "deussen_circles"})
