@@ -38,6 +38,162 @@ struct SelfThinningSettings {
     sim::SimParams params;
 };
 
+/// The stand's census of one year.
+struct YearStats {
+    int year;
+    double alive, densityPerM2, meanMass, meanAreaM2, meanHeightM, coverFraction, deaths, mortality;
+};
+
+/// A simulated stand: its census of every year (0 = the initial stand).
+struct Stand {
+    std::vector<YearStats> stats;
+    std::size_t plants = 0;       ///< initial plants
+    Clock::time_point started{};  ///< when the simulation started
+};
+
+/// Simulates the even-aged stand of settings st in `size` and records every year.
+Stand simulateStand(const SelfThinningSettings& st, const SelfThinningSettings::Size& size, int species,
+                    const ScenarioContext& ctx) {
+    const Biome& biome = ctx.biome();
+    const Species& sp = biome.species[static_cast<std::size_t>(species)];
+    Stand out;
+    // Flat, uniform plot without canopy: no shade but the stand's own, no seedbank.
+    sim::DemoSceneParams dp;
+    dp.cells = static_cast<int>(std::ceil(size.plotSizeM / dp.cellSizeM)) + 1;
+    dp.seed = size.seed;
+    dp.uniformAbiotics = true;
+    sim::SimInputs in = sim::makeDemoScene(dp, biome);
+    in.canopy.clear();
+    in.chmM = Grid<float>();
+    const double ox = in.abiotics.elevationM.originX(), oy = in.abiotics.elevationM.originY();
+    in.area = sim::SimArea{ox, oy, ox + size.plotSizeM, oy + size.plotSizeM};
+    const double areaM2 = size.plotSizeM * size.plotSizeM;
+    const auto n = static_cast<std::size_t>(std::llround(st.densityPerM2 * areaM2));
+    std::vector<sim::UndergrowthPlant> initial(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        RandomStream rs(size.seed, mixStream(i, kStandStreamTag));
+        sim::UndergrowthPlant& p = initial[i];
+        p.id = i + 1;
+        p.speciesId = species;
+        p.xM = rs.uniform(ox, ox + size.plotSizeM);
+        p.yM = rs.uniform(oy, oy + size.plotSizeM);
+        p.heightM = rs.uniform(st.initialHeightMinM, st.initialHeightMaxM);
+        p.groundZM = in.abiotics.elevationM.sampleBilinear(p.xM, p.yM);
+    }
+    ctx.log("validate: self-thinning stand: " + std::to_string(n) + " " + sp.name + " on " + fixed(size.plotSizeM, 0) +
+            " m x " + fixed(size.plotSizeM, 0) + " m, " + std::to_string(size.years) + " years");
+    out.plants = n;
+    out.started = Clock::now();
+    const auto t0 = out.started;
+    sim::Simulation s(std::move(in), st.params, size.seed, initial);
+
+    std::vector<YearStats>& stats = out.stats;
+    auto record = [&](int year, double deaths, double before) {
+        const auto plants = s.plants();
+        double mass = 0, area = 0, height = 0;
+        for (const auto& p : plants) {
+            const double a = M_PI * p.crownRadiusM * p.crownRadiusM;
+            area += a;
+            mass += std::pow(a, 1.5);
+            height += p.heightM;
+        }
+        const double k = static_cast<double>(plants.size());
+        stats.push_back({year, k, k / areaM2, k > 0 ? mass / k : kNaN, k > 0 ? area / k : kNaN, k > 0 ? height / k : kNaN,
+                         area / areaM2, deaths, before > 0 ? deaths / before : kNaN});
+    };
+    record(0, 0, 0);
+    auto deathsSoFar = [&] {
+        return static_cast<double>(s.counters().diedBackgroundOrStress + s.counters().diedAtCanopy);
+    };
+    double lastDeaths = deathsSoFar();
+    for (int y = 1; y <= size.years; ++y) {
+        const double before = static_cast<double>(s.plantCount());
+        s.stepYear();
+        const double d = deathsSoFar();
+        record(y, d - lastDeaths, before);
+        lastDeaths = d;
+        if (y % 10 == 0 || y == size.years)
+            ctx.log("validate:   self-thinning: year " + std::to_string(y) + "/" + std::to_string(size.years) + ", " +
+                    std::to_string(s.plantCount()) + " plants, " + fixed(secondsSince(t0), 1) + " s");
+    }
+    return out;
+}
+
+/// The thinning phase [first, last] (-1 when none) for crown cover `coverNeeded`;
+/// `background` is the yearly background mortality.
+/// It starts in the first year in which the crowns have closed and mortality exceeds the
+/// background by the configured factor, while enough plants remain for a meaningful mean.
+/// (Without the closure condition the phase would include the first years, in which
+/// randomly placed neighbours already kill each other while the stand is still open and mean
+/// size grows faster than the thinning line; the report gives that fit too.) It lasts while
+/// the canopy stays closed (cover at least the onset cover) and enough plants remain: Yoda's
+/// line describes fully stocked stands, and once the plants near their maximum size,
+/// background deaths open gaps that nothing refills.
+void thinningPhase(const std::vector<YearStats>& stats, const SelfThinningSettings& st, double background,
+                   double coverNeeded, int& first, int& last) {
+    first = last = -1;
+    for (const YearStats& y : stats) {
+        if (y.year == 0) continue;
+        if (first < 0 && y.coverFraction >= coverNeeded && y.mortality > st.onsetMortalityFactor * background)
+            first = y.year;
+        if (first < 0) continue;
+        if (y.alive < st.minPlantsInFit || y.coverFraction < coverNeeded) break;
+        last = y.year;
+    }
+}
+
+/// Fits log10 mean mass on log10 density over the phase [first, last]: false with a note
+/// when there is no phase, fewer than 3 years or a degenerate fit. lx, ly get the points.
+bool fitThinningPhase(const std::vector<YearStats>& stats, const SelfThinningSettings& st, double background, int first,
+                      int last, std::vector<double>& lx, std::vector<double>& ly, LineFit& fit, std::string& note) {
+    if (first >= 0)
+        for (const YearStats& y : stats)
+            if (y.year >= first && y.year <= last && y.alive > 0) {
+                lx.push_back(std::log10(y.densityPerM2));
+                ly.push_back(std::log10(y.meanMass));
+            }
+    if (lx.size() >= 3) {
+        try {
+            fit = fitLine(lx, ly);
+            return true;
+        } catch (const ValidationError& e) {
+            note = e.what();
+            return false;
+        }
+    }
+    note = first < 0 ? "no thinning phase: crown cover never reached " + num(st.onsetCoverFraction) +
+                           " with yearly mortality above " + num(st.onsetMortalityFactor) + " x background (" +
+                           fixed(100 * background, 2) + " %/year)"
+                     : "thinning phase has fewer than 3 years";
+    return false;
+}
+
+/// Log-log plot: every year, the fitted years, the fit and a -3/2 reference line.
+void plotLogLog(const std::string& path, const std::string& speciesName, const std::vector<YearStats>& stats,
+                const std::vector<double>& lx, const std::vector<double>& ly, bool fitted, const LineFit& fit) {
+    PlotSeries all{"every year", {}, {}, {0.6f, 0.6f, 0.6f}, true, 2.5};
+    PlotSeries used{"thinning phase (fitted)", {}, {}, {0.85f, 0.3f, 0.1f}, false, 4.0};
+    for (const YearStats& y : stats)
+        if (y.alive > 0 && y.meanMass > 0) {
+            all.x.push_back(std::log10(y.densityPerM2));
+            all.y.push_back(std::log10(y.meanMass));
+        }
+    used.x = lx;
+    used.y = ly;
+    std::vector<PlotSeries> series{all, used};
+    if (fitted) {
+        const auto [mn, mx] = std::minmax_element(lx.begin(), lx.end());
+        PlotSeries line{"fit, slope " + fixed(fit.slope, 2), {*mn, *mx},
+                        {fit.intercept + fit.slope * *mn, fit.intercept + fit.slope * *mx}, {0.1f, 0.3f, 0.8f}, true, 0};
+        const double cx = mean(lx), cy = mean(ly);
+        PlotSeries ref{"slope -3/2 (Yoda)", {*mn, *mx}, {cy - 1.5 * (*mn - cx), cy - 1.5 * (*mx - cx)}, {0.2f, 0.65f, 0.2f}, true, 0};
+        series.push_back(line);
+        series.push_back(ref);
+    }
+    writeXYPlotPng(path, "Self-thinning: " + speciesName, "log10 density (plants per m^2)",
+                   "log10 mean mass, (crown area)^1.5 (m^3)", series);
+}
+
 class SelfThinning final : public Scenario {
 public:
     explicit SelfThinning(const ScenarioParse& in);
@@ -80,119 +236,19 @@ void SelfThinning::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioR
     const auto& size = ctx.mode() == Mode::Quick ? st.quick : st.full;
     const int species = biome.speciesIndex(st.species);
     const Species& sp = biome.species[static_cast<std::size_t>(species)];
-    // Flat, uniform plot without canopy: no shade but the stand's own, no seedbank.
-    sim::DemoSceneParams dp;
-    dp.cells = static_cast<int>(std::ceil(size.plotSizeM / dp.cellSizeM)) + 1;
-    dp.seed = size.seed;
-    dp.uniformAbiotics = true;
-    sim::SimInputs in = sim::makeDemoScene(dp, biome);
-    in.canopy.clear();
-    in.chmM = Grid<float>();
-    const double ox = in.abiotics.elevationM.originX(), oy = in.abiotics.elevationM.originY();
-    in.area = sim::SimArea{ox, oy, ox + size.plotSizeM, oy + size.plotSizeM};
-    const double areaM2 = size.plotSizeM * size.plotSizeM;
-    const auto n = static_cast<std::size_t>(std::llround(st.densityPerM2 * areaM2));
-    std::vector<sim::UndergrowthPlant> initial(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        RandomStream rs(size.seed, mixStream(i, kStandStreamTag));
-        sim::UndergrowthPlant& p = initial[i];
-        p.id = i + 1;
-        p.speciesId = species;
-        p.xM = rs.uniform(ox, ox + size.plotSizeM);
-        p.yM = rs.uniform(oy, oy + size.plotSizeM);
-        p.heightM = rs.uniform(st.initialHeightMinM, st.initialHeightMaxM);
-        p.groundZM = in.abiotics.elevationM.sampleBilinear(p.xM, p.yM);
-    }
-    ctx.log("validate: self-thinning stand: " + std::to_string(n) + " " + sp.name + " on " + fixed(size.plotSizeM, 0) + " m x " +
-        fixed(size.plotSizeM, 0) + " m, " + std::to_string(size.years) + " years");
-    const auto t0 = Clock::now();
-    sim::Simulation s(std::move(in), st.params, size.seed, initial);
-
-    struct YearStats {
-        int year;
-        double alive, densityPerM2, meanMass, meanAreaM2, meanHeightM, coverFraction, deaths, mortality;
-    };
-    std::vector<YearStats> stats;
-    auto record = [&](int year, double deaths, double before) {
-        const auto plants = s.plants();
-        double mass = 0, area = 0, height = 0;
-        for (const auto& p : plants) {
-            const double a = M_PI * p.crownRadiusM * p.crownRadiusM;
-            area += a;
-            mass += std::pow(a, 1.5);
-            height += p.heightM;
-        }
-        const double k = static_cast<double>(plants.size());
-        stats.push_back({year, k, k / areaM2, k > 0 ? mass / k : kNaN, k > 0 ? area / k : kNaN, k > 0 ? height / k : kNaN,
-                         area / areaM2, deaths, before > 0 ? deaths / before : kNaN});
-    };
-    record(0, 0, 0);
-    auto deathsSoFar = [&] {
-        return static_cast<double>(s.counters().diedBackgroundOrStress + s.counters().diedAtCanopy);
-    };
-    double lastDeaths = deathsSoFar();
-    for (int y = 1; y <= size.years; ++y) {
-        const double before = static_cast<double>(s.plantCount());
-        s.stepYear();
-        const double d = deathsSoFar();
-        record(y, d - lastDeaths, before);
-        lastDeaths = d;
-        if (y % 10 == 0 || y == size.years)
-            ctx.log("validate:   self-thinning: year " + std::to_string(y) + "/" + std::to_string(size.years) + ", " +
-                std::to_string(s.plantCount()) + " plants, " + fixed(secondsSince(t0), 1) + " s");
-    }
-    // Thinning phase: from the first year in which the crowns have closed and mortality
-    // exceeds the background by the configured factor, while enough plants remain for a
-    // meaningful mean. (Without the closure condition the phase would include the first
-    // years, in which randomly placed neighbours already kill each other while the stand
-    // is still open and mean size grows faster than the thinning line; the report gives
-    // that fit too.)
+    const Stand stand = simulateStand(st, size, species, ctx);
+    const std::vector<YearStats>& stats = stand.stats;
+    const std::size_t n = stand.plants;
+    const auto t0 = stand.started;
     const double background = 1.0 - std::pow(st.params.survivalAtMaxAge, 1.0 / sp.maxAgeYears);
-    // The phase lasts while the canopy stays closed (cover at least the onset cover) and
-    // enough plants remain: Yoda's line describes fully stocked stands, and once the
-    // plants near their maximum size, background deaths open gaps that nothing refills.
-    auto phase = [&](double coverNeeded, int& first, int& last) {
-        first = last = -1;
-        for (const YearStats& y : stats) {
-            if (y.year == 0) continue;
-            if (first < 0 && y.coverFraction >= coverNeeded && y.mortality > st.onsetMortalityFactor * background)
-                first = y.year;
-            if (first < 0) continue;
-            if (y.alive < st.minPlantsInFit || y.coverFraction < coverNeeded) break;
-            last = y.year;
-        }
-    };
-    auto fitPhase = [&](int first, int last, std::vector<double>& lx, std::vector<double>& ly, LineFit& fit,
-                        std::string& note) {
-        if (first >= 0)
-            for (const YearStats& y : stats)
-                if (y.year >= first && y.year <= last && y.alive > 0) {
-                    lx.push_back(std::log10(y.densityPerM2));
-                    ly.push_back(std::log10(y.meanMass));
-                }
-        if (lx.size() >= 3) {
-            try {
-                fit = fitLine(lx, ly);
-                return true;
-            } catch (const ValidationError& e) {
-                note = e.what();
-                return false;
-            }
-        }
-        note = first < 0 ? "no thinning phase: crown cover never reached " + num(st.onsetCoverFraction) +
-                               " with yearly mortality above " + num(st.onsetMortalityFactor) + " x background (" +
-                               fixed(100 * background, 2) + " %/year)"
-                         : "thinning phase has fewer than 3 years";
-        return false;
-    };
     int first, last, firstAny, lastAny;
-    phase(st.onsetCoverFraction, first, last);
-    phase(0.0, firstAny, lastAny);
+    thinningPhase(stats, st, background, st.onsetCoverFraction, first, last);
+    thinningPhase(stats, st, background, 0.0, firstAny, lastAny);
     std::vector<double> lx, ly, ax, ay;
     LineFit fit, fitAny;
     std::string note, noteAny;
-    const bool fitted = fitPhase(first, last, lx, ly, fit, note);
-    const bool fittedAny = fitPhase(firstAny, lastAny, ax, ay, fitAny, noteAny);
+    const bool fitted = fitThinningPhase(stats, st, background, first, last, lx, ly, fit, note);
+    const bool fittedAny = fitThinningPhase(stats, st, background, firstAny, lastAny, ax, ay, fitAny, noteAny);
     r.checks.push_back(makeCheck(sc, "slope",
                                  "slope of log10 mean mass against log10 density over the thinning phase (Yoda: -3/2)",
                                  fitted ? fit.slope : kNaN, note));
@@ -231,29 +287,8 @@ void SelfThinning::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioR
                      (std::isnan(y.mortality) ? std::string("") : fixed(100 * y.mortality, 1) + " %") + " |\n";
     r.details.push_back(table);
 
-    // Log-log plot: every year, the fitted years, the fit and a -3/2 reference line.
-    PlotSeries all{"every year", {}, {}, {0.6f, 0.6f, 0.6f}, true, 2.5};
-    PlotSeries used{"thinning phase (fitted)", {}, {}, {0.85f, 0.3f, 0.1f}, false, 4.0};
-    for (const YearStats& y : stats)
-        if (y.alive > 0 && y.meanMass > 0) {
-            all.x.push_back(std::log10(y.densityPerM2));
-            all.y.push_back(std::log10(y.meanMass));
-        }
-    used.x = lx;
-    used.y = ly;
-    std::vector<PlotSeries> series{all, used};
-    if (fitted) {
-        const auto [mn, mx] = std::minmax_element(lx.begin(), lx.end());
-        PlotSeries line{"fit, slope " + fixed(fit.slope, 2), {*mn, *mx},
-                        {fit.intercept + fit.slope * *mn, fit.intercept + fit.slope * *mx}, {0.1f, 0.3f, 0.8f}, true, 0};
-        const double cx = mean(lx), cy = mean(ly);
-        PlotSeries ref{"slope -3/2 (Yoda)", {*mn, *mx}, {cy - 1.5 * (*mn - cx), cy - 1.5 * (*mx - cx)}, {0.2f, 0.65f, 0.2f}, true, 0};
-        series.push_back(line);
-        series.push_back(ref);
-    }
     const std::string png = sc.name + "_loglog.png";
-    writeXYPlotPng(ctx.file(png), "Self-thinning: " + sp.name, "log10 density (plants per m^2)",
-                   "log10 mean mass, (crown area)^1.5 (m^3)", series);
+    plotLogLog(ctx.file(png), sp.name, stats, lx, ly, fitted, fit);
     r.figures.push_back({png, "Log mean mass against log density, every year; the fitted thinning phase and a -3/2 reference."});
 }
 

@@ -22,6 +22,109 @@ struct SuccessionSettings {
     double suitedMinFitness = 0.9;
 };
 
+/// "Where it is suited": cells in which the late species' Eq. 1 fitness min(f_t, f_m, f_e,
+/// f_g) (its vigour without the alpha scale) on the annual-mean site conditions is at least
+/// minFitness, among the cells its seeds can reach (simulation grid).
+struct SuitedCells {
+    Grid<std::uint8_t> mask;
+    double areaM2 = 0, seededAreaM2 = 0;
+};
+SuitedCells suitedCells(const ForestRun& run, const Biome& biome, int late, double minFitness) {
+    const Grid<float>& g = run.siteSunH;
+    const Species& lateSp = biome.species[static_cast<std::size_t>(late)];
+    SuitedCells out;
+    out.mask = Grid<std::uint8_t>::like(g, 0);
+    for (int iy = 0; iy < g.height(); ++iy)
+        for (int ix = 0; ix < g.width(); ++ix) {
+            const std::int32_t package = run.seedPackages(ix, iy);
+            bool reach = false;
+            for (int b : lateSp.subBiomes) reach = reach || (package & (1 << (b - 1))) != 0;
+            if (!reach) continue;
+            out.seededAreaM2 += g.cellSizeM() * g.cellSizeM();
+            const double fitness = biome.vigourOf(late, g(ix, iy), run.siteMoistureMm(ix, iy), run.siteTemperatureC(ix, iy),
+                                                   run.siteSlopeDeg(ix, iy)) / lateSp.alpha;
+            if (fitness >= minFitness) {
+                out.mask(ix, iy) = 1;
+                out.areaM2 += g.cellSizeM() * g.cellSizeM();
+            }
+        }
+    return out;
+}
+
+/// Crown cover (m^2) per species in the suited cells, mean over the snapshots (NaN if none).
+std::vector<double> suitedCover(const std::vector<const Snapshot*>& snaps, const Grid<float>& g,
+                                const Grid<std::uint8_t>& suited, std::size_t ns) {
+    std::vector<double> cover(ns, 0.0);
+    for (const Snapshot* snap : snaps)
+        for (const LitePlant& p : snap->plants) {
+            const int ix = g.cellX(p.x), iy = g.cellY(p.y);
+            if (!g.inside(ix, iy) || !suited(ix, iy)) continue;
+            cover[static_cast<std::size_t>(p.species)] += kPi * static_cast<double>(p.crownRadiusM) * p.crownRadiusM;
+        }
+    for (double& c : cover) c = snaps.empty() ? kNaN : c / static_cast<double>(snaps.size());
+    return cover;
+}
+
+/// The early species' peaks: the latest peak year / Y and the largest final-window mean /
+/// peak over the early species (NaN with a note when one never occurred); a detail line each.
+struct EarlyPeaks {
+    double peakTime = -1, decline = -1;
+    std::string note;
+};
+EarlyPeaks earlyPeaks(const ForestRun& run, const std::vector<const sim::YearRecord*>& window, int Y,
+                      const SuccessionSettings& cfg, const Biome& biome, ScenarioResult& r) {
+    EarlyPeaks out;
+    double& peakTime = out.peakTime;
+    double& decline = out.decline;
+    std::string& peakNote = out.note;
+    for (const std::string& name : cfg.earlySpecies) {
+        const int e = biome.speciesIndex(name);
+        double peak = 0;
+        int peakYear = -1;
+        for (const auto& rec : run.timeseries)
+            if (rec.count[static_cast<std::size_t>(e)] > peak) {
+                peak = rec.count[static_cast<std::size_t>(e)];
+                peakYear = rec.year;
+            }
+        if (peakYear < 0) {
+            peakTime = decline = kNaN;
+            peakNote = name + " never occurred";
+            break;
+        }
+        std::vector<double> fin;
+        for (const auto* rec : window) fin.push_back(rec->count[static_cast<std::size_t>(e)]);
+        const double d = mean(fin) / peak;
+        peakTime = std::max(peakTime, static_cast<double>(peakYear) / Y);
+        decline = std::max(decline, d);
+        r.details.push_back("- " + name + ": peak of " + num(peak, 6) + " plants in year " + std::to_string(peakYear) +
+                            ", mean of the last " + std::to_string(cfg.finalWindowYears) + " years " + num(mean(fin), 6) +
+                            " (" + fixed(100 * d, 0) + " % of the peak).");
+    }
+    return out;
+}
+
+/// Plants per species every 25 years up to Y (species that ever occurred), a Markdown table.
+std::string countsTable(const ForestRun& run, const Biome& biome, int Y) {
+    const std::size_t ns = biome.species.size();
+    std::string head = "\n| species |", sep = "|---|", body;
+    std::vector<int> years;
+    for (int y = 0; y <= Y; y += 25) years.push_back(y);
+    if (years.back() != Y) years.push_back(Y);
+    for (int y : years) {
+        head += " " + std::to_string(y) + " |";
+        sep += "---|";
+    }
+    for (std::size_t s = 0; s < ns; ++s) {
+        bool any = false;
+        for (const auto& rec : run.timeseries) any = any || rec.count[s] > 0;
+        if (!any) continue;
+        body += "| " + biome.species[s].name + " |";
+        for (int y : years) body += " " + std::to_string(run.timeseries[static_cast<std::size_t>(y)].count[s]) + " |";
+        body += "\n";
+    }
+    return head + "\n" + sep + "\n" + body;
+}
+
 class Succession final : public Scenario {
 public:
     explicit Succession(const ScenarioParse& in);
@@ -73,27 +176,10 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
                                  cfg.lateSpecies + ": share of plants in the last " + std::to_string(cfg.finalWindowYears) +
                                      " years / share at year " + std::to_string(early),
                                  gain, earlyShare > 0 ? "" : cfg.lateSpecies + " absent at year " + std::to_string(early)));
-    // "Where it is suited": cells in which the late species' Eq. 1 fitness min(f_t, f_m,
-    // f_e, f_g) (its vigour without the alpha scale) on the annual-mean site conditions is
-    // at least suited_min_fitness, among the cells its seeds can reach.
     const Grid<float>& g = run.siteSunH;
-    const Species& lateSp = biome.species[static_cast<std::size_t>(late)];
-    Grid<std::uint8_t> suited = Grid<std::uint8_t>::like(g, 0);
-    double suitedAreaM2 = 0, seededAreaM2 = 0;
-    for (int iy = 0; iy < g.height(); ++iy)
-        for (int ix = 0; ix < g.width(); ++ix) {
-            const std::int32_t package = run.seedPackages(ix, iy);
-            bool reach = false;
-            for (int b : lateSp.subBiomes) reach = reach || (package & (1 << (b - 1))) != 0;
-            if (!reach) continue;
-            seededAreaM2 += g.cellSizeM() * g.cellSizeM();
-            const double fitness = biome.vigourOf(late, g(ix, iy), run.siteMoistureMm(ix, iy), run.siteTemperatureC(ix, iy),
-                                                   run.siteSlopeDeg(ix, iy)) / lateSp.alpha;
-            if (fitness >= cfg.suitedMinFitness) {
-                suited(ix, iy) = 1;
-                suitedAreaM2 += g.cellSizeM() * g.cellSizeM();
-            }
-        }
+    const SuitedCells cells = suitedCells(run, biome, late, cfg.suitedMinFitness);
+    const Grid<std::uint8_t>& suited = cells.mask;
+    const double suitedAreaM2 = cells.areaM2, seededAreaM2 = cells.seededAreaM2;
     std::vector<double> suitedCount(ns, 0.0);
     double suitedTotal = 0;
     for (const Snapshot* snap : run.window(Y - cfg.finalWindowYears + 1, Y))
@@ -113,19 +199,8 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
     // Dominance as vegetation science measures it: crown cover (the discs of Fig. 14, in
     // which "Western Swordferns are overtaken by California Laurel"), of the late species
     // against each fast-growing early species, in the suited cells; mean over snapshots.
-    auto suitedCover = [&](const std::vector<const Snapshot*>& snaps) {
-        std::vector<double> cover(ns, 0.0);
-        for (const Snapshot* snap : snaps)
-            for (const LitePlant& p : snap->plants) {
-                const int ix = g.cellX(p.x), iy = g.cellY(p.y);
-                if (!g.inside(ix, iy) || !suited(ix, iy)) continue;
-                cover[static_cast<std::size_t>(p.species)] += kPi * static_cast<double>(p.crownRadiusM) * p.crownRadiusM;
-            }
-        for (double& c : cover) c = snaps.empty() ? kNaN : c / static_cast<double>(snaps.size());
-        return cover;
-    };
-    const std::vector<double> coverEnd = suitedCover(run.window(Y - cfg.finalWindowYears + 1, Y));
-    const std::vector<double> coverEarly = suitedCover(run.window(early, early));
+    const std::vector<double> coverEnd = suitedCover(run.window(Y - cfg.finalWindowYears + 1, Y), g, suited, ns);
+    const std::vector<double> coverEarly = suitedCover(run.window(early, early), g, suited, ns);
     double earlyCoverMax = 0, earlyCoverAtStart = 0;
     std::string earlyCoverName = cfg.earlySpecies.front();
     for (const std::string& name : cfg.earlySpecies) {
@@ -193,31 +268,9 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
                             fixed(100 * finalShare[static_cast<std::size_t>(late)], 1) + " % of the plants, the most numerous "
                             "other species " + wholeName + " " + fixed(100 * wholeOther, 1) + " %.");
     }
-    double peakTime = -1, decline = -1;
-    std::string peakNote;
-    for (const std::string& name : cfg.earlySpecies) {
-        const int e = biome.speciesIndex(name);
-        double peak = 0;
-        int peakYear = -1;
-        for (const auto& rec : run.timeseries)
-            if (rec.count[static_cast<std::size_t>(e)] > peak) {
-                peak = rec.count[static_cast<std::size_t>(e)];
-                peakYear = rec.year;
-            }
-        if (peakYear < 0) {
-            peakTime = decline = kNaN;
-            peakNote = name + " never occurred";
-            break;
-        }
-        std::vector<double> fin;
-        for (const auto* rec : window) fin.push_back(rec->count[static_cast<std::size_t>(e)]);
-        const double d = mean(fin) / peak;
-        peakTime = std::max(peakTime, static_cast<double>(peakYear) / Y);
-        decline = std::max(decline, d);
-        r.details.push_back("- " + name + ": peak of " + num(peak, 6) + " plants in year " + std::to_string(peakYear) +
-                            ", mean of the last " + std::to_string(cfg.finalWindowYears) + " years " + num(mean(fin), 6) +
-                            " (" + fixed(100 * d, 0) + " % of the peak).");
-    }
+    const EarlyPeaks peaks = earlyPeaks(run, window, Y, cfg, biome, r);
+    const double peakTime = peaks.peakTime, decline = peaks.decline;
+    const std::string& peakNote = peaks.note;
     std::string earlyNames;
     for (const auto& n : cfg.earlySpecies) earlyNames += (earlyNames.empty() ? "" : ", ") + n;
     r.checks.push_back(makeCheck(sc, "early_peak_time",
@@ -230,24 +283,7 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
     r.details.push_back("- " + cfg.lateSpecies + ": " + fixed(100 * earlyShare, 1) + " % of the plants at year " +
                         std::to_string(early) + ", " + fixed(100 * finalShare[static_cast<std::size_t>(late)], 1) +
                         " % over the last " + std::to_string(cfg.finalWindowYears) + " years.");
-    // Counts per species every 25 years.
-    std::string head = "\n| species |", sep = "|---|", body;
-    std::vector<int> years;
-    for (int y = 0; y <= Y; y += 25) years.push_back(y);
-    if (years.back() != Y) years.push_back(Y);
-    for (int y : years) {
-        head += " " + std::to_string(y) + " |";
-        sep += "---|";
-    }
-    for (std::size_t s = 0; s < ns; ++s) {
-        bool any = false;
-        for (const auto& rec : run.timeseries) any = any || rec.count[s] > 0;
-        if (!any) continue;
-        body += "| " + biome.species[s].name + " |";
-        for (int y : years) body += " " + std::to_string(run.timeseries[static_cast<std::size_t>(y)].count[s]) + " |";
-        body += "\n";
-    }
-    r.details.push_back(head + "\n" + sep + "\n" + body);
+    r.details.push_back(countsTable(run, biome, Y));
     ctx.forestFigures(run, Y, sc.name, "Undergrowth under Douglas-Fir and Redwood", r);
 }
 
