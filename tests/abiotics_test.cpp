@@ -1,7 +1,7 @@
 // Tests of the abiotic maps (core/abiotics): analytic slope and lapse rate, astronomy
 // against an independent formula and almanac figures, terrain shadowing against brute-force
-// ray casting, moisture mass balance and routing, canopy shade, thread independence, the
-// HDF5 file and the `eco abiotics` command. Grids are non-square throughout so that a
+// ray casting, moisture mass balance and routing, canopy shade, thread independence and the
+// HDF5 file (the `eco abiotics` command: abiotics_cli_test.cpp). Grids are non-square throughout so that a
 // transposed x/y shows up.
 #include <omp.h>
 
@@ -608,51 +608,4 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
     writePartial(foreign, true, 12, false);
     REQUIRE_THROWS_WITH(readAbiotics(foreign), Catch::Contains("not an eco-abiotics file"));
     REQUIRE_THROWS_AS(readAbiotics(dir.file("nonexistent.h5")), IoError);
-}
-
-TEST_CASE("abiotics: the eco abiotics command writes the maps and pictures", "[abiotics][cli]") {
-    test::TempDir dir("abiotics_cli");
-    const std::string terrain = dir.file("terrain.asc");
-    writeAsc(terrain, roughTerrain(31, 22, 2.0));
-    const std::string out = dir.file("abiotics.h5");
-    const std::string png = dir.file("png");
-    const auto r = test::runEco("--threads 2 abiotics --terrain '" + terrain + "' --out '" + out + "' --png '" + png +
-                                "' --sun-step 30");
-    INFO(r.output);
-    REQUIRE(r.exitCode == 0);
-    REQUIRE(r.output.find(out) != std::string::npos);
-    const Abiotics a = readAbiotics(out);
-    REQUIRE(a.sunHours[0].width() == 31);
-    REQUIRE(a.sunHours[0].height() == 22);
-    for (const char* name : {"elevation.png", "slope.png", "sun_01_jan.png", "sun_12_dec.png", "moisture_07_jul.png",
-                             "temperature_06_jun.png"})
-        REQUIRE(std::filesystem::exists(png + "/" + name));
-    REQUIRE(h5::File::openRead(out).attrDouble("/", "sun_step_minutes") == 30.0);
-}
-
-TEST_CASE("abiotics: the eco abiotics command rejects bad input with one clear line", "[abiotics][cli]") {
-    test::TempDir dir("abiotics_cli_bad");
-    const std::string tiny = dir.file("tiny.asc");
-    writeAsc(tiny, Grid<float>(2, 2, 1.0, 0, 0, 5.f));
-    auto r = test::runEco("abiotics --terrain '" + tiny + "' --out '" + dir.file("a.h5") + "'");
-    REQUIRE(r.exitCode == 1);
-    REQUIRE(r.output.find("at least 3 x 3") != std::string::npos);
-    REQUIRE(r.output.find(tiny) != std::string::npos);
-    REQUIRE(!std::filesystem::exists(dir.file("a.h5")));
-
-    r = test::runEco("abiotics --terrain '" + dir.file("nope.asc") + "' --out '" + dir.file("a.h5") + "'");
-    REQUIRE(r.exitCode == 1);
-    REQUIRE(r.output.find("nope.asc") != std::string::npos);
-
-    r = test::runEco("abiotics --out '" + dir.file("a.h5") + "'");
-    REQUIRE(r.exitCode != 0);
-    REQUIRE(r.output.find("--terrain") != std::string::npos);
-
-    const std::string ok = dir.file("ok.asc");
-    writeAsc(ok, roughTerrain(8, 6, 1.0));
-    r = test::runEco("abiotics --terrain '" + ok + "' --out '" + dir.file("a.h5") + "' --sun-step 0");
-    REQUIRE(r.exitCode != 0);
-    r = test::runEco("abiotics --terrain '" + ok + "' --out '" + dir.file("missing_dir/a.h5") + "'");
-    REQUIRE(r.exitCode == 1);
-    REQUIRE(r.output.find("missing_dir") != std::string::npos);
 }

@@ -1,6 +1,7 @@
 // The analyser (analysis/): canopy masks and combination labels, k-means and the choice of
 // k, exact counts / proportions / histograms / pair sums on hand-made patterns, pooling of
-// several inputs, determinism across thread counts, simulation files and the CLI.
+// several inputs, determinism across thread counts, simulation files (the CLI:
+// analysis_cli_test.cpp).
 #include <catch2/catch.hpp>
 #include <omp.h>
 
@@ -18,6 +19,7 @@
 #include "plants.h"
 #include "rng.h"
 #include "sim_input.h"
+#include "sim_file_fixture.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -403,63 +405,9 @@ TEST_CASE("inconsistent inputs and parameters are ValidationErrors naming the pr
 }
 
 // ---------------------------------------------------------------------------------------
-// Simulation files and the CLI
+// Simulation files (the command, eco analyse / inspect, is tested in analysis_cli_test.cpp)
 
-namespace {
-
-/// A small simulation file in the layout of `eco simulate` (docs/simulator.md), with its
-/// abiotics file; `omit` leaves out one dataset or attribute.
-void writeFakeSimulation(const std::string& simPath, const std::string& abioticsPath, const std::string& omit = "") {
-    const Biome& biome = sonoma();
-    Abiotics ab;
-    const int w = 50, h = 40;
-    ab.elevationM = Grid<float>(w, h, 1.0, 1000, 2000, 100.f);
-    ab.slopeDeg = Grid<float>(w, h, 1.0, 1000, 2000, 3.f);
-    for (int m = 0; m < 12; ++m) {
-        Grid<float> sun(w, h, 1.0, 1000, 2000, static_cast<float>(8 + m % 3));
-        Grid<float> moist(w, h, 1.0, 1000, 2000, 0.f);
-        for (int iy = 0; iy < h; ++iy)
-            for (int ix = 0; ix < w; ++ix) moist(ix, iy) = ix < 25 ? 160.f : 60.f;
-        ab.sunHours.months.push_back(sun);
-        ab.moistureMm.months.push_back(moist);
-        ab.temperatureC.months.push_back(Grid<float>(w, h, 1.0, 1000, 2000, 15.f));
-    }
-    writeAbiotics(abioticsPath, ab, biome, AbioticParams{});
-
-    h5::File f = h5::File::create(simPath);
-    f.setAttr("/", "format", std::string("eco-simulation"));
-    f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
-    f.setAttr("/", "seed", static_cast<std::int64_t>(42));
-    f.setAttr("/", "biome_toml", biomeToToml(biome));
-    f.setAttr("/", "x0", 1000.0);
-    f.setAttr("/", "y0", 2000.0);
-    f.setAttr("/", "x1", 1050.0);
-    f.setAttr("/", "y1", 2040.0);
-    f.setAttr("/", "seed_outer_radius_factor", 12.0);
-    f.setAttr("/", "abiotics_path", std::filesystem::path(abioticsPath).filename().string());  // relative: beside the file
-    f.setAttr("/", "model_toml", std::string("[model]\ncell_size_m = 0.2\n"));
-    std::vector<Plant> canopy = {plant("Redwood", 1012, 2020, 60, 3), plant("Coast Live Oak", 1040, 2020, 20, 3)};
-    RandomStream rng(5, 5);
-    std::vector<Plant> early, late;
-    for (int i = 0; i < 1500; ++i) {
-        const char* name = i % 2 ? "Redwood Sorrel" : "Toyon";
-        late.push_back(plant(name, rng.uniform(1000, 1050), rng.uniform(2000, 2040), 0.2, 0.3));
-        if (i < 100) early.push_back(late.back());
-    }
-    if (omit != "/snapshots") {
-        writePlants(f, "/snapshots/year_0001", early, biome);
-        writePlants(f, "/snapshots/year_0010", late, biome);
-        if (omit == "x") {  // a snapshot whose /x dataset is missing
-            f.ensureGroup("/snapshots/year_0020");
-            f.writeI32("/snapshots/year_0020/species_id", {0}, {1});
-        }
-    }
-    if (omit != "/canopy") writePlants(f, "/canopy", canopy, biome);
-}
-
-int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
-
-}  // namespace
+using test::writeFakeSimulation;
 
 TEST_CASE("readSimulation: last snapshot, chosen year, abiotics beside the file, provenance", "[analysis][io]") {
     eco::test::TempDir dir("sim");
@@ -495,46 +443,4 @@ TEST_CASE("readSimulation: missing datasets and wrong files are IoErrors naming 
     SimulationReadOptions opt;
     opt.abioticsPath = dir.file("missing-abiotics.h5");
     CHECK_THROWS_WITH(readSimulation(dir.file("good.h5"), opt), Catch::Contains("missing-abiotics.h5"));
-}
-
-TEST_CASE("eco analyse and eco inspect on a small simulation file", "[analysis][cli]") {
-    eco::test::TempDir dir("cli");
-    const std::string sim = dir.file("sim.h5");
-    writeFakeSimulation(sim, dir.file("abiotics.h5"));
-    const std::string db = dir.file("out/db.h5");
-    const auto r = eco::test::runEco("analyse " + sim + " --out " + db + " --kmax 3");
-    INFO(r.output);
-    REQUIRE(r.exitCode == 0);
-    CHECK_THAT(r.output, Catch::Contains("wrote biome database"));
-    const BiomeDatabase d = readBiomeDatabase(db);
-    CHECK(d.inputs.size() == 1);
-    CHECK(d.inputs[0].seed == 42);
-    CHECK(d.inputs[0].year == 10);
-    CHECK(d.inputs[0].parameters.find("cell_size_m") != std::string::npos);
-    CHECK(d.combinations.size() == 3);  // redwood disc, oak disc, and their overlap
-    const auto ins = eco::test::runEco("inspect " + db + " --png " + dir.file("png"));
-    INFO(ins.output);
-    REQUIRE(ins.exitCode == 0);
-    CHECK_THAT(ins.output, Catch::Contains("k = ") && Catch::Contains("leading species") && Catch::Contains("plants/m2"));
-    CHECK(std::filesystem::exists(dir.file("png/region_0000_pcf.png")));
-    CHECK(std::filesystem::exists(dir.file("png/region_0000_heights.png")));
-}
-
-TEST_CASE("eco analyse: bad input gives one clear line, a non-zero exit and no output", "[analysis][cli][errors]") {
-    eco::test::TempDir dir("cli");
-    const std::string ab = dir.file("abiotics.h5");
-    writeFakeSimulation(dir.file("nox.h5"), ab, "x");
-    const std::string db = dir.file("db.h5");
-    auto r = eco::test::runEco("analyse " + dir.file("nox.h5") + " --year 20 --out " + db);
-    CHECK(r.exitCode == 1);
-    CHECK_THAT(r.output, Catch::Contains("eco: error: ") && Catch::Contains("nox.h5") && Catch::Contains("year_0020/x"));
-    CHECK_FALSE(std::filesystem::exists(db));
-    r = eco::test::runEco("analyse " + ab + " --out " + db);
-    CHECK(r.exitCode == 1);
-    CHECK_THAT(r.output, Catch::StartsWith("eco: error: ") && Catch::Contains("not a simulation file"));
-    CHECK(lineCount(r.output) == 1);
-    CHECK_FALSE(std::filesystem::exists(db));
-    r = eco::test::runEco("inspect " + ab);
-    CHECK(r.exitCode == 1);
-    CHECK_THAT(r.output, Catch::Contains("not a biome database"));
 }

@@ -410,30 +410,3 @@ TEST_CASE("generate: CHM parameters are validated", "[generate]") {
     bad(3, 4) = 7;
     CHECK_THROWS_WITH(eco::generateChm(bad, eco::ChmGenParams{}), Catch::Contains("(3, 4)"));
 }
-
-TEST_CASE("generate: CLI terrain generate and chm generate", "[generate]") {
-    eco::test::TempDir dir("gen_cli");
-    const std::string terrain = dir.file("t.h5");
-    auto r = eco::test::runEco("terrain generate --out " + terrain + " --width 128 --height 96 --cell-size 2 --seed 4");
-    INFO(r.output);
-    REQUIRE(r.exitCode == 0);
-    CHECK(r.output.find(terrain) != std::string::npos);
-    const std::string chm = dir.file("chm.h5");
-    r = eco::test::runEco("chm generate --terrain " + terrain + " --out " + chm + " --sketch-seed 3 --seed 2");
-    INFO(r.output);
-    REQUIRE(r.exitCode == 0);
-    CHECK(r.output.find(chm) != std::string::npos);
-    CHECK(std::filesystem::exists(chm));
-
-    // Image output: the printed vertical scale reads it back.
-    const std::string png = dir.file("t.png");
-    r = eco::test::runEco("terrain generate --out " + png + " --width 64 --height 48 --cell-size 4");
-    REQUIRE(r.exitCode == 0);
-    CHECK(r.output.find("--vertical-scale") != std::string::npos);
-
-    // Mutually exclusive sketch options.
-    r = eco::test::runEco("chm generate --terrain " + terrain + " --out " + dir.file("x.h5") +
-                          " --sketch a.png --sketch-seed 3");
-    CHECK(r.exitCode != 0);
-    CHECK_FALSE(std::filesystem::exists(dir.file("x.h5")));
-}

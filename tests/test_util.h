@@ -1,4 +1,4 @@
-// Helpers shared by the tests: running the eco binary and temporary directories.
+// Helpers shared by the tests: running the eco binary (command-line tests) and temporary directories.
 #pragma once
 
 #include <sys/wait.h>
@@ -16,6 +16,7 @@ struct CommandResult {
     std::string output;  ///< stdout and stderr together
 };
 
+#ifdef ECO_BINARY  // defined for eco_cli_tests only: unit tests do not run the binary
 /// Run the eco binary with `args` (a shell-quoted string), capturing its output.
 inline CommandResult runEco(const std::string& args) {
     const std::string cmd = std::string(ECO_BINARY) + " " + args + " 2>&1";
@@ -29,6 +30,7 @@ inline CommandResult runEco(const std::string& args) {
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
 }
+#endif
 
 /// A fresh empty directory under the system temp dir, removed at scope exit.
 class TempDir {

@@ -1,6 +1,7 @@
 // Tests of the ecological regression suite (validate/): the Eigen line fit, Deussen's
-// circle test, configuration errors, the report and exit status, and `eco validate --quick`
-// end to end (tagged [e2e], run as its own ctest with the label "validation").
+// circle test, configuration errors (through the registry of scenario kinds), the report
+// and exit status. The command, and `eco validate --quick` end to end, are tested in
+// validate_cli_test.cpp.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -15,13 +16,13 @@
 #include "error.h"
 #include "fit.h"
 #include "rng.h"
+#include "scenario.h"
 #include "test_util.h"
 #include "validate.h"
 #include "validate_config.h"
 
 using namespace eco;
 using namespace eco::validate;
-using eco::test::runEco;
 using eco::test::TempDir;
 
 namespace {
@@ -31,11 +32,6 @@ std::string readAll(const std::string& path) {
     std::stringstream ss;
     ss << in.rdbuf();
     return ss.str();
-}
-
-void writeFile(const std::string& path, const std::string& text) {
-    std::ofstream out(path);
-    out << text;
 }
 
 /// Rows of results.csv as (scenario/check) -> (value, pass).
@@ -335,10 +331,12 @@ max = 0.15
 
 TEST_CASE("Scenario configurations are strict and name the file and key", "[validate][config]") {
     const ScenarioConfig ok = parseScenarioConfig(kMinimalCircles, "small.toml");
-    CHECK(ok.kind == ScenarioKind::DeussenCircles);
+    CHECK(ok.kind == "deussen_circles");
+    CHECK(!ok.usesForestScene());
+    REQUIRE(ok.scenario);
+    CHECK(ok.scenario->checkIds() == std::vector<std::string>{"slope", "r_squared"});
     CHECK(ok.checks.size() == 2);
     CHECK(ok.check("slope").tolerance == 0.2);
-    CHECK(ok.circles.quick.plantCount == 4000);
 
     const std::string base = kMinimalCircles;
     auto replaced = [&](const std::string& from, const std::string& to) {
@@ -354,6 +352,9 @@ TEST_CASE("Scenario configurations are strict and name the file and key", "[vali
                       Catch::Contains("r_squared") && Catch::Contains("missing"));
     CHECK_THROWS_WITH(parseScenarioConfig(replaced("tolerance = 0.2", "tolerance = 0.2\nmin = 3"), "c.toml"),
                       Catch::Contains("[checks.slope]") && Catch::Contains("exactly one"));
+    // The kind's own [quick] / [full] sizes are read (and ranged) by its class (scenarios/deussen_circles.cpp).
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced("plant_count = 4000", "plant_count = 1"), "c.toml"),
+                      Catch::Contains("c.toml") && Catch::Contains("[quick]") && Catch::Contains("plant_count"));
     CHECK_THROWS_WITH(parseScenarioConfig(replaced("limit_radius_m = 3.0", "limit_radius_m = 0.05"), "c.toml"),
                       Catch::Contains("c.toml") && Catch::Contains("limit_radius_m"));
     CHECK_THROWS_AS(parseScenarioConfig("[scenario\nname = 1", "c.toml"), IoError);
@@ -400,7 +401,7 @@ TEST_CASE("The shipped configurations load and every scenario has its checks", "
     std::set<std::string> names;
     for (const auto& s : suite.scenarios) {
         names.insert(s.name);
-        CHECK(s.checks.size() == checkIdsOf(s.kind).size());
+        CHECK(s.checks.size() == s.scenario->checkIds().size());
     }
     for (const char* n : {"self_thinning", "succession", "equilibrium", "gap_dynamics", "abiotic_gradients",
                           "deussen_comparison", "deussen_circles"})
@@ -408,104 +409,4 @@ TEST_CASE("The shipped configurations load and every scenario has its checks", "
     // The embedded copies are the same files.
     const SuiteConfig embedded = loadSuiteConfig(ConfigSource{}, defaultBiome());
     CHECK(embedded.scenarios.size() == suite.scenarios.size());
-}
-
-TEST_CASE("eco validate: bad input exits 1 with a message naming the file and key", "[validate][cli]") {
-    TempDir dir("validate_cli");
-    const std::string cfgDir = dir.file("cfg");
-    std::filesystem::create_directories(cfgDir);
-    std::string text = kMinimalCircles;
-    text.replace(text.find("max_steps = 400"), std::string("max_steps = 400").size(), "max_steps = 400\ncolour = 3");
-    writeFile(cfgDir + "/circles.toml", text);
-    const auto r = runEco("validate --configs " + cfgDir + " --out " + dir.file("out"));
-    CHECK(r.exitCode == 1);
-    CHECK(r.output.find("circles.toml:14") != std::string::npos);
-    CHECK(r.output.find("colour") != std::string::npos);
-    CHECK(r.output.find("unknown key") != std::string::npos);
-    CHECK_FALSE(std::filesystem::exists(dir.file("out/report.md")));  // nothing runs on a bad configuration
-
-    const auto missing = runEco("validate --configs " + dir.file("nope") + " --out " + dir.file("out"));
-    CHECK(missing.exitCode == 1);
-    CHECK(missing.output.find("nope") != std::string::npos);
-
-    writeFile(cfgDir + "/circles.toml", kMinimalCircles);
-    const auto only = runEco("validate --configs " + cfgDir + " --only nosuch --out " + dir.file("out"));
-    CHECK(only.exitCode == 1);
-    CHECK(only.output.find("nosuch") != std::string::npos);
-    CHECK(only.output.find("circles_small") != std::string::npos);
-
-    const auto help = runEco("validate --help");
-    CHECK(help.exitCode == 0);
-    CHECK(help.output.find("--quick") != std::string::npos);
-}
-
-TEST_CASE("eco validate: passing and failing checks give exit status 0 and 3", "[validate][cli]") {
-    TempDir dir("validate_status");
-    const std::string cfgDir = dir.file("cfg");
-    std::filesystem::create_directories(cfgDir);
-    writeFile(cfgDir + "/circles.toml", kMinimalCircles);
-    const auto pass = runEco("validate --quick --configs " + cfgDir + " --out " + dir.file("pass"));
-    INFO(pass.output);
-    CHECK(pass.exitCode == 0);
-    CHECK(readAll(dir.file("pass/results.csv")).find(",pass,") != std::string::npos);
-
-    std::string strict = kMinimalCircles;
-    strict.replace(strict.find("tolerance = 0.2"), std::string("tolerance = 0.2").size(), "tolerance = 0.0001");
-    writeFile(cfgDir + "/circles.toml", strict);
-    const auto fail = runEco("validate --quick --configs " + cfgDir + " --out " + dir.file("fail"));
-    INFO(fail.output);
-    CHECK(fail.exitCode == kChecksFailedExit);
-    CHECK(fail.output.find("FAILED circles_small/slope") != std::string::npos);
-    CHECK(readAll(dir.file("fail/report.md")).find("**FAIL**") != std::string::npos);
-}
-
-// The whole quick suite, as CI runs it (about 25 s on 2 cores). Hidden from the default
-// Catch run; tests/CMakeLists.txt registers it as the ctest "validate_quick_end_to_end"
-// with the label "validation". It asserts that the suite runs, writes a complete report
-// and exits with 0: every check passes but the one declared a known deviation of the model
-// (succession/late_dominance, docs/validation.md), which is reported and must stay declared.
-TEST_CASE("eco validate --quick runs end to end and writes a complete report", "[.][e2e]") {
-    TempDir dir("validate_quick");
-    const auto r = runEco("validate --quick --threads 2 --configs " + eco::test::sourcePath("configs/validation") + " --out " +
-                          dir.file("out"));
-    INFO(r.output);
-    // Every check passes or fails only as a declared known deviation (docs/validation.md, "Status").
-    CHECK(r.exitCode == 0);
-    const std::string md = readAll(dir.file("out/report.md"));
-    REQUIRE(!md.empty());
-    const auto rows = readResults(dir.file("out/results.csv"));
-    ConfigSource src;
-    src.directory = eco::test::sourcePath("configs/validation");
-    const SuiteConfig suite = loadSuiteConfig(src, defaultBiome());
-    for (const auto& s : suite.scenarios) {
-        CHECK(md.find("(`" + s.name + "`)") != std::string::npos);
-        for (const auto& c : s.checks) {
-            INFO(s.name + "/" + c.id);
-            CHECK(rows.count(s.name + "/" + c.id) == 1);
-        }
-    }
-    // Every figure the report links exists.
-    std::size_t pos = 0;
-    int figures = 0;
-    while ((pos = md.find("](", pos)) != std::string::npos) {
-        const std::size_t end = md.find(')', pos);
-        const std::string file = md.substr(pos + 2, end - pos - 2);
-        INFO(file);
-        CHECK(std::filesystem::exists(dir.file("out/" + file)));
-        ++figures;
-        pos = end;
-    }
-    CHECK(figures >= 8);
-    // The checks of the model as it stands (docs/validation.md, "Status").
-    CHECK(rows.at("succession/late_dominance").second == "known_deviation");
-    for (const char* id : {"deussen_circles/slope", "deussen_circles/r_squared", "self_thinning/slope",
-                           "self_thinning/r_squared", "succession/early_peak_time", "succession/early_decline",
-                           "succession/late_share_gain", "succession/late_cover_overtakes", "equilibrium/total_cv",
-                           "equilibrium/leading_species_cv",
-                           "gap_dynamics/edge_vs_deep", "gap_dynamics/clearing_vs_deep", "abiotic_gradients/sun_gap",
-                           "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference"}) {
-        INFO(id);
-        REQUIRE(rows.count(id) == 1);
-        CHECK(rows.at(id).second == "pass");
-    }
 }

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "scenario.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -16,33 +17,6 @@ namespace eco::validate {
 namespace fs = std::filesystem;
 
 const char* modeName(Mode m) { return m == Mode::Quick ? "quick" : "full"; }
-
-const char* scenarioKindName(ScenarioKind k) {
-    switch (k) {
-        case ScenarioKind::SelfThinning: return "self_thinning";
-        case ScenarioKind::Succession: return "succession";
-        case ScenarioKind::Equilibrium: return "equilibrium";
-        case ScenarioKind::GapDynamics: return "gap_dynamics";
-        case ScenarioKind::AbioticGradients: return "abiotic_gradients";
-        case ScenarioKind::DeussenComparison: return "deussen_comparison";
-        case ScenarioKind::DeussenCircles: return "deussen_circles";
-    }
-    return "?";
-}
-
-std::vector<std::string> checkIdsOf(ScenarioKind k) {
-    switch (k) {
-        case ScenarioKind::SelfThinning: return {"slope", "r_squared"};
-        case ScenarioKind::Succession:
-            return {"late_share_gain", "late_cover_overtakes", "late_dominance", "early_peak_time", "early_decline"};
-        case ScenarioKind::Equilibrium: return {"total_cv", "leading_species_cv"};
-        case ScenarioKind::GapDynamics: return {"edge_vs_deep", "clearing_vs_deep"};
-        case ScenarioKind::AbioticGradients: return {"sun_gap"};
-        case ScenarioKind::DeussenComparison: return {"short_range_pcf_ratio", "late_share_change_difference"};
-        case ScenarioKind::DeussenCircles: return {"slope", "r_squared"};
-    }
-    return {};
-}
 
 bool CheckSpec::passes(double v) const {
     if (!std::isfinite(v)) return false;
@@ -83,11 +57,6 @@ const CheckSpec& ScenarioConfig::check(const std::string& id) const {
     for (const CheckSpec& c : checks)
         if (c.id == id) return c;
     throw ValidationError(path + ": no check '" + id + "'");
-}
-
-bool ScenarioConfig::usesForestScene() const {
-    return kind == ScenarioKind::Succession || kind == ScenarioKind::Equilibrium || kind == ScenarioKind::GapDynamics ||
-           kind == ScenarioKind::AbioticGradients || kind == ScenarioKind::DeussenComparison;
 }
 
 namespace {
@@ -138,6 +107,8 @@ CheckSpec parseCheck(const toml::table& t, const std::string& path, const std::s
     return c;
 }
 
+}  // namespace
+
 int yearsIn(StrictTable& s, const std::string& key, int lo, int hi) {
     const std::int64_t v = s.integer(key);
     if (v < lo || v > hi) s.fail(key, "value " + std::to_string(v) + " outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
@@ -155,8 +126,6 @@ std::vector<std::string> nonEmptyStrings(StrictTable& s, const std::string& key)
     if (v.empty()) s.fail(key, "must name at least one species");
     return v;
 }
-
-}  // namespace
 
 ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path) {
     const toml::table root = parseText(text, path);
@@ -199,41 +168,44 @@ ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::str
     return c;
 }
 
+sim::SimParams ScenarioParse::model() const {
+    top.optionalTable("model");
+    return parseModelTable(text, path);
+}
+
+void ScenarioParse::sizes(const std::function<void(Mode, StrictTable&)>& read) const {
+    for (Mode m : {Mode::Quick, Mode::Full}) {
+        StrictTable s(top.table(modeName(m)), path, std::string("[") + modeName(m) + "]");
+        read(m, s);
+        s.finish();
+    }
+}
+
 ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path) {
     const toml::table root = parseText(text, path);
     StrictTable top(root, path, "");
     ScenarioConfig c;
     c.path = path;
+    const ScenarioKind* kind = nullptr;
     {
         StrictTable s(top.table("scenario"), path, "[scenario]");
         c.name = s.string("name");
         static const std::regex okName("^[a-z0-9_]+$");
         if (!std::regex_match(c.name, okName)) s.fail("name", "use lower-case letters, digits and '_' only");
-        const std::string kind = s.string("kind");
-        bool found = false;
-        for (ScenarioKind k : {ScenarioKind::SelfThinning, ScenarioKind::Succession, ScenarioKind::Equilibrium,
-                               ScenarioKind::GapDynamics, ScenarioKind::AbioticGradients, ScenarioKind::DeussenComparison,
-                               ScenarioKind::DeussenCircles})
-            if (kind == scenarioKindName(k)) {
-                c.kind = k;
-                found = true;
-            }
-        if (!found)
-            s.fail("kind", "unknown kind '" + kind + "' (self_thinning, succession, equilibrium, gap_dynamics, "
-                           "abiotic_gradients, deussen_comparison, deussen_circles)");
+        c.kind = s.string("kind");
+        kind = findScenarioKind(c.kind);
+        if (!kind) {
+            std::string names;
+            for (const ScenarioKind& k : scenarioKinds()) names += (names.empty() ? "" : ", ") + std::string(k.name);
+            s.fail("kind", "unknown kind '" + c.kind + "' (" + names + ")");
+        }
+        c.forestScene = kind->usesForestScene;
         c.title = s.string("title");
         c.description = s.string("description");
         c.order = static_cast<int>(s.integerOr("order", 100));
         if (c.usesForestScene()) c.scenePath = s.string("scene");
         s.finish();
     }
-    auto modeTables = [&](auto&& readSize) {
-        for (Mode m : {Mode::Quick, Mode::Full}) {
-            StrictTable s(top.table(modeName(m)), path, std::string("[") + modeName(m) + "]");
-            readSize(m, s);
-            s.finish();
-        }
-    };
     if (c.usesForestScene()) {
         // Optional [quick] / [full] with only `years`: measure at another year than the scene's.
         for (Mode m : {Mode::Quick, Mode::Full}) {
@@ -244,110 +216,11 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
             s.finish();
         }
     }
-    switch (c.kind) {
-        case ScenarioKind::SelfThinning: {
-            SelfThinningSettings& st = c.selfThinning;
-            StrictTable s(top.table("stand"), path, "[stand]");
-            st.species = s.string("species");
-            st.densityPerM2 = s.numberIn("density_per_m2", 0.01, 25.0);
-            st.initialHeightMinM = s.positive("initial_height_min_m");
-            st.initialHeightMaxM = s.positive("initial_height_max_m");
-            if (st.initialHeightMaxM < st.initialHeightMinM) s.fail("initial_height_max_m", "must not be below initial_height_min_m");
-            s.finish();
-            StrictTable t(top.table("thinning"), path, "[thinning]");
-            st.onsetCoverFraction = t.numberIn("onset_cover_fraction", 0.0, 10.0);
-            st.onsetMortalityFactor = t.numberIn("onset_mortality_factor", 1.0, 1000.0);
-            st.minPlantsInFit = static_cast<int>(t.numberIn("min_plants_in_fit", 3, 1e9));
-            t.finish();
-            modeTables([&](Mode m, StrictTable& z) {
-                auto& size = m == Mode::Quick ? st.quick : st.full;
-                size.plotSizeM = z.numberIn("plot_size_m", 1.0, 1000.0);
-                size.years = yearsIn(z, "years", 2, 100000);
-                size.seed = seedOf(z, "seed");
-            });
-            top.optionalTable("model");
-            st.params = parseModelTable(text, path);
-            break;
-        }
-        case ScenarioKind::Succession: {
-            StrictTable s(top.table("succession"), path, "[succession]");
-            c.succession.lateSpecies = s.string("late_species");
-            c.succession.earlySpecies = nonEmptyStrings(s, "early_species");
-            c.succession.earlyYear = yearsIn(s, "early_year", 0, 100000);
-            c.succession.finalWindowYears = yearsIn(s, "final_window_years", 1, 100000);
-            c.succession.suitedMinFitness = s.numberIn("suited_min_fitness", -1.0, 1.0);
-            s.finish();
-            break;
-        }
-        case ScenarioKind::Equilibrium: {
-            StrictTable s(top.table("equilibrium"), path, "[equilibrium]");
-            c.equilibrium.windowYears = yearsIn(s, "window_years", 2, 100000);
-            c.equilibrium.leadingMinShare = s.numberIn("leading_min_share", 0.0, 1.0);
-            s.finish();
-            break;
-        }
-        case ScenarioKind::GapDynamics: {
-            StrictTable s(top.table("classes"), path, "[classes]");
-            c.gap.edgeBandM = s.positive("edge_band_m");
-            c.gap.deepMinDepthM = s.positive("deep_min_depth_m");
-            if (c.gap.deepMinDepthM < c.gap.edgeBandM) s.fail("deep_min_depth_m", "must not be below edge_band_m");
-            c.gap.windowYears = yearsIn(s, "window_years", 1, 100000);
-            c.gap.minClassAreaM2 = s.positive("min_class_area_m2");
-            s.finish();
-            break;
-        }
-        case ScenarioKind::AbioticGradients: {
-            StrictTable s(top.table("gradients"), path, "[gradients]");
-            c.gradients.shadeSpecies = nonEmptyStrings(s, "shade_species");
-            c.gradients.sunSpecies = nonEmptyStrings(s, "sun_species");
-            c.gradients.windowYears = yearsIn(s, "window_years", 1, 100000);
-            c.gradients.minPlants = yearsIn(s, "min_plants", 1, 1000000000);
-            s.finish();
-            break;
-        }
-        case ScenarioKind::DeussenComparison: {
-            StrictTable s(top.table("comparison"), path, "[comparison]");
-            c.deussen.pcfRMaxM = s.positive("pcf_r_max_m");
-            c.deussen.pcfBins = yearsIn(s, "pcf_bins", 1, 1000);
-            c.deussen.lateSpecies = s.string("late_species");
-            c.deussen.earlyYear = yearsIn(s, "early_year", 0, 100000);
-            c.deussen.finalWindowYears = yearsIn(s, "final_window_years", 1, 100000);
-            c.deussen.dominatedSurvival = s.numberIn("deussen_dominated_survival", 0.0, 1.0);
-            s.finish();
-            break;
-        }
-        case ScenarioKind::DeussenCircles: {
-            CirclesParams& p = c.circles.params;
-            StrictTable s(top.table("circles"), path, "[circles]");
-            p.initialRadiusMinM = s.number("initial_radius_min_m");
-            p.initialRadiusMaxM = s.number("initial_radius_max_m");
-            p.growthPerStepM = s.number("growth_per_step_m");
-            p.limitRadiusM = s.number("limit_radius_m");
-            p.maxSteps = static_cast<int>(s.numberIn("max_steps", 1, 1e7));
-            p.onsetKilledFraction = s.number("onset_killed_fraction");
-            p.minPlantsInFit = static_cast<int>(s.numberIn("min_plants_in_fit", 2, 1e9));
-            s.finish();
-            modeTables([&](Mode m, StrictTable& z) {
-                auto& size = m == Mode::Quick ? c.circles.quick : c.circles.full;
-                size.plantCount = static_cast<int>(z.numberIn("plant_count", 2, 5e7));
-                size.fieldSideM = z.positive("field_side_m");
-                size.seed = seedOf(z, "seed");
-                CirclesParams q = p;
-                q.plantCount = size.plantCount;
-                q.fieldSideM = size.fieldSideM;
-                try {
-                    q.validate();
-                } catch (const ValidationError& e) {
-                    throw ValidationError(path + ": [circles] / [" + modeName(m) + "]: " + e.what());
-                }
-            });
-            break;
-        }
-    }
+    c.scenario = kind->create(ScenarioParse{top, text, path});
     {
         StrictTable s(top.table("checks"), path, "[checks]");
-        for (const std::string& id : checkIdsOf(c.kind)) {
-            if (!s.has(id)) s.fail(id, std::string("missing: a scenario of kind ") + scenarioKindName(c.kind) + " needs a [checks." + id + "] table");
+        for (const std::string& id : c.scenario->checkIds()) {
+            if (!s.has(id)) s.fail(id, "missing: a scenario of kind " + c.kind + " needs a [checks." + id + "] table");
             c.checks.push_back(parseCheck(s.table(id), path, id));
         }
         s.finish();
@@ -410,16 +283,7 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
                 if (s.name == species) return;
             throw ValidationError(shown + ": " + key + ": species '" + species + "' is not in biome '" + biome.name + "'");
         };
-        if (c.kind == ScenarioKind::SelfThinning) needSpecies("[stand] species", c.selfThinning.species);
-        if (c.kind == ScenarioKind::Succession) {
-            needSpecies("[succession] late_species", c.succession.lateSpecies);
-            for (const auto& s : c.succession.earlySpecies) needSpecies("[succession] early_species", s);
-        }
-        if (c.kind == ScenarioKind::AbioticGradients) {
-            for (const auto& s : c.gradients.shadeSpecies) needSpecies("[gradients] shade_species", s);
-            for (const auto& s : c.gradients.sunSpecies) needSpecies("[gradients] sun_species", s);
-        }
-        if (c.kind == ScenarioKind::DeussenComparison) needSpecies("[comparison] late_species", c.deussen.lateSpecies);
+        for (const auto& [key, species] : c.scenario->speciesNamed()) needSpecies(key, species);
         if (c.usesForestScene()) {
             const std::string sceneFile = c.scenePath;
             if (!suite.scenes.count(sceneFile)) {
@@ -434,17 +298,9 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
                 suite.scenes.emplace(sceneFile, std::move(scene));
             }
             const ForestSceneConfig& scene = suite.scenes.at(sceneFile);
-            const double smallest = std::min(scene.quick.plotSizeM, scene.full.plotSizeM);
-            if (c.kind == ScenarioKind::DeussenComparison && c.deussen.pcfRMaxM > 0.45 * smallest)
-                throw ValidationError(shown + ": [comparison] pcf_r_max_m = " + StrictTable::fmt(c.deussen.pcfRMaxM) +
-                                      ": must stay below 0.45 x the smallest plot of the scene (" +
-                                      StrictTable::fmt(smallest) + " m) for the edge correction");
+            c.scenario->checkScene(scene, shown);
             for (int years : {c.measureYear(Mode::Quick, scene), c.measureYear(Mode::Full, scene)}) {
-                const int window = c.kind == ScenarioKind::Succession      ? c.succession.finalWindowYears
-                                   : c.kind == ScenarioKind::Equilibrium   ? c.equilibrium.windowYears
-                                   : c.kind == ScenarioKind::GapDynamics   ? c.gap.windowYears
-                                   : c.kind == ScenarioKind::AbioticGradients ? c.gradients.windowYears
-                                                                           : c.deussen.finalWindowYears;
+                const int window = c.scenario->windowYears();
                 if (window > years)
                     throw ValidationError(shown + ": the window of " + std::to_string(window) + " years is longer than the " +
                                           std::to_string(years) + " years measured of the scene " + sceneFile);

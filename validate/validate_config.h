@@ -6,11 +6,11 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "biome.h"
-#include "deussen_circles.h"
 #include "sim_config.h"
 
 namespace eco::validate {
@@ -66,90 +66,18 @@ struct ForestSceneConfig {
     sim::SimParams params;  ///< [model] of the scene (competition must be "resources")
 };
 
-struct SelfThinningSettings {
-    std::string species;
-    double densityPerM2 = 16;
-    double initialHeightMinM = 0.05, initialHeightMaxM = 0.15;
-    /// The thinning phase starts in the first year in which the crowns have closed (crown
-    /// cover, sum of crown areas over the plot area, at least onsetCoverFraction) and the
-    /// yearly mortality exceeds onsetMortalityFactor x the background rate.
-    double onsetCoverFraction = 0.5;
-    double onsetMortalityFactor = 3;
-    int minPlantsInFit = 30;
-    struct Size {
-        double plotSizeM = 20;
-        int years = 60;
-        std::uint64_t seed = 1;
-    };
-    Size quick, full;
-    sim::SimParams params;
-};
+class Scenario;  // scenario.h: one kind of scenario, created by name from the registry
 
-struct SuccessionSettings {
-    std::string lateSpecies;                ///< e.g. California Laurel
-    std::vector<std::string> earlySpecies;  ///< e.g. Western Swordfern (the fast-growing competitors)
-    int earlyYear = 25;                     ///< the late species' starting share is taken here
-    int finalWindowYears = 25;
-    /// "Where suited": cells where the late species' Eq. 1 fitness (vigour / alpha) is at least this.
-    double suitedMinFitness = 0.9;
-};
-
-struct EquilibriumSettings {
-    int windowYears = 25;
-    double leadingMinShare = 0.1;  ///< species with at least this share of the plants are "leading"
-};
-
-struct GapSettings {
-    double edgeBandM = 2.0;      ///< within this distance of the canopy boundary (either side): edge
-    double deepMinDepthM = 4.0;  ///< covered cells at least this far from open ground: deep canopy
-    int windowYears = 25;        ///< densities averaged over the snapshots of these last years
-    double minClassAreaM2 = 20;  ///< a class smaller than this makes the check not evaluable
-};
-
-struct GradientSettings {
-    std::vector<std::string> shadeSpecies, sunSpecies;
-    int windowYears = 25;
-    int minPlants = 10;  ///< a species with fewer plants in the window makes the check not evaluable
-};
-
-struct DeussenComparisonSettings {
-    double pcfRMaxM = 1.0;  ///< short range: g is pooled over [0, pcfRMaxM)
-    int pcfBins = 5;
-    std::string lateSpecies;
-    int earlyYear = 25;
-    int finalWindowYears = 25;
-    double dominatedSurvival = 0.5;  ///< SimParams::deussenDominatedSurvival of the Deussen run
-};
-
-struct CirclesSettings {
-    CirclesParams params;  ///< plantCount, fieldSideM and seed are set per size
-    struct Size {
-        int plantCount = 62500;
-        double fieldSideM = 250;
-        std::uint64_t seed = 1;
-    };
-    Size quick, full;
-};
-
-enum class ScenarioKind {
-    SelfThinning,
-    Succession,
-    Equilibrium,
-    GapDynamics,
-    AbioticGradients,
-    DeussenComparison,
-    DeussenCircles
-};
-const char* scenarioKindName(ScenarioKind k);
-
-/// One scenario file.
+/// One scenario file: the keys every kind has ([scenario], [checks], the forest scene's
+/// [quick] / [full] `years`), and the kind's own settings and measures in `scenario`.
 struct ScenarioConfig {
     std::string path;
     std::string name;         ///< [scenario] name: used by --only and in the report
-    ScenarioKind kind = ScenarioKind::SelfThinning;
+    std::string kind;         ///< [scenario] kind: a name in the registry (scenarioKinds(), scenario.h)
     std::string title;
     std::string description;
     int order = 0;            ///< [scenario] order: position in the report
+    bool forestScene = false; ///< the kind runs the shared forest scene (ScenarioKind::usesForestScene)
     std::string scenePath;    ///< resolved path of the forest scene (forest-based kinds)
     /// Forest-based kinds: the year at which the scenario measures, from its optional
     /// [quick] / [full] `years`; 0 = the scene's own `years`. The scene is simulated as long as
@@ -160,22 +88,14 @@ struct ScenarioConfig {
         const int own = m == Mode::Quick ? yearsQuick : yearsFull;
         return own > 0 ? own : scene.size(m).years;
     }
-    SelfThinningSettings selfThinning;
-    SuccessionSettings succession;
-    EquilibriumSettings equilibrium;
-    GapSettings gap;
-    GradientSettings gradients;
-    DeussenComparisonSettings deussen;
-    CirclesSettings circles;
-    std::vector<CheckSpec> checks;  ///< in the order the kind defines them
+    /// The kind's settings (its own tables) and measures, made by its factory.
+    std::shared_ptr<const Scenario> scenario;
+    std::vector<CheckSpec> checks;  ///< in the order the kind defines them (Scenario::checkIds)
 
     const CheckSpec& check(const std::string& id) const;
     /// True for the kinds that run the shared forest scene.
-    bool usesForestScene() const;
+    bool usesForestScene() const { return forestScene; }
 };
-
-/// Check ids each kind computes (each needs a [checks.ID] table).
-std::vector<std::string> checkIdsOf(ScenarioKind k);
 
 /// Parse one scenario file from text; `path` is used in messages and to resolve the scene.
 ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path);

@@ -1,0 +1,73 @@
+// Command-line tests of `eco` for the analysis module (split from analysis_test.cpp, issue 23):
+// they run the eco binary (ECO_BINARY) and live in eco_cli_tests, apart from the unit tests.
+#include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numeric>
+#include <fstream>
+
+#include "abiotics.h"
+#include "analysis.h"
+#include "biome_db.h"
+#include "error.h"
+#include "h5io.h"
+#include "plants.h"
+#include "rng.h"
+#include "sim_input.h"
+#include "sim_file_fixture.h"
+#include "test_util.h"
+
+using namespace eco;
+
+using test::writeFakeSimulation;
+
+namespace {
+
+int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+}  // namespace
+
+TEST_CASE("eco analyse and eco inspect on a small simulation file", "[analysis][cli]") {
+    eco::test::TempDir dir("cli");
+    const std::string sim = dir.file("sim.h5");
+    writeFakeSimulation(sim, dir.file("abiotics.h5"));
+    const std::string db = dir.file("out/db.h5");
+    const auto r = eco::test::runEco("analyse " + sim + " --out " + db + " --kmax 3");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("wrote biome database"));
+    const BiomeDatabase d = readBiomeDatabase(db);
+    CHECK(d.inputs.size() == 1);
+    CHECK(d.inputs[0].seed == 42);
+    CHECK(d.inputs[0].year == 10);
+    CHECK(d.inputs[0].parameters.find("cell_size_m") != std::string::npos);
+    CHECK(d.combinations.size() == 3);  // redwood disc, oak disc, and their overlap
+    const auto ins = eco::test::runEco("inspect " + db + " --png " + dir.file("png"));
+    INFO(ins.output);
+    REQUIRE(ins.exitCode == 0);
+    CHECK_THAT(ins.output, Catch::Contains("k = ") && Catch::Contains("leading species") && Catch::Contains("plants/m2"));
+    CHECK(std::filesystem::exists(dir.file("png/region_0000_pcf.png")));
+    CHECK(std::filesystem::exists(dir.file("png/region_0000_heights.png")));
+}
+
+TEST_CASE("eco analyse: bad input gives one clear line, a non-zero exit and no output", "[analysis][cli][errors]") {
+    eco::test::TempDir dir("cli");
+    const std::string ab = dir.file("abiotics.h5");
+    writeFakeSimulation(dir.file("nox.h5"), ab, "x");
+    const std::string db = dir.file("db.h5");
+    auto r = eco::test::runEco("analyse " + dir.file("nox.h5") + " --year 20 --out " + db);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("eco: error: ") && Catch::Contains("nox.h5") && Catch::Contains("year_0020/x"));
+    CHECK_FALSE(std::filesystem::exists(db));
+    r = eco::test::runEco("analyse " + ab + " --out " + db);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::StartsWith("eco: error: ") && Catch::Contains("not a simulation file"));
+    CHECK(lineCount(r.output) == 1);
+    CHECK_FALSE(std::filesystem::exists(db));
+    r = eco::test::runEco("inspect " + ab);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("not a biome database"));
+}

@@ -1,0 +1,82 @@
+// eco fidelity from the command line: error paths and a tiny plot end to end (the
+// measures themselves are tested in fidelity_test.cpp).
+#include <omp.h>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "test_util.h"
+
+using namespace eco;
+
+
+TEST_CASE("eco fidelity: bad input gives one clear line and exit 1", "[fidelity][cli]") {
+    test::TempDir dir("fidelity_cli");
+    auto r = test::runEco("fidelity --scene " + dir.file("missing.h5") + " --out-dir " + dir.file("out"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("--scene") != std::string::npos);
+    CHECK(r.output.find("missing.h5") != std::string::npos);
+
+    r = test::runEco("fidelity --crop 1,2,3 --out-dir " + dir.file("out"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("--crop") != std::string::npos);
+
+    r = test::runEco("fidelity --crop 0,0,15,15 --out-dir " + dir.file("out"));  // rmax 10 m > half of 15 m
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("rmax") != std::string::npos);
+
+    {
+        std::ofstream cfg(dir.file("bad.toml"));
+        cfg << "[fidelity]\nyears = 150\nseed_z = 3\n";
+    }
+    r = test::runEco("fidelity --config " + dir.file("bad.toml"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("bad.toml") != std::string::npos);
+    CHECK(r.output.find("seed_z") != std::string::npos);
+
+    {
+        std::ofstream cfg(dir.file("neg.toml"));
+        cfg << "[fidelity]\nyears = -5\n";
+    }
+    r = test::runEco("fidelity --config " + dir.file("neg.toml"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("years") != std::string::npos);
+
+    r = test::runEco("fidelity --seed-a 3 --seed-b 3 --out-dir " + dir.file("out"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("seed") != std::string::npos);
+
+    r = test::runEco("fidelity --help");
+    CHECK(r.exitCode == 0);
+    CHECK(r.output.find("--replicate") != std::string::npos);
+}
+
+TEST_CASE("eco fidelity end to end on a tiny plot: stages cached, same bits for 1 thread", "[fidelity][cli]") {
+    // 64 x 64 cells, a 40 m plot, one simulated year: every stage in about 5 s.
+    test::TempDir dir("fidelity_e2e");
+    const std::string common = "fidelity --width 64 --height 64 --crop 5,5,45,45 --years 1 --sun-step 60 --sim-config " +
+                               test::sourcePath("configs/sim-default.toml") + " --out-dir " + dir.file("out");
+    auto r = test::runEco(common);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("| figure | scope | scene | replicate | CSR | score |") != std::string::npos);
+    CHECK(r.output.find("reusing") == std::string::npos);
+    CHECK(std::filesystem::exists(dir.file("out/fidelity.md")));
+    CHECK(std::filesystem::exists(dir.file("out/sim-A.h5.cmd")));
+    r = test::runEco("--threads 1 " + common + " --out-csv " + dir.file("again.csv"));
+    REQUIRE(r.exitCode == 0);
+    std::size_t reused = 0;
+    for (std::size_t at = r.output.find("reusing"); at != std::string::npos; at = r.output.find("reusing", at + 1)) ++reused;
+    CHECK(reused == 8);  // terrain, CHM, abiotics, canopy, A, B, database, scene
+    std::ifstream a(dir.file("out/fidelity.csv")), b(dir.file("again.csv"));
+    const std::string ta((std::istreambuf_iterator<char>(a)), {}), tb((std::istreambuf_iterator<char>(b)), {});
+    CHECK(!ta.empty());
+    CHECK(ta == tb);
+    // Another seed for B: only B and what follows it are redone.
+    r = test::runEco(common + " --seed-b 5");
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("simulation A (seed 1): reusing") != std::string::npos);
+    CHECK(r.output.find("simulation B (seed 5): reusing") == std::string::npos);
+}

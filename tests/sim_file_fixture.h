@@ -1,0 +1,77 @@
+// A small simulation file for the tests of reading simulations (analysis_test.cpp) and of
+// `eco analyse` / `eco inspect` (analysis_cli_test.cpp).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "abiotics.h"
+#include "biome.h"
+#include "h5io.h"
+#include "plants.h"
+#include "rng.h"
+
+namespace eco::test {
+
+/// A small simulation file in the layout of `eco simulate` (docs/simulator.md), with its
+/// abiotics file; `omit` leaves out one dataset or attribute.
+inline void writeFakeSimulation(const std::string& simPath, const std::string& abioticsPath, const std::string& omit = "") {
+    static const Biome biome = defaultBiome();
+    auto plant = [&](const std::string& species, double x, double y, double hM, double rM) {
+        Plant p;
+        p.speciesId = biome.speciesIndex(species);
+        p.xM = x;
+        p.yM = y;
+        p.heightM = hM;
+        p.crownRadiusM = rM;
+        return p;
+    };
+    Abiotics ab;
+    const int w = 50, h = 40;
+    ab.elevationM = Grid<float>(w, h, 1.0, 1000, 2000, 100.f);
+    ab.slopeDeg = Grid<float>(w, h, 1.0, 1000, 2000, 3.f);
+    for (int m = 0; m < 12; ++m) {
+        Grid<float> sun(w, h, 1.0, 1000, 2000, static_cast<float>(8 + m % 3));
+        Grid<float> moist(w, h, 1.0, 1000, 2000, 0.f);
+        for (int iy = 0; iy < h; ++iy)
+            for (int ix = 0; ix < w; ++ix) moist(ix, iy) = ix < 25 ? 160.f : 60.f;
+        ab.sunHours.months.push_back(sun);
+        ab.moistureMm.months.push_back(moist);
+        ab.temperatureC.months.push_back(Grid<float>(w, h, 1.0, 1000, 2000, 15.f));
+    }
+    writeAbiotics(abioticsPath, ab, biome, AbioticParams{});
+
+    h5::File f = h5::File::create(simPath);
+    f.setAttr("/", "format", std::string("eco-simulation"));
+    f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
+    f.setAttr("/", "seed", static_cast<std::int64_t>(42));
+    f.setAttr("/", "biome_toml", biomeToToml(biome));
+    f.setAttr("/", "x0", 1000.0);
+    f.setAttr("/", "y0", 2000.0);
+    f.setAttr("/", "x1", 1050.0);
+    f.setAttr("/", "y1", 2040.0);
+    f.setAttr("/", "seed_outer_radius_factor", 12.0);
+    f.setAttr("/", "abiotics_path", std::filesystem::path(abioticsPath).filename().string());  // relative: beside the file
+    f.setAttr("/", "model_toml", std::string("[model]\ncell_size_m = 0.2\n"));
+    std::vector<Plant> canopy = {plant("Redwood", 1012, 2020, 60, 3), plant("Coast Live Oak", 1040, 2020, 20, 3)};
+    RandomStream rng(5, 5);
+    std::vector<Plant> early, late;
+    for (int i = 0; i < 1500; ++i) {
+        const char* name = i % 2 ? "Redwood Sorrel" : "Toyon";
+        late.push_back(plant(name, rng.uniform(1000, 1050), rng.uniform(2000, 2040), 0.2, 0.3));
+        if (i < 100) early.push_back(late.back());
+    }
+    if (omit != "/snapshots") {
+        writePlants(f, "/snapshots/year_0001", early, biome);
+        writePlants(f, "/snapshots/year_0010", late, biome);
+        if (omit == "x") {  // a snapshot whose /x dataset is missing
+            f.ensureGroup("/snapshots/year_0020");
+            f.writeI32("/snapshots/year_0020/species_id", {0}, {1});
+        }
+    }
+    if (omit != "/canopy") writePlants(f, "/canopy", canopy, biome);
+}
+
+}  // namespace eco::test

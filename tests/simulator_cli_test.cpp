@@ -1,0 +1,165 @@
+// Command-line tests of `eco` for the simulator module (split from simulator_test.cpp, issue 23):
+// they run the eco binary (ECO_BINARY) and live in eco_cli_tests, apart from the unit tests.
+#include <catch2/catch.hpp>
+#include <omp.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <random>
+#include <sstream>
+
+#include "atomic_file.h"
+#include "demo_scene.h"
+#include "batch_math.h"
+#include "error.h"
+#include "footprint.h"
+#include "paint.h"
+#include "processes.h"
+#include "sim_config.h"
+#include "sim_run.h"
+#include "simulator.h"
+#include "test_util.h"
+
+using namespace eco;
+using namespace eco::sim;
+
+namespace {
+
+SimInputs smallDemoScene() {
+    DemoSceneParams p;
+    p.cells = 48;
+    p.seed = 11;
+    return makeDemoScene(p, defaultBiome());
+}
+
+}  // namespace
+
+namespace {
+
+void writeText(const std::string& path, const std::string& text) {
+    std::ofstream(path) << text;
+}
+
+// Scene files for the command line: abiotics.h5 and canopy.h5.
+void writeSceneFiles(const test::TempDir& dir) {
+    const SimInputs in = smallDemoScene();
+    writeAbiotics(dir.file("abiotics.h5"), in.abiotics, in.biome, AbioticParams{});
+    auto f = h5::File::create(dir.file("canopy.h5"));
+    writePlants(f, "/canopy", in.canopy, in.biome);
+    f.ensureGroup("/chm");
+    f.writeGrid("/chm/height", in.chmM, "m");
+}
+
+std::string readAll(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-zero exit", "[sim][cli]") {
+    test::TempDir dir("simcli");
+    writeText(dir.file("typo.toml"), "[model]\ncell_sise_m = 0.2\n");
+    auto r = test::runEco("simulate --config " + dir.file("typo.toml"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("cell_sise_m") && Catch::Contains("typo.toml"));
+
+    r = test::runEco("simulate --abiotics " + dir.file("none.h5") + " --canopy " + dir.file("none2.h5") + " --out " +
+                     dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("none.h5") && Catch::Contains("not found"));
+
+    writeSceneFiles(dir);
+    // A canopy file without a CHM.
+    {
+        const SimInputs in = smallDemoScene();
+        auto f = h5::File::create(dir.file("nochm.h5"));
+        writePlants(f, "/canopy", in.canopy, in.biome);
+    }
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("nochm.h5") + " --out " +
+                     dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("/chm/height"));
+    // A crop outside the terrain.
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 100,100,120,120 --years 1 --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("not inside the abiotics extent"));
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 1,2,x,4 --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("--crop"));
+    // Initial plants with an unknown species, and with a missing column.
+    writeText(dir.file("bad.csv"), "species,x_m,y_m,height_m\nNot A Plant,11,11,0.1\n");
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --initial " + dir.file("bad.csv") + " --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("bad.csv:2") && Catch::Contains("Not A Plant"));
+    writeText(dir.file("nocol.csv"), "species,x_m,y_m\nToyon,11,11\n");
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --initial " + dir.file("nocol.csv") + " --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("height_m"));
+    // A misspelt model choice on the command line.
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --crop 10,10,20,20 --years 1 --competition deusen --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("--competition") && Catch::Contains("deusen") && Catch::Contains("\"deussen\""));
+    CHECK_FALSE(std::ifstream(dir.file("o.h5")).good());
+}
+
+TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one", "[sim][cli][checkpoint]") {
+    test::TempDir dir("simrun");
+    writeSceneFiles(dir);
+    const std::string common = "simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                               " --crop 10,10,26,26 --seed 4 ";
+    auto r = test::runEco(common + "--years 8 --snapshot-years 4 --out " + dir.file("full.h5") + " --csv " +
+                          dir.file("full.csv") + " --png " + dir.file("png"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    // First 5 years with checkpoints, then resume to 8.
+    r = test::runEco(common + "--years 5 --checkpoint-every 2 --out " + dir.file("part.h5"));
+    REQUIRE(r.exitCode == 0);
+    r = test::runEco(common + "--years 8 --snapshot-years 4 --checkpoint-every 2 --resume --out " + dir.file("part.h5") +
+                     " --csv " + dir.file("resumed.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("resumed"));
+    const std::string a = readAll(dir.file("full.csv")), b = readAll(dir.file("resumed.csv"));
+    CHECK(a.size() > 200);
+    CHECK(a == b);
+    // The thread count changes nothing.
+    r = test::runEco("--threads 1 " + common + "--years 8 --out " + dir.file("one.h5") + " --csv " + dir.file("one.csv"));
+    REQUIRE(r.exitCode == 0);
+    CHECK(readAll(dir.file("one.csv")) == a);
+
+    auto f = h5::File::openRead(dir.file("full.h5"));
+    CHECK(f.attrString("/", "format") == "eco-simulation");
+    CHECK(f.attrInt("/", "schema_version") == 1);
+    CHECK(f.attrDouble("/", "seeding_probability") == 0.003);
+    CHECK(f.hasAttr("/", "biome_toml"));
+    CHECK(f.exists("/snapshots/year_0004"));
+    CHECK(f.exists("/snapshots/year_0008"));
+    std::vector<hsize_t> dims;
+    f.readI32("/timeseries/count", &dims);
+    CHECK(dims[0] == 9);
+    const auto snap = readSnapshot(f, "/snapshots/year_0008", defaultBiome());
+    CHECK(!snap.empty());
+    const auto back = readInitialPlants(dir.file("full.csv"), defaultBiome());
+    CHECK(back.size() == snap.size());
+    CHECK(std::ifstream(dir.file("png/species_counts.png")).good());
+    CHECK(std::ifstream(dir.file("png/plants_year_0008.png")).good());
+    // The final state restarts a simulation.
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 26, 26};
+    Simulation again(in, SimParams{}, 1, readInitialPlants(dir.file("full.h5"), defaultBiome()));
+    CHECK(again.plantCount() == snap.size());
+}

@@ -1,0 +1,94 @@
+// Command-line tests of `eco` for the terrain_io module (split from terrain_io_test.cpp, issue 23):
+// they run the eco binary (ECO_BINARY) and live in eco_cli_tests, apart from the unit tests.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "error.h"
+#include "h5io.h"
+#include "terrain_io.h"
+#include "test_util.h"
+
+using eco::Grid;
+using eco::test::TempDir;
+
+namespace {
+
+/// Non-square terrain with values that are not exactly representable in short decimals.
+Grid<float> sampleTerrain() {
+    Grid<float> g(37, 23, 0.914, 512345.5, 4251000.25);
+    for (int iy = 0; iy < g.height(); ++iy)
+        for (int ix = 0; ix < g.width(); ++ix)
+            g(ix, iy) = static_cast<float>(60.0 + 100.0 * std::sin(0.37 * ix) * std::cos(0.21 * iy) + 0.1 * ix * iy +
+                                           1.0 / 3.0 + 100.0);
+    return g;
+}
+
+bool leftovers(const TempDir& dir) {
+    // Nothing but the files the test created itself: no temporary or partial outputs.
+    for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+        if (e.path().filename().string().find(".tmp") != std::string::npos) return true;
+    return false;
+}
+
+}  // namespace
+
+TEST_CASE("terrain: CLI convert between formats", "[terrain]") {
+    TempDir dir("tio_cli");
+    const Grid<float> g = sampleTerrain();
+    const std::string asc = dir.file("in.asc");
+    eco::writeTerrain(asc, g);
+    const std::string h5 = dir.file("out.h5");
+    auto r = eco::test::runEco("terrain convert " + asc + " " + h5);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find(h5) != std::string::npos);
+    CHECK(eco::readTerrain(h5).data() == g.data());
+
+    // To PNG: the scale is chosen and printed, and reading with it gives the terrain back.
+    const std::string png = dir.file("out.png");
+    r = eco::test::runEco("terrain convert " + h5 + " " + png);
+    REQUIRE(r.exitCode == 0);
+    const auto at = r.output.find("--vertical-scale ");
+    REQUIRE(at != std::string::npos);
+    const double scale = std::stod(r.output.substr(at + 17));
+    CHECK(scale >= g.maxValue());
+    eco::TerrainReadOptions ro;
+    ro.cellSizeM = g.cellSizeM();
+    ro.verticalScale = scale;
+    const Grid<float> back = eco::readTerrain(png, ro);
+    for (std::size_t i = 0; i < g.size(); ++i) REQUIRE(back.data()[i] == Approx(g.data()[i]).margin(scale / 65535));
+
+    // Back from PNG needs the cell size.
+    r = eco::test::runEco("terrain convert " + png + " " + dir.file("again.asc"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("--cell-size") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("again.asc")));
+}
+
+TEST_CASE("terrain: CLI convert of a missing file fails with one line and no output", "[terrain]") {
+    TempDir dir("tio_cli_missing");
+    const std::string in = dir.file("does_not_exist.asc");
+    const std::string out = dir.file("out.h5");
+    const auto r = eco::test::runEco("terrain convert " + in + " " + out);
+    CHECK(r.exitCode != 0);
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find(in) != std::string::npos);
+    CHECK(r.output.rfind("eco: error: ", 0) == 0);
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+    CHECK_FALSE(std::filesystem::exists(out));
+    CHECK(std::filesystem::is_empty(dir.path()));
+
+    // Conflicting cell size through the CLI: same shape of failure.
+    const std::string asc = dir.file("t.asc");
+    eco::writeTerrain(asc, sampleTerrain());
+    const auto c = eco::test::runEco("terrain convert " + asc + " " + out + " --cell-size 3");
+    CHECK(c.exitCode == 1);
+    CHECK(c.output.find("wrong cell size") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(out));
+    CHECK_FALSE(leftovers(dir));
+}

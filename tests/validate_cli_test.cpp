@@ -1,0 +1,200 @@
+// Command-line tests of `eco` for the validate module (split from validate_test.cpp, issue 23):
+// they run the eco binary (ECO_BINARY) and live in eco_cli_tests, apart from the unit tests.
+// `eco validate --quick` end to end is tagged [e2e] and run as its own ctest with the label
+// "validation" (tests/CMakeLists.txt).
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "deussen_circles.h"
+#include "error.h"
+#include "fit.h"
+#include "rng.h"
+#include "scenario.h"
+#include "test_util.h"
+#include "validate.h"
+#include "validate_config.h"
+
+using namespace eco;
+using namespace eco::validate;
+using eco::test::runEco;
+using eco::test::TempDir;
+
+namespace {
+
+std::string readAll(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+void writeFile(const std::string& path, const std::string& text) {
+    std::ofstream out(path);
+    out << text;
+}
+
+/// Rows of results.csv as (scenario/check) -> (value, pass).
+std::map<std::string, std::pair<std::string, std::string>> readResults(const std::string& path) {
+    std::map<std::string, std::pair<std::string, std::string>> out;
+    std::ifstream in(path);
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) {
+        std::vector<std::string> f;
+        std::string cur;
+        bool quoted = false;
+        for (char c : line) {
+            if (c == '"') quoted = !quoted;
+            else if (c == ',' && !quoted) {
+                f.push_back(cur);
+                cur.clear();
+            } else cur += c;
+        }
+        f.push_back(cur);
+        if (f.size() >= 9) out[f[1] + "/" + f[2]] = {f[3], f[8]};
+    }
+    return out;
+}
+
+const char* kMinimalCircles = R"(
+[scenario]
+name = "circles_small"
+kind = "deussen_circles"
+title = "t"
+description = "d"
+
+[circles]
+initial_radius_min_m = 0.01
+initial_radius_max_m = 0.10
+growth_per_step_m = 0.01
+limit_radius_m = 3.0
+max_steps = 400
+onset_killed_fraction = 0.2
+min_plants_in_fit = 100
+
+[quick]
+plant_count = 4000
+field_side_m = 63.0
+seed = 1
+
+[full]
+plant_count = 4000
+field_side_m = 63.0
+seed = 1
+
+[checks.slope]
+expected = -1.0
+tolerance = 0.2
+
+[checks.r_squared]
+min = 0.9
+)";
+
+}  // namespace
+
+TEST_CASE("eco validate: bad input exits 1 with a message naming the file and key", "[validate][cli]") {
+    TempDir dir("validate_cli");
+    const std::string cfgDir = dir.file("cfg");
+    std::filesystem::create_directories(cfgDir);
+    std::string text = kMinimalCircles;
+    text.replace(text.find("max_steps = 400"), std::string("max_steps = 400").size(), "max_steps = 400\ncolour = 3");
+    writeFile(cfgDir + "/circles.toml", text);
+    const auto r = runEco("validate --configs " + cfgDir + " --out " + dir.file("out"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("circles.toml:14") != std::string::npos);
+    CHECK(r.output.find("colour") != std::string::npos);
+    CHECK(r.output.find("unknown key") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("out/report.md")));  // nothing runs on a bad configuration
+
+    const auto missing = runEco("validate --configs " + dir.file("nope") + " --out " + dir.file("out"));
+    CHECK(missing.exitCode == 1);
+    CHECK(missing.output.find("nope") != std::string::npos);
+
+    writeFile(cfgDir + "/circles.toml", kMinimalCircles);
+    const auto only = runEco("validate --configs " + cfgDir + " --only nosuch --out " + dir.file("out"));
+    CHECK(only.exitCode == 1);
+    CHECK(only.output.find("nosuch") != std::string::npos);
+    CHECK(only.output.find("circles_small") != std::string::npos);
+
+    const auto help = runEco("validate --help");
+    CHECK(help.exitCode == 0);
+    CHECK(help.output.find("--quick") != std::string::npos);
+}
+
+TEST_CASE("eco validate: passing and failing checks give exit status 0 and 3", "[validate][cli]") {
+    TempDir dir("validate_status");
+    const std::string cfgDir = dir.file("cfg");
+    std::filesystem::create_directories(cfgDir);
+    writeFile(cfgDir + "/circles.toml", kMinimalCircles);
+    const auto pass = runEco("validate --quick --configs " + cfgDir + " --out " + dir.file("pass"));
+    INFO(pass.output);
+    CHECK(pass.exitCode == 0);
+    CHECK(readAll(dir.file("pass/results.csv")).find(",pass,") != std::string::npos);
+
+    std::string strict = kMinimalCircles;
+    strict.replace(strict.find("tolerance = 0.2"), std::string("tolerance = 0.2").size(), "tolerance = 0.0001");
+    writeFile(cfgDir + "/circles.toml", strict);
+    const auto fail = runEco("validate --quick --configs " + cfgDir + " --out " + dir.file("fail"));
+    INFO(fail.output);
+    CHECK(fail.exitCode == kChecksFailedExit);
+    CHECK(fail.output.find("FAILED circles_small/slope") != std::string::npos);
+    CHECK(readAll(dir.file("fail/report.md")).find("**FAIL**") != std::string::npos);
+}
+
+// The whole quick suite, as CI runs it (about 25 s on 2 cores). Hidden from the default
+// Catch run; tests/CMakeLists.txt registers it as the ctest "validate_quick_end_to_end"
+// with the label "validation". It asserts that the suite runs, writes a complete report
+// and exits with 0: every check passes but the one declared a known deviation of the model
+// (succession/late_dominance, docs/validation.md), which is reported and must stay declared.
+TEST_CASE("eco validate --quick runs end to end and writes a complete report", "[.][e2e]") {
+    TempDir dir("validate_quick");
+    const auto r = runEco("validate --quick --threads 2 --configs " + eco::test::sourcePath("configs/validation") + " --out " +
+                          dir.file("out"));
+    INFO(r.output);
+    // Every check passes or fails only as a declared known deviation (docs/validation.md, "Status").
+    CHECK(r.exitCode == 0);
+    const std::string md = readAll(dir.file("out/report.md"));
+    REQUIRE(!md.empty());
+    const auto rows = readResults(dir.file("out/results.csv"));
+    ConfigSource src;
+    src.directory = eco::test::sourcePath("configs/validation");
+    const SuiteConfig suite = loadSuiteConfig(src, defaultBiome());
+    for (const auto& s : suite.scenarios) {
+        CHECK(md.find("(`" + s.name + "`)") != std::string::npos);
+        for (const auto& c : s.checks) {
+            INFO(s.name + "/" + c.id);
+            CHECK(rows.count(s.name + "/" + c.id) == 1);
+        }
+    }
+    // Every figure the report links exists.
+    std::size_t pos = 0;
+    int figures = 0;
+    while ((pos = md.find("](", pos)) != std::string::npos) {
+        const std::size_t end = md.find(')', pos);
+        const std::string file = md.substr(pos + 2, end - pos - 2);
+        INFO(file);
+        CHECK(std::filesystem::exists(dir.file("out/" + file)));
+        ++figures;
+        pos = end;
+    }
+    CHECK(figures >= 8);
+    // The checks of the model as it stands (docs/validation.md, "Status").
+    CHECK(rows.at("succession/late_dominance").second == "known_deviation");
+    for (const char* id : {"deussen_circles/slope", "deussen_circles/r_squared", "self_thinning/slope",
+                           "self_thinning/r_squared", "succession/early_peak_time", "succession/early_decline",
+                           "succession/late_share_gain", "succession/late_cover_overtakes", "equilibrium/total_cv",
+                           "equilibrium/leading_species_cv",
+                           "gap_dynamics/edge_vs_deep", "gap_dynamics/clearing_vs_deep", "abiotic_gradients/sun_gap",
+                           "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference"}) {
+        INFO(id);
+        REQUIRE(rows.count(id) == 1);
+        CHECK(rows.at(id).second == "pass");
+    }
+}
