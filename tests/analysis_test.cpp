@@ -17,6 +17,7 @@
 #include "h5io.h"
 #include "plants.h"
 #include "rng.h"
+#include "sim_file.h"
 #include "sim_input.h"
 #include "test_util.h"
 
@@ -427,8 +428,8 @@ void writeFakeSimulation(const std::string& simPath, const std::string& abiotics
     writeAbiotics(abioticsPath, ab, biome, AbioticParams{});
 
     h5::File f = h5::File::create(simPath);
-    f.setAttr("/", "format", std::string("eco-simulation"));
-    f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
+    f.setAttr("/", "format", std::string(kSimulationFormat));
+    f.setAttr("/", "schema_version", kSimulationSchemaVersion);
     f.setAttr("/", "seed", static_cast<std::int64_t>(42));
     f.setAttr("/", "biome_toml", biomeToToml(biome));
     f.setAttr("/", "x0", 1000.0);
