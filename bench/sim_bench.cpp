@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "atomic_file.h"
+#include "canopy_file.h"
 #include "demo_scene.h"
 #include "h5io.h"
 #include "plants.h"
@@ -59,7 +60,7 @@ void makeScene(const std::string& dir, int cells, double cellSize, std::uint64_t
     AtomicOutput out(dir + "/canopy.h5");
     {
         h5::File f = h5::File::create(out.tempPath());
-        f.setAttr("/", "format", std::string("eco-canopy"));
+        setCanopyFormat(f);  // core/canopy_file.h: the simulator reads the trees and the CHM of an eco-canopy file
         f.setAttr("/", "note", std::string("procedural stand-in written by bench_sim --make-scene"));
         writePlants(f, "/canopy", in.canopy, biome);
         f.ensureGroup("/chm");

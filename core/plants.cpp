@@ -9,31 +9,73 @@
 
 namespace eco {
 
-void writePlants(h5::File& file, const std::string& group, const std::vector<Plant>& plants,
-                 const Biome& biome) {
+namespace {
+
+// A float64 column of a plant table: its dataset name and the field it stores.
+template <typename P>
+struct PlantColumn {
+    const char* name;
+    double P::*field;
+};
+
+// The position and size columns every plant table has, in file order (after species_id).
+template <typename P>
+constexpr PlantColumn<P> kPlantColumns[] = {{"x", &P::xM},
+                                            {"y", &P::yM},
+                                            {"ground_z", &P::groundZM},
+                                            {"height", &P::heightM},
+                                            {"crown_radius", &P::crownRadiusM}};
+
+// The state columns of an undergrowth table, in file order (after the id column).
+constexpr PlantColumn<UndergrowthPlant> kStateColumns[] = {{"age", &UndergrowthPlant::ageYears},
+                                                          {"growth_age", &UndergrowthPlant::growthAgeYears},
+                                                          {"vigour", &UndergrowthPlant::vigour},
+                                                          {"pool", &UndergrowthPlant::pool},
+                                                          {"sun_share", &UndergrowthPlant::sunShare},
+                                                          {"water_share", &UndergrowthPlant::waterShare}};
+
+template <typename P, std::size_t N>
+void writeColumns(h5::File& file, const std::string& group, const std::vector<P>& plants, const PlantColumn<P> (&columns)[N]) {
+    const hsize_t n = plants.size();
+    std::vector<double> v(n);
+    for (const PlantColumn<P>& c : columns) {
+        for (std::size_t i = 0; i < plants.size(); ++i) v[i] = plants[i].*c.field;
+        file.writeF64(group + "/" + c.name, v, {n});
+    }
+}
+
+// The plant table of any plant type with the Plant fields: species_id, the plant columns,
+// species_names and the group's attributes.
+template <typename P>
+void writePlantTable(h5::File& file, const std::string& group, const std::vector<P>& plants, const Biome& biome) {
     const hsize_t n = plants.size();
     std::vector<std::int32_t> sp(n);
-    std::vector<double> x(n), y(n), z(n), h(n), r(n);
-    for (std::size_t i = 0; i < plants.size(); ++i) {
-        sp[i] = plants[i].speciesId;
-        x[i] = plants[i].xM;
-        y[i] = plants[i].yM;
-        z[i] = plants[i].groundZM;
-        h[i] = plants[i].heightM;
-        r[i] = plants[i].crownRadiusM;
-    }
+    for (std::size_t i = 0; i < plants.size(); ++i) sp[i] = plants[i].speciesId;
     file.ensureGroup(group);
     file.writeI32(group + "/species_id", sp, {n});
-    file.writeF64(group + "/x", x, {n});
-    file.writeF64(group + "/y", y, {n});
-    file.writeF64(group + "/ground_z", z, {n});
-    file.writeF64(group + "/height", h, {n});
-    file.writeF64(group + "/crown_radius", r, {n});
+    writeColumns(file, group, plants, kPlantColumns<P>);
     std::vector<std::string> names;
     for (const auto& s : biome.species) names.push_back(s.name);
     file.writeStrings(group + "/species_names", names);
     file.setAttr(group, "count", static_cast<std::int64_t>(n));
     file.setAttr(group, "units", std::string("m"));
+}
+
+}  // namespace
+
+void writePlants(h5::File& file, const std::string& group, const std::vector<Plant>& plants,
+                 const Biome& biome) {
+    writePlantTable(file, group, plants, biome);
+}
+
+void writeUndergrowthPlants(h5::File& file, const std::string& group, const std::vector<UndergrowthPlant>& plants,
+                            const Biome& biome) {
+    writePlantTable(file, group, plants, biome);
+    const hsize_t n = plants.size();
+    std::vector<double> id(n);
+    for (std::size_t i = 0; i < n; ++i) id[i] = static_cast<double>(plants[i].id);  // exact below 2^53
+    file.writeF64(group + "/id", id, {n});
+    writeColumns(file, group, plants, kStateColumns);
 }
 
 std::vector<Plant> readPlants(const h5::File& file, const std::string& group, const Biome& biome) {
@@ -72,22 +114,90 @@ std::vector<Plant> readPlants(const h5::File& file, const std::string& group, co
     return out;
 }
 
-void writePlantsCsv(const std::string& path, const std::vector<Plant>& plants, const Biome& biome,
-                    const std::string& layer) {
+std::vector<UndergrowthPlant> readUndergrowthPlants(const h5::File& file, const std::string& group, const Biome& biome) {
+    const auto basic = readPlants(file, group, biome);
+    std::vector<UndergrowthPlant> out(basic.size());
+    for (std::size_t i = 0; i < basic.size(); ++i) {
+        UndergrowthPlant& p = out[i];
+        p.speciesId = basic[i].speciesId;
+        p.xM = basic[i].xM;
+        p.yM = basic[i].yM;
+        p.groundZM = basic[i].groundZM;
+        p.heightM = basic[i].heightM;
+        p.crownRadiusM = basic[i].crownRadiusM;
+    }
+    auto optional = [&](const char* name) {
+        std::vector<double> v;
+        if (file.exists(group + "/" + name)) {
+            v = file.readF64(group + "/" + name);
+            if (v.size() != basic.size())
+                throw IoError(file.path() + ": " + group + "/" + name + ": length differs from species_id");
+        }
+        return v;
+    };
+    const auto id = optional("id");
+    for (std::size_t i = 0; i < id.size(); ++i) out[i].id = static_cast<std::uint64_t>(id[i]);
+    for (const PlantColumn<UndergrowthPlant>& c : kStateColumns) {
+        const auto v = optional(c.name);
+        for (std::size_t i = 0; i < v.size(); ++i) out[i].*c.field = v[i];
+    }
+    return out;
+}
+
+namespace {
+
+// Opens a CSV for writing into the temporary file of `out`, runs write(FILE*) and closes it.
+template <typename F>
+void writeCsv(const std::string& path, F&& write) {
     AtomicOutput out(path);
     {
         std::FILE* f = std::fopen(out.tempPath().c_str(), "w");
         if (!f) throw IoError(path + ": cannot write CSV");
-        std::fprintf(f, "%sspecies_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m\n", layer.empty() ? "" : "layer,");
-        for (const auto& p : plants) {
-            if (!layer.empty()) std::fprintf(f, "%s,", layer.c_str());
-            std::fprintf(f, "%d,\"%s\",%.3f,%.3f,%.3f,%.3f,%.3f\n", p.speciesId,
-                         biome.species[static_cast<std::size_t>(p.speciesId)].name.c_str(), p.xM, p.yM, p.groundZM,
-                         p.heightM, p.crownRadiusM);
-        }
+        write(f);
         if (std::fclose(f) != 0) throw IoError(path + ": error while writing CSV");
     }
     out.commit();
+}
+
+constexpr const char* kPlantCsvHeader = "species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m";
+
+void writePlantCsvRow(std::FILE* f, const Plant& p, const Biome& biome) {
+    std::fprintf(f, "%d,\"%s\",%.3f,%.3f,%.3f,%.3f,%.3f\n", p.speciesId,
+                 biome.species.at(static_cast<std::size_t>(p.speciesId)).name.c_str(), p.xM, p.yM, p.groundZM, p.heightM,
+                 p.crownRadiusM);
+}
+
+}  // namespace
+
+void writePlantsCsv(const std::string& path, const std::vector<Plant>& plants, const Biome& biome,
+                    const std::string& layer) {
+    if (!layer.empty()) return writePlantLayersCsv(path, {{layer, &plants}}, biome);
+    writeCsv(path, [&](std::FILE* f) {
+        std::fprintf(f, "%s\n", kPlantCsvHeader);
+        for (const auto& p : plants) writePlantCsvRow(f, p, biome);
+    });
+}
+
+void writePlantLayersCsv(const std::string& path, const std::vector<PlantLayer>& layers, const Biome& biome) {
+    writeCsv(path, [&](std::FILE* f) {
+        std::fprintf(f, "layer,%s\n", kPlantCsvHeader);
+        for (const PlantLayer& layer : layers)
+            for (const Plant& p : *layer.plants) {
+                std::fprintf(f, "%s,", layer.name.c_str());
+                writePlantCsvRow(f, p, biome);
+            }
+    });
+}
+
+void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthPlant>& plants, const Biome& biome) {
+    writeCsv(path, [&](std::FILE* f) {
+        std::fprintf(f, "%s,id,age_years,growth_age_years,vigour,pool\n", kPlantCsvHeader);
+        for (const auto& p : plants)
+            std::fprintf(f, "%d,\"%s\",%.4f,%.4f,%.3f,%.5f,%.5f,%llu,%.4f,%.6f,%.6f,%.6f\n", p.speciesId,
+                         biome.species.at(static_cast<std::size_t>(p.speciesId)).name.c_str(), p.xM, p.yM, p.groundZM,
+                         p.heightM, p.crownRadiusM, static_cast<unsigned long long>(p.id), p.ageYears, p.growthAgeYears,
+                         p.vigour, p.pool);
+    });
 }
 
 }  // namespace eco

@@ -1,5 +1,5 @@
-// The simulator's processes as small pure functions (paper §6.1, SPEC §5). The engine in
-// simulator.cpp calls exactly these, and tests/simulator_test.cpp tests each on its own.
+// The simulator's processes as small pure functions (paper §6.1, SPEC §5). The engine
+// (simulator_*.cpp) calls exactly these, and tests/simulator_test.cpp tests each on its own.
 #pragma once
 
 #include <algorithm>

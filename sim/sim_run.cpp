@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "canopy_file.h"
 #include "eco_version.h"
 #include "error.h"
 #include "sim_render.h"
@@ -22,23 +23,11 @@ namespace eco::sim {
 
 namespace {
 
-std::string yearGroup(const std::string& parent, int year) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "/year_%04d", year);
-    return parent + buf;
-}
-
 void requireFile(const std::string& path, const std::string& what) {
     if (path.empty()) throw ValidationError("no " + what + " file given");
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
         throw IoError(path + ": " + what + " file not found");
-}
-
-std::vector<std::string> speciesNames(const Biome& b) {
-    std::vector<std::string> names;
-    for (const auto& s : b.species) names.push_back(s.name);
-    return names;
 }
 
 }  // namespace
@@ -66,13 +55,9 @@ SimInputs loadSimInputs(const RunConfig& config, Biome biome) {
                                   " m) differs from the abiotics in " + config.abioticsPath);
         in.abiotics.elevationM = std::move(terrain);
     }
-    const h5::File f = h5::File::openRead(config.canopyPath);
-    if (!f.exists("/canopy"))
-        throw IoError(config.canopyPath + ": no /canopy plant group (is this a canopy file written by 'eco canopy'?)");
-    in.canopy = readPlants(f, "/canopy", in.biome);
-    if (!f.exists("/chm/height"))
-        throw IoError(config.canopyPath + ": no /chm/height dataset (the canopy height model is needed for the canopy limit)");
-    in.chmM = f.readGrid("/chm/height");
+    CanopyFileData canopy = readCanopyFile(config.canopyPath, in.biome, CanopyFileParts::TreesAndChm);
+    in.canopy = std::move(canopy.trees);
+    in.chmM = std::move(canopy.chmM);
     in.area = config.crop;
     return in;
 }
@@ -173,201 +158,51 @@ std::vector<UndergrowthPlant> readInitialPlants(const std::string& spec, const B
     std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
     if (ext == ".csv") return readInitialCsv(path, biome);
     const h5::File f = h5::File::openRead(path);
-    if (group.empty()) {
-        if (f.exists("/snapshots") && !f.list("/snapshots").empty()) {
-            auto names = f.list("/snapshots");
-            std::sort(names.begin(), names.end());
-            group = "/snapshots/" + names.back();
-        } else {
-            group = "/undergrowth";
-        }
-    }
+    if (group.empty()) group = lastSnapshotGroup(f);
+    if (group.empty()) group = "/undergrowth";
     if (!f.exists(group)) throw IoError(path + ": no plant group '" + group + "'");
     return readSnapshot(f, group, biome);
 }
 
-// ------------------------------------------------------------------ snapshots and CSV
-
-void writeSnapshot(h5::File& f, const std::string& group, int year, const std::vector<UndergrowthPlant>& plants,
-                   const Biome& biome) {
-    std::vector<Plant> basic;
-    basic.reserve(plants.size());
-    for (const auto& p : plants) basic.push_back(Plant{p.speciesId, p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM});
-    writePlants(f, group, basic, biome);
-    const hsize_t n = plants.size();
-    std::vector<double> id(n), age(n), ga(n), vig(n), pool(n), sun(n), water(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        id[i] = static_cast<double>(plants[i].id);  // exact below 2^53
-        age[i] = plants[i].ageYears;
-        ga[i] = plants[i].growthAgeYears;
-        vig[i] = plants[i].vigour;
-        pool[i] = plants[i].pool;
-        sun[i] = plants[i].sunShare;
-        water[i] = plants[i].waterShare;
-    }
-    f.writeF64(group + "/id", id, {n});
-    f.writeF64(group + "/age", age, {n});
-    f.writeF64(group + "/growth_age", ga, {n});
-    f.writeF64(group + "/vigour", vig, {n});
-    f.writeF64(group + "/pool", pool, {n});
-    f.writeF64(group + "/sun_share", sun, {n});
-    f.writeF64(group + "/water_share", water, {n});
-    f.setAttr(group, "year", static_cast<std::int64_t>(year));
-    f.setAttr(group, "units", std::string("x, y, ground_z, height, crown_radius: m; age, growth_age: years; "
-                                          "sun_share: hours/day; water_share: mm/month; vigour, pool: dimensionless"));
-}
-
-std::vector<UndergrowthPlant> readSnapshot(const h5::File& f, const std::string& group, const Biome& biome) {
-    const auto basic = readPlants(f, group, biome);
-    std::vector<UndergrowthPlant> out(basic.size());
-    auto opt = [&](const char* name) {
-        std::vector<double> v;
-        if (f.exists(group + "/" + name)) {
-            v = f.readF64(group + "/" + name);
-            if (v.size() != basic.size()) throw IoError(f.path() + ": " + group + "/" + name + ": length differs from species_id");
-        }
-        return v;
-    };
-    const auto id = opt("id"), age = opt("age"), ga = opt("growth_age"), vig = opt("vigour"), pool = opt("pool"),
-               sun = opt("sun_share"), water = opt("water_share");
-    for (std::size_t i = 0; i < basic.size(); ++i) {
-        UndergrowthPlant& p = out[i];
-        p.speciesId = basic[i].speciesId;
-        p.xM = basic[i].xM;
-        p.yM = basic[i].yM;
-        p.groundZM = basic[i].groundZM;
-        p.heightM = basic[i].heightM;
-        p.crownRadiusM = basic[i].crownRadiusM;
-        if (!id.empty()) p.id = static_cast<std::uint64_t>(id[i]);
-        if (!age.empty()) p.ageYears = age[i];
-        if (!ga.empty()) p.growthAgeYears = ga[i];
-        if (!vig.empty()) p.vigour = vig[i];
-        if (!pool.empty()) p.pool = pool[i];
-        if (!sun.empty()) p.sunShare = sun[i];
-        if (!water.empty()) p.waterShare = water[i];
-    }
-    return out;
-}
-
-void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthPlant>& plants, const Biome& biome) {
-    AtomicOutput out(path);
-    {
-        std::FILE* f = std::fopen(out.tempPath().c_str(), "w");
-        if (!f) throw IoError(path + ": cannot write CSV");
-        std::fprintf(f, "species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m,id,age_years,growth_age_years,vigour,pool\n");
-        for (const auto& p : plants)
-            std::fprintf(f, "%d,\"%s\",%.4f,%.4f,%.3f,%.5f,%.5f,%llu,%.4f,%.6f,%.6f,%.6f\n", p.speciesId,
-                         biome.species[static_cast<std::size_t>(p.speciesId)].name.c_str(), p.xM, p.yM, p.groundZM, p.heightM,
-                         p.crownRadiusM, static_cast<unsigned long long>(p.id), p.ageYears, p.growthAgeYears, p.vigour, p.pool);
-        if (std::fclose(f) != 0) throw IoError(path + ": error while writing CSV");
-    }
-    out.commit();
-}
-
-// ------------------------------------------------------------------ record I/O
+// ------------------------------------------------------------------ the simulation file and checkpoints
 
 namespace {
 
-void writeTimeseries(h5::File& f, const std::string& group, const std::vector<YearRecord>& ts, const Biome& biome) {
-    const hsize_t ny = ts.size(), ns = biome.species.size();
-    std::vector<std::int32_t> year(ny), count(ny * ns);
-    std::vector<double> h(ny * ns), v(ny * ns), a(ny * ns);
-    for (std::size_t y = 0; y < ny; ++y) {
-        year[y] = ts[y].year;
-        for (std::size_t s = 0; s < ns; ++s) {
-            count[y * ns + s] = ts[y].count[s];
-            h[y * ns + s] = ts[y].meanHeightM[s];
-            v[y * ns + s] = ts[y].meanVigour[s];
-            a[y * ns + s] = ts[y].crownAreaM2[s];
-        }
-    }
-    f.ensureGroup(group);
-    f.writeI32(group + "/year", year, {ny});
-    f.writeI32(group + "/count", count, {ny, ns});
-    f.writeF64(group + "/mean_height", h, {ny, ns});
-    f.writeF64(group + "/mean_vigour", v, {ny, ns});
-    f.writeF64(group + "/crown_area", a, {ny, ns});
-    f.writeStrings(group + "/species_names", speciesNames(biome));
-    f.setAttr(group, "units", std::string("year: complete years simulated (0 = initial state); count: plants; "
-                                          "mean_height: m; mean_vigour: dimensionless; crown_area: m^2 (sum of pi r^2)"));
-    f.setAttr(group, "layout", std::string("[year][species], species in the order of species_names"));
-}
-
-std::vector<YearRecord> readTimeseries(const h5::File& f, const std::string& group, std::size_t ns) {
-    std::vector<hsize_t> dims;
-    const auto year = f.readI32(group + "/year");
-    const auto count = f.readI32(group + "/count", &dims);
-    const auto h = f.readF64(group + "/mean_height");
-    const auto v = f.readF64(group + "/mean_vigour");
-    const auto a = f.readF64(group + "/crown_area");
-    if (dims.size() != 2 || dims[0] != year.size() || dims[1] != ns || h.size() != count.size() || v.size() != count.size() ||
-        a.size() != count.size())
-        throw IoError(f.path() + ": " + group + ": time series arrays have inconsistent shapes");
-    std::vector<YearRecord> ts(year.size());
-    for (std::size_t y = 0; y < year.size(); ++y) {
-        ts[y].year = year[y];
-        for (std::size_t s = 0; s < ns; ++s) {
-            ts[y].count.push_back(count[y * ns + s]);
-            ts[y].meanHeightM.push_back(h[y * ns + s]);
-            ts[y].meanVigour.push_back(v[y * ns + s]);
-            ts[y].crownAreaM2.push_back(a[y * ns + s]);
-        }
-    }
-    return ts;
-}
-
+// The checkpoint is the simulator's own file (written and read here only).
 constexpr const char* kCheckpointFormat = "eco-simulation-checkpoint";
+constexpr std::int64_t kCheckpointSchemaVersion = 1;
 
 }  // namespace
 
 void writeSimulationH5(const std::string& path, const Simulation& sim, const RunRecord& record, const RunConfig& config,
                        double wallSeconds, int threads) {
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    if (!parent.empty()) ensureDirectory(parent.string());
-    AtomicOutput out(path);
-    {
-        h5::File f = h5::File::create(out.tempPath());
-        const Biome& biome = sim.biome();
-        f.setAttr("/", "format", std::string("eco-simulation"));
-        f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
-        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
-        f.setAttr("/", "seed", static_cast<std::int64_t>(sim.seed()));
-        f.setAttr("/", "years", static_cast<std::int64_t>(sim.yearsDone()));
-        f.setAttr("/", "wall_time_s", wallSeconds);
-        f.setAttr("/", "threads", static_cast<std::int64_t>(threads));
-        f.setAttr("/", "resumed_from_year", static_cast<std::int64_t>(record.resumedFromYear));
-        const SimArea a = sim.area();
-        f.setAttr("/", "x0", a.x0);
-        f.setAttr("/", "y0", a.y0);
-        f.setAttr("/", "x1", a.x1);
-        f.setAttr("/", "y1", a.y1);
-        f.setAttr("/", "area_units", std::string("m, world coordinates (x east, y north)"));
-        for (const auto& [key, value] : sim.params().namedValues()) f.setAttr("/", key, value);
-        f.setAttr("/", "model_toml", sim.params().toToml());
-        f.setAttr("/", "biome_name", biome.name);
-        f.setAttr("/", "biome_toml", biomeToToml(biome));
-        f.setAttr("/", "terrain_path", config.terrainPath);
-        f.setAttr("/", "abiotics_path", config.abioticsPath);
-        f.setAttr("/", "canopy_path", config.canopyPath);
-        f.setAttr("/", "biome_path", config.biomePath.empty() ? std::string("(embedded Sonoma biome)") : config.biomePath);
-        f.setAttr("/", "initial_path", config.initialPath);
-        f.setAttr("/", "config_path", config.sourcePath);
-        const SimCounters& c = sim.counters();
-        f.setAttr("/", "germinated", static_cast<std::int64_t>(c.germinated));
-        f.setAttr("/", "died_background_or_stress", static_cast<std::int64_t>(c.diedBackgroundOrStress));
-        f.setAttr("/", "died_at_canopy", static_cast<std::int64_t>(c.diedAtCanopy));
-        f.setAttr("/", "died_dominated", static_cast<std::int64_t>(c.diedDominated));
-        f.setAttr("/", "plant_months", static_cast<std::int64_t>(c.plantMonths));
-        f.setAttr("/", "plant_cell_months", static_cast<std::int64_t>(c.plantCellMonths));
-        f.setAttr("/", "units", std::string("metres, years, hours of sun per day, mm of water per month, degrees C"));
-        f.ensureGroup("/snapshots");
-        for (const auto& [year, plants] : record.snapshots) writeSnapshot(f, yearGroup("/snapshots", year), year, plants, biome);
-        writeTimeseries(f, "/timeseries", record.timeseries, biome);
-        writePlants(f, "/canopy", sim.relevantCanopy(), biome);
-        f.setAttr("/canopy", "selection", std::string("canopy trees whose crown or seeding disc (outer factor x r) reaches the area"));
-        f.writeStrings("/species_names", speciesNames(biome));
-    }
-    out.commit();
+    SimulationFileInfo info;
+    info.seed = sim.seed();
+    info.years = sim.yearsDone();
+    info.wallSeconds = wallSeconds;
+    info.threads = threads;
+    info.resumedFromYear = record.resumedFromYear;
+    const SimArea a = sim.area();
+    info.x0 = a.x0;
+    info.y0 = a.y0;
+    info.x1 = a.x1;
+    info.y1 = a.y1;
+    info.parameters = sim.params().namedValues();
+    info.modelToml = sim.params().toToml();
+    info.terrainPath = config.terrainPath;
+    info.abioticsPath = config.abioticsPath;
+    info.canopyPath = config.canopyPath;
+    info.biomePath = config.biomePath.empty() ? std::string("(embedded Sonoma biome)") : config.biomePath;
+    info.initialPath = config.initialPath;
+    info.configPath = config.sourcePath;
+    const SimCounters& c = sim.counters();
+    info.germinated = c.germinated;
+    info.diedBackgroundOrStress = c.diedBackgroundOrStress;
+    info.diedAtCanopy = c.diedAtCanopy;
+    info.diedDominated = c.diedDominated;
+    info.plantMonths = c.plantMonths;
+    info.plantCellMonths = c.plantCellMonths;
+    writeSimulationFile(path, info, sim.biome(), record.snapshots, record.timeseries, sim.relevantCanopy());
 }
 
 void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRecord& record) {
@@ -377,7 +212,7 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
     {
         h5::File f = h5::File::create(out.tempPath());
         f.setAttr("/", "format", std::string(kCheckpointFormat));
-        f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
+        f.setAttr("/", "schema_version", kCheckpointSchemaVersion);
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr("/", "years_done", static_cast<std::int64_t>(sim.yearsDone()));
         f.setAttr("/", "wall_seconds_before", record.wallSecondsBefore);
@@ -385,7 +220,7 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
         writeTimeseries(f, "/record/timeseries", record.timeseries, sim.biome());
         f.ensureGroup("/record/snapshots");
         for (const auto& [year, plants] : record.snapshots)
-            writeSnapshot(f, yearGroup("/record/snapshots", year), year, plants, sim.biome());
+            writeSnapshot(f, snapshotGroup("/record/snapshots", year), year, plants, sim.biome());
     }
     out.commit();
 }

@@ -24,25 +24,18 @@ Biome loadRunBiome(const RunConfig& config);
 /// eco-simulation file, else /undergrowth). Species are mapped by name onto the biome.
 std::vector<UndergrowthPlant> readInitialPlants(const std::string& spec, const Biome& biome);
 
-/// Snapshot group (readPlants-compatible, plus id, age, growth_age, vigour, pool, sun_share,
-/// water_share) written into / read from an open file.
-void writeSnapshot(h5::File& file, const std::string& group, int year, const std::vector<UndergrowthPlant>& plants,
-                   const Biome& biome);
-std::vector<UndergrowthPlant> readSnapshot(const h5::File& file, const std::string& group, const Biome& biome);
-
-/// CSV of plants: the columns of writePlantsCsv followed by id, age_years,
-/// growth_age_years, vigour, pool. Atomic.
-void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthPlant>& plants, const Biome& biome);
+// Snapshots, time series and the undergrowth CSV are written by core (sim_file.h: writeSnapshot,
+// readSnapshot, writeTimeseries; plants.h: writeUndergrowthCsv).
 
 /// What a run accumulates besides the simulation state.
 struct RunRecord {
     std::vector<YearRecord> timeseries;  ///< one per complete year, from year 0
-    std::vector<std::pair<int, std::vector<UndergrowthPlant>>> snapshots;
+    SnapshotList snapshots;
     double wallSecondsBefore = 0;  ///< wall time of earlier processes (resumed runs)
     int resumedFromYear = -1;      ///< -1 when not resumed
 };
 
-/// Write the simulation HDF5 (atomic): metadata, snapshots, time series, canopy.
+/// Write the simulation file (core/sim_file.h, atomic): metadata, snapshots, time series, canopy.
 void writeSimulationH5(const std::string& path, const Simulation& sim, const RunRecord& record,
                        const RunConfig& config, double wallSeconds, int threads);
 /// Write a checkpoint (atomic): simulation state and the record so far.

@@ -23,6 +23,7 @@
 #include "h5io.h"
 #include "plants.h"
 #include "sim_config.h"
+#include "sim_file.h"
 
 namespace eco::sim {
 
@@ -41,30 +42,10 @@ struct SimInputs {
     std::optional<SimArea> area;
 };
 
-/// An undergrowth plant at the API (the engine keeps a structure of arrays).
-struct UndergrowthPlant {
-    std::uint64_t id = 0;       ///< unique, assigned in a fixed order (input, then seedlings by cell)
-    int speciesId = 0;
-    double xM = 0, yM = 0;      ///< root position, world metres
-    double groundZM = 0;        ///< terrain elevation at the root
-    double heightM = 0;
-    double crownRadiusM = 0;
-    double ageYears = 0;
-    double growthAgeYears = 0;  ///< idealised-growth age (Eq. 3); lags ageYears under stress
-    double vigour = 0;          ///< last month's vigour (Eq. 1 on its resource shares)
-    double pool = 0;            ///< carbon pool R_i
-    double sunShare = 0;        ///< last month's mean sun share over its cells, hours/day
-    double waterShare = 0;      ///< last month's mean water share over its cells, mm
-};
-
-/// Per-species figures of one year (index = species id).
-struct YearRecord {
-    int year = 0;                        ///< complete years simulated (0 = initial state)
-    std::vector<std::int32_t> count;
-    std::vector<double> meanHeightM;     ///< 0 when count is 0
-    std::vector<double> meanVigour;
-    std::vector<double> crownAreaM2;     ///< sum of pi r^2
-};
+/// An undergrowth plant at the API (core/plants.h; the engine keeps a structure of arrays)
+/// and the per-species figures of one year (core/sim_file.h): the rows of a simulation file.
+using eco::UndergrowthPlant;
+using eco::YearRecord;
 
 /// Counters of the run (for progress and benchmarks).
 struct SimCounters {

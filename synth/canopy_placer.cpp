@@ -11,8 +11,6 @@
 #include <sstream>
 #include <cstdio>
 
-#include "atomic_file.h"
-#include "eco_version.h"
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
@@ -942,155 +940,44 @@ void loadCanopyConfig(const std::string& path, CanopyParams& canopy, SpeciesMapP
 
 // ------------------------------------------------------------------------- files
 
-namespace {
-constexpr const char* kCanopyFormat = "eco-canopy";
-constexpr std::int64_t kCanopySchemaVersion = 1;
-}  // namespace
-
+// The canopy record flattened into the canopy file's contents (core/canopy_file.h writes it).
 void writeCanopyFile(const std::string& path, const CanopyRecord& rec, const Biome& biome) {
-    AtomicOutput out(path);
-    {
-        h5::File f = h5::File::create(out.tempPath());
-        writePlants(f, "/canopy", rec.result.trees, biome);
-        f.setAttr("/canopy", "layer", std::string("canopy"));
-        f.writeGridI32("/species_map", rec.speciesMap, "species id, -1 none");
-        f.setAttr("/species_map", "names", std::string("/canopy/species_names"));
-        f.ensureGroup("/chm");
-        f.writeGrid("/chm/height", rec.chmM, "m");
-        f.ensureGroup("/terrain");
-        f.writeGrid("/terrain/elevation", rec.terrainM, "m");
-
-        // Iterations, then the final clean-up as iteration -1.
-        std::vector<IterationStats> its = rec.result.iterations;
-        its.push_back(rec.result.final);
-        const hsize_t n = its.size();
-        std::vector<std::int32_t> iteration(n), trees(n), removed(n), added(n);
-        std::vector<double> coverage(n), rmse(n), seconds(n);
-        for (std::size_t i = 0; i < its.size(); ++i) {
-            iteration[i] = its[i].iteration;
-            trees[i] = static_cast<std::int32_t>(its[i].trees);
-            removed[i] = static_cast<std::int32_t>(its[i].removed);
-            added[i] = static_cast<std::int32_t>(its[i].added);
-            coverage[i] = its[i].coverage;
-            rmse[i] = its[i].rmseM;
-            seconds[i] = its[i].seconds;
-        }
-        f.ensureGroup("/iterations");
-        f.writeI32("/iterations/iteration", iteration, {n});
-        f.writeI32("/iterations/trees", trees, {n});
-        f.writeI32("/iterations/removed", removed, {n});
-        f.writeI32("/iterations/added", added, {n});
-        f.writeF64("/iterations/coverage", coverage, {n});
-        f.writeF64("/iterations/rmse_m", rmse, {n});
-        f.writeF64("/iterations/seconds", seconds, {n});
-        f.setAttr("/iterations", "stop_reason", rec.result.stopReason);
-        f.setAttr("/iterations", "initial_seeds", static_cast<std::int64_t>(rec.result.initialSeeds));
-        f.setAttr("/iterations", "duplicates_removed", static_cast<std::int64_t>(rec.result.duplicatesRemoved));
-        f.setAttr("/iterations", "fallback_trees", static_cast<std::int64_t>(rec.result.fallbackTrees));
-        f.setAttr("/iterations", "seconds", rec.result.seconds);
-        f.setAttr("/iterations", "note", std::string("iteration 0 = initial seeding, -1 = final clean-up; coverage "
-                                                     "= fraction of CHM cells >= canopy_threshold_m under a crown"));
-
-        f.ensureGroup("/targets");
-        {
-            const hsize_t m = rec.targets.size();
-            std::vector<std::string> species;
-            std::vector<double> requested, achieved, reachable, weight, alpha;
-            std::vector<std::int32_t> feasible, iterations;
-            for (const auto& t : rec.targets) {
-                species.push_back(t.species);
-                requested.push_back(t.requested);
-                achieved.push_back(t.achieved);
-                reachable.push_back(t.reachable);
-                weight.push_back(t.weight);
-                alpha.push_back(t.alpha);
-                feasible.push_back(t.feasible ? 1 : 0);
-                iterations.push_back(t.iterations);
-            }
-            if (m > 0) {
-                f.writeStrings("/targets/species", species);
-                f.writeF64("/targets/requested", requested, {m});
-                f.writeF64("/targets/achieved", achieved, {m});
-                f.writeF64("/targets/reachable", reachable, {m});
-                f.writeF64("/targets/weight", weight, {m});
-                f.writeF64("/targets/alpha", alpha, {m});
-                f.writeI32("/targets/feasible", feasible, {m});
-                f.writeI32("/targets/iterations", iterations, {m});
-            }
-            f.setAttr("/targets", "count", static_cast<std::int64_t>(m));
-            f.setAttr("/targets", "note", std::string("fractions of the forested area (CHM >= canopy_threshold_m), inside "
-                                                      "/targets/mask when present"));
-            for (const auto& lw : rec.speciesParams.localWeights) {
-                if (f.exists("/targets/mask")) break;
-                Grid<std::int32_t> m32 = Grid<std::int32_t>::like(*lw.mask, 0);
-                for (std::size_t i = 0; i < m32.size(); ++i) m32.data()[i] = lw.mask->data()[i] ? 1 : 0;
-                f.writeGridI32("/targets/mask", m32, "1 inside the brush, 0 outside");
-            }
-        }
-
-        f.setAttr("/", "format", std::string(kCanopyFormat));
-        f.setAttr("/", "schema_version", kCanopySchemaVersion);
-        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
-        f.setAttr("/", "seed", static_cast<std::int64_t>(rec.params.seed));
-        for (const auto& field : canopyParamFields())
-            if (field.kind != CanopyParamField::Kind::Seed)
-                f.setAttr("/", field.key, canopyParamValue(rec.params, field));
-        f.setAttr("/", "target_tolerance", rec.speciesParams.targetTolerance);
-        f.setAttr("/", "max_bisection_steps", static_cast<std::int64_t>(rec.speciesParams.maxBisectionSteps));
-        f.setAttr("/", "target_sweeps", static_cast<std::int64_t>(rec.speciesParams.targetSweeps));
-        std::vector<double> weights(biome.species.size(), 1.0);
-        for (std::size_t i = 0; i < rec.speciesParams.weights.size() && i < weights.size(); ++i)
-            weights[i] = rec.speciesParams.weights[i];
-        f.setAttr("/", "species_weights", weights);
-        f.setAttr("/", "biome_name", biome.name);
-        f.setAttr("/", "biome_toml", biomeToToml(biome));
-        f.setAttr("/", "terrain_source", rec.terrainSource);
-        f.setAttr("/", "chm_source", rec.chmSource);
-        f.setAttr("/", "abiotics_source", rec.abioticsSource);
-        f.setAttr("/", "biome_source", rec.biomeSource);
-        f.setAttr("/", "mask_source", rec.maskSource);
-        f.setAttr("/", "units", std::string("metres; x east, y north, world coordinates of the input grids"));
+    CanopyFileContents c;
+    c.trees = rec.result.trees;
+    c.speciesMap = rec.speciesMap;
+    c.chmM = rec.chmM;
+    c.terrainM = rec.terrainM;
+    c.iterations = rec.result.iterations;
+    c.iterations.push_back(rec.result.final);  // the final clean-up as iteration -1
+    c.stopReason = rec.result.stopReason;
+    c.initialSeeds = static_cast<std::int64_t>(rec.result.initialSeeds);
+    c.duplicatesRemoved = static_cast<std::int64_t>(rec.result.duplicatesRemoved);
+    c.fallbackTrees = static_cast<std::int64_t>(rec.result.fallbackTrees);
+    c.seconds = rec.result.seconds;
+    for (const auto& t : rec.targets)
+        c.targets.push_back(CanopyTargetRow{t.species, t.requested, t.achieved, t.reachable, t.weight, t.alpha, t.feasible,
+                                            t.iterations});
+    if (!rec.speciesParams.localWeights.empty()) {  // the first brush's mask
+        const auto& lw = rec.speciesParams.localWeights.front();
+        Grid<std::int32_t> m32 = Grid<std::int32_t>::like(*lw.mask, 0);
+        for (std::size_t i = 0; i < m32.size(); ++i) m32.data()[i] = lw.mask->data()[i] ? 1 : 0;
+        c.targetMask = std::move(m32);
     }
-    out.commit();
-}
-
-CanopyFileData readCanopyFile(const std::string& path, const Biome& biome) {
-    const h5::File f = h5::File::openRead(path);
-    if (!f.hasAttr("/", "format") || f.attrString("/", "format") != kCanopyFormat)
-        throw IoError(path + ": not an eco-canopy file (root attribute format != '" + std::string(kCanopyFormat) + "')");
-    const std::int64_t version = f.attrInt("/", "schema_version");
-    if (version != kCanopySchemaVersion)
-        throw IoError(path + ": eco-canopy schema version " + std::to_string(version) + " is not supported (expected " +
-                      std::to_string(kCanopySchemaVersion) + ")");
-    CanopyFileData d;
-    d.trees = readPlants(f, "/canopy", biome);
-    d.speciesMap = f.readGridI32("/species_map");
-    d.chmM = f.readGrid("/chm/height");
-    d.terrainM = f.readGrid("/terrain/elevation");
-    d.seed = static_cast<std::uint64_t>(f.attrInt("/", "seed"));
-    const auto iteration = f.readI32("/iterations/iteration");
-    const auto trees = f.readI32("/iterations/trees");
-    const auto removed = f.readI32("/iterations/removed");
-    const auto added = f.readI32("/iterations/added");
-    const auto coverage = f.readF64("/iterations/coverage");
-    const auto rmse = f.readF64("/iterations/rmse_m");
-    const auto seconds = f.readF64("/iterations/seconds");
-    for (const auto* v : {&trees, &removed, &added})
-        if (v->size() != iteration.size()) throw IoError(path + ": /iterations arrays differ in length");
-    for (const auto* v : {&coverage, &rmse, &seconds})
-        if (v->size() != iteration.size()) throw IoError(path + ": /iterations arrays differ in length");
-    for (std::size_t i = 0; i < iteration.size(); ++i) {
-        IterationStats s;
-        s.iteration = iteration[i];
-        s.trees = static_cast<std::size_t>(trees[i]);
-        s.removed = static_cast<std::size_t>(removed[i]);
-        s.added = static_cast<std::size_t>(added[i]);
-        s.coverage = coverage[i];
-        s.rmseM = rmse[i];
-        s.seconds = seconds[i];
-        d.iterations.push_back(s);
-    }
-    return d;
+    c.seed = rec.params.seed;
+    for (const auto& field : canopyParamFields())
+        if (field.kind != CanopyParamField::Kind::Seed) c.realParameters.emplace_back(field.key, canopyParamValue(rec.params, field));
+    c.realParameters.emplace_back("target_tolerance", rec.speciesParams.targetTolerance);
+    c.integerParameters.emplace_back("max_bisection_steps", static_cast<std::int64_t>(rec.speciesParams.maxBisectionSteps));
+    c.integerParameters.emplace_back("target_sweeps", static_cast<std::int64_t>(rec.speciesParams.targetSweeps));
+    c.speciesWeights.assign(biome.species.size(), 1.0);
+    for (std::size_t i = 0; i < rec.speciesParams.weights.size() && i < c.speciesWeights.size(); ++i)
+        c.speciesWeights[i] = rec.speciesParams.weights[i];
+    c.terrainSource = rec.terrainSource;
+    c.chmSource = rec.chmSource;
+    c.abioticsSource = rec.abioticsSource;
+    c.biomeSource = rec.biomeSource;
+    c.maskSource = rec.maskSource;
+    eco::writeCanopyFile(path, c, biome);
 }
 
 void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, const Grid<float>& terrainM,

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "biome.h"
+#include "canopy_file.h"
 #include "grid.h"
 #include "plants.h"
 #include "species_map.h"
@@ -96,15 +97,7 @@ void validateCanopyParams(const CanopyParams& p);
 
 /// Statistics of one iteration (iteration 0 = the initial seeding), measured on the render
 /// that ends it.
-struct IterationStats {
-    int iteration = 0;
-    std::size_t trees = 0;     ///< trees after the iteration
-    std::size_t removed = 0;   ///< sun-starved trees removed in it
-    std::size_t added = 0;     ///< trees seeded in it
-    double coverage = 0;       ///< fraction of the CHM footprint covered by some crown
-    double rmseM = 0;          ///< RMS of (rendered crown surface - CHM) over the footprint, metres
-    double seconds = 0;        ///< wall time of the iteration
-};
+// IterationStats, one row of a canopy file's /iterations: core/canopy_file.h.
 
 struct CanopyResult {
     std::vector<Plant> trees;
@@ -163,21 +156,8 @@ void loadCanopyConfig(const std::string& path, CanopyParams& canopy, SpeciesMapP
 
 // ------------------------------------------------------------------------- files
 
-/// Everything a canopy file records. Layout (docs/canopy.md), one HDF5 file:
-///   /canopy                 the trees (core/plants.h layout: species_id, x, y, ground_z,
-///                           height, crown_radius, species_names)
-///   /species_map            int32 grid, "species id, -1 none" (ids index /canopy/species_names)
-///   /chm/height             float grid, m: the input CHM
-///   /terrain/elevation      float grid, m: the input terrain
-///   /iterations/{iteration, trees, removed, added (int32), coverage, rmse_m, seconds}  per iteration
-///                           (iteration -1 = the final clean-up) and attributes stop_reason,
-///                           initial_seeds, duplicates_removed, fallback_trees, seconds
-///   /targets/{species, requested, achieved, reachable, feasible, weight, alpha, iterations}
-///                           and /targets/mask (int32 grid, 1 = inside) when a brush was used
-///   root attributes: format = "eco-canopy", schema_version = 1, code_version, seed, every
-///   CanopyParams field by key, target_tolerance, max_bisection_steps, target_sweeps,
-///   species_weights (global user weights, biome order), biome_name, biome_toml, and the
-///   sources terrain_source, chm_source, abiotics_source, biome_source, mask_source.
+/// Everything a canopy run records: the canopy file's contents (core/canopy_file.h, the
+/// format's one home, documents the layout) before they are flattened for the writer.
 struct CanopyRecord {
     CanopyResult result;
     Grid<std::int32_t> speciesMap;
@@ -189,21 +169,9 @@ struct CanopyRecord {
     std::string terrainSource, chmSource, abioticsSource, biomeSource, maskSource;
 };
 
-/// Write a canopy file atomically (temporary file, then rename). IoError on failure.
+/// Write a canopy file (core/canopy_file.h) atomically. IoError on failure. Canopy files
+/// are read with core's readCanopyFile.
 void writeCanopyFile(const std::string& path, const CanopyRecord& record, const Biome& biome);
-
-/// What later stages read back from a canopy file.
-struct CanopyFileData {
-    std::vector<Plant> trees;            ///< species mapped by name onto the given biome
-    Grid<std::int32_t> speciesMap;       ///< ids of the FILE's species order (/canopy/species_names)
-    Grid<float> chmM;
-    Grid<float> terrainM;
-    std::vector<IterationStats> iterations;
-    std::uint64_t seed = 0;
-};
-/// Read a canopy file. IoError naming the file and the dataset when it is not an eco-canopy
-/// file of a known schema version or misses a dataset.
-CanopyFileData readCanopyFile(const std::string& path, const Biome& biome);
 
 /// Picture of the crowns drawn top-down over a hillshade of the terrain, each crown in its
 /// species' categoryColour, shaded by the crown surface, with a legend (species and counts);

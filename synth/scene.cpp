@@ -142,21 +142,7 @@ SceneData readSceneFile(const std::string& path, const Biome& biome) {
 
 void writeScenePlantsCsv(const std::string& path, const std::vector<Plant>& canopy,
                          const std::vector<Plant>& undergrowth, const Biome& biome) {
-    AtomicOutput out(path);
-    {
-        std::FILE* f = std::fopen(out.tempPath().c_str(), "w");
-        if (!f) throw IoError(path + ": cannot write CSV");
-        std::fprintf(f, "layer,species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m\n");
-        for (const auto* list : {&canopy, &undergrowth}) {
-            const char* layer = list == &canopy ? "canopy" : "undergrowth";
-            for (const Plant& p : *list)
-                std::fprintf(f, "%s,%d,\"%s\",%.3f,%.3f,%.3f,%.3f,%.3f\n", layer, p.speciesId,
-                             biome.species.at(static_cast<std::size_t>(p.speciesId)).name.c_str(), p.xM, p.yM, p.groundZM,
-                             p.heightM, p.crownRadiusM);
-        }
-        if (std::fclose(f) != 0) throw IoError(path + ": error while writing CSV");
-    }
-    out.commit();
+    writePlantLayersCsv(path, {{"canopy", &canopy}, {"undergrowth", &undergrowth}}, biome);
 }
 
 // ======================================================================== PDB

@@ -18,6 +18,7 @@
 #include "h5io.h"
 #include "plants.h"
 #include "rng.h"
+#include "sim_file.h"
 #include "sim_input.h"
 #include "sim_file_fixture.h"
 #include "test_util.h"

@@ -12,6 +12,7 @@
 #include "h5io.h"
 #include "plants.h"
 #include "rng.h"
+#include "sim_file.h"
 
 namespace eco::test {
 
@@ -44,8 +45,8 @@ inline void writeFakeSimulation(const std::string& simPath, const std::string& a
     writeAbiotics(abioticsPath, ab, biome, AbioticParams{});
 
     h5::File f = h5::File::create(simPath);
-    f.setAttr("/", "format", std::string("eco-simulation"));
-    f.setAttr("/", "schema_version", static_cast<std::int64_t>(1));
+    f.setAttr("/", "format", std::string(kSimulationFormat));
+    f.setAttr("/", "schema_version", static_cast<std::int64_t>(kSimulationSchemaVersion));
     f.setAttr("/", "seed", static_cast<std::int64_t>(42));
     f.setAttr("/", "biome_toml", biomeToToml(biome));
     f.setAttr("/", "x0", 1000.0);

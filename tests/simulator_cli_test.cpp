@@ -14,6 +14,7 @@
 #include <random>
 #include <sstream>
 
+#include "canopy_file.h"
 #include "atomic_file.h"
 #include "demo_scene.h"
 #include "batch_math.h"
@@ -51,6 +52,7 @@ void writeSceneFiles(const test::TempDir& dir) {
     const SimInputs in = smallDemoScene();
     writeAbiotics(dir.file("abiotics.h5"), in.abiotics, in.biome, AbioticParams{});
     auto f = h5::File::create(dir.file("canopy.h5"));
+    setCanopyFormat(f);
     writePlants(f, "/canopy", in.canopy, in.biome);
     f.ensureGroup("/chm");
     f.writeGrid("/chm/height", in.chmM, "m");
@@ -82,6 +84,7 @@ TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-ze
     {
         const SimInputs in = smallDemoScene();
         auto f = h5::File::create(dir.file("nochm.h5"));
+        setCanopyFormat(f);
         writePlants(f, "/canopy", in.canopy, in.biome);
     }
     r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("nochm.h5") + " --out " +

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "canopy_file.h"
 #include "demo_scene.h"
 #include "batch_math.h"
 #include "error.h"

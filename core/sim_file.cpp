@@ -1,0 +1,224 @@
+#include "sim_file.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "atomic_file.h"
+#include "eco_version.h"
+#include "error.h"
+
+namespace eco {
+
+namespace {
+
+std::vector<std::string> speciesNames(const Biome& b) {
+    std::vector<std::string> names;
+    for (const auto& s : b.species) names.push_back(s.name);
+    return names;
+}
+
+std::string firstAttr(const h5::File& f, std::initializer_list<const char*> names) {
+    for (const char* n : names)
+        if (f.hasAttr("/", n)) return f.attrString("/", n);
+    return {};
+}
+
+/// Year of a snapshot group name "year_NNNN", or -1.
+int yearOfGroup(const std::string& name) {
+    if (name.rfind("year_", 0) != 0 || name.size() == 5) return -1;
+    for (std::size_t i = 5; i < name.size(); ++i)
+        if (name[i] < '0' || name[i] > '9') return -1;
+    return std::atoi(name.c_str() + 5);
+}
+
+}  // namespace
+
+std::string snapshotGroup(const std::string& parent, int year) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "/year_%04d", year);
+    return parent + buf;
+}
+
+// ------------------------------------------------------------------ snapshots and time series
+
+void writeSnapshot(h5::File& f, const std::string& group, int year, const std::vector<UndergrowthPlant>& plants,
+                   const Biome& biome) {
+    writeUndergrowthPlants(f, group, plants, biome);
+    f.setAttr(group, "year", static_cast<std::int64_t>(year));
+    f.setAttr(group, "units", std::string("x, y, ground_z, height, crown_radius: m; age, growth_age: years; "
+                                          "sun_share: hours/day; water_share: mm/month; vigour, pool: dimensionless"));
+}
+
+std::vector<UndergrowthPlant> readSnapshot(const h5::File& f, const std::string& group, const Biome& biome) {
+    return readUndergrowthPlants(f, group, biome);
+}
+
+void writeTimeseries(h5::File& f, const std::string& group, const std::vector<YearRecord>& ts, const Biome& biome) {
+    const hsize_t ny = ts.size(), ns = biome.species.size();
+    std::vector<std::int32_t> year(ny), count(ny * ns);
+    std::vector<double> h(ny * ns), v(ny * ns), a(ny * ns);
+    for (std::size_t y = 0; y < ny; ++y) {
+        year[y] = ts[y].year;
+        for (std::size_t s = 0; s < ns; ++s) {
+            count[y * ns + s] = ts[y].count[s];
+            h[y * ns + s] = ts[y].meanHeightM[s];
+            v[y * ns + s] = ts[y].meanVigour[s];
+            a[y * ns + s] = ts[y].crownAreaM2[s];
+        }
+    }
+    f.ensureGroup(group);
+    f.writeI32(group + "/year", year, {ny});
+    f.writeI32(group + "/count", count, {ny, ns});
+    f.writeF64(group + "/mean_height", h, {ny, ns});
+    f.writeF64(group + "/mean_vigour", v, {ny, ns});
+    f.writeF64(group + "/crown_area", a, {ny, ns});
+    f.writeStrings(group + "/species_names", speciesNames(biome));
+    f.setAttr(group, "units", std::string("year: complete years simulated (0 = initial state); count: plants; "
+                                          "mean_height: m; mean_vigour: dimensionless; crown_area: m^2 (sum of pi r^2)"));
+    f.setAttr(group, "layout", std::string("[year][species], species in the order of species_names"));
+}
+
+std::vector<YearRecord> readTimeseries(const h5::File& f, const std::string& group, std::size_t ns) {
+    std::vector<hsize_t> dims;
+    const auto year = f.readI32(group + "/year");
+    const auto count = f.readI32(group + "/count", &dims);
+    const auto h = f.readF64(group + "/mean_height");
+    const auto v = f.readF64(group + "/mean_vigour");
+    const auto a = f.readF64(group + "/crown_area");
+    if (dims.size() != 2 || dims[0] != year.size() || dims[1] != ns || h.size() != count.size() || v.size() != count.size() ||
+        a.size() != count.size())
+        throw IoError(f.path() + ": " + group + ": time series arrays have inconsistent shapes");
+    std::vector<YearRecord> ts(year.size());
+    for (std::size_t y = 0; y < year.size(); ++y) {
+        ts[y].year = year[y];
+        for (std::size_t s = 0; s < ns; ++s) {
+            ts[y].count.push_back(count[y * ns + s]);
+            ts[y].meanHeightM.push_back(h[y * ns + s]);
+            ts[y].meanVigour.push_back(v[y * ns + s]);
+            ts[y].crownAreaM2.push_back(a[y * ns + s]);
+        }
+    }
+    return ts;
+}
+
+// ------------------------------------------------------------------ the file
+
+void writeSimulationFile(const std::string& path, const SimulationFileInfo& info, const Biome& biome,
+                         const SnapshotList& snapshots, const std::vector<YearRecord>& timeseries,
+                         const std::vector<Plant>& canopy) {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    if (!parent.empty()) ensureDirectory(parent.string());
+    AtomicOutput out(path);
+    {
+        h5::File f = h5::File::create(out.tempPath());
+        f.setAttr("/", "format", std::string(kSimulationFormat));
+        f.setAttr("/", "schema_version", kSimulationSchemaVersion);
+        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
+        f.setAttr("/", "seed", static_cast<std::int64_t>(info.seed));
+        f.setAttr("/", "years", static_cast<std::int64_t>(info.years));
+        f.setAttr("/", "wall_time_s", info.wallSeconds);
+        f.setAttr("/", "threads", static_cast<std::int64_t>(info.threads));
+        f.setAttr("/", "resumed_from_year", static_cast<std::int64_t>(info.resumedFromYear));
+        f.setAttr("/", "x0", info.x0);
+        f.setAttr("/", "y0", info.y0);
+        f.setAttr("/", "x1", info.x1);
+        f.setAttr("/", "y1", info.y1);
+        f.setAttr("/", "area_units", std::string("m, world coordinates (x east, y north)"));
+        for (const auto& [key, value] : info.parameters) f.setAttr("/", key, value);
+        f.setAttr("/", "model_toml", info.modelToml);
+        f.setAttr("/", "biome_name", biome.name);
+        f.setAttr("/", "biome_toml", biomeToToml(biome));
+        f.setAttr("/", "terrain_path", info.terrainPath);
+        f.setAttr("/", "abiotics_path", info.abioticsPath);
+        f.setAttr("/", "canopy_path", info.canopyPath);
+        f.setAttr("/", "biome_path", info.biomePath);
+        f.setAttr("/", "initial_path", info.initialPath);
+        f.setAttr("/", "config_path", info.configPath);
+        f.setAttr("/", "germinated", info.germinated);
+        f.setAttr("/", "died_background_or_stress", info.diedBackgroundOrStress);
+        f.setAttr("/", "died_at_canopy", info.diedAtCanopy);
+        f.setAttr("/", "died_dominated", info.diedDominated);
+        f.setAttr("/", "plant_months", info.plantMonths);
+        f.setAttr("/", "plant_cell_months", info.plantCellMonths);
+        f.setAttr("/", "units", std::string("metres, years, hours of sun per day, mm of water per month, degrees C"));
+        f.ensureGroup("/snapshots");
+        for (const auto& [year, plants] : snapshots) writeSnapshot(f, snapshotGroup("/snapshots", year), year, plants, biome);
+        writeTimeseries(f, "/timeseries", timeseries, biome);
+        writePlants(f, "/canopy", canopy, biome);
+        f.setAttr("/canopy", "selection", std::string("canopy trees whose crown or seeding disc (outer factor x r) reaches the area"));
+        f.writeStrings("/species_names", speciesNames(biome));
+    }
+    out.commit();
+}
+
+SimulationFileData readSimulationFile(const std::string& path, int wantedYear) {
+    const h5::File f = h5::File::openRead(path);
+    if (!f.hasAttr("/", "format"))
+        throw IoError(path + ": not a simulation file (root attribute 'format' is missing; expected '" +
+                      std::string(kSimulationFormat) + "')");
+    const std::string format = f.attrString("/", "format");
+    if (format != kSimulationFormat)
+        throw IoError(path + ": not a simulation file (format '" + format + "', expected '" + kSimulationFormat + "')");
+    if (f.hasAttr("/", "schema_version")) {
+        const std::int64_t v = f.attrInt("/", "schema_version");
+        if (v != kSimulationSchemaVersion)
+            throw IoError(path + ": simulation schema_version " + std::to_string(v) + " found, version " +
+                          std::to_string(kSimulationSchemaVersion) + " expected");
+    }
+    if (!f.hasAttr("/", "biome_toml")) throw IoError(path + ": root attribute 'biome_toml' (the biome) is missing");
+    SimulationFileData out;
+    out.biome = parseBiome(f.attrString("/", "biome_toml"), path + ": attribute biome_toml");
+
+    // Snapshot.
+    if (!f.exists("/snapshots")) throw IoError(path + ": group /snapshots is missing (no undergrowth snapshot)");
+    std::vector<std::pair<int, std::string>> snaps;
+    for (const std::string& name : f.list("/snapshots")) {
+        const int y = yearOfGroup(name);
+        if (y >= 0) snaps.emplace_back(y, name);
+    }
+    std::sort(snaps.begin(), snaps.end());
+    if (snaps.empty()) throw IoError(path + ": /snapshots has no year_NNNN group");
+    for (const auto& s : snaps) out.years.push_back(s.first);
+    std::string group;
+    if (wantedYear < 0) {
+        out.year = snaps.back().first;
+        group = "/snapshots/" + snaps.back().second;
+    } else {
+        for (const auto& s : snaps)
+            if (s.first == wantedYear) {
+                out.year = s.first;
+                group = "/snapshots/" + s.second;
+            }
+        if (group.empty()) {
+            std::string list;
+            for (int y : out.years) list += (list.empty() ? "" : ", ") + std::to_string(y);
+            throw IoError(path + ": no snapshot of year " + std::to_string(wantedYear) + " (years present: " + list + ")");
+        }
+    }
+    out.undergrowth = readPlants(f, group, out.biome);
+    if (!f.exists("/canopy")) throw IoError(path + ": plant group /canopy is missing");
+    out.canopy = readPlants(f, "/canopy", out.biome);
+
+    out.abioticsPath = firstAttr(f, {"abiotics_path", "abiotics"});
+    if (f.hasAttr("/", "x0") && f.hasAttr("/", "y0") && f.hasAttr("/", "x1") && f.hasAttr("/", "y1"))
+        out.area = std::array<double, 4>{f.attrDouble("/", "x0"), f.attrDouble("/", "y0"), f.attrDouble("/", "x1"),
+                                         f.attrDouble("/", "y1")};
+    out.terrainPath = firstAttr(f, {"terrain_path", "terrain"});
+    out.canopyPath = firstAttr(f, {"canopy_path", "canopy"});
+    out.seed = f.hasAttr("/", "seed") ? static_cast<std::uint64_t>(f.attrInt("/", "seed")) : 0;
+    out.modelToml = firstAttr(f, {"model_toml", "parameters"});
+    if (f.hasAttr("/", "seed_outer_radius_factor")) out.seedOuterRadiusFactor = f.attrDouble("/", "seed_outer_radius_factor");
+    return out;
+}
+
+std::string lastSnapshotGroup(const h5::File& f) {
+    if (!f.exists("/snapshots")) return {};
+    auto names = f.list("/snapshots");
+    if (names.empty()) return {};
+    std::sort(names.begin(), names.end());
+    return "/snapshots/" + names.back();
+}
+
+}  // namespace eco

@@ -1,0 +1,106 @@
+// The simulation file ("eco-simulation"): written by the simulator (`eco simulate`), read by
+// the analyser and as initial plants. Its one home: the format name, the schema version, the
+// writer and the reader (as biome_db.h is the database's). docs/simulator.md describes it.
+//
+// Layout, one HDF5 file:
+//   /snapshots/year_NNNN  undergrowth plant tables (plants.h: the Plant columns plus id, age,
+//                         growth_age, vigour, pool, sun_share, water_share), attribute year
+//   /timeseries           year int32 [ny], count int32 [ny][ns], mean_height, mean_vigour,
+//                         crown_area float64 [ny][ns], species_names
+//   /canopy               the canopy trees that influence the area (plants.h layout)
+//   /species_names        the biome's species names
+//   root attributes: format = "eco-simulation", schema_version = 1, code_version, seed, years,
+//   wall_time_s, threads, resumed_from_year, the area x0, y0, x1, y1, every model parameter by
+//   key, model_toml, biome_name, biome_toml, the input paths (terrain_path, abiotics_path,
+//   canopy_path, biome_path, initial_path, config_path) and the run's counters.
+#pragma once
+
+#include <cstdint>
+#include <array>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "biome.h"
+#include "h5io.h"
+#include "plants.h"
+
+namespace eco {
+
+inline constexpr const char* kSimulationFormat = "eco-simulation";
+inline constexpr std::int64_t kSimulationSchemaVersion = 1;
+
+/// Per-species figures of one year (index = species id): one row of /timeseries.
+struct YearRecord {
+    int year = 0;                        ///< complete years simulated (0 = initial state)
+    std::vector<std::int32_t> count;
+    std::vector<double> meanHeightM;     ///< 0 when count is 0
+    std::vector<double> meanVigour;
+    std::vector<double> crownAreaM2;     ///< sum of pi r^2
+};
+
+/// Undergrowth snapshots of a run: (year, plants), in the order taken.
+using SnapshotList = std::vector<std::pair<int, std::vector<UndergrowthPlant>>>;
+
+/// The root attributes of a simulation file besides its format and biome.
+struct SimulationFileInfo {
+    std::uint64_t seed = 0;
+    int years = 0;                   ///< complete years simulated
+    double wallSeconds = 0;
+    int threads = 0;
+    int resumedFromYear = -1;        ///< -1 when not resumed
+    double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< simulated area, world metres
+    std::vector<std::pair<std::string, double>> parameters;  ///< model parameters by key
+    std::string modelToml;
+    std::string terrainPath, abioticsPath, canopyPath, biomePath, initialPath, configPath;
+    std::int64_t germinated = 0, diedBackgroundOrStress = 0, diedAtCanopy = 0, diedDominated = 0;
+    std::int64_t plantMonths = 0, plantCellMonths = 0;
+};
+
+/// Snapshot group name of a year: parent + "/year_NNNN".
+std::string snapshotGroup(const std::string& parent, int year);
+
+/// A snapshot group (the undergrowth plant table, plants.h) with its year and units.
+void writeSnapshot(h5::File& file, const std::string& group, int year, const std::vector<UndergrowthPlant>& plants,
+                   const Biome& biome);
+/// Read a snapshot group (or any plant group: the state columns are optional).
+std::vector<UndergrowthPlant> readSnapshot(const h5::File& file, const std::string& group, const Biome& biome);
+
+/// The time series group (layout above).
+void writeTimeseries(h5::File& file, const std::string& group, const std::vector<YearRecord>& timeseries,
+                     const Biome& biome);
+/// IoError naming the file and group when the arrays' shapes disagree with each other or `speciesCount`.
+std::vector<YearRecord> readTimeseries(const h5::File& file, const std::string& group, std::size_t speciesCount);
+
+/// Write a simulation file atomically (the parent folder is created).
+void writeSimulationFile(const std::string& path, const SimulationFileInfo& info, const Biome& biome,
+                         const SnapshotList& snapshots, const std::vector<YearRecord>& timeseries,
+                         const std::vector<Plant>& canopy);
+
+/// What the analyser reads back from a simulation file: one snapshot and the context.
+struct SimulationFileData {
+    Biome biome;                          ///< from the root attribute biome_toml
+    std::vector<int> years;               ///< snapshot years in the file, ascending
+    int year = -1;                        ///< the year read
+    std::vector<Plant> undergrowth;       ///< that snapshot, species mapped onto `biome`
+    std::vector<Plant> canopy;
+    std::optional<std::array<double, 4>> area;  ///< x0, y0, x1, y1 when recorded
+    std::string abioticsPath;             ///< as recorded ("" when not)
+    std::string terrainPath, canopyPath;
+    std::uint64_t seed = 0;
+    std::string modelToml;
+    double seedOuterRadiusFactor = 0;     ///< 0 when not recorded
+};
+
+/// Read one snapshot (`year`, or the last one when year < 0) of a simulation file. IoError
+/// naming the file and the dataset or attribute when it is not an eco-simulation file, has
+/// another schema version, has no snapshots or not the requested year (the message lists
+/// the years present), or lacks a plant dataset.
+SimulationFileData readSimulationFile(const std::string& path, int year = -1);
+
+/// The snapshot group a plant list in a simulation file is read from by default: the last
+/// snapshot, or "" when the file has none.
+std::string lastSnapshotGroup(const h5::File& file);
+
+}  // namespace eco
