@@ -163,6 +163,10 @@ void runSynth(const SynthArgs& a) {
                 text += (k ? "; " : "") + std::string("clusters of sigma ") + num(st.sigmaM[k], 3) + " m, " +
                         num(st.parentsPerM2[k] * 100.0, 3) + " per 100 m2, pooled excess " + num(st.pooledAmplitude[k], 3);
             text += "; pooled g fit RMS " + num(st.pooledFitRms, 3) + " (canopy context alone " + num(st.pooledContextRms, 3) + ")";
+            const std::size_t ns = db.speciesNames.size();
+            for (std::size_t i = 0; i < st.hardCoreM.size(); ++i)
+                if (st.hardCoreM[i] > 0 && i / ns <= i % ns)
+                    text += "; hard core " + db.speciesNames[i / ns] + " - " + db.speciesNames[i % ns] + " " + num(st.hardCoreM[i], 3) + " m";
             info(text);
         }
         info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");

@@ -19,7 +19,11 @@
 // "sampling"), forest floor, and the refinement separately (one sweep over a 100 x 100 m
 // window and, on 1024^2, one sweep over the whole scene). Wall and process CPU time.
 //
-// Usage: bench_synth [OUT (default bench/results/synth.txt)] [SIZES, e.g. 1024,2048]
+// With a third argument DATABASE (a biome database that `eco analyse` made from real
+// simulations, schema 3) that database is used instead, and the sampler is the structured
+// one (docs/synth.md); the dart sampler is timed on the same scene beside it.
+//
+// Usage: bench_synth [OUT (default bench/results/synth.txt)] [SIZES, e.g. 1024,2048] [DATABASE]
 #include <omp.h>
 
 #include <chrono>
@@ -163,13 +167,23 @@ int main(int argc, char** argv) {
     std::ostringstream report;
     try {
         const eco::Biome biome = eco::defaultBiome();
-        const eco::BiomeDatabase db = benchmarkDatabase(biome);
+        const std::string dbPath = argc > 3 ? argv[3] : "";
+        const eco::BiomeDatabase db = dbPath.empty() ? benchmarkDatabase(biome) : eco::readBiomeDatabase(dbPath);
         const int threads = omp_get_max_threads();
         report << "synthesis benchmark (eco " << ECO_VERSION_STRING << ")\n"
                << "OpenMP threads: " << threads << ", load average at start: " << loadAverage() << "\n"
-               << "CHM: generateChm, dense spacing 2.0 m, sparse 5 m, heights 3.5..11 m; cells of 0.914 m\n"
-               << "database: SYNTHESIZED in the benchmark (not from a simulation): " << db.regions.size()
-               << " regions (all 15 Sonoma combinations x 2 sun clusters), 0.45 / 0.75 undergrowth plants per m^2\n"
+               << "CHM: generateChm, dense spacing 2.0 m, sparse 5 m, heights 3.5..11 m; cells of 0.914 m\n";
+        if (dbPath.empty())
+            report << "database: SYNTHESIZED in the benchmark (not from a simulation): " << db.regions.size()
+                   << " regions (all 15 Sonoma combinations x 2 sun clusters), 0.45 / 0.75 undergrowth plants per m^2; "
+                      "dart sampler\n";
+        else {
+            report << "database: " << dbPath << " (schema " << db.schemaVersion << ", " << db.regions.size() << " regions, "
+                   << db.inputs.size() << " analysed simulation(s):";
+            for (const auto& in : db.inputs) report << " " << in.path;
+            report << "); structured sampler, the dart sampler timed beside it\n";
+        }
+        report
                << "paper (i5-3570 + GTX 1070), canopy placement + sampling: 1024^2 3.81 s (~569k plants), 2048^2 "
                   "14.64 s (~2.31M), 3072^2 69.82 s (~5.37M)\n\n";
         std::cout << report.str() << std::flush;
@@ -197,10 +211,18 @@ int main(int argc, char** argv) {
             eco::CanopyResult canopy;
             const Timing tPlace = timed([&] { canopy = eco::placeCanopy(chm, terrain, speciesMap, biome, eco::CanopyParams{}); });
             eco::SynthParams sp;
+            sp.method = dbPath.empty() ? eco::SynthMethod::Darts : eco::SynthMethod::Structured;
             eco::ClusterMap clusters;
             const Timing tCluster = timed([&] { clusters = eco::computeClusterMap(db, biome, canopy.trees, features, sp); });
             eco::UndergrowthSample sample;
             const Timing tSample = timed([&] { sample = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, sp); });
+            Timing tDarts;
+            std::size_t dartsPlants = 0;
+            if (!dbPath.empty()) {
+                eco::SynthParams dp = sp;
+                dp.method = eco::SynthMethod::Darts;
+                tDarts = timed([&] { dartsPlants = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, dp).plants.size(); });
+            }
             eco::ForestFloor floor;
             const Timing tFloor = timed([&] {
                 floor = eco::computeForestFloor(features, canopy.trees, sample.plants, biome, eco::ForestFloorParams{});
@@ -237,7 +259,12 @@ int main(int argc, char** argv) {
             row("species map", tMap);
             row("canopy placement", tPlace);
             row("cluster map", tCluster);
-            row("undergrowth sampling", tSample);
+            row(dbPath.empty() ? "undergrowth sampling (darts)" : "undergrowth sampling (structured)", tSample);
+            if (!dbPath.empty()) {
+                row("  the dart sampler, same scene", tDarts);
+                std::snprintf(line, sizeof line, "    (%zu plants by the dart sampler)\n", dartsPlants);
+                sec << line;
+            }
             row("forest floor", tFloor);
             std::snprintf(line, sizeof line,
                           "  canopy placement + sampling (cluster map included): %.3f s; paper %.2f s; speed-up %.1fx\n",

@@ -391,37 +391,54 @@ double heightQuantile(const DbHistogram& h, const DbHistogram* radius, const All
     return h.edges.back();
 }
 
-/// Placed plants in buckets, for the hard-core test of random sequential adsorption.
+/// Placed plants in a bucket grid (linked lists through the placed plants), for the
+/// hard-core test of random sequential adsorption.
 struct HardCore {
     const std::vector<RegionStructure>& structure;
     std::size_t nSpecies;
-    double maxM = 0;
-    std::unordered_map<std::uint64_t, std::vector<Candidate>> buckets;
+    double maxM = 0, bucketM = 1;
+    int nx = 0, ny = 0;
+    std::vector<std::int32_t> head;  ///< [ny][nx] last placed plant of each bucket, -1 none
+    std::vector<std::int32_t> next;  ///< per placed plant
+    std::vector<Candidate> placed;
+    std::vector<char> speciesInhibited;  ///< [region][species]: some pair of it has a hard core
 
-    HardCore(const std::vector<RegionStructure>& st, std::size_t ns) : structure(st), nSpecies(ns) {
-        for (const RegionStructure& r : st)
-            for (double d : r.hardCoreM) maxM = std::max(maxM, d);
-    }
-    static std::uint64_t bucketKey(long long bx, long long by) {
-        return (static_cast<std::uint64_t>(bx + (1LL << 31)) << 32) | static_cast<std::uint64_t>((by + (1LL << 31)) & 0xffffffffLL);
+    HardCore(const std::vector<RegionStructure>& st, std::size_t ns, double extentX, double extentY)
+        : structure(st), nSpecies(ns) {
+        speciesInhibited.assign(st.size() * ns, 0);
+        for (std::size_t r = 0; r < st.size(); ++r)
+            for (std::size_t i = 0; i < st[r].hardCoreM.size(); ++i)
+                if (st[r].hardCoreM[i] > 0) {
+                    maxM = std::max(maxM, st[r].hardCoreM[i]);
+                    speciesInhibited[r * ns + i / ns] = 1;
+                }
+        if (!(maxM > 0)) return;
+        bucketM = std::max(maxM, 1.0);
+        nx = std::max(1, static_cast<int>(std::ceil(extentX / bucketM)));
+        ny = std::max(1, static_cast<int>(std::ceil(extentY / bucketM)));
+        head.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), -1);
     }
     /// Places the candidate unless a placed plant is nearer than their pair's hard core.
     bool admit(const Candidate& c, int region) {
-        const auto& hc = structure[static_cast<std::size_t>(region)].hardCoreM;
-        const long long bx = static_cast<long long>(std::floor(c.dx / maxM)), by = static_cast<long long>(std::floor(c.dy / maxM));
-        if (!hc.empty())
-            for (long long y = by - 1; y <= by + 1; ++y)
-                for (long long x = bx - 1; x <= bx + 1; ++x) {
-                    const auto it = buckets.find(bucketKey(x, y));
-                    if (it == buckets.end()) continue;
-                    for (const Candidate& o : it->second) {
-                        const double d = hc[c.species * nSpecies + o.species];
+        const int bx = std::clamp(static_cast<int>(c.dx / bucketM), 0, nx - 1);
+        const int by = std::clamp(static_cast<int>(c.dy / bucketM), 0, ny - 1);
+        if (speciesInhibited[static_cast<std::size_t>(region) * nSpecies + c.species]) {
+            const double* hc = structure[static_cast<std::size_t>(region)].hardCoreM.data() + c.species * nSpecies;
+            for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
+                for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x)
+                    for (std::int32_t o = head[static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x)];
+                         o >= 0; o = next[static_cast<std::size_t>(o)]) {
+                        const Candidate& q = placed[static_cast<std::size_t>(o)];
+                        const double d = hc[q.species];
                         if (!(d > 0)) continue;
-                        const double ddx = double(o.dx) - double(c.dx), ddy = double(o.dy) - double(c.dy);
+                        const double ddx = double(q.dx) - double(c.dx), ddy = double(q.dy) - double(c.dy);
                         if (ddx * ddx + ddy * ddy < d * d) return false;
                     }
-                }
-        buckets[bucketKey(bx, by)].push_back(c);
+        }
+        const std::size_t b = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(bx);
+        next.push_back(head[b]);
+        head[b] = static_cast<std::int32_t>(placed.size());
+        placed.push_back(c);
         return true;
     }
 };
@@ -535,7 +552,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         return scale[static_cast<std::size_t>(r) * nS + s] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + ctx.data()[cell]];
     };
 
-    HardCore hardCore(out.structure, nS);
+    HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
     std::vector<Candidate> accepted;
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
@@ -551,13 +568,18 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const std::int64_t missing = quota[i] - placed[i];
                 if (missing <= 0 || !(expected[i] > 0)) continue;
                 any = true;
-                passFactor[i] = params.candidateOversample * double(missing) / double(quota[i]);
+                // Later passes oversample more (the few plants still missing would otherwise
+                // take many passes to find darts).
+                passFactor[i] = params.candidateOversample * std::min(64.0, std::pow(2.0, pass)) * double(missing) / double(quota[i]);
                 double attached = 0;
                 for (int k = 0; k < out.structure[r].scales; ++k) attached += out.structure[r].attachment[s * 2 + static_cast<std::size_t>(k)];
                 freeFactor[i] = passFactor[i] * scale[i] * std::max(0.0, 1.0 - attached);
             }
         if (!any) break;
         out.passes = pass + 1;
+        std::vector<char> activeRegion(nR, 0);
+        for (std::size_t i = 0; i < nR * nS; ++i)
+            if (passFactor[i] > 0) activeRegion[i / nS] = 1;
         RateTable table;
         table.nMasks = masks.size();
         table.nCtx = nCtx;
@@ -574,6 +596,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     }
                 }
 
+        // exp(-lambda) of the free darts of a cell, per (region, mask, context): one exp per
+        // table entry instead of one per cell.
+        std::vector<double> expFree(nR * masks.size() * nCtx);
+        for (std::size_t r = 0; r < nR; ++r)
+            for (std::size_t m = 0; m < masks.size(); ++m)
+                for (std::size_t c = 0; c < nCtx; ++c)
+                    expFree[(r * masks.size() + m) * nCtx + c] = std::exp(-std::min(100.0, table.total(r, m, c) * cellArea));
         std::vector<std::vector<Candidate>> rowCand(static_cast<std::size_t>(h));
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
@@ -592,7 +621,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 if (lambdaFree > 0) {
                     const std::uint64_t stream = mixStream(freeStream, cell);
                     RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                    const int n = poissonCount(counter, lambdaFree, 65535);
+                    const int n = poissonCount(counter, lambdaFree, 65535,
+                                               lambdaFree <= 100 ? expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c] : -1.0);
                     for (int j = 0; j < n; ++j) {
                         // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
                         RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
@@ -610,42 +640,57 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                                                  static_cast<std::uint16_t>(pass)});
                     }
                 }
-                // Cluster parents of each field (the same in every pass), and their offspring.
-                const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
-                for (int k = 0; k < st.scales; ++k) {
-                    const std::uint64_t pStream = mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), cell);
-                    RandomStream prs(params.seed, pStream, 0);
-                    const int nParents = poissonCount(prs, st.parentsPerM2[k] * cellArea, 65535);
-                    for (int j = 0; j < nParents; ++j) {
-                        const double px = ox + (ix + prs.uniform()) * cs, py = oy + (iy + prs.uniform()) * cs;
-                        for (std::size_t s = 0; s < nS; ++s) {
-                            const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
-                            const std::size_t i = static_cast<std::size_t>(r) * nS + s;
-                            const double lmax = scale[i] * rhoMax[i];
-                            if (!(a > 0) || !(lmax > 0) || !(passFactor[i] > 0)) continue;
-                            const std::uint64_t oStream = mixStream(
-                                mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
-                                          cell),
-                                static_cast<std::uint64_t>(j) * nS + s);
-                            RandomStream ors(params.seed, oStream, 0);
-                            const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
-                            for (int o = 0; o < n; ++o) {
-                                const double x = px + st.sigmaM[k] * ors.normal(), y = py + st.sigmaM[k] * ors.normal();
-                                const double uThin = ors.uniform();
-                                const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
-                                ++rowThrown[static_cast<std::size_t>(iy)];
-                                const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
-                                if (!terrainM.inside(cx, cy)) continue;
-                                const std::size_t oc = terrainM.index(cx, cy);
-                                if (!(uThin * lmax < intensity(oc, s))) continue;
-                                if (onTrunk(oc, x, y)) {
-                                    ++rowOnTrunk[static_cast<std::size_t>(iy)];
-                                    continue;
-                                }
-                                cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
-                                                         static_cast<std::uint32_t>(oc), static_cast<std::uint16_t>(s),
-                                                         static_cast<std::uint16_t>(pass)});
+            }
+            // Cluster parents of each field (the same in every pass): per row a Poisson number
+            // at the row's total rate kappa x area, each in a cell drawn by its rate; then
+            // their offspring of each attached species.
+            std::vector<double> cum(static_cast<std::size_t>(w));
+            for (int k = 0; k < 2; ++k) {
+                double total = 0;
+                for (int ix = 0; ix < w; ++ix) {
+                    const int r = map.region(ix, iy);
+                    if (r >= 0 && map.seedWeight(ix, iy) > 0 && out.structure[static_cast<std::size_t>(r)].scales > k)
+                        total += out.structure[static_cast<std::size_t>(r)].parentsPerM2[k] * cellArea;
+                    cum[static_cast<std::size_t>(ix)] = total;
+                }
+                if (!(total > 0)) continue;
+                RandomStream prs(params.seed, mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(iy)), 0);
+                const int nParents = poissonCount(prs, total, 1 << 30);
+                for (int j = 0; j < nParents; ++j) {
+                    const double u = prs.uniform() * total;
+                    int ix = static_cast<int>(std::upper_bound(cum.begin(), cum.end(), u) - cum.begin());
+                    ix = std::min(ix, w - 1);
+                    const double px = ox + (ix + prs.uniform()) * cs, py = oy + (iy + prs.uniform()) * cs;
+                    const int r = map.region(ix, iy);
+                    if (!activeRegion[static_cast<std::size_t>(r)]) continue;
+                    const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
+                    for (std::size_t s = 0; s < nS; ++s) {
+                        const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
+                        const std::size_t i = static_cast<std::size_t>(r) * nS + s;
+                        const double lmax = scale[i] * rhoMax[i];
+                        if (!(a > 0) || !(lmax > 0) || !(passFactor[i] > 0)) continue;
+                        const std::uint64_t oStream = mixStream(
+                            mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
+                                      static_cast<std::uint64_t>(iy)),
+                            static_cast<std::uint64_t>(j) * nS + s);
+                        RandomStream ors(params.seed, oStream, 0);
+                        const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
+                        for (int o = 0; o < n; ++o) {
+                            const double x = px + st.sigmaM[k] * ors.normal(), y = py + st.sigmaM[k] * ors.normal();
+                            const double uThin = ors.uniform();
+                            const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
+                            ++rowThrown[static_cast<std::size_t>(iy)];
+                            const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
+                            if (!terrainM.inside(cx, cy)) continue;
+                            const std::size_t oc = terrainM.index(cx, cy);
+                            if (!(uThin * lmax < intensity(oc, s))) continue;
+                            if (onTrunk(oc, x, y)) {
+                                ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                                continue;
                             }
+                            cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
+                                                     static_cast<std::uint32_t>(oc), static_cast<std::uint16_t>(s),
+                                                     static_cast<std::uint16_t>(pass)});
                         }
                     }
                 }
