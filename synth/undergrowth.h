@@ -103,7 +103,7 @@ struct SynthParams {
     // Structured sampler: the cluster fields' scales are searched on a log grid in
     // [clusterSigmaMinM, clusterSigmaMaxM] (Thomas kernel standard deviation, m).
     double clusterSigmaMinM = 0.2;
-    double clusterSigmaMaxM = 8.0;
+    double clusterSigmaMaxM = 3.0;
     /// Species with fewer plants in a region than this get the region's pooled clustering
     /// instead of a fit to their own (noisy) g.
     int clusterMinPlants = 50;
