@@ -105,4 +105,35 @@ Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& 
     return abiotics;
 }
 
+/// "x0,y0,x1,y1" (or "x,y,side" for a square when `allowSquare`) in metres.
+RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare) {
+    std::vector<double> v;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        std::size_t used = 0;
+        double d = 0;
+        try {
+            d = std::stod(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || item.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(d))
+            throw ValidationError(option + " '" + text + "': '" + item + "' is not a number");
+        v.push_back(d);
+    }
+    RectWindow w;
+    if (allowSquare && v.size() == 3) {
+        if (!(v[2] > 0)) throw ValidationError(option + " '" + text + "': the side must be positive");
+        w = RectWindow{v[0] - 0.5 * v[2], v[1] - 0.5 * v[2], v[0] + 0.5 * v[2], v[1] + 0.5 * v[2]};
+    } else if (v.size() == 4) {
+        w = RectWindow{v[0], v[1], v[2], v[3]};
+    } else {
+        throw ValidationError(option + " '" + text + "': expected " +
+                              (allowSquare ? std::string("x_centre,y_centre,side or ") : std::string()) + "x0,y0,x1,y1 in metres");
+    }
+    w.validate(option);
+    return w;
+}
+
 }  // namespace eco::cli

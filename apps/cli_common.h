@@ -12,6 +12,7 @@
 #include "abiotics.h"
 #include "biome.h"
 #include "grid.h"
+#include "point_pattern.h"
 
 namespace eco::cli {
 
@@ -87,5 +88,9 @@ private:
 /// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.
 Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
                             const std::string& terrainPath, const Biome& biome, const std::string& note);
+
+/// A window "x0,y0,x1,y1" in metres (or "x,y,side", a square around (x, y), when
+/// allowSquare). ValidationError naming the option, the text and the part that is wrong.
+RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare = false);
 
 }  // namespace eco::cli

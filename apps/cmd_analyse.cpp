@@ -127,24 +127,6 @@ struct PcfArgs {
     std::string out;
 };
 
-RectWindow parseWindow(const std::string& text) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    std::string part;
-    while (std::getline(ss, part, ',')) {
-        char* end = nullptr;
-        const double d = std::strtod(part.c_str(), &end);
-        if (part.empty() || *end != '\0' || !std::isfinite(d))
-            throw ValidationError("--window '" + text + "': '" + part + "' is not a number (expected x0,y0,x1,y1 in metres)");
-        v.push_back(d);
-    }
-    if (v.size() != 4)
-        throw ValidationError("--window '" + text + "': expected 4 numbers x0,y0,x1,y1 in metres, found " + std::to_string(v.size()));
-    RectWindow w{v[0], v[1], v[2], v[3]};
-    w.validate("--window");
-    return w;
-}
-
 std::string replaceExtension(const std::string& path, const std::string& ext) {
     std::filesystem::path p(path);
     p.replace_extension(ext);
@@ -152,7 +134,7 @@ std::string replaceExtension(const std::string& path, const std::string& ext) {
 }
 
 void runPcf(const PcfArgs& args) {
-    const RectWindow window = parseWindow(args.window);
+    const RectWindow window = parseWindow(args.window, "--window");
     const PointPattern pattern = readPointPatternCsv(args.points, &window);
     PcfOptions opt;
     const double halfShorter = 0.5 * std::min(window.widthM(), window.heightM());

@@ -55,28 +55,6 @@ struct FidelityArgs {
     std::set<std::string> given;  // options given on the command line (they override the config)
 };
 
-/// "x0,y0,x1,y1" in metres.
-RectWindow parseCrop(const std::string& text, const std::string& what) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        std::size_t used = 0;
-        double d = 0;
-        try {
-            d = std::stod(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used == 0 || item.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(d))
-            throw ValidationError(what + " '" + text + "': '" + item + "' is not a number");
-        v.push_back(d);
-    }
-    if (v.size() != 4) throw ValidationError(what + " '" + text + "': expected x0,y0,x1,y1 in metres");
-    RectWindow w{v[0], v[1], v[2], v[3]};
-    w.validate(what);
-    return w;
-}
 
 /// [fidelity] of a TOML configuration; options given on the command line win.
 void readConfig(FidelityArgs& a) {
@@ -227,7 +205,7 @@ void runFidelity(FidelityArgs a) {
     if (!a.config.empty()) readConfig(a);
     if (a.outDir.empty()) a.outDir = "out/fidelity";
     FidelityParams params = a.params;
-    params.window = parseCrop(a.crop, "--crop");
+    params.window = parseWindow(a.crop, "--crop");
     params.validate();
     for (const auto& [path, option] : std::vector<std::pair<std::string, std::string>>{
              {a.terrain, "--terrain"}, {a.chm, "--chm"}, {a.abiotics, "--abiotics"}, {a.canopy, "--canopy"},

@@ -113,6 +113,27 @@ inline int poissonCount(RandomStream& rs, double lambda, int cap, double expNegL
 }
 
 
+/// Where cumulative share u in [0, 1) of a histogram falls: bin k and the fraction t in
+/// [0, 1) of that bin's count below it. -1: the histogram is empty (or malformed); 0: u falls
+/// in the overflow; 1: found.
+inline int histogramLocate(const DbHistogram& h, double u, std::size_t& bin, double& t) {
+    double total = h.overflow;
+    for (double c : h.counts) total += c;
+    if (!(total > 0) || h.edges.size() != h.counts.size() + 1) return -1;
+    const double target = u * total;
+    double cum = 0;
+    for (std::size_t k = 0; k < h.counts.size(); ++k) {
+        const double c = h.counts[k];
+        if (c > 0 && cum + c > target) {
+            bin = k;
+            t = (target - cum) / c;
+            return 1;
+        }
+        cum += c;
+    }
+    return 0;
+}
+
 /// Cells that a trunk's exclusion disc may reach: only candidates there need the trunk query.
 inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std::vector<Plant>& canopy, double factor) {
     Grid<std::uint8_t> near = Grid<std::uint8_t>::like(geometry, 0);

@@ -357,38 +357,29 @@ struct RateTable {
 /// the allometry of its height, so the radius histogram carries the shape of the heights
 /// inside the (coarser at small sizes) height bins. Linear inside the bin without it.
 double heightQuantile(const DbHistogram& h, const DbHistogram* radius, const Allometry& allometry, double u) {
-    double total = h.overflow;
-    for (double c : h.counts) total += c;
-    if (!(total > 0) || h.edges.size() != h.counts.size() + 1) return -1;
-    const double target = u * total;
-    double cum = 0;
-    for (std::size_t k = 0; k < h.counts.size(); ++k) {
-        const double c = h.counts[k];
-        if (c > 0 && cum + c > target) {
-            const double t = (target - cum) / c, lo = h.edges[k], hi = h.edges[k + 1];
-            if (radius != nullptr) {
-                double rTotal = radius->overflow, below = 0, fa = 0, fb = 0;
-                for (double x : radius->counts) rTotal += x;
-                const double ra = allometry.crownRadiusM(lo), rb = allometry.crownRadiusM(hi);
-                for (std::size_t j = 0; j < radius->counts.size(); ++j) {
-                    const double a = radius->edges[j], b = radius->edges[j + 1], n = radius->counts[j];
-                    auto part = [&](double x) { return x >= b ? n : (x > a ? n * (x - a) / (b - a) : 0.0); };
-                    fa += part(ra);
-                    fb += part(rb);
-                    below += n;
-                }
-                (void)below;
-                if (rTotal > 0 && fb - fa > 1e-12 * rTotal) {
-                    const double rq = histogramQuantile(*radius, (fa + t * (fb - fa)) / rTotal);
-                    const double hq = allometry.heightForCrownRadiusM(rq);
-                    if (hq >= lo && hq <= hi) return hq;
-                }
-            }
-            return lo + t * (hi - lo);
+    std::size_t k = 0;
+    double t = 0;
+    const int found = histogramLocate(h, u, k, t);
+    if (found < 0) return -1;
+    if (found == 0) return h.edges.back();
+    const double lo = h.edges[k], hi = h.edges[k + 1];
+    if (radius != nullptr) {
+        // The radius histogram's mass between the allometric radii of the bin's edges.
+        double rTotal = radius->overflow, fa = 0, fb = 0;
+        const double ra = allometry.crownRadiusM(lo), rb = allometry.crownRadiusM(hi);
+        for (std::size_t j = 0; j < radius->counts.size(); ++j) {
+            const double a = radius->edges[j], b = radius->edges[j + 1], n = radius->counts[j];
+            auto part = [&](double x) { return x >= b ? n : (x > a ? n * (x - a) / (b - a) : 0.0); };
+            fa += part(ra);
+            fb += part(rb);
+            rTotal += n;
         }
-        cum += c;
+        if (rTotal > 0 && fb - fa > 1e-12 * rTotal) {
+            const double hq = allometry.heightForCrownRadiusM(histogramQuantile(*radius, (fa + t * (fb - fa)) / rTotal));
+            if (hq >= lo && hq <= hi) return hq;
+        }
     }
-    return h.edges.back();
+    return lo + t * (hi - lo);
 }
 
 /// Placed plants in a bucket grid (linked lists through the placed plants), for the

@@ -269,17 +269,12 @@ ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const 
 // ======================================================================== sampling
 
 double histogramQuantile(const DbHistogram& h, double u) {
-    double total = h.overflow;
-    for (double c : h.counts) total += c;
-    if (!(total > 0) || h.edges.size() != h.counts.size() + 1) return -1;
-    const double target = u * total;
-    double cum = 0;
-    for (std::size_t k = 0; k < h.counts.size(); ++k) {
-        const double c = h.counts[k];
-        if (c > 0 && cum + c > target) return h.edges[k] + (target - cum) / c * (h.edges[k + 1] - h.edges[k]);
-        cum += c;
-    }
-    return h.edges.back();  // in the overflow: at the last edge
+    std::size_t k = 0;
+    double t = 0;
+    const int found = histogramLocate(h, u, k, t);
+    if (found < 0) return -1;
+    if (found == 0) return h.edges.back();  // in the overflow: at the last edge
+    return h.edges[k] + t * (h.edges[k + 1] - h.edges[k]);
 }
 
 namespace {
