@@ -489,9 +489,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         for (int ix = 0; ix < w; ++ix) maskIdx(ix, iy) = static_cast<std::uint16_t>(maskIndex(map.combination(ix, iy)));
     auto admits = [&](std::size_t m, std::size_t s) { return (subMask[s] & masks[m]) != 0; };
 
-    // Expected count of each (region, species) at density rho x w over the cells that admit
-    // it: E[r][s]; rows in parallel, added in row order.
-    std::vector<double> rowE(static_cast<std::size_t>(h) * nR * nS, 0.0);
+    // Cells of each region; rows in parallel, added in row order.
     std::vector<std::int64_t> rowCells(static_cast<std::size_t>(h) * nR, 0);
 #pragma omp parallel for schedule(static)
     for (int iy = 0; iy < h; ++iy)
@@ -499,30 +497,57 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             const int r = map.region(ix, iy);
             if (r < 0 || static_cast<std::size_t>(r) >= nR) continue;
             ++rowCells[static_cast<std::size_t>(iy) * nR + static_cast<std::size_t>(r)];
-            const float wgt = map.seedWeight(ix, iy);
-            if (!(wgt > 0)) continue;
-            const std::size_t m = maskIdx(ix, iy), c = ctx(ix, iy);
-            double* e = &rowE[(static_cast<std::size_t>(iy) * nR + static_cast<std::size_t>(r)) * nS];
-            for (std::size_t s = 0; s < nS; ++s)
-                if (admits(m, s)) e[s] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
         }
+    // Quota tiles: each (region, species, tile) gets its expected count, so the plants of a
+    // species follow its per-context densities tile by tile and not only over the whole
+    // region (a clustered pattern's count in a window varies far more than a Poisson one's).
+    const double tileM = params.quotaTileM > 0 ? params.quotaTileM : std::max(terrainM.extentX(), terrainM.extentY());
+    const int nTx = std::max(1, static_cast<int>(std::ceil(terrainM.extentX() / tileM)));
+    const int nTy = std::max(1, static_cast<int>(std::ceil(terrainM.extentY() / tileM)));
+    const std::size_t nTiles = static_cast<std::size_t>(nTx) * static_cast<std::size_t>(nTy);
+    std::vector<int> tileX(static_cast<std::size_t>(w)), tileY(static_cast<std::size_t>(h));
+    for (int ix = 0; ix < w; ++ix) tileX[static_cast<std::size_t>(ix)] = std::min(nTx - 1, static_cast<int>((ix + 0.5) * cs / tileM));
+    for (int iy = 0; iy < h; ++iy) tileY[static_cast<std::size_t>(iy)] = std::min(nTy - 1, static_cast<int>((iy + 0.5) * cs / tileM));
+    auto groupOf = [&](std::size_t cell, std::size_t s) {
+        const int ix = static_cast<int>(cell % static_cast<std::size_t>(w)), iy = static_cast<int>(cell / static_cast<std::size_t>(w));
+        const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
+                                 static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
+        return (static_cast<std::size_t>(map.region.data()[cell]) * nS + s) * nTiles + tile;
+    };
+    const std::size_t nGroups = nR * nS * nTiles;
+    // Expected counts per group: one tile row per task, cells in a fixed order.
+    std::vector<double> expectedG(nGroups, 0.0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int ty = 0; ty < nTy; ++ty)
+        for (int iy = 0; iy < h; ++iy) {
+            if (tileY[static_cast<std::size_t>(iy)] != ty) continue;
+            for (int ix = 0; ix < w; ++ix) {
+                const int r = map.region(ix, iy);
+                if (r < 0 || static_cast<std::size_t>(r) >= nR || !(map.seedWeight(ix, iy) > 0)) continue;
+                const std::size_t cell = terrainM.index(ix, iy), m = maskIdx.data()[cell], c = ctx.data()[cell];
+                for (std::size_t s = 0; s < nS; ++s)
+                    if (admits(m, s)) expectedG[groupOf(cell, s)] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+            }
+        }
+    std::vector<std::int64_t> quotaG(nGroups, 0), placedG(nGroups, 0);
+    for (std::size_t g = 0; g < nGroups; ++g) quotaG[g] = static_cast<std::int64_t>(std::llround(expectedG[g]));
     std::vector<double> expected(nR * nS, 0.0);
     out.regions.resize(nR);
     std::vector<std::int64_t> quota(nR * nS, 0), placed(nR * nS, 0);
     for (std::size_t r = 0; r < nR; ++r) {
         RegionSampling& rs = out.regions[r];
         rs.region = static_cast<int>(r);
-        for (int iy = 0; iy < h; ++iy) {
-            rs.cells += rowCells[static_cast<std::size_t>(iy) * nR + r];
-            for (std::size_t s = 0; s < nS; ++s) expected[r * nS + s] += rowE[(static_cast<std::size_t>(iy) * nR + r) * nS + s];
-        }
+        for (int iy = 0; iy < h; ++iy) rs.cells += rowCells[static_cast<std::size_t>(iy) * nR + r];
         rs.areaM2 = static_cast<double>(rs.cells) * cellArea;
         // Quotas: the expected count of each species at its per-context densities over the
         // cells here that admit it (the region's mean density when the target has the
         // database's mix of contexts, more plants where it has more of the dense contexts).
         std::int64_t n = 0;
         for (std::size_t s = 0; s < nS; ++s) {
-            quota[r * nS + s] = static_cast<std::int64_t>(std::llround(expected[r * nS + s]));
+            for (std::size_t t = 0; t < nTiles; ++t) {
+                expected[r * nS + s] += expectedG[(r * nS + s) * nTiles + t];
+                quota[r * nS + s] += quotaG[(r * nS + s) * nTiles + t];
+            }
             n += quota[r * nS + s];
         }
         rs.targetCount = n;
@@ -556,7 +581,9 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         for (std::size_t r = 0; r < nR; ++r)
             for (std::size_t s = 0; s < nS; ++s) {
                 const std::size_t i = r * nS + s;
-                const std::int64_t missing = quota[i] - placed[i];
+                std::int64_t missing = 0;
+                for (std::size_t t = 0; t < nTiles; ++t)
+                    missing += std::max<std::int64_t>(0, quotaG[i * nTiles + t] - placedG[i * nTiles + t]);
                 if (missing <= 0 || !(expected[i] > 0)) continue;
                 any = true;
                 // Later passes oversample more (the few plants still missing would otherwise
@@ -687,19 +714,18 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 }
             }
         }
-        // Each (region, species) keeps its lowest keys up to what it still misses.
-        std::vector<std::vector<std::uint64_t>> keys(nR * nS);
+        // Each (region, species, tile) keeps its lowest keys up to what it still misses.
+        std::vector<std::vector<std::uint64_t>> keys(nGroups);
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)])
-                keys[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species].push_back(cnd.key);
+            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) keys[groupOf(cnd.cell, cnd.species)].push_back(cnd.key);
         }
-        std::vector<std::uint64_t> threshold(nR * nS, std::numeric_limits<std::uint64_t>::max());
-        std::vector<std::int64_t> equalQuota(nR * nS, std::numeric_limits<std::int64_t>::max());
-        for (std::size_t i = 0; i < nR * nS; ++i) {
+        std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
+        std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
+        for (std::size_t i = 0; i < nGroups; ++i) {
             auto& k = keys[i];
-            const std::int64_t missing = quota[i] - placed[i];
+            const std::int64_t missing = quotaG[i] - placedG[i];
             if (missing <= 0) {
                 threshold[i] = 0;
                 equalQuota[i] = 0;
@@ -716,7 +742,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         std::vector<Candidate> passAccepted;
         for (int iy = 0; iy < h; ++iy) {
             for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) {
-                const std::size_t i = static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species;
+                const std::size_t i = groupOf(cnd.cell, cnd.species);
                 if (cnd.key < threshold[i] || (cnd.key == threshold[i] && equalQuota[i]-- > 0)) passAccepted.push_back(cnd);
             }
             std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
@@ -735,6 +761,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             passAccepted.swap(kept);
         }
         for (const Candidate& cnd : passAccepted) {
+            ++placedG[groupOf(cnd.cell, cnd.species)];
             ++placed[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species];
             accepted.push_back(cnd);
         }

@@ -171,6 +171,8 @@ void SynthParams::validate() const {
         clusterSigmaMaxM > 1000)
         throw ValidationError("synthesis: cluster_sigma_min_m / cluster_sigma_max_m must satisfy 0 < min <= max <= 1000, got " +
                               num(clusterSigmaMinM) + " / " + num(clusterSigmaMaxM));
+    if (!(quotaTileM >= 0) || !std::isfinite(quotaTileM))
+        throw ValidationError("synthesis: quota_tile_m must be finite and >= 0, got " + num(quotaTileM));
     if (!(hardCoreG >= 0) || !(hardCoreG <= 1))
         throw ValidationError("synthesis: hard_core_g must be in [0, 1], got " + num(hardCoreG));
     if (!(hardCoreMinExpectedPairs >= 0) || !std::isfinite(hardCoreMinExpectedPairs))
@@ -196,6 +198,7 @@ std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() con
             {"cluster_sigma_min_m", num(clusterSigmaMinM)},
             {"cluster_sigma_max_m", num(clusterSigmaMaxM)},
             {"cluster_min_plants", std::to_string(clusterMinPlants)},
+            {"quota_tile_m", num(quotaTileM)},
             {"hard_core_g", num(hardCoreG)},
             {"hard_core_min_expected_pairs", num(hardCoreMinExpectedPairs)}};
 }

@@ -107,6 +107,9 @@ struct SynthParams {
     /// Species with fewer plants in a region than this get the region's pooled clustering
     /// instead of a fit to their own (noisy) g.
     int clusterMinPlants = 50;
+    /// Structured sampler: each (region, species) meets its expected count in every square
+    /// tile of this side (m) of the terrain, not only over the whole region; 0 = whole region.
+    double quotaTileM = 60.0;
     /// Inhibition: g below this in the leading bins of a species pair ...
     double hardCoreG = 0.25;
     /// ... where a Poisson pattern would have had at least this many pairs per bin.
