@@ -434,6 +434,110 @@ struct HardCore {
     }
 };
 
+/// Sizes of the accepted plants (docs/synth.md 2a "Sizes"): height from the region's
+/// histogram of the plant's context (under a crown or in the open), truncated below the
+/// lowest crown above; crown radius by allometry. Fills out.plants, out.plantRegion and
+/// out.heightsLimitedByCrown. Parallel over plants, each keyed by its own random key.
+void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
+               const Grid<float>& terrainM, const SynthParams& params, bool withContext,
+               const std::vector<Candidate>& accepted, UndergrowthSample& out) {
+    const std::size_t nR = db.regions.size(), nS = static_cast<std::size_t>(db.speciesCount());
+    const double ox = terrainM.originX(), oy = terrainM.originY();
+    std::vector<DbHistogram> pooledHeight(nS);
+    for (const auto& reg : db.regions)
+        for (std::size_t s = 0; s < nS; ++s) {
+            const DbHistogram& src = reg.height[s];
+            DbHistogram& dst = pooledHeight[s];
+            if (dst.edges.empty()) {
+                dst.edges = src.edges;
+                dst.counts.assign(src.counts.size(), 0.0);
+            }
+            if (dst.counts.size() != src.counts.size()) continue;
+            for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
+            dst.overflow += src.overflow;
+        }
+    // Open-ground histograms: all heights less those under crowns.
+    std::vector<DbHistogram> openHeight;
+    if (withContext)
+        for (std::size_t r = 0; r < nR; ++r)
+            for (std::size_t s = 0; s < nS; ++s) {
+                DbHistogram o = db.regions[r].height[s];
+                const DbHistogram& cov = db.regions[r].heightCovered[s];
+                for (std::size_t k = 0; k < o.counts.size() && k < cov.counts.size(); ++k) o.counts[k] = std::max(0.0, o.counts[k] - cov.counts[k]);
+                o.overflow = std::max(0.0, o.overflow - cov.overflow);
+                openHeight.push_back(std::move(o));
+            }
+    const CanopyCover cover(canopy);
+    auto mass = [](const DbHistogram& hst) {
+        double t = hst.overflow;
+        for (double c : hst.counts) t += c;
+        return t;
+    };
+    auto cdfAt = [](const DbHistogram& hst, double x) {  // share of the histogram below x
+        double total = hst.overflow, below = 0;
+        for (double c : hst.counts) total += c;
+        if (!(total > 0)) return 0.0;
+        for (std::size_t k = 0; k < hst.counts.size(); ++k) {
+            const double lo = hst.edges[k], hi = hst.edges[k + 1];
+            if (x >= hi)
+                below += hst.counts[k];
+            else if (x > lo)
+                below += hst.counts[k] * (x - lo) / (hi - lo);
+        }
+        return below / total;
+    };
+    const std::int64_t nPlants = static_cast<std::int64_t>(accepted.size());
+    out.plants.resize(accepted.size());
+    out.plantRegion.resize(accepted.size());
+    std::int64_t limited = 0;
+#pragma omp parallel for schedule(static) reduction(+ : limited)
+    for (std::int64_t i = 0; i < nPlants; ++i) {
+        const Candidate& cnd = accepted[static_cast<std::size_t>(i)];
+        const std::size_t s = cnd.species;
+        const int r = map.region.data()[cnd.cell];
+        Plant p;
+        p.speciesId = static_cast<int>(s);
+        p.xM = ox + static_cast<double>(cnd.dx);
+        p.yM = oy + static_cast<double>(cnd.dy);
+        p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
+        const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
+        const bool covered = limit < CanopyCover::kNone;
+        const DbHistogram* hist = nullptr;
+        if (withContext) {
+            const DbHistogram& ctxH = covered ? db.regions[static_cast<std::size_t>(r)].heightCovered[s]
+                                              : openHeight[static_cast<std::size_t>(r) * nS + s];
+            if (mass(ctxH) > 0) hist = &ctxH;
+        }
+        if (hist == nullptr && mass(db.regions[static_cast<std::size_t>(r)].height[s]) > 0) hist = &db.regions[static_cast<std::size_t>(r)].height[s];
+        if (hist == nullptr && mass(pooledHeight[s]) > 0) hist = &pooledHeight[s];
+        RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
+        const double u = rs.uniform();
+        const Allometry& allometry = biome.species[s].allometry;
+        const DbHistogram& radiusHist = db.regions[static_cast<std::size_t>(r)].crownRadius[s];
+        double height;
+        if (hist != nullptr) {
+            const double top = covered ? cdfAt(*hist, limit) : 1.0;
+            if (top > 0) {
+                height = heightQuantile(*hist, mass(radiusHist) > 0 ? &radiusHist : nullptr, allometry, u * top);
+                if (covered && !(height < limit)) height = histogramQuantile(*hist, u * top);
+                if (covered && top < 1.0) ++limited;
+            } else {
+                height = u * limit;  // the species never grew this low: below the crown, uniformly
+                ++limited;
+            }
+        } else {
+            height = 0.5 * biome.species[s].maxHeightM;
+            if (covered) height = std::min(height, u * limit);
+        }
+        if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
+        p.heightM = std::max(0.0, height);
+        p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
+        out.plants[static_cast<std::size_t>(i)] = p;
+        out.plantRegion[static_cast<std::size_t>(i)] = r;
+    }
+    out.heightsLimitedByCrown = limited;
+}
+
 }  // namespace
 
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
@@ -774,101 +878,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     for (std::size_t r = 0; r < nR; ++r)
         for (std::size_t s = 0; s < nS; ++s) out.regions[r].placed += placed[r * nS + s];
 
-    // Sizes: height from the region's histogram of the plant's context (under a crown or in
-    // the open), truncated below the lowest crown above; crown radius by allometry.
-    std::vector<DbHistogram> pooledHeight(nS);
-    for (const auto& reg : db.regions)
-        for (std::size_t s = 0; s < nS; ++s) {
-            const DbHistogram& src = reg.height[s];
-            DbHistogram& dst = pooledHeight[s];
-            if (dst.edges.empty()) {
-                dst.edges = src.edges;
-                dst.counts.assign(src.counts.size(), 0.0);
-            }
-            if (dst.counts.size() != src.counts.size()) continue;
-            for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
-            dst.overflow += src.overflow;
-        }
-    // Open-ground histograms: all heights less those under crowns.
-    std::vector<DbHistogram> openHeight;
-    if (withContext)
-        for (std::size_t r = 0; r < nR; ++r)
-            for (std::size_t s = 0; s < nS; ++s) {
-                DbHistogram o = db.regions[r].height[s];
-                const DbHistogram& cov = db.regions[r].heightCovered[s];
-                for (std::size_t k = 0; k < o.counts.size() && k < cov.counts.size(); ++k) o.counts[k] = std::max(0.0, o.counts[k] - cov.counts[k]);
-                o.overflow = std::max(0.0, o.overflow - cov.overflow);
-                openHeight.push_back(std::move(o));
-            }
-    const CanopyCover cover(canopy);
-    auto mass = [](const DbHistogram& hst) {
-        double t = hst.overflow;
-        for (double c : hst.counts) t += c;
-        return t;
-    };
-    auto cdfAt = [](const DbHistogram& hst, double x) {  // share of the histogram below x
-        double total = hst.overflow, below = 0;
-        for (double c : hst.counts) total += c;
-        if (!(total > 0)) return 0.0;
-        for (std::size_t k = 0; k < hst.counts.size(); ++k) {
-            const double lo = hst.edges[k], hi = hst.edges[k + 1];
-            if (x >= hi)
-                below += hst.counts[k];
-            else if (x > lo)
-                below += hst.counts[k] * (x - lo) / (hi - lo);
-        }
-        return below / total;
-    };
-    const std::int64_t nPlants = static_cast<std::int64_t>(accepted.size());
-    out.plants.resize(accepted.size());
-    out.plantRegion.resize(accepted.size());
-    std::int64_t limited = 0;
-#pragma omp parallel for schedule(static) reduction(+ : limited)
-    for (std::int64_t i = 0; i < nPlants; ++i) {
-        const Candidate& cnd = accepted[static_cast<std::size_t>(i)];
-        const std::size_t s = cnd.species;
-        const int r = map.region.data()[cnd.cell];
-        Plant p;
-        p.speciesId = static_cast<int>(s);
-        p.xM = ox + static_cast<double>(cnd.dx);
-        p.yM = oy + static_cast<double>(cnd.dy);
-        p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
-        const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
-        const bool covered = limit < CanopyCover::kNone;
-        const DbHistogram* hist = nullptr;
-        if (withContext) {
-            const DbHistogram& ctxH = covered ? db.regions[static_cast<std::size_t>(r)].heightCovered[s]
-                                              : openHeight[static_cast<std::size_t>(r) * nS + s];
-            if (mass(ctxH) > 0) hist = &ctxH;
-        }
-        if (hist == nullptr && mass(db.regions[static_cast<std::size_t>(r)].height[s]) > 0) hist = &db.regions[static_cast<std::size_t>(r)].height[s];
-        if (hist == nullptr && mass(pooledHeight[s]) > 0) hist = &pooledHeight[s];
-        RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
-        const double u = rs.uniform();
-        const Allometry& allometry = biome.species[s].allometry;
-        const DbHistogram& radiusHist = db.regions[static_cast<std::size_t>(r)].crownRadius[s];
-        double height;
-        if (hist != nullptr) {
-            const double top = covered ? cdfAt(*hist, limit) : 1.0;
-            if (top > 0) {
-                height = heightQuantile(*hist, mass(radiusHist) > 0 ? &radiusHist : nullptr, allometry, u * top);
-                if (covered && !(height < limit)) height = histogramQuantile(*hist, u * top);
-                if (covered && top < 1.0) ++limited;
-            } else {
-                height = u * limit;  // the species never grew this low: below the crown, uniformly
-                ++limited;
-            }
-        } else {
-            height = 0.5 * biome.species[s].maxHeightM;
-            if (covered) height = std::min(height, u * limit);
-        }
-        if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
-        p.heightM = std::max(0.0, height);
-        p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
-        out.plants[static_cast<std::size_t>(i)] = p;
-        out.plantRegion[static_cast<std::size_t>(i)] = r;
-    }
-    out.heightsLimitedByCrown = limited;
+    drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted, out);
     out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return out;
 }
