@@ -99,6 +99,31 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.writeF64("/regions/target_count", targetCount, {n});
         f.writeF64("/regions/placed", placed, {n});
         f.writeF64("/regions/density_per_m2", density, {n});
+        f.setAttr("/regions", "method", std::string(toString(sc.params.method)));
+        if (sc.sampling.structure.size() == regs.size()) {
+            // The structured sampler's fitted model of each region (docs/synth.md 2a).
+            std::vector<std::int32_t> scales(n);
+            std::vector<double> sigma(2 * n), kappa(2 * n), amplitude(2 * n), fitRms(n), contextRms(n);
+            for (std::size_t i = 0; i < regs.size(); ++i) {
+                const RegionStructure& st = sc.sampling.structure[i];
+                scales[i] = st.scales;
+                for (int k = 0; k < 2; ++k) {
+                    sigma[2 * i + static_cast<std::size_t>(k)] = st.sigmaM[k];
+                    kappa[2 * i + static_cast<std::size_t>(k)] = st.parentsPerM2[k];
+                    amplitude[2 * i + static_cast<std::size_t>(k)] = st.pooledAmplitude[k];
+                }
+                fitRms[i] = st.pooledFitRms;
+                contextRms[i] = st.pooledContextRms;
+            }
+            f.writeI32("/regions/cluster_fields", scales, {n});
+            f.writeF64("/regions/cluster_sigma_m", sigma, {n, 2});
+            f.writeF64("/regions/cluster_parents_per_m2", kappa, {n, 2});
+            f.writeF64("/regions/cluster_pooled_amplitude", amplitude, {n, 2});
+            f.writeF64("/regions/pooled_g_fit_rms", fitRms, {n});
+            f.writeF64("/regions/pooled_g_context_only_rms", contextRms, {n});
+            f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
+            f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
+        }
 
         f.ensureGroup("/refinement");
         f.setAttr("/refinement", "applied", static_cast<std::int64_t>(sc.refined ? 1 : 0));
