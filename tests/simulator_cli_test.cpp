@@ -24,6 +24,7 @@
 #include "processes.h"
 #include "sim_config.h"
 #include "sim_run.h"
+#include "sim_scene_fixture.h"
 #include "simulator.h"
 #include "test_util.h"
 
@@ -32,16 +33,7 @@ using namespace eco::sim;
 
 namespace {
 
-SimInputs smallDemoScene() {
-    DemoSceneParams p;
-    p.cells = 48;
-    p.seed = 11;
-    return makeDemoScene(p, defaultBiome());
-}
-
-}  // namespace
-
-namespace {
+using test::smallDemoScene;
 
 void writeText(const std::string& path, const std::string& text) {
     std::ofstream(path) << text;

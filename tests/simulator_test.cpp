@@ -24,6 +24,7 @@
 #include "processes.h"
 #include "sim_config.h"
 #include "sim_run.h"
+#include "sim_scene_fixture.h"
 #include "simulator.h"
 #include "test_util.h"
 
@@ -95,12 +96,7 @@ double chiSquareCritical(int df, double z) {
     return k * t * t * t;
 }
 
-SimInputs smallDemoScene() {
-    DemoSceneParams p;
-    p.cells = 48;
-    p.seed = 11;
-    return makeDemoScene(p, defaultBiome());
-}
+using test::smallDemoScene;
 
 }  // namespace
 

@@ -9,6 +9,7 @@
 
 #include "error.h"
 #include "h5io.h"
+#include "terrain_fixture.h"
 #include "terrain_io.h"
 #include "test_util.h"
 
@@ -17,26 +18,12 @@ using eco::test::TempDir;
 
 namespace {
 
-/// Non-square terrain with values that are not exactly representable in short decimals.
-Grid<float> sampleTerrain() {
-    Grid<float> g(37, 23, 0.914, 512345.5, 4251000.25);
-    for (int iy = 0; iy < g.height(); ++iy)
-        for (int ix = 0; ix < g.width(); ++ix)
-            g(ix, iy) = static_cast<float>(60.0 + 100.0 * std::sin(0.37 * ix) * std::cos(0.21 * iy) + 0.1 * ix * iy +
-                                           1.0 / 3.0 + 100.0);
-    return g;
-}
+using eco::test::leftovers;
+using eco::test::sampleTerrain;
 
 void writeText(const std::string& path, const std::string& text) {
     std::ofstream o(path, std::ios::binary);
     o << text;
-}
-
-bool leftovers(const TempDir& dir) {
-    // Nothing but the files the test created itself: no temporary or partial outputs.
-    for (const auto& e : std::filesystem::directory_iterator(dir.path()))
-        if (e.path().filename().string().find(".tmp") != std::string::npos) return true;
-    return false;
 }
 
 }  // namespace
