@@ -3,8 +3,10 @@
 // and exit status. The command, and `eco validate --quick` end to end, are tested in
 // validate_cli_test.cpp.
 #include <catch2/catch.hpp>
+#include <omp.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
@@ -490,6 +492,54 @@ TEST_CASE("The fidelity scenario's configuration is read strictly", "[validate][
     ConfigSource bad;
     bad.directory = dir.path().string();
     CHECK_THROWS_WITH(loadSuiteConfig(bad, defaultBiome()), Catch::Contains("Douglas Fir") && Catch::Contains("canopy_target_species"));
+}
+
+TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bits for 1 and 2 threads",
+          "[validate][fidelity]") {
+    // The shipped file with a tiny quick scene: 64 x 64 cells (58.5 m), a 22 m plot, 12 years.
+    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
+    const auto swap = [&](const std::string& from, const std::string& to) {
+        const auto at = text.find(from);
+        REQUIRE(at != std::string::npos);
+        text.replace(at, from.size(), to);
+    };
+    swap("terrain_cells = 512", "terrain_cells = 64");
+    swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
+    swap("years = 150", "years = 12");
+    TempDir dir("fidelity_tiny");
+    std::filesystem::create_directories(dir.file("cfg"));
+    {
+        std::ofstream out(dir.file("cfg/fidelity.toml"));
+        out << text;
+    }
+    const auto runWith = [&](int threads, const std::string& outName) {
+        omp_set_num_threads(threads);
+        SuiteOptions o;
+        o.mode = Mode::Quick;
+        o.configs.directory = dir.file("cfg");
+        o.outDir = dir.file(outName);
+        const SuiteResult r = runSuite(o);
+        writeReport(r, o.outDir);
+        return r;
+    };
+    const SuiteResult one = runWith(1, "t1");
+    const SuiteResult two = runWith(2, "t2");
+    REQUIRE(one.scenarios.size() == 1);
+    const ScenarioResult& s = one.scenarios[0];
+    REQUIRE(s.checks.size() == 5);
+    for (std::size_t i = 0; i < s.checks.size(); ++i) {
+        INFO(s.checks[i].spec.id);
+        // Bit-identical values (NaN only where both are NaN).
+        const double a = s.checks[i].value, b = two.scenarios[0].checks[i].value;
+        CHECK(((std::isnan(a) && std::isnan(b)) || a == b));
+    }
+    CHECK(s.checks[0].spec.target == 0.3);  // the quick bound of pooled_g_score
+    std::string details;
+    for (const auto& d : s.details) details += d + "\n";
+    CHECK(details.find("dart sampler (control)") != std::string::npos);
+    CHECK(readAll(dir.file("t1/fidelity_structured.csv")) == readAll(dir.file("t2/fidelity_structured.csv")));
+    CHECK(readAll(dir.file("t1/fidelity_darts.csv")) == readAll(dir.file("t2/fidelity_darts.csv")));
+    CHECK(std::filesystem::exists(dir.file("t1/fidelity_pooled_g.png")));
 }
 
 TEST_CASE("The shipped configurations load and every scenario has its checks", "[validate][config]") {
