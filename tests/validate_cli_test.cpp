@@ -133,9 +133,15 @@ TEST_CASE("eco validate --quick runs end to end and writes a complete report", "
                            "succession/late_share_gain", "succession/late_cover_overtakes", "equilibrium/total_cv",
                            "equilibrium/leading_species_cv",
                            "gap_dynamics/edge_vs_deep", "gap_dynamics/clearing_vs_deep", "abiotic_gradients/sun_gap",
-                           "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference"}) {
+                           "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference",
+                           "fidelity/pooled_g_score", "fidelity/under_crown_share", "fidelity/radius_ratio_median",
+                           "fidelity/taller_than_crown", "fidelity/density"}) {
         INFO(id);
         REQUIRE(rows.count(id) == 1);
         CHECK(rows.at(id).second == "pass");
     }
+    // The fidelity scenario's control: the old dart sampler's figures beside the checked ones,
+    // failing the pooled-g and under-crown bounds (docs/validation.md).
+    CHECK(md.find("dart sampler (control)") != std::string::npos);
+    CHECK(md.find("| **fail** |") != std::string::npos);
 }

@@ -3,8 +3,10 @@
 // and exit status. The command, and `eco validate --quick` end to end, are tested in
 // validate_cli_test.cpp.
 #include <catch2/catch.hpp>
+#include <omp.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
@@ -335,6 +337,152 @@ seeding_probability = 0.01
     CHECK_THROWS_WITH(parseForestSceneConfig(deussen, "scene.toml"), Catch::Contains("competition"));
 }
 
+TEST_CASE("A check may have a looser quick bound, with a reason; a stricter one is an error", "[validate][config]") {
+    const std::string base = kMinimalCircles;
+    auto replaced = [&](const std::string& from, const std::string& to) {
+        std::string t = base;
+        t.replace(t.find(from), from.size(), to);
+        return t;
+    };
+    const std::string r2 = "[checks.r_squared]\nmin = 0.9";
+    const ScenarioConfig ok =
+        parseScenarioConfig(replaced(r2, r2 + "\nquick_min = 0.8\nquick_why = \"fewer plants\""), "c.toml");
+    const CheckSpec& c = ok.check("r_squared");
+    CHECK(c.hasQuickBound);
+    CHECK(c.forMode(Mode::Full).target == 0.9);
+    const CheckSpec q = c.forMode(Mode::Quick);
+    CHECK(q.target == 0.8);
+    CHECK(q.kind == CheckSpec::Kind::AtLeast);
+    CHECK(q.why.find("fewer plants") != std::string::npos);
+    CHECK(q.why.find(">= 0.9") != std::string::npos);  // the full run's bound is named
+    CHECK(q.passes(0.85));
+    CHECK(!c.forMode(Mode::Full).passes(0.85));
+    // Approx: a wider tolerance.
+    const std::string slope = "expected = -1.0\ntolerance = 0.2";
+    const ScenarioConfig approx = parseScenarioConfig(
+        replaced(slope, slope + "\nquick_expected = -1.0\nquick_tolerance = 0.3\nquick_why = \"w\""), "c.toml");
+    CHECK(approx.check("slope").forMode(Mode::Quick).tolerance == 0.3);
+
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced(r2, r2 + "\nquick_min = 0.95\nquick_why = \"w\""), "c.toml"),
+                      Catch::Contains("c.toml") && Catch::Contains("quick_min") && Catch::Contains("looser"));
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced(r2, r2 + "\nquick_max = 0.95\nquick_why = \"w\""), "c.toml"),
+                      Catch::Contains("quick_max") && Catch::Contains("same kind") && Catch::Contains("quick_min"));
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced(r2, r2 + "\nquick_min = 0.8"), "c.toml"),
+                      Catch::Contains("quick_why") && Catch::Contains("missing"));
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced(r2, r2 + "\nquick_why = \"w\""), "c.toml"),
+                      Catch::Contains("quick_why") && Catch::Contains("only with"));
+    CHECK_THROWS_WITH(parseScenarioConfig(replaced(slope, slope + "\nquick_expected = -1.0\nquick_tolerance = 0.1\nquick_why = \"w\""),
+                                          "c.toml"),
+                      Catch::Contains("quick_tolerance") && Catch::Contains("looser"));
+}
+
+TEST_CASE("The fidelity scenario's configuration is read strictly", "[validate][config][fidelity]") {
+    const std::string path = eco::test::sourcePath("configs/validation/fidelity.toml");
+    const std::string base = readAll(path);
+    const ScenarioConfig ok = parseScenarioConfig(base, "fidelity.toml");
+    CHECK(ok.kind == "fidelity");
+    CHECK(!ok.usesForestScene());
+    CHECK(ok.scenario->checkIds() ==
+          std::vector<std::string>{"pooled_g_score", "under_crown_share", "radius_ratio_median", "taller_than_crown", "density"});
+    CHECK(ok.check("pooled_g_score").target == 0.25);
+    const auto species = ok.scenario->speciesNamed();
+    REQUIRE(species.size() == 1);
+    CHECK(species[0].second == "Douglas-Fir");
+
+    auto replaced = [&](const std::string& from, const std::string& to) {
+        std::string t = base;
+        const auto at = t.find(from);
+        REQUIRE(at != std::string::npos);
+        t.replace(at, from.size(), to);
+        return t;
+    };
+    auto fails = [&](const std::string& from, const std::string& to, const std::vector<std::string>& words) {
+        INFO(to);
+        try {
+            parseScenarioConfig(replaced(from, to), "f.toml");
+            FAIL("no error");
+        } catch (const Error& e) {
+            const std::string m = e.what();
+            INFO(m);
+            CHECK(m.find("f.toml") != std::string::npos);
+            for (const auto& w : words) CHECK(m.find(w) != std::string::npos);
+        }
+    };
+    fails("seed_b = 2", "seed_b = 1", {"seed_b", "another seed"});
+    fails("seed_b = 2", "seed_b = -2", {"seed_b", "negative"});
+    fails("kmax = 6", "kmax = 0", {"kmax", "outside"});
+    fails("kmax = 6", "kmax = 2.5", {"kmax", "integer"});
+    fails("canopy_target_fractions = [0.3]", "canopy_target_fractions = [0.3, 0.2]", {"canopy_target_fractions", "expected 1"});
+    fails("canopy_target_fractions = [0.3]", "canopy_target_fractions = [1.3]", {"canopy_target_fractions", "outside"});
+    fails("edge_band_m = 2.0", "edge_band_m = 0.0", {"edge_band_m"});
+    fails("edge_band_m = 2.0", "edge_band_m = 2.0\nedge_band = 2.0", {"edge_band", "unknown key"});
+    fails("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [130.0, 90.0, 145.0, 150.0]", {"[quick]", "plot", "at least 20"});
+    fails("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [130.0, 90.0, 190.0]", {"[quick]", "plot", "expected 4"});
+    fails("plot = [100.0, 60.0, 220.0, 180.0]", "plot = [400.0, 60.0, 520.0, 180.0]", {"[full]", "plot", "not inside the terrain"});
+    fails("plot = [100.0, 60.0, 220.0, 180.0]", "plot = [220.0, 60.0, 100.0, 180.0]", {"[full]", "plot", "x1 > x0"});
+    fails("terrain_cells = 512", "terrain_cells = 8", {"[quick]", "terrain_cells", "outside"});
+    fails("years = 150", "years = 0", {"[quick]", "years"});
+    fails("growth_rule = \"ideal\"", "growth_rule = \"fast\"", {"growth_rule"});
+    fails("[protocol]", "[protocols]", {"protocol"});
+    // A species of the targets that the biome lacks is found when the suite loads.
+    TempDir dir("fidelity_config");
+    {
+        std::ofstream out(dir.file("fidelity.toml"));
+        out << replaced("canopy_target_species = [\"Douglas-Fir\"]", "canopy_target_species = [\"Douglas Fir\"]");
+    }
+    ConfigSource bad;
+    bad.directory = dir.path().string();
+    CHECK_THROWS_WITH(loadSuiteConfig(bad, defaultBiome()), Catch::Contains("Douglas Fir") && Catch::Contains("canopy_target_species"));
+}
+
+TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bits for 1 and 2 threads",
+          "[validate][fidelity]") {
+    // The shipped file with a tiny quick scene: 64 x 64 cells (58.5 m), a 22 m plot, 12 years.
+    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
+    const auto swap = [&](const std::string& from, const std::string& to) {
+        const auto at = text.find(from);
+        REQUIRE(at != std::string::npos);
+        text.replace(at, from.size(), to);
+    };
+    swap("terrain_cells = 512", "terrain_cells = 64");
+    swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
+    swap("years = 150", "years = 12");
+    TempDir dir("fidelity_tiny");
+    std::filesystem::create_directories(dir.file("cfg"));
+    {
+        std::ofstream out(dir.file("cfg/fidelity.toml"));
+        out << text;
+    }
+    const auto runWith = [&](int threads, const std::string& outName) {
+        omp_set_num_threads(threads);
+        SuiteOptions o;
+        o.mode = Mode::Quick;
+        o.configs.directory = dir.file("cfg");
+        o.outDir = dir.file(outName);
+        const SuiteResult r = runSuite(o);
+        writeReport(r, o.outDir);
+        return r;
+    };
+    const SuiteResult one = runWith(1, "t1");
+    const SuiteResult two = runWith(2, "t2");
+    REQUIRE(one.scenarios.size() == 1);
+    const ScenarioResult& s = one.scenarios[0];
+    REQUIRE(s.checks.size() == 5);
+    for (std::size_t i = 0; i < s.checks.size(); ++i) {
+        INFO(s.checks[i].spec.id);
+        // Bit-identical values (NaN only where both are NaN).
+        const double a = s.checks[i].value, b = two.scenarios[0].checks[i].value;
+        CHECK(((std::isnan(a) && std::isnan(b)) || a == b));
+    }
+    CHECK(s.checks[0].spec.target == 0.3);  // the quick bound of pooled_g_score
+    std::string details;
+    for (const auto& d : s.details) details += d + "\n";
+    CHECK(details.find("dart sampler (control)") != std::string::npos);
+    CHECK(readAll(dir.file("t1/fidelity_structured.csv")) == readAll(dir.file("t2/fidelity_structured.csv")));
+    CHECK(readAll(dir.file("t1/fidelity_darts.csv")) == readAll(dir.file("t2/fidelity_darts.csv")));
+    CHECK(std::filesystem::exists(dir.file("t1/fidelity_pooled_g.png")));
+}
+
 TEST_CASE("The shipped configurations load and every scenario has its checks", "[validate][config]") {
     ConfigSource src;
     src.directory = eco::test::sourcePath("configs/validation");
@@ -345,7 +493,7 @@ TEST_CASE("The shipped configurations load and every scenario has its checks", "
         CHECK(s.checks.size() == s.scenario->checkIds().size());
     }
     for (const char* n : {"self_thinning", "succession", "equilibrium", "gap_dynamics", "abiotic_gradients",
-                          "deussen_comparison", "deussen_circles"})
+                          "deussen_comparison", "deussen_circles", "fidelity"})
         CHECK(names.count(n) == 1);
     // The embedded copies are the same files.
     const SuiteConfig embedded = loadSuiteConfig(ConfigSource{}, defaultBiome());

@@ -2,7 +2,8 @@
 // 1998 §4.2): scenarios that run the simulator (or, for Deussen's circle test, a small
 // standalone model) and turn emergent behaviour into numbers with stated expectations:
 // self-thinning, succession, dynamic equilibrium, gap dynamics, abiotic gradients, the
-// comparison with Deussen's competition, and Deussen's own self-thinning test.
+// comparison with Deussen's competition, Deussen's own self-thinning test, and the fidelity
+// of synthesis against a held-out simulation (issue 24).
 // docs/validation.md defines every measure. The front end is `eco validate`.
 #pragma once
 

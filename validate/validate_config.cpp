@@ -44,6 +44,16 @@ std::string CheckSpec::expectedText() const {
     return "";
 }
 
+CheckSpec CheckSpec::forMode(Mode m) const {
+    if (m != Mode::Quick || !hasQuickBound) return *this;
+    CheckSpec q = *this;
+    q.target = quickTarget;
+    q.tolerance = quickTolerance;
+    q.why = quickWhy + " (quick run; the full run's bound is " + expectedText() + (why.empty() ? "" : ": " + why) + ")";
+    q.hasQuickBound = false;
+    return q;
+}
+
 const char* CheckSpec::comparator() const {
     switch (kind) {
         case Kind::Approx: return "approx";
@@ -103,6 +113,30 @@ CheckSpec parseCheck(const toml::table& t, const std::string& path, const std::s
     c.units = s.has("units") ? s.string("units") : std::string();
     c.why = s.has("why") ? s.string("why") : std::string();
     c.knownDeviation = s.has("known_deviation") ? s.string("known_deviation") : std::string();
+    // An optional looser bound for --quick, of the same kind and not stricter.
+    const bool qExpected = s.has("quick_expected"), qMin = s.has("quick_min"), qMax = s.has("quick_max");
+    if (qExpected || qMin || qMax) {
+        const char* own = hasExpected ? "quick_expected" : (hasMin ? "quick_min" : "quick_max");
+        const char* given = qExpected ? "quick_expected" : (qMin ? "quick_min" : "quick_max");
+        if ((qExpected ? 1 : 0) + (qMin ? 1 : 0) + (qMax ? 1 : 0) != 1 || std::string(own) != given)
+            s.fail(given, std::string("the quick bound must be of the same kind as the bound: give only '") + own + "'");
+        c.hasQuickBound = true;
+        c.quickTarget = s.number(own);
+        if (hasExpected) {
+            c.quickTolerance = s.number("quick_tolerance");
+            if (!(c.quickTolerance >= c.tolerance))
+                s.fail("quick_tolerance", "must not be below 'tolerance' (" + shortNum(c.tolerance) + "): a quick bound may only be looser");
+        } else if (hasMin ? c.quickTarget > c.target : c.quickTarget < c.target) {
+            s.fail(own, "value " + shortNum(c.quickTarget) + " is stricter than the bound " + c.expectedText() +
+                            ": a quick bound may only be looser");
+        }
+        if (!s.has("quick_why")) s.fail("quick_why", "missing: say why the quick run's bound is looser");
+        c.quickWhy = s.string("quick_why");
+    } else {
+        for (const char* k : {"quick_tolerance", "quick_why"})
+            if (s.has(k)) s.fail(k, "only with quick_min, quick_max or quick_expected");
+    }
+    if (!hasExpected && s.has("quick_tolerance")) s.fail("quick_tolerance", "only with 'quick_expected'");
     s.finish();
     return c;
 }

@@ -36,7 +36,16 @@ struct CheckSpec {
     /// still measured and reported with its value, as "known deviation" when it fails, but
     /// does not fail the suite (the reason is in the report and in docs/validation.md).
     std::string knownDeviation;
+    /// Optional looser bound of a --quick run (smaller plots, shorter spans, noisier
+    /// figures): [checks.ID] quick_min, quick_max or quick_expected + quick_tolerance, of the
+    /// same kind as the main bound and not stricter, with quick_why saying why.
+    bool hasQuickBound = false;
+    double quickTarget = 0.0, quickTolerance = 0.0;
+    std::string quickWhy;
 
+    /// The bound that applies in mode m: in quick mode the quick bound when there is one
+    /// (its `why` is quick_why, followed by the full run's bound).
+    CheckSpec forMode(Mode m) const;
     bool passes(double value) const;
     /// "-1.5 ± 0.5", ">= 1.2", "<= 0.1".
     std::string expectedText() const;

@@ -13,6 +13,7 @@ std::unique_ptr<Scenario> createGapDynamics(const ScenarioParse& in);
 std::unique_ptr<Scenario> createAbioticGradients(const ScenarioParse& in);
 std::unique_ptr<Scenario> createDeussenComparison(const ScenarioParse& in);
 std::unique_ptr<Scenario> createDeussenCircles(const ScenarioParse& in);
+std::unique_ptr<Scenario> createFidelity(const ScenarioParse& in);
 
 const std::vector<ScenarioKind>& scenarioKinds() {
     static const std::vector<ScenarioKind> kinds{
@@ -24,6 +25,7 @@ const std::vector<ScenarioKind>& scenarioKinds() {
         {"abiotic_gradients",  true,         &createAbioticGradients},
         {"deussen_comparison", true,         &createDeussenComparison},
         {"deussen_circles",    false,        &createDeussenCircles},
+        {"fidelity",           false,        &createFidelity},
     };
     return kinds;
 }

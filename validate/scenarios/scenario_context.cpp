@@ -16,9 +16,17 @@ constexpr std::uint64_t kCanopySpeciesStreamTag = 0x43414E5350454331ull;  // can
 
 CheckResult makeCheck(const ScenarioConfig& sc, const std::string& id, const std::string& title, double value,
                       const std::string& note) {
+    // A quick bound must not be ignored silently: the kind has to pass the mode.
+    if (sc.check(id).hasQuickBound)
+        throw Error("validate: check " + sc.name + "/" + id + " has a quick bound; its kind must call makeCheck with the mode");
+    return makeCheck(sc, Mode::Full, id, title, value, note);
+}
+
+CheckResult makeCheck(const ScenarioConfig& sc, Mode m, const std::string& id, const std::string& title, double value,
+                      const std::string& note) {
     CheckResult r;
     r.scenario = sc.name;
-    r.spec = sc.check(id);
+    r.spec = sc.check(id).forMode(m);
     r.title = title;
     r.value = value;
     r.pass = r.spec.passes(value);

@@ -58,8 +58,12 @@ inline double coefficientOfVariation(const std::vector<double>& v) {
     return std::sqrt(ss / static_cast<double>(v.size())) / m;
 }
 
-/// The result of check `id` of scenario sc (its [checks.ID] bound applied to value).
+/// The result of check `id` of scenario sc (its [checks.ID] bound applied to value). For a
+/// check with a quick bound (CheckSpec::hasQuickBound) use the overload with the mode.
 CheckResult makeCheck(const ScenarioConfig& sc, const std::string& id, const std::string& title, double value,
+                      const std::string& note = "");
+/// The same in mode m: the check's quick bound applies in a quick run when it has one.
+CheckResult makeCheck(const ScenarioConfig& sc, Mode m, const std::string& id, const std::string& title, double value,
                       const std::string& note = "");
 
 // ---------------------------------------------------------------------------------------
