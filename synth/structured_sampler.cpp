@@ -699,6 +699,20 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             }
         if (!any) break;
         out.passes = pass + 1;
+        std::vector<double> groupFactor;
+        std::vector<char> tileActive;
+        if (pass > 0) {
+            groupFactor.assign(nGroups, 0.0);
+            tileActive.assign(nR * nTiles, 0);
+            const double boost = params.candidateOversample * std::min(64.0, std::pow(2.0, pass));
+            for (std::size_t g = 0; g < nGroups; ++g) {
+                const std::int64_t missing = quotaG[g] - placedG[g];
+                if (missing <= 0) continue;
+                const std::size_t i = g / nTiles;
+                groupFactor[g] = boost * scale[i] * double(missing) / std::max(1e-300, expectedG[g]);
+                tileActive[(i / nS) * nTiles + g % nTiles] = 1;
+            }
+        }
         std::vector<char> activeRegion(nR, 0);
         for (std::size_t i = 0; i < nR * nS; ++i)
             if (passFactor[i] > 0) activeRegion[i / nS] = 1;
@@ -731,6 +745,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 #pragma omp parallel for schedule(dynamic, 8)
         for (int iy = 0; iy < h; ++iy) {
             auto& cand = rowCand[static_cast<std::size_t>(iy)];
+            std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
             for (int ix = 0; ix < w; ++ix) {
                 const int r = map.region(ix, iy);
                 if (r < 0) continue;
@@ -738,31 +753,68 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const float wgt = map.seedWeight.data()[cell];
                 if (!(wgt > 0)) continue;
                 const std::size_t m = maskIdx.data()[cell], c = ctx.data()[cell];
-                // Free darts.
-                const double lambdaFree = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
-                if (lambdaFree > 0) {
-                    const std::uint64_t stream = mixStream(freeStream, cell);
-                    RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                    const int n = poissonCount(counter, lambdaFree, 65535,
-                                               lambdaFree <= 100 ? expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c] : -1.0);
-                    for (int j = 0; j < n; ++j) {
-                        // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
-                        RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
-                        const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
-                        const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
-                        const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
-                        ++rowThrown[static_cast<std::size_t>(iy)];
-                        if (s < 0) continue;
-                        if (onTrunk(cell, x, y)) {
-                            ++rowOnTrunk[static_cast<std::size_t>(iy)];
-                            continue;
+                if (pass == 0) {
+                    // Free darts at the model's free rate (table by region, mask, context).
+                    const double lambdaFree = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
+                    if (lambdaFree > 0) {
+                        const std::uint64_t stream = mixStream(freeStream, cell);
+                        RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
+                        const int n = poissonCount(counter, lambdaFree, 65535,
+                                                   lambdaFree <= 100 ? expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c] : -1.0);
+                        for (int j = 0; j < n; ++j) {
+                            // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
+                            RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
+                            const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
+                            const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
+                            const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
+                            ++rowThrown[static_cast<std::size_t>(iy)];
+                            if (s < 0) continue;
+                            if (onTrunk(cell, x, y)) {
+                                ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                                continue;
+                            }
+                            cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
+                                                     static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
+                                                     static_cast<std::uint16_t>(pass)});
                         }
-                        cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
-                                                 static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
-                                                 static_cast<std::uint16_t>(pass)});
                     }
+                    continue;
+                }
+                // Later passes: free darts only, at each (region, species, tile)'s own missing
+                // share, in the tiles that still miss plants (a few per cent of the plants; the
+                // tiles' quotas keep the density where it is due).
+                const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
+                                         static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
+                if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
+                double total = 0;
+                for (std::size_t s = 0; s < nS; ++s) {
+                    const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
+                    const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
+                    total += f;
+                    rates[s] = total;
+                }
+                if (!(total > 0)) continue;
+                const std::uint64_t stream = mixStream(freeStream, cell);
+                RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
+                const int n = poissonCount(counter, total * cellArea, 65535);
+                for (int j = 0; j < n; ++j) {
+                    RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
+                    const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
+                    const double u = rs.uniform() * total;
+                    std::size_t s = 0;
+                    while (s + 1 < nS && rates[s] <= u) ++s;
+                    const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
+                    ++rowThrown[static_cast<std::size_t>(iy)];
+                    if (onTrunk(cell, x, y)) {
+                        ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                        continue;
+                    }
+                    cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
+                                             static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
+                                             static_cast<std::uint16_t>(pass)});
                 }
             }
+            if (pass != 0) continue;
             // Cluster parents of each field (the same in every pass): per row a Poisson number
             // at the row's total rate kappa x area, each in a cell drawn by its rate; then
             // their offspring of each attached species.
