@@ -134,6 +134,25 @@ inline int histogramLocate(const DbHistogram& h, double u, std::size_t& bin, dou
     return 0;
 }
 
+/// Per species: its histograms (height, or crown radius when `radius`) of every region added
+/// up, on the first region's edges: the fallback of a region without plants of a species.
+inline std::vector<DbHistogram> pooledSizeHistograms(const BiomeDatabase& db, bool radius) {
+    std::vector<DbHistogram> pooled(static_cast<std::size_t>(db.speciesCount()));
+    for (const auto& reg : db.regions)
+        for (std::size_t s = 0; s < pooled.size(); ++s) {
+            const DbHistogram& src = radius ? reg.crownRadius[s] : reg.height[s];
+            DbHistogram& dst = pooled[s];
+            if (dst.edges.empty()) {
+                dst.edges = src.edges;
+                dst.counts.assign(src.counts.size(), 0.0);
+            }
+            if (dst.counts.size() != src.counts.size()) continue;
+            for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
+            dst.overflow += src.overflow;
+        }
+    return pooled;
+}
+
 /// Cells that a trunk's exclusion disc may reach: only candidates there need the trunk query.
 inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std::vector<Plant>& canopy, double factor) {
     Grid<std::uint8_t> near = Grid<std::uint8_t>::like(geometry, 0);

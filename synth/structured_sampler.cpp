@@ -443,19 +443,7 @@ void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Pl
                const std::vector<Candidate>& accepted, UndergrowthSample& out) {
     const std::size_t nR = db.regions.size(), nS = static_cast<std::size_t>(db.speciesCount());
     const double ox = terrainM.originX(), oy = terrainM.originY();
-    std::vector<DbHistogram> pooledHeight(nS);
-    for (const auto& reg : db.regions)
-        for (std::size_t s = 0; s < nS; ++s) {
-            const DbHistogram& src = reg.height[s];
-            DbHistogram& dst = pooledHeight[s];
-            if (dst.edges.empty()) {
-                dst.edges = src.edges;
-                dst.counts.assign(src.counts.size(), 0.0);
-            }
-            if (dst.counts.size() != src.counts.size()) continue;
-            for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
-            dst.overflow += src.overflow;
-        }
+    const std::vector<DbHistogram> pooledHeight = pooledSizeHistograms(db, false);
     // Open-ground histograms: all heights less those under crowns.
     std::vector<DbHistogram> openHeight;
     if (withContext)
@@ -746,6 +734,15 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         for (int iy = 0; iy < h; ++iy) {
             auto& cand = rowCand[static_cast<std::size_t>(iy)];
             std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
+            // A candidate off the trunks joins the row's list.
+            auto keep = [&](double x, double y, std::size_t cell, std::size_t s, std::uint64_t key) {
+                if (onTrunk(cell, x, y)) {
+                    ++rowOnTrunk[static_cast<std::size_t>(iy)];
+                    return;
+                }
+                cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy), static_cast<std::uint32_t>(cell),
+                                         static_cast<std::uint16_t>(s), static_cast<std::uint16_t>(pass)});
+            };
             for (int ix = 0; ix < w; ++ix) {
                 const int r = map.region(ix, iy);
                 if (r < 0) continue;
@@ -768,14 +765,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                             const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
                             const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
                             ++rowThrown[static_cast<std::size_t>(iy)];
-                            if (s < 0) continue;
-                            if (onTrunk(cell, x, y)) {
-                                ++rowOnTrunk[static_cast<std::size_t>(iy)];
-                                continue;
-                            }
-                            cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
-                                                     static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
-                                                     static_cast<std::uint16_t>(pass)});
+                            if (s >= 0) keep(x, y, cell, static_cast<std::size_t>(s), key);
                         }
                     }
                     continue;
@@ -805,13 +795,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     while (s + 1 < nS && rates[s] <= u) ++s;
                     const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
                     ++rowThrown[static_cast<std::size_t>(iy)];
-                    if (onTrunk(cell, x, y)) {
-                        ++rowOnTrunk[static_cast<std::size_t>(iy)];
-                        continue;
-                    }
-                    cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
-                                             static_cast<std::uint32_t>(cell), static_cast<std::uint16_t>(s),
-                                             static_cast<std::uint16_t>(pass)});
+                    keep(x, y, cell, s, key);
                 }
             }
             if (pass != 0) continue;
@@ -857,14 +841,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                             const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
                             if (!terrainM.inside(cx, cy)) continue;
                             const std::size_t oc = terrainM.index(cx, cy);
-                            if (!(uThin * lmax < intensity(oc, s))) continue;
-                            if (onTrunk(oc, x, y)) {
-                                ++rowOnTrunk[static_cast<std::size_t>(iy)];
-                                continue;
-                            }
-                            cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy),
-                                                     static_cast<std::uint32_t>(oc), static_cast<std::uint16_t>(s),
-                                                     static_cast<std::uint16_t>(pass)});
+                            if (uThin * lmax < intensity(oc, s)) keep(x, y, oc, s, key);
                         }
                     }
                 }

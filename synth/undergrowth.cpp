@@ -478,23 +478,7 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
 
     // Pooled histograms per species (all regions share the edges): the fallback of a region
     // without plants of a species.
-    const int nS = db.speciesCount();
-    std::vector<DbHistogram> pooledHeight(static_cast<std::size_t>(nS)), pooledRadius(static_cast<std::size_t>(nS));
-    for (const auto& reg : db.regions)
-        for (int s = 0; s < nS; ++s) {
-            const std::size_t si = static_cast<std::size_t>(s);
-            for (auto* pair : {&pooledHeight, &pooledRadius}) {
-                const DbHistogram& src = (pair == &pooledHeight) ? reg.height[si] : reg.crownRadius[si];
-                DbHistogram& dst = (*pair)[si];
-                if (dst.edges.empty()) {
-                    dst.edges = src.edges;
-                    dst.counts.assign(src.counts.size(), 0.0);
-                }
-                if (dst.counts.size() != src.counts.size()) continue;
-                for (std::size_t k = 0; k < src.counts.size(); ++k) dst.counts[k] += src.counts[k];
-                dst.overflow += src.overflow;
-            }
-        }
+    const std::vector<DbHistogram> pooledHeight = pooledSizeHistograms(db, false), pooledRadius = pooledSizeHistograms(db, true);
 
     out.plants.resize(accepted.size());
     out.plantRegion.resize(accepted.size());
