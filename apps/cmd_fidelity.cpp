@@ -207,6 +207,7 @@ void runFidelity(FidelityArgs a) {
     FidelityParams params = a.params;
     params.window = parseWindow(a.crop, "--crop");
     params.validate();
+    parseSynthMethod(a.synthMethod);  // an unknown --synth-method is refused before any stage runs
     for (const auto& [path, option] : std::vector<std::pair<std::string, std::string>>{
              {a.terrain, "--terrain"}, {a.chm, "--chm"}, {a.abiotics, "--abiotics"}, {a.canopy, "--canopy"},
              {a.reference, "--reference"}, {a.replicate, "--replicate"}, {a.database, "--database"}, {a.scene, "--scene"}})
@@ -269,7 +270,6 @@ void runFidelity(FidelityArgs a) {
     std::string variant =
         a.refine && a.scene.empty() ? (a.refineSweeps == 4 ? std::string("-refined") : "-refined-" + std::to_string(a.refineSweeps) + "sweeps")
                  : std::string();
-    parseSynthMethod(a.synthMethod);  // a clear error for an unknown method, before any stage
     if (a.scene.empty() && a.synthMethod != "structured") variant = "-" + a.synthMethod + variant;
     std::string scene = a.scene;
     if (scene.empty()) {

@@ -625,10 +625,15 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
             const auto co = rd.f64(g + "/height_covered_overflow", {ns});
             for (std::size_t s = 0; s < ns; ++s) r.heightCovered.push_back(DbHistogram{r.height[s].edges, rowOf(cc, s, bins), co[s]});
             r.contextCellPairs = rd.f64(g + "/context_cell_pairs", {nctx, nctx, nb});
-            for (const auto* v : {&r.contextAreaM2, &r.contextSpeciesCount, &r.contextCellPairs})
-                for (double x : *v)
-                    if (!(x >= 0) || !std::isfinite(x))
-                        throw IoError(path + ": " + g + ": canopy context statistics must be finite and non-negative");
+            const std::pair<const char*, const std::vector<double>*> contextSets[] = {
+                {"context_area_m2", &r.contextAreaM2},
+                {"context_species_count", &r.contextSpeciesCount},
+                {"context_cell_pairs", &r.contextCellPairs}};
+            for (const auto& [name, v] : contextSets)
+                for (std::size_t i = 0; i < v->size(); ++i)
+                    if (!((*v)[i] >= 0) || !std::isfinite((*v)[i]))
+                        throw IoError(path + ": " + g + "/" + name + ": value " + std::to_string(i) + " is " +
+                                      std::to_string((*v)[i]) + "; it must be finite and non-negative");
         }
         const std::string pg = g + "/pairs";
         const std::size_t np = rd.length(pg + "/source");

@@ -216,6 +216,25 @@ TEST_CASE("nearestRegion: nearest centroid in normalised units, stand-in combina
     CHECK(db.nearestRegion(0, 10, 100, 15, 5) == -1);
 }
 
+TEST_CASE("a NaN or negative canopy-context value is a clear IoError naming the dataset", "[biome_db][errors]") {
+    eco::test::TempDir dir("db_ctx");
+    BiomeDatabase db = sampleDb();
+    db.regions[1].contextAreaM2[1] = std::numeric_limits<double>::quiet_NaN();
+    const std::string nanPath = dir.file("nan.h5");
+    writeBiomeDatabase(nanPath, db);
+    CHECK_THROWS_WITH(readBiomeDatabase(nanPath), Catch::Contains("nan.h5") && Catch::Contains("region_0001/context_area_m2") &&
+                                                      Catch::Contains("finite and non-negative"));
+    db = sampleDb();
+    db.regions[0].contextSpeciesCount[2] = -1;
+    const std::string negPath = dir.file("neg.h5");
+    writeBiomeDatabase(negPath, db);
+    CHECK_THROWS_WITH(readBiomeDatabase(negPath), Catch::Contains("region_0000/context_species_count") && Catch::Contains("value 2"));
+    // A database with context in some regions but not all is refused on writing.
+    db = sampleDb();
+    db.regions[2].contextCellPairs.clear();
+    CHECK_THROWS_WITH(writeBiomeDatabase(dir.file("partial.h5"), db), Catch::Contains("missing in some regions"));
+}
+
 TEST_CASE("reading a database with another schema version or format is a clear IoError", "[biome_db][errors]") {
     eco::test::TempDir dir("db");
     const std::string v1 = dir.file("v1.h5");

@@ -20,6 +20,12 @@ TEST_CASE("eco fidelity: bad input gives one clear line and exit 1", "[fidelity]
     CHECK(r.output.find("--scene") != std::string::npos);
     CHECK(r.output.find("missing.h5") != std::string::npos);
 
+    // An unknown sampler is refused before any stage runs: nothing is written.
+    r = test::runEco("fidelity --synth-method foo --out-dir " + dir.file("never"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("'foo'") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("never")));
+
     r = test::runEco("fidelity --crop 1,2,3 --out-dir " + dir.file("out"));
     CHECK(r.exitCode == 1);
     CHECK(r.output.find("--crop") != std::string::npos);
