@@ -23,12 +23,19 @@
 // simulations, schema 3) that database is used instead, and the sampler is the structured
 // one (docs/synth.md); the dart sampler is timed on the same scene beside it.
 //
+// Environment: ECO_BENCH_REPEAT=N times the placement, cluster map and sampling N times and
+// keeps each one's fastest run (for a machine with other load); ECO_BENCH_NO_REFINE=1
+// leaves the refinement out.
+//
 // Usage: bench_synth [OUT (default bench/results/synth.txt)] [SIZES, e.g. 1024,2048] [DATABASE]
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -62,6 +69,37 @@ Timing timed(F&& f) {
     const double c = processCpuSeconds();
     f();
     return Timing{secondsSince(t), processCpuSeconds() - c};
+}
+
+/// FNV-1a over the bits of every plant's species, position and sizes: equal hashes = the
+/// same scene (an optimisation of the sampler must keep it).
+std::uint64_t plantsHash(const std::vector<eco::Plant>& plants) {
+    std::uint64_t h = 1469598103934665603ULL;
+    auto add = [&](const void* p, std::size_t n) {
+        const unsigned char* b = static_cast<const unsigned char*>(p);
+        for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+    };
+    for (const eco::Plant& p : plants) {
+        add(&p.speciesId, sizeof p.speciesId);
+        for (const double v : {p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM}) add(&v, sizeof v);
+    }
+    return h;
+}
+
+/// The fastest of `repeats` runs of f (each run redoes the work).
+template <typename F>
+Timing timedBest(int repeats, F&& f) {
+    Timing best = timed(f);
+    for (int i = 1; i < repeats; ++i) {
+        const Timing t = timed(f);
+        if (t.wall < best.wall) best = t;
+    }
+    return best;
+}
+
+int envInt(const char* name, int fallback) {
+    const char* v = std::getenv(name);
+    return v != nullptr && *v != '\0' ? std::max(1, std::atoi(v)) : fallback;
 }
 
 eco::DbHistogram triangle(double maxValue, int bins, double peak, double scale) {
@@ -170,8 +208,11 @@ int main(int argc, char** argv) {
         const std::string dbPath = argc > 3 ? argv[3] : "";
         const eco::BiomeDatabase db = dbPath.empty() ? benchmarkDatabase(biome) : eco::readBiomeDatabase(dbPath);
         const int threads = omp_get_max_threads();
+        const int repeats = envInt("ECO_BENCH_REPEAT", 1);
+        const bool refine = std::getenv("ECO_BENCH_NO_REFINE") == nullptr;
         report << "synthesis benchmark (eco " << ECO_VERSION_STRING << ")\n"
                << "OpenMP threads: " << threads << ", load average at start: " << loadAverage() << "\n"
+               << (repeats > 1 ? "placement, cluster map and sampling: the fastest of " + std::to_string(repeats) + " runs each\n" : "")
                << "CHM: generateChm, dense spacing 2.0 m, sparse 5 m, heights 3.5..11 m; cells of 0.914 m\n";
         if (dbPath.empty())
             report << "database: SYNTHESIZED in the benchmark (not from a simulation): " << db.regions.size()
@@ -209,19 +250,19 @@ int main(int argc, char** argv) {
             eco::Grid<std::int32_t> speciesMap;
             const Timing tMap = timed([&] { speciesMap = eco::computeSpeciesMap(biome, eco::speciesMapInputs(abiotics, chm)); });
             eco::CanopyResult canopy;
-            const Timing tPlace = timed([&] { canopy = eco::placeCanopy(chm, terrain, speciesMap, biome, eco::CanopyParams{}); });
+            const Timing tPlace = timedBest(repeats, [&] { canopy = eco::placeCanopy(chm, terrain, speciesMap, biome, eco::CanopyParams{}); });
             eco::SynthParams sp;
             sp.method = dbPath.empty() ? eco::SynthMethod::Darts : eco::SynthMethod::Structured;
             eco::ClusterMap clusters;
-            const Timing tCluster = timed([&] { clusters = eco::computeClusterMap(db, biome, canopy.trees, features, sp); });
+            const Timing tCluster = timedBest(repeats, [&] { clusters = eco::computeClusterMap(db, biome, canopy.trees, features, sp); });
             eco::UndergrowthSample sample;
-            const Timing tSample = timed([&] { sample = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, sp); });
+            const Timing tSample = timedBest(repeats, [&] { sample = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, sp); });
             Timing tDarts;
             std::size_t dartsPlants = 0;
             if (!dbPath.empty()) {
                 eco::SynthParams dp = sp;
                 dp.method = eco::SynthMethod::Darts;
-                tDarts = timed([&] { dartsPlants = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, dp).plants.size(); });
+                tDarts = timedBest(repeats, [&] { dartsPlants = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, dp).plants.size(); });
             }
             eco::ForestFloor floor;
             const Timing tFloor = timed([&] {
@@ -235,10 +276,11 @@ int main(int argc, char** argv) {
             rp.window = eco::RectWindow{cx - 50, cy - 50, cx + 50, cy + 50};
             std::vector<eco::Plant> refined = sample.plants;
             eco::RefineResult rw;
-            const Timing tRefineWin = timed([&] { rw = eco::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
+            Timing tRefineWin;
+            if (refine) tRefineWin = timed([&] { rw = eco::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
             eco::RefineResult rAll;
             Timing tRefineAll;
-            if (n <= 1024) {
+            if (refine && n <= 1024) {
                 rp.useWindow = false;
                 refined = sample.plants;
                 tRefineAll = timed([&] { rAll = eco::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
@@ -264,6 +306,15 @@ int main(int argc, char** argv) {
                 row("  the dart sampler, same scene", tDarts);
                 std::snprintf(line, sizeof line, "    (%zu plants by the dart sampler)\n", dartsPlants);
                 sec << line;
+                sec << "    phases of the structured sampler (wall / CPU s):";
+                for (const eco::UndergrowthSample::Phase& ph : sample.phases) {
+                    std::snprintf(line, sizeof line, "%s %s %.3f / %.3f", &ph == &sample.phases.front() ? "" : ";",
+                                  ph.name.c_str(), ph.wallS, ph.cpuS);
+                    sec << line;
+                }
+                std::snprintf(line, sizeof line, "\n    result hash of the structured scene: %016llx\n",
+                              static_cast<unsigned long long>(plantsHash(sample.plants)));
+                sec << line;
             }
             row("forest floor", tFloor);
             std::snprintf(line, sizeof line,
@@ -275,6 +326,7 @@ int main(int argc, char** argv) {
                           placeAndSample + tMap.wall, paper > 0 ? paper / (placeAndSample + tMap.wall) : 0.0, sample.passes,
                           static_cast<long long>(sample.darts));
             sec << line;
+            if (refine) {
             std::snprintf(line, sizeof line,
                           "  refinement, 1 sweep, 100 x 100 m window: %.3f s wall (%lld plants movable, %.2f us per "
                           "proposal), matched to %.2f m, distance %.4f -> %.4f\n",
@@ -282,7 +334,8 @@ int main(int argc, char** argv) {
                           rw.proposals > 0 ? 1e6 * rw.seconds / static_cast<double>(rw.proposals) : 0.0, rw.rMaxM,
                           rw.distanceBefore, rw.distanceAfter);
             sec << line;
-            if (n <= 1024) {
+            }
+            if (refine && n <= 1024) {
                 std::snprintf(line, sizeof line,
                               "  refinement, 1 sweep, whole scene: %.3f s wall, %.3f s CPU (%lld proposals, %lld "
                               "accepted), distance %.4f -> %.4f\n",

@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <numeric>
 #include <unordered_map>
@@ -331,6 +332,27 @@ struct Candidate {
     std::uint16_t pass;
 };
 
+/// Sorts v by `less`: a counting pass into buckets (bucketOf must not decrease along `less`),
+/// then each bucket sorted on its own, in parallel. The same order as std::sort for a strict
+/// total order, for any thread count.
+template <typename BucketOf, typename Less>
+void sortInBuckets(std::vector<Candidate>& v, std::size_t nBuckets, BucketOf bucketOf, Less less) {
+    std::vector<std::size_t> start(nBuckets + 1, 0);
+    for (const Candidate& c : v) ++start[bucketOf(c) + 1];
+    for (std::size_t b = 0; b < nBuckets; ++b) start[b + 1] += start[b];
+    std::vector<Candidate> sorted(v.size());
+    {
+        std::vector<std::size_t> pos(start.begin(), start.end() - 1);
+        for (const Candidate& c : v) sorted[pos[bucketOf(c)]++] = c;
+    }
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::int64_t b = 0; b < static_cast<std::int64_t>(nBuckets); ++b) {
+        const std::size_t lo = start[static_cast<std::size_t>(b)], hi = start[static_cast<std::size_t>(b) + 1];
+        if (hi - lo > 1) std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(lo), sorted.begin() + static_cast<std::ptrdiff_t>(hi), less);
+    }
+    v.swap(sorted);
+}
+
 /// Per (region, mask index, context): cumulative weights over species (the roulette of the
 /// free darts) of rate_s = factor_rs x rho_rs(ctx), restricted to the species of the mask.
 struct RateTable {
@@ -351,36 +373,128 @@ struct RateTable {
     }
 };
 
-/// Height at cumulative share u of a height histogram. Inside a bin the height is not
-/// spread linearly: the bin's crown radii (allometry of its edges) are spread as the
-/// radius histogram spreads them, and mapped back to heights. The simulator's radius is
-/// the allometry of its height, so the radius histogram carries the shape of the heights
-/// inside the (coarser at small sizes) height bins. Linear inside the bin without it.
-double heightQuantile(const DbHistogram& h, const DbHistogram* radius, const Allometry& allometry, double u) {
-    std::size_t k = 0;
-    double t = 0;
-    const int found = histogramLocate(h, u, k, t);
-    if (found < 0) return -1;
-    if (found == 0) return h.edges.back();
-    const double lo = h.edges[k], hi = h.edges[k + 1];
-    if (radius != nullptr) {
-        // The radius histogram's mass between the allometric radii of the bin's edges.
-        double rTotal = radius->overflow, fa = 0, fb = 0;
-        const double ra = allometry.crownRadiusM(lo), rb = allometry.crownRadiusM(hi);
-        for (std::size_t j = 0; j < radius->counts.size(); ++j) {
-            const double a = radius->edges[j], b = radius->edges[j + 1], n = radius->counts[j];
-            auto part = [&](double x) { return x >= b ? n : (x > a ? n * (x - a) / (b - a) : 0.0); };
-            fa += part(ra);
-            fb += part(rb);
-            rTotal += n;
+/// A histogram with its cumulative counts, for the per-plant size draws in O(log bins).
+/// The sums are added in the order of histogramLocate's scan, so every result has the same
+/// bits as the linear scans (histogramLocate, histogramQuantile and a bin-by-bin CDF); a
+/// histogram with a negative count or unsorted edges falls back to those scans.
+struct CumulativeHistogram {
+    const DbHistogram* h = nullptr;
+    double total = 0;         ///< overflow + counts, added in histogramLocate's order
+    std::vector<double> cum;  ///< cum[k] = counts[0] + ... + counts[k - 1], added in order
+    bool scan = false;        ///< negative counts or unsorted edges: the linear scans
+
+    CumulativeHistogram() = default;
+    explicit CumulativeHistogram(const DbHistogram& hist) : h(&hist) {
+        total = hist.overflow;
+        for (double c : hist.counts) total += c;
+        cum.assign(hist.counts.size() + 1, 0.0);
+        for (std::size_t k = 0; k < hist.counts.size(); ++k) {
+            cum[k + 1] = cum[k] + hist.counts[k];
+            if (!(hist.counts[k] >= 0)) scan = true;
         }
-        if (rTotal > 0 && fb - fa > 1e-12 * rTotal) {
-            const double hq = allometry.heightForCrownRadiusM(histogramQuantile(*radius, (fa + t * (fb - fa)) / rTotal));
-            if (hq >= lo && hq <= hi) return hq;
+        for (std::size_t k = 0; k + 1 < hist.edges.size(); ++k)
+            if (!(hist.edges[k] <= hist.edges[k + 1])) scan = true;
+    }
+    bool hasMass() const { return h != nullptr && total > 0; }
+    /// histogramLocate.
+    int locate(double u, std::size_t& bin, double& t) const {
+        if (scan) return histogramLocate(*h, u, bin, t);
+        if (!(total > 0) || h->edges.size() != h->counts.size() + 1) return -1;
+        const double target = u * total;
+        // The scan stops at the first bin k with counts[k] > 0 and cum[k + 1] > target; with
+        // no negative count that is the first k with cum[k + 1] > target.
+        const auto it = std::upper_bound(cum.begin() + 1, cum.end(), target);
+        if (it == cum.end()) return 0;
+        bin = static_cast<std::size_t>(it - cum.begin()) - 1;
+        t = (target - cum[bin]) / h->counts[bin];
+        return 1;
+    }
+    /// histogramQuantile.
+    double quantile(double u) const {
+        std::size_t k = 0;
+        double t = 0;
+        const int found = locate(u, k, t);
+        if (found < 0) return -1;
+        if (found == 0) return h->edges.back();
+        return h->edges[k] + t * (h->edges[k + 1] - h->edges[k]);
+    }
+    /// Share of the histogram below x (linear inside a bin).
+    double below(double x) const {
+        if (!(total > 0)) return 0.0;
+        const std::vector<double>& e = h->edges;
+        const std::size_t n = h->counts.size();
+        if (scan || e.size() != n + 1) {
+            double b = 0;
+            for (std::size_t k = 0; k < n; ++k) {
+                const double lo = e[k], hi = e[k + 1];
+                if (x >= hi)
+                    b += h->counts[k];
+                else if (x > lo)
+                    b += h->counts[k] * (x - lo) / (hi - lo);
+            }
+            return b / total;
+        }
+        // Bins with x >= their upper edge add their counts (cum of the first k), the bin
+        // holding x its part.
+        const std::size_t k = static_cast<std::size_t>(
+            std::upper_bound(e.begin() + 1, e.end(), x, [](double v, double edge) { return !(v >= edge); }) - (e.begin() + 1));
+        double b = cum[k];
+        if (k < n && x > e[k]) b += h->counts[k] * (x - e[k]) / (e[k + 1] - e[k]);
+        return b / total;
+    }
+};
+
+/// The height draw of one (region, species, context): a height histogram and, for the shape
+/// inside its bins, the region's crown-radius histogram through the species' allometry.
+/// Height at cumulative share u: inside a bin the height is not spread linearly: the bin's
+/// crown radii (allometry of its edges) are spread as the radius histogram spreads them, and
+/// mapped back to heights. The simulator's radius is the allometry of its height, so the
+/// radius histogram carries the shape of the heights inside the (coarser at small sizes)
+/// height bins. Linear inside the bin without it.
+struct HeightDraw {
+    CumulativeHistogram height;
+    const CumulativeHistogram* radius = nullptr;  ///< null: linear inside bins
+    const Allometry* allometry = nullptr;
+    std::vector<double> fa, fb;  ///< per height bin: the radius histogram's mass below its edges' radii
+    double rTotal = 0;
+
+    HeightDraw(const DbHistogram& heightHist, const CumulativeHistogram* radiusHist, const Allometry& allo)
+        : height(heightHist), radius(radiusHist), allometry(&allo) {
+        if (radius == nullptr) return;
+        const DbHistogram& rh = *radius->h;
+        const std::size_t nb = heightHist.counts.size();
+        fa.assign(nb, 0.0);
+        fb.assign(nb, 0.0);
+        for (std::size_t k = 0; k < nb && k + 1 < heightHist.edges.size(); ++k) {
+            double total = rh.overflow, a0 = 0, b0 = 0;
+            const double ra = allo.crownRadiusM(heightHist.edges[k]), rb = allo.crownRadiusM(heightHist.edges[k + 1]);
+            for (std::size_t j = 0; j < rh.counts.size(); ++j) {
+                const double a = rh.edges[j], b = rh.edges[j + 1], n = rh.counts[j];
+                auto part = [&](double x) { return x >= b ? n : (x > a ? n * (x - a) / (b - a) : 0.0); };
+                a0 += part(ra);
+                b0 += part(rb);
+                total += n;
+            }
+            fa[k] = a0;
+            fb[k] = b0;
+            rTotal = total;
         }
     }
-    return lo + t * (hi - lo);
-}
+    double quantile(double u) const {
+        std::size_t k = 0;
+        double t = 0;
+        const int found = height.locate(u, k, t);
+        if (found < 0) return -1;
+        const std::vector<double>& e = height.h->edges;
+        if (found == 0) return e.back();
+        const double lo = e[k], hi = e[k + 1];
+        if (radius != nullptr && rTotal > 0 && fb[k] - fa[k] > 1e-12 * rTotal) {
+            const double hq = allometry->heightForCrownRadiusM(radius->quantile((fa[k] + t * (fb[k] - fa[k])) / rTotal));
+            if (hq >= lo && hq <= hi) return hq;
+        }
+        return lo + t * (hi - lo);
+    }
+};
 
 /// Placed plants in a bucket grid (linked lists through the placed plants), for the
 /// hard-core test of random sequential adsorption.
@@ -456,24 +570,29 @@ void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Pl
                 openHeight.push_back(std::move(o));
             }
     const CanopyCover cover(canopy);
-    auto mass = [](const DbHistogram& hst) {
-        double t = hst.overflow;
-        for (double c : hst.counts) t += c;
-        return t;
-    };
-    auto cdfAt = [](const DbHistogram& hst, double x) {  // share of the histogram below x
-        double total = hst.overflow, below = 0;
-        for (double c : hst.counts) total += c;
-        if (!(total > 0)) return 0.0;
-        for (std::size_t k = 0; k < hst.counts.size(); ++k) {
-            const double lo = hst.edges[k], hi = hst.edges[k + 1];
-            if (x >= hi)
-                below += hst.counts[k];
-            else if (x > lo)
-                below += hst.counts[k] * (x - lo) / (hi - lo);
-        }
-        return below / total;
-    };
+    // The height draw of every (region, species, covered): the context's histogram when it
+    // has plants, else the region's, else the species' pooled one; none (-1) without plants.
+    std::vector<CumulativeHistogram> radiusTables;
+    radiusTables.reserve(nR * nS);
+    for (std::size_t r = 0; r < nR; ++r)
+        for (std::size_t s = 0; s < nS; ++s) radiusTables.emplace_back(db.regions[r].crownRadius[s]);
+    std::vector<HeightDraw> draws;
+    std::vector<int> drawOf(nR * nS * 2, -1);
+    for (std::size_t r = 0; r < nR; ++r)
+        for (std::size_t s = 0; s < nS; ++s)
+            for (int covered = 0; covered < 2; ++covered) {
+                const DbHistogram* hist = nullptr;
+                if (withContext) {
+                    const DbHistogram& ctxH = covered ? db.regions[r].heightCovered[s] : openHeight[r * nS + s];
+                    if (CumulativeHistogram(ctxH).hasMass()) hist = &ctxH;
+                }
+                if (hist == nullptr && CumulativeHistogram(db.regions[r].height[s]).hasMass()) hist = &db.regions[r].height[s];
+                if (hist == nullptr && CumulativeHistogram(pooledHeight[s]).hasMass()) hist = &pooledHeight[s];
+                if (hist == nullptr) continue;
+                const CumulativeHistogram* radius = radiusTables[r * nS + s].hasMass() ? &radiusTables[r * nS + s] : nullptr;
+                drawOf[(r * nS + s) * 2 + static_cast<std::size_t>(covered)] = static_cast<int>(draws.size());
+                draws.emplace_back(*hist, radius, biome.species[s].allometry);
+            }
     const std::int64_t nPlants = static_cast<std::int64_t>(accepted.size());
     out.plants.resize(accepted.size());
     out.plantRegion.resize(accepted.size());
@@ -490,24 +609,16 @@ void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Pl
         p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
         const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
         const bool covered = limit < CanopyCover::kNone;
-        const DbHistogram* hist = nullptr;
-        if (withContext) {
-            const DbHistogram& ctxH = covered ? db.regions[static_cast<std::size_t>(r)].heightCovered[s]
-                                              : openHeight[static_cast<std::size_t>(r) * nS + s];
-            if (mass(ctxH) > 0) hist = &ctxH;
-        }
-        if (hist == nullptr && mass(db.regions[static_cast<std::size_t>(r)].height[s]) > 0) hist = &db.regions[static_cast<std::size_t>(r)].height[s];
-        if (hist == nullptr && mass(pooledHeight[s]) > 0) hist = &pooledHeight[s];
+        const int d = drawOf[(static_cast<std::size_t>(r) * nS + s) * 2 + (covered ? 1 : 0)];
         RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
         const double u = rs.uniform();
-        const Allometry& allometry = biome.species[s].allometry;
-        const DbHistogram& radiusHist = db.regions[static_cast<std::size_t>(r)].crownRadius[s];
         double height;
-        if (hist != nullptr) {
-            const double top = covered ? cdfAt(*hist, limit) : 1.0;
+        if (d >= 0) {
+            const HeightDraw& draw = draws[static_cast<std::size_t>(d)];
+            const double top = covered ? draw.height.below(limit) : 1.0;
             if (top > 0) {
-                height = heightQuantile(*hist, mass(radiusHist) > 0 ? &radiusHist : nullptr, allometry, u * top);
-                if (covered && !(height < limit)) height = histogramQuantile(*hist, u * top);
+                height = draw.quantile(u * top);
+                if (covered && !(height < limit)) height = draw.height.quantile(u * top);
                 if (covered && top < 1.0) ++limited;
             } else {
                 height = u * limit;  // the species never grew this low: below the crown, uniformly
@@ -532,6 +643,24 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params) {
     const auto t0 = Clock::now();
     UndergrowthSample out;
+    // Wall time of each phase, summed over the passes (the benchmark's breakdown).
+    auto mark = t0;
+    std::clock_t cpuMark = std::clock();
+    auto phase = [&](const char* name) {
+        const auto now = Clock::now();
+        const std::clock_t cpu = std::clock();
+        const double wall = std::chrono::duration<double>(now - mark).count();
+        const double cpuS = static_cast<double>(cpu - cpuMark) / CLOCKS_PER_SEC;
+        mark = now;
+        cpuMark = cpu;
+        for (UndergrowthSample::Phase& p : out.phases)
+            if (p.name == name) {
+                p.wallS += wall;
+                p.cpuS += cpuS;
+                return;
+            }
+        out.phases.push_back(UndergrowthSample::Phase{name, wall, cpuS});
+    };
     const int w = terrainM.width(), h = terrainM.height();
     const double cs = terrainM.cellSizeM(), cellArea = cs * cs;
     const std::size_t nR = db.regions.size();
@@ -567,6 +696,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         }
     }
 
+    phase("model fit and canopy context");
     // Masks (combinations) and which species each admits.
     const std::vector<std::int32_t> masks = distinctValues(map.combination);
     const std::vector<int> subMask = speciesSubBiomeMasks(biome);
@@ -661,6 +791,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     };
 
     HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
+    phase("masks, quotas, trunks");
     std::vector<Candidate> accepted;
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
@@ -847,46 +978,75 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 }
             }
         }
-        // Each (region, species, tile) keeps its lowest keys up to what it still misses.
-        std::vector<std::vector<std::uint64_t>> keys(nGroups);
+        phase("candidates");
+        // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
+        // keys of each group gathered in one array (groups in order), each group's threshold
+        // found by nth_element in parallel (the k-th smallest key does not depend on the order).
+        std::vector<std::vector<std::uint32_t>> rowGroup(static_cast<std::size_t>(h));
+#pragma omp parallel for schedule(dynamic, 16)
+        for (int iy = 0; iy < h; ++iy) {
+            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
+            auto& grp = rowGroup[static_cast<std::size_t>(iy)];
+            grp.resize(cand.size());
+            for (std::size_t j = 0; j < cand.size(); ++j) grp[j] = static_cast<std::uint32_t>(groupOf(cand[j].cell, cand[j].species));
+        }
+        std::vector<std::size_t> groupStart(nGroups + 1, 0);
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) keys[groupOf(cnd.cell, cnd.species)].push_back(cnd.key);
+            for (const std::uint32_t g : rowGroup[static_cast<std::size_t>(iy)]) ++groupStart[g + 1];
+        }
+        for (std::size_t g = 0; g < nGroups; ++g) groupStart[g + 1] += groupStart[g];
+        std::vector<std::uint64_t> keys(groupStart[nGroups]);
+        {
+            std::vector<std::size_t> pos(groupStart.begin(), groupStart.end() - 1);
+            for (int iy = 0; iy < h; ++iy) {
+                const auto& cand = rowCand[static_cast<std::size_t>(iy)];
+                const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
+                for (std::size_t j = 0; j < cand.size(); ++j) keys[pos[grp[j]]++] = cand[j].key;
+            }
         }
         std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
         std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
-        for (std::size_t i = 0; i < nGroups; ++i) {
-            auto& k = keys[i];
+#pragma omp parallel for schedule(dynamic, 64)
+        for (std::int64_t gi = 0; gi < static_cast<std::int64_t>(nGroups); ++gi) {
+            const std::size_t i = static_cast<std::size_t>(gi);
             const std::int64_t missing = quotaG[i] - placedG[i];
             if (missing <= 0) {
                 threshold[i] = 0;
                 equalQuota[i] = 0;
                 continue;
             }
-            if (static_cast<std::int64_t>(k.size()) <= missing) continue;
-            std::nth_element(k.begin(), k.begin() + (missing - 1), k.end());
-            threshold[i] = k[static_cast<std::size_t>(missing - 1)];
+            const auto b = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i]);
+            const auto e = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i + 1]);
+            if (e - b <= missing) continue;
+            std::nth_element(b, b + (missing - 1), e);
+            threshold[i] = b[missing - 1];
             std::int64_t less = 0;
-            for (std::uint64_t v : k) less += v < threshold[i];
+            for (auto it = b; it != e; ++it) less += *it < threshold[i];
             equalQuota[i] = missing - less;
-            std::vector<std::uint64_t>().swap(k);
         }
+        std::vector<std::uint64_t>().swap(keys);
         std::vector<Candidate> passAccepted;
         for (int iy = 0; iy < h; ++iy) {
-            for (const Candidate& cnd : rowCand[static_cast<std::size_t>(iy)]) {
-                const std::size_t i = groupOf(cnd.cell, cnd.species);
-                if (cnd.key < threshold[i] || (cnd.key == threshold[i] && equalQuota[i]-- > 0)) passAccepted.push_back(cnd);
+            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
+            const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
+            for (std::size_t j = 0; j < cand.size(); ++j) {
+                const std::size_t i = grp[j];
+                if (cand[j].key < threshold[i] || (cand[j].key == threshold[i] && equalQuota[i]-- > 0)) passAccepted.push_back(cand[j]);
             }
             std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
+            std::vector<std::uint32_t>().swap(rowGroup[static_cast<std::size_t>(iy)]);
         }
+        phase("quota selection");
         // Inhibition: in ascending key order, a candidate closer than the hard-core distance
         // to a plant already placed is dropped (random sequential adsorption); later passes
         // throw darts for what is missing.
         if (hardCore.maxM > 0) {
-            std::sort(passAccepted.begin(), passAccepted.end(), [](const Candidate& a, const Candidate& b) {
-                return a.key != b.key ? a.key < b.key : a.cell < b.cell;
-            });
+            sortInBuckets(
+                passAccepted, std::size_t{1} << 16, [](const Candidate& c) { return static_cast<std::size_t>(c.key >> 48); },
+                [](const Candidate& a, const Candidate& b) { return a.key != b.key ? a.key < b.key : a.cell < b.cell; });
+            phase("key sort");
             std::vector<Candidate> kept;
             for (const Candidate& cnd : passAccepted)
                 if (hardCore.admit(cnd, map.region.data()[cnd.cell])) kept.push_back(cnd);
@@ -898,16 +1058,22 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             ++placed[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species];
             accepted.push_back(cnd);
         }
+        phase("hard core");
     }
-    std::sort(accepted.begin(), accepted.end(), [](const Candidate& a, const Candidate& b) {
-        if (a.cell != b.cell) return a.cell < b.cell;
-        if (a.key != b.key) return a.key < b.key;
-        return a.pass < b.pass;
-    });
+    sortInBuckets(
+        accepted, (static_cast<std::size_t>(w) * static_cast<std::size_t>(h) + 15) / 16,
+        [](const Candidate& c) { return static_cast<std::size_t>(c.cell) / 16; },
+        [](const Candidate& a, const Candidate& b) {
+            if (a.cell != b.cell) return a.cell < b.cell;
+            if (a.key != b.key) return a.key < b.key;
+            return a.pass < b.pass;
+        });
     for (std::size_t r = 0; r < nR; ++r)
         for (std::size_t s = 0; s < nS; ++s) out.regions[r].placed += placed[r * nS + s];
 
+    phase("final sort");
     drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted, out);
+    phase("sizes");
     out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return out;
 }

@@ -177,6 +177,12 @@ struct UndergrowthSample {
     std::int64_t heightsLimitedByCrown = 0; ///< structured: plants whose height draw was capped below a crown
     std::int64_t dartsInhibited = 0;        ///< structured: candidates dropped by a hard-core distance
     std::vector<std::string> warnings;      ///< e.g. an old database read with its known limits
+    /// structured: time of each phase (summed over the passes), in order, for the benchmark
+    struct Phase {
+        std::string name;
+        double wallS = 0, cpuS = 0;  ///< wall and process CPU seconds
+    };
+    std::vector<Phase> phases;
 };
 
 /// The structured sampler's model of database region `region` (see RegionStructure).
