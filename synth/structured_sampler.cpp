@@ -496,8 +496,19 @@ struct HeightDraw {
     }
 };
 
-/// Placed plants in a bucket grid (linked lists through the placed plants), for the
-/// hard-core test of random sequential adsorption.
+/// Random sequential adsorption with hard cores: in ascending key order, a candidate of a
+/// pass is dropped when a plant already placed (earlier passes, or this pass's admitted
+/// candidates of lower key) is nearer than their pair's hard-core distance (the matrix of
+/// the candidate's region). A candidate of a species without a hard core is always admitted
+/// (and inhibits others).
+///
+/// The sequential rule has one result (the greedy independent set in key order), found here
+/// without sorting by key and mostly in parallel: the candidates are grouped by buckets of
+/// the hard-core range (in the order they come, rows), each one's neighbours of lower key
+/// within its hard cores listed in parallel (one near a plant of an earlier pass is dropped
+/// there and then), then each candidate decided after the neighbours it depends on (a
+/// depth-first walk in bucket order, local in memory): admitted unless one of them was.
+/// Placed plants of earlier passes sit in a bucket grid (linked lists through them).
 struct HardCore {
     const std::vector<RegionStructure>& structure;
     std::size_t nSpecies;
@@ -523,28 +534,132 @@ struct HardCore {
         ny = std::max(1, static_cast<int>(std::ceil(extentY / bucketM)));
         head.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), -1);
     }
-    /// Places the candidate unless a placed plant is nearer than their pair's hard core.
-    bool admit(const Candidate& c, int region) {
-        const int bx = std::clamp(static_cast<int>(c.dx / bucketM), 0, nx - 1);
-        const int by = std::clamp(static_cast<int>(c.dy / bucketM), 0, ny - 1);
-        if (speciesInhibited[static_cast<std::size_t>(region) * nSpecies + c.species]) {
-            const double* hc = structure[static_cast<std::size_t>(region)].hardCoreM.data() + c.species * nSpecies;
-            for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
-                for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x)
-                    for (std::int32_t o = head[static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x)];
-                         o >= 0; o = next[static_cast<std::size_t>(o)]) {
-                        const Candidate& q = placed[static_cast<std::size_t>(o)];
-                        const double d = hc[q.species];
-                        if (!(d > 0)) continue;
-                        const double ddx = double(q.dx) - double(c.dx), ddy = double(q.dy) - double(c.dy);
-                        if (ddx * ddx + ddy * ddy < d * d) return false;
-                    }
+    int bucketX(float dx) const { return std::clamp(static_cast<int>(dx / bucketM), 0, nx - 1); }
+    int bucketY(float dy) const { return std::clamp(static_cast<int>(dy / bucketM), 0, ny - 1); }
+    std::size_t bucketOf(const Candidate& c) const {
+        return static_cast<std::size_t>(bucketY(c.dy)) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(bucketX(c.dx));
+    }
+    static bool conflict(const Candidate& c, const Candidate& q, const double* hc) {
+        const double d = hc[q.species];
+        if (!(d > 0)) return false;
+        const double ddx = double(q.dx) - double(c.dx), ddy = double(q.dy) - double(c.dy);
+        return ddx * ddx + ddy * ddy < d * d;
+    }
+    /// True when a plant of an earlier pass is nearer to c than their hard core.
+    bool nearPlaced(const Candidate& c, const double* hc) const {
+        const int bx = bucketX(c.dx), by = bucketY(c.dy);
+        for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
+            for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x)
+                for (std::int32_t o = head[static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x)];
+                     o >= 0; o = next[static_cast<std::size_t>(o)])
+                    if (conflict(c, placed[static_cast<std::size_t>(o)], hc)) return true;
+        return false;
+    }
+    /// The admitted candidates of a pass (in bucket order); those are placed. The dropped
+    /// ones go to `dropped`.
+    std::vector<Candidate> select(const std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
+        const std::size_t n = cand.size(), nb = head.size();
+        // The candidates by bucket, in the order they came inside a bucket: position p.
+        std::vector<std::uint32_t> start(nb + 1, 0);
+        for (const Candidate& c : cand) ++start[bucketOf(c) + 1];
+        for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
+        std::vector<Candidate> cb(n);
+        {
+            std::vector<std::uint32_t> pos(start.begin(), start.end() - 1);
+            for (const Candidate& c : cand) cb[pos[bucketOf(c)]++] = c;
         }
-        const std::size_t b = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(bx);
-        next.push_back(head[b]);
-        head[b] = static_cast<std::int32_t>(placed.size());
-        placed.push_back(c);
-        return true;
+        // q (position) comes before c (position p) in the sequential order: lower key, then
+        // lower cell, then earlier position.
+        auto before = [&](std::size_t q, std::size_t p) {
+            const Candidate &a = cb[q], &c = cb[p];
+            if (a.key != c.key) return a.key < c.key;
+            if (a.cell != c.cell) return a.cell < c.cell;
+            return q < p;
+        };
+        // state: 0 undecided, 1 admitted, 2 dropped. Per chunk of positions: the earlier
+        // neighbours within hard cores of each.
+        constexpr std::size_t kChunk = 4096;
+        const std::size_t nChunks = (n + kChunk - 1) / kChunk;
+        std::vector<std::uint8_t> state(n, 0);
+        std::vector<std::vector<std::uint32_t>> deps(nChunks), depEnd(nChunks);
+#pragma omp parallel for schedule(dynamic, 1)
+        for (std::int64_t k = 0; k < static_cast<std::int64_t>(nChunks); ++k) {
+            const std::size_t lo = static_cast<std::size_t>(k) * kChunk, hi = std::min(n, lo + kChunk);
+            auto& dk = deps[static_cast<std::size_t>(k)];
+            auto& ek = depEnd[static_cast<std::size_t>(k)];
+            ek.reserve(hi - lo);
+            for (std::size_t p = lo; p < hi; ++p) {
+                const Candidate& c = cb[p];
+                const std::size_t region = static_cast<std::size_t>(regionOfCell[c.cell]);
+                if (!speciesInhibited[region * nSpecies + c.species]) {
+                    state[p] = 1;
+                } else {
+                    const double* hc = structure[region].hardCoreM.data() + c.species * nSpecies;
+                    if (!placed.empty() && nearPlaced(c, hc)) {
+                        state[p] = 2;
+                    } else {
+                        const int bx = bucketX(c.dx), by = bucketY(c.dy);
+                        for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
+                            for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x) {
+                                const std::size_t b = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x);
+                                for (std::uint32_t q = start[b]; q < start[b + 1]; ++q)
+                                    if (q != p && conflict(c, cb[q], hc) && before(q, p)) dk.push_back(q);
+                            }
+                    }
+                }
+                ek.push_back(static_cast<std::uint32_t>(dk.size()));
+            }
+        }
+        // Each candidate decided after the earlier neighbours it depends on.
+        auto depRange = [&](std::size_t p, const std::uint32_t*& b, const std::uint32_t*& e) {
+            const std::size_t k = p / kChunk, i = p % kChunk;
+            b = deps[k].data() + (i == 0 ? 0 : depEnd[k][i - 1]);
+            e = deps[k].data() + depEnd[k][i];
+        };
+        std::vector<std::uint32_t> stack;
+        for (std::size_t root = 0; root < n; ++root) {
+            if (state[root] != 0) continue;
+            stack.push_back(static_cast<std::uint32_t>(root));
+            while (!stack.empty()) {
+                const std::uint32_t p = stack.back();
+                if (state[p] != 0) {
+                    stack.pop_back();
+                    continue;
+                }
+                const std::uint32_t *b, *e;
+                depRange(p, b, e);
+                std::uint8_t decided = 1;
+                for (; b != e; ++b) {
+                    if (state[*b] == 1) {
+                        decided = 2;
+                        break;
+                    }
+                    if (state[*b] == 0) {
+                        decided = 0;
+                        stack.push_back(*b);
+                        break;
+                    }
+                }
+                if (decided != 0) {
+                    state[p] = decided;
+                    stack.pop_back();
+                }
+            }
+        }
+        std::vector<Candidate> kept;
+        kept.reserve(n);
+        for (std::size_t p = 0; p < n; ++p) {
+            if (state[p] != 1) {
+                dropped.push_back(cb[p]);
+                continue;
+            }
+            const std::size_t b = bucketOf(cb[p]);
+            next.push_back(head[b]);
+            head[b] = static_cast<std::int32_t>(placed.size());
+            placed.push_back(cb[p]);
+            kept.push_back(cb[p]);
+        }
+        return kept;
     }
 };
 
@@ -730,11 +845,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     std::vector<int> tileX(static_cast<std::size_t>(w)), tileY(static_cast<std::size_t>(h));
     for (int ix = 0; ix < w; ++ix) tileX[static_cast<std::size_t>(ix)] = std::min(nTx - 1, static_cast<int>((ix + 0.5) * cs / tileM));
     for (int iy = 0; iy < h; ++iy) tileY[static_cast<std::size_t>(iy)] = std::min(nTy - 1, static_cast<int>((iy + 0.5) * cs / tileM));
+    // The quota tile of every cell (a lookup instead of a division per candidate).
+    std::vector<std::uint32_t> tileOfCell(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix)
+            tileOfCell[terrainM.index(ix, iy)] = static_cast<std::uint32_t>(tileY[static_cast<std::size_t>(iy)] * nTx + tileX[static_cast<std::size_t>(ix)]);
     auto groupOf = [&](std::size_t cell, std::size_t s) {
-        const int ix = static_cast<int>(cell % static_cast<std::size_t>(w)), iy = static_cast<int>(cell / static_cast<std::size_t>(w));
-        const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
-                                 static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
-        return (static_cast<std::size_t>(map.region.data()[cell]) * nS + s) * nTiles + tile;
+        return (static_cast<std::size_t>(map.region.data()[cell]) * nS + s) * nTiles + tileOfCell[cell];
     };
     const std::size_t nGroups = nR * nS * nTiles;
     // Expected counts per group: one tile row per task, cells in a fixed order.
@@ -747,15 +865,17 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const int r = map.region(ix, iy);
                 if (r < 0 || static_cast<std::size_t>(r) >= nR || !(map.seedWeight(ix, iy) > 0)) continue;
                 const std::size_t cell = terrainM.index(ix, iy), m = maskIdx.data()[cell], c = ctx.data()[cell];
+                const std::size_t tile = tileOfCell[cell];
                 for (std::size_t s = 0; s < nS; ++s)
-                    if (admits(m, s)) expectedG[groupOf(cell, s)] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+                    if (admits(m, s))
+                        expectedG[(static_cast<std::size_t>(r) * nS + s) * nTiles + tile] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
             }
         }
     std::vector<std::int64_t> quotaG(nGroups, 0), placedG(nGroups, 0);
     for (std::size_t g = 0; g < nGroups; ++g) quotaG[g] = static_cast<std::int64_t>(std::llround(expectedG[g]));
     std::vector<double> expected(nR * nS, 0.0);
     out.regions.resize(nR);
-    std::vector<std::int64_t> quota(nR * nS, 0), placed(nR * nS, 0);
+    std::vector<std::int64_t> quota(nR * nS, 0);
     for (std::size_t r = 0; r < nR; ++r) {
         RegionSampling& rs = out.regions[r];
         rs.region = static_cast<int>(r);
@@ -1033,7 +1153,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
             for (std::size_t j = 0; j < cand.size(); ++j) {
                 const std::size_t i = grp[j];
-                if (cand[j].key < threshold[i] || (cand[j].key == threshold[i] && equalQuota[i]-- > 0)) passAccepted.push_back(cand[j]);
+                if (cand[j].key < threshold[i] || (cand[j].key == threshold[i] && equalQuota[i]-- > 0)) {
+                    passAccepted.push_back(cand[j]);
+                    ++placedG[i];  // less those the hard cores drop, below
+                }
             }
             std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
             std::vector<std::uint32_t>().swap(rowGroup[static_cast<std::size_t>(iy)]);
@@ -1043,21 +1166,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         // to a plant already placed is dropped (random sequential adsorption); later passes
         // throw darts for what is missing.
         if (hardCore.maxM > 0) {
-            sortInBuckets(
-                passAccepted, std::size_t{1} << 16, [](const Candidate& c) { return static_cast<std::size_t>(c.key >> 48); },
-                [](const Candidate& a, const Candidate& b) { return a.key != b.key ? a.key < b.key : a.cell < b.cell; });
-            phase("key sort");
-            std::vector<Candidate> kept;
-            for (const Candidate& cnd : passAccepted)
-                if (hardCore.admit(cnd, map.region.data()[cnd.cell])) kept.push_back(cnd);
+            std::vector<Candidate> dropped;
+            std::vector<Candidate> kept = hardCore.select(passAccepted, map.region.data().data(), dropped);
+            for (const Candidate& c : dropped) --placedG[groupOf(c.cell, c.species)];
             out.dartsInhibited += static_cast<std::int64_t>(passAccepted.size() - kept.size());
             passAccepted.swap(kept);
         }
-        for (const Candidate& cnd : passAccepted) {
-            ++placedG[groupOf(cnd.cell, cnd.species)];
-            ++placed[static_cast<std::size_t>(map.region.data()[cnd.cell]) * nS + cnd.species];
-            accepted.push_back(cnd);
-        }
+        accepted.insert(accepted.end(), passAccepted.begin(), passAccepted.end());
         phase("hard core");
     }
     sortInBuckets(
@@ -1069,7 +1184,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             return a.pass < b.pass;
         });
     for (std::size_t r = 0; r < nR; ++r)
-        for (std::size_t s = 0; s < nS; ++s) out.regions[r].placed += placed[r * nS + s];
+        for (std::size_t s = 0; s < nS; ++s)
+            for (std::size_t t = 0; t < nTiles; ++t) out.regions[r].placed += placedG[(r * nS + s) * nTiles + t];
 
     phase("final sort");
     drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted, out);
