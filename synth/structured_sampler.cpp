@@ -1085,7 +1085,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                         RandomStream ors(params.seed, oStream, 0);
                         const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
                         for (int o = 0; o < n; ++o) {
-                            const double x = px + st.sigmaM[k] * ors.normal(), y = py + st.sigmaM[k] * ors.normal();
+                            // Gaussian displacement: both coordinates of one Box-Muller pair.
+                            const double u1 = 1.0 - ors.uniform(), u2 = ors.uniform();
+                            const double radius = st.sigmaM[k] * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
+                            const double x = px + radius * std::cos(angle), y = py + radius * std::sin(angle);
                             const double uThin = ors.uniform();
                             const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
                             ++rowThrown[static_cast<std::size_t>(iy)];
