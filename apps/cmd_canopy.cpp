@@ -28,6 +28,8 @@ struct CanopyArgs {
     std::string terrain, chm, biome, abiotics, out, pngDir, csv, mask, config;
     std::vector<std::string> targets;
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0, chmVerticalScale = 1, chmVerticalOffsetM = 0;
+    std::string chmGaps = "fill";  ///< nodata cells of the CHM: fill, zero or fail
+    double chmFillMaxM = 2.0;
     // Overrides of CanopyParams (applied after --config when given).
     std::uint64_t seed = 1;
     int maxIterations = 0;
@@ -53,6 +55,21 @@ void checkInputs(const Grid<float>& terrain, const std::string& terrainPath, con
                 throw ValidationError(chmPath + ": negative canopy height " + num(chm(ix, iy)) + " m at cell (" +
                                       std::to_string(ix) + ", " + std::to_string(iy) +
                                       ") (column, row from the south); a CHM holds heights above the ground");
+}
+
+/// Crowns narrower than two cells cannot be placed on the CHM: a warning names the
+/// smallest crown of the biome at the canopy threshold and the cell size.
+void warnIfCoarse(const Grid<float>& chm, const Biome& biome, double thresholdM, const std::string& chmPath) {
+    double smallest = 0;
+    for (const Species& s : biome.species)
+        if (s.maxHeightM >= thresholdM) {
+            const double r = s.allometry.crownRadiusM(thresholdM);
+            if (r > 0 && (smallest == 0 || r < smallest)) smallest = r;
+        }
+    if (smallest > 0 && chm.cellSizeM() > smallest)
+        info("warning: " + chmPath + ": cells of " + num(chm.cellSizeM()) + " m are coarser than the smallest canopy crown radius (" +
+             num(smallest, 3) + " m at " + num(thresholdM) + " m tall): crowns narrower than two cells cannot be resolved; "
+             "a CHM of about 1 m cells or finer is expected (gdalwarp -tr 1 1 -r bilinear IN OUT)");
 }
 
 CanopyParams canopyParamsFrom(const CanopyArgs& a, SpeciesMapParams& sm) {
@@ -98,14 +115,19 @@ void runCanopy(const CanopyArgs& args) {
     readOptions.verticalScale = args.verticalScale;
     readOptions.verticalOffsetM = args.verticalOffsetM;
     const Grid<float> terrain = readTerrain(args.terrain, readOptions);
-    TerrainReadOptions chmOptions;
-    chmOptions.cellSizeM = args.cellSizeM;
-    chmOptions.verticalScale = args.chmVerticalScale;
-    chmOptions.verticalOffsetM = args.chmVerticalOffsetM;
-    chmOptions.originX = terrain.originX();  // an image CHM takes the terrain's corner
-    chmOptions.originY = terrain.originY();
-    const Grid<float> chm = readTerrain(args.chm, chmOptions);
+    ChmReadOptions chmOptions;
+    chmOptions.raster.cellSizeM = args.cellSizeM;
+    chmOptions.raster.verticalScale = args.chmVerticalScale;
+    chmOptions.raster.verticalOffsetM = args.chmVerticalOffsetM;
+    chmOptions.raster.originX = terrain.originX();  // an image CHM takes the terrain's corner
+    chmOptions.raster.originY = terrain.originY();
+    chmOptions.gaps = parseChmGapRule(args.chmGaps, "--chm-gaps");
+    chmOptions.fillMaxM = args.chmFillMaxM;
+    const ChmRead chmRead = readChm(args.chm, chmOptions);
+    const Grid<float>& chm = chmRead.chm;
+    if (const std::string repaired = chmRead.summary(args.chm); !repaired.empty()) info(repaired);
     checkInputs(terrain, args.terrain, chm, args.chm);
+    warnIfCoarse(chm, biome, params.canopyThresholdM, args.chm);
     info("terrain: " + args.terrain + ": " + terrain.geometryText());
     info("CHM: " + args.chm + ": heights " + num(chm.minValue()) + " .. " + num(chm.maxValue()) + " m, " +
          std::to_string(forestedCells(chm, params.canopyThresholdM)) + " cells >= " + num(params.canopyThresholdM) +
@@ -240,12 +262,19 @@ void registerCanopyCommand(CLI::App& app) {
                                          "CHM cells >= this are canopy (forested), metres (3)");
     args->seedHeightOpt = cmd->add_option("--min-seed-height", args->minSeedHeightM,
                                           "Trees stand only where the CHM is >= this, metres (3)");
-    cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for image inputs)")
+    cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for plain images; georeferenced rasters carry it)")
         ->check(positiveNumber());
     cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")
         ->capture_default_str();
     cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrain only: metres added after scaling")
         ->capture_default_str();
+    cmd->add_option("--chm-gaps", args->chmGaps,
+                    "Nodata cells of the CHM: fill (from their neighbours, up to --chm-fill-max from data; the rest 0), "
+                    "zero (non-forest) or fail")
+        ->capture_default_str();
+    cmd->add_option("--chm-fill-max", args->chmFillMaxM, "fill: how far from data a gap is filled, metres")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     cmd->add_option("--chm-vertical-scale", args->chmVerticalScale, "Image CHM only: metres per stored unit")
         ->capture_default_str();
     cmd->add_option("--chm-vertical-offset", args->chmVerticalOffsetM, "Image CHM only: metres added after scaling")

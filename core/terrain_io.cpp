@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdint>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "h5io.h"
+#include "geo_raster.h"
 #include "text_format.h"
 
 namespace eco {
@@ -46,8 +48,8 @@ void requireReadable(const std::string& path) {
     std::fclose(f);
 }
 
-/// Throws IoError naming the first NaN / infinite cell. Images and ASCII grids report the
-/// position as it appears in the file (row 1 = northern edge); HDF5 in its stored order.
+/// Throws IoError naming the first NaN / infinite cell (in the file's order: images and
+/// ASCII grids store the northern row first), at its position of cellText.
 void requireFinite(const Grid<float>& g, const std::string& path, bool fileRowsNorthFirst) {
     const int w = g.width(), h = g.height();
     for (int fileRow = 0; fileRow < h; ++fileRow) {
@@ -56,11 +58,7 @@ void requireFinite(const Grid<float>& g, const std::string& path, bool fileRowsN
             const float v = g(ix, iy);
             if (std::isfinite(v)) continue;
             const std::string what = std::isnan(v) ? "NaN" : "infinite";
-            throw IoError(path + ": " + what + " elevation at column " + std::to_string(ix + 1) +
-                          ", row " + std::to_string(fileRow + 1) +
-                          (fileRowsNorthFirst ? " (1-based; row 1 is the northern edge)"
-                                              : " (1-based; row 1 is the southern edge)") +
-                          "; fill gaps before use");
+            throw IoError(path + ": " + what + " elevation at " + cellText(g, ix, iy) + "; fill gaps before use");
         }
     }
 }
@@ -175,13 +173,35 @@ bool isTerrainImageExtension(const std::string& ext) {
 }
 
 std::string supportedTerrainExtensions() {
-    return "'.asc' (ESRI ASCII grid), '.png', '.tif', '.tiff', '.exr' (images), "
-           "'.h5', '.hdf5' (eco HDF5)";
+    return "'.asc' (ESRI ASCII grid), '.tif', '.tiff' (GeoTIFF, or a plain image), '.img', '.vrt' (through GDAL), "
+           "'.png', '.exr' (images), '.h5', '.hdf5' (eco HDF5)";
 }
+
+namespace {
+
+bool isGdalOnlyExtension(const std::string& ext) { return ext == ".img" || ext == ".vrt"; }
+
+/// A georeferenced raster as a height grid: geometry from the file (a cell size given must
+/// agree), the vertical options applied; nodata cells stay NaN.
+Grid<float> readGeoHeights(const std::string& path, const TerrainReadOptions& options, std::int64_t& nodataCells) {
+    checkReadOptions(path, options);
+    GeoRaster r = readGeoRaster(path);
+    checkCellSize(path, r.grid.cellSizeM(), options);
+    nodataCells = r.nodataCells;
+    if (options.verticalScale != 1 || options.verticalOffsetM != 0)
+        for (float& v : r.grid.data()) v = static_cast<float>(v * options.verticalScale + options.verticalOffsetM);
+    return std::move(r.grid);
+}
+
+}  // namespace
 
 // ---------------------------------------------------------------------------- ESRI ASCII
 
-Grid<float> readAsc(const std::string& path, const TerrainReadOptions& options) {
+namespace {
+
+/// readAsc; with allowNodata, NODATA_value cells become NaN and are counted.
+Grid<float> readAscImpl(const std::string& path, const TerrainReadOptions& options, bool allowNodata,
+                        std::int64_t& nodataCells) {
     checkReadOptions(path, options);
     requireMetricFormat(path, options, "ESRI ASCII (.asc)");
     const std::string text = readWholeFile(path);
@@ -252,18 +272,29 @@ Grid<float> readAsc(const std::string& path, const TerrainReadOptions& options) 
             throw IoError(path + ": line " + std::to_string(tok.line()) + ": value '" + std::string(b, e) +
                           "' at column " + std::to_string(col + 1) + ", row " + std::to_string(fileRow + 1) +
                           " is not a number (or is out of range)");
-        if (hasNodata && v == nodata)
-            throw IoError(path + ": NODATA value " + numberText(header.at("nodata_value")) +
-                          " at column " + std::to_string(col + 1) + ", row " + std::to_string(fileRow + 1) +
-                          " (1-based; row 1 is the northern edge): the terrain must have no gaps; "
-                          "fill them before use");
+        if (hasNodata && v == nodata) {
+            if (!allowNodata)
+                throw IoError(path + ": NODATA value " + numberText(header.at("nodata_value")) + " at " +
+                              cellText(g, col, nrows - 1 - fileRow) + ": the terrain must have no gaps; fill them before use");
+            v = std::numeric_limits<float>::quiet_NaN();
+            ++nodataCells;
+        } else if (!std::isfinite(v)) {
+            throw IoError(path + ": " + (std::isnan(v) ? "NaN" : "infinite") + " elevation at " +
+                          cellText(g, col, nrows - 1 - fileRow) + "; fill gaps before use");
+        }
         g(col, nrows - 1 - fileRow) = v;
     }
     if (count != expected)
         throw IoError(path + ": the header says " + std::to_string(ncols) + " x " + std::to_string(nrows) +
                       " = " + std::to_string(expected) + " values but the file has " + std::to_string(count));
-    requireFinite(g, path, true);
     return g;
+}
+
+}  // namespace
+
+Grid<float> readAsc(const std::string& path, const TerrainReadOptions& options) {
+    std::int64_t nodata = 0;
+    return readAscImpl(path, options, false, nodata);
 }
 
 void writeAsc(const std::string& path, const Grid<float>& g) {
@@ -416,13 +447,103 @@ void writeTerrainH5(const std::string& path, const Grid<float>& g) {
 
 Grid<float> readTerrain(const std::string& path, const TerrainReadOptions& options) {
     const std::string ext = fileExtension(path);
-    const bool known = ext == ".asc" || ext == ".h5" || ext == ".hdf5" || isTerrainImageExtension(ext);
+    const bool known = ext == ".asc" || ext == ".h5" || ext == ".hdf5" || isTerrainImageExtension(ext) || isGdalOnlyExtension(ext);
     if (!known)
         throw IoError(path + ": unknown terrain format '" + ext + "'; supported: " + supportedTerrainExtensions());
     requireReadable(path);
     if (ext == ".asc") return readAsc(path, options);
     if (ext == ".h5" || ext == ".hdf5") return readTerrainH5(path, options);
+    if (isGdalOnlyExtension(ext) || ((ext == ".tif" || ext == ".tiff") && hasGeotransform(path))) {
+        std::int64_t nodata = 0;
+        Grid<float> g = readGeoHeights(path, options, nodata);
+        if (nodata > 0)
+            for (int iy = 0; iy < g.height(); ++iy)
+                for (int ix = 0; ix < g.width(); ++ix)
+                    if (std::isnan(g(ix, iy)))
+                        throw IoError(path + ": " + std::to_string(nodata) + " nodata cell(s), the first at " + cellText(g, ix, iy) +
+                                      ": a terrain must have no gaps; fill them first (gdal_fillnodata.py IN OUT)");
+        return g;
+    }
     return readTerrainImage(path, options);
+}
+
+ChmGapRule parseChmGapRule(const std::string& text, const std::string& what) {
+    if (text == "fill") return ChmGapRule::Fill;
+    if (text == "zero") return ChmGapRule::Zero;
+    if (text == "fail") return ChmGapRule::Fail;
+    throw ValidationError(what + ": unknown gap rule '" + text + "'; use fill, zero or fail");
+}
+
+std::string ChmRead::summary(const std::string& path) const {
+    std::string s;
+    if (nodataCells > 0)
+        s += path + ": " + std::to_string(nodataCells) + " nodata cell(s): " + std::to_string(filledCells) +
+             " filled from their neighbours, " + std::to_string(zeroedCells) + " set to 0 m (non-forest)";
+    if (negativeCells > 0)
+        s += (s.empty() ? "" : "\n") + path + ": " + std::to_string(negativeCells) + " cell(s) below 0 m (lowest " +
+             formatNumber(mostNegativeM) + " m) clamped to 0";
+    return s;
+}
+
+ChmRead readChm(const std::string& path, const ChmReadOptions& options) {
+    if (!(options.fillMaxM >= 0) || !std::isfinite(options.fillMaxM))
+        throw ValidationError(path + ": the gap-fill distance must be >= 0 m, got " + formatNumber(options.fillMaxM));
+    const std::string ext = fileExtension(path);
+    ChmRead out;
+    requireReadable(path);
+    if (ext == ".asc")
+        out.chm = readAscImpl(path, options.raster, true, out.nodataCells);
+    else if (isGdalOnlyExtension(ext) || ((ext == ".tif" || ext == ".tiff") && hasGeotransform(path)))
+        out.chm = readGeoHeights(path, options.raster, out.nodataCells);
+    else
+        out.chm = readTerrain(path, options.raster);
+    Grid<float>& g = out.chm;
+    const int w = g.width(), h = g.height();
+    if (out.nodataCells > 0) {
+        if (options.gaps == ChmGapRule::Fail)
+            for (int iy = 0; iy < h; ++iy)
+                for (int ix = 0; ix < w; ++ix)
+                    if (std::isnan(g(ix, iy)))
+                        throw IoError(path + ": " + std::to_string(out.nodataCells) + " nodata cell(s) in the canopy height model, the first at " +
+                                      cellText(g, ix, iy) + "; fill them, or choose a gap rule (fill or zero)");
+        // Fill: ring by ring from the data, each gap cell the mean of its 8 neighbours that
+        // had a value before the ring (so the result does not depend on the scan order).
+        const int rings = options.gaps == ChmGapRule::Fill ? static_cast<int>(std::ceil(options.fillMaxM / g.cellSizeM() - 1e-9)) : 0;
+        for (int ring = 0; ring < rings; ++ring) {
+            const Grid<float> before = g;
+            bool any = false;
+            for (int iy = 0; iy < h; ++iy)
+                for (int ix = 0; ix < w; ++ix) {
+                    if (!std::isnan(before(ix, iy))) continue;
+                    double sum = 0;
+                    int n = 0;
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const int x = ix + dx, y = iy + dy;
+                            if ((dx == 0 && dy == 0) || x < 0 || y < 0 || x >= w || y >= h || std::isnan(before(x, y))) continue;
+                            sum += before(x, y);
+                            ++n;
+                        }
+                    if (n == 0) continue;
+                    g(ix, iy) = static_cast<float>(sum / n);
+                    ++out.filledCells;
+                    any = true;
+                }
+            if (!any) break;
+        }
+        for (float& v : g.data())
+            if (std::isnan(v)) {
+                v = 0.0f;
+                ++out.zeroedCells;
+            }
+    }
+    for (float& v : g.data())
+        if (v < 0) {
+            out.mostNegativeM = std::min(out.mostNegativeM, static_cast<double>(v));
+            v = 0.0f;
+            ++out.negativeCells;
+        }
+    return out;
 }
 
 void writeTerrain(const std::string& path, const Grid<float>& terrain, const TerrainWriteOptions& options) {

@@ -9,14 +9,18 @@
 //                  z = v * verticalScale + verticalOffsetM. Image row 0 is the north edge.
 //   .tif / .tiff   as PNG for integer pixels; float pixels are used as stored (v), then
 //   .exr           z = v * verticalScale + verticalOffsetM.
+//   .img / .vrt    through GDAL (geo_raster.h): geometry from the geotransform, in metres.
+//   .tif / .tiff   with a geotransform (GeoTIFF): through GDAL as .img; without one, as above.
 //   .h5 / .hdf5    our own: dataset /terrain/elevation (Grid layout of h5io.h, units "m");
 //                  a canopy height file (/chm/height) is read when there is no terrain.
 //
-// Images carry no georeferencing we trust, so reading one needs cellSizeM (> 0) and takes
-// its lower-left corner from originX/originY. Every reader rejects NaN or infinite values
+// Plain images carry no georeferencing we trust, so reading one needs cellSizeM (> 0) and
+// takes its lower-left corner from originX/originY; a georeferenced raster takes both from
+// its geotransform (a cellSizeM given must agree). A terrain must have no nodata cells. Every reader rejects NaN or infinite values
 // and names the file and the first offending cell. Every writer is atomic (AtomicOutput).
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "grid.h"
@@ -35,6 +39,35 @@ struct TerrainReadOptions {
 /// Read a terrain (metres), dispatching on the extension. Throws IoError (unreadable,
 /// corrupt, non-finite value, unknown extension) or ValidationError (bad options).
 Grid<float> readTerrain(const std::string& path, const TerrainReadOptions& options = {});
+
+/// What becomes of the nodata cells of a canopy height model (lidar CHMs have gaps: no
+/// returns over water, at the survey's edge, in shadows).
+enum class ChmGapRule {
+    Fill,  ///< cells within fillMaxM of data take the mean of their data neighbours, grown ring by ring; the rest 0
+    Zero,  ///< every nodata cell is 0 (non-forest)
+    Fail,  ///< a nodata cell is an error
+};
+struct ChmReadOptions {
+    TerrainReadOptions raster;       ///< as for a terrain
+    ChmGapRule gaps = ChmGapRule::Fill;
+    double fillMaxM = 2.0;           ///< Fill: how far from data a gap is filled (m); farther cells are 0
+};
+/// A canopy height model as read, with what was repaired.
+struct ChmRead {
+    Grid<float> chm;                 ///< metres above ground, >= 0, no gaps
+    std::int64_t nodataCells = 0;    ///< cells the file marks as nodata
+    std::int64_t filledCells = 0;    ///< of those: filled from their neighbours
+    std::int64_t zeroedCells = 0;    ///< of those: set to 0 (non-forest)
+    std::int64_t negativeCells = 0;  ///< cells below 0 m, clamped to 0
+    double mostNegativeM = 0;        ///< the lowest of them
+    /// One line per repair ("CHM.tif: 120 nodata cells: 100 filled ..., 20 set to 0"), empty if none.
+    std::string summary(const std::string& path) const;
+};
+/// Read a canopy height model (any terrain format; nodata only from georeferenced rasters
+/// and .asc NODATA_value cells), apply the gap rule and clamp negative heights to 0.
+ChmRead readChm(const std::string& path, const ChmReadOptions& options = {});
+/// Parses "fill", "zero" or "fail" (ValidationError naming `what` otherwise).
+ChmGapRule parseChmGapRule(const std::string& text, const std::string& what);
 
 /// How to encode heights into images: stored = (z - verticalOffsetM) / verticalScale.
 /// PNG stores it as 16-bit clamped to [0, 1]; TIFF and EXR as float32.

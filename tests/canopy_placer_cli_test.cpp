@@ -9,9 +9,11 @@
 #include <sstream>
 
 #include "biome.h"
+#include "canopy_file.h"
 #include "canopy_placer.h"
 #include "error.h"
 #include "generate.h"
+#include "geotiff_fixture.h"
 #include "h5io.h"
 #include "rng.h"
 #include "species_map.h"
@@ -115,4 +117,55 @@ TEST_CASE("eco canopy rejects bad input with a clear error and a non-zero exit",
         CHECK_THAT(r.output, Catch::Contains("max_iteratons"));
     }
     CHECK_FALSE(std::ifstream(out).good());  // nothing written by a failed run
+}
+
+TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps filled, negatives clamped", "[canopy][cli][geo]") {
+    CliFiles f;
+    // The same terrain and CHM as GeoTIFFs with a UTM geotransform, the CHM with a nodata
+    // hole inside a crown and a few slightly negative cells (as lidar CHMs come).
+    const Grid<float> t = readTerrain(f.terrain), c = readTerrain(f.chm);
+    auto spec = [&](const Grid<float>& g, bool chm) {
+        test::GeoTiffSpec s;
+        s.width = g.width();
+        s.height = g.height();
+        s.geotransform[0] = 545000.0;
+        s.geotransform[1] = 1.0;
+        s.geotransform[3] = 4260000.0 + g.height();
+        s.geotransform[5] = -1.0;
+        s.hasNodata = chm;
+        s.nodata = -1.7e308;
+        s.type = GDT_Float64;
+        for (int row = 0; row < g.height(); ++row)
+            for (int ix = 0; ix < g.width(); ++ix) s.northFirst.push_back(g(ix, g.height() - 1 - row));
+        return s;
+    };
+    test::GeoTiffSpec cs = spec(c, true);
+    const std::size_t hole = static_cast<std::size_t>(c.height() - 1 - 11) * static_cast<std::size_t>(c.width()) + 10;  // (10, 11)
+    REQUIRE(cs.northFirst[hole] > 10);
+    cs.northFirst[hole] = -1.7e308;
+    cs.northFirst[0] = -0.2;
+    cs.northFirst[1] = -0.05;
+    const std::string dem = f.dir.file("dem.tif"), chm = f.dir.file("chm.tif"), out = f.dir.file("geo.h5");
+    test::writeGeoTiff(dem, spec(t, false));
+    test::writeGeoTiff(chm, cs);
+    const auto r = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --seed 5 --max-iterations 4");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("1 nodata cell(s): 1 filled") && Catch::Contains("2 cell(s) below 0 m (lowest -0.2 m) clamped to 0"));
+    const CanopyFileData d = readCanopyFile(out, defaultBiome());
+    REQUIRE(d.trees.size() >= 3);
+    for (const Plant& p : d.trees) {
+        CHECK(p.xM > 545000.0);
+        CHECK(p.xM < 545048.0);
+        CHECK(p.yM > 4260000.0);
+        CHECK(p.yM < 4260040.0);
+    }
+    CHECK(d.chmM(10, 11) > 10.0f);  // the hole filled from the crown around it
+
+    const auto fail = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --chm-gaps fail");
+    CHECK(fail.exitCode != 0);
+    CHECK_THAT(fail.output, Catch::Contains("column 10, row 11 from the lower left") && Catch::Contains("x = 545010.5 m, y = 4260011.5 m"));
+    const auto coarse = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + f.dir.file("c.h5") + " --chm-gaps bad");
+    CHECK(coarse.exitCode != 0);
+    CHECK_THAT(coarse.output, Catch::Contains("--chm-gaps") && Catch::Contains("'bad'"));
 }

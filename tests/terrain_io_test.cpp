@@ -207,15 +207,15 @@ TEST_CASE("terrain: NaN, infinity and NODATA in an .asc name the cell", "[terrai
     writeText(nan, head + "1 2 3\n4 nan 6\n");
     CHECK_THROWS_AS(eco::readTerrain(nan), eco::IoError);
     CHECK_THROWS_WITH(eco::readTerrain(nan), Catch::Contains(nan) && Catch::Contains("NaN") &&
-                                                 Catch::Contains("column 2, row 2"));
+                                                 Catch::Contains("column 1, row 0 from the lower left"));
     const std::string inf = dir.file("inf.asc");
     writeText(inf, head + "1 2 inf\n4 5 6\n");
     CHECK_THROWS_WITH(eco::readTerrain(inf), Catch::Contains(inf) && Catch::Contains("infinite") &&
-                                                 Catch::Contains("column 3, row 1"));
+                                                 Catch::Contains("column 2, row 1 from the lower left"));
     const std::string nodata = dir.file("nodata.asc");
     writeText(nodata, "ncols 3\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\n1 2 3\n-9999 5 6\n");
     CHECK_THROWS_WITH(eco::readTerrain(nodata), Catch::Contains(nodata) && Catch::Contains("NODATA") &&
-                                                    Catch::Contains("column 1, row 2"));
+                                                    Catch::Contains("column 0, row 0 from the lower left"));
     const std::string word = dir.file("word.asc");
     writeText(word, head + "1 2 3\n4 five 6\n");
     CHECK_THROWS_WITH(eco::readTerrain(word), Catch::Contains(word) && Catch::Contains("'five'") &&

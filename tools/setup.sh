@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 packages=(
   cmake g++ make pkg-config
   libeigen3-dev libhdf5-dev libopenimageio-dev openimageio-tools libflann-dev liblz4-dev
-  libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools
+  libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools libgdal-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -1,0 +1,136 @@
+// Georeferenced rasters through GDAL (geo_raster.h).
+#include "geo_raster.h"
+
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+#include <cpl_error.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "error.h"
+
+namespace eco {
+
+namespace {
+
+void registerGdal() {
+    static std::once_flag once;
+    std::call_once(once, [] { GDALAllRegister(); });
+}
+
+/// GDAL's messages go to our exceptions, not to stderr: quiet while a call runs.
+struct QuietGdal {
+    QuietGdal() {
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        CPLErrorReset();
+    }
+    ~QuietGdal() { CPLPopErrorHandler(); }
+    QuietGdal(const QuietGdal&) = delete;
+    QuietGdal& operator=(const QuietGdal&) = delete;
+};
+
+std::string lastGdalError() {
+    const char* m = CPLGetLastErrorMsg();
+    return m != nullptr && *m != '\0' ? std::string(": ") + m : std::string();
+}
+
+struct DatasetCloser {
+    void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
+};
+using Dataset = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+Dataset openRaster(const std::string& path) {
+    registerGdal();
+    return Dataset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+}
+
+}  // namespace
+
+bool hasGeotransform(const std::string& path) {
+    QuietGdal quiet;
+    const Dataset ds = openRaster(path);
+    if (!ds) return false;
+    double gt[6];
+    return ds->GetGeoTransform(gt) == CE_None;
+}
+
+GeoRaster readGeoRaster(const std::string& path) {
+    QuietGdal quiet;
+    const Dataset ds = openRaster(path);
+    if (!ds) throw IoError(path + ": cannot read as a raster (missing, unreadable or not a format GDAL reads)" + lastGdalError());
+    GeoRaster out;
+    out.driver = ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "";
+    const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+    if (w <= 0 || h <= 0 || ds->GetRasterCount() < 1) throw IoError(path + ": the raster has no cells or no band");
+    double gt[6];
+    if (ds->GetGeoTransform(gt) != CE_None)
+        throw ValidationError(path + ": no georeferencing (geotransform) in the file; give the cell size with --cell-size "
+                              "or georeference it (gdal_translate -a_ullr ... -a_srs ...)");
+    if (gt[2] != 0.0 || gt[4] != 0.0)
+        throw ValidationError(path + ": the raster is rotated (geotransform terms " + formatNumber(gt[2]) + ", " +
+                              formatNumber(gt[4]) + "); make it north-up first: gdalwarp IN OUT");
+    const double cw = gt[1], chAbs = std::abs(gt[5]);
+    if (!(cw > 0) || !(chAbs > 0) || !std::isfinite(cw) || !std::isfinite(chAbs))
+        throw ValidationError(path + ": invalid cell size in the geotransform (" + formatNumber(cw) + " x " + formatNumber(gt[5]) + ")");
+    if (std::abs(cw - chAbs) > 1e-9 * cw)
+        throw ValidationError(path + ": cells are not square (" + formatNumber(cw, 10) + " x " + formatNumber(chAbs, 10) +
+                              "); resample them: gdalwarp -tr " + formatNumber(cw, 10) + " " + formatNumber(cw, 10) + " IN OUT");
+    if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
+        char* wkt = nullptr;
+        if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out.crsWkt = wkt;
+        CPLFree(wkt);
+        if (const char* name = srs->GetName()) out.crsName = name;
+        if (srs->IsGeographic())
+            throw ValidationError(path + ": the raster is in a geographic CRS (" + out.crsName +
+                                  ", cells in degrees); reproject it to a projected CRS in metres, e.g. gdalwarp -t_srs "
+                                  "EPSG:<UTM zone> IN OUT");
+        if (srs->IsProjected()) {
+            const double toMetres = srs->GetLinearUnits();
+            if (std::abs(toMetres - 1.0) > 1e-9)
+                throw ValidationError(path + ": the CRS's unit is not the metre (1 unit = " + formatNumber(toMetres, 10) +
+                                      " m); reproject it to a CRS in metres with gdalwarp -t_srs");
+        }
+    }
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    std::vector<double> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    if (band->RasterIO(GF_Read, 0, 0, w, h, px.data(), w, h, GDT_Float64, 0, 0) != CE_None)
+        throw IoError(path + ": cannot read the raster's cells (corrupt or truncated file?)" + lastGdalError());
+    // Nodata: the band's mask (nodata value, alpha or an explicit mask); 0 = nodata.
+    std::vector<std::uint8_t> valid;
+    if ((band->GetMaskFlags() & GMF_ALL_VALID) == 0) {
+        valid.resize(px.size());
+        if (band->GetMaskBand()->RasterIO(GF_Read, 0, 0, w, h, valid.data(), w, h, GDT_Byte, 0, 0) != CE_None)
+            throw IoError(path + ": cannot read the raster's nodata mask" + lastGdalError());
+    }
+    int hasScale = 0, hasOffset = 0;
+    double scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
+    if (!hasScale) scale = 1;
+    if (!hasOffset) offset = 0;
+    const bool northUp = gt[5] < 0;
+    const double originY = northUp ? gt[3] + gt[5] * h : gt[3];
+    out.grid = Grid<float>(w, h, cw, gt[0], originY);
+    for (int row = 0; row < h; ++row) {
+        const int iy = northUp ? h - 1 - row : row;
+        for (int ix = 0; ix < w; ++ix) {
+            const std::size_t i = static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix);
+            if (!valid.empty() && valid[i] == 0) {
+                out.grid(ix, iy) = std::numeric_limits<float>::quiet_NaN();
+                ++out.nodataCells;
+                continue;
+            }
+            const double v = px[i] * scale + offset;
+            if (!std::isfinite(v) || std::abs(v) > 1e30)
+                throw IoError(path + ": " + (std::isnan(v) ? "NaN" : "non-finite or huge") + " value " + formatNumber(v) + " at " +
+                              cellText(out.grid, ix, iy) + " that the file does not mark as nodata; set its nodata value "
+                              "(gdal_edit.py -a_nodata VALUE)");
+            out.grid(ix, iy) = static_cast<float>(v);
+        }
+    }
+    return out;
+}
+
+}  // namespace eco

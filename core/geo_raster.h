@@ -1,0 +1,48 @@
+// Georeferenced rasters through GDAL (GeoTIFF, ERDAS IMG, VRT and every other format GDAL
+// reads): band 1 with its geotransform, coordinate reference system, nodata mask and
+// scale/offset. terrain_io.h dispatches georeferenced files here; this header is for the
+// callers that need the nodata cells or the CRS (a canopy height model with gaps).
+//
+// Geometry: the grid's lower-left corner and cell size come from the geotransform, which
+// must be north-up (no rotation terms) with square cells in metres: a raster in a
+// geographic CRS (degrees), in feet, rotated or with rectangular cells is refused with the
+// gdalwarp command that fixes it. Rows are stored south-first (grid.h) whatever the file's
+// order.
+//
+// Cell positions in messages follow one convention everywhere (cellText): column and row
+// from the LOWER-LEFT corner, 0-based, and the world x, y of the cell centre.
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "grid.h"
+#include "text_format.h"
+
+namespace eco {
+
+/// One band of a georeferenced raster.
+struct GeoRaster {
+    Grid<float> grid;               ///< values with the band's scale/offset applied; NaN where nodata
+    std::int64_t nodataCells = 0;   ///< cells the band's mask marks as nodata (NaN in grid)
+    std::string crsWkt;             ///< the CRS as WKT; empty when the file has none
+    std::string crsName;            ///< e.g. "WGS 84 / UTM zone 10N"; empty when none
+    std::string driver;             ///< GDAL's short name of the format, e.g. "GTiff"
+};
+
+/// True when GDAL opens the file and finds a geotransform in it (false for a plain image,
+/// or a file GDAL cannot open).
+bool hasGeotransform(const std::string& path);
+
+/// Band 1 of a georeferenced raster. Throws IoError (unreadable, not a raster, corrupt)
+/// or ValidationError (no geotransform, rotated, non-square cells, degrees or feet, ...),
+/// each naming the file.
+GeoRaster readGeoRaster(const std::string& path);
+
+/// "column 3, row 7 from the lower left (0-based; x = 512.5 m, y = 1030 m)".
+template <typename T>
+std::string cellText(const Grid<T>& g, int ix, int iy) {
+    return "column " + std::to_string(ix) + ", row " + std::to_string(iy) + " from the lower left (0-based; x = " +
+           formatNumber(g.cellCentreX(ix), 10) + " m, y = " + formatNumber(g.cellCentreY(iy), 10) + " m)";
+}
+
+}  // namespace eco
