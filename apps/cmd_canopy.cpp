@@ -1,5 +1,6 @@
 // eco canopy: parsing, progress and reporting only; the science is in synth/species_map and
 // synth/canopy_placer (docs/canopy.md).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -57,18 +58,25 @@ void checkInputs(const Grid<float>& terrain, const std::string& terrainPath, con
                                       ") (column, row from the south); a CHM holds heights above the ground");
 }
 
-/// Crowns narrower than two cells cannot be placed on the CHM: a warning names the
-/// smallest crown of the biome at the canopy threshold and the cell size.
+/// Crowns narrower than two cells cannot be placed on the CHM: a warning when the crown of
+/// the median forested height (the smallest of the canopy species' at that height) is
+/// narrower than two cells.
 void warnIfCoarse(const Grid<float>& chm, const Biome& biome, double thresholdM, const std::string& chmPath) {
+    std::vector<float> forested;
+    for (const float v : chm.data())
+        if (v >= thresholdM) forested.push_back(v);
+    if (forested.empty()) return;
+    std::nth_element(forested.begin(), forested.begin() + static_cast<std::ptrdiff_t>(forested.size() / 2), forested.end());
+    const double median = forested[forested.size() / 2];
     double smallest = 0;
     for (const Species& s : biome.species)
-        if (s.maxHeightM >= thresholdM) {
-            const double r = s.allometry.crownRadiusM(thresholdM);
+        if (s.canopy) {
+            const double r = s.allometry.crownRadiusM(median);
             if (r > 0 && (smallest == 0 || r < smallest)) smallest = r;
         }
     if (smallest > 0 && chm.cellSizeM() > smallest)
-        info("warning: " + chmPath + ": cells of " + num(chm.cellSizeM()) + " m are coarser than the smallest canopy crown radius (" +
-             num(smallest, 3) + " m at " + num(thresholdM) + " m tall): crowns narrower than two cells cannot be resolved; "
+        info("warning: " + chmPath + ": cells of " + num(chm.cellSizeM()) + " m are coarser than the crown radius of a canopy tree of the median height (" +
+             num(smallest, 3) + " m at " + num(median, 3) + " m): crowns narrower than two cells cannot be resolved; "
              "a CHM of about 1 m cells or finer is expected (gdalwarp -tr 1 1 -r bilinear IN OUT)");
 }
 

@@ -346,6 +346,7 @@ struct Tree {
     double radiusM;  ///< crown radius
     std::int32_t species;
     std::uint64_t uid;  ///< creation order; keys the tree's random stream
+    bool apex = false;  ///< seeded at a CHM maximum: stays there, at the CHM's height
 };
 
 /// Read-only lookups of the placer: CHM heights, species, crown radii.
@@ -469,6 +470,7 @@ std::vector<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
         double height = scene.heightAt(x, y);
         if (height < c) height = c;  // the maximum cell is a lower bound of the apex
         trees[static_cast<std::size_t>(k)] = scene.makeTree(x, y, height, static_cast<std::uint64_t>(k));
+        trees[static_cast<std::size_t>(k)].apex = p.anchorApexTrees != 0;
     }
     return trees;
 }
@@ -535,6 +537,13 @@ const std::vector<CanopyParamField>& canopyParamFields() {
         {"move_factor", "fraction of the way to the centroid of the visible crown moved per iteration", K::Real,
          &CanopyParams::moveFactor, nullptr},
         {"ring_samples", "candidate new trees per tree and iteration", K::Integer, nullptr, &CanopyParams::ringSamples},
+        {"support_bump_factor",
+         "an added tree needs a bump of its own: its cell this many crown radii above its ring at half a radius (0: none)",
+         K::Real, &CanopyParams::supportBumpFactor, nullptr},
+        {"anchor_apex_trees", "1: trees seeded at CHM maxima stay there at the CHM's height; 0: they move like added trees",
+         K::Integer, nullptr, &CanopyParams::anchorApexTrees},
+        {"keep_best_state", "1: end in the state of highest coverage; 0: in the last state", K::Integer, nullptr,
+         &CanopyParams::keepBestState},
         {"ring_factor", "ring radius = ring_factor * (r_i + r_new)", K::Real, &CanopyParams::ringFactor, nullptr},
         {"min_trunk_distance_m", "duplicates: trunks closer than this (m)", K::Real, &CanopyParams::minTrunkDistanceM,
          nullptr},
@@ -592,6 +601,10 @@ void validateCanopyParams(const CanopyParams& p) {
     if (p.maxIterations < 0 || p.maxIterations > 100000) fail("max_iterations", "must lie in [0, 100000]", p.maxIterations);
     if (!std::isfinite(p.moveFactor) || p.moveFactor < 0 || p.moveFactor > 1) fail("move_factor", "must lie in [0, 1]", p.moveFactor);
     if (p.ringSamples < 0 || p.ringSamples > 1024) fail("ring_samples", "must lie in [0, 1024]", p.ringSamples);
+    if (!std::isfinite(p.supportBumpFactor) || p.supportBumpFactor < 0 || p.supportBumpFactor > 10)
+        fail("support_bump_factor", "must lie in [0, 10]", p.supportBumpFactor);
+    if (p.anchorApexTrees != 0 && p.anchorApexTrees != 1) fail("anchor_apex_trees", "must be 0 or 1", p.anchorApexTrees);
+    if (p.keepBestState != 0 && p.keepBestState != 1) fail("keep_best_state", "must be 0 or 1", p.keepBestState);
     if (!std::isfinite(p.ringFactor) || p.ringFactor <= 0 || p.ringFactor > 10) fail("ring_factor", "must lie in (0, 10]", p.ringFactor);
     if (!std::isfinite(p.minTrunkDistanceM) || p.minTrunkDistanceM < 0)
         fail("min_trunk_distance_m", "must be >= 0", p.minTrunkDistanceM);
@@ -704,6 +717,10 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     }
 
     result.stopReason = params.maxIterations == 0 ? "iteration cap" : "";
+    // The best state so far (highest coverage; the stop rule returns to it when the last
+    // iterations lost coverage).
+    std::vector<Tree> bestTrees = trees;
+    std::size_t bestIteration = 0;
     for (int it = 1; it <= params.maxIterations; ++it) {
         tIter = Clock::now();
         IterationStats s;
@@ -723,6 +740,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(next.size()); ++k) {
             Tree& tr = next[static_cast<std::size_t>(k)];
+            if (tr.apex) continue;  // at its CHM maximum already
             const std::size_t t = from[static_cast<std::size_t>(k)];
             const std::int64_t n = vis.visible[t];
             if (n <= 0) continue;
@@ -744,6 +762,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             const int K = params.ringSamples;
             std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
             for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
+            double ring8[8][2];
+            for (int k = 0; k < 8; ++k) ring8[k][0] = std::cos(kTwoPi * k / 8), ring8[k][1] = std::sin(kTwoPi * k / 8);
             // One slot per (tree, direction): a flag array (cleared each iteration) and tree
             // slots that are only written when valid, kept across iterations.
             candValid.assign(trees.size() * static_cast<std::size_t>(K), 0);
@@ -770,12 +790,43 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     const double gh = scene.heightAt(gx, gy);
                     const double rNew = gh >= params.minSeedHeightM ? scene.radiusFor(scene.speciesAt(gx, gy), gh) : tr.radiusM;
                     const double d = params.ringFactor * (tr.radiusM + rNew);
-                    const double x = tr.x + d * ux, y = tr.y + d * uy;
-                    if (!scene.inside(x, y)) continue;
-                    const std::size_t ci = scene.cellIndex(x, y);
+                    const double x0 = tr.x + d * ux, y0 = tr.y + d * uy;
+                    if (!scene.inside(x0, y0)) continue;
+                    const std::size_t ci = scene.cellIndex(x0, y0);
                     if (!vis.open[ci]) continue;
-                    const double hNew = scene.heightAt(x, y);
+                    double hNew = scene.heightAt(x0, y0);
                     if (hNew < params.minSeedHeightM) continue;
+                    double x = x0, y = y0;
+                    if (params.supportBumpFactor > 0) {
+                        // Support: a crown of its own in the CHM. The cell within r_new / 2
+                        // that stands highest above the mean of its ring at r_new / 2 (a bump
+                        // whatever the slope it sits on) takes the tree, if it stands at
+                        // least supportBumpFactor x r_new above that ring and is uncovered.
+                        const Grid<float>& chm = scene.chm();
+                        const double rr = scene.radiusFor(scene.speciesAt(x, y), hNew);
+                        const int reach = std::max(1, static_cast<int>(std::lround(0.5 * rr / cell)));
+                        const int cx0 = chm.cellX(x), cy0 = chm.cellY(y);
+                        double bestBump = -1e300;
+                        int bx = cx0, by = cy0;
+                        for (int dy = -reach; dy <= reach; ++dy)
+                            for (int dx = -reach; dx <= reach; ++dx) {
+                                if (dx * dx + dy * dy > reach * reach) continue;
+                                const int ix = cx0 + dx, iy = cy0 + dy;
+                                if (!chm.inside(ix, iy)) continue;
+                                double ringSum = 0;
+                                for (int k = 0; k < 8; ++k)
+                                    ringSum += chm.clamped(ix + static_cast<int>(std::lround(reach * ring8[k][0])),
+                                                           iy + static_cast<int>(std::lround(reach * ring8[k][1])));
+                                const double bump = chm(ix, iy) - ringSum / 8.0;
+                                if (bump > bestBump) bestBump = bump, bx = ix, by = iy;
+                            }
+                        if (!(bestBump >= params.supportBumpFactor * rr)) continue;
+                        x = chm.cellCentreX(bx);
+                        y = chm.cellCentreY(by);
+                        if (!vis.open[scene.cellIndex(x, y)]) continue;
+                        hNew = scene.heightAt(x, y);
+                        if (hNew < params.minSeedHeightM) continue;
+                    }
                     const bool inCrown = grid.any(x, y, maxRadius, [&](std::int32_t j) {
                         const Tree& o = trees[static_cast<std::size_t>(j)];
                         const double dx = o.x - x, dy = o.y - y;
@@ -815,6 +866,10 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         const double gain = s.coverage - result.iterations.back().coverage;
         result.iterations.push_back(s);
         if (progress) progress(s);
+        if (s.coverage > result.iterations[bestIteration].coverage) {
+            bestTrees = trees;
+            bestIteration = result.iterations.size() - 1;
+        }
         if (gain < params.coverageEpsilon) {
             result.stopReason = "coverage gain " + num(gain) + " below epsilon " + num(params.coverageEpsilon);
             break;
@@ -822,6 +877,12 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         if (it == params.maxIterations) result.stopReason = "iteration cap (" + std::to_string(it) + ")";
     }
 
+    if (params.keepBestState != 0 && bestIteration + 1 != result.iterations.size()) {
+        trees = bestTrees;
+        renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+        result.stopReason += "; back to iteration " + std::to_string(result.iterations[bestIteration].iteration) +
+                             " (coverage " + num(result.iterations[bestIteration].coverage) + ")";
+    }
     // Final clean-up: starved trees of the last render, then duplicates, tallest first.
     tIter = Clock::now();
     IterationStats fin;

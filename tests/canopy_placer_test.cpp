@@ -345,3 +345,42 @@ TEST_CASE("canopy files round-trip", "[canopy]") {
     CHECK(readTerrain(dir.file("c.h5")).data() == rec.terrainM.data());
     CHECK_THROWS_WITH(readCanopyFile(dir.file("missing.h5"), b), Catch::Contains("missing.h5"));
 }
+
+TEST_CASE("apex trees stay at their CHM maximum with its height; the best state is kept", "[canopy]") {
+    const Biome b = defaultBiome();
+    int df = -1;
+    for (const Species& s : b.species)
+        if (s.name == "Douglas-Fir") df = s.id;
+    REQUIRE(df >= 0);
+    // Two overlapping crowns of different heights: the lower tree's visible crown is a
+    // crescent whose centroid lies away from its apex, so the paper's move pulls it off.
+    Grid<float> chm(80, 80, 0.5, 0, 0, 0.f);
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    const std::vector<GeneratedTree> trees = {{20.0, 20.0, 30.0, a.crownRadiusM(30)}, {20.0 + 1.3 * a.crownRadiusM(30), 20.3, 27.0, a.crownRadiusM(27)}};
+    rasterizeCrowns(trees, chm);
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    CanopyParams p;
+    p.ringSamples = 0;
+    p.maxIterations = 5;
+    p.coverageEpsilon = 0;
+    const CanopyResult anchored = placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    INFO("seeds " << anchored.initialSeeds << ", duplicates " << anchored.duplicatesRemoved << ", final removed " << anchored.final.removed);
+    REQUIRE(anchored.trees.size() == 2);
+    for (const GeneratedTree& t : trees) CHECK(nearestDistance(anchored.trees, t.x, t.y) < 0.3);
+    for (const Plant& t : anchored.trees) CHECK(std::abs(t.heightM - chm(chm.cellX(t.xM), chm.cellY(t.yM))) < 0.3);
+    p.anchorApexTrees = 0;
+    p.keepBestState = 0;
+    const CanopyResult moved = placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    REQUIRE(moved.trees.size() == 2);
+    CHECK(nearestDistance(moved.trees, trees[1].x, trees[1].y) > 0.3);  // the paper's move: off the apex
+
+    // Keep-best: the coverage of the returned state is the best of the iterations.
+    const SyntheticForest f = syntheticForest(b, df);
+    CanopyParams q;
+    q.coverageEpsilon = 0;  // stop only when an iteration loses coverage
+    q.maxIterations = 8;
+    const CanopyResult r = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, df), b, q);
+    double best = 0;
+    for (const IterationStats& s : r.iterations) best = std::max(best, s.coverage);
+    CHECK(r.final.coverage >= best - 0.01);  // the final clean-up may drop a starved tree or two
+}
