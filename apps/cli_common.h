@@ -1,5 +1,6 @@
 // Shared pieces of the command-line front end: registration of subcommands, progress
-// reporting. No science here.
+// reporting (the stages' Reporter on the terminal). No science and no workflows here: the
+// stages and the pipeline run are in pipeline/, the fidelity protocol in validate/.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -39,9 +40,6 @@ struct ExitStatus {
 
 /// The whole command line, every subcommand registered.
 std::unique_ptr<CLI::App> makeApp();
-/// Run one eco command in this process, e.g. {"abiotics", "--terrain", "t.h5", ...}, as if
-/// typed; eco::Error from the command propagates, a parse error becomes ValidationError.
-void runCommand(const std::vector<std::string>& args);
 
 /// Progress on stderr: a bar redrawn in place on a terminal, a line per 10 % otherwise
 /// (CI logs). Thread-safe only when called from one thread.

@@ -16,6 +16,8 @@ struct SynthArgs {
     std::string method = "structured";
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     CLI::Option *methodOpt = nullptr, *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
+    RefineParams refine;  // the --refine-* values (defaults shown in --help)
+    CLI::Option *sweepsOpt = nullptr, *rMaxOpt = nullptr, *moveOpt = nullptr, *swapOpt = nullptr;
 };
 
 void runSynth(SynthArgs& a) {
@@ -24,6 +26,10 @@ void runSynth(SynthArgs& a) {
     if (a.cellOpt->count()) o.terrainRead.cellSizeM = a.cellSizeM;
     if (a.scaleOpt->count()) o.terrainRead.verticalScale = a.verticalScale;
     if (a.offsetOpt->count()) o.terrainRead.verticalOffsetM = a.verticalOffsetM;
+    if (a.sweepsOpt->count()) o.refineSweeps = a.refine.sweeps;
+    if (a.rMaxOpt->count()) o.refineRMaxM = a.refine.rMaxM;
+    if (a.moveOpt->count()) o.refineMoveRadiusM = a.refine.moveRadiusM;
+    if (a.swapOpt->count()) o.refineSwapRadiusM = a.refine.swapRadiusM;
     CliReporter reporter;
     pipeline::synthStage(o, reporter);
 }
@@ -45,10 +51,10 @@ void registerSynthCommand(CLI::App& app) {
                     "Abiotics file from 'eco abiotics' for this terrain (default: computed with default parameters)");
     CLI::Option* refine = cmd->add_flag(
         "--refine", a->refine, "Refine the undergrowth towards the database's pair correlation (slow; canopy never moves)");
-    cmd->add_option("--refine-sweeps", a->refineParams.sweeps, "Refinement: proposals per plant")
+    args->sweepsOpt = cmd->add_option("--refine-sweeps", args->refine.sweeps, "Refinement: proposals per plant")
         ->capture_default_str()
         ->needs(refine);
-    cmd->add_option("--refine-rmax", a->refineParams.rMaxM,
+    args->rMaxOpt = cmd->add_option("--refine-rmax", args->refine.rMaxM,
                     "Refinement: match pair correlation up to this distance, m (0 = automatic, about 400 neighbours "
                     "in the densest region)")
         ->capture_default_str()
@@ -56,10 +62,10 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--refine-window", a->refineWindow,
                     "Refinement: only inside x0,y0,x1,y1 (metres); the rest of the undergrowth stays as sampled")
         ->needs(refine);
-    cmd->add_option("--refine-move", a->refineParams.moveRadiusM, "Refinement: displacement radius, m")
+    args->moveOpt = cmd->add_option("--refine-move", args->refine.moveRadiusM, "Refinement: displacement radius, m")
         ->capture_default_str()
         ->needs(refine);
-    cmd->add_option("--refine-swap", a->refineParams.swapRadiusM, "Refinement: swap partner radius, m")
+    args->swapOpt = cmd->add_option("--refine-swap", args->refine.swapRadiusM, "Refinement: swap partner radius, m")
         ->capture_default_str()
         ->needs(refine);
     cmd->add_option("--png", a->pngDir,

@@ -34,7 +34,11 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     SynthParams params = a.params;
     params.method = parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
-    RefineParams refineParams = a.refineParams;
+    RefineParams refineParams;
+    if (a.refineSweeps) refineParams.sweeps = *a.refineSweeps;
+    if (a.refineRMaxM) refineParams.rMaxM = *a.refineRMaxM;
+    if (a.refineMoveRadiusM) refineParams.moveRadiusM = *a.refineMoveRadiusM;
+    if (a.refineSwapRadiusM) refineParams.swapRadiusM = *a.refineSwapRadiusM;
     refineParams.seed = params.seed;
     if (!a.refineWindow.empty()) {
         refineParams.useWindow = true;
@@ -273,14 +277,10 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (a.refine) {
         args.push_back("--refine");
         if (!a.refineWindow.empty()) args.insert(args.end(), {"--refine-window", a.refineWindow});
-        const RefineParams refineDefaults;
-        if (a.refineParams.sweeps != refineDefaults.sweeps)
-            args.insert(args.end(), {"--refine-sweeps", std::to_string(a.refineParams.sweeps)});
-        if (a.refineParams.rMaxM != refineDefaults.rMaxM) args.insert(args.end(), {"--refine-rmax", argNumber(a.refineParams.rMaxM)});
-        if (a.refineParams.moveRadiusM != refineDefaults.moveRadiusM)
-            args.insert(args.end(), {"--refine-move", argNumber(a.refineParams.moveRadiusM)});
-        if (a.refineParams.swapRadiusM != refineDefaults.swapRadiusM)
-            args.insert(args.end(), {"--refine-swap", argNumber(a.refineParams.swapRadiusM)});
+        if (a.refineSweeps) args.insert(args.end(), {"--refine-sweeps", std::to_string(*a.refineSweeps)});
+        if (a.refineRMaxM) args.insert(args.end(), {"--refine-rmax", argNumber(*a.refineRMaxM)});
+        if (a.refineMoveRadiusM) args.insert(args.end(), {"--refine-move", argNumber(*a.refineMoveRadiusM)});
+        if (a.refineSwapRadiusM) args.insert(args.end(), {"--refine-swap", argNumber(*a.refineSwapRadiusM)});
     }
     return args;
 }

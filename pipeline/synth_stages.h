@@ -26,7 +26,9 @@ struct SynthOptions {
     TerrainReadFlags terrainRead;
     bool refine = false;
     SynthParams params;  ///< params.method is set from `method`
-    RefineParams refineParams;  ///< refineParams.seed is set from params.seed
+    // Overrides of RefineParams (unset: the defaults); its seed is params.seed.
+    std::optional<int> refineSweeps;
+    std::optional<double> refineRMaxM, refineMoveRadiusM, refineSwapRadiusM;
     ForestFloorParams floorParams;
     bool noUndergrowthShade = false;  ///< only canopy crowns shade the forest floor
 };
