@@ -1,10 +1,13 @@
 #include "cli_common.h"
 
 #include "error.h"
+#include "simulator.h"
 
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -71,69 +74,78 @@ const CLI::Validator& nonNegativeNumber() {
     return v;
 }
 
-void AbioticsProgress::operator()(const std::string& stage, double fraction) {
-    if (stage != stage_) {
-        if (bar_) bar_->finish();
-        bar_ = std::make_unique<Progress>("abiotics " + stage, 1000);
-        stage_ = stage;
+namespace {
+
+std::atomic<bool> gStop{false};
+extern "C" void onStopSignal(int) { gStop = true; }
+
+// Progress line: year, plants alive, plant-months per second, time left. Installs the
+// SIGINT / SIGTERM handlers while it lives (a stop request ends the run after the year).
+class SimProgress : public pipeline::SimulationProgress {
+public:
+    explicit SimProgress(int totalYears) : total_(totalYears), tty_(::isatty(STDERR_FILENO) != 0) {
+        gStop = false;
+        previousInt_ = std::signal(SIGINT, onStopSignal);
+        previousTerm_ = std::signal(SIGTERM, onStopSignal);
     }
-    bar_->update(static_cast<long>(fraction * 1000.0 + 0.5));
-}
-
-void AbioticsProgress::finish() {
-    if (bar_) bar_->finish();
-    bar_.reset();
-}
-
-Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
-                            const std::string& terrainPath, const Biome& biome, const std::string& note) {
-    if (!abioticsPath.empty()) {
-        Abiotics abiotics = readAbiotics(abioticsPath);
-        if (!abiotics.slopeDeg.sameGeometry(terrain))
-            throw ValidationError("abiotics '" + abioticsPath + "' (" + abiotics.slopeDeg.geometryText() +
-                                  ") and terrain '" + terrainPath + "' (" + terrain.geometryText() +
-                                  ") differ in geometry");
-        info("abiotics: " + abioticsPath);
-        return abiotics;
+    ~SimProgress() override {
+        std::signal(SIGINT, previousInt_);
+        std::signal(SIGTERM, previousTerm_);
     }
-    info("no --abiotics: computing the abiotic maps from the terrain with default parameters (" + note + ")");
-    validateElevation(terrain, terrainPath);
-    AbioticsProgress progress;
-    Abiotics abiotics = computeAbiotics(terrain, biome, AbioticParams{},
-                                        [&](const std::string& s, double f) { progress(s, f); });
-    progress.finish();
-    return abiotics;
-}
-
-/// "x0,y0,x1,y1" (or "x,y,side" for a square when `allowSquare`) in metres.
-RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare) {
-    std::vector<double> v;
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-        std::size_t used = 0;
-        double d = 0;
-        try {
-            d = std::stod(item, &used);
-        } catch (const std::exception&) {
-            used = 0;
+    SimProgress(const SimProgress&) = delete;
+    SimProgress& operator=(const SimProgress&) = delete;
+    void update(const sim::Simulation& s) override {
+        const auto now = std::chrono::steady_clock::now();
+        if (!started_) {
+            started_ = true;
+            start_ = now;
+            startYear_ = s.yearsDone();
+            startPlantMonths_ = s.counters().plantMonths;
         }
-        if (used == 0 || item.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(d))
-            throw ValidationError(option + " '" + text + "': '" + item + "' is not a number");
-        v.push_back(d);
+        const double elapsed = std::chrono::duration<double>(now - start_).count();
+        const int year = s.yearsDone();
+        const double rate = elapsed > 0 ? static_cast<double>(s.counters().plantMonths - startPlantMonths_) / elapsed : 0.0;
+        const int doneHere = year - startYear_;
+        const double left = doneHere > 0 ? elapsed / doneHere * (total_ - year) : 0.0;
+        const int filled = total_ > 0 ? std::min(20, 20 * year / total_) : 20;
+        const std::string bar = std::string(static_cast<std::size_t>(filled), '#') + std::string(static_cast<std::size_t>(20 - filled), '.');
+        char line[256];
+        std::snprintf(line, sizeof line, "simulate [%s] year %d/%d  plants %zu  %.2fM plant-months/s  ~%.0fs left", bar.c_str(),
+                      year, total_, s.plantCount(), rate / 1e6, left);
+        if (tty_) {
+            std::fprintf(stderr, "\r\033[K%s", line);
+        } else if (year == total_ || elapsed - lastPrint_ >= 5.0 || year == startYear_) {
+            std::fprintf(stderr, "%s\n", line);
+            lastPrint_ = elapsed;
+        }
+        std::fflush(stderr);
     }
-    RectWindow w;
-    if (allowSquare && v.size() == 3) {
-        if (!(v[2] > 0)) throw ValidationError(option + " '" + text + "': the side must be positive");
-        w = RectWindow{v[0] - 0.5 * v[2], v[1] - 0.5 * v[2], v[0] + 0.5 * v[2], v[1] + 0.5 * v[2]};
-    } else if (v.size() == 4) {
-        w = RectWindow{v[0], v[1], v[2], v[3]};
-    } else {
-        throw ValidationError(option + " '" + text + "': expected " +
-                              (allowSquare ? std::string("x_centre,y_centre,side or ") : std::string()) + "x0,y0,x1,y1 in metres");
+    void finish() override {
+        if (tty_ && started_) std::fprintf(stderr, "\n");
     }
-    w.validate(option);
-    return w;
+
+private:
+    int total_;
+    bool tty_;
+    bool started_ = false;
+    std::chrono::steady_clock::time_point start_;
+    int startYear_ = 0;
+    long long startPlantMonths_ = 0;
+    double lastPrint_ = -1e9;
+    void (*previousInt_)(int) = SIG_DFL;
+    void (*previousTerm_)(int) = SIG_DFL;
+};
+
+}  // namespace
+
+std::ostream& CliReporter::out() { return std::cout; }
+void CliReporter::info(const std::string& line) { cli::info(line); }
+std::unique_ptr<pipeline::ProgressBar> CliReporter::progress(const std::string& label, long total) {
+    return std::make_unique<Progress>(label, total);
 }
+std::unique_ptr<pipeline::SimulationProgress> CliReporter::simulationProgress(int totalYears) {
+    return std::make_unique<SimProgress>(totalYears);
+}
+bool CliReporter::stopRequested() { return gStop.load(); }
 
 }  // namespace eco::cli

@@ -1,5 +1,6 @@
 // Shared pieces of the command-line front end: registration of subcommands, progress
-// reporting. No science here.
+// reporting (the stages' Reporter on the terminal). No science and no workflows here: the
+// stages and the pipeline run are in pipeline/, the fidelity protocol in validate/.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -9,10 +10,9 @@
 #include <vector>
 #include <string>
 
-#include "abiotics.h"
-#include "biome.h"
-#include "grid.h"
 #include "point_pattern.h"
+#include "reporter.h"
+#include "stage_common.h"
 
 namespace eco::cli {
 
@@ -40,19 +40,16 @@ struct ExitStatus {
 
 /// The whole command line, every subcommand registered.
 std::unique_ptr<CLI::App> makeApp();
-/// Run one eco command in this process, e.g. {"abiotics", "--terrain", "t.h5", ...}, as if
-/// typed; eco::Error from the command propagates, a parse error becomes ValidationError.
-void runCommand(const std::vector<std::string>& args);
 
 /// Progress on stderr: a bar redrawn in place on a terminal, a line per 10 % otherwise
 /// (CI logs). Thread-safe only when called from one thread.
-class Progress {
+class Progress : public pipeline::ProgressBar {
 public:
     Progress(std::string label, long total);
     /// Report that `done` of `total` units are complete.
-    void update(long done);
+    void update(long done) override;
     /// Final line with the elapsed time.
-    void finish();
+    void finish() override;
 
 private:
     std::string label_;
@@ -71,26 +68,18 @@ const CLI::Validator& nonNegativeNumber();
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);
 
-/// Progress of computeAbiotics: one bar per stage ("abiotics sun", ...).
-class AbioticsProgress {
+/// The command line's Reporter: results on stdout, information on stderr, Progress bars,
+/// the simulation's year line, and SIGINT / SIGTERM during a simulation as a stop request.
+class CliReporter : public pipeline::Reporter {
 public:
-    void operator()(const std::string& stage, double fraction);
-    /// Close the last bar.
-    void finish();
-
-private:
-    std::unique_ptr<Progress> bar_;
-    std::string stage_;
+    std::ostream& out() override;
+    void info(const std::string& line) override;
+    std::unique_ptr<pipeline::ProgressBar> progress(const std::string& label, long total) override;
+    std::unique_ptr<pipeline::SimulationProgress> simulationProgress(int totalYears) override;
+    bool stopRequested() override;
 };
 
-/// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
-/// terrain's geometry, or, when the path is empty, computed with default parameters (as
-/// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.
-Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
-                            const std::string& terrainPath, const Biome& biome, const std::string& note);
-
-/// A window "x0,y0,x1,y1" in metres (or "x,y,side", a square around (x, y), when
-/// allowSquare). ValidationError naming the option, the text and the part that is wrong.
-RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare = false);
+/// "x0,y0,x1,y1" windows as the stages read them.
+using pipeline::parseWindow;
 
 }  // namespace eco::cli

@@ -39,18 +39,6 @@ std::unique_ptr<CLI::App> makeApp() {
     return app;
 }
 
-void runCommand(const std::vector<std::string>& args) {
-    auto app = makeApp();
-    std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them reversed
-    try {
-        app->parse(reversed);
-    } catch (const CLI::ParseError& e) {
-        std::string line;
-        for (const auto& a : args) line += " " + a;
-        throw ValidationError("eco" + line + ": " + e.what());
-    }
-}
-
 }  // namespace eco::cli
 
 int main(int argc, char** argv) {

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "chart.h"
 #include "eco_version.h"
 #include "error.h"
 #include "h5io.h"
@@ -560,24 +561,32 @@ void writeComparisonPng(const std::string& path, const SceneComparison& c, const
         for (double v : gs) gMax = std::max(gMax, v);
         gMax = std::min(gMax, 10.0);
         const int px0 = ox + 45, px1 = ox + panelW - 15, py0 = oy + 40, py1 = oy + panelH - 35;
-        auto X = [&](double r) { return px0 + (px1 - px0) * r / db.pcfBins.rMaxM; };
-        auto Y = [&](double g) { return py1 - (py1 - py0) * std::min(g, gMax) / gMax; };
-        canvas.drawLine(px0, py1, px1, py1, black);
-        canvas.drawLine(px0, py0, px0, py1, black);
-        canvas.drawLine(px0, Y(1.0), px1, Y(1.0), grey);
+        Chart ch;
+        ch.left = px0;
+        ch.top = py0;
+        ch.width = px1 - px0;
+        ch.height = py1 - py0;
+        ch.x = {0.0, db.pcfBins.rMaxM, {}, {}};
+        ch.y = {0.0, gMax, {}, {}};
+        ch.style.grid = false;
+        ch.style.tickMarkPx = 0;
+        ch.style.multiplyFirst = true;
+        ch.reference = ChartReference{1.0, grey, false};
+        std::vector<double> mids;
+        for (int k = 0; k < db.pcfBins.count; ++k) mids.push_back(db.pcfBins.midM(k));
         for (const auto* curve : {&gt, &gs}) {
-            const Rgb col = curve == &gt ? black : red;
-            for (int k = 0; k + 1 < db.pcfBins.count; ++k)
-                canvas.drawLine(X(db.pcfBins.midM(k)), Y((*curve)[static_cast<std::size_t>(k)]), X(db.pcfBins.midM(k + 1)),
-                                Y((*curve)[static_cast<std::size_t>(k + 1)]), col);
+            ChartSeries series{"", mids, *curve, curve == &gt ? black : red};
+            series.clampToAxes = true;  // g >= 0: only the top clamps
+            ch.series.push_back(std::move(series));
         }
         char title[200];
         std::snprintf(title, sizeof title, "region %d: %.2f vs %.2f /m2", rc.region, rc.densityPerM2, rc.targetDensityPerM2);
-        canvas.text(ox + 10, oy + 18, title, 14, black);
-        canvas.text(ox + 10, oy + 34, rc.name.substr(0, 48), 11, {0.3f, 0.3f, 0.3f});
-        canvas.text(px1 - 60, py1 + 18, "r, m (" + num(db.pcfBins.rMaxM, 3) + ")", 11, black);
-        canvas.text(ox + 5, py0 + 4, num(gMax, 3), 11, black);
-        canvas.text(ox + 20, Y(1.0) + 4, "1", 11, black);
+        ch.texts = {{ox + 10, oy + 18, title, 14, black},
+                    {ox + 10, oy + 34, rc.name.substr(0, 48), 11, {0.3f, 0.3f, 0.3f}},
+                    {px1 - 60, py1 + 18, "r, m (" + num(db.pcfBins.rMaxM, 3) + ")", 11, black},
+                    {ox + 5, py0 + 4, num(gMax, 3), 11, black},
+                    {ox + 20, static_cast<int>(ch.py(1.0) + 4), "1", 11, black}};
+        drawChart(canvas, ch);
     }
     canvas.text(10, top + rows * panelH + 20,
                 "g distance = RMS of g(scene) - g(database) over category pairs and bins, weighted by pairs", 12,

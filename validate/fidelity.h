@@ -12,7 +12,7 @@
 // heights against the canopy, density, species shares, Xu et al. 2015's PCT.DEV) is a
 // function of one pattern summary; this file computes them from plants in memory (no files,
 // no simulation, no synthesis), so tests feed it constructed layouts. The command
-// `eco fidelity` (apps/cmd_fidelity.cpp) produces the patterns.
+// `eco fidelity` (validate/fidelity_protocol.h) produces the patterns.
 //
 // Determinism: serial code, plus scenePairStatistics and countPairs, which are
 // identical for any number of OpenMP threads; the CSR pattern is Philox keyed by

@@ -5,34 +5,9 @@
 #include <limits>
 #include <sstream>
 
+#include "chart.h"
+
 namespace eco::validate {
-
-namespace {
-
-std::vector<double> niceTicks(double lo, double hi, int target) {
-    std::vector<double> t;
-    if (!(hi > lo)) return {lo};
-    const double raw = (hi - lo) / target;
-    const double mag = std::pow(10.0, std::floor(std::log10(raw)));
-    double step = 10 * mag;
-    for (double m : {1.0, 2.0, 5.0, 10.0})
-        if (raw <= m * mag) {
-            step = m * mag;
-            break;
-        }
-    for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + 1e-9 * step; v += step)
-        t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
-    return t;
-}
-
-std::string label(double v) {
-    std::ostringstream os;
-    os.precision(4);
-    os << v;
-    return os.str();
-}
-
-}  // namespace
 
 void writeXYPlotPng(const std::string& path, const std::string& title, const std::string& xLabel,
                     const std::string& yLabel, const std::vector<PlotSeries>& series) {
@@ -51,38 +26,39 @@ void writeXYPlotPng(const std::string& path, const std::string& title, const std
     const double padX = 0.04 * (x1 - x0), padY = 0.06 * (y1 - y0);
     x0 -= padX, x1 += padX, y0 -= padY, y1 += padY;
 
-    const int w = 640, h = 420, left = 78, right = 20, top = 40, bottom = 58;
-    Canvas c(left + w + right, top + h + bottom);
-    const Rgb black{0.f, 0.f, 0.f}, grey{0.85f, 0.85f, 0.85f};
-    auto px = [&](double x) { return left + (x - x0) / (x1 - x0) * w; };
-    auto py = [&](double y) { return top + h - (y - y0) / (y1 - y0) * h; };
-    for (double t : niceTicks(x0, x1, 6)) {
-        c.drawLine(px(t), top, px(t), top + h, grey);
-        c.drawLine(px(t), top + h, px(t), top + h + 5, black);
-        c.text(static_cast<int>(px(t)) - 12, top + h + 20, label(t), 12, black);
-    }
-    for (double t : niceTicks(y0, y1, 6)) {
-        c.drawLine(left, py(t), left + w, py(t), grey);
-        c.drawLine(left - 5, py(t), left, py(t), black);
-        c.text(6, static_cast<int>(py(t)) + 4, label(t), 12, black);
-    }
-    c.drawLine(left, top, left, top + h, black);
-    c.drawLine(left, top + h, left + w, top + h, black);
-    c.drawLine(left, top, left + w, top, black);
-    c.drawLine(left + w, top, left + w, top + h, black);
+    Chart ch;
+    ch.left = 78;
+    ch.top = 40;
+    ch.width = 640;
+    ch.height = 420;
+    const auto label = [](double v) {
+        std::ostringstream os;
+        os.precision(4);
+        os << v;
+        return os.str();
+    };
+    ch.x = {x0, x1, niceTicks(x0, x1, 6), label};
+    ch.y = {y0, y1, niceTicks(y0, y1, 6), label};
+    ch.style.gridColour = {0.85f, 0.85f, 0.85f};
+    ch.style.tickFontPx = 12;
+    ch.style.xLabelCharPx = 0;
+    ch.style.xLabelDx = -12;
+    ch.style.yLabelX = 6;
+    ch.style.yLabelDy = 4;
+    ch.style.frameAllSides = true;
     for (const PlotSeries& s : series) {
-        const std::size_t n = std::min(s.x.size(), s.y.size());
-        if (s.line)
-            for (std::size_t i = 1; i < n; ++i)
-                if (std::isfinite(s.x[i - 1] + s.y[i - 1] + s.x[i] + s.y[i]))
-                    c.drawLine(px(s.x[i - 1]), py(s.y[i - 1]), px(s.x[i]), py(s.y[i]), s.colour);
-        if (s.pointRadiusPx > 0)
-            for (std::size_t i = 0; i < n; ++i)
-                if (std::isfinite(s.x[i] + s.y[i])) c.fillDisc(px(s.x[i]), py(s.y[i]), s.pointRadiusPx, s.colour, 0.9f);
+        ChartSeries cs{s.name, s.x, s.y, s.colour};
+        cs.strokeOffsetsPx = s.line ? std::vector<int>{0} : std::vector<int>{};
+        cs.skipNonFinite = true;
+        cs.pointRadiusPx = s.pointRadiusPx;
+        ch.series.push_back(std::move(cs));
     }
-    c.text(left, 17, title, 15, black);
-    c.text(left + w / 2 - 4 * static_cast<int>(xLabel.size()), top + h + 44, xLabel, 13, black);
-    c.text(6, top - 5, yLabel, 13, black);
+    const Rgb black{0.f, 0.f, 0.f};
+    ch.texts = {{ch.left, 17, title, 15, black},
+                {ch.left + ch.width / 2 - 4 * static_cast<int>(xLabel.size()), ch.top + ch.height + 44, xLabel, 13, black},
+                {6, ch.top - 5, yLabel, 13, black}};
+    Canvas c(ch.left + ch.width + 20, ch.top + ch.height + 58);
+    drawChart(c, ch);
     std::vector<std::pair<std::string, Rgb>> legend;
     for (const PlotSeries& s : series)
         if (!s.name.empty()) legend.emplace_back(s.name, s.colour);

@@ -1,4 +1,5 @@
-// Small x-y plots for the validation report (log-log self-thinning fits, time series).
+// Small x-y plots for the validation report (log-log self-thinning fits, time series), drawn
+// by the one chart helper (core/chart.h).
 #pragma once
 
 #include <string>

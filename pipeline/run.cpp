@@ -1,0 +1,405 @@
+#include "run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+#include <sstream>
+
+#include "atomic_file.h"
+#include "biome_db.h"
+#include "eco_version.h"
+#include "error.h"
+#include "strict_toml.h"
+
+namespace eco::pipeline {
+
+namespace {
+
+template <class... F>
+struct Overloaded : F... {
+    using F::operator()...;
+};
+template <class... F>
+Overloaded(F...) -> Overloaded<F...>;
+
+/// An integer the stage's command line would accept in [lo, hi].
+std::int64_t integerIn(StrictTable& t, const std::string& key, std::int64_t value, std::int64_t lo, std::int64_t hi) {
+    if (value < lo || value > hi)
+        t.fail(key, "value " + std::to_string(value) + " must be in " + std::to_string(lo) + " .. " + std::to_string(hi));
+    return value;
+}
+
+std::uint64_t seedValue(StrictTable& t, const std::string& key, std::int64_t value) {
+    if (value < 0) t.fail(key, "must not be negative");
+    return static_cast<std::uint64_t>(value);
+}
+
+}  // namespace
+
+std::vector<std::string> commandLine(const StageOptions& options) {
+    return std::visit([](const auto& o) { return commandLine(o); }, options);
+}
+
+void runStage(const StageOptions& options, Reporter& reporter) {
+    std::visit(Overloaded{[&](const TerrainGenerateOptions& o) { generateTerrainStage(o, reporter); },
+                          [&](const ChmGenerateOptions& o) { generateChmStage(o, reporter); },
+                          [&](const AbioticsOptions& o) { abioticsStage(o, reporter); },
+                          [&](const CanopyOptions& o) { canopyStage(o, reporter); },
+                          [&](const SimulateOptions& o) { simulateStage(o, reporter); },
+                          [&](const AnalyseOptions& o) { analyseStage(o, reporter); },
+                          [&](const InspectOptions& o) { inspectStage(o, reporter); },
+                          [&](const SynthOptions& o) { synthStage(o, reporter); },
+                          [&](const CompareOptions& o) { compareStage(o, reporter); }},
+               options);
+}
+
+RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
+    const toml::table root = parseTomlFile(configPath);
+    StrictTable top(root, configPath, "");
+    std::vector<PlannedStage> stages;
+
+    StrictTable run(top.table("run"), configPath, "[run]");
+    const std::string configuredOut = run.string("out_dir");
+    const std::string out = outOverride.empty() ? configuredOut : outOverride;
+    const std::int64_t seed = run.integerOr("seed", 1);
+    if (seed < 0) run.fail("seed", "must not be negative");
+    const std::string biome = run.stringOr("biome", "");
+    run.finish();
+    ensureDirectory(out);
+    const auto at = [&](const std::string& name) { return (std::filesystem::path(out) / name).string(); };
+
+    // Terrain: a given file, or the generated default.
+    std::string terrain = at("terrain.h5");
+    TerrainReadFlags terrainRead;
+    TerrainGenParams terrainParams;
+    {
+        StrictTable t(top.table("terrain"), configPath, "[terrain]");
+        if (t.has("path")) {
+            terrain = t.string("path");
+            if (t.has("cell_size_m")) terrainRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
+            if (t.has("vertical_scale")) terrainRead.verticalScale = asOnCommandLine(t.positive("vertical_scale"));
+        } else {
+            TerrainGenerateOptions o;
+            o.out = terrain;
+            o.params.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", 512), 2, 1 << 16));
+            o.params.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", 512), 2, 1 << 16));
+            o.params.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", 0.914));
+            o.params.seed = seedValue(t, "seed", t.integerOr("seed", seed));
+            o.pngDir = at("png");
+            terrainParams = o.params;
+            stages.push_back({"terrain", o});
+        }
+        t.finish();
+    }
+    // Canopy height model: a given file, or generated from a density sketch.
+    std::string chm = at("chm.h5");
+    {
+        StrictTable t(top.table("chm"), configPath, "[chm]");
+        if (t.has("path")) {
+            chm = t.string("path");
+        } else {
+            ChmGenerateOptions o;
+            o.terrain = terrain;
+            o.out = chm;
+            o.chm.seed = seedValue(t, "seed", t.integerOr("seed", seed));
+            o.pngDir = at("png");
+            o.terrainRead = terrainRead;
+            if (t.has("sketch")) o.sketchImage = t.string("sketch");
+            stages.push_back({"chm", o});
+        }
+        t.finish();
+    }
+    // Abiotics.
+    const std::string abiotics = at("abiotics.h5");
+    double sunStepMinutes = 10;
+    {
+        StrictTable t(top.table("abiotics"), configPath, "[abiotics]");
+        sunStepMinutes = asOnCommandLine(t.positiveOr("sun_step_minutes", sunStepMinutes));
+        if (sunStepMinutes < 0.1 || sunStepMinutes > 720) t.fail("sun_step_minutes", "must be in 0.1 .. 720 minutes");
+        AbioticsOptions o;
+        o.terrain = terrain;
+        o.out = abiotics;
+        o.pngDir = at("png/abiotics");
+        o.sunStepMinutes = sunStepMinutes;
+        o.terrainRead = terrainRead;
+        o.biome = biome;
+        stages.push_back({"abiotics", o});
+        t.finish();
+    }
+    // Canopy trees from the CHM.
+    const std::string canopy = at("canopy.h5");
+    std::string canopyConfig;
+    std::vector<std::string> canopyTargets;
+    const bool placesCanopy = top.has("canopy");
+    if (const toml::table* tt = top.optionalTable("canopy")) {
+        StrictTable t(*tt, configPath, "[canopy]");
+        CanopyOptions o;
+        o.terrain = terrain;
+        o.chm = chm;
+        o.abiotics = abiotics;
+        o.out = canopy;
+        o.pngDir = at("png/canopy");
+        o.csv = at("canopy.csv");
+        o.seed = static_cast<std::uint64_t>(seed);
+        o.terrainRead = terrainRead;
+        if (t.has("config")) canopyConfig = t.string("config");
+        o.config = canopyConfig;
+        if (t.has("targets")) canopyTargets = t.strings("targets");
+        o.targets = canopyTargets;
+        o.biome = biome;
+        stages.push_back({"canopy", o});
+        t.finish();
+    }
+    // Undergrowth simulation on part of the scene.
+    const std::string simulation = at("simulation.h5");
+    bool simulated = false, analysed = false;
+    if (const toml::table* tt = top.optionalTable("simulate")) {
+        StrictTable t(*tt, configPath, "[simulate]");
+        if (!placesCanopy) t.fail("config", "the simulation needs a [canopy] stage for its canopy trees");
+        SimulateOptions o;
+        o.config = t.string("config");
+        o.terrain = terrain;
+        o.abiotics = abiotics;
+        o.canopy = canopy;
+        o.out = simulation;
+        o.csv = at("undergrowth.csv");
+        o.png = at("png/simulation");
+        o.seed = seed;
+        if (t.has("years")) o.years = static_cast<int>(integerIn(t, "years", t.integer("years"), 1, 1 << 30));
+        if (t.has("crop")) {
+            const auto c = t.numbers("crop", 4);
+            o.crop = argNumber(c[0]) + "," + argNumber(c[1]) + "," + argNumber(c[2]) + "," + argNumber(c[3]);
+        }
+        o.biome = biome;
+        stages.push_back({"simulate", o});
+        simulated = true;
+        t.finish();
+    }
+    // Statistics of the simulation: the biome database.
+    const std::string database = at("biome-db.h5");
+    if (const toml::table* tt = top.optionalTable("analyse")) {
+        StrictTable t(*tt, configPath, "[analyse]");
+        if (!simulated) t.fail("analyse", "needs a [simulate] stage to analyse");
+        AnalyseOptions o;
+        o.simulations = {simulation};
+        o.out = database;
+        o.seed = seed;
+        if (t.has("kmax")) o.kMax = static_cast<int>(integerIn(t, "kmax", t.integer("kmax"), 1, 64));
+        stages.push_back({"analyse", o});
+        InspectOptions inspect;
+        inspect.database = database;
+        inspect.pngDir = at("png/database");
+        inspect.out = at("database.txt");
+        stages.push_back({"inspect", inspect});
+        analysed = true;
+        t.finish();
+    }
+    // Synthesis on a different target terrain, from the database, and its comparison.
+    if (const toml::table* tt = top.optionalTable("synth")) {
+        StrictTable t(*tt, configPath, "[synth]");
+        if (!analysed) t.fail("synth", "needs an [analyse] stage for its biome database");
+        const std::int64_t targetSeed = t.integerOr("target_seed", seed + 1);
+        if (targetSeed < 0) t.fail("target_seed", "must not be negative");
+        const auto ts = static_cast<std::uint64_t>(targetSeed);
+        std::string targetTerrain = at("target/terrain.h5");
+        TerrainReadFlags targetRead;
+        ensureDirectory(at("target"));
+        if (t.has("terrain")) {
+            targetTerrain = t.string("terrain");
+            if (t.has("cell_size_m")) targetRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
+        } else {
+            TerrainGenerateOptions o;
+            o.out = targetTerrain;
+            o.params.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", terrainParams.width), 2, 1 << 16));
+            o.params.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", terrainParams.height), 2, 1 << 16));
+            o.params.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", terrainParams.cellSizeM));
+            o.params.seed = ts;
+            o.pngDir = at("target/png");
+            stages.push_back({"target terrain", o});
+        }
+        std::string targetChm = at("target/chm.h5");
+        if (t.has("chm")) {
+            targetChm = t.string("chm");
+        } else {
+            ChmGenerateOptions o;
+            o.terrain = targetTerrain;
+            o.out = targetChm;
+            o.chm.seed = ts;
+            o.pngDir = at("target/png");
+            o.terrainRead = targetRead;
+            stages.push_back({"target chm", o});
+        }
+        const std::string targetAbiotics = at("target/abiotics.h5");
+        {
+            AbioticsOptions o;
+            o.terrain = targetTerrain;
+            o.out = targetAbiotics;
+            o.pngDir = at("target/png/abiotics");
+            o.sunStepMinutes = sunStepMinutes;
+            o.terrainRead = targetRead;
+            o.biome = biome;
+            stages.push_back({"target abiotics", o});
+        }
+        const std::string targetCanopy = at("target/canopy.h5");
+        {
+            CanopyOptions o;
+            o.terrain = targetTerrain;
+            o.chm = targetChm;
+            o.abiotics = targetAbiotics;
+            o.out = targetCanopy;
+            o.pngDir = at("target/png/canopy");
+            o.seed = ts;
+            o.terrainRead = targetRead;
+            o.config = canopyConfig;
+            o.targets = canopyTargets;
+            o.biome = biome;
+            stages.push_back({"target canopy", o});
+        }
+        const std::string scene = at("scene.h5");
+        {
+            SynthOptions o;
+            o.terrain = targetTerrain;
+            o.canopy = targetCanopy;
+            o.database = database;
+            o.abiotics = targetAbiotics;
+            o.out = scene;
+            o.pngDir = at("png/synth");
+            o.csv = at("scene.csv");
+            o.pdb = at("scene.pdb");
+            o.params.seed = ts;
+            o.terrainRead = targetRead;
+            o.refine = t.booleanOr("refine", false);
+            stages.push_back({"synth", o});
+        }
+        CompareOptions compare;
+        compare.scene = scene;
+        compare.database = database;
+        compare.png = at("png/synth/compare.png");
+        compare.out = at("compare.md");
+        stages.push_back({"compare", compare});
+        t.finish();
+    }
+    top.finish();
+    return {configPath, out, stages};
+}
+
+namespace {
+
+std::string fmtNumber(double v) { return argNumber(v); }
+
+/// A picture line of the report when the file exists (paths relative to the report).
+void picture(std::ostringstream& md, const std::filesystem::path& outDir, const std::string& rel,
+             const std::string& caption) {
+    if (std::filesystem::exists(outDir / rel)) md << "![" << caption << "](" << rel << ")\n\n";
+}
+
+/// Every PNG of a folder (sorted), at most `limit`.
+void pictures(std::ostringstream& md, const std::filesystem::path& outDir, const std::string& relDir,
+              std::size_t limit) {
+    const std::filesystem::path dir = outDir / relDir;
+    if (!std::filesystem::is_directory(dir)) return;
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        if (e.is_regular_file() && e.path().extension() == ".png") names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    if (names.size() > limit) {
+        md << "(" << limit << " of " << names.size() << " pictures in `" << relDir << "/`)\n\n";
+        names.resize(limit);
+    }
+    for (const auto& n : names) picture(md, outDir, relDir + "/" + n, n);
+}
+
+std::string fileText(const std::filesystem::path& p) {
+    std::ifstream in(p);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+/// out_dir/report.md: what ran, how long each stage took, the pictures and the comparison.
+std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds, double totalSeconds) {
+    const std::filesystem::path outDir(plan.outDir);
+    std::ostringstream md;
+    md << "# eco run report\n\n"
+       << "Configuration `" << plan.configPath << "`, eco " << ECO_VERSION_STRING << ", finished " << utcTimestamp()
+       << ", " << fmtNumber(std::round(totalSeconds * 10) / 10) << " s in all.\n\n"
+       << "| stage | seconds | command |\n|---|---:|---|\n";
+    for (std::size_t i = 0; i < plan.stages.size(); ++i) {
+        char secs[32];
+        std::snprintf(secs, sizeof secs, "%.1f", seconds[i]);
+        md << "| " << plan.stages[i].name << " | " << secs << " | `"
+           << quotedCommand(commandLine(plan.stages[i].options)) << "` |\n";
+    }
+    md << "\n## Source terrain, canopy height model and abiotics\n\n";
+    picture(md, outDir, "png/terrain_hillshade.png", "terrain");
+    picture(md, outDir, "png/sketch.png", "density sketch");
+    picture(md, outDir, "png/chm.png", "canopy height model");
+    for (const char* name : {"sun_07_jul", "moisture_01_jan", "temperature_07_jul", "slope"})
+        picture(md, outDir, std::string("png/abiotics/") + name + ".png", name);
+    if (std::filesystem::is_directory(outDir / "png/canopy")) {
+        md << "## Canopy trees\n\n";
+        pictures(md, outDir, "png/canopy", 8);
+    }
+    if (std::filesystem::is_directory(outDir / "png/simulation")) {
+        md << "## Undergrowth simulation\n\n";
+        picture(md, outDir, "png/simulation/species_counts.png", "plants per species and year");
+        pictures(md, outDir, "png/simulation", 6);
+    }
+    if (std::filesystem::exists(outDir / "database.txt"))
+        md << "## Biome database\n\n```\n" << fileText(outDir / "database.txt") << "```\n\n";
+    pictures(md, outDir, "png/database", 4);
+    if (std::filesystem::is_directory(outDir / "png/synth")) {
+        md << "## Synthesis on the target terrain\n\n";
+        picture(md, outDir, "target/png/terrain_hillshade.png", "target terrain");
+        pictures(md, outDir, "target/png/canopy", 4);
+        pictures(md, outDir, "png/synth", 8);
+    }
+    if (std::filesystem::exists(outDir / "compare.md"))
+        md << "## Synthesized against the database\n\n" << fileText(outDir / "compare.md") << "\n";
+    const std::string path = (outDir / "report.md").string();
+    writeTextFile(path, md.str());
+    return path;
+}
+
+std::string stageHeading(const RunPlan& plan, std::size_t i) {
+    return "\n== stage " + std::to_string(i + 1) + "/" + std::to_string(plan.stages.size()) + ": " + plan.stages[i].name +
+           "\n   " + quotedCommand(commandLine(plan.stages[i].options));
+}
+
+}  // namespace
+
+void printPlan(const RunPlan& plan, Reporter& reporter) {
+    for (std::size_t i = 0; i < plan.stages.size(); ++i) reporter.info(stageHeading(plan, i));
+}
+
+RunResult runPlan(const RunPlan& plan, Reporter& reporter) {
+    using Clock = std::chrono::steady_clock;
+    const auto start = Clock::now();
+    RunResult result;
+    for (std::size_t i = 0; i < plan.stages.size(); ++i) {
+        reporter.info(stageHeading(plan, i));
+        const auto t0 = Clock::now();
+        try {
+            runStage(plan.stages[i].options, reporter);
+        } catch (const Error& e) {
+            throw Error("stage '" + plan.stages[i].name + "' failed: " + e.what());
+        }
+        reporter.out().flush();
+        result.stageSeconds.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+        char line[200];
+        std::snprintf(line, sizeof line, "== %s done in %.1f s", plan.stages[i].name.c_str(), result.stageSeconds.back());
+        reporter.info(line);
+    }
+    result.totalSeconds = std::chrono::duration<double>(Clock::now() - start).count();
+    result.reportPath = writeReport(plan, result.stageSeconds, result.totalSeconds);
+    char line[100];
+    std::snprintf(line, sizeof line, "\npipeline finished in %.1f s", result.totalSeconds);
+    reporter.info(line);
+    return result;
+}
+
+}  // namespace eco::pipeline

@@ -1,0 +1,93 @@
+#include "simulate_stage.h"
+
+#include <omp.h>
+
+#include <cstdio>
+#include <ostream>
+
+#include "error.h"
+
+namespace eco::pipeline {
+
+SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
+    sim::RunConfig cfg = o.config.empty() ? sim::RunConfig{} : sim::loadRunConfig(o.config);
+    if (!o.terrain.empty()) cfg.terrainPath = o.terrain;
+    if (!o.abiotics.empty()) cfg.abioticsPath = o.abiotics;
+    if (!o.canopy.empty()) cfg.canopyPath = o.canopy;
+    if (!o.biome.empty()) cfg.biomePath = o.biome;
+    if (!o.initial.empty()) cfg.initialPath = o.initial;
+    if (o.years >= 0) cfg.years = o.years;
+    if (o.seed >= 0) cfg.seed = static_cast<std::uint64_t>(o.seed);
+    if (!o.crop.empty()) cfg.crop = sim::parseArea(o.crop, "--crop");
+    if (!o.snapshotYears.empty()) cfg.snapshotYears = sim::parseYearList(o.snapshotYears, "--snapshot-years");
+    if (!o.out.empty()) cfg.outputPath = o.out;
+    if (!o.csv.empty()) cfg.csvPath = o.csv;
+    if (!o.png.empty()) cfg.pngDir = o.png;
+    if (o.checkpointEvery >= 0) cfg.checkpointEveryYears = o.checkpointEvery;
+    if (!o.growthRule.empty()) cfg.params.growthRule = sim::parseGrowthRule(o.growthRule, "--growth-rule");
+    if (!o.competition.empty()) cfg.params.competition = sim::parseCompetitionMode(o.competition, "--competition");
+    cfg.validate();
+
+    reporter.info("simulate: " + std::to_string(cfg.years) + " years, seed " + std::to_string(cfg.seed) + ", " +
+                  std::to_string(omp_get_max_threads()) + " threads, growth rule " +
+                  sim::growthRuleName(cfg.params.growthRule) + ", competition " +
+                  sim::competitionModeName(cfg.params.competition) + ", output " + cfg.outputPath);
+    std::unique_ptr<SimulationProgress> progress = reporter.simulationProgress(cfg.years);
+    sim::RunHooks hooks;
+    hooks.log = [&](const std::string& s) { reporter.info("simulate: " + s); };
+    hooks.onYear = [&](const sim::Simulation& s, const sim::RunRecord&) {
+        if (progress) progress->update(s);
+    };
+    hooks.stopRequested = [&] { return reporter.stopRequested(); };
+    SimulateResult result;
+    try {
+        result.summary = sim::runSimulation(cfg, o.resume, hooks);
+    } catch (...) {
+        if (progress) progress->finish();
+        throw;
+    }
+    if (progress) progress->finish();
+    progress.reset();
+    const sim::RunSummary& summary = result.summary;
+    if (summary.stoppedEarly) {
+        throw Error("interrupted after year " + std::to_string(summary.years) +
+                    (cfg.checkpointEveryYears > 0 ? "; checkpoint written to " + cfg.effectiveCheckpointPath() +
+                                                        " (continue with --resume)"
+                                                  : "; no checkpoint (use --checkpoint-every N)"));
+    }
+    char line[200];
+    std::snprintf(line, sizeof line, "simulate: %d years, %zu plants at the end, %.1f s in all (with input and output), %.2fM plant-months/s overall", summary.years,
+                  summary.finalPlants, summary.wallSeconds,
+                  summary.wallSeconds > 0 ? summary.plantMonths / summary.wallSeconds / 1e6 : 0.0);
+    reporter.info(line);
+    for (const auto& f : summary.written) reporter.out() << f << "\n";
+    result.config = std::move(cfg);
+    return result;
+}
+
+std::vector<std::string> commandLine(const SimulateOptions& o) {
+    std::vector<std::string> args = {"simulate"};
+    const auto str = [&](const char* flag, const std::string& v) {
+        if (!v.empty()) args.insert(args.end(), {flag, v});
+    };
+    str("--config", o.config);
+    str("--terrain", o.terrain);
+    str("--abiotics", o.abiotics);
+    str("--canopy", o.canopy);
+    str("--out", o.out);
+    str("--csv", o.csv);
+    str("--png", o.png);
+    if (o.seed >= 0) args.insert(args.end(), {"--seed", std::to_string(o.seed)});
+    if (o.years >= 0) args.insert(args.end(), {"--years", std::to_string(o.years)});
+    str("--crop", o.crop);
+    if (o.checkpointEvery >= 0) args.insert(args.end(), {"--checkpoint-every", std::to_string(o.checkpointEvery)});
+    str("--snapshot-years", o.snapshotYears);
+    str("--initial", o.initial);
+    str("--growth-rule", o.growthRule);
+    str("--competition", o.competition);
+    if (o.resume) args.push_back("--resume");
+    str("--biome", o.biome);
+    return args;
+}
+
+}  // namespace eco::pipeline

@@ -1,0 +1,34 @@
+// eco simulate: the undergrowth simulation (sim/) from a run configuration and overrides.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "reporter.h"
+#include "sim_run.h"
+
+namespace eco::pipeline {
+
+/// Overrides of the run configuration `config` (empty / negative: the configuration's value).
+struct SimulateOptions {
+    std::string config;  ///< run configuration TOML; "" = the defaults
+    std::string terrain, abiotics, canopy, biome, initial;
+    std::string crop;           ///< "x0,y0,x1,y1" in world metres
+    std::string snapshotYears;  ///< "25,50,75"
+    std::string out, csv, png;
+    std::string growthRule, competition;  ///< model choices by name
+    int years = -1;
+    long long seed = -1;
+    int checkpointEvery = -1;  ///< years between checkpoints (0 = never)
+    bool resume = false;       ///< continue from this run's checkpoint when it exists
+};
+struct SimulateResult {
+    sim::RunConfig config;  ///< as run (configuration file and overrides)
+    sim::RunSummary summary;
+};
+/// Run the simulation; progress through reporter.simulationProgress, stopped (with an Error
+/// naming the checkpoint) when reporter.stopRequested().
+SimulateResult simulateStage(const SimulateOptions& options, Reporter& reporter);
+std::vector<std::string> commandLine(const SimulateOptions& options);
+
+}  // namespace eco::pipeline

@@ -1,0 +1,100 @@
+#include "stage_common.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+#include <string>
+
+#include "atomic_file.h"
+#include "error.h"
+
+namespace eco::pipeline {
+
+TerrainReadOptions TerrainReadFlags::options() const {
+    TerrainReadOptions o;
+    if (cellSizeM) o.cellSizeM = *cellSizeM;
+    if (verticalScale) o.verticalScale = *verticalScale;
+    if (verticalOffsetM) o.verticalOffsetM = *verticalOffsetM;
+    return o;
+}
+
+void TerrainReadFlags::appendArgs(std::vector<std::string>& args) const {
+    if (cellSizeM) args.insert(args.end(), {"--cell-size", argNumber(*cellSizeM)});
+    if (verticalScale) args.insert(args.end(), {"--vertical-scale", argNumber(*verticalScale)});
+    if (verticalOffsetM) args.insert(args.end(), {"--vertical-offset", argNumber(*verticalOffsetM)});
+}
+
+std::string argNumber(double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+    return buf;
+}
+
+// CLI11 reads a floating-point option with strtold and narrows it to double; so does this.
+double asOnCommandLine(double v) { return static_cast<double>(std::strtold(argNumber(v).c_str(), nullptr)); }
+
+std::string quotedCommand(const std::vector<std::string>& args) {
+    std::string s = "eco";
+    for (const auto& a : args) s += " " + (a.find(' ') == std::string::npos ? a : "'" + a + "'");
+    return s;
+}
+
+void prepareOutput(const std::string& path) {
+    const std::filesystem::path p(path);
+    if (p.has_parent_path()) ensureDirectory(p.parent_path().string());
+}
+
+Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
+                            const std::string& terrainPath, const Biome& biome, const std::string& note,
+                            Reporter& reporter) {
+    if (!abioticsPath.empty()) {
+        Abiotics abiotics = readAbiotics(abioticsPath);
+        if (!abiotics.slopeDeg.sameGeometry(terrain))
+            throw ValidationError("abiotics '" + abioticsPath + "' (" + abiotics.slopeDeg.geometryText() +
+                                  ") and terrain '" + terrainPath + "' (" + terrain.geometryText() +
+                                  ") differ in geometry");
+        reporter.info("abiotics: " + abioticsPath);
+        return abiotics;
+    }
+    reporter.info("no --abiotics: computing the abiotic maps from the terrain with default parameters (" + note + ")");
+    validateElevation(terrain, terrainPath);
+    AbioticsProgress progress(reporter);
+    Abiotics abiotics = computeAbiotics(terrain, biome, AbioticParams{},
+                                        [&](const std::string& s, double f) { progress(s, f); });
+    progress.finish();
+    return abiotics;
+}
+
+RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare) {
+    std::vector<double> v;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        std::size_t used = 0;
+        double d = 0;
+        try {
+            d = std::stod(item, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used == 0 || item.find_first_not_of(" \t", used) != std::string::npos || !std::isfinite(d))
+            throw ValidationError(option + " '" + text + "': '" + item + "' is not a number");
+        v.push_back(d);
+    }
+    RectWindow w;
+    if (allowSquare && v.size() == 3) {
+        if (!(v[2] > 0)) throw ValidationError(option + " '" + text + "': the side must be positive");
+        w = RectWindow{v[0] - 0.5 * v[2], v[1] - 0.5 * v[2], v[0] + 0.5 * v[2], v[1] + 0.5 * v[2]};
+    } else if (v.size() == 4) {
+        w = RectWindow{v[0], v[1], v[2], v[3]};
+    } else {
+        throw ValidationError(option + " '" + text + "': expected " +
+                              (allowSquare ? std::string("x_centre,y_centre,side or ") : std::string()) + "x0,y0,x1,y1 in metres");
+    }
+    w.validate(option);
+    return w;
+}
+
+}  // namespace eco::pipeline

@@ -1,0 +1,52 @@
+// Pieces shared by the stages: how a stage reads its terrain, the abiotic maps of a terrain,
+// windows given as text, and the command-line form of a stage's options.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "abiotics.h"
+#include "biome.h"
+#include "grid.h"
+#include "point_pattern.h"
+#include "reporter.h"
+#include "terrain_io.h"
+
+namespace eco::pipeline {
+
+/// How a stage reads an input terrain (or an image CHM): the options a user may give, each
+/// unset unless given, so that the stage's command line shows exactly what was given.
+struct TerrainReadFlags {
+    std::optional<double> cellSizeM;        ///< --cell-size: metres per cell (required for images)
+    std::optional<double> verticalScale;    ///< --vertical-scale: image metres per stored unit
+    std::optional<double> verticalOffsetM;  ///< --vertical-offset: image metres added after scaling
+    /// The reader's options (cell size 0 = from the file, scale 1, offset 0 when unset).
+    TerrainReadOptions options() const;
+    /// Append the given flags: --cell-size, --vertical-scale, --vertical-offset.
+    void appendArgs(std::vector<std::string>& args) const;
+};
+
+/// A number as the command line of a stage shows it (%.10g).
+std::string argNumber(double v);
+/// The value a stage gets when `v` is given on its command line as argNumber(v): a stage run
+/// from a plan gets the same bits as the same stage run from the printed command line.
+double asOnCommandLine(double v);
+/// "eco a b 'c d'": a command line a user can copy.
+std::string quotedCommand(const std::vector<std::string>& args);
+
+/// Create the folder an output file goes into, before any heavy work.
+void prepareOutput(const std::string& path);
+
+/// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
+/// terrain's geometry, or, when the path is empty, computed with default parameters (as
+/// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.
+Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
+                            const std::string& terrainPath, const Biome& biome, const std::string& note,
+                            Reporter& reporter);
+
+/// A window "x0,y0,x1,y1" in metres (or "x,y,side", a square around (x, y), when
+/// allowSquare). ValidationError naming the option, the text and the part that is wrong.
+RectWindow parseWindow(const std::string& text, const std::string& option, bool allowSquare = false);
+
+}  // namespace eco::pipeline

@@ -1,0 +1,297 @@
+#include "synth_stages.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+#include <sstream>
+
+#include "abiotics.h"
+#include "atomic_file.h"
+#include "biome_db.h"
+#include "canopy_placer.h"
+#include "error.h"
+#include "image_out.h"
+#include "terrain_io.h"
+#include "text_format.h"
+
+namespace eco::pipeline {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::string num(double v, int precision = 6) { return formatNumber(v, precision); }
+
+}  // namespace
+
+SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
+    std::ostream& out = reporter.out();
+    SynthResult result;
+    const auto tStart = Clock::now();
+    // Everything cheap is checked before any heavy work.
+    SynthParams params = a.params;
+    params.method = parseSynthMethod(a.method ? *a.method : std::string("structured"));
+    params.validate();
+    RefineParams refineParams;
+    if (a.refineSweeps) refineParams.sweeps = *a.refineSweeps;
+    if (a.refineRMaxM) refineParams.rMaxM = *a.refineRMaxM;
+    if (a.refineMoveRadiusM) refineParams.moveRadiusM = *a.refineMoveRadiusM;
+    if (a.refineSwapRadiusM) refineParams.swapRadiusM = *a.refineSwapRadiusM;
+    refineParams.seed = params.seed;
+    if (!a.refineWindow.empty()) {
+        refineParams.useWindow = true;
+        refineParams.window = parseWindow(a.refineWindow, "--refine-window", false);
+    }
+    refineParams.validate();
+    ForestFloorParams floorParams = a.floorParams;
+    floorParams.undergrowthShades = !a.noUndergrowthShade;
+    floorParams.validate();
+    RectWindow zoom{};
+    if (!a.zoom.empty()) zoom = parseWindow(a.zoom, "--zoom", true);
+
+    const BiomeDatabase db = readBiomeDatabase(a.database);
+    const Biome biome = databaseBiome(db);
+    reporter.info("database: " + a.database + ": biome " + biome.name + ", " + std::to_string(db.regions.size()) + " regions in " +
+         std::to_string(db.combinations.size()) + " combinations; seeding disc " + num(db.seedingRadiusFactor) +
+         " x crown radius");
+    if (db.regions.empty()) throw ValidationError(a.database + ": the database holds no region; nothing to synthesize from");
+
+    const Grid<float> terrain = readTerrain(a.terrain, a.terrainRead.options());
+    reporter.info("terrain: " + a.terrain + ": " + terrain.geometryText());
+    const CanopyFileData canopyFile = readCanopyFile(a.canopy, biome);
+    if (!canopyFile.terrainM.sameGeometry(terrain))
+        throw ValidationError("canopy '" + a.canopy + "' was placed on a terrain of " + canopyFile.terrainM.geometryText() +
+                              " but --terrain '" + a.terrain + "' is " + terrain.geometryText() +
+                              "; give the terrain the canopy was made for");
+    validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
+    const std::vector<Plant>& canopy = canopyFile.trees;
+    reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
+    for (const std::string* out : {&a.out, &a.csv, &a.pdb})
+        if (!out->empty()) prepareOutput(*out);
+    if (!a.pngDir.empty()) ensureDirectory(a.pngDir);
+
+    const Abiotics abiotics = abioticsForTerrain(a.abiotics, terrain, a.terrain, biome,
+                                                 "the database's biome; give --abiotics FILE to reuse them", reporter);
+    if (!abiotics.canopyShadeSource.empty())
+        throw ValidationError("abiotics '" + a.abiotics + "': its sun is already shaded by the canopy of " +
+                              abiotics.canopyShadeSource + "; eco synth shades with --canopy itself: give the "
+                              "terrain's own abiotics (eco abiotics without --canopy)");
+    // The forest floor works from the open-sky maps (it shades under every crown itself); the
+    // cluster map from the sun under the canopy, as the analyser's regions were made.
+    const AnnualAbiotics features = annualAbiotics(abiotics);
+    Abiotics shaded = abiotics;
+    shaded.sunHours = applyCanopyShade(abiotics.sunHours, shadingTrees(canopy, biome));
+    const AnnualAbiotics shadedFeatures = annualAbiotics(shaded);
+
+    auto t = Clock::now();
+    const ClusterMap clusters = computeClusterMap(db, biome, canopy, shadedFeatures, params);
+    const double clusterS = secondsSince(t);
+    std::int64_t seeded = 0, labelled = 0;
+    for (std::size_t i = 0; i < clusters.region.size(); ++i) {
+        seeded += clusters.combination.data()[i] != 0;
+        labelled += clusters.region.data()[i] >= 0;
+    }
+    reporter.info("cluster map: " + num(clusterS, 3) + " s; " + std::to_string(seeded) + " of " + std::to_string(clusters.region.size()) +
+         " cells seeded by a canopy tree, " + std::to_string(labelled) + " in a database region");
+
+    UndergrowthSample sample = sampleUndergrowth(db, biome, canopy, clusters, terrain, params);
+    reporter.info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +
+         std::to_string(sample.passes) + " passes (" + std::to_string(sample.darts) + " darts, " +
+         std::to_string(sample.dartsOnTrunks) + " on trunks)");
+    for (const std::string& w : sample.warnings) reporter.info("warning: database " + a.database + ": " + w);
+    if (params.method == SynthMethod::Structured) {
+        for (const RegionStructure& st : sample.structure) {
+            const RegionSampling& rs = sample.regions[static_cast<std::size_t>(st.region)];
+            if (rs.cells == 0) continue;
+            std::string text = "structure: region " + std::to_string(st.region) + ": ";
+            if (st.scales == 0) text += "no clustering beyond the canopy context";
+            for (int k = 0; k < st.scales; ++k)
+                text += (k ? "; " : "") + std::string("clusters of sigma ") + num(st.sigmaM[k], 3) + " m, " +
+                        num(st.parentsPerM2[k] * 100.0, 3) + " per 100 m2, pooled excess " + num(st.pooledAmplitude[k], 3);
+            text += "; pooled g fit RMS " + num(st.pooledFitRms, 3) + " (canopy context alone " + num(st.pooledContextRms, 3) + ")";
+            const std::size_t ns = db.speciesNames.size();
+            for (std::size_t i = 0; i < st.hardCoreM.size(); ++i)
+                if (st.hardCoreM[i] > 0 && i / ns <= i % ns)
+                    text += "; hard core " + db.speciesNames[i / ns] + " - " + db.speciesNames[i % ns] + " " + num(st.hardCoreM[i], 3) + " m";
+            reporter.info(text);
+        }
+        reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+    }
+    std::vector<Plant> undergrowth = std::move(sample.plants);
+    sample.plants.clear();
+
+    RefineResult refined;
+    if (a.refine) {
+        auto bar = reporter.progress("refinement sweeps", refineParams.sweeps);
+        refined = refineUndergrowth(undergrowth, canopy, clusters, terrain, db, params, refineParams,
+                                    [&](int done, int) { bar->update(done); });
+        bar->finish();
+    }
+
+    t = Clock::now();
+    const ForestFloor floor = computeForestFloor(features, canopy, undergrowth, biome, floorParams);
+    const double floorS = secondsSince(t);
+    reporter.info("forest floor: " + num(floorS, 3) + " s");
+
+    // Report.
+    out << "undergrowth per region (target = database density x the region's area here):\n"
+              << "| region | combination / cluster | area m2 | target /m2 | target | placed |\n"
+              << "|---:|---|---:|---:|---:|---:|\n";
+    std::int64_t totalTarget = 0;
+    for (const auto& r : sample.regions) {
+        if (r.cells == 0) continue;
+        const DbRegion& dr = db.regions[static_cast<std::size_t>(r.region)];
+        char line[400];
+        std::snprintf(line, sizeof line, "| %d | %s / cluster %d | %.0f | %.4f | %lld | %lld |\n", r.region,
+                      db.combinationName(dr.combination).c_str(), dr.cluster, r.areaM2, r.targetDensityPerM2,
+                      static_cast<long long>(r.targetCount), static_cast<long long>(r.placed));
+        out << line;
+        totalTarget += r.targetCount;
+    }
+    out << "canopy trees: " << canopy.size() << "; undergrowth plants: " << undergrowth.size() << " (target "
+              << totalTarget << ")\n";
+    out << "timing: cluster map " << num(clusterS, 3) << " s, sampling " << num(sample.seconds, 3) << " s"
+              << (a.refine ? ", refinement " + num(refined.seconds, 3) + " s" : std::string()) << ", forest floor "
+              << num(floorS, 3) << " s\n";
+    if (a.refine) {
+        out << "refinement: pair-correlation distance " << num(refined.distanceBefore, 5) << " -> "
+                  << num(refined.distanceAfter, 5) << " over the database's " << num(db.pcfBins.rMaxM, 4) << " m ("
+                  << refined.accepted << " of " << refined.proposals << " moves accepted, " << refined.movable
+                  << " plants movable; matched to " << num(refined.rMaxM, 4) << " m, distance there per sweep:";
+        for (double v : refined.objectivePerSweep) out << " " << num(v, 4);
+        out << ")\n";
+    }
+
+    SceneRecord record;
+    record.canopy = canopy;
+    record.undergrowth = std::move(undergrowth);
+    record.clusterMap = clusters;
+    record.floor = floor;
+    record.terrainM = terrain;
+    record.params = params;
+    record.floorParams = floorParams;
+    record.sampling = std::move(sample);
+    record.refined = a.refine;
+    record.refineParams = refineParams;
+    record.refineResult = refined;
+    record.databasePath = a.database;
+    record.terrainSource = a.terrain;
+    record.canopySource = a.canopy;
+    record.abioticsSource = a.abiotics.empty() ? "computed from the terrain (default parameters)" : a.abiotics;
+    writeSceneFile(a.out, record, biome, db);
+    result.written.push_back(a.out);
+    result.canopyTrees = record.canopy.size();
+    result.undergrowthPlants = record.undergrowth.size();
+    out << "wrote scene: " << a.out
+              << " (/canopy, /undergrowth, /forest_floor/{grass,litter}, /cluster_map, /combination_map, /terrain, /regions"
+              << (a.refine ? ", /refinement" : "") << ")\n";
+    if (!a.csv.empty()) {
+        writeScenePlantsCsv(a.csv, record.canopy, record.undergrowth, biome);
+        result.written.push_back(a.csv);
+        out << "wrote plants: " << a.csv << "\n";
+    }
+    if (!a.pdb.empty()) {
+        writePdb(a.pdb, record.canopy, record.undergrowth);
+        result.written.push_back(a.pdb);
+        out << "wrote PDB plant list: " << a.pdb << "\n";
+    }
+    if (!a.pngDir.empty()) {
+        const std::string dir = a.pngDir + "/";
+        writeScenePng(dir + "scene.png", record.canopy, record.undergrowth, terrain, &floor, biome, "Synthesized scene");
+        const RectWindow crop = a.zoom.empty() ? defaultZoomWindow(terrain) : zoom;
+        writeScenePng(dir + "scene_zoom.png", record.canopy, record.undergrowth, terrain, &floor, biome,
+                      "Zoom " + num(crop.x0, 5) + ".." + num(crop.x1, 5) + " x " + num(crop.y0, 5) + ".." + num(crop.y1, 5) + " m",
+                      &crop, 900);
+        writeMapPng(dir + "grass.png", floor.grass, "Forest floor: grass / forb density", "density (0..1)",
+                    Colormap::Viridis, 0, 1);
+        writeMapPng(dir + "litter.png", floor.litter, "Forest floor: litter density", "density (0..1)", Colormap::Heat, 0, 1);
+        std::vector<std::string> names;
+        for (const auto& r : db.regions)
+            names.push_back(std::to_string(names.size()) + ": " + db.combinationName(r.combination) + " / " +
+                            std::to_string(r.cluster));
+        writeCategoryPng(dir + "cluster_map.png", clusters.region, "Cluster map (database region of each cell)", names,
+                         "no region (not seeded)");
+        for (const char* name : {"scene.png", "scene_zoom.png", "grass.png", "litter.png", "cluster_map.png"})
+            result.written.push_back(dir + name);
+        out << "wrote pictures: " << a.pngDir << "/ (scene.png, scene_zoom.png, grass.png, litter.png, cluster_map.png)\n";
+    }
+    reporter.info("synthesis finished in " + num(secondsSince(tStart), 3) + " s");
+    return result;
+}
+
+CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
+    std::ostream& out = reporter.out();
+    CompareResult result;
+    const BiomeDatabase db = readBiomeDatabase(a.database);
+    const Biome biome = databaseBiome(db);
+    const SceneData scene = readSceneFile(a.scene, biome);
+    RectWindow window{};
+    if (!a.window.empty()) window = parseWindow(a.window, "--window", false);
+    if (!a.png.empty()) prepareOutput(a.png);
+    const auto t = Clock::now();
+    result.comparison = compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
+                                           a.window.empty() ? nullptr : &window, a.pcfSources);
+    const SceneComparison& c = result.comparison;
+    reporter.info("compared in " + num(secondsSince(t), 3) + " s");
+    std::ostringstream text;
+    text << "scene " << a.scene << " (" << scene.canopy.size() << " canopy, " << scene.undergrowth.size()
+         << " undergrowth) against database " << a.database
+         << (a.window.empty() ? std::string() : " inside " + a.window) << "\n\n"
+         << comparisonTable(c, db);
+    result.table = text.str();
+    out << text.str();
+    if (!a.out.empty()) {
+        writeTextFile(a.out, text.str());
+        out << "wrote table: " << a.out << "\n";
+    }
+    if (!a.png.empty()) {
+        writeComparisonPng(a.png, c, db);
+        out << "wrote picture: " << a.png << "\n";
+    }
+    return result;
+}
+
+std::vector<std::string> commandLine(const SynthOptions& a) {
+    std::vector<std::string> args = {"synth", "--terrain", a.terrain, "--canopy", a.canopy, "--database", a.database};
+    if (!a.abiotics.empty()) args.insert(args.end(), {"--abiotics", a.abiotics});
+    args.insert(args.end(), {"--out", a.out});
+    if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
+    if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
+    if (!a.pdb.empty()) args.insert(args.end(), {"--pdb", a.pdb});
+    args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});
+    if (a.method) args.insert(args.end(), {"--method", *a.method});
+    a.terrainRead.appendArgs(args);
+    if (!a.zoom.empty()) args.insert(args.end(), {"--zoom", a.zoom});
+    const SynthParams synthDefaults;
+    if (a.params.maxPasses != synthDefaults.maxPasses) args.insert(args.end(), {"--max-passes", std::to_string(a.params.maxPasses)});
+    if (a.params.seedInnerRadiusFactor != synthDefaults.seedInnerRadiusFactor)
+        args.insert(args.end(), {"--seed-inner-radius-factor", argNumber(a.params.seedInnerRadiusFactor)});
+    if (a.params.trunkExclusionFactor != synthDefaults.trunkExclusionFactor)
+        args.insert(args.end(), {"--trunk-exclusion", argNumber(a.params.trunkExclusionFactor)});
+    const ForestFloorParams floorDefaults;
+    if (a.floorParams.litterFullAlpha != floorDefaults.litterFullAlpha)
+        args.insert(args.end(), {"--litter-full-alpha", argNumber(a.floorParams.litterFullAlpha)});
+    if (a.noUndergrowthShade) args.push_back("--no-undergrowth-shade");
+    if (a.refine) {
+        args.push_back("--refine");
+        if (!a.refineWindow.empty()) args.insert(args.end(), {"--refine-window", a.refineWindow});
+        if (a.refineSweeps) args.insert(args.end(), {"--refine-sweeps", std::to_string(*a.refineSweeps)});
+        if (a.refineRMaxM) args.insert(args.end(), {"--refine-rmax", argNumber(*a.refineRMaxM)});
+        if (a.refineMoveRadiusM) args.insert(args.end(), {"--refine-move", argNumber(*a.refineMoveRadiusM)});
+        if (a.refineSwapRadiusM) args.insert(args.end(), {"--refine-swap", argNumber(*a.refineSwapRadiusM)});
+    }
+    return args;
+}
+
+std::vector<std::string> commandLine(const CompareOptions& a) {
+    std::vector<std::string> args = {"compare", a.scene, a.database};
+    if (!a.png.empty()) args.insert(args.end(), {"--png", a.png});
+    if (!a.out.empty()) args.insert(args.end(), {"--out", a.out});
+    if (!a.window.empty()) args.insert(args.end(), {"--window", a.window});
+    if (a.pcfSources != 20000) args.insert(args.end(), {"--pcf-sources", std::to_string(a.pcfSources)});
+    return args;
+}
+
+}  // namespace eco::pipeline

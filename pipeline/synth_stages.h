@@ -1,0 +1,56 @@
+// eco synth and eco compare: a complete ecosystem on a terrain from a biome database
+// (synth/undergrowth, synth/forest_floor, synth/scene; docs/synth.md), and the comparison
+// of a scene with its database.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "forest_floor.h"
+#include "reporter.h"
+#include "scene.h"
+#include "stage_common.h"
+#include "undergrowth.h"
+
+namespace eco::pipeline {
+
+struct SynthOptions {
+    std::string terrain, canopy, database;
+    std::string out;       ///< scene HDF5 (atomic)
+    std::string abiotics;  ///< abiotics of the terrain; "" = computed with default parameters
+    std::string pngDir, csv, pdb;  ///< optional outputs ("" = none)
+    std::string zoom;          ///< crop of scene_zoom.png, "x,y,side" or "x0,y0,x1,y1"; "" = 60 m at the centre
+    std::string refineWindow;  ///< refinement only inside "x0,y0,x1,y1"; "" = everywhere
+    std::optional<std::string> method;  ///< undergrowth sampler by name; unset = structured
+    TerrainReadFlags terrainRead;
+    bool refine = false;
+    SynthParams params;  ///< params.method is set from `method`
+    // Overrides of RefineParams (unset: the defaults); its seed is params.seed.
+    std::optional<int> refineSweeps;
+    std::optional<double> refineRMaxM, refineMoveRadiusM, refineSwapRadiusM;
+    ForestFloorParams floorParams;
+    bool noUndergrowthShade = false;  ///< only canopy crowns shade the forest floor
+};
+struct SynthResult {
+    std::size_t canopyTrees = 0, undergrowthPlants = 0;
+    std::vector<std::string> written;
+};
+SynthResult synthStage(const SynthOptions& options, Reporter& reporter);
+std::vector<std::string> commandLine(const SynthOptions& options);
+
+struct CompareOptions {
+    std::string scene, database;
+    std::string png;     ///< "" = no picture
+    std::string window;  ///< "x0,y0,x1,y1"; "" = the whole scene
+    std::string out;     ///< "" = table on the reporter only; else also this Markdown file
+    std::size_t pcfSources = 20000;  ///< sources per region for the pair correlation; 0 = all
+};
+struct CompareResult {
+    SceneComparison comparison;
+    std::string table;
+};
+CompareResult compareStage(const CompareOptions& options, Reporter& reporter);
+std::vector<std::string> commandLine(const CompareOptions& options);
+
+}  // namespace eco::pipeline

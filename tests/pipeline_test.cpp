@@ -1,0 +1,128 @@
+// The pipeline library: a run configuration planned into typed stages whose command lines
+// are the ones `eco run` has always printed (users copy them from report.md), and the stages
+// called directly with a Reporter.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <sstream>
+
+#include "run.h"
+#include "stage_common.h"
+#include "terrain_stages.h"
+#include "test_util.h"
+
+namespace {
+
+using eco::pipeline::quotedCommand;
+
+/// A Reporter that keeps what a stage prints.
+class CapturingReporter : public eco::pipeline::SilentReporter {
+public:
+    std::ostream& out() override { return out_; }
+    void info(const std::string& line) override { info_ += line + "\n"; }
+    std::string printed() const { return out_.str(); }
+    const std::string& messages() const { return info_; }
+
+private:
+    std::ostringstream out_;
+    std::string info_;
+};
+
+}  // namespace
+
+TEST_CASE("pipeline: the demo configuration plans the stages and command lines eco run always printed", "[pipeline]") {
+    eco::test::TempDir dir("pipeline_plan");
+    const std::string o = dir.file("demo");
+    const eco::pipeline::RunPlan plan =
+        eco::pipeline::planRun(eco::test::sourcePath("configs/demo.toml"), o);
+    CHECK(plan.outDir == o);
+    const std::vector<std::pair<std::string, std::string>> expected = {
+        {"terrain", "eco terrain generate --out O/terrain.h5 --width 512 --height 512 --cell-size 0.914 --seed 1 --png O/png"},
+        {"chm", "eco chm generate --terrain O/terrain.h5 --out O/chm.h5 --seed 1 --png O/png"},
+        {"abiotics", "eco abiotics --terrain O/terrain.h5 --out O/abiotics.h5 --png O/png/abiotics --sun-step 10"},
+        {"canopy", "eco canopy --terrain O/terrain.h5 --chm O/chm.h5 --abiotics O/abiotics.h5 --out O/canopy.h5 --png "
+                   "O/png/canopy --csv O/canopy.csv --seed 1 --target Douglas-Fir=0.3"},
+        {"simulate", "eco simulate --config configs/sim-default.toml --terrain O/terrain.h5 --abiotics O/abiotics.h5 "
+                     "--canopy O/canopy.h5 --out O/simulation.h5 --csv O/undergrowth.csv --png O/png/simulation --seed 1 "
+                     "--years 150 --crop 100,60,220,180"},
+        {"analyse", "eco analyse O/simulation.h5 --out O/biome-db.h5 --seed 1 --kmax 6"},
+        {"inspect", "eco inspect O/biome-db.h5 --png O/png/database --out O/database.txt"},
+        {"target terrain", "eco terrain generate --out O/target/terrain.h5 --width 512 --height 512 --cell-size 0.914 "
+                           "--seed 2 --png O/target/png"},
+        {"target chm", "eco chm generate --terrain O/target/terrain.h5 --out O/target/chm.h5 --seed 2 --png O/target/png"},
+        {"target abiotics", "eco abiotics --terrain O/target/terrain.h5 --out O/target/abiotics.h5 --png "
+                            "O/target/png/abiotics --sun-step 10"},
+        {"target canopy", "eco canopy --terrain O/target/terrain.h5 --chm O/target/chm.h5 --abiotics "
+                          "O/target/abiotics.h5 --out O/target/canopy.h5 --png O/target/png/canopy --seed 2 --target "
+                          "Douglas-Fir=0.3"},
+        {"synth", "eco synth --terrain O/target/terrain.h5 --canopy O/target/canopy.h5 --database O/biome-db.h5 "
+                  "--abiotics O/target/abiotics.h5 --out O/scene.h5 --png O/png/synth --csv O/scene.csv --pdb "
+                  "O/scene.pdb --seed 2 --refine"},
+        {"compare", "eco compare O/scene.h5 O/biome-db.h5 --png O/png/synth/compare.png --out O/compare.md"},
+    };
+    REQUIRE(plan.stages.size() == expected.size());
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+        std::string line = expected[i].second;
+        for (std::size_t p = line.find("O/"); p != std::string::npos; p = line.find("O/", p + o.size()))
+            line.replace(p, 1, o);
+        INFO(expected[i].first);
+        CHECK(plan.stages[i].name == expected[i].first);
+        CHECK(quotedCommand(eco::pipeline::commandLine(plan.stages[i].options)) == line);
+    }
+}
+
+TEST_CASE("pipeline: a stage's command line shows exactly the options given", "[pipeline]") {
+    eco::pipeline::CanopyOptions c;
+    c.terrain = "t.png";
+    c.chm = "c.h5";
+    c.out = "k.h5";
+    CHECK(quotedCommand(eco::pipeline::commandLine(c)) == "eco canopy --terrain t.png --chm c.h5 --out k.h5");
+    c.terrainRead.cellSizeM = 0.5;
+    c.terrainRead.verticalScale = 1.0;  // given, even at the reader's default
+    c.seed = 7;
+    c.ringFactor = 0.75;
+    c.targets = {"Redwood=0.4", "Gray Pine=0.1"};
+    CHECK(quotedCommand(eco::pipeline::commandLine(c)) ==
+          "eco canopy --terrain t.png --chm c.h5 --out k.h5 --seed 7 --cell-size 0.5 --vertical-scale 1 --target "
+          "Redwood=0.4 --target 'Gray Pine=0.1' --ring-factor 0.75");
+
+    eco::pipeline::SynthOptions s;
+    s.terrain = "t.h5";
+    s.canopy = "k.h5";
+    s.database = "db.h5";
+    s.out = "s.h5";
+    s.method = "darts";
+    s.refine = true;
+    s.refineWindow = "0,0,10,10";
+    s.refineSweeps = 4;
+    CHECK(quotedCommand(eco::pipeline::commandLine(s)) ==
+          "eco synth --terrain t.h5 --canopy k.h5 --database db.h5 --out s.h5 --seed 1 --method darts --refine "
+          "--refine-window 0,0,10,10 --refine-sweeps 4");
+}
+
+TEST_CASE("pipeline: a number from a configuration reaches a stage as the command line gives it", "[pipeline]") {
+    // %.10g keeps 10 digits: the stage gets the value of the printed text, not the TOML's.
+    const double v = 0.12345678901234;
+    CHECK(eco::pipeline::argNumber(v) == "0.123456789");
+    CHECK(eco::pipeline::asOnCommandLine(v) == static_cast<double>(std::strtold("0.123456789", nullptr)));
+    CHECK(eco::pipeline::asOnCommandLine(0.914) == 0.914);
+}
+
+TEST_CASE("pipeline: a stage called directly reports through its Reporter", "[pipeline]") {
+    eco::test::TempDir dir("pipeline_stage");
+    eco::pipeline::TerrainGenerateOptions o;
+    o.out = dir.file("t.h5");
+    o.params.width = 24;
+    o.params.height = 16;
+    CapturingReporter reporter;
+    const eco::pipeline::TerrainResult r = eco::pipeline::generateTerrainStage(o, reporter);
+    CHECK(r.terrain.width() == 24);
+    CHECK(r.terrain.height() == 16);
+    CHECK(r.written == std::vector<std::string>{o.out});
+    CHECK(std::filesystem::exists(o.out));
+    CHECK_THAT(reporter.printed(), Catch::StartsWith("wrote terrain: " + o.out + " (24 x 16 cells of 0.914 m, "));
+    CHECK(reporter.messages().empty());
+
+    o.out = dir.file("t.xyz");
+    CHECK_THROWS_WITH(eco::pipeline::generateTerrainStage(o, reporter), Catch::Contains("unknown terrain format '.xyz'"));
+}
