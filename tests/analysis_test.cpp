@@ -63,7 +63,7 @@ std::vector<Features> blobs(int nBlobs, int perBlob, std::uint64_t seed, std::ve
     std::vector<Features> pts, cs;
     for (int b = 0; b < nBlobs; ++b) {
         Features c{};
-        for (std::size_t f = 0; f < kFeatureCount; ++f) c[f] = 4.0 * ((b >> f) & 1) + (f == 0 ? 4.0 * (b >> 2) : 0.0);
+        for (std::size_t f = 0; f < kFactorCount; ++f) c[f] = 4.0 * ((b >> f) & 1) + (f == 0 ? 4.0 * (b >> 2) : 0.0);
         cs.push_back(c);
         for (int i = 0; i < perBlob; ++i) {
             Features p = c;
@@ -172,7 +172,7 @@ TEST_CASE("k-means recovers well-separated clusters", "[analysis][kmeans]") {
         double best = 1e9;
         for (const Features& k : r.centroids) {
             double d = 0;
-            for (std::size_t f = 0; f < kFeatureCount; ++f) d += (c[f] - k[f]) * (c[f] - k[f]);
+            for (std::size_t f = 0; f < kFactorCount; ++f) d += (c[f] - k[f]) * (c[f] - k[f]);
             best = std::min(best, std::sqrt(d));
         }
         CHECK(best < 0.05);  // sd 0.15 / sqrt(200) per coordinate: 5 sigma is ~0.05 in 4-D

@@ -62,7 +62,7 @@ BiomeDatabase sampleDb() {
         r.combination = comb;
         r.cluster = cluster;
         r.centroidNormalised = z;
-        for (std::size_t f = 0; f < kFeatureCount; ++f) r.centroidRaw[f] = c.featureMean[f] + c.featureStd[f] * z[f];
+        for (std::size_t f = 0; f < kFactorCount; ++f) r.centroidRaw[f] = c.featureMean[f] + c.featureStd[f] * z[f];
         r.areaM2 = 50;
         r.cellCount = 50;
         r.undergrowthCount = 4;

@@ -16,8 +16,8 @@ using namespace eco;
 namespace {
 
 /// Uniform annual abiotics on a w x h grid of 1 m cells.
-AnnualAbiotics uniformFeatures(int w, int h, float sun, float moisture, float temperature, float slope) {
-    AnnualAbiotics f;
+FactorGrids uniformFeatures(int w, int h, float sun, float moisture, float temperature, float slope) {
+    FactorGrids f;
     f.sunHours = Grid<float>(w, h, 1.0, 0, 0, sun);
     f.moistureMm = Grid<float>(w, h, 1.0, 0, 0, moisture);
     f.temperatureC = Grid<float>(w, h, 1.0, 0, 0, temperature);
@@ -128,7 +128,7 @@ TEST_CASE("forest floor parameters are validated", "[forest_floor]") {
     ForestFloorParams q;
     q.litterFullAlpha = -1;
     CHECK_THROWS_WITH(q.validate(), Catch::Contains("litter_full_alpha"));
-    AnnualAbiotics f = uniformFeatures(4, 4, 10, 80, 15, 0);
+    FactorGrids f = uniformFeatures(4, 4, 10, 80, 15, 0);
     f.slopeDeg = Grid<float>(5, 4, 1.0);
     CHECK_THROWS_AS(computeForestFloor(f, {}, {}, defaultBiome(), ForestFloorParams{}), ValidationError);
 }

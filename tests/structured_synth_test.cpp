@@ -31,7 +31,7 @@ int sp(const std::string& name) { return sonoma().speciesIndex(name); }
 
 struct Scene {
     Grid<float> terrain;
-    AnnualAbiotics features;
+    FactorGrids features;
     std::vector<Plant> canopy;
 };
 

@@ -105,7 +105,7 @@ struct World {
     Biome biome = defaultBiome();
     BiomeDatabase db;
     Grid<float> terrain;
-    AnnualAbiotics features;
+    FactorGrids features;
     std::vector<Plant> canopy;
 };
 
@@ -147,7 +147,7 @@ inline World makeWorld(double hardCoreM = 0.8) {
                                     db.pcfBins, hardCoreM));
     for (auto& c : db.combinations)
         for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r)
-            for (std::size_t f = 0; f < kFeatureCount; ++f)
+            for (std::size_t f = 0; f < kFactorCount; ++f)
                 db.regions[static_cast<std::size_t>(r)].centroidNormalised[f] =
                     (db.regions[static_cast<std::size_t>(r)].centroidRaw[f] - c.featureMean[f]) / c.featureStd[f];
 
