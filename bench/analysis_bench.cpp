@@ -66,10 +66,7 @@ AnalysisInput syntheticScene(const Biome& biome, double perM2, std::uint64_t see
     in.biome = &biome;
     const int n = 512;
     const double cs = 0.914;
-    in.features[Factor::Sun] = Grid<float>(n, n, cs, 0, 0, 10.f);
-    in.features[Factor::Moisture] = Grid<float>(n, n, cs, 0, 0, 100.f);
-    in.features[Factor::Temperature] = Grid<float>(n, n, cs, 0, 0, 15.f);
-    in.features[Factor::Slope] = Grid<float>(n, n, cs, 0, 0, 5.f);
+    in.features = FactorGrids::uniform(Grid<float>(n, n, cs), {10, 100, 15, 5});
     RandomStream rng(seed, 2);
     for (int iy = 0; iy < n; ++iy)
         for (int ix = 0; ix < n; ++ix) {

@@ -894,6 +894,7 @@ MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& cli
 // All maps together
 
 FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual) {
+    static_assert(kFactorCount == 4, "a new factor: give its annual map here (docs/factors.md)");
     FactorGrids g;
     g[Factor::Sun] = sunHoursAnnual ? *sunHoursAnnual : a.sunHours.annualMean();
     g[Factor::Moisture] = a.moistureMm.annualMean();

@@ -50,6 +50,14 @@ struct FactorGrids {
 
     Grid<float>& operator[](Factor f) { return maps[factorIndex(f)]; }
     const Grid<float>& operator[](Factor f) const { return maps[factorIndex(f)]; }
+    /// Every map with the geometry of `like`, factor f's map filled with values[f] (tests and
+    /// synthetic scenes; a factor added later gets 0 from a shorter initialiser list).
+    template <typename T>
+    static FactorGrids uniform(const Grid<T>& like, const Features& values) {
+        FactorGrids g;
+        for (std::size_t f = 0; f < kFactorCount; ++f) g.maps[f] = Grid<float>::like(like, static_cast<float>(values[f]));
+        return g;
+    }
     /// The grid whose geometry all the maps share (the first factor's).
     const Grid<float>& geometry() const { return maps[0]; }
     /// The features of cell index `cell` (Grid::index), in factor order.

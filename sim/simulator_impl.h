@@ -282,6 +282,7 @@ struct Simulation::Impl : CellGrid {
     // temperature and slope at its root (plantFeatures).
     BatchVigourShape vigourShape() const { return BatchVigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
     static Features plantFeatures(double sun, double water, double temp, double slope) {
+        static_assert(kFactorCount == 4, "a new factor: give the plant's value here and in its callers (docs/factors.md)");
         Features x{};
         x[factorIndex(Factor::Sun)] = sun;
         x[factorIndex(Factor::Moisture)] = water;

@@ -48,10 +48,7 @@ Plant plant(const std::string& species, double x, double y, double h, double r) 
 AnalysisInput flatInput(int w, int h) {
     AnalysisInput in;
     in.biome = &sonoma();
-    in.features[Factor::Sun] = Grid<float>(w, h, 1.0, 0, 0, 10.f);
-    in.features[Factor::Moisture] = Grid<float>(w, h, 1.0, 0, 0, 100.f);
-    in.features[Factor::Temperature] = Grid<float>(w, h, 1.0, 0, 0, 15.f);
-    in.features[Factor::Slope] = Grid<float>(w, h, 1.0, 0, 0, 5.f);
+    in.features = FactorGrids::uniform(Grid<float>(w, h, 1.0), {10, 100, 15, 5});
     in.window = RectWindow{0, 0, static_cast<double>(w), static_cast<double>(h)};
     in.provenance.path = "memory";
     return in;

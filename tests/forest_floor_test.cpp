@@ -17,12 +17,7 @@ namespace {
 
 /// Uniform annual abiotics on a w x h grid of 1 m cells.
 FactorGrids uniformFeatures(int w, int h, float sun, float moisture, float temperature, float slope) {
-    FactorGrids f;
-    f[Factor::Sun] = Grid<float>(w, h, 1.0, 0, 0, sun);
-    f[Factor::Moisture] = Grid<float>(w, h, 1.0, 0, 0, moisture);
-    f[Factor::Temperature] = Grid<float>(w, h, 1.0, 0, 0, temperature);
-    f[Factor::Slope] = Grid<float>(w, h, 1.0, 0, 0, slope);
-    return f;
+    return FactorGrids::uniform(Grid<float>(w, h, 1.0), {sun, moisture, temperature, slope});
 }
 
 Plant plantAt(const Biome& b, const std::string& species, double x, double y, double r) {

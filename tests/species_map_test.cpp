@@ -23,11 +23,8 @@ namespace {
 /// little per-cell noise keeps whole rows and columns from tying (as in real maps).
 SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
     SpeciesMapInputs in;
-    in.features[Factor::Sun] = Grid<float>(w, h, 1.0);
-    in.features[Factor::Moisture] = Grid<float>::like(in.features[Factor::Sun]);
-    in.features[Factor::Temperature] = Grid<float>::like(in.features[Factor::Sun], 19.f);
-    in.features[Factor::Slope] = Grid<float>::like(in.features[Factor::Sun], 20.f);
-    in.chmM = Grid<float>::like(in.features[Factor::Sun], 30.f);
+    in.chmM = Grid<float>(w, h, 1.0, 0, 0, 30.f);
+    in.features = FactorGrids::uniform(in.chmM, {0, 0, 19, 20});
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) {
             RandomStream noise(99, static_cast<std::uint64_t>(iy * w + ix));

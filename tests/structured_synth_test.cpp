@@ -41,10 +41,7 @@ Scene makeScene(double canopyHeightM = 30.0) {
     Scene s;
     const int n = static_cast<int>(kSideM / kCellM);
     s.terrain = Grid<float>(n, n, kCellM, 0, 0, 50.f);
-    s.features[Factor::Sun] = Grid<float>::like(s.terrain, 8.f);
-    s.features[Factor::Moisture] = Grid<float>::like(s.terrain, 100.f);
-    s.features[Factor::Temperature] = Grid<float>::like(s.terrain, 15.f);
-    s.features[Factor::Slope] = Grid<float>::like(s.terrain, 5.f);
+    s.features = FactorGrids::uniform(s.terrain, {8, 100, 15, 5});
     for (double y = 8; y < kSideM; y += 16)
         for (double x = 8; x < kSideM; x += 16) {
             Plant t;

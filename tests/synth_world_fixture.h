@@ -153,10 +153,7 @@ inline World makeWorld(double hardCoreM = 0.8) {
 
     // Terrain and annual abiotics: a gentle tilt, sun from 6 (west) to 12 h/day (east).
     w.terrain = Grid<float>(kSide, kSide, kCell, 0.0, 0.0);
-    w.features[Factor::Sun] = Grid<float>::like(w.terrain);
-    w.features[Factor::Moisture] = Grid<float>::like(w.terrain, 100.0f);
-    w.features[Factor::Temperature] = Grid<float>::like(w.terrain, 15.0f);
-    w.features[Factor::Slope] = Grid<float>::like(w.terrain, 0.0f);
+    w.features = FactorGrids::uniform(w.terrain, {0, 100, 15, 0});
     for (int iy = 0; iy < kSide; ++iy)
         for (int ix = 0; ix < kSide; ++ix) {
             w.terrain(ix, iy) = static_cast<float>(100.0 + 0.02 * ix + 0.01 * iy);
