@@ -66,7 +66,7 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
     const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
     const std::uint32_t pkg = seedPkg[c];
     const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
-    const double slope = abio.slopeDeg.data()[cc];
+    const SitePlanes site = sitePlanes();
     const int periods = static_cast<int>(periodMonthMask.size());
     const std::size_t ns = spc.size();
     // The growth periods of the candidate species, whose means are computed once.
@@ -90,7 +90,7 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
         const int g = sc.period;
         if (!okG[g]) continue;
         cand[na] = s;
-        arg[na] = vig.exponent(sc.vigour, plantFeatures(sunG[g], waterG[g], tempG[g], slope));
+        arg[na] = vig.exponent(sc.vigour, site.features(sunG[g], waterG[g], tempG[g], cc));
         ++na;
     }
     batchExp(arg, arg, na);

@@ -278,18 +278,26 @@ struct Simulation::Impl : CellGrid {
     // ------------------------------------------------------------------ vigour and allometry
     // Vigour (Eq. 1) in core/vigour.h's batch form, so that the monthly update can take the
     // exp of a whole block of plants at once (batch_math.h): the exponent, then the vigour
-    // from its exp. A plant's features (factors.h order): its sun and water shares, and the
-    // temperature and slope at its root (plantFeatures).
+    // from its exp.
     BatchVigourShape vigourShape() const { return BatchVigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
-    static Features plantFeatures(double sun, double water, double temp, double slope) {
-        static_assert(kFactorCount == 4, "a new factor: give the plant's value here and in its callers (docs/factors.md)");
-        Features x{};
-        x[factorIndex(Factor::Sun)] = sun;
-        x[factorIndex(Factor::Moisture)] = water;
-        x[factorIndex(Factor::Temperature)] = temp;
-        x[factorIndex(Factor::Slope)] = slope;
-        return x;
-    }
+    // A plant's features (factors.h order): its sun and water shares (the resources the sweep
+    // shares out), the month's temperature (germination: its season mean) and the static
+    // factors of the abiotics cell of its root, read from the planes held here. A new static
+    // factor is one more plane in SitePlanes and one line in features() (docs/factors.md).
+    // Held by value, so that the monthly update and germination keep it in locals.
+    struct SitePlanes {
+        const float* slope;
+        Features features(double sun, double water, double temp, std::size_t coarseCell) const {
+            static_assert(kFactorCount == 4, "a new factor: give the plant's value here (docs/factors.md)");
+            Features x{};
+            x[factorIndex(Factor::Sun)] = sun;
+            x[factorIndex(Factor::Moisture)] = water;
+            x[factorIndex(Factor::Temperature)] = temp;
+            x[factorIndex(Factor::Slope)] = slope[coarseCell];
+            return x;
+        }
+    };
+    SitePlanes sitePlanes() const { return SitePlanes{abio.slopeDeg.data().data()}; }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator

@@ -22,7 +22,7 @@ constexpr double kCompetitionBinM = 1.0;
 std::size_t Simulation::Impl::updatePlants(int m) {
     const std::size_t n = pl.size();
     const float* tempPlane = abio.temperatureC[m].data().data();
-    const float* slopePlane = abio.slopeDeg.data().data();
+    const SitePlanes site = sitePlanes();
     const std::size_t blocks = (n + kPlantBlock - 1) / kPlantBlock;
     std::int64_t cellsVisited = 0;  // an integer sum: the same for any thread count
     // Every array in a local: the stores into them (fate's bytes may alias anything) would
@@ -74,7 +74,7 @@ std::size_t Simulation::Impl::updatePlants(int m) {
             sunOf[p] = static_cast<float>(sun);
             waterOf[p] = static_cast<float>(water);
             arg[p - p0] = vig.exponent(species[speciesOf[p]].vigour,
-                                       plantFeatures(sun, water, tempPlane[coarseOf[p]], slopePlane[coarseOf[p]]));
+                                       site.features(sun, water, tempPlane[coarseOf[p]], coarseOf[p]));
         }
         batchExp(arg, ex, p1 - p0);
         double draw[kPlantBlock];  // mortality uniforms (drawn for every plant, used unless it reached the canopy)
