@@ -68,6 +68,10 @@ struct ParamDesc {
     int S::*integer = nullptr;
     ParamRange range{};               ///< allowed values (seeds: [0, 2^53))
     std::uint64_t S::*seed = nullptr;
+    const char* rule = nullptr;       ///< message text of the range when not range.text()
+
+    /// The range as message text ("must lie in [0, 1]").
+    std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
 
     /// The value as a double (seeds above 2^53 lose precision; write them separately).
     double value(const S& p) const {
@@ -118,7 +122,7 @@ void validateParams(const S& p, const std::vector<ParamDesc<S>>& fields, const s
         if (f.kind == ParamDesc<S>::Kind::Seed) continue;
         const double v = f.value(p);
         if (!f.range.contains(v))
-            throw ValidationError(what + " '" + f.key + "' " + f.range.text() + ", got " + formatNumber(v, 6));
+            throw ValidationError(what + " '" + f.key + "' " + f.ruleText() + ", got " + formatNumber(v, 6));
     }
 }
 

@@ -1191,3 +1191,31 @@ TEST_CASE("run config: strict parsing with the file and key named", "[sim][confi
     // Empty strings are valid for paths ("" = none).
     CHECK(parseRunConfig("[inputs]\nbiome = \"\"\n", "empty.toml").biomePath.empty());
 }
+
+TEST_CASE("model parameters: one description drives reading, the record, attributes, validation and the docs table",
+          "[sim][config]") {
+    std::ifstream in(std::string(ECO_SOURCE_DIR) + "/docs/simulator.md");
+    REQUIRE(in);
+    std::stringstream docs;
+    docs << in.rdbuf();
+    const SimParams defaults;
+    const std::string record = defaults.toToml();
+    const auto named = defaults.namedValues();
+    REQUIRE(named.size() == simParamFields().size() + 2);  // + growth_rule, competition
+    for (std::size_t i = 0; i < simParamFields().size(); ++i) {
+        const auto& f = simParamFields()[i];
+        INFO(f.key);
+        CHECK(docs.str().find(paramDocRow(f)) != std::string::npos);
+        CHECK(named[i].first == f.key);
+        CHECK(named[i].second == f.value(defaults));
+        CHECK(record.find(std::string("\n") + f.key + " = ") != std::string::npos);
+        // A value outside the range (or, for the outer radius, below the inner one) is refused
+        // with the key named, from a config and from validate().
+        const double outside = f.real == &SimParams::seedOuterRadiusFactor ? 1.0
+                               : f.range.highBound != ParamRange::Bound::None ? f.range.hi + 1
+                                                                              : f.range.lo - 1;
+        std::ostringstream cfg;
+        cfg << "[model]\n" << f.key << " = " << (f.kind == ParamDesc<SimParams>::Kind::Integer ? std::to_string(static_cast<int>(outside)) : formatNumber(outside, 17) + (outside == std::floor(outside) ? ".0" : "")) << "\n";
+        CHECK_THROWS_WITH(parseRunConfig(cfg.str(), "bad.toml"), Catch::Contains("bad.toml:2") && Catch::Contains(f.key));
+    }
+}
