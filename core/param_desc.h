@@ -1,9 +1,10 @@
 // One description per parameter (issue 23, item 5): key, one-line doc with units, and the
 // allowed range, so that one table drives setting by key (TOML and flags), the attributes
 // written into outputs, validation with its messages, and the documentation (a test checks
-// each key's row in the docs). The canopy placer's CanopyParams is described this way
-// (synth/canopy_placer.h, canopyParamFields); other parameter structs still describe
-// themselves by hand (docs/factors.md, "Counts").
+// each key's row in the docs). Described this way: the canopy placer's CanopyParams
+// (synth/canopy_placer.h, canopyParamFields) and the simulator's [model] keys
+// (sim/sim_config.h, simParamFields); the other parameter structs still describe themselves
+// by hand (docs/factors.md, the end).
 #pragma once
 
 #include <cmath>
