@@ -31,9 +31,6 @@ struct PreparedInput {
     RectWindow window;               ///< clipped to the grid
 };
 
-Features featuresAt(const AnalysisInput& in, std::size_t cell) {
-    return {in.sunHours.data()[cell], in.moistureMm.data()[cell], in.temperatureC.data()[cell], in.slopeDeg.data()[cell]};
-}
 
 void validateInputs(const std::vector<AnalysisInput>& inputs) {
     if (inputs.empty()) throw ValidationError("analyse: no inputs");
@@ -51,13 +48,11 @@ void validateInputs(const std::vector<AnalysisInput>& inputs) {
                                       "', the first input's is '" + inputs[0].biome->species[s].name + "'");
         if (in.biome->subBiomes.size() != inputs[0].biome->subBiomes.size())
             throw ValidationError(what + ": the biome's sub-biomes differ from the first input's");
-        if (in.sunHours.empty()) throw ValidationError(what + ": empty abiotic grids");
-        const Grid<float>* grids[] = {&in.moistureMm, &in.temperatureC, &in.slopeDeg};
-        const char* names[] = {"moisture", "temperature", "slope"};
-        for (int g = 0; g < 3; ++g)
-            if (!grids[g]->sameGeometry(in.sunHours))
-                throw ValidationError(what + ": the " + std::string(names[g]) +
-                                      " grid differs in geometry from the sun grid");
+        if (in.features.geometry().empty()) throw ValidationError(what + ": empty abiotic grids");
+        for (std::size_t f = 1; f < kFactorCount; ++f)
+            if (!in.features.maps[f].sameGeometry(in.features.geometry()))
+                throw ValidationError(what + ": the " + std::string(kFactors[f].key) +
+                                      " grid differs in geometry from the " + kFactors[0].key + " grid");
         in.window.validate(what);
         for (const auto* list : {&in.canopy, &in.undergrowth})
             for (std::size_t p = 0; p < list->size(); ++p) {
@@ -461,7 +456,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     std::vector<PreparedInput> prep(inputs.size());
     for (std::size_t i = 0; i < inputs.size(); ++i) {
         const AnalysisInput& in = inputs[i];
-        const Grid<float>& g = in.sunHours;
+        const Grid<float>& g = in.features.geometry();
         RectWindow w = in.window;
         w.x0 = std::max(w.x0, g.originX());
         w.y0 = std::max(w.y0, g.originY());
@@ -475,7 +470,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
         for (int iy = 0; iy < g.height(); ++iy)
             for (int ix = 0; ix < g.width(); ++ix) {
                 const std::size_t c = g.index(ix, iy);
-                const Features f = featuresAt(in, c);
+                const Features f = in.features.at(c);
                 bool finite = true;
                 for (double v : f) finite = finite && std::isfinite(v);
                 if (!finite || !w.contains(g.cellCentreX(ix), g.cellCentreY(iy)))
@@ -507,11 +502,11 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
         std::vector<Features> raw(cells.size());
         for (std::size_t j = 0; j < cells.size(); ++j) {
             const AnalysisInput& in = inputs[cells[j].first];
-            raw[j] = featuresAt(in, cells[j].second);
-            const double cs = in.sunHours.cellSizeM();
+            raw[j] = in.features.at(cells[j].second);
+            const double cs = in.features.geometry().cellSizeM();
             comb.areaM2 += cs * cs;
         }
-        for (std::size_t f = 0; f < kFeatureCount; ++f) {
+        for (std::size_t f = 0; f < kFactorCount; ++f) {
             double sum = 0;
             for (const Features& v : raw) sum += v[f];
             const double mean = sum / static_cast<double>(raw.size());
@@ -525,7 +520,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
         }
         std::vector<Features> z(raw.size());
         for (std::size_t j = 0; j < raw.size(); ++j)
-            for (std::size_t f = 0; f < kFeatureCount; ++f) z[j][f] = (raw[j][f] - comb.featureMean[f]) / comb.featureStd[f];
+            for (std::size_t f = 0; f < kFactorCount; ++f) z[j][f] = (raw[j][f] - comb.featureMean[f]) / comb.featureStd[f];
         const int kLimit = params.minClusterAreaM2 > 0
                                ? std::max(1, static_cast<int>(std::floor(comb.areaM2 / params.minClusterAreaM2)))
                                : params.kMax;
@@ -538,7 +533,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             r.combination = m;
             r.cluster = c;
             r.centroidNormalised = sel.centroids[static_cast<std::size_t>(c)];
-            for (std::size_t f = 0; f < kFeatureCount; ++f)
+            for (std::size_t f = 0; f < kFactorCount; ++f)
                 r.centroidRaw[f] = comb.featureMean[f] + comb.featureStd[f] * r.centroidNormalised[f];
             db.regions.push_back(std::move(r));
         }
@@ -550,7 +545,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             double bestD = std::numeric_limits<double>::infinity();
             for (int c = 0; c < sel.k; ++c) {
                 double d = 0;
-                for (std::size_t f = 0; f < kFeatureCount; ++f) {
+                for (std::size_t f = 0; f < kFactorCount; ++f) {
                     const double e = z[static_cast<std::size_t>(j)][f] - sel.centroids[static_cast<std::size_t>(c)][f];
                     d += e * e;
                 }
@@ -565,7 +560,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
         for (std::size_t j = 0; j < cells.size(); ++j) {
             const auto& cell = cells[j];
             DbRegion& r = db.regions[static_cast<std::size_t>(prep[cell.first].region.data()[cell.second])];
-            const double cs = inputs[cell.first].sunHours.cellSizeM();
+            const double cs = inputs[cell.first].features.geometry().cellSizeM();
             r.areaM2 += cs * cs;
             ++r.cellCount;
         }
@@ -608,8 +603,8 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     }
     std::vector<Grid<std::uint8_t>> contextOf(inputs.size());
     for (std::size_t i = 0; i < inputs.size(); ++i) {
-        contextOf[i] = canopyContextMap(canopyDepthMap(inputs[i].sunHours, inputs[i].canopy), params.contextBins);
-        const double cellArea = inputs[i].sunHours.cellSizeM() * inputs[i].sunHours.cellSizeM();
+        contextOf[i] = canopyContextMap(canopyDepthMap(inputs[i].features.geometry(), inputs[i].canopy), params.contextBins);
+        const double cellArea = inputs[i].features.geometry().cellSizeM() * inputs[i].features.geometry().cellSizeM();
         const auto& reg = prep[i].region.data();
         for (std::size_t c = 0; c < reg.size(); ++c)
             if (reg[c] >= 0) db.regions[static_cast<std::size_t>(reg[c])].contextAreaM2[contextOf[i].data()[c]] += cellArea;
@@ -625,7 +620,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
         prov.undergrowthPlants = prov.canopyTrees = prov.unlabelledPlants = 0;
         prov.unlabelledAreaM2 = 0;
         for (std::int32_t c : p.combination.data())
-            if (c == 0) prov.unlabelledAreaM2 += in.sunHours.cellSizeM() * in.sunHours.cellSizeM();
+            if (c == 0) prov.unlabelledAreaM2 += in.features.geometry().cellSizeM() * in.features.geometry().cellSizeM();
         for (int layer = 0; layer < 2; ++layer)
             for (const Plant& pl : layer == 0 ? in.undergrowth : in.canopy) {
                 if (!p.window.contains(pl.xM, pl.yM)) continue;

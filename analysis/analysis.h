@@ -69,10 +69,10 @@ struct AnalysisInput {
     const Biome* biome = nullptr;     ///< every input of one analysis must share the species
     std::vector<Plant> canopy;        ///< canopy trees (sources of seeding and of pairs)
     std::vector<Plant> undergrowth;   ///< the analysed plants
-    // Annual means, one geometry (grid.h conventions): hours/day, mm, degC, degrees. The sun
-    // is under the canopy (applyCanopyShade with `canopy`), as readSimulation (sim_input.h) makes it
-    // and as the synthesizer shades its target terrain.
-    Grid<float> sunHours, moistureMm, temperatureC, slopeDeg;
+    // Annual means per factor (factors.h), one geometry (grid.h conventions). The sun is under
+    // the canopy (applyCanopyShade with `canopy`), as readSimulation (sim_input.h) makes it and
+    // as the synthesizer shades its target terrain.
+    FactorGrids features;
     RectWindow window;                ///< analysed area; cells whose centre lies inside it
     DbInput provenance;               ///< path, seed, year ... (counts are filled in)
 };

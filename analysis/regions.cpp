@@ -15,7 +15,7 @@ namespace {
 
 double dist2(const Features& a, const Features& b) {
     double d = 0;
-    for (std::size_t f = 0; f < kFeatureCount; ++f) d += (a[f] - b[f]) * (a[f] - b[f]);
+    for (std::size_t f = 0; f < kFactorCount; ++f) d += (a[f] - b[f]) * (a[f] - b[f]);
     return d;
 }
 
@@ -67,7 +67,7 @@ KMeansResult lloyd(const std::vector<Features>& points, std::vector<Features> ce
         for (std::size_t i = 0; i < n; ++i) {
             const std::size_t c = static_cast<std::size_t>(r.assignment[i]);
             ++count[c];
-            for (std::size_t f = 0; f < kFeatureCount; ++f) sum[c][f] += points[i][f];
+            for (std::size_t f = 0; f < kFactorCount; ++f) sum[c][f] += points[i][f];
         }
         for (std::size_t c = 0; c < k; ++c) {
             if (count[c] == 0) {
@@ -85,7 +85,7 @@ KMeansResult lloyd(const std::vector<Features>& points, std::vector<Features> ce
                 changed = true;
                 continue;
             }
-            for (std::size_t f = 0; f < kFeatureCount; ++f) centroids[c][f] = sum[c][f] / static_cast<double>(count[c]);
+            for (std::size_t f = 0; f < kFactorCount; ++f) centroids[c][f] = sum[c][f] / static_cast<double>(count[c]);
         }
     }
     // Final assignment against the final centroids.

@@ -55,16 +55,14 @@ LoadedSimulation readSimulation(const std::string& path, const SimulationReadOpt
                               "abiotics (eco abiotics without --canopy)");
     // Region features: the sun under the simulation's canopy, so that clearings, forest edges
     // and deep shade can fall into different regions (the synthesizer shades its target alike).
-    in.sunHours = applyCanopyShade(ab.sunHours, shadingTrees(in.canopy, *biome)).annualMean();
-    in.moistureMm = ab.moistureMm.annualMean();
-    in.temperatureC = ab.temperatureC.annualMean();
-    in.slopeDeg = ab.slopeDeg;
+    const Grid<float> shadedSun = applyCanopyShade(ab.sunHours, shadingTrees(in.canopy, *biome)).annualMean();
+    in.features = annualFactors(ab, &shadedSun);
 
     // Area.
     if (file.area) {
         in.window = RectWindow{(*file.area)[0], (*file.area)[1], (*file.area)[2], (*file.area)[3]};
     } else {
-        const Grid<float>& g = in.slopeDeg;
+        const Grid<float>& g = in.features.geometry();
         in.window = RectWindow{g.originX(), g.originY(), g.originX() + g.extentX(), g.originY() + g.extentY()};
     }
     try {

@@ -66,16 +66,13 @@ AnalysisInput syntheticScene(const Biome& biome, double perM2, std::uint64_t see
     in.biome = &biome;
     const int n = 512;
     const double cs = 0.914;
-    in.sunHours = Grid<float>(n, n, cs, 0, 0, 10.f);
-    in.moistureMm = Grid<float>(n, n, cs, 0, 0, 100.f);
-    in.temperatureC = Grid<float>(n, n, cs, 0, 0, 15.f);
-    in.slopeDeg = Grid<float>(n, n, cs, 0, 0, 5.f);
+    in.features = FactorGrids::uniform(Grid<float>(n, n, cs), {10, 100, 15, 5});
     RandomStream rng(seed, 2);
     for (int iy = 0; iy < n; ++iy)
         for (int ix = 0; ix < n; ++ix) {
-            in.moistureMm(ix, iy) = static_cast<float>(60 + 100.0 * ix / n + 5 * rng.normal());
-            in.sunHours(ix, iy) = static_cast<float>(8 + 4.0 * iy / n + 0.3 * rng.normal());
-            in.slopeDeg(ix, iy) = static_cast<float>(10 + 5 * rng.normal());
+            in.features[Factor::Moisture](ix, iy) = static_cast<float>(60 + 100.0 * ix / n + 5 * rng.normal());
+            in.features[Factor::Sun](ix, iy) = static_cast<float>(8 + 4.0 * iy / n + 0.3 * rng.normal());
+            in.features[Factor::Slope](ix, iy) = static_cast<float>(10 + 5 * rng.normal());
         }
     const double side = n * cs;
     in.window = RectWindow{0, 0, side, side};

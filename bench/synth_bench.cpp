@@ -141,7 +141,7 @@ eco::BiomeDatabase benchmarkDatabase(const eco::Biome& b) {
             r.combination = mask;
             r.cluster = cluster;
             r.centroidRaw = {cluster == 0 ? 7.0 : 11.0, 80.0, 20.0, 15.0};
-            for (std::size_t f = 0; f < eco::kFeatureCount; ++f)
+            for (std::size_t f = 0; f < eco::kFactorCount; ++f)
                 r.centroidNormalised[f] = (r.centroidRaw[f] - c.featureMean[f]) / c.featureStd[f];
             r.areaM2 = 10000;
             r.densityPerM2 = cluster == 0 ? 0.45 : 0.75;
@@ -245,7 +245,7 @@ int main(int argc, char** argv) {
             const auto tAb = Clock::now();
             const eco::Abiotics abiotics = eco::computeAbiotics(terrain, biome, ap);
             const double abioticsS = secondsSince(tAb);
-            const eco::AnnualAbiotics features = eco::annualAbiotics(abiotics);
+            const eco::FactorGrids features = eco::annualFactors(abiotics);
 
             eco::Grid<std::int32_t> speciesMap;
             const Timing tMap = timed([&] { speciesMap = eco::computeSpeciesMap(biome, eco::speciesMapInputs(abiotics, chm)); });

@@ -893,6 +893,16 @@ MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& cli
 // ---------------------------------------------------------------------------------------
 // All maps together
 
+FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual) {
+    static_assert(kFactorCount == 4, "a new factor: give its annual map here (docs/factors.md)");
+    FactorGrids g;
+    g[Factor::Sun] = sunHoursAnnual ? *sunHoursAnnual : a.sunHours.annualMean();
+    g[Factor::Moisture] = a.moistureMm.annualMean();
+    g[Factor::Temperature] = a.temperatureC.annualMean();
+    g[Factor::Slope] = a.slopeDeg;
+    return g;
+}
+
 void validateElevation(const Grid<float>& elevationM, const std::string& what) {
     if (elevationM.width() < 3 || elevationM.height() < 3)
         throw ValidationError(what + ": grid must be at least 3 x 3 cells, got " + std::to_string(elevationM.width()) +

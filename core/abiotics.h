@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "biome.h"
+#include "factors.h"
 #include "grid.h"
 #include "plants.h"
 
@@ -148,6 +149,12 @@ struct Abiotics {
     /// canopy themselves and refuse shaded input (the shade would count twice).
     std::string canopyShadeSource;
 };
+
+/// The annual maps of the factors (factors.h): the annual means of the monthly maps (sun,
+/// moisture, temperature) and the slope, in factor order. The one place that says which
+/// abiotics map feeds which factor. `sunHoursAnnual`, when given, replaces the sun's
+/// annual mean (a canopy-shaded sun, as the analyser and synthesizer use).
+FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual = nullptr);
 
 /// Throws ValidationError unless the elevation grid is at least 3 x 3 with finite values.
 void validateElevation(const Grid<float>& elevationM, const std::string& what = "elevation");

@@ -28,17 +28,9 @@ double Allometry::heightForCrownRadiusM(double crownRadiusM) const {
     return b != 0.0 ? std::exp((std::log(crownRadiusM) - a) / b) : 0.0;
 }
 
-double VigourShape::g(double d, double r) const {
-    return (1.0 + a) * std::exp(std::pow(std::abs(d) / r, p) * std::log(q)) - a;
-}
-
-double Biome::vigourOf(int s, double sunHours, double moistureMm, double temperatureC, double slopeDeg) const {
+double Biome::vigourOf(int s, const Features& x) const {
     const Species& sp = species[static_cast<std::size_t>(s)];
-    const double ft = vigour.g(temperatureC - sp.temperature.c, sp.temperature.r);
-    const double fm = vigour.g(moistureMm - sp.moisture.c, sp.moisture.r);
-    const double fe = vigour.g(sunHours - sp.sun.c, sp.sun.r);
-    const double fg = vigour.g(slopeDeg - sp.slope.c, sp.slope.r);
-    return sp.alpha * std::min(std::min(ft, fm), std::min(fe, fg));
+    return sp.alpha * minResponse(vigour, sp.responses, x);
 }
 
 int Biome::speciesIndex(const std::string& name) const {
@@ -191,10 +183,7 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
             s.maxAgeYears = age;
             s.maxHeightM = t.positive("max_height_m");
             s.alpha = t.numberIn("alpha", 0, 1);
-            s.sun = readResponse(t, "sun", file, ctx);
-            s.moisture = readResponse(t, "moisture", file, ctx);
-            s.temperature = readResponse(t, "temperature", file, ctx);
-            s.slope = readResponse(t, "slope", file, ctx);
+            for (std::size_t f = 0; f < kFactorCount; ++f) s.responses[f] = readResponse(t, kFactors[f].key, file, ctx);
             s.growthPeriod = t.string("growth_period");
             bool found = false;
             for (const auto& [name, months] : b.growthPeriods)
@@ -290,18 +279,16 @@ std::string biomeToToml(const Biome& b) {
     for (const auto& s : b.species) {
         toml::array subsOf;
         for (int n : s.subBiomes) subsOf.push_back(static_cast<std::int64_t>(n));
-        sps.push_back(toml::table{{"name", s.name},
-                                  {"sub_biomes", subsOf},
-                                  {"max_age_years", s.maxAgeYears},
-                                  {"max_height_m", s.maxHeightM},
-                                  {"alpha", s.alpha},
-                                  {"sun", resp(s.sun)},
-                                  {"moisture", resp(s.moisture)},
-                                  {"temperature", resp(s.temperature)},
-                                  {"slope", resp(s.slope)},
-                                  {"growth_period", s.growthPeriod},
-                                  {"allometry", s.allometry.code},
-                                  {"canopy", s.canopy}});
+        toml::table st{{"name", s.name},
+                       {"sub_biomes", subsOf},
+                       {"max_age_years", s.maxAgeYears},
+                       {"max_height_m", s.maxHeightM},
+                       {"alpha", s.alpha},
+                       {"growth_period", s.growthPeriod},
+                       {"allometry", s.allometry.code},
+                       {"canopy", s.canopy}};
+        for (std::size_t f = 0; f < kFactorCount; ++f) st.insert(kFactors[f].key, resp(s.responses[f]));
+        sps.push_back(std::move(st));
     }
     root.insert("species", sps);
     std::ostringstream out;

@@ -6,13 +6,10 @@
 #include <string>
 #include <vector>
 
-namespace eco {
+#include "factors.h"
+#include "vigour.h"
 
-/// One abiotic response: optimum c and range r (same units as the abiotic).
-struct Response {
-    double c = 0.0;
-    double r = 1.0;
-};
+namespace eco {
 
 /// Crown radius from height, r = exp(a + b ln h) (Eq. 2), or r = factor * h (code E).
 struct Allometry {
@@ -34,30 +31,21 @@ struct Species {
     double maxAgeYears = 1.0;        ///< l_s
     double maxHeightM = 1.0;         ///< h'_s
     double alpha = 0.5;              ///< light absorption / vigour scale, [0, 1]
-    Response sun;                    ///< hours of sun per day
-    Response moisture;               ///< mm per month
-    Response temperature;            ///< degrees Celsius
-    Response slope;                  ///< degrees
+    Responses responses;             ///< per factor (factors.h order and units): optimum c, range r
     std::string growthPeriod;        ///< name of a Biome::growthPeriods entry
     std::vector<int> growthMonths;   ///< resolved months, 0 = January
     Allometry allometry;
     std::vector<int> subBiomes;      ///< 1-based sub-biome numbers (as in the paper)
     bool canopy = false;             ///< can be a canopy tree
+    /// The response to factor f.
+    const Response& response(Factor f) const { return responses[factorIndex(f)]; }
+    Response& response(Factor f) { return responses[factorIndex(f)]; }
 };
 
 struct SubBiome {
     int number = 1;  ///< 1-based, as in the paper
     std::string name;
     std::vector<std::string> canopySpecies;
-};
-
-/// Vigour response shape g(d) = (1 + a) exp((d / r)^p ln q) - a (Eq. 1).
-struct VigourShape {
-    double a = 0.2;
-    double q = 0.01;
-    double p = 4.5;
-    /// g(d) for distance d from the optimum and range r.
-    double g(double d, double r) const;
 };
 
 struct Climate {
@@ -88,8 +76,9 @@ struct Biome {
 
     /// Index of a species by exact name; ValidationError listing the names if unknown.
     int speciesIndex(const std::string& name) const;
-    /// Vigour v_s = alpha_s * min(f_t, f_m, f_e, f_g) of species s (Eq. 1) for the four abiotic values.
-    double vigourOf(int s, double sunHours, double moistureMm, double temperatureC, double slopeDeg) const;
+    /// Vigour v_s = alpha_s * min_f g(x_f - c_sf, r_sf) of species s (Eq. 1, the scalar form
+    /// of vigour.h) for the abiotic values x (one per factor, factors.h units).
+    double vigourOf(int s, const Features& x) const;
 };
 
 /// Parse and validate a biome TOML file. Throws IoError (unreadable, bad TOML) or

@@ -101,7 +101,7 @@ private:
 
 Features featuresAt(const std::vector<double>& flat, std::size_t row) {
     Features f{};
-    for (int c = 0; c < kFeatureCount; ++c) f[static_cast<std::size_t>(c)] = flat[row * kFeatureCount + static_cast<std::size_t>(c)];
+    for (std::size_t c = 0; c < kFactorCount; ++c) f[c] = flat[row * kFactorCount + c];
     return f;
 }
 
@@ -163,26 +163,22 @@ int BiomeDatabase::standInCombination(int combination) const {
     return best;
 }
 
-int BiomeDatabase::nearestRegion(int combination, double sunHours, double moistureMm, double temperatureC,
-                                 double slopeDeg) const {
+int BiomeDatabase::nearestRegion(int combination, const Features& raw) const {
     const int mask = standInCombination(combination);
     if (mask < 0) return -1;
-    return nearestRegionOf(static_cast<std::size_t>(combinationIndex(mask)), sunHours, moistureMm, temperatureC,
-                           slopeDeg);
+    return nearestRegionOf(static_cast<std::size_t>(combinationIndex(mask)), raw);
 }
 
-int BiomeDatabase::nearestRegionOf(std::size_t combinationIdx, double sunHours, double moistureMm,
-                                   double temperatureC, double slopeDeg) const {
+int BiomeDatabase::nearestRegionOf(std::size_t combinationIdx, const Features& raw) const {
     const DbCombination& c = combinations[combinationIdx];
-    const Features raw = {sunHours, moistureMm, temperatureC, slopeDeg};
     Features z{};
-    for (std::size_t f = 0; f < kFeatureCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];
+    for (std::size_t f = 0; f < kFactorCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];
     int best = -1;
     double bestD = std::numeric_limits<double>::infinity();
     for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r) {
         const Features& cz = regions[static_cast<std::size_t>(r)].centroidNormalised;
         double d = 0;
-        for (std::size_t f = 0; f < kFeatureCount; ++f) d += (z[f] - cz[f]) * (z[f] - cz[f]);
+        for (std::size_t f = 0; f < kFactorCount; ++f) d += (z[f] - cz[f]) * (z[f] - cz[f]);
         if (d < bestD) {
             bestD = d;
             best = r;
@@ -260,8 +256,13 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.writeStrings("/categories/names", catNames);
         f.writeI32("/categories/layer", catLayer, {hs(catLayer.size())});
         f.writeI32("/categories/species", catSpecies, {hs(catSpecies.size())});
-        f.writeStrings("/features/names", std::vector<std::string>(kFeatureNames.begin(), kFeatureNames.end()));
-        f.writeStrings("/features/units", std::vector<std::string>(kFeatureUnits.begin(), kFeatureUnits.end()));
+        std::vector<std::string> featureNames, featureUnits;
+        for (const FactorInfo& fi : kFactors) {
+            featureNames.emplace_back(fi.key);
+            featureUnits.emplace_back(fi.unit);
+        }
+        f.writeStrings("/features/names", featureNames);
+        f.writeStrings("/features/units", featureUnits);
 
         std::vector<std::string> pNames, pValues;
         for (const auto& [k, v] : db.parameters) {
@@ -327,11 +328,11 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.writeF64("/combinations/area_m2", cArea, {hs(nc)});
         f.writeF64("/combinations/cell_count", cCells, {hs(nc)});
         f.writeF64("/combinations/feature_mean",
-                   flatten(db.combinations, kFeatureCount, [](const DbCombination& c) { return featuresRow(c.featureMean); }),
-                   {hs(nc), kFeatureCount});
+                   flatten(db.combinations, kFactorCount, [](const DbCombination& c) { return featuresRow(c.featureMean); }),
+                   {hs(nc), kFactorCount});
         f.writeF64("/combinations/feature_std",
-                   flatten(db.combinations, kFeatureCount, [](const DbCombination& c) { return featuresRow(c.featureStd); }),
-                   {hs(nc), kFeatureCount});
+                   flatten(db.combinations, kFactorCount, [](const DbCombination& c) { return featuresRow(c.featureStd); }),
+                   {hs(nc), kFactorCount});
         f.writeF64("/combinations/silhouette",
                    flatten(db.combinations, kMaxTried, [](const DbCombination& c) -> const std::vector<double>& { return c.silhouette; }),
                    {hs(nc), hs(kMaxTried)});
@@ -353,11 +354,11 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.writeI32("/regions/combination", rComb, {hs(nr)});
         f.writeI32("/regions/cluster", rCluster, {hs(nr)});
         f.writeF64("/regions/centroid_normalised",
-                   flatten(db.regions, kFeatureCount, [](const DbRegion& r) { return featuresRow(r.centroidNormalised); }),
-                   {hs(nr), kFeatureCount});
+                   flatten(db.regions, kFactorCount, [](const DbRegion& r) { return featuresRow(r.centroidNormalised); }),
+                   {hs(nr), kFactorCount});
         f.writeF64("/regions/centroid_raw",
-                   flatten(db.regions, kFeatureCount, [](const DbRegion& r) { return featuresRow(r.centroidRaw); }),
-                   {hs(nr), kFeatureCount});
+                   flatten(db.regions, kFactorCount, [](const DbRegion& r) { return featuresRow(r.centroidRaw); }),
+                   {hs(nr), kFactorCount});
         f.writeF64("/regions/area_m2", rArea, {hs(nr)});
         f.writeF64("/regions/cell_count", rCells, {hs(nr)});
         f.writeF64("/regions/undergrowth_count", rUnder, {hs(nr)});
@@ -484,11 +485,11 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto masks = rd.i32("/species/canopy_subbiome_mask", {ns});
     db.canopySubBiomeMask.assign(masks.begin(), masks.end());
     db.subBiomeNames = rd.strings("/sub_biomes/names", Reader::kAny);
-    const auto featureNames = rd.strings("/features/names", kFeatureCount);
-    for (std::size_t i = 0; i < kFeatureCount; ++i)
-        if (featureNames[i] != kFeatureNames[i])
+    const auto featureNames = rd.strings("/features/names", kFactorCount);
+    for (std::size_t i = 0; i < kFactorCount; ++i)
+        if (featureNames[i] != kFactors[i].key)
             throw IoError(path + ": /features/names: feature " + std::to_string(i) + " is '" + featureNames[i] +
-                          "', expected '" + kFeatureNames[i] + "'");
+                          "', expected '" + kFactors[i].key + "'");
     const auto pNames = rd.strings("/parameters/names", Reader::kAny);
     const auto pValues = rd.strings("/parameters/values", pNames.size());
     for (std::size_t i = 0; i < pNames.size(); ++i) db.parameters.emplace_back(pNames[i], pValues[i]);
@@ -549,8 +550,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto cFirst = rd.i32("/combinations/first_region", {nc});
     const auto cArea = rd.f64("/combinations/area_m2", {nc});
     const auto cCells = rd.f64("/combinations/cell_count", {nc});
-    const auto cMean = rd.f64("/combinations/feature_mean", {nc, kFeatureCount});
-    const auto cStd = rd.f64("/combinations/feature_std", {nc, kFeatureCount});
+    const auto cMean = rd.f64("/combinations/feature_mean", {nc, kFactorCount});
+    const auto cStd = rd.f64("/combinations/feature_std", {nc, kFactorCount});
     const auto silShape = f.shape("/combinations/silhouette");
     if (silShape.size() != 2 || silShape[0] != nc)
         throw IoError(path + ": /combinations/silhouette: expected shape [" + std::to_string(nc) + "][kmax]");
@@ -579,8 +580,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
 
     const auto rComb = rd.i32("/regions/combination", {nr});
     const auto rCluster = rd.i32("/regions/cluster", {nr});
-    const auto rCz = rd.f64("/regions/centroid_normalised", {nr, kFeatureCount});
-    const auto rCr = rd.f64("/regions/centroid_raw", {nr, kFeatureCount});
+    const auto rCz = rd.f64("/regions/centroid_normalised", {nr, kFactorCount});
+    const auto rCr = rd.f64("/regions/centroid_raw", {nr, kFactorCount});
     const auto rArea = rd.f64("/regions/area_m2", {nr});
     const auto rCells = rd.f64("/regions/cell_count", {nr});
     const auto rUnder = rd.f64("/regions/undergrowth_count", {nr});

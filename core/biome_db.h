@@ -10,7 +10,7 @@
 //     cells of one combination.
 //   * category: a species in a layer, c = layer * nSpecies + species, layer 0 =
 //     undergrowth, 1 = canopy (the same species can be both a canopy tree and a sapling).
-//   * features: the four annual-mean abiotics, in the order of kFeatureNames.
+//   * features: the annual-mean abiotics, one per factor in the order of kFactors (factors.h).
 #pragma once
 
 #include <array>
@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "canopy_context.h"
+#include "factors.h"
 #include "point_pattern.h"
 
 namespace eco {
@@ -31,12 +32,6 @@ namespace eco {
 constexpr int kBiomeDbSchemaVersion = 3;
 constexpr int kBiomeDbOldestReadableVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";
-
-constexpr int kFeatureCount = 4;
-/// Feature order everywhere: sun hours/day, soil moisture mm, temperature degC, slope degrees.
-constexpr std::array<const char*, kFeatureCount> kFeatureNames = {"sun", "moisture", "temperature", "slope"};
-constexpr std::array<const char*, kFeatureCount> kFeatureUnits = {"hours/day", "mm", "degC", "degrees"};
-using Features = std::array<double, kFeatureCount>;
 
 enum class Layer : int { Undergrowth = 0, Canopy = 1 };
 
@@ -164,20 +159,18 @@ struct BiomeDatabase {
     /// Index into combinations of a mask, or -1.
     int combinationIndex(int mask) const;
 
-    /// Region for a cell of the given combination and annual-mean abiotics (sun hours/day,
-    /// moisture mm, temperature degC, slope degrees): the nearest centroid in the
+    /// Region for a cell of the given combination and annual-mean abiotics x (factors.h
+    /// order and units): the nearest centroid in the
     /// combination's normalised units. When the combination did not occur in the analysed
     /// inputs, the stored combination sharing the most sub-biomes (then differing in the
     /// fewest, then the lowest mask) stands in for it. -1 when the combination is 0 or
     /// shares no sub-biome with any stored one.
-    int nearestRegion(int combination, double sunHours, double moistureMm, double temperatureC,
-                      double slopeDeg) const;
+    int nearestRegion(int combination, const Features& x) const;
     /// The stored combination nearestRegion() uses for `combination`, or -1.
     int standInCombination(int combination) const;
     /// Region of the stored combination combinations[combinationIdx] whose centroid is
     /// nearest in the combination's normalised units (the second step of nearestRegion).
-    int nearestRegionOf(std::size_t combinationIdx, double sunHours, double moistureMm, double temperatureC,
-                        double slopeDeg) const;
+    int nearestRegionOf(std::size_t combinationIdx, const Features& x) const;
 };
 
 /// Write a database atomically (temporary file, then rename). IoError on failure.

@@ -204,8 +204,8 @@ InspectResult inspectStage(const InspectOptions& args, Reporter& reporter) {
             o << "    region " << ri << " (cluster " << r.cluster << "): " << fixed(r.areaM2, 0) << " m2, "
               << fixed(r.undergrowthCount, 0) << " plants, " << fixed(r.densityPerM2, 4) << " plants/m2, "
               << fixed(r.canopyCount, 0) << " canopy trees; centroid";
-            for (std::size_t f = 0; f < kFeatureCount; ++f)
-                o << (f ? ", " : " ") << kFeatureNames[f] << " " << num(r.centroidRaw[f]) << " " << kFeatureUnits[f];
+            for (std::size_t f = 0; f < kFactorCount; ++f)
+                o << (f ? ", " : " ") << kFactors[f].key << " " << num(r.centroidRaw[f]) << " " << kFactors[f].unit;
             o << "\n      leading species:";
             const auto lead = leadingSpecies(r, 4);
             if (lead.empty()) o << " none";

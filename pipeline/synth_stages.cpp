@@ -80,10 +80,10 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
                               "terrain's own abiotics (eco abiotics without --canopy)");
     // The forest floor works from the open-sky maps (it shades under every crown itself); the
     // cluster map from the sun under the canopy, as the analyser's regions were made.
-    const AnnualAbiotics features = annualAbiotics(abiotics);
+    const FactorGrids features = annualFactors(abiotics);
     Abiotics shaded = abiotics;
     shaded.sunHours = applyCanopyShade(abiotics.sunHours, shadingTrees(canopy, biome));
-    const AnnualAbiotics shadedFeatures = annualAbiotics(shaded);
+    const FactorGrids shadedFeatures = annualFactors(shaded);
 
     auto t = Clock::now();
     const ClusterMap clusters = computeClusterMap(db, biome, canopy, shadedFeatures, params);

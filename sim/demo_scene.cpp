@@ -54,8 +54,7 @@ SimInputs makeDemoScene(const DemoSceneParams& p, const Biome& biome) {
 
     // Stand-in species map: the canopy-capable species of highest annual-mean vigour that
     // can reach the tree's height (else the tallest canopy species).
-    const Grid<float> sun = in.abiotics.sunHours.annualMean(), water = in.abiotics.moistureMm.annualMean(),
-                      temp = in.abiotics.temperatureC.annualMean();
+    const FactorGrids annual = annualFactors(in.abiotics);
     int tallest = -1;
     for (const Species& s : biome.species)
         if (s.canopy && (tallest < 0 || s.maxHeightM > biome.species[static_cast<std::size_t>(tallest)].maxHeightM)) tallest = s.id;
@@ -66,7 +65,7 @@ SimInputs makeDemoScene(const DemoSceneParams& p, const Biome& biome) {
         double bestV = -1e300;
         for (const Species& s : biome.species) {
             if (!s.canopy || s.maxHeightM < t.heightM) continue;
-            const double v = biome.vigourOf(s.id, sun(ix, iy), water(ix, iy), temp(ix, iy), in.abiotics.slopeDeg(ix, iy));
+            const double v = biome.vigourOf(s.id, annual.at(ix, iy));
             if (v > bestV) {
                 bestV = v;
                 best = s.id;

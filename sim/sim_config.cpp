@@ -25,24 +25,6 @@ std::string fmt(double v) {
     return s;
 }
 
-// The [model] keys, in one place for reading, writing and recording.
-template <typename P, typename F>
-void forEachParam(P& p, F&& f) {
-    f("cell_size_m", p.cellSizeM);
-    f("min_water_demand_mm", p.minWaterDemandMm);
-    f("seeding_probability", p.seedingProbability);
-    f("seed_inner_radius_factor", p.seedInnerRadiusFactor);
-    f("seed_outer_radius_factor", p.seedOuterRadiusFactor);
-    f("roulette_age_exponent", p.rouletteAgeExponent);
-    f("survival_at_max_age", p.survivalAtMaxAge);
-    f("pool_capacity_stress_months", p.poolCapacityStressMonths);
-    f("canopy_threshold_m", p.canopyThresholdM);
-    f("seeding_month", p.seedingMonth);
-    f("seedling_growth_age_months", p.seedlingGrowthAgeMonths);
-    f("growth_months_per_overflow", p.growthMonthsPerOverflow);
-    f("deussen_dominated_survival", p.deussenDominatedSurvival);
-}
-
 template <typename E>
 struct EnumName {
     E value;
@@ -94,31 +76,56 @@ const char* competitionModeName(CompetitionMode m) {
     return "?";
 }
 
+const std::vector<ParamDesc<SimParams>>& simParamFields() {
+    using K = ParamDesc<SimParams>::Kind;
+    using R = ParamRange;
+    using P = SimParams;
+    static const std::vector<ParamDesc<SimParams>> fields = {
+        {"cell_size_m", "simulation cell, m", K::Real, &P::cellSizeM, nullptr, R::openClosed(0.001, 10), nullptr,
+         "must lie in (0.001, 10] metres"},
+        {"min_water_demand_mm", "per occupant and cell, mm/month", K::Real, &P::minWaterDemandMm, nullptr, R::atLeast(0),
+         nullptr, "must not be negative"},
+        {"seeding_probability", "gamma", K::Real, &P::seedingProbability, nullptr, R::closed(0, 1)},
+        {"seed_inner_radius_factor", "inner kernel radius, in crown radii", K::Real, &P::seedInnerRadiusFactor, nullptr,
+         R::atLeast(0), nullptr, "must not be negative"},
+        // Also more than seed_inner_radius_factor (firstInvalid).
+        {"seed_outer_radius_factor", "outer kernel radius, in crown radii", K::Real, &P::seedOuterRadiusFactor, nullptr,
+         R::any()},
+        {"roulette_age_exponent", "beta", K::Real, &P::rouletteAgeExponent, nullptr, R::closed(0, 10)},
+        {"survival_at_max_age", "P_s", K::Real, &P::survivalAtMaxAge, nullptr,
+         R{R::Bound::Open, 0, R::Bound::Open, 1}},
+        {"pool_capacity_stress_months", "capacity = this x alpha_s x a", K::Real, &P::poolCapacityStressMonths, nullptr,
+         R::above(0), nullptr, "must be positive"},
+        {"canopy_threshold_m", "canopy limit where the CHM is lower", K::Real, &P::canopyThresholdM, nullptr, R::above(0),
+         nullptr, "must be positive"},
+        {"seeding_month", "germination at the end of this month (0 = January)", K::Integer, nullptr, &P::seedingMonth,
+         R::closed(0, 11), nullptr, "must lie in 0..11 (0 = January)"},
+        {"seedling_growth_age_months", "seedling size, via Eq. 3", K::Real, &P::seedlingGrowthAgeMonths, nullptr,
+         R::above(0), nullptr, "must be positive"},
+        {"growth_months_per_overflow",
+         "months of growth age per unit overflow (a multiplier under both growth rules)", K::Real,
+         &P::growthMonthsPerOverflow, nullptr, R::atLeast(0), nullptr, "must not be negative"},
+        {"deussen_dominated_survival",
+         "Deussen mode: probability of surviving one year of domination by one plant", K::Real,
+         &P::deussenDominatedSurvival, nullptr, R::closed(0, 1)},
+    };
+    return fields;
+}
+
 namespace {
-// The first invalid parameter of `p`: its key and what is wrong ("" when all are valid).
-// Shared by SimParams::validate and the config reader (which adds the key's line).
+// The first invalid parameter of `p`: its key and what is wrong ("" when all are valid), in
+// the order of simParamFields. Shared by SimParams::validate and the config reader (which
+// adds the key's line).
 std::pair<std::string, std::string> firstInvalid(const SimParams& p) {
-    auto bad = [](const char* key, double v, const char* what) {
+    auto bad = [](const std::string& key, double v, const std::string& what) {
         return std::pair<std::string, std::string>(key, "value " + fmt(v) + ": " + what);
     };
-    if (!(p.cellSizeM > 0.001 && p.cellSizeM <= 10)) return bad("cell_size_m", p.cellSizeM, "must lie in (0.001, 10] metres");
-    if (!(p.minWaterDemandMm >= 0)) return bad("min_water_demand_mm", p.minWaterDemandMm, "must not be negative");
-    if (!(p.seedingProbability >= 0 && p.seedingProbability <= 1))
-        return bad("seeding_probability", p.seedingProbability, "must lie in [0, 1]");
-    if (!(p.seedInnerRadiusFactor >= 0)) return bad("seed_inner_radius_factor", p.seedInnerRadiusFactor, "must not be negative");
-    if (!(p.seedOuterRadiusFactor > p.seedInnerRadiusFactor))
-        return bad("seed_outer_radius_factor", p.seedOuterRadiusFactor, "must exceed seed_inner_radius_factor");
-    if (!(p.rouletteAgeExponent >= 0 && p.rouletteAgeExponent <= 10))
-        return bad("roulette_age_exponent", p.rouletteAgeExponent, "must lie in [0, 10]");
-    if (!(p.survivalAtMaxAge > 0 && p.survivalAtMaxAge < 1))
-        return bad("survival_at_max_age", p.survivalAtMaxAge, "must lie in (0, 1)");
-    if (!(p.poolCapacityStressMonths > 0)) return bad("pool_capacity_stress_months", p.poolCapacityStressMonths, "must be positive");
-    if (!(p.canopyThresholdM > 0)) return bad("canopy_threshold_m", p.canopyThresholdM, "must be positive");
-    if (p.seedingMonth < 0 || p.seedingMonth > 11) return bad("seeding_month", p.seedingMonth, "must lie in 0..11 (0 = January)");
-    if (!(p.seedlingGrowthAgeMonths > 0)) return bad("seedling_growth_age_months", p.seedlingGrowthAgeMonths, "must be positive");
-    if (!(p.growthMonthsPerOverflow >= 0)) return bad("growth_months_per_overflow", p.growthMonthsPerOverflow, "must not be negative");
-    if (!(p.deussenDominatedSurvival >= 0 && p.deussenDominatedSurvival <= 1))
-        return bad("deussen_dominated_survival", p.deussenDominatedSurvival, "must lie in [0, 1]");
+    for (const auto& f : simParamFields()) {
+        const double v = f.value(p);
+        if (!f.range.contains(v)) return bad(f.key, v, f.ruleText());
+        if (f.real == &SimParams::seedOuterRadiusFactor && !(p.seedOuterRadiusFactor > p.seedInnerRadiusFactor))
+            return bad(f.key, v, "must exceed seed_inner_radius_factor");
+    }
     if (p.growthRule != GrowthRule::Ideal && p.growthRule != GrowthRule::Literal)
         return bad("growth_rule", static_cast<double>(p.growthRule), "unknown growth rule");
     if (p.competition != CompetitionMode::Resources && p.competition != CompetitionMode::Deussen)
@@ -142,13 +149,10 @@ void SimParams::validate(const std::string& source) const {
 std::string SimParams::toToml() const {
     std::ostringstream os;
     os << "[model]\n";
-    forEachParam(*this, [&](const char* key, const auto& v) { os << key << " = " << fmt(static_cast<double>(v)) << "\n"; });
+    for (const auto& f : simParamFields())  // integers stay integers in TOML
+        os << f.key << " = " << (f.kind == ParamDesc<SimParams>::Kind::Integer ? std::to_string(this->*(f.integer)) : fmt(f.value(*this)))
+           << "\n";
     std::string s = os.str();
-    // Integers must stay integers in TOML.
-    const std::string key = "seeding_month = ";
-    const auto pos = s.find(key);
-    const auto end = s.find('\n', pos);
-    s.replace(pos, end - pos, key + std::to_string(seedingMonth));
     s += std::string("growth_rule = \"") + growthRuleName(growthRule) + "\"\n";
     s += std::string("competition = \"") + competitionModeName(competition) + "\"\n";
     return s;
@@ -156,7 +160,7 @@ std::string SimParams::toToml() const {
 
 std::vector<std::pair<std::string, double>> SimParams::namedValues() const {
     std::vector<std::pair<std::string, double>> out;
-    forEachParam(*this, [&](const char* key, const auto& v) { out.emplace_back(key, static_cast<double>(v)); });
+    for (const auto& f : simParamFields()) out.emplace_back(f.key, f.value(*this));
     out.emplace_back("growth_rule", static_cast<double>(growthRule));   // 0 = ideal, 1 = literal
     out.emplace_back("competition", static_cast<double>(competition));  // 0 = resources, 1 = deussen
     return out;
@@ -235,16 +239,17 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("model")) {
         StrictTable s(*t, sourceName, "[model]");
-        forEachParam(c.params, [&](const char* key, auto& v) {
-            using T = std::decay_t<decltype(v)>;
-            if constexpr (std::is_same_v<T, int>) {
-                const std::int64_t i = s.integerOr(key, v);
-                if (i < -2147483647 || i > 2147483647) s.fail(key, "value out of range");
+        for (const auto& f : simParamFields()) {
+            if (f.kind == ParamDesc<SimParams>::Kind::Integer) {
+                int& v = c.params.*(f.integer);
+                const std::int64_t i = s.integerOr(f.key, v);
+                if (i < -2147483647 || i > 2147483647) s.fail(f.key, "value out of range");
                 v = static_cast<int>(i);
             } else {
-                v = s.numberOr(key, v);
+                double& v = c.params.*(f.real);
+                v = s.numberOr(f.key, v);
             }
-        });
+        }
         readEnum(s, "growth_rule", kGrowthRules, c.params.growthRule);
         readEnum(s, "competition", kCompetitionModes, c.params.competition);
         s.finish();

@@ -14,6 +14,8 @@
 #include <utility>
 #include <vector>
 
+#include "param_desc.h"
+
 namespace eco::sim {
 
 /// How carbon-pool overflow becomes growth age ([model] growth_rule).
@@ -86,6 +88,12 @@ struct SimParams {
     /// (key, value) pairs in the order of toToml(), values as doubles (for HDF5 attributes).
     std::vector<std::pair<std::string, double>> namedValues() const;
 };
+
+/// The one description of SimParams' numeric [model] keys (core/param_desc.h), in the order
+/// of toToml(): reading the [model] table, writing it, the HDF5 attributes (namedValues),
+/// validation and docs/simulator.md's table (tested) all go through it. growth_rule and
+/// competition are enums, read and written beside it.
+const std::vector<ParamDesc<SimParams>>& simParamFields();
 
 /// Rectangle in world metres (x east, y north): [x0, x1) x [y0, y1).
 struct SimArea {

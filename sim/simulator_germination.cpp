@@ -66,7 +66,7 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
     const std::size_t c = static_cast<std::size_t>(iy) * W + ix;
     const std::uint32_t pkg = seedPkg[c];
     const std::size_t cc = coarseRowOffset[iy] + static_cast<std::size_t>(coarseCol[ix]);
-    const double slope = abio.slopeDeg.data()[cc];
+    const SitePlanes site = sitePlanes();
     const int periods = static_cast<int>(periodMonthMask.size());
     const std::size_t ns = spc.size();
     // The growth periods of the candidate species, whose means are computed once.
@@ -82,7 +82,7 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
     double sunG[kMaxGrowthPeriods], waterG[kMaxGrowthPeriods], tempG[kMaxGrowthPeriods];
     bool okG[kMaxGrowthPeriods];
     seasonMeans(c, ix, iy, wanted, sunG, waterG, tempG, okG);
-    const VigourShape vig = vigourShape();
+    const BatchVigourShape vig = vigourShape();
     std::size_t na = 0;
     for (std::size_t k = 0; k < nc; ++k) {
         const int s = cand[k];
@@ -90,13 +90,13 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
         const int g = sc.period;
         if (!okG[g]) continue;
         cand[na] = s;
-        arg[na] = vig.exponent(sc, sunG[g], waterG[g], tempG[g], slope);
+        arg[na] = vig.exponent(sc.vigour, site.features(sunG[g], waterG[g], tempG[g], cc));
         ++na;
     }
     batchExp(arg, arg, na);
     for (std::size_t k = 0; k < na; ++k) {  // rouletteWeight, with maxAge^beta precomputed
         const SpeciesConst& sc = spc[static_cast<std::size_t>(cand[k])];
-        const double vbar = vig.fromExp(sc, arg[k]);
+        const double vbar = vig.fromExp(sc.alpha, arg[k]);
         w[cand[k]] = std::max(0.0, vbar / sc.rouletteDenominator);
     }
 }

@@ -114,8 +114,8 @@ struct SpeciesConst {
     double backgroundMu = 0;   // monthly background mortality
     double growthPerOverflow = 0;  // months of growth age per unit overflow (growthMonthsPerUnitOverflow)
     double rouletteDenominator = 1;  // maxAge^beta
-    // Optima c and reciprocal ranges 1 / r of Eq. 1 (multiplications instead of divisions).
-    double sunC = 0, sunInvR = 1, moistC = 0, moistInvR = 1, tempC = 0, tempInvR = 1, slopeC = 0, slopeInvR = 1;
+    // alpha, the optima c and reciprocal ranges 1 / r of Eq. 1 per factor (core/vigour.h's batch form).
+    VigourCoeffs vigour;
     bool growthMonth[12] = {};
     int period = 0;            // index into biome.growthPeriods
     std::uint32_t memberMask = 0;      // sub-biomes the species belongs to (bit b = sub-biome b + 1)
@@ -276,23 +276,28 @@ struct Simulation::Impl : CellGrid {
     int bands() const { return (H + kBandRows - 1) / kBandRows; }
 
     // ------------------------------------------------------------------ vigour and allometry
-    // Vigour (Eq. 1) in two steps, so that the monthly update can take the exp of a whole
-    // block of plants at once (batch_math.h): the exponent, then the vigour from its exp.
-    // g is decreasing in |d| / r, so min(g(.)) = g(max |d| / r): one exp and one pow.
-    // VigourShape holds Eq. 1's shape (p, ln q, a) by value, so that the monthly update and
-    // germination keep it in locals.
-    struct VigourShape {
-        bool fourAndHalf;  // p = 4.5: x^4 sqrt(x) instead of pow
-        double p, lnQ, a;
-        double exponent(const SpeciesConst& c, double sun, double water, double temp, double slope) const {
-            const double x = std::max(std::max(std::abs(temp - c.tempC) * c.tempInvR, std::abs(water - c.moistC) * c.moistInvR),
-                                      std::max(std::abs(sun - c.sunC) * c.sunInvR, std::abs(slope - c.slopeC) * c.slopeInvR));
-            const double xp = fourAndHalf ? (x * x) * (x * x) * std::sqrt(x) : std::pow(x, p);
-            return xp * lnQ;
+    // Vigour (Eq. 1) in core/vigour.h's batch form, so that the monthly update can take the
+    // exp of a whole block of plants at once (batch_math.h): the exponent, then the vigour
+    // from its exp.
+    BatchVigourShape vigourShape() const { return BatchVigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
+    // A plant's features (factors.h order): its sun and water shares (the resources the sweep
+    // shares out), the month's temperature (germination: its season mean) and the static
+    // factors of the abiotics cell of its root, read from the planes held here. A new static
+    // factor is one more plane in SitePlanes and one line in features() (docs/factors.md).
+    // Held by value, so that the monthly update and germination keep it in locals.
+    struct SitePlanes {
+        const float* slope;
+        Features features(double sun, double water, double temp, std::size_t coarseCell) const {
+            static_assert(kFactorCount == 4, "a new factor: give the plant's value here (docs/factors.md)");
+            Features x{};
+            x[factorIndex(Factor::Sun)] = sun;
+            x[factorIndex(Factor::Moisture)] = water;
+            x[factorIndex(Factor::Temperature)] = temp;
+            x[factorIndex(Factor::Slope)] = slope[coarseCell];
+            return x;
         }
-        double fromExp(const SpeciesConst& c, double e) const { return c.alpha * ((1.0 + a) * e - a); }
     };
-    VigourShape vigourShape() const { return VigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
+    SitePlanes sitePlanes() const { return SitePlanes{abio.slopeDeg.data().data()}; }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator

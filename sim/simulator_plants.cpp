@@ -22,12 +22,12 @@ constexpr double kCompetitionBinM = 1.0;
 std::size_t Simulation::Impl::updatePlants(int m) {
     const std::size_t n = pl.size();
     const float* tempPlane = abio.temperatureC[m].data().data();
-    const float* slopePlane = abio.slopeDeg.data().data();
+    const SitePlanes site = sitePlanes();
     const std::size_t blocks = (n + kPlantBlock - 1) / kPlantBlock;
     std::int64_t cellsVisited = 0;  // an integer sum: the same for any thread count
     // Every array in a local: the stores into them (fate's bytes may alias anything) would
     // otherwise make the compiler reload each vector's pointer after every store.
-    const VigourShape vig = vigourShape();
+    const BatchVigourShape vig = vigourShape();
     const SpeciesConst* species = spc.data();
     const std::uint32_t* slotOf = slotStart.data();
     const double *sunPart = partSun.data(), *waterPart = partWater.data();
@@ -73,7 +73,8 @@ std::size_t Simulation::Impl::updatePlants(int m) {
             const double sun = sunSum * inv, water = waterSum * inv;
             sunOf[p] = static_cast<float>(sun);
             waterOf[p] = static_cast<float>(water);
-            arg[p - p0] = vig.exponent(species[speciesOf[p]], sun, water, tempPlane[coarseOf[p]], slopePlane[coarseOf[p]]);
+            arg[p - p0] = vig.exponent(species[speciesOf[p]].vigour,
+                                       site.features(sun, water, tempPlane[coarseOf[p]], coarseOf[p]));
         }
         batchExp(arg, ex, p1 - p0);
         double draw[kPlantBlock];  // mortality uniforms (drawn for every plant, used unless it reached the canopy)
@@ -91,7 +92,7 @@ std::size_t Simulation::Impl::updatePlants(int m) {
             if (fateOf[p]) continue;
             const int s = speciesOf[p];
             const SpeciesConst& c = species[s];
-            const double v = vig.fromExp(c, ex[p - p0]);
+            const double v = vig.fromExp(c.alpha, ex[p - p0]);
             vigourOf[p] = static_cast<float>(v);
             const PoolStep ps = updatePool(poolOf[p], v, c.capacity);
             poolOf[p] = ps.pool;

@@ -71,10 +71,7 @@ void Simulation::Impl::setupSpecies() {
         c.capacity = poolCapacity(params.poolCapacityStressMonths, s.alpha, vigA);
         c.backgroundMu = backgroundMortalityPerMonth(params.survivalAtMaxAge, s.maxAgeYears);
         c.rouletteDenominator = std::pow(s.maxAgeYears, params.rouletteAgeExponent);
-        c.sunC = s.sun.c; c.sunInvR = 1.0 / s.sun.r;
-        c.moistC = s.moisture.c; c.moistInvR = 1.0 / s.moisture.r;
-        c.tempC = s.temperature.c; c.tempInvR = 1.0 / s.temperature.r;
-        c.slopeC = s.slope.c; c.slopeInvR = 1.0 / s.slope.r;
+        c.vigour = VigourCoeffs::from(s.alpha, s.responses);
         c.period = -1;
         for (std::size_t g = 0; g < biome.growthPeriods.size(); ++g)
             if (biome.growthPeriods[g].first == s.growthPeriod) c.period = static_cast<int>(g);

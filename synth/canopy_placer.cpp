@@ -524,93 +524,46 @@ std::vector<char> duplicateKeepFlags(const std::vector<Crown>& c, double minTrun
 
 const std::vector<CanopyParamField>& canopyParamFields() {
     using K = CanopyParamField::Kind;
+    using R = ParamRange;
     static const std::vector<CanopyParamField> fields = {
-        {"canopy_threshold_m", "CHM footprint: cells with CHM >= this are canopy (m)", K::Real,
-         &CanopyParams::canopyThresholdM, nullptr},
-        {"min_seed_height_m", "trees are seeded and may move only where the CHM is >= this (m)", K::Real,
-         &CanopyParams::minSeedHeightM, nullptr},
-        {"local_maximum_radius_cells", "initial seeds: strict CHM maxima over a (2R+1)^2 window (cells)", K::Integer,
-         nullptr, &CanopyParams::localMaximumRadiusCells},
-        {"min_visible_fraction", "a tree whose visible crown is below this fraction of its disc is removed", K::Real,
-         &CanopyParams::minVisibleFraction, nullptr},
-        {"max_iterations", "iteration cap", K::Integer, nullptr, &CanopyParams::maxIterations},
-        {"move_factor", "fraction of the way to the centroid of the visible crown moved per iteration", K::Real,
-         &CanopyParams::moveFactor, nullptr},
-        {"ring_samples", "candidate new trees per tree and iteration", K::Integer, nullptr, &CanopyParams::ringSamples},
+        {"canopy_threshold_m", "footprint / forested area: CHM >= this (m); also the species-map threshold", K::Real,
+         &CanopyParams::canopyThresholdM, nullptr, R::atLeast(0)},
+        {"min_seed_height_m", "trees are seeded, and may move, only where the CHM is >= this (m)", K::Real,
+         &CanopyParams::minSeedHeightM, nullptr, R::above(0)},
+        {"local_maximum_radius_cells", "initial seeds: strict maxima over a (2R+1)^2 window", K::Integer, nullptr,
+         &CanopyParams::localMaximumRadiusCells, R::closed(1, 64)},
+        {"min_visible_fraction", "starved below this visible fraction of the disc", K::Real,
+         &CanopyParams::minVisibleFraction, nullptr, R::closed(0, 1)},
+        {"max_iterations", "iteration cap", K::Integer, nullptr, &CanopyParams::maxIterations, R::closed(0, 100000)},
+        {"move_factor", "fraction of the way to the visible centroid per iteration (1 = paper)", K::Real,
+         &CanopyParams::moveFactor, nullptr, R::closed(0, 1)},
+        {"ring_samples", "candidate new trees per tree and iteration", K::Integer, nullptr, &CanopyParams::ringSamples,
+         R::closed(0, 1024)},
+        {"ring_factor", "ring radius = factor * (r_i + r_new)", K::Real, &CanopyParams::ringFactor, nullptr,
+         R::openClosed(0, 10)},
         {"support_bump_factor",
-         "an added tree needs a bump of its own: its cell this many crown radii above its ring at half a radius (0: none)",
-         K::Real, &CanopyParams::supportBumpFactor, nullptr},
-        {"anchor_apex_trees", "1: trees seeded at CHM maxima stay there at the CHM's height; 0: they move like added trees",
-         K::Integer, nullptr, &CanopyParams::anchorApexTrees},
-        {"keep_best_state", "1: end in the state of highest coverage; 0: in the last state", K::Integer, nullptr,
-         &CanopyParams::keepBestState},
-        {"ring_factor", "ring radius = ring_factor * (r_i + r_new)", K::Real, &CanopyParams::ringFactor, nullptr},
+         "an added tree needs a CHM bump of its own (below); 0 = the paper's rule",
+         K::Real, &CanopyParams::supportBumpFactor, nullptr, R::closed(0, 10)},
+        {"anchor_apex_trees", "trees seeded at CHM maxima stay there, at the CHM's height; 0 = they move", K::Integer,
+         nullptr, &CanopyParams::anchorApexTrees, R::closed(0, 1)},
+        {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", K::Integer, nullptr,
+         &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this (m)", K::Real, &CanopyParams::minTrunkDistanceM,
-         nullptr},
-        {"coverage_epsilon", "stop when an iteration gains less coverage than this (fraction)", K::Real,
-         &CanopyParams::coverageEpsilon, nullptr},
-        {"seed", "random seed of the ring sampling", K::Seed, nullptr, nullptr},
+         nullptr, R::atLeast(0)},
+        {"coverage_epsilon", "stop when an iteration gains less coverage", K::Real, &CanopyParams::coverageEpsilon,
+         nullptr, R::closed(0, 1)},
+        {"seed", "random seed of the ring sampling", K::Seed, nullptr, nullptr, R::any(), &CanopyParams::seed},
     };
     return fields;
 }
 
-double canopyParamValue(const CanopyParams& p, const CanopyParamField& f) {
-    switch (f.kind) {
-        case CanopyParamField::Kind::Real: return p.*(f.real);
-        case CanopyParamField::Kind::Integer: return p.*(f.integer);
-        case CanopyParamField::Kind::Seed: return static_cast<double>(p.seed);
-    }
-    return 0;
-}
+double canopyParamValue(const CanopyParams& p, const CanopyParamField& f) { return f.value(p); }
 
 void setCanopyParam(CanopyParams& p, const std::string& key, double value) {
-    for (const auto& f : canopyParamFields()) {
-        if (key != f.key) continue;
-        if (!std::isfinite(value)) throw ValidationError("canopy parameter '" + key + "' must be finite, got " + num(value));
-        if (f.kind != CanopyParamField::Kind::Real && value != std::floor(value))
-            throw ValidationError("canopy parameter '" + key + "' must be an integer, got " + num(value));
-        switch (f.kind) {
-            case CanopyParamField::Kind::Real: p.*(f.real) = value; break;
-            case CanopyParamField::Kind::Integer:
-                if (std::abs(value) > 1e9) throw ValidationError("canopy parameter '" + key + "' out of range: " + num(value));
-                p.*(f.integer) = static_cast<int>(value);
-                break;
-            case CanopyParamField::Kind::Seed:
-                if (value < 0 || value >= 9007199254740992.0)
-                    throw ValidationError("canopy parameter 'seed' must lie in [0, 2^53), got " + num(value));
-                p.seed = static_cast<std::uint64_t>(value);
-                break;
-        }
-        return;
-    }
-    std::string keys;
-    for (const auto& f : canopyParamFields()) keys += (keys.empty() ? "" : ", ") + std::string(f.key);
-    throw ValidationError("unknown canopy parameter '" + key + "' (known: " + keys + ")");
+    setParam(p, canopyParamFields(), key, value, "canopy parameter");
 }
 
-void validateCanopyParams(const CanopyParams& p) {
-    auto fail = [](const std::string& key, const std::string& what, double v) {
-        throw ValidationError("canopy parameter '" + key + "' " + what + ", got " + num(v));
-    };
-    if (!std::isfinite(p.canopyThresholdM) || p.canopyThresholdM < 0) fail("canopy_threshold_m", "must be >= 0", p.canopyThresholdM);
-    if (!std::isfinite(p.minSeedHeightM) || p.minSeedHeightM <= 0) fail("min_seed_height_m", "must be > 0", p.minSeedHeightM);
-    if (p.localMaximumRadiusCells < 1 || p.localMaximumRadiusCells > 64)
-        fail("local_maximum_radius_cells", "must lie in [1, 64]", p.localMaximumRadiusCells);
-    if (!std::isfinite(p.minVisibleFraction) || p.minVisibleFraction < 0 || p.minVisibleFraction > 1)
-        fail("min_visible_fraction", "must lie in [0, 1]", p.minVisibleFraction);
-    if (p.maxIterations < 0 || p.maxIterations > 100000) fail("max_iterations", "must lie in [0, 100000]", p.maxIterations);
-    if (!std::isfinite(p.moveFactor) || p.moveFactor < 0 || p.moveFactor > 1) fail("move_factor", "must lie in [0, 1]", p.moveFactor);
-    if (p.ringSamples < 0 || p.ringSamples > 1024) fail("ring_samples", "must lie in [0, 1024]", p.ringSamples);
-    if (!std::isfinite(p.supportBumpFactor) || p.supportBumpFactor < 0 || p.supportBumpFactor > 10)
-        fail("support_bump_factor", "must lie in [0, 10]", p.supportBumpFactor);
-    if (p.anchorApexTrees != 0 && p.anchorApexTrees != 1) fail("anchor_apex_trees", "must be 0 or 1", p.anchorApexTrees);
-    if (p.keepBestState != 0 && p.keepBestState != 1) fail("keep_best_state", "must be 0 or 1", p.keepBestState);
-    if (!std::isfinite(p.ringFactor) || p.ringFactor <= 0 || p.ringFactor > 10) fail("ring_factor", "must lie in (0, 10]", p.ringFactor);
-    if (!std::isfinite(p.minTrunkDistanceM) || p.minTrunkDistanceM < 0)
-        fail("min_trunk_distance_m", "must be >= 0", p.minTrunkDistanceM);
-    if (!std::isfinite(p.coverageEpsilon) || p.coverageEpsilon < 0 || p.coverageEpsilon > 1)
-        fail("coverage_epsilon", "must lie in [0, 1]", p.coverageEpsilon);
-}
+void validateCanopyParams(const CanopyParams& p) { validateParams(p, canopyParamFields(), "canopy parameter"); }
 
 // ------------------------------------------------------------------------- public functions
 

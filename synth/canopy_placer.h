@@ -38,6 +38,7 @@
 #include "biome.h"
 #include "canopy_file.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "plants.h"
 #include "species_map.h"
 
@@ -86,15 +87,10 @@ struct CanopyParams {
     std::uint64_t seed = 1;
 };
 
-/// One named, documented parameter of CanopyParams, for configs and output attributes.
-struct CanopyParamField {
-    const char* key;    ///< snake_case, as in TOML configs and HDF5 attributes
-    const char* doc;    ///< one line, with units
-    enum class Kind { Real, Integer, Seed } kind;
-    double CanopyParams::*real = nullptr;
-    int CanopyParams::*integer = nullptr;
-};
-/// All fields of CanopyParams, in declaration order.
+/// One named, documented parameter of CanopyParams (core/param_desc.h): its key for configs,
+/// flags and output attributes, its doc line (docs/canopy.md's table) and its range.
+using CanopyParamField = ParamDesc<CanopyParams>;
+/// All fields of CanopyParams, in declaration order: the one description of them.
 const std::vector<CanopyParamField>& canopyParamFields();
 /// Value of a field as a double (seeds above 2^53 lose precision; write them separately).
 double canopyParamValue(const CanopyParams& p, const CanopyParamField& f);
@@ -102,7 +98,7 @@ double canopyParamValue(const CanopyParams& p, const CanopyParamField& f);
 /// value of an integer field (the message lists the keys).
 void setCanopyParam(CanopyParams& p, const std::string& key, double value);
 
-/// ValidationError naming the field when a parameter is out of range.
+/// ValidationError naming the field when a parameter is outside its range (canopyParamFields).
 void validateCanopyParams(const CanopyParams& p);
 
 /// Statistics of one iteration (iteration 0 = the initial seeding), measured on the render

@@ -22,33 +22,29 @@ void checkResponse(const Response& r, const std::string& key) {
 }  // namespace
 
 void ForestFloorParams::validate() const {
-    checkResponse(grassSun, "grass_sun");
-    checkResponse(grassMoisture, "grass_moisture");
-    checkResponse(grassTemperature, "grass_temperature");
-    checkResponse(grassSlope, "grass_slope");
+    for (std::size_t f = 0; f < kFactorCount; ++f) checkResponse(grass[f], std::string("grass_") + kFactors[f].key);
     if (!(litterFullAlpha > 0) || !std::isfinite(litterFullAlpha))
         throw ValidationError("forest floor: litter_full_alpha must be positive, got " + num(litterFullAlpha));
 }
 
 std::vector<std::pair<std::string, std::string>> ForestFloorParams::asParameters() const {
-    return {{"grass_sun_c", num(grassSun.c)},
-            {"grass_sun_r", num(grassSun.r)},
-            {"grass_moisture_c", num(grassMoisture.c)},
-            {"grass_moisture_r", num(grassMoisture.r)},
-            {"grass_temperature_c", num(grassTemperature.c)},
-            {"grass_temperature_r", num(grassTemperature.r)},
-            {"grass_slope_c", num(grassSlope.c)},
-            {"grass_slope_r", num(grassSlope.r)},
-            {"undergrowth_shades", undergrowthShades ? "true" : "false"},
-            {"litter_full_alpha", num(litterFullAlpha)}};
+    std::vector<std::pair<std::string, std::string>> out;
+    for (std::size_t f = 0; f < kFactorCount; ++f) {
+        const std::string key = std::string("grass_") + kFactors[f].key;
+        out.emplace_back(key + "_c", num(grass[f].c));
+        out.emplace_back(key + "_r", num(grass[f].r));
+    }
+    out.emplace_back("undergrowth_shades", undergrowthShades ? "true" : "false");
+    out.emplace_back("litter_full_alpha", num(litterFullAlpha));
+    return out;
 }
 
-ForestFloor computeForestFloor(const AnnualAbiotics& features, const std::vector<Plant>& canopy,
+ForestFloor computeForestFloor(const FactorGrids& features, const std::vector<Plant>& canopy,
                                const std::vector<Plant>& undergrowth, const Biome& biome,
                                const ForestFloorParams& params) {
     params.validate();
-    const Grid<float>& g = features.sunHours;
-    for (const auto* other : {&features.moistureMm, &features.temperatureC, &features.slopeDeg})
+    const Grid<float>& g = features.geometry();
+    for (const auto* other = features.maps.data() + 1; other != features.maps.data() + kFactorCount; ++other)
         if (!other->sameGeometry(g)) throw ValidationError("forest floor: the annual abiotic maps differ in geometry");
     ForestFloor out;
     out.suitability = Grid<float>::like(g, 0.0f);
@@ -60,11 +56,7 @@ ForestFloor computeForestFloor(const AnnualAbiotics& features, const std::vector
 #pragma omp parallel for schedule(static)
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) {
-            const double f = std::min(
-                std::min(shape.g(std::abs(features.sunHours(ix, iy) - params.grassSun.c), params.grassSun.r),
-                         shape.g(std::abs(features.moistureMm(ix, iy) - params.grassMoisture.c), params.grassMoisture.r)),
-                std::min(shape.g(std::abs(features.temperatureC(ix, iy) - params.grassTemperature.c), params.grassTemperature.r),
-                         shape.g(std::abs(features.slopeDeg(ix, iy) - params.grassSlope.c), params.grassSlope.r)));
+            const double f = minResponse(shape, params.grass, features.at(ix, iy));
             out.suitability(ix, iy) = static_cast<float>(std::clamp(f, 0.0, 1.0));
         }
 

@@ -24,10 +24,13 @@
 namespace eco {
 
 struct ForestFloorParams {
-    Response grassSun{11.5, 7.0};           ///< hours/day: open, sunny ground suits grass best
-    Response grassMoisture{76.0, 128.0};    ///< mm
-    Response grassTemperature{13.5, 43.0};  ///< degC
-    Response grassSlope{0.0, 50.0};         ///< degrees: flat ground holds soil and grass
+    /// Per factor (factors.h order; parameters grass_<factor>_c / _r): sun 11.5 / 7 hours/day
+    /// (open, sunny ground suits grass best), moisture 76 / 128 mm, temperature 13.5 / 43 degC,
+    /// slope 0 / 50 degrees (flat ground holds soil and grass).
+    Responses grass = {{{11.5, 7.0}, {76.0, 128.0}, {13.5, 43.0}, {0.0, 50.0}}};
+    static_assert(kFactorCount == 4, "a new factor: give the grass's response to it here (docs/factors.md)");
+    Response& grassResponse(Factor f) { return grass[factorIndex(f)]; }
+    const Response& grassResponse(Factor f) const { return grass[factorIndex(f)]; }
     bool undergrowthShades = true;          ///< undergrowth crowns shade grass and drop litter too
     double litterFullAlpha = 2.0;           ///< cumulative alpha at which litter density reaches 1
 
@@ -43,7 +46,7 @@ struct ForestFloor {
 };
 
 /// Forest floor maps on the geometry of `features`. Plants' species index `biome.species`.
-ForestFloor computeForestFloor(const AnnualAbiotics& features, const std::vector<Plant>& canopy,
+ForestFloor computeForestFloor(const FactorGrids& features, const std::vector<Plant>& canopy,
                                const std::vector<Plant>& undergrowth, const Biome& biome,
                                const ForestFloorParams& params);
 

@@ -32,7 +32,7 @@ std::string canopyNames(const Biome& biome) {
 struct Coeffs {
     int species;
     double alpha, maxHeightM;
-    double sunC, sunR, moistC, moistR, tempC, tempR, slopeC, slopeR;
+    Responses responses;
 };
 
 /// Evaluates the unweighted vigour of the canopy species exactly as unweightedVigour().
@@ -41,17 +41,14 @@ public:
     explicit VigourTable(const Biome& biome) : a_(biome.vigour.a), lnq_(std::log(biome.vigour.q)), p_(biome.vigour.p) {
         for (int s : canopySpeciesOf(biome)) {
             const Species& sp = biome.species[static_cast<std::size_t>(s)];
-            coeffs_.push_back({s, sp.alpha, sp.maxHeightM, sp.sun.c, sp.sun.r, sp.moisture.c, sp.moisture.r,
-                               sp.temperature.c, sp.temperature.r, sp.slope.c, sp.slope.r});
+            coeffs_.push_back({s, sp.alpha, sp.maxHeightM, sp.responses});
         }
     }
     const std::vector<Coeffs>& coeffs() const { return coeffs_; }
     /// alpha * g(max normalised distance): the same operations, in the same order, as
-    /// VigourShape::g applied to the largest of the four normalised distances.
-    double raw(const Coeffs& c, double sun, double moist, double temp, double slope) const {
-        const double ratio = std::max(std::max(std::abs(temp - c.tempC) / c.tempR, std::abs(moist - c.moistC) / c.moistR),
-                                      std::max(std::abs(sun - c.sunC) / c.sunR, std::abs(slope - c.slopeC) / c.slopeR));
-        return c.alpha * ((1.0 + a_) * std::exp(std::pow(ratio, p_) * lnq_) - a_);
+    /// VigourShape::g applied to the largest of the normalised distances (vigour.h).
+    double raw(const Coeffs& c, const Features& x) const {
+        return vigourAtDistance(c.alpha, maxNormalisedDistance(c.responses, x), a_, p_, lnq_);
     }
 
 private:
@@ -96,15 +93,14 @@ struct Best {
 // A conservative bound on g: (1 + a) * exp(x) - a can round one ulp above 1.
 constexpr double kBoundSlack = 1.0 + 1e-9;
 
-Best bestAt(const VigourTable& table, const WeightField& weights, std::size_t cell, double sun, double moist,
-            double temp, double slope, double chm) {
+Best bestAt(const VigourTable& table, const WeightField& weights, std::size_t cell, const Features& x, double chm) {
     Best best{0.0, -1};
     for (const Coeffs& c : table.coeffs()) {
         if (c.maxHeightM < chm) continue;
         const double w = weights.at(c.species, cell);
         // Species come in index order, so a later one must be strictly better.
         if (!(w * c.alpha * kBoundSlack > best.vigour)) continue;
-        const double v = w * table.raw(c, sun, moist, temp, slope);
+        const double v = w * table.raw(c, x);
         if (v > best.vigour) best = {v, c.species};
     }
     return best;
@@ -165,24 +161,15 @@ std::vector<int> canopySpeciesOf(const Biome& biome) {
     return out;
 }
 
-double unweightedVigour(const Biome& biome, int s, double sunHours, double moistureMm, double temperatureC,
-                        double slopeDeg) {
+double unweightedVigour(const Biome& biome, int s, const Features& x) {
     const Species& sp = biome.species.at(static_cast<std::size_t>(s));
-    const Coeffs c{s, sp.alpha, sp.maxHeightM, sp.sun.c, sp.sun.r, sp.moisture.c, sp.moisture.r,
-                   sp.temperature.c, sp.temperature.r, sp.slope.c, sp.slope.r};
-    const double ratio =
-        std::max(std::max(std::abs(temperatureC - c.tempC) / c.tempR, std::abs(moistureMm - c.moistC) / c.moistR),
-                 std::max(std::abs(sunHours - c.sunC) / c.sunR, std::abs(slopeDeg - c.slopeC) / c.slopeR));
     const VigourShape& g = biome.vigour;
-    return c.alpha * ((1.0 + g.a) * std::exp(std::pow(ratio, g.p) * std::log(g.q)) - g.a);
+    return vigourAtDistance(sp.alpha, maxNormalisedDistance(sp.responses, x), g.a, g.p, std::log(g.q));
 }
 
 SpeciesMapInputs speciesMapInputs(const Abiotics& abiotics, const Grid<float>& chmM) {
     SpeciesMapInputs in;
-    in.sunHours = abiotics.sunHours.annualMean();
-    in.moistureMm = abiotics.moistureMm.annualMean();
-    in.temperatureC = abiotics.temperatureC.annualMean();
-    in.slopeDeg = abiotics.slopeDeg;
+    in.features = annualFactors(abiotics);
     in.chmM = chmM;
     validateSpeciesMapInputs(in);
     return in;
@@ -190,14 +177,10 @@ SpeciesMapInputs speciesMapInputs(const Abiotics& abiotics, const Grid<float>& c
 
 void validateSpeciesMapInputs(const SpeciesMapInputs& in) {
     if (in.chmM.empty()) throw ValidationError("species map: the CHM is empty");
-    requireSameGeometry(in.chmM, in.sunHours, "the sunlight map");
-    requireSameGeometry(in.chmM, in.moistureMm, "the moisture map");
-    requireSameGeometry(in.chmM, in.temperatureC, "the temperature map");
-    requireSameGeometry(in.chmM, in.slopeDeg, "the slope map");
-    requireFiniteGrid(in.sunHours, "the sunlight map");
-    requireFiniteGrid(in.moistureMm, "the moisture map");
-    requireFiniteGrid(in.temperatureC, "the temperature map");
-    requireFiniteGrid(in.slopeDeg, "the slope map");
+    for (std::size_t f = 0; f < kFactorCount; ++f)
+        requireSameGeometry(in.chmM, in.features.maps[f], std::string("the ") + kFactors[f].label + " map");
+    for (std::size_t f = 0; f < kFactorCount; ++f)
+        requireFiniteGrid(in.features.maps[f], std::string("the ") + kFactors[f].label + " map");
     requireFiniteGrid(in.chmM, "the CHM");
     for (int iy = 0; iy < in.chmM.height(); ++iy)
         for (int ix = 0; ix < in.chmM.width(); ++ix)
@@ -246,18 +229,10 @@ Grid<std::int32_t> computeSpeciesMap(const Biome& biome, const SpeciesMapInputs&
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) {
             const std::size_t i = in.chmM.index(ix, iy);
-            const Best b = bestAt(table, weights, i, in.sunHours.data()[i], in.moistureMm.data()[i],
-                                  in.temperatureC.data()[i], in.slopeDeg.data()[i], in.chmM.data()[i]);
+            const Best b = bestAt(table, weights, i, in.features.at(i), in.chmM.data()[i]);
             out.data()[i] = b.species;
         }
     return out;
-}
-
-Grid<std::int32_t> computeSpeciesMap(const Biome& biome, const Grid<float>& sunHoursAnnual,
-                                     const Grid<float>& moistureMmAnnual, const Grid<float>& temperatureCAnnual,
-                                     const Grid<float>& slopeDeg, const Grid<float>& chmM, const SpeciesMapParams& params) {
-    return computeSpeciesMap(biome, SpeciesMapInputs{sunHoursAnnual, moistureMmAnnual, temperatureCAnnual, slopeDeg, chmM},
-                             params);
 }
 
 std::size_t forestedCells(const Grid<float>& chmM, double canopyThresholdM, const Grid<std::uint8_t>* mask) {
@@ -367,12 +342,12 @@ VigourCache buildCache(const Biome& biome, const SpeciesMapInputs& in, const Spe
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(n); ++k) {
         const std::size_t j = static_cast<std::size_t>(k), i = c.cells[j];
-        const double sun = in.sunHours.data()[i], moist = in.moistureMm.data()[i], temp = in.temperatureC.data()[i],
-                     slope = in.slopeDeg.data()[i], chm = in.chmM.data()[i];
+        const Features x = in.features.at(i);
+        const double chm = in.chmM.data()[i];
         Best others{0.0, -1};
         for (const Coeffs& co : table.coeffs()) {  // index order: strict > keeps ties on the lower index
             if (co.maxHeightM < chm) continue;
-            const double r = table.raw(co, sun, moist, temp, slope);
+            const double r = table.raw(co, x);
             const int t = targetOf[static_cast<std::size_t>(co.species)];
             if (t >= 0) {
                 c.raw[static_cast<std::size_t>(t)][j] = r;

@@ -2,8 +2,8 @@
 // annual-mean abiotics and the canopy height model, and the bisection on the vigour weights
 // that meets user-given species proportions, globally or inside a brush mask.
 //
-// Vigour (Eq. 1): v_s(p) = w_s(p) * alpha_s * min(f_t, f_m, f_e, f_g), each f = g(|x - c| / r)
-// with the biome's g (core/biome.h VigourShape). alpha_s is the species' Table 3 alpha, which
+// Vigour (Eq. 1): v_s(p) = w_s(p) * alpha_s * min_f g(|x_f - c_f| / r_f) over the factors
+// (core/factors.h), with the biome's g (core/vigour.h, scalar form). alpha_s is the species' Table 3 alpha, which
 // is also its light absorption (used by the canopy shading and the simulator); the user weight
 // w_s (default 1) is what the target bisection changes, so that meeting a target never
 // changes how much shade a species casts. The effective Eq. 1 weight is w_s * alpha_s.
@@ -26,18 +26,15 @@ namespace eco {
 
 /// Annual-mean abiotic maps and the CHM, all on one geometry: what the species map reads.
 struct SpeciesMapInputs {
-    Grid<float> sunHours;      ///< hours of sun per day, annual mean
-    Grid<float> moistureMm;    ///< soil moisture, mm, annual mean
-    Grid<float> temperatureC;  ///< degrees Celsius, annual mean
-    Grid<float> slopeDeg;      ///< degrees
-    Grid<float> chmM;          ///< canopy height, metres above ground
+    FactorGrids features;  ///< annual means per factor (factors.h units)
+    Grid<float> chmM;      ///< canopy height, metres above ground
 };
 
 /// Annual means of the monthly maps of `abiotics`, with `chmM`. ValidationError when the
 /// CHM and the abiotic maps differ in geometry.
 SpeciesMapInputs speciesMapInputs(const Abiotics& abiotics, const Grid<float>& chmM);
 
-/// Throws ValidationError unless all five grids share one non-empty geometry, hold finite
+/// Throws ValidationError unless all the grids share one non-empty geometry, hold finite
 /// values, and the CHM is non-negative (the message names the map and the first bad cell).
 void validateSpeciesMapInputs(const SpeciesMapInputs& in);
 
@@ -73,21 +70,14 @@ void validateSpeciesMapParams(const SpeciesMapParams& p, const Biome& biome);
 /// Indices of the canopy-capable species of the biome, in biome order.
 std::vector<int> canopySpeciesOf(const Biome& biome);
 
-/// Unweighted vigour alpha_s * min(f_t, f_m, f_e, f_g) of species s (Eq. 1) at one set of
-/// abiotic values. Equal to biome.vigourOf(...) (g is decreasing in |d| / r, so the minimum
-/// of the four responses is g at the largest normalised distance), at a quarter of the cost.
-double unweightedVigour(const Biome& biome, int s, double sunHours, double moistureMm, double temperatureC,
-                        double slopeDeg);
+/// Unweighted vigour alpha_s * min_f g(...) of species s (Eq. 1) at one set of abiotic
+/// values. Equal to biome.vigourOf(...) (g is decreasing in |d| / r, so the minimum of the
+/// responses is g at the largest normalised distance), at a quarter of the cost.
+double unweightedVigour(const Biome& biome, int s, const Features& x);
 
 /// The species map: per cell the canopy species of highest weighted vigour among those at
 /// least as tall as the CHM there, -1 when none has positive vigour.
 Grid<std::int32_t> computeSpeciesMap(const Biome& biome, const SpeciesMapInputs& in,
-                                     const SpeciesMapParams& params = {});
-
-/// Same from the five grids (annual means; copied into a SpeciesMapInputs).
-Grid<std::int32_t> computeSpeciesMap(const Biome& biome, const Grid<float>& sunHoursAnnual,
-                                     const Grid<float>& moistureMmAnnual, const Grid<float>& temperatureCAnnual,
-                                     const Grid<float>& slopeDeg, const Grid<float>& chmM,
                                      const SpeciesMapParams& params = {});
 
 /// Fraction of the forested cells (CHM >= canopyThresholdM) inside `mask` (all cells when

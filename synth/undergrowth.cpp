@@ -97,27 +97,18 @@ struct RegionLookup {
             combinationIndex.push_back(stand < 0 ? -1 : db.combinationIndex(stand));
         }
     }
-    int region(std::int32_t mask, double sun, double moisture, double temperature, double slope) const {
+    int region(std::int32_t mask, const Features& x) const {
         const auto it = std::lower_bound(masks.begin(), masks.end(), mask);
         if (it == masks.end() || *it != mask) return -1;
         const int ci = combinationIndex[static_cast<std::size_t>(it - masks.begin())];
         if (ci < 0) return -1;
-        return db.nearestRegionOf(static_cast<std::size_t>(ci), sun, moisture, temperature, slope);
+        return db.nearestRegionOf(static_cast<std::size_t>(ci), x);
     }
 };
 
 }  // namespace
 
 // ======================================================================== inputs
-
-AnnualAbiotics annualAbiotics(const Abiotics& a) {
-    AnnualAbiotics f;
-    f.sunHours = a.sunHours.annualMean();
-    f.moistureMm = a.moistureMm.annualMean();
-    f.temperatureC = a.temperatureC.annualMean();
-    f.slopeDeg = a.slopeDeg;
-    return f;
-}
 
 Biome databaseBiome(const BiomeDatabase& db) {
     if (db.biomeToml.empty()) throw ValidationError("biome database: no biome recorded (biome_toml is empty)");
@@ -235,10 +226,10 @@ std::vector<std::pair<std::string, std::string>> RefineParams::asParameters() co
 
 
 ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
-                             const AnnualAbiotics& features, const SynthParams& params) {
+                             const FactorGrids& features, const SynthParams& params) {
     params.validate();
-    const Grid<float>& g = features.sunHours;
-    for (const auto* other : {&features.moistureMm, &features.temperatureC, &features.slopeDeg})
+    const Grid<float>& g = features.geometry();
+    for (const auto* other = features.maps.data() + 1; other != features.maps.data() + kFactorCount; ++other)
         if (!other->sameGeometry(g))
             throw ValidationError("cluster map: the annual abiotic maps differ in geometry (" + g.geometryText() + " vs " +
                                   other->geometryText() + ")");
@@ -260,8 +251,7 @@ ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const 
             const std::int32_t m = map.combination(ix, iy);
             int r = -1;
             if (m != 0)
-                r = lookup.region(m, features.sunHours(ix, iy), features.moistureMm(ix, iy), features.temperatureC(ix, iy),
-                                  features.slopeDeg(ix, iy));
+                r = lookup.region(m, features.at(ix, iy));
             map.region(ix, iy) = r;
             // No darts where no species of the region may grow (a stand-in combination).
             if (r < 0 || !(roulette.total(r, roulette.maskIndex(m)) > 0)) map.seedWeight(ix, iy) = 0.0f;

@@ -47,17 +47,8 @@ namespace eco {
 
 // ------------------------------------------------------------------------- inputs
 
-/// Annual means of the abiotic maps on the target terrain (grid.h conventions, one geometry):
-/// the four features of the database, in their units.
-struct AnnualAbiotics {
-    Grid<float> sunHours;      ///< hours of sun per day (the terrain's own, no canopy shade)
-    Grid<float> moistureMm;    ///< soil moisture, mm
-    Grid<float> temperatureC;  ///< degrees Celsius
-    Grid<float> slopeDeg;      ///< degrees
-};
-
-/// Annual means of the monthly maps of `a`, and its slope.
-AnnualAbiotics annualAbiotics(const Abiotics& a);
+// The annual abiotic maps of the target terrain are a FactorGrids (core/factors.h), made by
+// annualFactors (core/abiotics.h), with the sun shaded by the canopy for the cluster map.
 
 /// The biome a database was made with (its biome_toml). ValidationError when that biome's
 /// species are not the database's species list, name for name.
@@ -132,7 +123,7 @@ struct ClusterMap {
 /// The cluster map of a target terrain. `features` gives the geometry. ValidationError when
 /// the feature grids differ in geometry or the database and biome disagree.
 ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
-                             const AnnualAbiotics& features, const SynthParams& params);
+                             const FactorGrids& features, const SynthParams& params);
 
 // ------------------------------------------------------------------------- sampling
 

@@ -48,10 +48,7 @@ Plant plant(const std::string& species, double x, double y, double h, double r) 
 AnalysisInput flatInput(int w, int h) {
     AnalysisInput in;
     in.biome = &sonoma();
-    in.sunHours = Grid<float>(w, h, 1.0, 0, 0, 10.f);
-    in.moistureMm = Grid<float>(w, h, 1.0, 0, 0, 100.f);
-    in.temperatureC = Grid<float>(w, h, 1.0, 0, 0, 15.f);
-    in.slopeDeg = Grid<float>(w, h, 1.0, 0, 0, 5.f);
+    in.features = FactorGrids::uniform(Grid<float>(w, h, 1.0), {10, 100, 15, 5});
     in.window = RectWindow{0, 0, static_cast<double>(w), static_cast<double>(h)};
     in.provenance.path = "memory";
     return in;
@@ -63,7 +60,7 @@ std::vector<Features> blobs(int nBlobs, int perBlob, std::uint64_t seed, std::ve
     std::vector<Features> pts, cs;
     for (int b = 0; b < nBlobs; ++b) {
         Features c{};
-        for (std::size_t f = 0; f < kFeatureCount; ++f) c[f] = 4.0 * ((b >> f) & 1) + (f == 0 ? 4.0 * (b >> 2) : 0.0);
+        for (std::size_t f = 0; f < kFactorCount; ++f) c[f] = 4.0 * ((b >> f) & 1) + (f == 0 ? 4.0 * (b >> 2) : 0.0);
         cs.push_back(c);
         for (int i = 0; i < perBlob; ++i) {
             Features p = c;
@@ -110,7 +107,7 @@ AnalysisInput randomInput(std::uint64_t seed) {
     RandomStream rng(seed, 9);
     for (int iy = 0; iy < 50; ++iy)
         for (int ix = 0; ix < 60; ++ix) {
-            in.moistureMm(ix, iy) = static_cast<float>((ix < 30 ? 150.0 : 40.0) + rng.normal());
+            in.features[Factor::Moisture](ix, iy) = static_cast<float>((ix < 30 ? 150.0 : 40.0) + rng.normal());
         }
     // Both seeding discs (60 m and 48 m) cover the whole input: one combination, 1+2.
     in.canopy = {plant("Redwood", 15, 25, 60, 5), plant("Coast Live Oak", 30, 25, 20, 4)};
@@ -172,7 +169,7 @@ TEST_CASE("k-means recovers well-separated clusters", "[analysis][kmeans]") {
         double best = 1e9;
         for (const Features& k : r.centroids) {
             double d = 0;
-            for (std::size_t f = 0; f < kFeatureCount; ++f) d += (c[f] - k[f]) * (c[f] - k[f]);
+            for (std::size_t f = 0; f < kFactorCount; ++f) d += (c[f] - k[f]) * (c[f] - k[f]);
             best = std::min(best, std::sqrt(d));
         }
         CHECK(best < 0.05);  // sd 0.15 / sqrt(200) per coordinate: 5 sigma is ~0.05 in 4-D
@@ -354,8 +351,8 @@ TEST_CASE("abiotic zones become k-means regions and nearestRegion finds them", "
         CHECK(std::min(a.centroidRaw[1], b.centroidRaw[1]) == Approx(40).margin(1));
         CHECK(std::max(a.centroidRaw[1], b.centroidRaw[1]) == Approx(150).margin(1));
         const int wet = a.centroidRaw[1] > b.centroidRaw[1] ? c.firstRegion : c.firstRegion + 1;
-        CHECK(db.nearestRegion(c.mask, 10, 140, 15, 5) == wet);
-        CHECK(db.nearestRegion(c.mask, 10, 45, 15, 5) != wet);
+        CHECK(db.nearestRegion(c.mask, {10, 140, 15, 5}) == wet);
+        CHECK(db.nearestRegion(c.mask, {10, 45, 15, 5}) != wet);
     }
 }
 
@@ -397,7 +394,7 @@ TEST_CASE("inconsistent inputs and parameters are ValidationErrors naming the pr
     params.kMax = 0;
     CHECK_THROWS_WITH(analyse({in}, params), Catch::Contains("kmax = 0"));
     params = AnalysisParams{};
-    in.moistureMm = Grid<float>(9, 10, 1.0);
+    in.features[Factor::Moisture] = Grid<float>(9, 10, 1.0);
     CHECK_THROWS_WITH(analyse({in}, params), Catch::Contains("moisture grid differs"));
     in = flatInput(10, 10);
     in.undergrowth.push_back(Plant{99, 1, 1, 0, 1, 1});
@@ -422,7 +419,7 @@ TEST_CASE("readSimulation: last snapshot, chosen year, abiotics beside the file,
     CHECK(last.input.provenance.seed == 42);
     CHECK(last.input.window.x1 == 1050.0);
     CHECK(last.seedOuterRadiusFactor == 12.0);
-    CHECK(last.input.sunHours(0, 0) == Approx(9.0));  // annual mean of 8, 9, 10
+    CHECK(last.input.features[Factor::Sun](0, 0) == Approx(9.0));  // annual mean of 8, 9, 10
     SimulationReadOptions opt;
     opt.year = 1;
     CHECK(readSimulation(sim, opt).input.undergrowth.size() == 100);

@@ -62,7 +62,7 @@ BiomeDatabase sampleDb() {
         r.combination = comb;
         r.cluster = cluster;
         r.centroidNormalised = z;
-        for (std::size_t f = 0; f < kFeatureCount; ++f) r.centroidRaw[f] = c.featureMean[f] + c.featureStd[f] * z[f];
+        for (std::size_t f = 0; f < kFactorCount; ++f) r.centroidRaw[f] = c.featureMean[f] + c.featureStd[f] * z[f];
         r.areaM2 = 50;
         r.cellCount = 50;
         r.undergrowthCount = 4;
@@ -201,19 +201,19 @@ TEST_CASE("nearestRegion: nearest centroid in normalised units, stand-in combina
     const BiomeDatabase db = sampleDb();
     // Combination 1: centroids at z_sun = -1 (raw 9 h) and +1 (raw 11 h); std of moisture
     // is 10, so a 5 mm difference in moisture weighs as 0.5.
-    CHECK(db.nearestRegion(1, 9.2, 100, 15, 5) == 0);
-    CHECK(db.nearestRegion(1, 10.8, 100, 15, 5) == 1);
-    CHECK(db.nearestRegion(1, 10.1, 130, 15, 5) == 1);
-    CHECK(db.nearestRegion(3, 0, 0, 0, 0) == 2);
+    CHECK(db.nearestRegion(1, {9.2, 100, 15, 5}) == 0);
+    CHECK(db.nearestRegion(1, {10.8, 100, 15, 5}) == 1);
+    CHECK(db.nearestRegion(1, {10.1, 130, 15, 5}) == 1);
+    CHECK(db.nearestRegion(3, {0, 0, 0, 0}) == 2);
     // Combination 2 (sub-biome 2 alone) is not stored: 3 (1+2) shares sub-biome 2.
     CHECK(db.standInCombination(2) == 3);
-    CHECK(db.nearestRegion(2, 10, 100, 15, 5) == 2);
+    CHECK(db.nearestRegion(2, {10, 100, 15, 5}) == 2);
     // 1+2+3 shares two sub-biomes with 3, one with 1.
     CHECK(db.standInCombination(7) == 3);
     // Sub-biome 3 alone shares nothing; 0 is "seeded by none".
     CHECK(db.standInCombination(4) == -1);
-    CHECK(db.nearestRegion(4, 10, 100, 15, 5) == -1);
-    CHECK(db.nearestRegion(0, 10, 100, 15, 5) == -1);
+    CHECK(db.nearestRegion(4, {10, 100, 15, 5}) == -1);
+    CHECK(db.nearestRegion(0, {10, 100, 15, 5}) == -1);
 }
 
 TEST_CASE("a NaN or negative canopy-context value is a clear IoError naming the dataset", "[biome_db][errors]") {

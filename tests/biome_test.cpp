@@ -52,8 +52,8 @@ TEST_CASE("the Sonoma biome has every species of Table 3", "[biome]") {
     CHECK(redwood.maxAgeYears == 800);
     CHECK(redwood.maxHeightM == 110);
     CHECK(redwood.alpha == Approx(0.45));
-    CHECK(redwood.sun.c == 9.5);
-    CHECK(redwood.sun.r == 11);
+    CHECK(redwood.response(Factor::Sun).c == 9.5);
+    CHECK(redwood.response(Factor::Sun).r == 11);
     CHECK(redwood.canopy);
     CHECK(redwood.growthMonths == std::vector<int>{11, 0, 1, 2, 3, 4});
     const Species& laurel = b.species[static_cast<std::size_t>(b.speciesIndex("California Laurel"))];
@@ -87,10 +87,10 @@ TEST_CASE("the embedded default equals biomes/sonoma.toml and survives a TOML ro
             CHECK(x.maxAgeYears == y.maxAgeYears);
             CHECK(x.maxHeightM == y.maxHeightM);
             CHECK(x.alpha == y.alpha);
-            CHECK(x.sun.c == y.sun.c);
-            CHECK(x.moisture.r == y.moisture.r);
-            CHECK(x.temperature.c == y.temperature.c);
-            CHECK(x.slope.r == y.slope.r);
+            CHECK(x.response(Factor::Sun).c == y.response(Factor::Sun).c);
+            CHECK(x.response(Factor::Moisture).r == y.response(Factor::Moisture).r);
+            CHECK(x.response(Factor::Temperature).c == y.response(Factor::Temperature).c);
+            CHECK(x.response(Factor::Slope).r == y.response(Factor::Slope).r);
             CHECK(x.growthMonths == y.growthMonths);
             CHECK(x.subBiomes == y.subBiomes);
             CHECK(x.allometry.crownRadiusM(10) == y.allometry.crownRadiusM(10));
@@ -110,9 +110,9 @@ TEST_CASE("vigour shape g(d) of Eq. 1", "[biome]") {
     const Biome b = defaultBiome();
     const int sorrel = b.speciesIndex("Redwood Sorrel");
     // At every optimum the vigour is alpha.
-    CHECK(b.vigourOf(sorrel, 3.5, 100, 13.5, 30) == Approx(0.60));
+    CHECK(b.vigourOf(sorrel, {3.5, 100, 13.5, 30}) == Approx(0.60));
     // The limiting factor wins (minimum).
-    CHECK(b.vigourOf(sorrel, 3.5 + 7, 100, 13.5, 30) == Approx(0.60 * (1.2 * 0.01 - 0.2)));
+    CHECK(b.vigourOf(sorrel, {3.5 + 7, 100, 13.5, 30}) == Approx(0.60 * (1.2 * 0.01 - 0.2)));
 }
 
 TEST_CASE("biome validation names the file, the species and the field", "[biome]") {

@@ -276,6 +276,31 @@ TEST_CASE("bad placer input is rejected with a clear message", "[canopy]") {
     CHECK_THROWS_WITH(setCanopyParam(p, "max_iterations", 2.5), Catch::Contains("integer"));
 }
 
+TEST_CASE("canopy parameters: one description drives setting, validation and the docs table", "[canopy]") {
+    // Every field: the default is valid, a value just outside its range is refused with the
+    // key and the rule in the message, and docs/canopy.md has the field's row as generated.
+    std::ifstream in(std::string(ECO_SOURCE_DIR) + "/docs/canopy.md");
+    REQUIRE(in);
+    std::stringstream docs;
+    docs << in.rdbuf();
+    const CanopyParams defaults;
+    REQUIRE_NOTHROW(validateCanopyParams(defaults));
+    for (const auto& f : canopyParamFields()) {
+        INFO(f.key);
+        CHECK(docs.str().find(paramDocRow(f)) != std::string::npos);
+        if (f.kind == CanopyParamField::Kind::Seed) continue;
+        const ParamRange& r = f.range;
+        const double outside = r.highBound != ParamRange::Bound::None ? r.hi + 1 : r.lo - 1;
+        CanopyParams p;
+        setCanopyParam(p, f.key, outside);
+        CHECK(f.value(p) == outside);
+        CHECK_THROWS_WITH(validateCanopyParams(p), Catch::Contains(std::string("'") + f.key + "' " + r.text()));
+    }
+    CHECK(ParamRange::openClosed(0, 10).text() == "must lie in (0, 10]");
+    CHECK(ParamRange::atLeast(0).text() == "must be >= 0");
+    CHECK_FALSE(ParamRange::atLeast(0).contains(std::numeric_limits<double>::quiet_NaN()));
+}
+
 TEST_CASE("canopy configs are read strictly", "[canopy]") {
     test::TempDir dir("canopy_config");
     {

@@ -16,13 +16,8 @@ using namespace eco;
 namespace {
 
 /// Uniform annual abiotics on a w x h grid of 1 m cells.
-AnnualAbiotics uniformFeatures(int w, int h, float sun, float moisture, float temperature, float slope) {
-    AnnualAbiotics f;
-    f.sunHours = Grid<float>(w, h, 1.0, 0, 0, sun);
-    f.moistureMm = Grid<float>(w, h, 1.0, 0, 0, moisture);
-    f.temperatureC = Grid<float>(w, h, 1.0, 0, 0, temperature);
-    f.slopeDeg = Grid<float>(w, h, 1.0, 0, 0, slope);
-    return f;
+FactorGrids uniformFeatures(int w, int h, float sun, float moisture, float temperature, float slope) {
+    return FactorGrids::uniform(Grid<float>(w, h, 1.0), {sun, moisture, temperature, slope});
 }
 
 Plant plantAt(const Biome& b, const std::string& species, double x, double y, double r) {
@@ -41,29 +36,29 @@ TEST_CASE("grass suitability follows the grass responses of the abiotics", "[for
     const Biome b = defaultBiome();
     ForestFloorParams p;
     // At the optimum of every response: full density.
-    const auto best = uniformFeatures(8, 8, static_cast<float>(p.grassSun.c), static_cast<float>(p.grassMoisture.c),
-                                      static_cast<float>(p.grassTemperature.c), static_cast<float>(p.grassSlope.c));
+    const auto best = uniformFeatures(8, 8, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
+                                      static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
     const ForestFloor open = computeForestFloor(best, {}, {}, b, p);
     CHECK(open.suitability(3, 3) == Approx(1.0f));
     CHECK(open.grass(3, 3) == Approx(1.0f));
     CHECK(open.litter(3, 3) == 0.0f);
     // One response at its range: g(r) = (1 + a) * 0.01 - a < 0, clamped to 0.
     auto dark = best;
-    dark.sunHours.fill(static_cast<float>(p.grassSun.c - p.grassSun.r));
+    dark[Factor::Sun].fill(static_cast<float>(p.grassResponse(Factor::Sun).c - p.grassResponse(Factor::Sun).r));
     CHECK(computeForestFloor(dark, {}, {}, b, p).grass(3, 3) == 0.0f);
     // Halfway: the biome's shape at half the range.
     auto half = best;
-    half.slopeDeg.fill(static_cast<float>(p.grassSlope.c + 0.5 * p.grassSlope.r));
+    half[Factor::Slope].fill(static_cast<float>(p.grassResponse(Factor::Slope).c + 0.5 * p.grassResponse(Factor::Slope).r));
     CHECK(computeForestFloor(half, {}, {}, b, p).grass(3, 3) ==
-          Approx(b.vigour.g(0.5 * p.grassSlope.r, p.grassSlope.r)).epsilon(1e-5));
+          Approx(b.vigour.g(0.5 * p.grassResponse(Factor::Slope).r, p.grassResponse(Factor::Slope).r)).epsilon(1e-5));
 }
 
 TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter", "[forest_floor]") {
     const Biome b = defaultBiome();
     ForestFloorParams p;
     p.litterFullAlpha = 2.0;
-    const auto f = uniformFeatures(20, 20, static_cast<float>(p.grassSun.c), static_cast<float>(p.grassMoisture.c),
-                                   static_cast<float>(p.grassTemperature.c), static_cast<float>(p.grassSlope.c));
+    const auto f = uniformFeatures(20, 20, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
+                                   static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
     const Plant redwood = plantAt(b, "Redwood", 6.5, 10.5, 3.0);          // alpha 0.45
     const Plant oak = plantAt(b, "Coast Live Oak", 9.5, 10.5, 3.0);       // alpha 0.31
     const Plant fern = plantAt(b, "Western Swordfern", 15.5, 15.5, 0.6);  // alpha 0.68, undergrowth
@@ -93,8 +88,8 @@ TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter",
 TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any thread count", "[forest_floor]") {
     const Biome b = defaultBiome();
     ForestFloorParams p;
-    const auto f = uniformFeatures(120, 90, static_cast<float>(p.grassSun.c), static_cast<float>(p.grassMoisture.c),
-                                   static_cast<float>(p.grassTemperature.c), static_cast<float>(p.grassSlope.c));
+    const auto f = uniformFeatures(120, 90, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
+                                   static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
     std::vector<Plant> canopy, under;
     RandomStream rs(3, 4);
     const char* names[] = {"Redwood", "Douglas-Fir", "Coast Live Oak", "Toyon", "Western Swordfern"};
@@ -123,12 +118,12 @@ TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any
 
 TEST_CASE("forest floor parameters are validated", "[forest_floor]") {
     ForestFloorParams p;
-    p.grassSun.r = 0;
+    p.grassResponse(Factor::Sun).r = 0;
     CHECK_THROWS_WITH(p.validate(), Catch::Contains("grass_sun"));
     ForestFloorParams q;
     q.litterFullAlpha = -1;
     CHECK_THROWS_WITH(q.validate(), Catch::Contains("litter_full_alpha"));
-    AnnualAbiotics f = uniformFeatures(4, 4, 10, 80, 15, 0);
-    f.slopeDeg = Grid<float>(5, 4, 1.0);
+    FactorGrids f = uniformFeatures(4, 4, 10, 80, 15, 0);
+    f[Factor::Slope] = Grid<float>(5, 4, 1.0);
     CHECK_THROWS_AS(computeForestFloor(f, {}, {}, defaultBiome(), ForestFloorParams{}), ValidationError);
 }

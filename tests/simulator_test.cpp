@@ -457,7 +457,7 @@ TEST_CASE("vigour: the engine's vigour is Eq. 1 on the plant's mean shares", "[s
     Simulation sim(in, SimParams{}, 1, {plantAt(b, "Toyon", 5.1, 5.1, 1.0)});
     sim.stepMonth();
     const auto p = sim.plants().at(0);
-    CHECK(p.vigour == Approx(b.vigourOf(p.speciesId, p.sunShare, p.waterShare, 18.0, 12.0)).epsilon(1e-6));
+    CHECK(p.vigour == Approx(b.vigourOf(p.speciesId, {p.sunShare, p.waterShare, 18.0, 12.0})).epsilon(1e-6));
 }
 
 TEST_CASE("carbon pool: overflow above capacity, underflow below zero", "[sim][pool]") {
@@ -582,8 +582,8 @@ TEST_CASE("growth rule ideal: an unstressed plant follows h_s(t) of Eq. 3 over i
         params.canopyThresholdM = 1000.0;
         SimInputs in;
         in.biome = b;
-        in.abiotics = uniformAbiotics(12, 1.0, sp.sun.c, 2 * sp.moisture.c - params.minWaterDemandMm, sp.temperature.c,
-                                      sp.slope.c);
+        in.abiotics = uniformAbiotics(12, 1.0, sp.response(Factor::Sun).c, 2 * sp.response(Factor::Moisture).c - params.minWaterDemandMm, sp.response(Factor::Temperature).c,
+                                      sp.response(Factor::Slope).c);
         const double ga0 = 1.0 / 12;
         UndergrowthPlant p = plantAt(b, cs.species, 6.1, 6.1, idealHeightM(ga0, sp.maxAgeYears, sp.maxHeightM));
         p.growthAgeYears = ga0;
@@ -613,8 +613,8 @@ TEST_CASE("growth rule ideal: an unstressed plant follows h_s(t) of Eq. 3 over i
     params.survivalAtMaxAge = 1.0 - 1e-9;
     SimInputs in;
     in.biome = b;
-    in.abiotics = uniformAbiotics(12, 1.0, sp.sun.c, 2 * sp.moisture.c - params.minWaterDemandMm, sp.temperature.c,
-                                  sp.slope.c);
+    in.abiotics = uniformAbiotics(12, 1.0, sp.response(Factor::Sun).c, 2 * sp.response(Factor::Moisture).c - params.minWaterDemandMm, sp.response(Factor::Temperature).c,
+                                  sp.response(Factor::Slope).c);
     UndergrowthPlant p = plantAt(b, "Western Swordfern", 6.1, 6.1, 0.0);
     p.growthAgeYears = 1.0 / 12;
     p.pool = poolCapacity(params.poolCapacityStressMonths, sp.alpha, b.vigour.a);
@@ -715,7 +715,7 @@ TEST_CASE("germination: seedlings per species follow max(0, vbar / maxage^beta) 
     double total = 0;
     for (const Species& s : b.species) {
         if (std::find(s.subBiomes.begin(), s.subBiomes.end(), 1) == s.subBiomes.end()) continue;
-        expected[s.id] = rouletteWeight(b.vigourOf(s.id, S, W, T, slope), s.maxAgeYears, params.rouletteAgeExponent);
+        expected[s.id] = rouletteWeight(b.vigourOf(s.id, {S, W, T, slope}), s.maxAgeYears, params.rouletteAgeExponent);
         total += expected[s.id];
     }
     std::vector<int> counts(b.species.size(), 0);
@@ -797,7 +797,7 @@ PairScene toyonPairs(int pairsPerSide, double gapM) {
     const Biome b = defaultBiome();
     const Species& sp = b.species[b.speciesIndex("Toyon")];
     sc.in.biome = b;
-    sc.in.abiotics = uniformAbiotics(4 * pairsPerSide, 1.0, sp.sun.c, sp.moisture.c, sp.temperature.c, sp.slope.c);
+    sc.in.abiotics = uniformAbiotics(4 * pairsPerSide, 1.0, sp.response(Factor::Sun).c, sp.response(Factor::Moisture).c, sp.response(Factor::Temperature).c, sp.response(Factor::Slope).c);
     for (int j = 0; j < pairsPerSide; ++j)
         for (int i = 0; i < pairsPerSide; ++i) {
             sc.plants.push_back(plantAt(b, "Toyon", 4.0 * i + 1.05, 4.0 * j + 1.05, 2.0));
@@ -898,8 +898,8 @@ TEST_CASE("deussen: the weaker of two intersecting plants dies at the expected r
             // Unshared resources: the small Toyon under the big one's crown sees the full sun.
             const auto pl = sim.plants();
             const Species& sp = sim.biome().species[pl[1].speciesId];
-            CHECK(pl[1].sunShare == Approx(sp.sun.c).epsilon(1e-6));
-            CHECK(pl[1].waterShare == Approx(sp.moisture.c).epsilon(1e-6));
+            CHECK(pl[1].sunShare == Approx(sp.response(Factor::Sun).c).epsilon(1e-6));
+            CHECK(pl[1].waterShare == Approx(sp.response(Factor::Moisture).c).epsilon(1e-6));
         }
         for (int m = 1; m < 12; ++m) sim.stepMonth();
         int tall = 0, small = 0;
@@ -1190,4 +1190,32 @@ TEST_CASE("run config: strict parsing with the file and key named", "[sim][confi
     CHECK_THROWS_WITH(parseRunConfig("[outputs]\nhdf5 = 3\n", "type.toml"), Catch::Contains("type.toml:2") && Catch::Contains("hdf5"));
     // Empty strings are valid for paths ("" = none).
     CHECK(parseRunConfig("[inputs]\nbiome = \"\"\n", "empty.toml").biomePath.empty());
+}
+
+TEST_CASE("model parameters: one description drives reading, the record, attributes, validation and the docs table",
+          "[sim][config]") {
+    std::ifstream in(std::string(ECO_SOURCE_DIR) + "/docs/simulator.md");
+    REQUIRE(in);
+    std::stringstream docs;
+    docs << in.rdbuf();
+    const SimParams defaults;
+    const std::string record = defaults.toToml();
+    const auto named = defaults.namedValues();
+    REQUIRE(named.size() == simParamFields().size() + 2);  // + growth_rule, competition
+    for (std::size_t i = 0; i < simParamFields().size(); ++i) {
+        const auto& f = simParamFields()[i];
+        INFO(f.key);
+        CHECK(docs.str().find(paramDocRow(f)) != std::string::npos);
+        CHECK(named[i].first == f.key);
+        CHECK(named[i].second == f.value(defaults));
+        CHECK(record.find(std::string("\n") + f.key + " = ") != std::string::npos);
+        // A value outside the range (or, for the outer radius, below the inner one) is refused
+        // with the key named, from a config and from validate().
+        const double outside = f.real == &SimParams::seedOuterRadiusFactor ? 1.0
+                               : f.range.highBound != ParamRange::Bound::None ? f.range.hi + 1
+                                                                              : f.range.lo - 1;
+        std::ostringstream cfg;
+        cfg << "[model]\n" << f.key << " = " << (f.kind == ParamDesc<SimParams>::Kind::Integer ? std::to_string(static_cast<int>(outside)) : formatNumber(outside, 17) + (outside == std::floor(outside) ? ".0" : "")) << "\n";
+        CHECK_THROWS_WITH(parseRunConfig(cfg.str(), "bad.toml"), Catch::Contains("bad.toml:2") && Catch::Contains(f.key));
+    }
 }

@@ -23,17 +23,14 @@ namespace {
 /// little per-cell noise keeps whole rows and columns from tying (as in real maps).
 SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
     SpeciesMapInputs in;
-    in.sunHours = Grid<float>(w, h, 1.0);
-    in.moistureMm = Grid<float>::like(in.sunHours);
-    in.temperatureC = Grid<float>::like(in.sunHours, 19.f);
-    in.slopeDeg = Grid<float>::like(in.sunHours, 20.f);
-    in.chmM = Grid<float>::like(in.sunHours, 30.f);
+    in.chmM = Grid<float>(w, h, 1.0, 0, 0, 30.f);
+    in.features = FactorGrids::uniform(in.chmM, {0, 0, 19, 20});
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) {
             RandomStream noise(99, static_cast<std::uint64_t>(iy * w + ix));
-            in.sunHours(ix, iy) = static_cast<float>(4.0 + 10.0 * ix / (w - 1) + noise.uniform(-0.3, 0.3));
-            in.moistureMm(ix, iy) = static_cast<float>(30.0 + 160.0 * iy / (h - 1) + noise.uniform(-5, 5));
-            in.temperatureC(ix, iy) = static_cast<float>(19.0 + noise.uniform(-1, 1));
+            in.features[Factor::Sun](ix, iy) = static_cast<float>(4.0 + 10.0 * ix / (w - 1) + noise.uniform(-0.3, 0.3));
+            in.features[Factor::Moisture](ix, iy) = static_cast<float>(30.0 + 160.0 * iy / (h - 1) + noise.uniform(-5, 5));
+            in.features[Factor::Temperature](ix, iy) = static_cast<float>(19.0 + noise.uniform(-1, 1));
             if (ix < 4) in.chmM(ix, iy) = 0.f;
         }
     return in;
@@ -45,8 +42,7 @@ int referenceArgmax(const Biome& b, const SpeciesMapInputs& in, int ix, int iy) 
     double bestV = 0;
     for (const auto& s : b.species) {
         if (!s.canopy || s.maxHeightM < in.chmM(ix, iy)) continue;
-        const double v = b.vigourOf(s.id, in.sunHours(ix, iy), in.moistureMm(ix, iy), in.temperatureC(ix, iy),
-                                    in.slopeDeg(ix, iy));
+        const double v = b.vigourOf(s.id, in.features.at(ix, iy));
         if (v > bestV) {
             bestV = v;
             best = s.id;
@@ -65,8 +61,8 @@ TEST_CASE("unweighted vigour equals Biome::vigourOf (Eq. 1 with the exact g)", "
         const double sun = rng.uniform(0, 16), moist = rng.uniform(0, 250), temp = rng.uniform(-5, 40),
                      slope = rng.uniform(0, 80);
         for (const auto& s : b.species) {
-            const double ref = b.vigourOf(s.id, sun, moist, temp, slope);
-            const double fast = unweightedVigour(b, s.id, sun, moist, temp, slope);
+            const double ref = b.vigourOf(s.id, {sun, moist, temp, slope});
+            const double fast = unweightedVigour(b, s.id, {sun, moist, temp, slope});
             REQUIRE(fast == Approx(ref).margin(1e-12));
             exact += fast == ref;
             ++total;
@@ -75,8 +71,12 @@ TEST_CASE("unweighted vigour equals Biome::vigourOf (Eq. 1 with the exact g)", "
     CHECK(exact == total);  // g is monotone, so min over g equals g at the max distance, bit for bit
     // g(0) = 1 and g(r) = (1 + a) * 0.01 - a, as in Eq. 1.
     const auto& rw = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
-    CHECK(unweightedVigour(b, rw.id, rw.sun.c, rw.moisture.c, rw.temperature.c, rw.slope.c) == Approx(rw.alpha));
-    CHECK(unweightedVigour(b, rw.id, rw.sun.c + rw.sun.r, rw.moisture.c, rw.temperature.c, rw.slope.c) ==
+    Features optimum{};
+    for (std::size_t f = 0; f < kFactorCount; ++f) optimum[f] = rw.responses[f].c;
+    Features offSun = optimum;
+    offSun[factorIndex(Factor::Sun)] += rw.response(Factor::Sun).r;
+    CHECK(unweightedVigour(b, rw.id, optimum) == Approx(rw.alpha));
+    CHECK(unweightedVigour(b, rw.id, offSun) ==
           Approx(rw.alpha * (1.2 * 0.01 - 0.2)));
 }
 
@@ -108,7 +108,7 @@ TEST_CASE("species map is the vigour argmax over tall-enough canopy species", "[
 TEST_CASE("a cell where every vigour is <= 0 has no species", "[species_map]") {
     const Biome b = defaultBiome();
     SpeciesMapInputs in = gradientInputs(8, 8);
-    in.temperatureC.fill(80.f);  // far outside every temperature range
+    in.features[Factor::Temperature].fill(80.f);  // far outside every temperature range
     const auto map = computeSpeciesMap(b, in);
     for (const auto s : map.data()) CHECK(s == -1);
 }
@@ -173,7 +173,7 @@ TEST_CASE("an infeasible target is reported with the best reachable fraction", "
     // Redwood's temperature range is 19 +- 32 C: make half the forest far too hot for it but
     // fine for Coast Live Oak? No species survives 60 C, so that half has no species at all.
     for (int iy = 0; iy < in.chmM.height() / 2; ++iy)
-        for (int ix = 0; ix < in.chmM.width(); ++ix) in.temperatureC(ix, iy) = 60.f;
+        for (int ix = 0; ix < in.chmM.width(); ++ix) in.features[Factor::Temperature](ix, iy) = 60.f;
     SpeciesMapParams p;
     const int redwood = b.speciesIndex("Redwood");
     const TargetResult r = meetTarget(b, in, p, redwood, 0.9);
@@ -256,7 +256,7 @@ TEST_CASE("bad species-map input is rejected with a clear message", "[species_ma
     }
     {
         SpeciesMapInputs in = gradientInputs();
-        in.slopeDeg = Grid<float>(10, 10, 1.0);
+        in.features[Factor::Slope] = Grid<float>(10, 10, 1.0);
         CHECK_THROWS_AS(computeSpeciesMap(b, in), ValidationError);
     }
     const SpeciesMapInputs in = gradientInputs();

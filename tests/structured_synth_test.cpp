@@ -31,7 +31,7 @@ int sp(const std::string& name) { return sonoma().speciesIndex(name); }
 
 struct Scene {
     Grid<float> terrain;
-    AnnualAbiotics features;
+    FactorGrids features;
     std::vector<Plant> canopy;
 };
 
@@ -41,10 +41,7 @@ Scene makeScene(double canopyHeightM = 30.0) {
     Scene s;
     const int n = static_cast<int>(kSideM / kCellM);
     s.terrain = Grid<float>(n, n, kCellM, 0, 0, 50.f);
-    s.features.sunHours = Grid<float>::like(s.terrain, 8.f);
-    s.features.moistureMm = Grid<float>::like(s.terrain, 100.f);
-    s.features.temperatureC = Grid<float>::like(s.terrain, 15.f);
-    s.features.slopeDeg = Grid<float>::like(s.terrain, 5.f);
+    s.features = FactorGrids::uniform(s.terrain, {8, 100, 15, 5});
     for (double y = 8; y < kSideM; y += 16)
         for (double x = 8; x < kSideM; x += 16) {
             Plant t;
@@ -77,10 +74,7 @@ BiomeDatabase analyseScene(const Scene& s, const std::vector<Plant>& undergrowth
     in.biome = &sonoma();
     in.canopy = s.canopy;
     in.undergrowth = undergrowth;
-    in.sunHours = s.features.sunHours;
-    in.moistureMm = s.features.moistureMm;
-    in.temperatureC = s.features.temperatureC;
-    in.slopeDeg = s.features.slopeDeg;
+    in.features = s.features;
     in.window = RectWindow{0, 0, kSideM, kSideM};
     in.provenance.path = "memory";
     AnalysisParams ap;

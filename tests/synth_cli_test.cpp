@@ -54,11 +54,11 @@ WorldFiles writeWorld(const World& w, const test::TempDir& dir) {
     writeCanopyFile(f.canopy, rec, w.biome);
     Abiotics ab;
     for (int m = 0; m < 12; ++m) {
-        ab.sunHours.months.push_back(w.features.sunHours);
-        ab.moistureMm.months.push_back(w.features.moistureMm);
-        ab.temperatureC.months.push_back(w.features.temperatureC);
+        ab.sunHours.months.push_back(w.features[Factor::Sun]);
+        ab.moistureMm.months.push_back(w.features[Factor::Moisture]);
+        ab.temperatureC.months.push_back(w.features[Factor::Temperature]);
     }
-    ab.slopeDeg = w.features.slopeDeg;
+    ab.slopeDeg = w.features[Factor::Slope];
     ab.elevationM = w.terrain;
     writeAbiotics(f.abiotics, ab, w.biome, AbioticParams{});
     writeBiomeDatabase(f.db, w.db);

@@ -160,9 +160,7 @@ TEST_CASE("the cluster map assigns each cell the database's nearest region", "[s
     std::set<int> seen;
     for (int iy = 0; iy < kSide; iy += 2)
         for (int ix = 0; ix < kSide; ix += 2) {
-            const int expected = w.db.nearestRegion(map.combination(ix, iy), w.features.sunHours(ix, iy),
-                                                    w.features.moistureMm(ix, iy), w.features.temperatureC(ix, iy),
-                                                    w.features.slopeDeg(ix, iy));
+            const int expected = w.db.nearestRegion(map.combination(ix, iy), w.features.at(ix, iy));
             REQUIRE(map.region(ix, iy) == expected);
             seen.insert(expected);
             if (expected < 0) CHECK(map.seedWeight(ix, iy) == 0.0f);

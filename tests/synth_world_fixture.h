@@ -105,7 +105,7 @@ struct World {
     Biome biome = defaultBiome();
     BiomeDatabase db;
     Grid<float> terrain;
-    AnnualAbiotics features;
+    FactorGrids features;
     std::vector<Plant> canopy;
 };
 
@@ -147,20 +147,17 @@ inline World makeWorld(double hardCoreM = 0.8) {
                                     db.pcfBins, hardCoreM));
     for (auto& c : db.combinations)
         for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r)
-            for (std::size_t f = 0; f < kFeatureCount; ++f)
+            for (std::size_t f = 0; f < kFactorCount; ++f)
                 db.regions[static_cast<std::size_t>(r)].centroidNormalised[f] =
                     (db.regions[static_cast<std::size_t>(r)].centroidRaw[f] - c.featureMean[f]) / c.featureStd[f];
 
     // Terrain and annual abiotics: a gentle tilt, sun from 6 (west) to 12 h/day (east).
     w.terrain = Grid<float>(kSide, kSide, kCell, 0.0, 0.0);
-    w.features.sunHours = Grid<float>::like(w.terrain);
-    w.features.moistureMm = Grid<float>::like(w.terrain, 100.0f);
-    w.features.temperatureC = Grid<float>::like(w.terrain, 15.0f);
-    w.features.slopeDeg = Grid<float>::like(w.terrain, 0.0f);
+    w.features = FactorGrids::uniform(w.terrain, {0, 100, 15, 0});
     for (int iy = 0; iy < kSide; ++iy)
         for (int ix = 0; ix < kSide; ++ix) {
             w.terrain(ix, iy) = static_cast<float>(100.0 + 0.02 * ix + 0.01 * iy);
-            w.features.sunHours(ix, iy) = static_cast<float>(6.0 + 6.0 * (ix + 0.5) / kSide);
+            w.features[Factor::Sun](ix, iy) = static_cast<float>(6.0 + 6.0 * (ix + 0.5) / kSide);
         }
     // Canopy: Redwoods west, Coast Live Oaks east, on a jittered lattice.
     const int redwood = b.speciesIndex("Redwood"), oak = b.speciesIndex("Coast Live Oak");

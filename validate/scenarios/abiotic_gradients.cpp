@@ -54,7 +54,7 @@ void AbioticGradients::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scena
     const auto snaps = run.window(Y - cfg.windowYears + 1, Y);
     const std::size_t ns = biome.species.size();
     std::vector<double> sum(ns, 0), n(ns, 0), shareSum(ns, 0);
-    const Grid<float>& g = run.siteSunH;
+    const Grid<float>& g = run.site[Factor::Sun];
     for (const Snapshot* s : snaps)
         for (const LitePlant& p : s->plants) {
             const auto k = static_cast<std::size_t>(p.species);
@@ -101,7 +101,7 @@ void AbioticGradients::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scena
     for (const auto& s : cfg.sunSpecies) row(s, "sun-tolerant");
     r.details.push_back(table);
     const std::string png = sc.name + "_site_sun.png";
-    writeMapPng(ctx.file(png), run.siteSunH, "Annual-mean sun under the canopy", "hours/day", Colormap::Heat);
+    writeMapPng(ctx.file(png), run.site[Factor::Sun], "Annual-mean sun under the canopy", "hours/day", Colormap::Heat);
     r.figures.push_back({png, "Site sunlight (annual mean after canopy shade) that the measure samples."});
 }
 

@@ -176,10 +176,8 @@ BiomeDatabase analyseSimulation(const FidelitySettings& st, const PlotSimulation
     in.canopy = a.canopy;
     in.undergrowth = a.undergrowth;
     // Region features: the sun under the simulation's canopy, as readSimulation makes them.
-    in.sunHours = applyCanopyShade(scene.abiotics.sunHours, shadingTrees(in.canopy, biome)).annualMean();
-    in.moistureMm = scene.abiotics.moistureMm.annualMean();
-    in.temperatureC = scene.abiotics.temperatureC.annualMean();
-    in.slopeDeg = scene.abiotics.slopeDeg;
+    const Grid<float> shadedSun = applyCanopyShade(scene.abiotics.sunHours, shadingTrees(in.canopy, biome)).annualMean();
+    in.features = annualFactors(scene.abiotics, &shadedSun);
     in.window = a.area;
     in.provenance.path = "(in memory) fidelity simulation A";
     in.provenance.abioticsPath = "(in memory) generated";
@@ -305,7 +303,7 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
     shaded.sunHours = applyCanopyShade(scene.abiotics.sunHours, shadingTrees(scene.canopy, dbBiome));
     SynthParams clusterParams;
     clusterParams.seed = st.synthSeed;
-    const ClusterMap clusters = computeClusterMap(db, dbBiome, scene.canopy, annualAbiotics(shaded), clusterParams);
+    const ClusterMap clusters = computeClusterMap(db, dbBiome, scene.canopy, annualFactors(shaded), clusterParams);
     const UndergrowthSample structured = synthesize(db, dbBiome, scene, clusters, SynthMethod::Structured, st.synthSeed);
     const UndergrowthSample darts = synthesize(db, dbBiome, scene, clusters, SynthMethod::Darts, st.synthSeed);
     const double synthS = secondsSince(t);

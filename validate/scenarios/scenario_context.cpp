@@ -146,10 +146,7 @@ const ForestRun& ScenarioContext::forest(const std::string& sceneFile, sim::Comp
     log("validate: building scene " + sceneFile + ": " + fixed(size.plotSizeM, 0) + " m plot, " +
         std::to_string(size.years) + " years, seed " + std::to_string(size.seed));
     sim::SimInputs in = forestInputs(scene, size);
-    const Grid<float> annualSun = in.abiotics.sunHours.annualMean();
-    const Grid<float> annualMoisture = in.abiotics.moistureMm.annualMean();
-    const Grid<float> annualTemperature = in.abiotics.temperatureC.annualMean();
-    const Grid<float> slope = in.abiotics.slopeDeg;
+    const FactorGrids annual = annualFactors(in.abiotics);
     run->canopy = in.canopy;
     sim::SimParams params = scene.params;
     params.competition = mode;
@@ -161,15 +158,15 @@ const ForestRun& ScenarioContext::forest(const std::string& sceneFile, sim::Comp
     run->transmission = s.canopyTransmission();
     run->seedProb = s.seedProbability();
     run->seedPackages = s.seedPackages();
-    run->siteSunH = Grid<float>::like(run->transmission, 0.f);
-    run->siteMoistureMm = run->siteTemperatureC = run->siteSlopeDeg = run->siteSunH;
-    for (int iy = 0; iy < run->siteSunH.height(); ++iy)
-        for (int ix = 0; ix < run->siteSunH.width(); ++ix) {
-            const int ax = annualSun.cellX(run->siteSunH.cellCentreX(ix)), ay = annualSun.cellY(run->siteSunH.cellCentreY(iy));
-            run->siteSunH(ix, iy) = annualSun.clamped(ax, ay) * run->transmission(ix, iy);
-            run->siteMoistureMm(ix, iy) = annualMoisture.clamped(ax, ay);
-            run->siteTemperatureC(ix, iy) = annualTemperature.clamped(ax, ay);
-            run->siteSlopeDeg(ix, iy) = slope.clamped(ax, ay);
+    for (Grid<float>& m : run->site.maps) m = Grid<float>::like(run->transmission, 0.f);
+    const Grid<float>& g = run->site.geometry();
+    const Grid<float>& ag = annual.geometry();
+    for (int iy = 0; iy < g.height(); ++iy)
+        for (int ix = 0; ix < g.width(); ++ix) {
+            const int ax = ag.cellX(g.cellCentreX(ix)), ay = ag.cellY(g.cellCentreY(iy));
+            for (std::size_t f = 0; f < kFactorCount; ++f) run->site.maps[f](ix, iy) = annual.maps[f].clamped(ax, ay);
+            // The sun under the canopy: the only factor the canopy changes.
+            run->site[Factor::Sun](ix, iy) = annual[Factor::Sun].clamped(ax, ay) * run->transmission(ix, iy);
         }
     const ForestSceneConfig& sc = scene;
     run->timeseries.push_back(s.census());

@@ -86,8 +86,9 @@ struct ForestRun {
     std::vector<Plant> canopy;
     Grid<float> transmission;  ///< simulation grid: canopy transmission (1 = open)
     Grid<float> seedProb;      ///< simulation grid: yearly germination probability
-    Grid<float> siteSunH;      ///< simulation grid: annual-mean sun after canopy shade, hours/day
-    Grid<float> siteMoistureMm, siteTemperatureC, siteSlopeDeg;  ///< simulation grid: annual means, nearest abiotic cell
+    /// Simulation grid: the annual means per factor at the nearest abiotic cell (factors.h),
+    /// the sun after canopy shade.
+    FactorGrids site;
     Grid<std::int32_t> seedPackages;  ///< simulation grid: bit b = sub-biome b + 1 seeds the cell
     std::vector<sim::YearRecord> timeseries;
     std::vector<Snapshot> snapshots;

@@ -30,7 +30,7 @@ struct SuitedCells {
     double areaM2 = 0, seededAreaM2 = 0;
 };
 SuitedCells suitedCells(const ForestRun& run, const Biome& biome, int late, double minFitness) {
-    const Grid<float>& g = run.siteSunH;
+    const Grid<float>& g = run.site[Factor::Sun];
     const Species& lateSp = biome.species[static_cast<std::size_t>(late)];
     SuitedCells out;
     out.mask = Grid<std::uint8_t>::like(g, 0);
@@ -41,8 +41,7 @@ SuitedCells suitedCells(const ForestRun& run, const Biome& biome, int late, doub
             for (int b : lateSp.subBiomes) reach = reach || (package & (1 << (b - 1))) != 0;
             if (!reach) continue;
             out.seededAreaM2 += g.cellSizeM() * g.cellSizeM();
-            const double fitness = biome.vigourOf(late, g(ix, iy), run.siteMoistureMm(ix, iy), run.siteTemperatureC(ix, iy),
-                                                   run.siteSlopeDeg(ix, iy)) / lateSp.alpha;
+            const double fitness = biome.vigourOf(late, run.site.at(ix, iy)) / lateSp.alpha;
             if (fitness >= minFitness) {
                 out.mask(ix, iy) = 1;
                 out.areaM2 += g.cellSizeM() * g.cellSizeM();
@@ -176,7 +175,7 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
                                  cfg.lateSpecies + ": share of plants in the last " + std::to_string(cfg.finalWindowYears) +
                                      " years / share at year " + std::to_string(early),
                                  gain, earlyShare > 0 ? "" : cfg.lateSpecies + " absent at year " + std::to_string(early)));
-    const Grid<float>& g = run.siteSunH;
+    const Grid<float>& g = run.site[Factor::Sun];
     const SuitedCells cells = suitedCells(run, biome, late, cfg.suitedMinFitness);
     const Grid<std::uint8_t>& suited = cells.mask;
     const double suitedAreaM2 = cells.areaM2, seededAreaM2 = cells.seededAreaM2;

@@ -1,0 +1,136 @@
+// One description per parameter (issue 23, item 5): key, one-line doc with units, and the
+// allowed range, so that one table drives setting by key (TOML and flags), the attributes
+// written into outputs, validation with its messages, and the documentation (a test checks
+// each key's row in the docs). Described this way: the canopy placer's CanopyParams
+// (synth/canopy_placer.h, canopyParamFields) and the simulator's [model] keys
+// (sim/sim_config.h, simParamFields); the other parameter structs still describe themselves
+// by hand (docs/factors.md, the end).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "error.h"
+#include "text_format.h"
+
+namespace eco {
+
+/// The allowed values of a numeric parameter: an optional lower and upper bound, each
+/// open or closed. Values must also be finite.
+struct ParamRange {
+    enum class Bound { None, Closed, Open };
+    Bound lowBound = Bound::None;
+    double lo = 0;
+    Bound highBound = Bound::None;
+    double hi = 0;
+
+    static ParamRange any() { return {}; }
+    /// v >= lo
+    static ParamRange atLeast(double lo) { return {Bound::Closed, lo, Bound::None, 0}; }
+    /// v > lo
+    static ParamRange above(double lo) { return {Bound::Open, lo, Bound::None, 0}; }
+    /// lo <= v <= hi
+    static ParamRange closed(double lo, double hi) { return {Bound::Closed, lo, Bound::Closed, hi}; }
+    /// lo < v <= hi
+    static ParamRange openClosed(double lo, double hi) { return {Bound::Open, lo, Bound::Closed, hi}; }
+
+    /// True when v is finite and within the bounds.
+    bool contains(double v) const {
+        if (!std::isfinite(v)) return false;
+        if (lowBound == Bound::Closed && v < lo) return false;
+        if (lowBound == Bound::Open && v <= lo) return false;
+        if (highBound == Bound::Closed && v > hi) return false;
+        if (highBound == Bound::Open && v >= hi) return false;
+        return true;
+    }
+    /// The rule as message text: "must be >= 0", "must be > 0", "must lie in (0, 10]".
+    std::string text() const {
+        auto num = [](double v) { return formatNumber(v, 6); };
+        if (highBound == Bound::None) {
+            if (lowBound == Bound::Closed) return "must be >= " + num(lo);
+            if (lowBound == Bound::Open) return "must be > " + num(lo);
+            return "must be finite";
+        }
+        if (lowBound == Bound::None) return std::string("must be ") + (highBound == Bound::Closed ? "<= " : "< ") + num(hi);
+        return std::string("must lie in ") + (lowBound == Bound::Closed ? "[" : "(") + num(lo) + ", " + num(hi) +
+               (highBound == Bound::Closed ? "]" : ")");
+    }
+};
+
+/// One parameter of struct S: a real, an integer or a 64-bit seed member.
+template <typename S>
+struct ParamDesc {
+    const char* key;  ///< snake_case, as in TOML configs, flags and HDF5 attributes
+    const char* doc;  ///< one line, with units
+    enum class Kind { Real, Integer, Seed } kind;
+    double S::*real = nullptr;
+    int S::*integer = nullptr;
+    ParamRange range{};               ///< allowed values (seeds: [0, 2^53))
+    std::uint64_t S::*seed = nullptr;
+    const char* rule = nullptr;       ///< message text of the range when not range.text()
+
+    /// The range as message text ("must lie in [0, 1]").
+    std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
+
+    /// The value as a double (seeds above 2^53 lose precision; write them separately).
+    double value(const S& p) const {
+        switch (kind) {
+            case Kind::Real: return p.*real;
+            case Kind::Integer: return p.*integer;
+            case Kind::Seed: return static_cast<double>(p.*seed);
+        }
+        return 0;
+    }
+};
+
+/// Sets the field `key` of p from a number; ValidationError "<what> 'key' ..." for an unknown
+/// key (listing the keys), a non-finite value, or a non-integer value of an integer or seed.
+template <typename S>
+void setParam(S& p, const std::vector<ParamDesc<S>>& fields, const std::string& key, double value, const std::string& what) {
+    auto num = [](double v) { return formatNumber(v, 6); };
+    using Kind = typename ParamDesc<S>::Kind;
+    for (const auto& f : fields) {
+        if (key != f.key) continue;
+        if (!std::isfinite(value)) throw ValidationError(what + " '" + key + "' must be finite, got " + num(value));
+        if (f.kind != Kind::Real && value != std::floor(value))
+            throw ValidationError(what + " '" + key + "' must be an integer, got " + num(value));
+        switch (f.kind) {
+            case Kind::Real: p.*(f.real) = value; break;
+            case Kind::Integer:
+                if (std::abs(value) > 1e9) throw ValidationError(what + " '" + key + "' out of range: " + num(value));
+                p.*(f.integer) = static_cast<int>(value);
+                break;
+            case Kind::Seed:
+                if (value < 0 || value >= 9007199254740992.0)
+                    throw ValidationError(what + " '" + key + "' must lie in [0, 2^53), got " + num(value));
+                p.*(f.seed) = static_cast<std::uint64_t>(value);
+                break;
+        }
+        return;
+    }
+    std::string keys;
+    for (const auto& f : fields) keys += (keys.empty() ? "" : ", ") + std::string(f.key);
+    throw ValidationError("unknown " + what + " '" + key + "' (known: " + keys + ")");
+}
+
+/// ValidationError "<what> 'key' <rule>, got <value>" for the first real or integer field
+/// of p outside its range, in table order.
+template <typename S>
+void validateParams(const S& p, const std::vector<ParamDesc<S>>& fields, const std::string& what) {
+    for (const auto& f : fields) {
+        if (f.kind == ParamDesc<S>::Kind::Seed) continue;
+        const double v = f.value(p);
+        if (!f.range.contains(v))
+            throw ValidationError(what + " '" + f.key + "' " + f.ruleText() + ", got " + formatNumber(v, 6));
+    }
+}
+
+/// The documentation row of a field: "| `key` | default | doc |" (default from S{}).
+template <typename S>
+std::string paramDocRow(const ParamDesc<S>& f) {
+    return std::string("| `") + f.key + "` | " + formatNumber(f.value(S{}), 6) + " | " + f.doc + " |";
+}
+
+}  // namespace eco
