@@ -58,6 +58,39 @@ bool hasGeotransform(const std::string& path) {
     return ds->GetGeoTransform(gt) == CE_None;
 }
 
+std::string rasterCrsWkt(const std::string& path) {
+    QuietGdal quiet;
+    const Dataset ds = openRaster(path);
+    if (!ds) return "";
+    const OGRSpatialReference* srs = ds->GetSpatialRef();
+    if (srs == nullptr) return "";
+    char* wkt = nullptr;
+    std::string out;
+    if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out = wkt;
+    CPLFree(wkt);
+    return out;
+}
+
+bool sameCrs(const std::string& wktA, const std::string& wktB) {
+    if (wktA.empty() || wktB.empty()) return wktA.empty() && wktB.empty();
+    OGRSpatialReference a, b;
+    if (a.importFromWkt(wktA.c_str()) != OGRERR_NONE || b.importFromWkt(wktB.c_str()) != OGRERR_NONE) return wktA == wktB;
+    return a.IsSame(&b) != 0;
+}
+
+void requireSameCrs(const std::string& pathA, const std::string& pathB) {
+    const std::string a = rasterCrsWkt(pathA), b = rasterCrsWkt(pathB);
+    if (a.empty() || b.empty() || sameCrs(a, b)) return;
+    auto name = [](const std::string& wkt) {
+        OGRSpatialReference s;
+        if (s.importFromWkt(wkt.c_str()) == OGRERR_NONE && s.GetName() != nullptr) return std::string(s.GetName());
+        return std::string("unnamed CRS");
+    };
+    throw ValidationError(pathA + " is in " + name(a) + " but " + pathB + " is in " + name(b) +
+                          ": the two must share one CRS; reproject one onto the other's grid, e.g. gdalwarp -t_srs <CRS of " + pathA +
+                          "> -tr <cell size> -te <extent> " + pathB + " OUT.tif");
+}
+
 GeoRaster readGeoRaster(const std::string& path) {
     QuietGdal quiet;
     const Dataset ds = openRaster(path);

@@ -38,6 +38,18 @@ bool hasGeotransform(const std::string& path);
 /// each naming the file.
 GeoRaster readGeoRaster(const std::string& path);
 
+/// The CRS (WKT) of a raster file GDAL opens; "" when it has none or is not a GDAL raster
+/// (our HDF5 files, plain images). Reads no cells.
+std::string rasterCrsWkt(const std::string& path);
+
+/// True when two CRSs (WKT) are the same coordinate system (GDAL's IsSame, so the same
+/// system written two ways matches). Two empty strings are the same; one empty is not.
+bool sameCrs(const std::string& wktA, const std::string& wktB);
+
+/// ValidationError when both rasters carry a CRS and the CRSs differ, naming both files and
+/// both CRSs and the gdalwarp command that aligns them. Nothing when either has none.
+void requireSameCrs(const std::string& pathA, const std::string& pathB);
+
 /// "column 3, row 7 from the lower left (0-based; x = 512.5 m, y = 1030 m)".
 template <typename T>
 std::string cellText(const Grid<T>& g, int ix, int iy) {

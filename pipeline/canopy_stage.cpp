@@ -10,6 +10,7 @@
 #include "atomic_file.h"
 #include "biome.h"
 #include "error.h"
+#include "geo_raster.h"
 #include "image_out.h"
 #include "plants.h"
 #include "species_map.h"
@@ -109,6 +110,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     chmOptions.raster.originY = terrain.originY();
     chmOptions.gaps = parseChmGapRule(args.chmGaps, "--chm-gaps");
     chmOptions.fillMaxM = args.chmFillMaxM;
+    requireSameCrs(args.terrain, args.chm);
     const ChmRead chmRead = readChm(args.chm, chmOptions);
     const Grid<float>& chm = chmRead.chm;
     if (const std::string repaired = chmRead.summary(args.chm); !repaired.empty()) reporter.info(repaired);

@@ -167,6 +167,13 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
     const auto fail = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --chm-gaps fail");
     CHECK(fail.exitCode != 0);
     CHECK_THAT(fail.output, Catch::Contains("column 10, row 11 from the lower left") && Catch::Contains("x = 545010.5 m, y = 4260011.5 m"));
+    test::GeoTiffSpec zone11 = cs;
+    zone11.epsg = 32611;
+    const std::string chm11 = f.dir.file("chm11.tif");
+    test::writeGeoTiff(chm11, zone11);
+    const auto crs = test::runEco("canopy --terrain " + dem + " --chm " + chm11 + " --out " + f.dir.file("c11.h5"));
+    CHECK(crs.exitCode != 0);
+    CHECK_THAT(crs.output, Catch::Contains("UTM zone 10N") && Catch::Contains("UTM zone 11N") && Catch::Contains("one CRS"));
     const auto coarse = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + f.dir.file("c.h5") + " --chm-gaps bad");
     CHECK(coarse.exitCode != 0);
     CHECK_THAT(coarse.output, Catch::Contains("--chm-gaps") && Catch::Contains("'bad'"));

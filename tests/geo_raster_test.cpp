@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "error.h"
@@ -173,4 +174,29 @@ TEST_CASE("CHM: a wide gap is filled only near the data; an .asc NODATA cell is 
     const eco::ChmRead a = eco::readChm(asc);
     CHECK(a.nodataCells == 1);
     CHECK(a.chm(1, 0) == 6.0f);
+}
+
+TEST_CASE("CRS: the same system matches however written; two different ones are refused by name", "[geo]") {
+    TempDir dir("geo_crs");
+    const std::string utm10 = dir.file("utm10.tif"), utm11 = dir.file("utm11.tif"), none = dir.file("none.asc");
+    writeGeoTiff(utm10, GeoTiffSpec{});
+    GeoTiffSpec other;
+    other.epsg = 32611;  // WGS 84 / UTM zone 11N
+    writeGeoTiff(utm11, other);
+    {
+        std::FILE* f = std::fopen(none.c_str(), "w");
+        std::fputs("ncols 1\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\n5\n", f);
+        std::fclose(f);
+    }
+    const std::string wkt = eco::rasterCrsWkt(utm10);
+    CHECK_THAT(wkt, Catch::Contains("UTM zone 10N"));
+    CHECK(eco::rasterCrsWkt(none).empty());
+    CHECK(eco::sameCrs(wkt, eco::rasterCrsWkt(utm10)));
+    CHECK_FALSE(eco::sameCrs(wkt, eco::rasterCrsWkt(utm11)));
+    CHECK_FALSE(eco::sameCrs(wkt, ""));
+    CHECK_NOTHROW(eco::requireSameCrs(utm10, utm10));
+    CHECK_NOTHROW(eco::requireSameCrs(utm10, none));  // no CRS: nothing to compare
+    CHECK_THROWS_AS(eco::requireSameCrs(utm10, utm11), eco::ValidationError);
+    CHECK_THROWS_WITH(eco::requireSameCrs(utm10, utm11), Catch::Contains("UTM zone 10N") && Catch::Contains("UTM zone 11N") &&
+                                                             Catch::Contains("gdalwarp"));
 }
