@@ -119,12 +119,13 @@ void registerTerrainCommands(CLI::App& app) {
         auto a = std::make_shared<TerrainConvertArgs>();
         CLI::App* conv = terrain->add_subcommand(
             "convert",
-            "Convert a terrain between formats (.asc, .h5, .png, .tif, .exr), chosen by extension. The vertical "
+            "Convert a terrain between formats (.asc, .h5, .png, .tif, .exr; GeoTIFF, .img and .vrt read through GDAL with "
+            "their geotransform), chosen by extension. The vertical "
             "scale/offset describe the image side (both sides when both are images).");
         conv->add_option("IN", a->in, "Input terrain")->required();
         conv->add_option("OUT", a->out, "Output terrain (written atomically)")->required();
         a->cellOpt = conv->add_option("--cell-size", a->cellSize,
-                         "Metres per cell: required for image inputs; checked against .asc/.h5 inputs")
+                         "Metres per cell: required for plain image inputs; checked against .asc/.h5 and georeferenced inputs")
             ->check(positiveNumber());
         a->scaleOpt = conv->add_option("--vertical-scale", a->verticalScale,
                                        "Metres per stored image unit: elevation = value * scale + offset "
