@@ -11,6 +11,7 @@
 #include <mutex>
 #include <vector>
 
+#include "atomic_file.h"
 #include "error.h"
 
 namespace eco {
@@ -56,6 +57,43 @@ bool hasGeotransform(const std::string& path) {
     if (!ds) return false;
     double gt[6];
     return ds->GetGeoTransform(gt) == CE_None;
+}
+
+void writeGeoTiff(const std::string& path, const Grid<float>& g, const std::string& crsWkt) {
+    if (g.empty()) throw ValidationError(path + ": cannot write an empty grid");
+    QuietGdal quiet;
+    registerGdal();
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+    if (drv == nullptr) throw IoError(path + ": GDAL has no GeoTIFF driver");
+    AtomicOutput out(path);
+    const int w = g.width(), h = g.height();
+    char compress[] = "COMPRESS=DEFLATE";
+    char* options[] = {compress, nullptr};
+    {
+        const Dataset ds(drv->Create(out.tempPath().c_str(), w, h, 1, GDT_Float32, options));
+        if (!ds) throw IoError(path + ": cannot create the GeoTIFF" + lastGdalError());
+        double gt[6] = {g.originX(), g.cellSizeM(), 0.0, g.originY() + h * g.cellSizeM(), 0.0, -g.cellSizeM()};
+        ds->SetGeoTransform(gt);
+        if (!crsWkt.empty()) {
+            OGRSpatialReference srs;
+            if (srs.importFromWkt(crsWkt.c_str()) != OGRERR_NONE) throw ValidationError(path + ": the CRS to write is not valid WKT");
+            ds->SetSpatialRef(&srs);
+        }
+        constexpr float kNodata = -3.4e38f;
+        GDALRasterBand* band = ds->GetRasterBand(1);
+        std::vector<float> rows(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+        bool anyNan = false;
+        for (int row = 0; row < h; ++row)
+            for (int ix = 0; ix < w; ++ix) {
+                const float v = g(ix, h - 1 - row);  // the file's first row is the northern edge
+                anyNan = anyNan || std::isnan(v);
+                rows[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix)] = std::isnan(v) ? kNodata : v;
+            }
+        if (anyNan) band->SetNoDataValue(kNodata);
+        if (band->RasterIO(GF_Write, 0, 0, w, h, rows.data(), w, h, GDT_Float32, 0, 0) != CE_None)
+            throw IoError(path + ": cannot write the GeoTIFF's cells" + lastGdalError());
+    }  // closed (flushed) before the commit
+    out.commit();
 }
 
 std::string rasterCrsWkt(const std::string& path) {

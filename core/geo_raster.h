@@ -38,6 +38,11 @@ bool hasGeotransform(const std::string& path);
 /// each naming the file.
 GeoRaster readGeoRaster(const std::string& path);
 
+/// Writes a grid as a GeoTIFF (float32, deflate) with its geotransform and the given CRS
+/// (WKT; none when empty), so that GIS software opens it in place. Atomic (AtomicOutput).
+/// NaN cells are written as nodata (-3.4e38, declared).
+void writeGeoTiff(const std::string& path, const Grid<float>& grid, const std::string& crsWkt);
+
 /// The CRS (WKT) of a raster file GDAL opens; "" when it has none or is not a GDAL raster
 /// (our HDF5 files, plain images). Reads no cells.
 std::string rasterCrsWkt(const std::string& path);

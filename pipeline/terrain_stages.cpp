@@ -9,6 +9,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
+#include "geo_raster.h"
 #include "terrain_io.h"
 #include "text_format.h"
 
@@ -197,11 +198,21 @@ TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& repo
     TerrainResult result;
     result.terrain = readTerrain(a.in, ro);
     const Grid<float>& terrain = result.terrain;
+    std::ostream& out = reporter.out();
+    // A georeferenced input written as .tif stays a GeoTIFF in metres with its geotransform
+    // and CRS (a vertical encoding asked for gives the plain image, as before).
+    if ((outExt == ".tif" || outExt == ".tiff") && !verticalGiven && hasGeotransform(a.in)) {
+        const std::string crs = rasterCrsWkt(a.in);
+        writeGeoTiff(a.out, terrain, crs);
+        result.written.push_back(a.out);
+        out << "wrote terrain: " << a.out << " (GeoTIFF" << (crs.empty() ? "" : ", the input's CRS") << "; "
+            << describe(terrain, "m") << ")\n";
+        return result;
+    }
     TerrainWriteOptions enc;
     if (outImage) enc = chooseEncoding(a.out, terrain, a.verticalScale, a.verticalOffsetM, reporter);
     writeTerrain(a.out, terrain, enc);
     result.written.push_back(a.out);
-    std::ostream& out = reporter.out();
     out << "wrote terrain: " << a.out << " (" << describe(terrain, "m") << ")\n";
     const std::string hint = readBackHint(a.out, terrain, enc);
     if (!hint.empty()) out << hint << "\n";

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <string>
 
+#include "geo_raster.h"
+#include "geotiff_fixture.h"
 #include "error.h"
 #include "h5io.h"
 #include "terrain_fixture.h"
@@ -73,4 +75,29 @@ TEST_CASE("terrain: CLI convert of a missing file fails with one line and no out
     CHECK(c.output.find("wrong cell size") != std::string::npos);
     CHECK_FALSE(std::filesystem::exists(out));
     CHECK_FALSE(leftovers(dir));
+}
+
+TEST_CASE("eco terrain convert: a GeoTIFF stays a GeoTIFF with its geotransform and CRS", "[terrain][cli][geo]") {
+    eco::test::TempDir dir("geo_convert");
+    eco::test::GeoTiffSpec s;
+    s.width = 6;
+    s.height = 4;
+    s.geotransform[3] = 4200002.0;  // top edge: 4 rows of 0.5 m above 4200000
+    for (int i = 0; i < 24; ++i) s.northFirst.push_back(100.0 + 0.25 * i);
+    const std::string in = dir.file("dem.tif"), out = dir.file("copy.tif"), asc = dir.file("copy.asc");
+    eco::test::writeGeoTiff(in, s);
+    const auto r = eco::test::runEco("terrain convert " + in + " " + out);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("GeoTIFF, the input's CRS"));
+    const eco::GeoRaster a = eco::readGeoRaster(in), b = eco::readGeoRaster(out);
+    CHECK(b.grid.sameGeometry(a.grid));
+    CHECK(b.grid.originY() == 4200000.0);
+    CHECK(eco::sameCrs(a.crsWkt, b.crsWkt));
+    CHECK(b.grid.data() == a.grid.data());
+    // Through an .asc (no CRS) the geometry and values survive too.
+    REQUIRE(eco::test::runEco("terrain convert " + out + " " + asc).exitCode == 0);
+    const eco::Grid<float> g = eco::readTerrain(asc);
+    CHECK(g.sameGeometry(a.grid));
+    CHECK(g(5, 3) == a.grid(5, 3));
 }
