@@ -73,6 +73,7 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--zoom", a->zoom, "Crop of scene_zoom.png: x,y,side or x0,y0,x1,y1 in metres (default: 60 m at the centre)");
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
+    cmd->add_option("--gpkg", a->gpkg, "Also write all plants as a GeoPackage point layer, in the terrain's CRS (QGIS, ArcGIS)");
     cmd->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
     args->methodOpt = cmd->add_option("--method", args->method,
                     "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "

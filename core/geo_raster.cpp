@@ -2,6 +2,7 @@
 #include "geo_raster.h"
 
 #include <gdal_priv.h>
+#include <ogrsf_frmts.h>
 #include <ogr_spatialref.h>
 #include <cpl_error.h>
 
@@ -9,6 +10,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "atomic_file.h"
@@ -93,6 +95,52 @@ void writeGeoTiff(const std::string& path, const Grid<float>& g, const std::stri
         if (band->RasterIO(GF_Write, 0, 0, w, h, rows.data(), w, h, GDT_Float32, 0, 0) != CE_None)
             throw IoError(path + ": cannot write the GeoTIFF's cells" + lastGdalError());
     }  // closed (flushed) before the commit
+    out.commit();
+}
+
+void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& layers, const Biome& biome,
+                     const std::string& crsWkt) {
+    QuietGdal quiet;
+    registerGdal();
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
+    if (drv == nullptr) throw IoError(path + ": GDAL has no GeoPackage driver");
+    OGRSpatialReference srs;
+    if (!crsWkt.empty() && srs.importFromWkt(crsWkt.c_str()) != OGRERR_NONE)
+        throw ValidationError(path + ": the CRS to write is not valid WKT");
+    AtomicOutput out(path);
+    {
+        const Dataset ds(drv->Create(out.tempPath().c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+        if (!ds) throw IoError(path + ": cannot create the GeoPackage" + lastGdalError());
+        OGRLayer* layer = ds->CreateLayer("plants", crsWkt.empty() ? nullptr : &srs, wkbPoint, nullptr);
+        if (layer == nullptr) throw IoError(path + ": cannot create its layer" + lastGdalError());
+        const std::pair<const char*, OGRFieldType> fields[] = {{"layer", OFTString},      {"species", OFTString},
+                                                               {"species_id", OFTInteger}, {"height_m", OFTReal},
+                                                               {"crown_radius_m", OFTReal}, {"ground_z_m", OFTReal}};
+        for (const auto& [name, type] : fields) {
+            OGRFieldDefn def(name, type);
+            if (layer->CreateField(&def) != OGRERR_NONE) throw IoError(path + ": cannot create field " + name + lastGdalError());
+        }
+        if (ds->StartTransaction() != OGRERR_NONE) throw IoError(path + ": cannot start writing" + lastGdalError());
+        for (const PlantLayer& l : layers) {
+            if (l.plants == nullptr) continue;
+            for (const Plant& p : *l.plants) {
+                OGRFeature* f = OGRFeature::CreateFeature(layer->GetLayerDefn());
+                f->SetField(0, l.name.c_str());
+                const bool known = p.speciesId >= 0 && static_cast<std::size_t>(p.speciesId) < biome.species.size();
+                f->SetField(1, known ? biome.species[static_cast<std::size_t>(p.speciesId)].name.c_str() : "");
+                f->SetField(2, p.speciesId);
+                f->SetField(3, p.heightM);
+                f->SetField(4, p.crownRadiusM);
+                f->SetField(5, p.groundZM);
+                OGRPoint pt(p.xM, p.yM);
+                f->SetGeometry(&pt);
+                const OGRErr e = layer->CreateFeature(f);
+                OGRFeature::DestroyFeature(f);
+                if (e != OGRERR_NONE) throw IoError(path + ": cannot write a plant" + lastGdalError());
+            }
+        }
+        if (ds->CommitTransaction() != OGRERR_NONE) throw IoError(path + ": cannot finish writing" + lastGdalError());
+    }
     out.commit();
 }
 

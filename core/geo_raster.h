@@ -15,7 +15,11 @@
 #include <cstdint>
 #include <string>
 
+#include <vector>
+
+#include "biome.h"
 #include "grid.h"
+#include "plants.h"
 #include "text_format.h"
 
 namespace eco {
@@ -42,6 +46,12 @@ GeoRaster readGeoRaster(const std::string& path);
 /// (WKT; none when empty), so that GIS software opens it in place. Atomic (AtomicOutput).
 /// NaN cells are written as nodata (-3.4e38, declared).
 void writeGeoTiff(const std::string& path, const Grid<float>& grid, const std::string& crsWkt);
+
+/// Writes plants as a GeoPackage point layer "plants" (GIS software opens it in place):
+/// fields layer, species, species_id, height_m, crown_radius_m, ground_z_m; points at (x, y)
+/// in the given CRS (WKT; none when empty). Atomic (AtomicOutput).
+void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& layers, const Biome& biome,
+                     const std::string& crsWkt);
 
 /// The CRS (WKT) of a raster file GDAL opens; "" when it has none or is not a GDAL raster
 /// (our HDF5 files, plain images). Reads no cells.

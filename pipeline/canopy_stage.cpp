@@ -196,6 +196,13 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     stageResult.written.push_back(args.out);
     out << "wrote canopy: " << args.out << " (/canopy trees, /species_map, /chm/height, /terrain/elevation, "
         << "/iterations, /targets)\n";
+    if (!args.gpkg.empty()) {
+        std::string crs = rasterCrsWkt(args.chm);
+        if (crs.empty()) crs = rasterCrsWkt(args.terrain);
+        writePlantsGpkg(args.gpkg, {PlantLayer{"canopy", &result.trees}}, biome, crs);
+        stageResult.written.push_back(args.gpkg);
+        out << "wrote trees: " << args.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the input's CRS") << ")\n";
+    }
     if (!args.csv.empty()) {
         writePlantsCsv(args.csv, result.trees, biome, "canopy");
         stageResult.written.push_back(args.csv);
@@ -222,6 +229,7 @@ std::vector<std::string> commandLine(const CanopyOptions& a) {
     args.insert(args.end(), {"--out", a.out});
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
+    if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
     if (a.seed) args.insert(args.end(), {"--seed", std::to_string(*a.seed)});
     a.terrainRead.appendArgs(args);
     if (a.chmVerticalScale != 1) args.insert(args.end(), {"--chm-vertical-scale", argNumber(a.chmVerticalScale)});

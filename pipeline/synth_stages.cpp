@@ -11,6 +11,7 @@
 #include "biome_db.h"
 #include "canopy_placer.h"
 #include "error.h"
+#include "geo_raster.h"
 #include "image_out.h"
 #include "terrain_io.h"
 #include "text_format.h"
@@ -68,7 +69,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
-    for (const std::string* out : {&a.out, &a.csv, &a.pdb})
+    for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
         if (!out->empty()) prepareOutput(*out);
     if (!a.pngDir.empty()) ensureDirectory(a.pngDir);
 
@@ -192,6 +193,12 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         result.written.push_back(a.csv);
         out << "wrote plants: " << a.csv << "\n";
     }
+    if (!a.gpkg.empty()) {
+        const std::string crs = rasterCrsWkt(a.terrain);
+        writePlantsGpkg(a.gpkg, {PlantLayer{"canopy", &record.canopy}, PlantLayer{"undergrowth", &record.undergrowth}}, biome, crs);
+        result.written.push_back(a.gpkg);
+        out << "wrote plants: " << a.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the terrain's CRS") << ")\n";
+    }
     if (!a.pdb.empty()) {
         writePdb(a.pdb, record.canopy, record.undergrowth);
         result.written.push_back(a.pdb);
@@ -260,6 +267,7 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.pdb.empty()) args.insert(args.end(), {"--pdb", a.pdb});
+    if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
     args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});
     if (a.method) args.insert(args.end(), {"--method", *a.method});
     a.terrainRead.appendArgs(args);

@@ -14,6 +14,7 @@
 #include "error.h"
 #include "generate.h"
 #include "geotiff_fixture.h"
+#include <ogrsf_frmts.h>
 #include "h5io.h"
 #include "rng.h"
 #include "species_map.h"
@@ -29,6 +30,12 @@ std::string slurp(const std::string& path) {
     std::stringstream s;
     s << in.rdbuf();
     return s.str();
+}
+
+double nearestDistance(const std::vector<Plant>& plants, double x, double y) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Plant& p : plants) best = std::min(best, std::hypot(p.xM - x, p.yM - y));
+    return best;
 }
 
 /// A small terrain and CHM pair on disk.
@@ -150,9 +157,11 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
     const std::string dem = f.dir.file("dem.tif"), chm = f.dir.file("chm.tif"), out = f.dir.file("geo.h5");
     test::writeGeoTiff(dem, spec(t, false));
     test::writeGeoTiff(chm, cs);
-    const auto r = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --seed 5 --max-iterations 4");
+    const std::string gpkg = f.dir.file("trees.gpkg");
+    const auto r = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --seed 5 --max-iterations 4 --gpkg " + gpkg);
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("GeoPackage, the input's CRS"));
     CHECK_THAT(r.output, Catch::Contains("1 nodata cell(s): 1 filled") && Catch::Contains("2 cell(s) below 0 m (lowest -0.2 m) clamped to 0"));
     const CanopyFileData d = readCanopyFile(out, defaultBiome());
     REQUIRE(d.trees.size() >= 3);
@@ -163,6 +172,23 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
         CHECK(p.yM < 4260040.0);
     }
     CHECK(d.chmM(10, 11) > 10.0f);  // the hole filled from the crown around it
+    {  // the GeoPackage: one point per tree, in UTM zone 10N, with its attributes
+        GDALDataset* g = GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);
+        REQUIRE(g != nullptr);
+        OGRLayer* layer = g->GetLayerByName("plants");
+        REQUIRE(layer != nullptr);
+        CHECK(layer->GetFeatureCount() == static_cast<GIntBig>(d.trees.size()));
+        REQUIRE(layer->GetSpatialRef() != nullptr);
+        CHECK_THAT(std::string(layer->GetSpatialRef()->GetName()), Catch::Contains("UTM zone 10N"));
+        OGRFeature* first = layer->GetNextFeature();
+        REQUIRE(first != nullptr);
+        const OGRPoint* pt = first->GetGeometryRef()->toPoint();
+        CHECK(nearestDistance(d.trees, pt->getX(), pt->getY()) < 1e-9);
+        CHECK(std::string(first->GetFieldAsString("layer")) == "canopy");
+        CHECK(first->GetFieldAsDouble("height_m") > 3.0);
+        OGRFeature::DestroyFeature(first);
+        GDALClose(GDALDataset::ToHandle(g));
+    }
 
     const auto fail = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --chm-gaps fail");
     CHECK(fail.exitCode != 0);
