@@ -107,7 +107,7 @@ void registerCanopyCommand(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--chm-fill-max", o.chmFillMaxM, "fill: how far from data a gap is filled, metres")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegativeNumber());
     cmd->add_option("--chm-vertical-scale", o.chmVerticalScale, "Image CHM only: metres per stored unit")
         ->capture_default_str();
     cmd->add_option("--chm-vertical-offset", o.chmVerticalOffsetM, "Image CHM only: metres added after scaling")

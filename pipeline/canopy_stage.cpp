@@ -100,6 +100,10 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     if (!args.mask.empty() && targets.empty())
         throw ValidationError("--mask '" + args.mask + "' given without --target: a mask only says where targets apply");
 
+    // Every output's directory before any work: a bad --gpkg or --csv must not leave the
+    // canopy file written alone.
+    for (const std::string* o : {&args.out, &args.csv, &args.gpkg})
+        if (!o->empty()) prepareOutput(*o);
     const TerrainReadOptions readOptions = args.terrainRead.options();
     const Grid<float> terrain = readTerrain(args.terrain, readOptions);
     ChmReadOptions chmOptions;

@@ -200,6 +200,13 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
     const auto crs = test::runEco("canopy --terrain " + dem + " --chm " + chm11 + " --out " + f.dir.file("c11.h5"));
     CHECK(crs.exitCode != 0);
     CHECK_THAT(crs.output, Catch::Contains("UTM zone 10N") && Catch::Contains("UTM zone 11N") && Catch::Contains("one CRS"));
+    {  // an output that cannot be written is refused before any work: nothing else is left
+        const std::string lone = f.dir.file("lone.h5");
+        const auto bad = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + lone + " --gpkg /proc/eco_no/t.gpkg");
+        CHECK(bad.exitCode != 0);
+        CHECK_THAT(bad.output, Catch::Contains("/proc/eco_no"));
+        CHECK_FALSE(std::ifstream(lone).good());
+    }
     const auto coarse = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + f.dir.file("c.h5") + " --chm-gaps bad");
     CHECK(coarse.exitCode != 0);
     CHECK_THAT(coarse.output, Catch::Contains("--chm-gaps") && Catch::Contains("'bad'"));
