@@ -38,6 +38,9 @@ void registerAbioticsCommand(CLI::App& app) {
     cmd->add_option("--biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)");
     cmd->add_option("--out", o.out, "Output HDF5 file, e.g. abiotics.h5 (written atomically)")->required();
     cmd->add_option("--png", o.pngDir, "Also write one PNG per map and month into this directory");
+    cmd->add_option("--geotiff", o.geotiffDir,
+                    "Also write every map as a GeoTIFF into this directory (<out stem>_sun.tif etc., 12 bands for the "
+                    "monthly maps, with the terrain's geotransform and CRS) for GIS software");
     cmd->add_option("--canopy", o.canopy,
                     "Canopy file from 'eco canopy' on this terrain: shade the sun maps under its crowns (each crown "
                     "x (1 - alpha)); for looking at the light under the canopy. eco simulate, analyse and synth "

@@ -77,6 +77,9 @@ void registerCanopyCommand(CLI::App& app) {
     cmd->add_option("--png", o.pngDir, "Also write canopy.png, species_map.png and chm.png into this directory");
     cmd->add_option("--csv", o.csv, "Also write the trees as CSV");
     cmd->add_option("--gpkg", o.gpkg, "Also write the trees as a GeoPackage point layer, in the CHM's (else the terrain's) CRS");
+    cmd->add_option("--geotiff", o.geotiffDir,
+                    "Also write the canopy file's grids (species map, CHM, terrain) as GeoTIFFs into this directory, "
+                    "with the inputs' geotransform and CRS");
     cmd->add_option("--config", o.config,
                     "TOML with placer parameters ([canopy] table or top-level keys; unknown keys are errors)");
     args->seedOpt = cmd->add_option("--seed", args->seed, "Random seed of the ring seeding")->capture_default_str();

@@ -74,6 +74,9 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
     cmd->add_option("--gpkg", a->gpkg, "Also write all plants as a GeoPackage point layer, in the terrain's CRS (QGIS, ArcGIS)");
+    cmd->add_option("--geotiff", a->geotiffDir,
+                    "Also write the scene's grids (grass, litter, cluster and combination maps, terrain) as GeoTIFFs into "
+                    "this directory, in the terrain's geotransform and CRS");
     cmd->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
     args->methodOpt = cmd->add_option("--method", args->method,
                     "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "

@@ -6,7 +6,11 @@
 #include <ogr_spatialref.h>
 #include <cpl_error.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <optional>
+#include <type_traits>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -15,6 +19,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "h5io.h"
 
 namespace eco {
 
@@ -61,41 +66,127 @@ bool hasGeotransform(const std::string& path) {
     return ds->GetGeoTransform(gt) == CE_None;
 }
 
-void writeGeoTiff(const std::string& path, const Grid<float>& g, const std::string& crsWkt) {
-    if (g.empty()) throw ValidationError(path + ": cannot write an empty grid");
+namespace {
+
+/// One GeoTIFF of same-geometry bands (deflate; the first band's geometry and CRS). Float
+/// bands write NaN as the declared nodata -3.4e38; integer bands declare `intNodata` when set.
+template <typename T>
+void writeGeoTiffBands(const std::string& path, const std::vector<const Grid<T>*>& bands,
+                       const std::vector<std::string>& descriptions, const std::string& units, std::optional<int> intNodata) {
+    constexpr bool kFloat = std::is_floating_point_v<T>;
+    if (bands.empty() || bands.front()->empty()) throw ValidationError(path + ": cannot write an empty grid");
+    const Grid<T>& g = *bands.front();
+    for (const Grid<T>* b : bands)
+        if (!b->sameGeometry(g)) throw ValidationError(path + ": the bands differ in geometry");
     QuietGdal quiet;
     registerGdal();
     GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
     if (drv == nullptr) throw IoError(path + ": GDAL has no GeoTIFF driver");
+    OGRSpatialReference srs;
+    if (!g.crsWkt().empty() && srs.importFromWkt(g.crsWkt().c_str()) != OGRERR_NONE)
+        throw ValidationError(path + ": the grid's CRS is not valid WKT");
     AtomicOutput out(path);
     const int w = g.width(), h = g.height();
     char compress[] = "COMPRESS=DEFLATE";
-    char* options[] = {compress, nullptr};
+    char interleave[] = "INTERLEAVE=BAND";
+    char* options[] = {compress, interleave, nullptr};
+    const GDALDataType type = kFloat ? GDT_Float32 : GDT_Int32;
     {
-        const Dataset ds(drv->Create(out.tempPath().c_str(), w, h, 1, GDT_Float32, options));
+        const Dataset ds(drv->Create(out.tempPath().c_str(), w, h, static_cast<int>(bands.size()), type, options));
         if (!ds) throw IoError(path + ": cannot create the GeoTIFF" + lastGdalError());
         double gt[6] = {g.originX(), g.cellSizeM(), 0.0, g.originY() + h * g.cellSizeM(), 0.0, -g.cellSizeM()};
         ds->SetGeoTransform(gt);
-        if (!crsWkt.empty()) {
-            OGRSpatialReference srs;
-            if (srs.importFromWkt(crsWkt.c_str()) != OGRERR_NONE) throw ValidationError(path + ": the CRS to write is not valid WKT");
-            ds->SetSpatialRef(&srs);
-        }
+        if (!g.crsWkt().empty()) ds->SetSpatialRef(&srs);
         constexpr float kNodata = -3.4e38f;
-        GDALRasterBand* band = ds->GetRasterBand(1);
-        std::vector<float> rows(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-        bool anyNan = false;
-        for (int row = 0; row < h; ++row)
-            for (int ix = 0; ix < w; ++ix) {
-                const float v = g(ix, h - 1 - row);  // the file's first row is the northern edge
-                anyNan = anyNan || std::isnan(v);
-                rows[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix)] = std::isnan(v) ? kNodata : v;
-            }
-        if (anyNan) band->SetNoDataValue(kNodata);
-        if (band->RasterIO(GF_Write, 0, 0, w, h, rows.data(), w, h, GDT_Float32, 0, 0) != CE_None)
-            throw IoError(path + ": cannot write the GeoTIFF's cells" + lastGdalError());
+        std::vector<T> rows(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+        for (std::size_t b = 0; b < bands.size(); ++b) {
+            GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
+            bool anyNan = false;
+            for (int row = 0; row < h; ++row)
+                for (int ix = 0; ix < w; ++ix) {
+                    T v = (*bands[b])(ix, h - 1 - row);  // the file's first row is the northern edge
+                    if constexpr (kFloat) {
+                        if (std::isnan(v)) {
+                            anyNan = true;
+                            v = kNodata;
+                        }
+                    }
+                    rows[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix)] = v;
+                }
+            if (anyNan) band->SetNoDataValue(kNodata);
+            if (!kFloat && intNodata) band->SetNoDataValue(*intNodata);
+            if (b < descriptions.size()) band->SetDescription(descriptions[b].c_str());
+            if (!units.empty()) band->SetUnitType(units.c_str());
+            if (band->RasterIO(GF_Write, 0, 0, w, h, rows.data(), w, h, type, 0, 0) != CE_None)
+                throw IoError(path + ": cannot write the GeoTIFF's cells" + lastGdalError());
+        }
     }  // closed (flushed) before the commit
     out.commit();
+}
+
+std::string safeName(std::string s) {
+    for (char& c : s)
+        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '_';
+    return s;
+}
+
+}  // namespace
+
+void writeGeoTiff(const std::string& path, const Grid<float>& g, const std::string& units) {
+    writeGeoTiffBands<float>(path, {&g}, {}, units, std::nullopt);
+}
+
+void writeGeoTiff(const std::string& path, const std::vector<Grid<float>>& bands,
+                  const std::vector<std::string>& descriptions, const std::string& units) {
+    std::vector<const Grid<float>*> ptrs;
+    for (const auto& b : bands) ptrs.push_back(&b);
+    writeGeoTiffBands<float>(path, ptrs, descriptions, units, std::nullopt);
+}
+
+void writeGeoTiff(const std::string& path, const Grid<std::int32_t>& g, const std::string& units, std::optional<int> nodata) {
+    writeGeoTiffBands<std::int32_t>(path, {&g}, {}, units, nodata);
+}
+
+std::vector<std::string> exportGridsAsGeoTiff(const std::string& h5Path, const std::string& dir, const std::string& prefix) {
+    const h5::File f = h5::File::openRead(h5Path);
+    std::vector<std::string> grids;  // dataset paths, in the file's (alphabetical) order
+    std::vector<std::string> groups{"/"};
+    while (!groups.empty()) {
+        const std::string g = groups.back();
+        groups.pop_back();
+        std::vector<std::string> children = f.list(g);
+        for (auto it = children.rbegin(); it != children.rend(); ++it) {
+            const std::string p = (g == "/" ? "" : g) + "/" + *it;
+            if (f.isGroup(p)) groups.push_back(p);
+            else if (f.hasAttr(p, "cell_size_m") && f.hasAttr(p, "row_order")) grids.push_back(p);
+        }
+    }
+    std::sort(grids.begin(), grids.end());
+    if (grids.empty()) throw ValidationError(h5Path + ": no grid datasets (with cell_size_m and row_order) to export");
+    static const char* kMonths[] = {"January", "February", "March",     "April",   "May",      "June",
+                                    "July",    "August",   "September", "October", "November", "December"};
+    std::vector<std::string> written;
+    for (const std::string& name : grids) {
+        const std::string out = dir + "/" + prefix + safeName(name.substr(1)) + ".tif";
+        const std::string units = f.hasAttr(name, "units") ? f.attrString(name, "units") : "";
+        const std::size_t rank = f.shape(name).size();
+        if (f.isIntegerDataset(name)) {
+            if (rank != 2) throw ValidationError(h5Path + ": " + name + ": integer grids must be 2-D");
+            // "-1 none" in the units (species and cluster maps): -1 is declared nodata.
+            const std::optional<int> nodata = units.find("-1 none") != std::string::npos ? std::optional<int>(-1) : std::nullopt;
+            writeGeoTiff(out, f.readGridI32(name), units, nodata);
+        } else if (rank == 3) {
+            const std::vector<Grid<float>> planes = f.readStack(name);
+            std::vector<std::string> names;
+            for (std::size_t i = 0; i < planes.size(); ++i)
+                names.push_back(planes.size() == 12 ? kMonths[i] : "plane " + std::to_string(i));
+            writeGeoTiff(out, planes, names, units);
+        } else {
+            writeGeoTiff(out, f.readGrid(name), units);
+        }
+        written.push_back(out);
+    }
+    return written;
 }
 
 void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& layers, const Biome& biome,
@@ -164,17 +255,20 @@ bool sameCrs(const std::string& wktA, const std::string& wktB) {
     return a.IsSame(&b) != 0;
 }
 
-void requireSameCrs(const std::string& pathA, const std::string& pathB) {
-    const std::string a = rasterCrsWkt(pathA), b = rasterCrsWkt(pathB);
-    if (a.empty() || b.empty() || sameCrs(a, b)) return;
+std::string sharedCrs(const std::string& wktA, const std::string& whatA, const std::string& wktB, const std::string& whatB) {
+    if (wktA.empty() || wktB.empty() || sameCrs(wktA, wktB)) return wktA.empty() ? wktB : wktA;
     auto name = [](const std::string& wkt) {
         OGRSpatialReference s;
         if (s.importFromWkt(wkt.c_str()) == OGRERR_NONE && s.GetName() != nullptr) return std::string(s.GetName());
         return std::string("unnamed CRS");
     };
-    throw ValidationError(pathA + " is in " + name(a) + " but " + pathB + " is in " + name(b) +
-                          ": the two must share one CRS; reproject one onto the other's grid, e.g. gdalwarp -t_srs <CRS of " + pathA +
-                          "> -tr <cell size> -te <extent> " + pathB + " OUT.tif");
+    throw ValidationError(whatA + " is in " + name(wktA) + " but " + whatB + " is in " + name(wktB) +
+                          ": the two must share one CRS; reproject one onto the other's grid, e.g. gdalwarp -t_srs <CRS of " + whatA +
+                          "> -tr <cell size> -te <extent> " + whatB + " OUT.tif");
+}
+
+void requireSameCrs(const std::string& pathA, const std::string& pathB) {
+    sharedCrs(rasterCrsWkt(pathA), pathA, rasterCrsWkt(pathB), pathB);
 }
 
 GeoRaster readGeoRaster(const std::string& path) {
@@ -232,6 +326,7 @@ GeoRaster readGeoRaster(const std::string& path) {
     const bool northUp = gt[5] < 0;
     const double originY = northUp ? gt[3] + gt[5] * h : gt[3];
     out.grid = Grid<float>(w, h, cw, gt[0], originY);
+    out.grid.setCrsWkt(out.crsWkt);
     for (int row = 0; row < h; ++row) {
         const int iy = northUp ? h - 1 - row : row;
         for (int ix = 0; ix < w; ++ix) {

@@ -13,6 +13,7 @@
 // from the LOWER-LEFT corner, 0-based, and the world x, y of the cell centre.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include <vector>
@@ -42,10 +43,24 @@ bool hasGeotransform(const std::string& path);
 /// each naming the file.
 GeoRaster readGeoRaster(const std::string& path);
 
-/// Writes a grid as a GeoTIFF (float32, deflate) with its geotransform and the given CRS
-/// (WKT; none when empty), so that GIS software opens it in place. Atomic (AtomicOutput).
-/// NaN cells are written as nodata (-3.4e38, declared).
-void writeGeoTiff(const std::string& path, const Grid<float>& grid, const std::string& crsWkt);
+/// Writes a grid as a GeoTIFF (float32, deflate) with its geotransform and its CRS (the
+/// grid's crsWkt; none when empty), so that GIS software opens it in place. Atomic
+/// (AtomicOutput). NaN cells are written as nodata (-3.4e38, declared). `units` becomes the
+/// band's unit type when given.
+void writeGeoTiff(const std::string& path, const Grid<float>& grid, const std::string& units = "");
+/// Same-geometry planes as the bands of one GeoTIFF (e.g. 12 months), each with a description.
+void writeGeoTiff(const std::string& path, const std::vector<Grid<float>>& bands,
+                  const std::vector<std::string>& descriptions, const std::string& units = "");
+/// An integer grid (species or cluster map) as an Int32 GeoTIFF; `nodata` declared when set.
+void writeGeoTiff(const std::string& path, const Grid<std::int32_t>& grid, const std::string& units,
+                  std::optional<int> nodata);
+
+/// Every grid dataset of one of our HDF5 files (those with the geometry attributes of
+/// h5io.h) as a GeoTIFF in `dir` named prefix + the dataset path ("/chm/height" ->
+/// prefix + "chm_height.tif"): monthly stacks as 12 bands named after the months, integer
+/// maps as Int32 (-1 declared nodata when the units say "-1 none"), each with the grid's
+/// geotransform and CRS. Returns the files written. ValidationError when the file has no grid.
+std::vector<std::string> exportGridsAsGeoTiff(const std::string& h5Path, const std::string& dir, const std::string& prefix);
 
 /// Writes plants as a GeoPackage point layer "plants" (GIS software opens it in place):
 /// fields layer, species, species_id, height_m, crown_radius_m, ground_z_m; points at (x, y)
@@ -60,6 +75,10 @@ std::string rasterCrsWkt(const std::string& path);
 /// True when two CRSs (WKT) are the same coordinate system (GDAL's IsSame, so the same
 /// system written two ways matches). Two empty strings are the same; one empty is not.
 bool sameCrs(const std::string& wktA, const std::string& wktB);
+
+/// The CRS two inputs share (`whatA`, `whatB` name them in the message): ValidationError when
+/// both carry a CRS and the CRSs differ; otherwise the one that has one ("" when neither).
+std::string sharedCrs(const std::string& wktA, const std::string& whatA, const std::string& wktB, const std::string& whatB);
 
 /// ValidationError when both rasters carry a CRS and the CRSs differ, naming both files and
 /// both CRSs and the gdalwarp command that aligns them. Nothing when either has none.

@@ -10,6 +10,11 @@
 //     xllcorner / yllcorner).
 // Files whose first row is the northern edge (ESRI ASCII grids, images) are flipped by
 // their readers and writers, never by the science code.
+//
+// A grid read from a georeferenced raster also carries its coordinate reference system
+// (crsWkt, WKT; empty when unknown). It travels with the geometry: like() copies it, our
+// HDF5 grids store it (h5io.h) and the GeoTIFF / GeoPackage writers put it in their files,
+// so that outputs derived from a georeferenced input open in place in GIS software.
 #pragma once
 
 #include <algorithm>
@@ -17,6 +22,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "error.h"
@@ -40,11 +46,12 @@ public:
         data_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), fill);
     }
 
-    /// Same geometry (size, cell size, origin) as `other`, every cell set to `fill`.
+    /// Same geometry (size, cell size, origin, CRS) as `other`, every cell set to `fill`.
     template <typename U>
     static Grid like(const Grid<U>& other, T fill = T{}) {
-        return Grid(other.width(), other.height(), other.cellSizeM(), other.originX(),
-                    other.originY(), fill);
+        Grid g(other.width(), other.height(), other.cellSizeM(), other.originX(), other.originY(), fill);
+        g.crsWkt_ = other.crsWkt();
+        return g;
     }
 
     int width() const { return width_; }
@@ -52,6 +59,9 @@ public:
     double cellSizeM() const { return cellSizeM_; }
     double originX() const { return originX_; }
     double originY() const { return originY_; }
+    /// Coordinate reference system as WKT; empty when unknown (a generated terrain, an image).
+    const std::string& crsWkt() const { return crsWkt_; }
+    void setCrsWkt(std::string wkt) { crsWkt_ = std::move(wkt); }
     std::size_t size() const { return data_.size(); }
     bool empty() const { return data_.empty(); }
 
@@ -121,6 +131,7 @@ private:
     double cellSizeM_ = 1.0;
     double originX_ = 0.0;
     double originY_ = 0.0;
+    std::string crsWkt_;
     std::vector<T> data_;
 };
 

@@ -181,6 +181,21 @@ std::vector<hsize_t> File::shape(const std::string& name) const {
     return dims;
 }
 
+bool File::isGroup(const std::string& name) const {
+    requireObject(name);
+    Handle o(H5Oopen(id(), name.c_str(), H5P_DEFAULT));
+    if (!o.valid()) throw IoError(where(name) + ": cannot open");
+    return H5Iget_type(o.id()) == H5I_GROUP;
+}
+
+bool File::isIntegerDataset(const std::string& name) const {
+    requireObject(name);
+    Handle ds(H5Dopen2(id(), name.c_str(), H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(where(name) + ": not a dataset");
+    Handle type(H5Dget_type(ds.id()));
+    return H5Tget_class(type.id()) == H5T_INTEGER;
+}
+
 void File::writeStrings(const std::string& name, const std::vector<std::string>& v) {
     ensureGroup(parentOf(name));
     std::vector<const char*> ptrs;
@@ -345,8 +360,10 @@ std::vector<std::string> File::list(const std::string& group) const {
 
 namespace {
 
-void writeGeometry(File& f, const std::string& name, int w, int h, double cell, double ox, double oy,
-                   const std::string& units) {
+template <typename T>
+void writeGeometry(File& f, const std::string& name, const Grid<T>& g, const std::string& units) {
+    const int w = g.width(), h = g.height();
+    const double cell = g.cellSizeM(), ox = g.originX(), oy = g.originY();
     f.setAttr(name, "cell_size_m", cell);
     f.setAttr(name, "origin_x_m", ox);
     f.setAttr(name, "origin_y_m", oy);
@@ -354,15 +371,17 @@ void writeGeometry(File& f, const std::string& name, int w, int h, double cell, 
     f.setAttr(name, "height", static_cast<std::int64_t>(h));
     f.setAttr(name, "units", units);
     f.setAttr(name, "row_order", std::string("south_to_north"));
+    if (!g.crsWkt().empty()) f.setAttr(name, "crs_wkt", g.crsWkt());
 }
 
 struct Geometry {
     double cell, ox, oy;
+    std::string crsWkt;
 };
 
 Geometry readGeometry(const File& f, const std::string& name) {
     Geometry g{f.attrDouble(name, "cell_size_m"), f.attrDouble(name, "origin_x_m"),
-               f.attrDouble(name, "origin_y_m")};
+               f.attrDouble(name, "origin_y_m"), f.hasAttr(name, "crs_wkt") ? f.attrString(name, "crs_wkt") : std::string()};
     if (!(g.cell > 0) || !std::isfinite(g.cell))
         throw IoError(f.path() + ": " + name + ": cell_size_m must be positive, got " + std::to_string(g.cell));
     if (f.hasAttr(name, "row_order") && f.attrString(name, "row_order") != "south_to_north")
@@ -375,7 +394,7 @@ Geometry readGeometry(const File& f, const std::string& name) {
 
 void File::writeGrid(const std::string& name, const Grid<float>& g, const std::string& units) {
     writeF32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
-    writeGeometry(*this, name, g.width(), g.height(), g.cellSizeM(), g.originX(), g.originY(), units);
+    writeGeometry(*this, name, g, units);
 }
 
 Grid<float> File::readGrid(const std::string& name) const {
@@ -384,13 +403,14 @@ Grid<float> File::readGrid(const std::string& name) const {
     if (dims.size() != 2) throw IoError(where(name) + ": expected a 2-D grid dataset");
     const Geometry geo = readGeometry(*this, name);
     Grid<float> g(static_cast<int>(dims[1]), static_cast<int>(dims[0]), geo.cell, geo.ox, geo.oy);
+    g.setCrsWkt(geo.crsWkt);
     g.data() = std::move(data);
     return g;
 }
 
 void File::writeGridI32(const std::string& name, const Grid<std::int32_t>& g, const std::string& units) {
     writeI32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
-    writeGeometry(*this, name, g.width(), g.height(), g.cellSizeM(), g.originX(), g.originY(), units);
+    writeGeometry(*this, name, g, units);
 }
 
 Grid<std::int32_t> File::readGridI32(const std::string& name) const {
@@ -399,6 +419,7 @@ Grid<std::int32_t> File::readGridI32(const std::string& name) const {
     if (dims.size() != 2) throw IoError(where(name) + ": expected a 2-D grid dataset");
     const Geometry geo = readGeometry(*this, name);
     Grid<std::int32_t> g(static_cast<int>(dims[1]), static_cast<int>(dims[0]), geo.cell, geo.ox, geo.oy);
+    g.setCrsWkt(geo.crsWkt);
     g.data() = std::move(data);
     return g;
 }
@@ -415,7 +436,7 @@ void File::writeStack(const std::string& name, const std::vector<Grid<float>>& p
     }
     writeF32(name, all, {static_cast<hsize_t>(planes.size()), static_cast<hsize_t>(g0.height()),
                          static_cast<hsize_t>(g0.width())});
-    writeGeometry(*this, name, g0.width(), g0.height(), g0.cellSizeM(), g0.originX(), g0.originY(), units);
+    writeGeometry(*this, name, g0, units);
 }
 
 std::vector<Grid<float>> File::readStack(const std::string& name) const {
@@ -427,6 +448,7 @@ std::vector<Grid<float>> File::readStack(const std::string& name) const {
     std::vector<Grid<float>> out;
     for (hsize_t p = 0; p < dims[0]; ++p) {
         Grid<float> g(static_cast<int>(dims[2]), static_cast<int>(dims[1]), geo.cell, geo.ox, geo.oy);
+        g.setCrsWkt(geo.crsWkt);
         std::copy(data.begin() + static_cast<std::ptrdiff_t>(p * planeSize),
                   data.begin() + static_cast<std::ptrdiff_t>((p + 1) * planeSize), g.data().begin());
         out.push_back(std::move(g));

@@ -60,6 +60,10 @@ public:
     std::vector<std::int32_t> readI32(const std::string& name, std::vector<hsize_t>* dims = nullptr) const;
     std::vector<std::string> readStrings(const std::string& name) const;
     std::vector<hsize_t> shape(const std::string& name) const;
+    /// True when the object is a group (false for a dataset); IoError when it does not exist.
+    bool isGroup(const std::string& name) const;
+    /// True when the dataset stores integers (false for floating point or strings).
+    bool isIntegerDataset(const std::string& name) const;
 
     // Attributes on any object (group or dataset); "/" is the root.
     void setAttr(const std::string& object, const std::string& attr, const std::string& value);

@@ -83,6 +83,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     reporter.info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")") +
                   ", latitude " + num(biome.climate.latitudeDeg) + " deg");
 
+    if (!args.geotiffDir.empty()) ensureDirectory(args.geotiffDir);
     // Read the canopy first: a bad file fails before the long computation.
     std::vector<Plant> canopy;
     if (!args.canopy.empty()) {
@@ -109,6 +110,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     reporter.out() << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
                    << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
                    << ", /moisture mm, /temperature degC)\n";
+    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, args.geotiffDir, reporter, result.written);
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome, reporter, result.written);
     return result;
 }
@@ -116,6 +118,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
 std::vector<std::string> commandLine(const AbioticsOptions& a) {
     std::vector<std::string> args = {"abiotics", "--terrain", a.terrain, "--out", a.out};
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
+    if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     args.insert(args.end(), {"--sun-step", argNumber(a.sunStepMinutes)});
     a.terrainRead.appendArgs(args);
     if (!a.canopy.empty()) args.insert(args.end(), {"--canopy", a.canopy});

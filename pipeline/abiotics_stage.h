@@ -15,6 +15,7 @@ struct AbioticsOptions {
     std::string biome;   ///< biome TOML; "" = the embedded Sonoma biome
     std::string out;     ///< HDF5 output (atomic)
     std::string pngDir;  ///< "" = no pictures; else one PNG per map and month
+    std::string geotiffDir;  ///< "" = none; else every map as a GeoTIFF (12 bands for the monthly ones)
     std::string canopy;  ///< canopy file whose crowns shade the sun maps; "" = open sky
     TerrainReadFlags terrainRead;
     double sunStepMinutes = 10;  ///< sampling interval of the sun path

@@ -104,8 +104,9 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     // canopy file written alone.
     for (const std::string* o : {&args.out, &args.csv, &args.gpkg})
         if (!o->empty()) prepareOutput(*o);
+    if (!args.geotiffDir.empty()) ensureDirectory(args.geotiffDir);
     const TerrainReadOptions readOptions = args.terrainRead.options();
-    const Grid<float> terrain = readTerrain(args.terrain, readOptions);
+    Grid<float> terrain = readTerrain(args.terrain, readOptions);
     ChmReadOptions chmOptions;
     chmOptions.raster.cellSizeM = readOptions.cellSizeM;
     chmOptions.raster.verticalScale = args.chmVerticalScale;
@@ -114,8 +115,12 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     chmOptions.raster.originY = terrain.originY();
     chmOptions.gaps = parseChmGapRule(args.chmGaps, "--chm-gaps");
     chmOptions.fillMaxM = args.chmFillMaxM;
-    requireSameCrs(args.terrain, args.chm);
-    const ChmRead chmRead = readChm(args.chm, chmOptions);
+    ChmRead chmRead = readChm(args.chm, chmOptions);
+    // One CRS for both (an image CHM takes the terrain's, as it takes its corner); it goes
+    // into the canopy file's grids and the GeoPackage.
+    const std::string crs = sharedCrs(terrain.crsWkt(), args.terrain, chmRead.chm.crsWkt(), args.chm);
+    terrain.setCrsWkt(crs);
+    chmRead.chm.setCrsWkt(crs);
     const Grid<float>& chm = chmRead.chm;
     if (const std::string repaired = chmRead.summary(args.chm); !repaired.empty()) reporter.info(repaired);
     checkInputs(terrain, args.terrain, chm, args.chm);
@@ -201,12 +206,11 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     out << "wrote canopy: " << args.out << " (/canopy trees, /species_map, /chm/height, /terrain/elevation, "
         << "/iterations, /targets)\n";
     if (!args.gpkg.empty()) {
-        std::string crs = rasterCrsWkt(args.chm);
-        if (crs.empty()) crs = rasterCrsWkt(args.terrain);
         writePlantsGpkg(args.gpkg, {PlantLayer{"canopy", &result.trees}}, biome, crs);
         stageResult.written.push_back(args.gpkg);
         out << "wrote trees: " << args.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the input's CRS") << ")\n";
     }
+    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, args.geotiffDir, reporter, stageResult.written);
     if (!args.csv.empty()) {
         writePlantsCsv(args.csv, result.trees, biome, "canopy");
         stageResult.written.push_back(args.csv);
@@ -234,6 +238,7 @@ std::vector<std::string> commandLine(const CanopyOptions& a) {
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
+    if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     if (a.seed) args.insert(args.end(), {"--seed", std::to_string(*a.seed)});
     a.terrainRead.appendArgs(args);
     if (a.chmVerticalScale != 1) args.insert(args.end(), {"--chm-vertical-scale", argNumber(a.chmVerticalScale)});

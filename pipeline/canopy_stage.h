@@ -20,6 +20,7 @@ struct CanopyOptions {
     std::string out;       ///< HDF5 output (atomic)
     std::string pngDir, csv;  ///< optional outputs ("" = none)
     std::string gpkg;         ///< optional: the trees as a GeoPackage in the CHM's (else the terrain's) CRS
+    std::string geotiffDir;   ///< optional: the file's grids (species map, CHM, terrain) as GeoTIFFs
     std::string mask;         ///< grey image: where the targets apply
     std::string config;       ///< TOML of placer parameters, applied before the overrides below
     std::vector<std::string> targets;  ///< "SPECIES=FRACTION", met one after another

@@ -68,6 +68,9 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     const std::int64_t seed = run.integerOr("seed", 1);
     if (seed < 0) run.fail("seed", "must not be negative");
     const std::string biome = run.stringOr("biome", "");
+    // GIS outputs: every grid of abiotics, canopy and scene as GeoTIFF and the plants as
+    // GeoPackage, in gis/ (and target/gis/), in the inputs' CRS.
+    const bool gis = run.booleanOr("gis", false);
     run.finish();
     ensureDirectory(out);
     const auto at = [&](const std::string& name) { return (std::filesystem::path(out) / name).string(); };
@@ -124,6 +127,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         o.terrain = terrain;
         o.out = abiotics;
         o.pngDir = at("png/abiotics");
+        if (gis) o.geotiffDir = at("gis");
         o.sunStepMinutes = sunStepMinutes;
         o.terrainRead = terrainRead;
         o.biome = biome;
@@ -144,6 +148,10 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         o.out = canopy;
         o.pngDir = at("png/canopy");
         o.csv = at("canopy.csv");
+        if (gis) {
+            o.geotiffDir = at("gis");
+            o.gpkg = at("gis/canopy.gpkg");
+        }
         o.seed = static_cast<std::uint64_t>(seed);
         o.terrainRead = terrainRead;
         if (t.has("config")) canopyConfig = t.string("config");
@@ -239,6 +247,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             o.terrain = targetTerrain;
             o.out = targetAbiotics;
             o.pngDir = at("target/png/abiotics");
+            if (gis) o.geotiffDir = at("target/gis");
             o.sunStepMinutes = sunStepMinutes;
             o.terrainRead = targetRead;
             o.biome = biome;
@@ -252,6 +261,10 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             o.abiotics = targetAbiotics;
             o.out = targetCanopy;
             o.pngDir = at("target/png/canopy");
+            if (gis) {
+                o.geotiffDir = at("target/gis");
+                o.gpkg = at("target/gis/canopy.gpkg");
+            }
             o.seed = ts;
             o.terrainRead = targetRead;
             o.config = canopyConfig;
@@ -270,6 +283,10 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             o.pngDir = at("png/synth");
             o.csv = at("scene.csv");
             o.pdb = at("scene.pdb");
+            if (gis) {
+                o.geotiffDir = at("gis");
+                o.gpkg = at("gis/scene.gpkg");
+            }
             o.params.seed = ts;
             o.terrainRead = targetRead;
             o.refine = t.booleanOr("refine", false);

@@ -9,6 +9,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "geo_raster.h"
 
 namespace eco::pipeline {
 
@@ -46,6 +47,27 @@ void prepareOutput(const std::string& path) {
     if (p.has_parent_path()) ensureDirectory(p.parent_path().string());
 }
 
+void writeGeoTiffs(const std::string& h5Path, const std::string& dir, Reporter& reporter, std::vector<std::string>& written) {
+    ensureDirectory(dir);
+    const std::vector<std::string> files =
+        exportGridsAsGeoTiff(h5Path, dir, std::filesystem::path(h5Path).stem().string() + "_");
+    std::string names;
+    for (const std::string& f : files) names += (names.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();
+    reporter.out() << "wrote GeoTIFFs: " << dir << "/ (" << names << ")\n";
+    written.insert(written.end(), files.begin(), files.end());
+}
+
+namespace {
+
+void setCrs(Abiotics& a, const std::string& wkt) {
+    for (MonthlyGrids<float>* m : {&a.sunHours, &a.moistureMm, &a.temperatureC})
+        for (Grid<float>& g : m->months) g.setCrsWkt(wkt);
+    a.slopeDeg.setCrsWkt(wkt);
+    a.elevationM.setCrsWkt(wkt);
+}
+
+}  // namespace
+
 Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
                             const std::string& terrainPath, const Biome& biome, const std::string& note,
                             Reporter& reporter) {
@@ -56,6 +78,10 @@ Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& 
                                   ") and terrain '" + terrainPath + "' (" + terrain.geometryText() +
                                   ") differ in geometry");
         reporter.info("abiotics: " + abioticsPath);
+        // One CRS for the terrain and its abiotics (a file made before the terrain was
+        // georeferenced takes the terrain's): the maps derived from them keep it.
+        setCrs(abiotics, sharedCrs(terrain.crsWkt(), "terrain '" + terrainPath + "'", abiotics.slopeDeg.crsWkt(),
+                                   "abiotics '" + abioticsPath + "'"));
         return abiotics;
     }
     reporter.info("no --abiotics: computing the abiotic maps from the terrain with default parameters (" + note + ")");
@@ -64,6 +90,7 @@ Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& 
     Abiotics abiotics = computeAbiotics(terrain, biome, AbioticParams{},
                                         [&](const std::string& s, double f) { progress(s, f); });
     progress.finish();
+    setCrs(abiotics, terrain.crsWkt());
     return abiotics;
 }
 

@@ -38,6 +38,11 @@ std::string quotedCommand(const std::vector<std::string>& args);
 /// Create the folder an output file goes into, before any heavy work.
 void prepareOutput(const std::string& path);
 
+/// --geotiff DIR of a stage: every grid of the stage's HDF5 output as a GeoTIFF in `dir`
+/// (named <output stem>_<dataset>.tif, with the grid's geotransform and CRS; see
+/// core/geo_raster.h exportGridsAsGeoTiff), one line to the user, the files added to `written`.
+void writeGeoTiffs(const std::string& h5Path, const std::string& dir, Reporter& reporter, std::vector<std::string>& written);
+
 /// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
 /// terrain's geometry, or, when the path is empty, computed with default parameters (as
 /// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.

@@ -59,19 +59,23 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
          " x crown radius");
     if (db.regions.empty()) throw ValidationError(a.database + ": the database holds no region; nothing to synthesize from");
 
-    const Grid<float> terrain = readTerrain(a.terrain, a.terrainRead.options());
+    Grid<float> terrain = readTerrain(a.terrain, a.terrainRead.options());
     reporter.info("terrain: " + a.terrain + ": " + terrain.geometryText());
     const CanopyFileData canopyFile = readCanopyFile(a.canopy, biome);
     if (!canopyFile.terrainM.sameGeometry(terrain))
         throw ValidationError("canopy '" + a.canopy + "' was placed on a terrain of " + canopyFile.terrainM.geometryText() +
                               " but --terrain '" + a.terrain + "' is " + terrain.geometryText() +
                               "; give the terrain the canopy was made for");
+    // The canopy file keeps the CRS of a georeferenced input: the scene's grids and plants are
+    // in it even when --terrain is a file without one.
+    terrain.setCrsWkt(sharedCrs(terrain.crsWkt(), "terrain '" + a.terrain + "'", canopyFile.terrainM.crsWkt(), "canopy '" + a.canopy + "'"));
     validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
     for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
         if (!out->empty()) prepareOutput(*out);
     if (!a.pngDir.empty()) ensureDirectory(a.pngDir);
+    if (!a.geotiffDir.empty()) ensureDirectory(a.geotiffDir);
 
     const Abiotics abiotics = abioticsForTerrain(a.abiotics, terrain, a.terrain, biome,
                                                  "the database's biome; give --abiotics FILE to reuse them", reporter);
@@ -194,11 +198,12 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         out << "wrote plants: " << a.csv << "\n";
     }
     if (!a.gpkg.empty()) {
-        const std::string crs = rasterCrsWkt(a.terrain);
+        const std::string& crs = terrain.crsWkt();
         writePlantsGpkg(a.gpkg, {PlantLayer{"canopy", &record.canopy}, PlantLayer{"undergrowth", &record.undergrowth}}, biome, crs);
         result.written.push_back(a.gpkg);
         out << "wrote plants: " << a.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the terrain's CRS") << ")\n";
     }
+    if (!a.geotiffDir.empty()) writeGeoTiffs(a.out, a.geotiffDir, reporter, result.written);
     if (!a.pdb.empty()) {
         writePdb(a.pdb, record.canopy, record.undergrowth);
         result.written.push_back(a.pdb);
@@ -268,6 +273,7 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.pdb.empty()) args.insert(args.end(), {"--pdb", a.pdb});
     if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
+    if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});
     if (a.method) args.insert(args.end(), {"--method", *a.method});
     a.terrainRead.appendArgs(args);

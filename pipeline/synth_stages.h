@@ -21,6 +21,7 @@ struct SynthOptions {
     std::string abiotics;  ///< abiotics of the terrain; "" = computed with default parameters
     std::string pngDir, csv, pdb;  ///< optional outputs ("" = none)
     std::string gpkg;              ///< optional: all plants as a GeoPackage in the terrain's CRS
+    std::string geotiffDir;        ///< optional: the scene's grids (forest floor, cluster maps, terrain) as GeoTIFFs
     std::string zoom;          ///< crop of scene_zoom.png, "x,y,side" or "x0,y0,x1,y1"; "" = 60 m at the centre
     std::string refineWindow;  ///< refinement only inside "x0,y0,x1,y1"; "" = everywhere
     std::optional<std::string> method;  ///< undergrowth sampler by name; unset = structured

@@ -199,13 +199,14 @@ TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& repo
     result.terrain = readTerrain(a.in, ro);
     const Grid<float>& terrain = result.terrain;
     std::ostream& out = reporter.out();
-    // A georeferenced input written as .tif stays a GeoTIFF in metres with its geotransform
-    // and CRS (a vertical encoding asked for gives the plain image, as before).
-    if ((outExt == ".tif" || outExt == ".tiff") && !verticalGiven && hasGeotransform(a.in)) {
-        const std::string crs = rasterCrsWkt(a.in);
-        writeGeoTiff(a.out, terrain, crs);
+    // A georeferenced input (a GeoTIFF, or our HDF5 of one, which keeps its CRS) written as
+    // .tif stays a GeoTIFF in metres with its geotransform and CRS (a vertical encoding asked
+    // for gives the plain image, as before).
+    if ((outExt == ".tif" || outExt == ".tiff") && !verticalGiven &&
+        (!terrain.crsWkt().empty() || hasGeotransform(a.in))) {
+        writeGeoTiff(a.out, terrain, "m");
         result.written.push_back(a.out);
-        out << "wrote terrain: " << a.out << " (GeoTIFF" << (crs.empty() ? "" : ", the input's CRS") << "; "
+        out << "wrote terrain: " << a.out << " (GeoTIFF" << (terrain.crsWkt().empty() ? "" : ", the input's CRS") << "; "
             << describe(terrain, "m") << ")\n";
         return result;
     }

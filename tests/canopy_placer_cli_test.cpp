@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -13,6 +14,7 @@
 #include "canopy_placer.h"
 #include "error.h"
 #include "generate.h"
+#include "geo_raster.h"
 #include "geotiff_fixture.h"
 #include <ogrsf_frmts.h>
 #include "h5io.h"
@@ -158,7 +160,9 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
     test::writeGeoTiff(dem, spec(t, false));
     test::writeGeoTiff(chm, cs);
     const std::string gpkg = f.dir.file("trees.gpkg");
-    const auto r = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out + " --seed 5 --max-iterations 4 --gpkg " + gpkg);
+    const std::string gis = f.dir.file("gis");
+    const auto r = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + out +
+                                " --seed 5 --max-iterations 4 --gpkg " + gpkg + " --geotiff " + gis);
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
     CHECK_THAT(r.output, Catch::Contains("GeoPackage, the input's CRS"));
@@ -172,6 +176,39 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
         CHECK(p.yM < 4260040.0);
     }
     CHECK(d.chmM(10, 11) > 10.0f);  // the hole filled from the crown around it
+    {  // the canopy file's grids as GeoTIFFs in place: the CHM as repaired, the species map as Int32
+        CHECK_THAT(d.chmM.crsWkt(), Catch::Contains("UTM zone 10N"));
+        const GeoRaster back = readGeoRaster(gis + "/geo_chm_height.tif");
+        CHECK_THAT(back.crsName, Catch::Contains("UTM zone 10N"));
+        CHECK(back.grid.sameGeometry(d.chmM));
+        CHECK(back.grid.data() == d.chmM.data());
+        CHECK(back.nodataCells == 0);
+        const GeoRaster species = readGeoRaster(gis + "/geo_species_map.tif");
+        CHECK(species.grid.sameGeometry(d.chmM));
+        CHECK(species.driver == "GTiff");
+        for (const char* name : {"geo_terrain_elevation.tif", "geo_species_map.tif"})
+            CHECK(std::filesystem::exists(gis + "/" + name));
+    }
+    {  // eco abiotics --geotiff: each monthly map one 12-band GeoTIFF, months named, in the DEM's CRS
+        const std::string ab = f.dir.file("ab.h5");
+        const auto a = test::runEco("abiotics --terrain " + dem + " --out " + ab + " --geotiff " + gis + " --sun-step 60");
+        INFO(a.output);
+        REQUIRE(a.exitCode == 0);
+        GDALDataset* g = GDALDataset::Open((gis + "/ab_sun.tif").c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY);
+        REQUIRE(g != nullptr);
+        CHECK(g->GetRasterCount() == 12);
+        CHECK(std::string(g->GetRasterBand(1)->GetDescription()) == "January");
+        CHECK(std::string(g->GetRasterBand(12)->GetDescription()) == "December");
+        REQUIRE(g->GetSpatialRef() != nullptr);
+        CHECK_THAT(std::string(g->GetSpatialRef()->GetName()), Catch::Contains("UTM zone 10N"));
+        double gt[6];
+        g->GetGeoTransform(gt);
+        CHECK(gt[0] == 545000.0);
+        CHECK(gt[3] == 4260000.0 + t.height());
+        GDALClose(GDALDataset::ToHandle(g));
+        for (const char* name : {"ab_elevation.tif", "ab_slope.tif", "ab_moisture.tif", "ab_temperature.tif"})
+            CHECK(std::filesystem::exists(gis + "/" + name));
+    }
     {  // the GeoPackage: one point per tree, in UTM zone 10N, with its attributes
         GDALDataset* g = GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);
         REQUIRE(g != nullptr);

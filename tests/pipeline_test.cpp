@@ -4,6 +4,8 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <sstream>
 
 #include "run.h"
@@ -125,4 +127,23 @@ TEST_CASE("pipeline: a stage called directly reports through its Reporter", "[pi
 
     o.out = dir.file("t.xyz");
     CHECK_THROWS_WITH(eco::pipeline::generateTerrainStage(o, reporter), Catch::Contains("unknown terrain format '.xyz'"));
+}
+
+TEST_CASE("pipeline: [run] gis = true asks every grid stage for GeoTIFFs and the plants as GeoPackages", "[pipeline]") {
+    eco::test::TempDir dir("pipeline_gis");
+    const std::string config = dir.file("gis.toml"), o = dir.file("out");
+    {
+        std::ofstream f(config);
+        f << "[run]\nout_dir = \"x\"\ngis = true\n[terrain]\n[chm]\n[abiotics]\n[canopy]\n"
+             "[simulate]\nconfig = \"configs/sim-default.toml\"\n[analyse]\n[synth]\n";
+    }
+    const eco::pipeline::RunPlan plan = eco::pipeline::planRun(config, o);
+    std::map<std::string, std::string> lines;
+    for (const auto& s : plan.stages) lines[s.name] = quotedCommand(eco::pipeline::commandLine(s.options));
+    CHECK_THAT(lines.at("abiotics"), Catch::EndsWith("--geotiff " + o + "/gis --sun-step 10"));
+    CHECK_THAT(lines.at("canopy"), Catch::Contains("--gpkg " + o + "/gis/canopy.gpkg --geotiff " + o + "/gis"));
+    CHECK_THAT(lines.at("target abiotics"), Catch::Contains("--geotiff " + o + "/target/gis"));
+    CHECK_THAT(lines.at("target canopy"), Catch::Contains("--gpkg " + o + "/target/gis/canopy.gpkg --geotiff " + o + "/target/gis"));
+    CHECK_THAT(lines.at("synth"), Catch::Contains("--gpkg " + o + "/gis/scene.gpkg --geotiff " + o + "/gis"));
+    CHECK(lines.at("simulate").find("--geotiff") == std::string::npos);  // the simulation file has no maps of its own
 }

@@ -18,7 +18,10 @@
 #include "biome_db.h"
 #include "canopy_placer.h"
 #include "error.h"
+#include "factors.h"
 #include "forest_floor.h"
+#include "geotiff_fixture.h"
+#include <ogrsf_frmts.h>
 #include "h5io.h"
 #include "scene.h"
 #include "synth_world_fixture.h"
@@ -170,4 +173,149 @@ TEST_CASE("eco compare refuses a scene from another database", "[synth][cli]") {
     INFO(r.output);
     CHECK(r.exitCode != 0);
     CHECK_THAT(r.output, Catch::Contains("another database"));
+}
+
+namespace {
+
+Grid<float> shifted(const Grid<float>& g, double dx, double dy) {
+    Grid<float> s(g.width(), g.height(), g.cellSizeM(), g.originX() + dx, g.originY() + dy);
+    s.data() = g.data();
+    return s;
+}
+
+/// A GeoTIFF read back through GDAL: geotransform, CRS name, band count, band 1 north first.
+struct TiffBack {
+    double gt[6] = {};
+    std::string crsName;
+    int bands = 0;
+    std::string type, firstBandName;
+    std::vector<double> northFirst;
+    bool hasNodata = false;
+    double nodata = 0;
+};
+TiffBack readTiffBack(const std::string& path) {
+    GDALAllRegister();
+    GDALDataset* ds = GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY);
+    if (ds == nullptr) throw std::runtime_error("cannot open " + path);
+    TiffBack t;
+    ds->GetGeoTransform(t.gt);
+    if (const OGRSpatialReference* srs = ds->GetSpatialRef()) t.crsName = srs->GetName();
+    t.bands = ds->GetRasterCount();
+    GDALRasterBand* b = ds->GetRasterBand(1);
+    t.type = GDALGetDataTypeName(b->GetRasterDataType());
+    t.firstBandName = b->GetDescription();
+    int has = 0;
+    t.nodata = b->GetNoDataValue(&has);
+    t.hasNodata = has != 0;
+    const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+    t.northFirst.resize(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    if (b->RasterIO(GF_Read, 0, 0, w, h, t.northFirst.data(), w, h, GDT_Float64, 0, 0) != CE_None)
+        throw std::runtime_error("cannot read " + path);
+    GDALClose(GDALDataset::ToHandle(ds));
+    return t;
+}
+
+}  // namespace
+
+TEST_CASE("a georeferenced round trip: GeoTIFF in, scene out as GeoPackage and GeoTIFFs in the same CRS and place",
+          "[synth][cli][geo]") {
+    // The test world moved to UTM zone 10N coordinates, its terrain given as a GeoTIFF.
+    constexpr double kX0 = 545000.0, kY0 = 4260000.0;
+    World w = makeWorld();
+    w.terrain = shifted(w.terrain, kX0, kY0);
+    for (std::size_t f = 0; f < kFactorCount; ++f) w.features.maps[f] = shifted(w.features.maps[f], kX0, kY0);
+    for (Plant& p : w.canopy) {
+        p.xM += kX0;
+        p.yM += kY0;
+    }
+    test::TempDir dir("synth_geo");
+    const WorldFiles f = writeWorld(w, dir);  // canopy and abiotics files without a CRS
+    test::GeoTiffSpec spec;
+    spec.width = w.terrain.width();
+    spec.height = w.terrain.height();
+    spec.geotransform[0] = kX0;
+    spec.geotransform[1] = kCell;
+    spec.geotransform[3] = kY0 + kSide * kCell;
+    spec.geotransform[5] = -kCell;
+    for (int row = 0; row < spec.height; ++row)
+        for (int ix = 0; ix < spec.width; ++ix) spec.northFirst.push_back(w.terrain(ix, spec.height - 1 - row));
+    const std::string dem = dir.file("dem.tif");
+    test::writeGeoTiff(dem, spec);
+
+    const std::string scene = dir.file("scene.h5"), gpkg = dir.file("scene.gpkg"), gis = dir.file("gis");
+    const auto r = test::runEco("synth --terrain " + dem + " --canopy " + f.canopy + " --database " + f.db + " --abiotics " +
+                                f.abiotics + " --out " + scene + " --gpkg " + gpkg + " --geotiff " + gis);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("the terrain's CRS") && Catch::Contains("wrote GeoTIFFs"));
+
+    // The scene file keeps the CRS on its grids.
+    const Grid<float> sceneTerrain = h5::File::openRead(scene).readGrid("/terrain/elevation");
+    CHECK_THAT(sceneTerrain.crsWkt(), Catch::Contains("UTM zone 10N"));
+
+    // Plants: every one in the GeoPackage, in UTM zone 10N, at the scene's coordinates.
+    const SceneData s = readSceneFile(scene, w.biome);
+    REQUIRE(s.undergrowth.size() > 1000);
+    {
+        GDALDataset* g = GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);
+        REQUIRE(g != nullptr);
+        OGRLayer* layer = g->GetLayerByName("plants");
+        REQUIRE(layer != nullptr);
+        CHECK(layer->GetFeatureCount() == static_cast<GIntBig>(s.canopy.size() + s.undergrowth.size()));
+        REQUIRE(layer->GetSpatialRef() != nullptr);
+        CHECK_THAT(std::string(layer->GetSpatialRef()->GetName()), Catch::Contains("UTM zone 10N"));
+        layer->SetAttributeFilter("layer = 'undergrowth'");
+        OGRFeature* ft = layer->GetNextFeature();
+        REQUIRE(ft != nullptr);
+        const OGRPoint* pt = ft->GetGeometryRef()->toPoint();
+        const auto same = std::find_if(s.undergrowth.begin(), s.undergrowth.end(), [&](const Plant& p) {
+            return std::abs(p.xM - pt->getX()) < 1e-6 && std::abs(p.yM - pt->getY()) < 1e-6;
+        });
+        REQUIRE(same != s.undergrowth.end());
+        CHECK(ft->GetFieldAsDouble("height_m") == Approx(same->heightM).epsilon(1e-6));
+        CHECK(pt->getX() > kX0);
+        CHECK(pt->getY() > kY0);
+        OGRFeature::DestroyFeature(ft);
+        GDALClose(GDALDataset::ToHandle(g));
+    }
+
+    // Grids: the terrain back as the same cells, geotransform and CRS; maps as typed rasters.
+    const TiffBack t = readTiffBack(gis + "/scene_terrain_elevation.tif");
+    for (int i = 0; i < 6; ++i) CHECK(t.gt[i] == spec.geotransform[i]);
+    CHECK_THAT(t.crsName, Catch::Contains("UTM zone 10N"));
+    REQUIRE(t.northFirst.size() == spec.northFirst.size());
+    CHECK(std::equal(t.northFirst.begin(), t.northFirst.end(), spec.northFirst.begin(),
+                     [](double a, double b) { return static_cast<float>(a) == static_cast<float>(b); }));
+    const TiffBack cluster = readTiffBack(gis + "/scene_cluster_map.tif");
+    CHECK(cluster.type == "Int32");
+    CHECK(cluster.hasNodata);
+    CHECK(cluster.nodata == -1);
+    CHECK_THAT(cluster.crsName, Catch::Contains("UTM zone 10N"));
+    {  // the cluster map's cells are the scene's, north row first
+        const Grid<std::int32_t> cm = h5::File::openRead(scene).readGridI32("/cluster_map");
+        int mismatches = 0;
+        for (int row = 0; row < cm.height(); ++row)
+            for (int ix = 0; ix < cm.width(); ++ix)
+                mismatches += cluster.northFirst[static_cast<std::size_t>(row * cm.width() + ix)] != cm(ix, cm.height() - 1 - row);
+        CHECK(mismatches == 0);
+    }
+    for (const char* name : {"scene_forest_floor_grass.tif", "scene_forest_floor_litter.tif", "scene_combination_map.tif"})
+        CHECK(readTiffBack(gis + "/" + name).crsName.find("UTM zone 10N") != std::string::npos);
+
+    // The CRS travels through our HDF5: the terrain converted to .h5 and back to .tif, and a
+    // synthesis on the .h5 terrain, keep it.
+    const std::string demH5 = dir.file("dem.h5"), back = dir.file("back.tif");
+    REQUIRE(test::runEco("terrain convert " + dem + " " + demH5).exitCode == 0);
+    const auto conv = test::runEco("terrain convert " + demH5 + " " + back);
+    INFO(conv.output);
+    REQUIRE(conv.exitCode == 0);
+    const TiffBack b = readTiffBack(back);
+    for (int i = 0; i < 6; ++i) CHECK(b.gt[i] == spec.geotransform[i]);
+    CHECK_THAT(b.crsName, Catch::Contains("UTM zone 10N"));
+    const std::string gpkg2 = dir.file("scene2.gpkg");
+    const auto r2 = test::runEco("synth --terrain " + demH5 + " --canopy " + f.canopy + " --database " + f.db + " --abiotics " +
+                                 f.abiotics + " --out " + dir.file("scene2.h5") + " --gpkg " + gpkg2);
+    INFO(r2.output);
+    REQUIRE(r2.exitCode == 0);
+    CHECK_THAT(r2.output, Catch::Contains("the terrain's CRS"));
 }
