@@ -111,6 +111,9 @@ void registerCanopyCommand(CLI::App& app) {
     cmd->add_option("--chm-fill-max", o.chmFillMaxM, "fill: how far from data a gap is filled, metres")
         ->capture_default_str()
         ->check(nonNegativeNumber());
+    cmd->add_flag("--resample-terrain", o.resampleTerrain,
+                  "A terrain on other cells than the CHM's (e.g. a 10 m DEM under a 1 m lidar CHM) is resampled bilinearly "
+                  "onto the CHM's cells (it must cover them); without it such inputs are refused");
     cmd->add_option("--chm-vertical-scale", o.chmVerticalScale, "Image CHM only: metres per stored unit")
         ->capture_default_str();
     cmd->add_option("--chm-vertical-offset", o.chmVerticalOffsetM, "Image CHM only: metres added after scaling")

@@ -135,6 +135,24 @@ private:
     std::vector<T> data_;
 };
 
+/// `src` resampled onto the cells of `like` (bilinear between src's cell centres; the result
+/// has like's geometry and src's CRS). ValidationError naming `what` when like's extent is not
+/// inside src's (half a src cell of slack at each edge).
+template <typename U>
+Grid<float> resampledOnto(const Grid<float>& src, const Grid<U>& like, const std::string& what) {
+    const double slack = 0.5 * src.cellSizeM();
+    if (like.originX() < src.originX() - slack || like.originY() < src.originY() - slack ||
+        like.originX() + like.extentX() > src.originX() + src.extentX() + slack ||
+        like.originY() + like.extentY() > src.originY() + src.extentY() + slack)
+        throw ValidationError(what + " (" + src.geometryText() + ") does not cover " + like.geometryText() +
+                              "; it cannot be resampled onto those cells");
+    Grid<float> out(like.width(), like.height(), like.cellSizeM(), like.originX(), like.originY());
+    out.setCrsWkt(src.crsWkt());
+    for (int iy = 0; iy < out.height(); ++iy)
+        for (int ix = 0; ix < out.width(); ++ix) out(ix, iy) = src.sampleBilinear(out.cellCentreX(ix), out.cellCentreY(iy));
+    return out;
+}
+
 /// A stack of same-geometry planes, e.g. 12 monthly maps (plane 0 = January).
 template <typename T>
 struct MonthlyGrids {

@@ -28,7 +28,9 @@ void checkInputs(const Grid<float>& terrain, const std::string& terrainPath, con
                  const std::string& chmPath) {
     if (!chm.sameGeometry(terrain))
         throw ValidationError("CHM '" + chmPath + "' (" + chm.geometryText() + ") and terrain '" + terrainPath + "' (" +
-                              terrain.geometryText() + ") differ in geometry; they must cover the same cells");
+                              terrain.geometryText() + ") differ in geometry; they must cover the same cells: give "
+                              "--resample-terrain to resample the terrain onto the CHM's cells, or align them with "
+                              "gdalwarp -te <CHM extent> -tr <CHM cell size> TERRAIN OUT.tif");
     for (int iy = 0; iy < chm.height(); ++iy)
         for (int ix = 0; ix < chm.width(); ++ix)
             if (chm(ix, iy) < 0)
@@ -123,6 +125,12 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     chmRead.chm.setCrsWkt(crs);
     const Grid<float>& chm = chmRead.chm;
     if (const std::string repaired = chmRead.summary(args.chm); !repaired.empty()) reporter.info(repaired);
+    if (args.resampleTerrain && !chm.sameGeometry(terrain)) {
+        const std::string before = terrain.geometryText();
+        terrain = resampledOnto(terrain, chm, "terrain '" + args.terrain + "'");
+        reporter.info("terrain: " + args.terrain + " (" + before + ") resampled bilinearly onto the CHM's cells; the canopy "
+                      "file keeps it, so give the canopy file as --terrain to eco abiotics, simulate and synth");
+    }
     checkInputs(terrain, args.terrain, chm, args.chm);
     warnIfCoarse(chm, biome, params.canopyThresholdM, args.chm, reporter);
     reporter.info("terrain: " + args.terrain + ": " + terrain.geometryText());
@@ -245,6 +253,7 @@ std::vector<std::string> commandLine(const CanopyOptions& a) {
     if (a.chmVerticalOffsetM != 0) args.insert(args.end(), {"--chm-vertical-offset", argNumber(a.chmVerticalOffsetM)});
     if (a.chmGaps != "fill") args.insert(args.end(), {"--chm-gaps", a.chmGaps});
     if (a.chmFillMaxM != 2.0) args.insert(args.end(), {"--chm-fill-max", argNumber(a.chmFillMaxM)});
+    if (a.resampleTerrain) args.push_back("--resample-terrain");
     if (!a.config.empty()) args.insert(args.end(), {"--config", a.config});
     for (const auto& t : a.targets) args.insert(args.end(), {"--target", t});
     if (!a.mask.empty()) args.insert(args.end(), {"--mask", a.mask});

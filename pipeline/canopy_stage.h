@@ -28,6 +28,7 @@ struct CanopyOptions {
     double chmVerticalScale = 1, chmVerticalOffsetM = 0;  ///< image CHM only
     std::string chmGaps = "fill";  ///< nodata cells of the CHM: fill, zero or fail (core/terrain_io.h)
     double chmFillMaxM = 2.0;      ///< fill: how far from data a gap is filled, metres
+    bool resampleTerrain = false;  ///< a terrain on other cells than the CHM's is resampled onto them (bilinear)
     // Overrides of CanopyParams (unset: from `config`, else the defaults).
     std::optional<std::uint64_t> seed;
     std::optional<int> maxIterations;

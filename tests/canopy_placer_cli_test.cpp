@@ -237,6 +237,34 @@ TEST_CASE("eco canopy on GeoTIFFs in UTM: geometry from the files, CHM gaps fill
     const auto crs = test::runEco("canopy --terrain " + dem + " --chm " + chm11 + " --out " + f.dir.file("c11.h5"));
     CHECK(crs.exitCode != 0);
     CHECK_THAT(crs.output, Catch::Contains("UTM zone 10N") && Catch::Contains("UTM zone 11N") && Catch::Contains("one CRS"));
+    {  // a DEM of 2 m cells under the 1 m CHM: refused with the way out, resampled when asked
+        test::GeoTiffSpec coarse = spec(t, false);
+        coarse.width = t.width() / 2;
+        coarse.height = t.height() / 2;
+        coarse.geotransform[1] = 2.0;
+        coarse.geotransform[5] = -2.0;
+        coarse.northFirst.clear();
+        for (int row = 0; row < coarse.height; ++row)
+            for (int ix = 0; ix < coarse.width; ++ix)
+                coarse.northFirst.push_back(t.sampleBilinear(t.originX() + 2.0 * ix + 1.0, t.originY() + t.height() - 2.0 * row - 1.0));
+        const std::string dem2 = f.dir.file("dem2m.tif"), out2 = f.dir.file("resampled.h5");
+        test::writeGeoTiff(dem2, coarse);
+        const auto refused = test::runEco("canopy --terrain " + dem2 + " --chm " + chm + " --out " + out2);
+        CHECK(refused.exitCode != 0);
+        CHECK_THAT(refused.output, Catch::Contains("differ in geometry") && Catch::Contains("--resample-terrain"));
+        const auto resampled = test::runEco("canopy --terrain " + dem2 + " --chm " + chm + " --out " + out2 +
+                                            " --max-iterations 2 --resample-terrain");
+        INFO(resampled.output);
+        REQUIRE(resampled.exitCode == 0);
+        CHECK_THAT(resampled.output, Catch::Contains("resampled bilinearly onto the CHM's cells"));
+        const CanopyFileData r2 = readCanopyFile(out2, defaultBiome());
+        CHECK(r2.terrainM.sameGeometry(d.chmM));
+        CHECK_THAT(r2.terrainM.crsWkt(), Catch::Contains("UTM zone 10N"));
+        double worst = 0;
+        for (int iy = 2; iy < t.height() - 2; ++iy)
+            for (int ix = 2; ix < t.width() - 2; ++ix) worst = std::max(worst, std::abs(double(r2.terrainM(ix, iy)) - t(ix, iy)));
+        CHECK(worst < 0.5);  // the 2 m DEM was sampled from this terrain
+    }
     {  // an output that cannot be written is refused before any work: nothing else is left
         const std::string lone = f.dir.file("lone.h5");
         const auto bad = test::runEco("canopy --terrain " + dem + " --chm " + chm + " --out " + lone + " --gpkg /proc/eco_no/t.gpkg");

@@ -187,3 +187,21 @@ TEST_CASE("grid: like, sameGeometry and MonthlyGrids", "[grid]") {
     CHECK(g.minValue() == 1.0f);
     CHECK(g.maxValue() == 64.0f);
 }
+
+TEST_CASE("grid: resampledOnto a finer grid is exact on a linear ramp and refuses what it does not cover", "[grid]") {
+    // A 10 m DEM of a plane, resampled onto 1 m cells inside it (not at its outer half-cells,
+    // where bilinear sampling clamps).
+    Grid<float> coarse(8, 6, 10.0, 1000.0, 2000.0);
+    coarse.setCrsWkt("LOCAL_CS[\"test\"]");
+    for (int iy = 0; iy < 6; ++iy)
+        for (int ix = 0; ix < 8; ++ix) coarse(ix, iy) = static_cast<float>(0.5 * coarse.cellCentreX(ix) - 0.25 * coarse.cellCentreY(iy));
+    const Grid<std::uint8_t> fine(40, 30, 1.0, 1010.0, 2010.0);
+    const Grid<float> r = resampledOnto(coarse, fine, "dem");
+    CHECK(r.sameGeometry(fine));
+    CHECK(r.crsWkt() == coarse.crsWkt());
+    for (int iy = 0; iy < r.height(); ++iy)
+        for (int ix = 0; ix < r.width(); ++ix)
+            REQUIRE(r(ix, iy) == Approx(0.5 * r.cellCentreX(ix) - 0.25 * r.cellCentreY(iy)).margin(1e-3));
+    const Grid<std::uint8_t> outside(40, 30, 1.0, 1050.0, 2010.0);  // reaches 1090 m > 1080 m + 5 m
+    CHECK_THROWS_WITH(resampledOnto(coarse, outside, "dem"), Catch::Contains("dem") && Catch::Contains("does not cover"));
+}
