@@ -12,7 +12,7 @@
 #include "error.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::analysis {
 
 namespace {
 
@@ -733,4 +733,4 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     return db;
 }
 
-}  // namespace eco
+}  // namespace eco::analysis

@@ -23,7 +23,7 @@
 #include "point_pattern.h"
 #include "seeding.h"
 
-namespace eco {
+namespace eco::analysis {
 
 /// Which sub-biomes a canopy tree of a species seeds.
 enum class CanopyMembership {
@@ -122,4 +122,4 @@ struct KSelection {
 /// them for silhouettes. `stream` keys the randomness (one per combination).
 KSelection selectK(const std::vector<Features>& points, int kLimit, const AnalysisParams& params, std::uint64_t stream);
 
-}  // namespace eco
+}  // namespace eco::analysis

@@ -9,7 +9,7 @@
 #include "error.h"
 #include "rng.h"
 
-namespace eco {
+namespace eco::analysis {
 
 namespace {
 
@@ -242,4 +242,4 @@ KSelection selectK(const std::vector<Features>& points, int kLimit, const Analys
     return sel;
 }
 
-}  // namespace eco
+}  // namespace eco::analysis

@@ -8,7 +8,7 @@
 #include "error.h"
 #include "sim_file.h"
 
-namespace eco {
+namespace eco::analysis {
 
 namespace {
 
@@ -84,4 +84,4 @@ LoadedSimulation readSimulation(const std::string& path, const SimulationReadOpt
     return out;
 }
 
-}  // namespace eco
+}  // namespace eco::analysis

@@ -9,7 +9,7 @@
 
 #include "analysis.h"
 
-namespace eco {
+namespace eco::analysis {
 
 struct SimulationReadOptions {
     int year = -1;             ///< snapshot year to analyse; -1 = the last one
@@ -31,4 +31,4 @@ struct LoadedSimulation {
 /// relative to the simulation file's folder.
 LoadedSimulation readSimulation(const std::string& path, const SimulationReadOptions& options);
 
-}  // namespace eco
+}  // namespace eco::analysis

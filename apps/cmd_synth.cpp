@@ -16,7 +16,7 @@ struct SynthArgs {
     std::string method = "structured";
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     CLI::Option *methodOpt = nullptr, *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
-    RefineParams refine;  // the --refine-* values (defaults shown in --help)
+    synth::RefineParams refine;  // the --refine-* values (defaults shown in --help)
     CLI::Option *sweepsOpt = nullptr, *rMaxOpt = nullptr, *moveOpt = nullptr, *swapOpt = nullptr;
 };
 

@@ -61,8 +61,8 @@ PointPattern poisson(std::size_t n, const RectWindow& w, std::uint64_t seed) {
 
 /// A simulation-like input: 512 x 512 cells of 0.914 m, canopy trees on a jittered grid,
 /// `perM2` undergrowth plants per m^2 clustered under and around the crowns.
-AnalysisInput syntheticScene(const Biome& biome, double perM2, std::uint64_t seed) {
-    AnalysisInput in;
+analysis::AnalysisInput syntheticScene(const Biome& biome, double perM2, std::uint64_t seed) {
+    analysis::AnalysisInput in;
     in.biome = &biome;
     const int n = 512;
     const double cs = 0.914;
@@ -173,14 +173,14 @@ int main(int argc, char** argv) {
 
         // 2. The analyser on a simulation-like scene (the region pair loop dominates).
         const Biome biome = defaultBiome();
-        const AnalysisInput scene = syntheticScene(biome, quick ? 0.2 : 1.0, 3);
-        AnalysisParams params;
+        const analysis::AnalysisInput scene = syntheticScene(biome, quick ? 0.2 : 1.0, 3);
+        analysis::AnalysisParams params;
         for (int threads : {1, 2}) {
             omp_set_num_threads(threads);
             double tStage = now(), cStage = cpuNow(), tStats = 0, cStats = 0;
             std::string stage;
             const double t0 = now();
-            const BiomeDatabase db = analyse({scene}, params, [&](const std::string& s, double) {
+            const BiomeDatabase db = analysis::analyse({scene}, params, [&](const std::string& s, double) {
                 if (s != stage) {
                     const double t = now(), c = cpuNow();
                     if (stage == "statistics") {
@@ -209,10 +209,10 @@ int main(int argc, char** argv) {
         omp_set_num_threads(omp_get_num_procs());
         if (!sims.empty()) {
             double t0 = now();
-            std::vector<LoadedSimulation> loaded;
-            for (const auto& s : sims) loaded.push_back(readSimulation(s, {}));
+            std::vector<analysis::LoadedSimulation> loaded;
+            for (const auto& s : sims) loaded.push_back(analysis::readSimulation(s, {}));
             const double tRead = now() - t0;
-            std::vector<AnalysisInput> inputs;
+            std::vector<analysis::AnalysisInput> inputs;
             std::size_t plants = 0;
             for (auto& l : loaded) {
                 plants += l.input.undergrowth.size();
@@ -220,7 +220,7 @@ int main(int argc, char** argv) {
             }
             t0 = now();
             const double c0 = cpuNow();
-            const BiomeDatabase db = analyse(inputs, params);
+            const BiomeDatabase db = analysis::analyse(inputs, params);
             const double tAnalyse = now() - t0, cAnalyse = cpuNow() - c0;
             const double pairs = totalPairs(db);
             t0 = now();

@@ -260,7 +260,7 @@ std::vector<Top> variableWindowFilter(const eco::Grid<float>& chm, const eco::Al
     return out;
 }
 
-std::vector<Top> placerTops(const eco::CanopyResult& r) {
+std::vector<Top> placerTops(const eco::synth::CanopyResult& r) {
     std::vector<Top> t;
     for (const eco::Plant& p : r.trees) t.push_back({p.xM, p.yM, p.heightM});
     return t;
@@ -308,20 +308,20 @@ int main(int argc, char** argv) {
                 std::snprintf(line, sizeof line, "  %.3f s\n", seconds);
                 sec << line;
             };
-            eco::CanopyParams p;
+            eco::synth::CanopyParams p;
             auto t0 = Clock::now();
-            const eco::CanopyResult full = eco::placeCanopy(sc.chm, terrain, species, biome, p);
+            const eco::synth::CanopyResult full = eco::synth::placeCanopy(sc.chm, terrain, species, biome, p);
             row("canopy placer (defaults)", score(sc.tops, placerTops(full)), std::chrono::duration<double>(Clock::now() - t0).count(), &full.final);
-            eco::CanopyParams paper;
+            eco::synth::CanopyParams paper;
             paper.anchorApexTrees = 0;
             paper.keepBestState = 0;
             paper.supportBumpFactor = 0;
             t0 = Clock::now();
-            const eco::CanopyResult old = eco::placeCanopy(sc.chm, terrain, species, biome, paper);
+            const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);
             p.maxIterations = 0;
             t0 = Clock::now();
-            const eco::CanopyResult seeds = eco::placeCanopy(sc.chm, terrain, species, biome, p);
+            const eco::synth::CanopyResult seeds = eco::synth::placeCanopy(sc.chm, terrain, species, biome, p);
             row("canopy placer, seeding only", score(sc.tops, placerTops(seeds)), std::chrono::duration<double>(Clock::now() - t0).count(), &seeds.final);
             Score best;
             double bestK = 0, bestT = 0;

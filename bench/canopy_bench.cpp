@@ -70,21 +70,21 @@ int main(int argc, char** argv) {
             const eco::Abiotics abiotics = eco::computeAbiotics(terrain, biome, ap);
             const double abioticsS = secondsSince(tAb);
 
-            const eco::SpeciesMapInputs inputs = eco::speciesMapInputs(abiotics, chm);
+            const eco::synth::SpeciesMapInputs inputs = eco::synth::speciesMapInputs(abiotics, chm);
             auto t = Clock::now();
             double cpu = processCpuSeconds();
-            const eco::Grid<std::int32_t> map = eco::computeSpeciesMap(biome, inputs);
+            const eco::Grid<std::int32_t> map = eco::synth::computeSpeciesMap(biome, inputs);
             const double mapS = secondsSince(t), mapCpu = processCpuSeconds() - cpu;
 
-            eco::SpeciesMapParams smp;
+            eco::synth::SpeciesMapParams smp;
             t = Clock::now();
             cpu = processCpuSeconds();
-            const auto target = eco::meetTarget(biome, inputs, smp, biome.speciesIndex("Redwood"), 0.4);
+            const auto target = eco::synth::meetTarget(biome, inputs, smp, biome.speciesIndex("Redwood"), 0.4);
             const double targetS = secondsSince(t), targetCpu = processCpuSeconds() - cpu;
 
             t = Clock::now();
             cpu = processCpuSeconds();
-            const eco::CanopyResult r = eco::placeCanopy(chm, terrain, map, biome, eco::CanopyParams{});
+            const eco::synth::CanopyResult r = eco::synth::placeCanopy(chm, terrain, map, biome, eco::synth::CanopyParams{});
             const double placeS = secondsSince(t), placeCpu = processCpuSeconds() - cpu;
 
             char line[256];

@@ -248,42 +248,42 @@ int main(int argc, char** argv) {
             const eco::FactorGrids features = eco::annualFactors(abiotics);
 
             eco::Grid<std::int32_t> speciesMap;
-            const Timing tMap = timed([&] { speciesMap = eco::computeSpeciesMap(biome, eco::speciesMapInputs(abiotics, chm)); });
-            eco::CanopyResult canopy;
-            const Timing tPlace = timedBest(repeats, [&] { canopy = eco::placeCanopy(chm, terrain, speciesMap, biome, eco::CanopyParams{}); });
-            eco::SynthParams sp;
-            sp.method = dbPath.empty() ? eco::SynthMethod::Darts : eco::SynthMethod::Structured;
-            eco::ClusterMap clusters;
-            const Timing tCluster = timedBest(repeats, [&] { clusters = eco::computeClusterMap(db, biome, canopy.trees, features, sp); });
-            eco::UndergrowthSample sample;
-            const Timing tSample = timedBest(repeats, [&] { sample = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, sp); });
+            const Timing tMap = timed([&] { speciesMap = eco::synth::computeSpeciesMap(biome, eco::synth::speciesMapInputs(abiotics, chm)); });
+            eco::synth::CanopyResult canopy;
+            const Timing tPlace = timedBest(repeats, [&] { canopy = eco::synth::placeCanopy(chm, terrain, speciesMap, biome, eco::synth::CanopyParams{}); });
+            eco::synth::SynthParams sp;
+            sp.method = dbPath.empty() ? eco::synth::SynthMethod::Darts : eco::synth::SynthMethod::Structured;
+            eco::synth::ClusterMap clusters;
+            const Timing tCluster = timedBest(repeats, [&] { clusters = eco::synth::computeClusterMap(db, biome, canopy.trees, features, sp); });
+            eco::synth::UndergrowthSample sample;
+            const Timing tSample = timedBest(repeats, [&] { sample = eco::synth::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, sp); });
             Timing tDarts;
             std::size_t dartsPlants = 0;
             if (!dbPath.empty()) {
-                eco::SynthParams dp = sp;
-                dp.method = eco::SynthMethod::Darts;
-                tDarts = timedBest(repeats, [&] { dartsPlants = eco::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, dp).plants.size(); });
+                eco::synth::SynthParams dp = sp;
+                dp.method = eco::synth::SynthMethod::Darts;
+                tDarts = timedBest(repeats, [&] { dartsPlants = eco::synth::sampleUndergrowth(db, biome, canopy.trees, clusters, terrain, dp).plants.size(); });
             }
-            eco::ForestFloor floor;
+            eco::synth::ForestFloor floor;
             const Timing tFloor = timed([&] {
-                floor = eco::computeForestFloor(features, canopy.trees, sample.plants, biome, eco::ForestFloorParams{});
+                floor = eco::synth::computeForestFloor(features, canopy.trees, sample.plants, biome, eco::synth::ForestFloorParams{});
             });
             // Refinement: one sweep in a 100 m window at the centre, and the whole scene on 1024^2.
-            eco::RefineParams rp;
+            eco::synth::RefineParams rp;
             rp.sweeps = 1;
             rp.useWindow = true;
             const double cx = terrain.extentX() / 2, cy = terrain.extentY() / 2;
             rp.window = eco::RectWindow{cx - 50, cy - 50, cx + 50, cy + 50};
             std::vector<eco::Plant> refined = sample.plants;
-            eco::RefineResult rw;
+            eco::synth::RefineResult rw;
             Timing tRefineWin;
-            if (refine) tRefineWin = timed([&] { rw = eco::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
-            eco::RefineResult rAll;
+            if (refine) tRefineWin = timed([&] { rw = eco::synth::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
+            eco::synth::RefineResult rAll;
             Timing tRefineAll;
             if (refine && n <= 1024) {
                 rp.useWindow = false;
                 refined = sample.plants;
-                tRefineAll = timed([&] { rAll = eco::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
+                tRefineAll = timed([&] { rAll = eco::synth::refineUndergrowth(refined, canopy.trees, clusters, terrain, db, sp, rp); });
             }
 
             const std::size_t nT = canopy.trees.size(), nU = sample.plants.size();
@@ -307,7 +307,7 @@ int main(int argc, char** argv) {
                 std::snprintf(line, sizeof line, "    (%zu plants by the dart sampler)\n", dartsPlants);
                 sec << line;
                 sec << "    phases of the structured sampler (wall / CPU s):";
-                for (const eco::UndergrowthSample::Phase& ph : sample.phases) {
+                for (const eco::synth::UndergrowthSample::Phase& ph : sample.phases) {
                     std::snprintf(line, sizeof line, "%s %s %.3f / %.3f", &ph == &sample.phases.front() ? "" : ";",
                                   ph.name.c_str(), ph.wallS, ph.cpuS);
                     sec << line;

@@ -99,13 +99,13 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
     if (!args.abiotics.empty() && args.abiotics.size() != 1 && args.abiotics.size() != args.simulations.size())
         throw ValidationError("--abiotics: give one file for all simulations or one per simulation (" +
                               std::to_string(args.simulations.size()) + "), got " + std::to_string(args.abiotics.size()));
-    std::vector<LoadedSimulation> loaded;
+    std::vector<analysis::LoadedSimulation> loaded;
     double simFactor = 0;
     for (std::size_t i = 0; i < args.simulations.size(); ++i) {
-        SimulationReadOptions opt;
+        analysis::SimulationReadOptions opt;
         opt.year = args.year;
         if (!args.abiotics.empty()) opt.abioticsPath = args.abiotics.size() == 1 ? args.abiotics[0] : args.abiotics[i];
-        loaded.push_back(readSimulation(args.simulations[i], opt));
+        loaded.push_back(analysis::readSimulation(args.simulations[i], opt));
         const auto& l = loaded.back();
         reporter.info("simulation " + args.simulations[i] + ": year " + std::to_string(l.input.provenance.year) + ", " +
                       std::to_string(l.input.undergrowth.size()) + " undergrowth plants, " +
@@ -117,16 +117,16 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
             if (simFactor == 0) simFactor = l.seedOuterRadiusFactor;
         }
     }
-    AnalysisParams params;
+    analysis::AnalysisParams params;
     if (args.kMax > 0) params.kMax = args.kMax;
     if (args.seed >= 0) params.seed = static_cast<std::uint64_t>(args.seed);
     if (args.rMaxM > 0) params.pcfBins.rMaxM = args.rMaxM;
     if (args.bins > 0) params.pcfBins.count = args.bins;
     // The combination labels must use the simulation's own seeding disc unless told otherwise.
     params.seedingRadiusFactor = args.seedingRadiusFactor > 0 ? args.seedingRadiusFactor : (simFactor > 0 ? simFactor : params.seedingRadiusFactor);
-    if (args.speciesSubBiomes) params.membership = CanopyMembership::SpeciesSubBiomes;
+    if (args.speciesSubBiomes) params.membership = analysis::CanopyMembership::SpeciesSubBiomes;
 
-    std::vector<AnalysisInput> inputs;
+    std::vector<analysis::AnalysisInput> inputs;
     for (auto& l : loaded) inputs.push_back(std::move(l.input));
     std::unique_ptr<ProgressBar> bar;
     std::string stage;
@@ -139,7 +139,7 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
         bar->update(static_cast<long>(fraction * 1000.0 + 0.5));
     };
     AnalyseResult result;
-    result.database = analyse(inputs, params, progress);
+    result.database = analysis::analyse(inputs, params, progress);
     if (bar) bar->finish();
     const BiomeDatabase& db = result.database;
 

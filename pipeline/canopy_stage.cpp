@@ -62,9 +62,9 @@ void warnIfCoarse(const Grid<float>& chm, const Biome& biome, double thresholdM,
                       "a CHM of about 1 m cells or finer is expected (gdalwarp -tr 1 1 -r bilinear IN OUT)");
 }
 
-CanopyParams canopyParamsFrom(const CanopyOptions& a, SpeciesMapParams& sm) {
-    CanopyParams p;
-    if (!a.config.empty()) loadCanopyConfig(a.config, p, sm);
+synth::CanopyParams canopyParamsFrom(const CanopyOptions& a, synth::SpeciesMapParams& sm) {
+    synth::CanopyParams p;
+    if (!a.config.empty()) synth::loadCanopyConfig(a.config, p, sm);
     if (a.seed) p.seed = *a.seed;
     if (a.maxIterations) p.maxIterations = *a.maxIterations;
     if (a.minVisibleFraction) p.minVisibleFraction = *a.minVisibleFraction;
@@ -75,7 +75,7 @@ CanopyParams canopyParamsFrom(const CanopyOptions& a, SpeciesMapParams& sm) {
     if (a.canopyThresholdM) p.canopyThresholdM = *a.canopyThresholdM;
     if (a.minSeedHeightM) p.minSeedHeightM = *a.minSeedHeightM;
     sm.canopyThresholdM = p.canopyThresholdM;
-    validateCanopyParams(p);
+    synth::validateCanopyParams(p);
     return p;
 }
 
@@ -95,10 +95,10 @@ void printIteration(std::ostream& out, const IterationStats& s) {
 CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     // Everything that can be checked cheaply is checked before any heavy work.
     const Biome biome = args.biome.empty() ? defaultBiome() : loadBiome(args.biome);
-    std::vector<SpeciesTarget> targets;
-    for (const auto& t : args.targets) targets.push_back(parseSpeciesTarget(t, biome));
-    SpeciesMapParams speciesParams;
-    const CanopyParams params = canopyParamsFrom(args, speciesParams);
+    std::vector<synth::SpeciesTarget> targets;
+    for (const auto& t : args.targets) targets.push_back(synth::parseSpeciesTarget(t, biome));
+    synth::SpeciesMapParams speciesParams;
+    const synth::CanopyParams params = canopyParamsFrom(args, speciesParams);
     if (!args.mask.empty() && targets.empty())
         throw ValidationError("--mask '" + args.mask + "' given without --target: a mask only says where targets apply");
 
@@ -135,7 +135,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     warnIfCoarse(chm, biome, params.canopyThresholdM, args.chm, reporter);
     reporter.info("terrain: " + args.terrain + ": " + terrain.geometryText());
     reporter.info("CHM: " + args.chm + ": heights " + num(chm.minValue()) + " .. " + num(chm.maxValue()) + " m, " +
-                  std::to_string(forestedCells(chm, params.canopyThresholdM)) + " cells >= " +
+                  std::to_string(synth::forestedCells(chm, params.canopyThresholdM)) + " cells >= " +
                   num(params.canopyThresholdM) + " m (forested)");
     reporter.info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")"));
 
@@ -145,27 +145,27 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
 
     // Species map and targets.
     std::ostream& out = reporter.out();
-    const SpeciesMapInputs inputs = speciesMapInputs(abiotics, chm);
+    const synth::SpeciesMapInputs inputs = synth::speciesMapInputs(abiotics, chm);
     std::shared_ptr<const Grid<std::uint8_t>> mask;
     if (!args.mask.empty()) {
-        mask = std::make_shared<const Grid<std::uint8_t>>(readMaskImage(args.mask, chm));
+        mask = std::make_shared<const Grid<std::uint8_t>>(synth::readMaskImage(args.mask, chm));
         reporter.info("mask: " + args.mask + ": " +
-                      std::to_string(forestedCells(chm, params.canopyThresholdM, mask.get())) + " forested cells inside");
+                      std::to_string(synth::forestedCells(chm, params.canopyThresholdM, mask.get())) + " forested cells inside");
     }
-    std::vector<TargetResult> results;
+    std::vector<synth::TargetResult> results;
     if (!targets.empty()) {
         auto bar = reporter.progress("species targets", 1);
-        results = meetTargets(biome, inputs, speciesParams, targets, mask, args.mask);
+        results = synth::meetTargets(biome, inputs, speciesParams, targets, mask, args.mask);
         bar->finish();
     }
-    const Grid<std::int32_t> speciesMap = computeSpeciesMap(biome, inputs, speciesParams);
+    const Grid<std::int32_t> speciesMap = synth::computeSpeciesMap(biome, inputs, speciesParams);
     {
         out << "species map (share of the forested area" << (mask ? " inside the mask" : "") << "):\n";
-        for (int s : canopySpeciesOf(biome)) {
-            const double f = speciesFraction(speciesMap, chm, s, params.canopyThresholdM, mask.get());
+        for (int s : synth::canopySpeciesOf(biome)) {
+            const double f = synth::speciesFraction(speciesMap, chm, s, params.canopyThresholdM, mask.get());
             if (f > 0) out << "  " << biome.species[static_cast<std::size_t>(s)].name << ": " << num(f, 4) << "\n";
         }
-        const double none = speciesFraction(speciesMap, chm, -1, params.canopyThresholdM, mask.get());
+        const double none = synth::speciesFraction(speciesMap, chm, -1, params.canopyThresholdM, mask.get());
         if (none > 0) out << "  (no species can grow): " << num(none, 4) << "\n";
     }
     for (const auto& r : results) {
@@ -187,8 +187,8 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
         << "  iter       trees  removed    added  coverage   rmse_m  seconds\n";
     CanopyStageResult stageResult;
     stageResult.placement =
-        placeCanopy(chm, terrain, speciesMap, biome, params, [&](const IterationStats& s) { printIteration(out, s); });
-    const CanopyResult& result = stageResult.placement;
+        synth::placeCanopy(chm, terrain, speciesMap, biome, params, [&](const IterationStats& s) { printIteration(out, s); });
+    const synth::CanopyResult& result = stageResult.placement;
     out << "placed " << result.trees.size() << " canopy trees in " << num(result.seconds, 3) << " s ("
         << result.initialSeeds << " initial seeds, " << result.duplicatesRemoved << " duplicates removed; stop: "
         << result.stopReason << ")\n";
@@ -196,7 +196,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
         out << "  " << result.fallbackTrees
             << " trees stand where no canopy species can grow; they took the species of the nearest mapped cell\n";
 
-    CanopyRecord record;
+    synth::CanopyRecord record;
     record.result = result;
     record.speciesMap = speciesMap;
     record.chmM = chm;
@@ -209,7 +209,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     record.abioticsSource = args.abiotics.empty() ? "computed from the terrain (default parameters)" : args.abiotics;
     record.biomeSource = args.biome.empty() ? "embedded" : args.biome;
     record.maskSource = args.mask;
-    writeCanopyFile(args.out, record, biome);
+    synth::writeCanopyFile(args.out, record, biome);
     stageResult.written.push_back(args.out);
     out << "wrote canopy: " << args.out << " (/canopy trees, /species_map, /chm/height, /terrain/elevation, "
         << "/iterations, /targets)\n";
@@ -226,7 +226,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     }
     if (!args.pngDir.empty()) {
         ensureDirectory(args.pngDir);
-        writeCanopyPng(args.pngDir + "/canopy.png", result.trees, terrain, biome);
+        synth::writeCanopyPng(args.pngDir + "/canopy.png", result.trees, terrain, biome);
         std::vector<std::string> names;
         for (const auto& s : biome.species) names.push_back(s.name);
         writeCategoryPng(args.pngDir + "/species_map.png", speciesMap, "Species map (dominant canopy species)", names,

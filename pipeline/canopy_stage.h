@@ -36,7 +36,7 @@ struct CanopyOptions {
         canopyThresholdM, minSeedHeightM;
 };
 struct CanopyStageResult {
-    CanopyResult placement;  ///< the trees and the iteration statistics
+    synth::CanopyResult placement;  ///< the trees and the iteration statistics
     std::vector<std::string> written;
 };
 CanopyStageResult canopyStage(const CanopyOptions& options, Reporter& reporter);

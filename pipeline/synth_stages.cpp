@@ -32,10 +32,10 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     SynthResult result;
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
-    SynthParams params = a.params;
-    params.method = parseSynthMethod(a.method ? *a.method : std::string("structured"));
+    synth::SynthParams params = a.params;
+    params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
-    RefineParams refineParams;
+    synth::RefineParams refineParams;
     if (a.refineSweeps) refineParams.sweeps = *a.refineSweeps;
     if (a.refineRMaxM) refineParams.rMaxM = *a.refineRMaxM;
     if (a.refineMoveRadiusM) refineParams.moveRadiusM = *a.refineMoveRadiusM;
@@ -46,14 +46,14 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         refineParams.window = parseWindow(a.refineWindow, "--refine-window", false);
     }
     refineParams.validate();
-    ForestFloorParams floorParams = a.floorParams;
+    synth::ForestFloorParams floorParams = a.floorParams;
     floorParams.undergrowthShades = !a.noUndergrowthShade;
     floorParams.validate();
     RectWindow zoom{};
     if (!a.zoom.empty()) zoom = parseWindow(a.zoom, "--zoom", true);
 
     const BiomeDatabase db = readBiomeDatabase(a.database);
-    const Biome biome = databaseBiome(db);
+    const Biome biome = synth::databaseBiome(db);
     reporter.info("database: " + a.database + ": biome " + biome.name + ", " + std::to_string(db.regions.size()) + " regions in " +
          std::to_string(db.combinations.size()) + " combinations; seeding disc " + num(db.seedingRadiusFactor) +
          " x crown radius");
@@ -69,7 +69,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     // The canopy file keeps the CRS of a georeferenced input: the scene's grids and plants are
     // in it even when --terrain is a file without one.
     terrain.setCrsWkt(sharedCrs(terrain.crsWkt(), "terrain '" + a.terrain + "'", canopyFile.terrainM.crsWkt(), "canopy '" + a.canopy + "'"));
-    validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
+    synth::validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
     for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
@@ -91,7 +91,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     const FactorGrids shadedFeatures = annualFactors(shaded);
 
     auto t = Clock::now();
-    const ClusterMap clusters = computeClusterMap(db, biome, canopy, shadedFeatures, params);
+    const synth::ClusterMap clusters = synth::computeClusterMap(db, biome, canopy, shadedFeatures, params);
     const double clusterS = secondsSince(t);
     std::int64_t seeded = 0, labelled = 0;
     for (std::size_t i = 0; i < clusters.region.size(); ++i) {
@@ -101,14 +101,14 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     reporter.info("cluster map: " + num(clusterS, 3) + " s; " + std::to_string(seeded) + " of " + std::to_string(clusters.region.size()) +
          " cells seeded by a canopy tree, " + std::to_string(labelled) + " in a database region");
 
-    UndergrowthSample sample = sampleUndergrowth(db, biome, canopy, clusters, terrain, params);
+    synth::UndergrowthSample sample = synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params);
     reporter.info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +
          std::to_string(sample.passes) + " passes (" + std::to_string(sample.darts) + " darts, " +
          std::to_string(sample.dartsOnTrunks) + " on trunks)");
     for (const std::string& w : sample.warnings) reporter.info("warning: database " + a.database + ": " + w);
-    if (params.method == SynthMethod::Structured) {
-        for (const RegionStructure& st : sample.structure) {
-            const RegionSampling& rs = sample.regions[static_cast<std::size_t>(st.region)];
+    if (params.method == synth::SynthMethod::Structured) {
+        for (const synth::RegionStructure& st : sample.structure) {
+            const synth::RegionSampling& rs = sample.regions[static_cast<std::size_t>(st.region)];
             if (rs.cells == 0) continue;
             std::string text = "structure: region " + std::to_string(st.region) + ": ";
             if (st.scales == 0) text += "no clustering beyond the canopy context";
@@ -127,16 +127,16 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     std::vector<Plant> undergrowth = std::move(sample.plants);
     sample.plants.clear();
 
-    RefineResult refined;
+    synth::RefineResult refined;
     if (a.refine) {
         auto bar = reporter.progress("refinement sweeps", refineParams.sweeps);
-        refined = refineUndergrowth(undergrowth, canopy, clusters, terrain, db, params, refineParams,
-                                    [&](int done, int) { bar->update(done); });
+        refined = synth::refineUndergrowth(undergrowth, canopy, clusters, terrain, db, params, refineParams,
+                                           [&](int done, int) { bar->update(done); });
         bar->finish();
     }
 
     t = Clock::now();
-    const ForestFloor floor = computeForestFloor(features, canopy, undergrowth, biome, floorParams);
+    const synth::ForestFloor floor = synth::computeForestFloor(features, canopy, undergrowth, biome, floorParams);
     const double floorS = secondsSince(t);
     reporter.info("forest floor: " + num(floorS, 3) + " s");
 
@@ -169,7 +169,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         out << ")\n";
     }
 
-    SceneRecord record;
+    synth::SceneRecord record;
     record.canopy = canopy;
     record.undergrowth = std::move(undergrowth);
     record.clusterMap = clusters;
@@ -185,7 +185,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     record.terrainSource = a.terrain;
     record.canopySource = a.canopy;
     record.abioticsSource = a.abiotics.empty() ? "computed from the terrain (default parameters)" : a.abiotics;
-    writeSceneFile(a.out, record, biome, db);
+    synth::writeSceneFile(a.out, record, biome, db);
     result.written.push_back(a.out);
     result.canopyTrees = record.canopy.size();
     result.undergrowthPlants = record.undergrowth.size();
@@ -193,7 +193,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
               << " (/canopy, /undergrowth, /forest_floor/{grass,litter}, /cluster_map, /combination_map, /terrain, /regions"
               << (a.refine ? ", /refinement" : "") << ")\n";
     if (!a.csv.empty()) {
-        writeScenePlantsCsv(a.csv, record.canopy, record.undergrowth, biome);
+        synth::writeScenePlantsCsv(a.csv, record.canopy, record.undergrowth, biome);
         result.written.push_back(a.csv);
         out << "wrote plants: " << a.csv << "\n";
     }
@@ -205,17 +205,17 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     }
     if (!a.geotiffDir.empty()) writeGeoTiffs(a.out, a.geotiffDir, reporter, result.written);
     if (!a.pdb.empty()) {
-        writePdb(a.pdb, record.canopy, record.undergrowth);
+        synth::writePdb(a.pdb, record.canopy, record.undergrowth);
         result.written.push_back(a.pdb);
         out << "wrote PDB plant list: " << a.pdb << "\n";
     }
     if (!a.pngDir.empty()) {
         const std::string dir = a.pngDir + "/";
-        writeScenePng(dir + "scene.png", record.canopy, record.undergrowth, terrain, &floor, biome, "Synthesized scene");
-        const RectWindow crop = a.zoom.empty() ? defaultZoomWindow(terrain) : zoom;
-        writeScenePng(dir + "scene_zoom.png", record.canopy, record.undergrowth, terrain, &floor, biome,
-                      "Zoom " + num(crop.x0, 5) + ".." + num(crop.x1, 5) + " x " + num(crop.y0, 5) + ".." + num(crop.y1, 5) + " m",
-                      &crop, 900);
+        synth::writeScenePng(dir + "scene.png", record.canopy, record.undergrowth, terrain, &floor, biome, "Synthesized scene");
+        const RectWindow crop = a.zoom.empty() ? synth::defaultZoomWindow(terrain) : zoom;
+        synth::writeScenePng(dir + "scene_zoom.png", record.canopy, record.undergrowth, terrain, &floor, biome,
+                             "Zoom " + num(crop.x0, 5) + ".." + num(crop.x1, 5) + " x " + num(crop.y0, 5) + ".." + num(crop.y1, 5) + " m",
+                             &crop, 900);
         writeMapPng(dir + "grass.png", floor.grass, "Forest floor: grass / forb density", "density (0..1)",
                     Colormap::Viridis, 0, 1);
         writeMapPng(dir + "litter.png", floor.litter, "Forest floor: litter density", "density (0..1)", Colormap::Heat, 0, 1);
@@ -237,21 +237,21 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     std::ostream& out = reporter.out();
     CompareResult result;
     const BiomeDatabase db = readBiomeDatabase(a.database);
-    const Biome biome = databaseBiome(db);
-    const SceneData scene = readSceneFile(a.scene, biome);
+    const Biome biome = synth::databaseBiome(db);
+    const synth::SceneData scene = synth::readSceneFile(a.scene, biome);
     RectWindow window{};
     if (!a.window.empty()) window = parseWindow(a.window, "--window", false);
     if (!a.png.empty()) prepareOutput(a.png);
     const auto t = Clock::now();
-    result.comparison = compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
+    result.comparison = synth::compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
                                            a.window.empty() ? nullptr : &window, a.pcfSources);
-    const SceneComparison& c = result.comparison;
+    const synth::SceneComparison& c = result.comparison;
     reporter.info("compared in " + num(secondsSince(t), 3) + " s");
     std::ostringstream text;
     text << "scene " << a.scene << " (" << scene.canopy.size() << " canopy, " << scene.undergrowth.size()
          << " undergrowth) against database " << a.database
          << (a.window.empty() ? std::string() : " inside " + a.window) << "\n\n"
-         << comparisonTable(c, db);
+         << synth::comparisonTable(c, db);
     result.table = text.str();
     out << text.str();
     if (!a.out.empty()) {
@@ -259,7 +259,7 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
         out << "wrote table: " << a.out << "\n";
     }
     if (!a.png.empty()) {
-        writeComparisonPng(a.png, c, db);
+        synth::writeComparisonPng(a.png, c, db);
         out << "wrote picture: " << a.png << "\n";
     }
     return result;
@@ -278,13 +278,13 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (a.method) args.insert(args.end(), {"--method", *a.method});
     a.terrainRead.appendArgs(args);
     if (!a.zoom.empty()) args.insert(args.end(), {"--zoom", a.zoom});
-    const SynthParams synthDefaults;
+    const synth::SynthParams synthDefaults;
     if (a.params.maxPasses != synthDefaults.maxPasses) args.insert(args.end(), {"--max-passes", std::to_string(a.params.maxPasses)});
     if (a.params.seedInnerRadiusFactor != synthDefaults.seedInnerRadiusFactor)
         args.insert(args.end(), {"--seed-inner-radius-factor", argNumber(a.params.seedInnerRadiusFactor)});
     if (a.params.trunkExclusionFactor != synthDefaults.trunkExclusionFactor)
         args.insert(args.end(), {"--trunk-exclusion", argNumber(a.params.trunkExclusionFactor)});
-    const ForestFloorParams floorDefaults;
+    const synth::ForestFloorParams floorDefaults;
     if (a.floorParams.litterFullAlpha != floorDefaults.litterFullAlpha)
         args.insert(args.end(), {"--litter-full-alpha", argNumber(a.floorParams.litterFullAlpha)});
     if (a.noUndergrowthShade) args.push_back("--no-undergrowth-shade");

@@ -27,11 +27,11 @@ struct SynthOptions {
     std::optional<std::string> method;  ///< undergrowth sampler by name; unset = structured
     TerrainReadFlags terrainRead;
     bool refine = false;
-    SynthParams params;  ///< params.method is set from `method`
+    synth::SynthParams params;  ///< params.method is set from `method`
     // Overrides of RefineParams (unset: the defaults); its seed is params.seed.
     std::optional<int> refineSweeps;
     std::optional<double> refineRMaxM, refineMoveRadiusM, refineSwapRadiusM;
-    ForestFloorParams floorParams;
+    synth::ForestFloorParams floorParams;
     bool noUndergrowthShade = false;  ///< only canopy crowns shade the forest floor
 };
 struct SynthResult {
@@ -49,7 +49,7 @@ struct CompareOptions {
     std::size_t pcfSources = 20000;  ///< sources per region for the pair correlation; 0 = all
 };
 struct CompareResult {
-    SceneComparison comparison;
+    synth::SceneComparison comparison;
     std::string table;
 };
 CompareResult compareStage(const CompareOptions& options, Reporter& reporter);

@@ -18,7 +18,7 @@
 #include "strict_toml.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::synth {
 
 namespace {
 
@@ -1037,4 +1037,4 @@ void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, co
     withLegend(picture, heading, entries).writePng(path);
 }
 
-}  // namespace eco
+}  // namespace eco::synth

@@ -43,6 +43,10 @@
 #include "species_map.h"
 
 namespace eco {
+class StrictTable;  // core/strict_toml.h
+}
+
+namespace eco::synth {
 
 /// Every threshold of the placer. Written into every output (see canopyParamFields()).
 struct CanopyParams {
@@ -150,8 +154,6 @@ std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chmM, double minHeigh
 
 // ------------------------------------------------------------------------- configuration
 
-class StrictTable;  // core/strict_toml.h
-
 /// Read canopy and species-map parameters from a strict TOML table (keys of
 /// canopyParamFields() plus target_tolerance, max_bisection_steps, target_sweeps;
 /// canopy_threshold_m sets both structs). Keys absent keep their values; unknown keys are
@@ -187,4 +189,4 @@ void writeCanopyFile(const std::string& path, const CanopyRecord& record, const 
 void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, const Grid<float>& terrainM,
                     const Biome& biome, const std::string& title = "Canopy trees");
 
-}  // namespace eco
+}  // namespace eco::synth

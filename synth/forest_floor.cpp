@@ -7,7 +7,7 @@
 #include "error.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::synth {
 
 namespace {
 
@@ -115,4 +115,4 @@ ForestFloor computeForestFloor(const FactorGrids& features, const std::vector<Pl
     return out;
 }
 
-}  // namespace eco
+}  // namespace eco::synth

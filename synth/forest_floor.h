@@ -21,7 +21,7 @@
 #include "plants.h"
 #include "undergrowth.h"
 
-namespace eco {
+namespace eco::synth {
 
 struct ForestFloorParams {
     /// Per factor (factors.h order; parameters grass_<factor>_c / _r): sun 11.5 / 7 hours/day
@@ -50,4 +50,4 @@ ForestFloor computeForestFloor(const FactorGrids& features, const std::vector<Pl
                                const std::vector<Plant>& undergrowth, const Biome& biome,
                                const ForestFloorParams& params);
 
-}  // namespace eco
+}  // namespace eco::synth

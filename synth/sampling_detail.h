@@ -15,7 +15,7 @@
 #include "rng.h"
 #include "undergrowth.h"
 
-namespace eco::synth_detail {
+namespace eco::synth::detail {
 
 /// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
 /// combination m can hold species s when mask[s] & m != 0 (the simulator's rule).
@@ -168,11 +168,11 @@ inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std:
     return near;
 }
 
-}  // namespace eco::synth_detail
+}  // namespace eco::synth::detail
 
-namespace eco {
+namespace eco::synth {
 /// The structured sampler (synth/structured_sampler.cpp); sampleUndergrowth calls it after
 /// checking the inputs when params.method is Structured.
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
-}  // namespace eco
+}  // namespace eco::synth

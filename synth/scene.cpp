@@ -16,7 +16,7 @@
 #include "image_out.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::synth {
 
 namespace {
 
@@ -594,4 +594,4 @@ void writeComparisonPng(const std::string& path, const SceneComparison& c, const
     canvas.writePng(path);
 }
 
-}  // namespace eco
+}  // namespace eco::synth

@@ -16,7 +16,7 @@
 #include "point_pattern.h"
 #include "undergrowth.h"
 
-namespace eco {
+namespace eco::synth {
 
 constexpr int kSceneSchemaVersion = 1;
 constexpr const char* kSceneFormat = "eco-scene";
@@ -156,4 +156,4 @@ std::vector<double> pooledUndergrowthG(const DbRegion& r, const BiomeDatabase& d
 /// Same for a scene region.
 std::vector<double> pooledUndergrowthG(const ScenePairStats& s, int region, int nSpecies);
 
-}  // namespace eco
+}  // namespace eco::synth

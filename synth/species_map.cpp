@@ -10,7 +10,7 @@
 #include "terrain_io.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::synth {
 
 namespace {
 
@@ -645,4 +645,4 @@ Grid<std::uint8_t> readMaskImage(const std::string& path, const Grid<float>& lik
     return mask;
 }
 
-}  // namespace eco
+}  // namespace eco::synth

@@ -22,7 +22,7 @@
 #include "biome.h"
 #include "grid.h"
 
-namespace eco {
+namespace eco::synth {
 
 /// Annual-mean abiotic maps and the CHM, all on one geometry: what the species map reads.
 struct SpeciesMapInputs {
@@ -134,4 +134,4 @@ std::vector<TargetResult> meetTargets(const Biome& biome, const SpeciesMapInputs
 /// naming the file otherwise.
 Grid<std::uint8_t> readMaskImage(const std::string& path, const Grid<float>& like);
 
-}  // namespace eco
+}  // namespace eco::synth

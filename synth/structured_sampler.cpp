@@ -32,9 +32,9 @@
 #include "sampling_detail.h"
 #include "undergrowth.h"
 
-namespace eco {
+namespace eco::synth {
 
-using namespace synth_detail;
+using namespace detail;
 
 namespace {
 
@@ -1197,4 +1197,4 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     return out;
 }
 
-}  // namespace eco
+}  // namespace eco::synth

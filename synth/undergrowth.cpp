@@ -15,11 +15,11 @@
 #include "rng.h"
 #include "text_format.h"
 
-namespace eco {
+namespace eco::synth {
 
 namespace {
 
-using namespace synth_detail;
+using namespace detail;
 
 // Stream families of the counter-based generator (rng.h); each is mixed with the pass or
 // sweep and the cell or plant, so no two draws share a counter.
@@ -1101,4 +1101,4 @@ RefineResult refineUndergrowth(std::vector<Plant>& undergrowth, const std::vecto
     return res;
 }
 
-}  // namespace eco
+}  // namespace eco::synth

@@ -43,7 +43,7 @@
 #include "point_pattern.h"
 #include "seeding.h"
 
-namespace eco {
+namespace eco::synth {
 
 // ------------------------------------------------------------------------- inputs
 
@@ -283,4 +283,4 @@ RefineResult refineUndergrowth(std::vector<Plant>& undergrowth, const std::vecto
                                const SynthParams& synth, const RefineParams& params,
                                const RefineProgress& progress = {});
 
-}  // namespace eco
+}  // namespace eco::synth

@@ -45,8 +45,8 @@ Plant plant(const std::string& species, double x, double y, double h, double r) 
 }
 
 /// An input on a w x h grid of 1 m cells at the origin, constant abiotics, window = grid.
-AnalysisInput flatInput(int w, int h) {
-    AnalysisInput in;
+analysis::AnalysisInput flatInput(int w, int h) {
+    analysis::AnalysisInput in;
     in.biome = &sonoma();
     in.features = FactorGrids::uniform(Grid<float>(w, h, 1.0), {10, 100, 15, 5});
     in.window = RectWindow{0, 0, static_cast<double>(w), static_cast<double>(h)};
@@ -102,8 +102,8 @@ void requireIdentical(const BiomeDatabase& a, const BiomeDatabase& b) {
 
 /// A random input: 60 x 50 m, a wet west and a dry east half, a few canopy trees, and
 /// undergrowth of three species.
-AnalysisInput randomInput(std::uint64_t seed) {
-    AnalysisInput in = flatInput(60, 50);
+analysis::AnalysisInput randomInput(std::uint64_t seed) {
+    analysis::AnalysisInput in = flatInput(60, 50);
     RandomStream rng(seed, 9);
     for (int iy = 0; iy < 50; ++iy)
         for (int ix = 0; ix < 60; ++ix) {
@@ -126,14 +126,14 @@ AnalysisInput randomInput(std::uint64_t seed) {
 // Labels
 
 TEST_CASE("canopy sub-biome masks follow the sub-biomes' canopy lists (as the simulator's seed packages)", "[analysis]") {
-    const auto m = canopySubBiomeMasks(sonoma(), CanopyMembership::SubBiomeCanopyLists);
+    const auto m = analysis::canopySubBiomeMasks(sonoma(), analysis::CanopyMembership::SubBiomeCanopyLists);
     CHECK(m[static_cast<std::size_t>(sp("Redwood"))] == 0b0001);
     CHECK(m[static_cast<std::size_t>(sp("Douglas-Fir"))] == 0b0001);
     CHECK(m[static_cast<std::size_t>(sp("Coast Live Oak"))] == 0b0010);
     CHECK(m[static_cast<std::size_t>(sp("Gray Pine"))] == 0b0100);
     CHECK(m[static_cast<std::size_t>(sp("Pacific Madrone"))] == 0b1000);
     CHECK(m[static_cast<std::size_t>(sp("Toyon"))] == 0);
-    const auto own = canopySubBiomeMasks(sonoma(), CanopyMembership::SpeciesSubBiomes);
+    const auto own = analysis::canopySubBiomeMasks(sonoma(), analysis::CanopyMembership::SpeciesSubBiomes);
     CHECK(own[static_cast<std::size_t>(sp("Douglas-Fir"))] == 0b1001);  // Table 3: 1, 4
     CHECK(own[static_cast<std::size_t>(sp("Toyon"))] == 0);             // not canopy-capable
 }
@@ -141,7 +141,7 @@ TEST_CASE("canopy sub-biome masks follow the sub-biomes' canopy lists (as the si
 TEST_CASE("combination labels: cells within factor x crown radius of each tree get its sub-biomes", "[analysis]") {
     const Grid<float> geo(20, 10, 1.0, 100.0, 50.0);
     const std::vector<Plant> canopy = {plant("Redwood", 105, 55, 50, 0.5), plant("Coast Live Oak", 108, 55, 20, 0.5)};
-    const auto masks = canopySubBiomeMasks(sonoma(), CanopyMembership::SubBiomeCanopyLists);
+    const auto masks = analysis::canopySubBiomeMasks(sonoma(), analysis::CanopyMembership::SubBiomeCanopyLists);
     const auto labels = seedingLabels(geo, canopy, masks, 4.0);  // discs of 2 m
     for (int iy = 0; iy < 10; ++iy)
         for (int ix = 0; ix < 20; ++ix) {
@@ -163,7 +163,7 @@ TEST_CASE("combination labels: cells within factor x crown radius of each tree g
 TEST_CASE("k-means recovers well-separated clusters", "[analysis][kmeans]") {
     std::vector<Features> centres;
     const auto pts = blobs(3, 200, 11, &centres);
-    const KMeansResult r = kmeans(pts, 3, 1, 1, 4, 100);
+    const analysis::KMeansResult r = analysis::kmeans(pts, 3, 1, 1, 4, 100);
     REQUIRE(r.centroids.size() == 3);
     for (const Features& c : centres) {
         double best = 1e9;
@@ -180,10 +180,10 @@ TEST_CASE("k-means recovers well-separated clusters", "[analysis][kmeans]") {
 }
 
 TEST_CASE("the silhouette criterion picks the number of well-separated clusters, and k = 1 without structure", "[analysis][kmeans]") {
-    AnalysisParams params;
+    analysis::AnalysisParams params;
     params.kMax = 6;
     for (int n : {2, 3, 4, 5}) {
-        const KSelection s = selectK(blobs(n, 150, 20 + static_cast<std::uint64_t>(n)), 6, params, 7);
+        const analysis::KSelection s = analysis::selectK(blobs(n, 150, 20 + static_cast<std::uint64_t>(n)), 6, params, 7);
         INFO(n << " blobs");
         CHECK(s.k == n);
         CHECK(s.centroids.size() == static_cast<std::size_t>(n));
@@ -191,29 +191,29 @@ TEST_CASE("the silhouette criterion picks the number of well-separated clusters,
         CHECK(s.silhouette[static_cast<std::size_t>(n - 1)] > 0.8);
     }
     // One Gaussian blob: no k >= 2 reaches the threshold.
-    const KSelection one = selectK(blobs(1, 600, 5), 6, params, 7);
+    const analysis::KSelection one = analysis::selectK(blobs(1, 600, 5), 6, params, 7);
     CHECK(one.k == 1);
     // The area bound caps k.
-    CHECK(selectK(blobs(4, 100, 3), 2, params, 7).k == 2);
+    CHECK(analysis::selectK(blobs(4, 100, 3), 2, params, 7).k == 2);
 }
 
 TEST_CASE("mean silhouette on a hand-made partition", "[analysis][kmeans]") {
     const std::vector<Features> pts = {{0, 0, 0, 0}, {1, 0, 0, 0}, {10, 0, 0, 0}};
     // Point 0: a = 1, b = 10 -> 0.9; point 1: a = 1, b = 9 -> 8/9; point 2 alone -> 0.
-    CHECK(meanSilhouette(pts, {0, 0, 1}, 2) == Approx((0.9 + 8.0 / 9.0) / 3.0));
+    CHECK(analysis::meanSilhouette(pts, {0, 0, 1}, 2) == Approx((0.9 + 8.0 / 9.0) / 3.0));
 }
 
 // ---------------------------------------------------------------------------------------
 // Statistics on hand-made patterns
 
 TEST_CASE("hand-made pattern: area, density, proportions and size histograms are exact", "[analysis]") {
-    AnalysisInput in = flatInput(40, 40);
+    analysis::AnalysisInput in = flatInput(40, 40);
     in.canopy = {plant("Redwood", 20, 20, 60, 3)};  // seeds 36 m: every cell is combination 1
     for (int i = 0; i < 10; ++i) in.undergrowth.push_back(plant("Redwood Sorrel", 5 + i, 10, i < 5 ? 0.0625 : 0.25, 0.2));
     for (int i = 0; i < 6; ++i) in.undergrowth.push_back(plant("Western Swordfern", 5 + i, 30, 0.65, 0.5));
     in.undergrowth.push_back(plant("Western Swordfern", 30, 30, 1.3, 9.0));  // the tallest and widest fern
-    AnalysisParams params;
-    const BiomeDatabase db = analyse({in}, params);
+    analysis::AnalysisParams params;
+    const BiomeDatabase db = analysis::analyse({in}, params);
     REQUIRE(db.combinations.size() == 1);
     CHECK(db.combinations[0].mask == 1);
     CHECK(db.combinations[0].k == 1);  // constant abiotics
@@ -255,15 +255,15 @@ TEST_CASE("hand-made pattern: area, density, proportions and size histograms are
 }
 
 TEST_CASE("region pair correlation equals the rectangle estimator when the region is the whole window", "[analysis][pcf]") {
-    AnalysisInput in = flatInput(40, 30);
+    analysis::AnalysisInput in = flatInput(40, 30);
     in.canopy = {plant("Redwood", 20, 15, 60, 3)};
     RandomStream rng(4, 4);
     for (int i = 0; i < 400; ++i)
         in.undergrowth.push_back(plant(i % 3 ? "Redwood Sorrel" : "Western Swordfern", rng.uniform(0, 40), rng.uniform(0, 30),
                                        0.1, 0.2));
-    AnalysisParams params;
+    analysis::AnalysisParams params;
     params.pcfBins = DistanceBins{10.0, 20};
-    const BiomeDatabase db = analyse({in}, params);
+    const BiomeDatabase db = analysis::analyse({in}, params);
     REQUIRE(db.regions.size() == 1);
     // The same points through core's rectangle estimator: undergrowth types + the canopy tree.
     PointPattern p;
@@ -298,7 +298,7 @@ TEST_CASE("region pair correlation equals the rectangle estimator when the regio
 }
 
 TEST_CASE("disk separation histograms: exact counts per source, sources near the edge left out", "[analysis]") {
-    AnalysisInput in = flatInput(40, 40);
+    analysis::AnalysisInput in = flatInput(40, 40);
     in.canopy = {plant("Redwood", 20, 20, 60, 3)};
     in.undergrowth = {
         plant("Redwood Sorrel", 10, 10, 0.1, 0.4),       // 0
@@ -307,9 +307,9 @@ TEST_CASE("disk separation histograms: exact counts per source, sources near the
         plant("Redwood Sorrel", 2, 30, 0.1, 0.4),        // 3: 2 m from the west edge
         plant("Redwood Sorrel", 3, 30, 0.1, 0.4),        // 4
     };
-    AnalysisParams params;
+    analysis::AnalysisParams params;
     params.separationBins = SeparationBins{-2.0, 2.0, 16};  // 0.25 m bins
-    const BiomeDatabase db = analyse({in}, params);
+    const BiomeDatabase db = analysis::analyse({in}, params);
     REQUIRE(db.regions.size() == 1);
     const DbRegion& r = db.regions[0];
     const int sorrel = sp("Redwood Sorrel"), fern = sp("Western Swordfern");
@@ -337,10 +337,10 @@ TEST_CASE("disk separation histograms: exact counts per source, sources near the
 }
 
 TEST_CASE("abiotic zones become k-means regions and nearestRegion finds them", "[analysis][kmeans]") {
-    const AnalysisInput in = randomInput(1);
-    AnalysisParams params;
+    const analysis::AnalysisInput in = randomInput(1);
+    analysis::AnalysisParams params;
     params.minClusterAreaM2 = 100;
-    const BiomeDatabase db = analyse({in}, params);
+    const BiomeDatabase db = analysis::analyse({in}, params);
     REQUIRE(db.combinations.size() == 1);
     CHECK(db.combinations[0].mask == 3);
     for (const DbCombination& c : db.combinations) {
@@ -357,11 +357,11 @@ TEST_CASE("abiotic zones become k-means regions and nearestRegion finds them", "
 }
 
 TEST_CASE("two inputs pool: areas and counts add, ratios and g stay", "[analysis]") {
-    const AnalysisInput in = randomInput(2);
-    AnalysisParams params;
+    const analysis::AnalysisInput in = randomInput(2);
+    analysis::AnalysisParams params;
     params.minClusterAreaM2 = 100;  // the same k for one and two copies
-    const BiomeDatabase one = analyse({in}, params);
-    const BiomeDatabase two = analyse({in, in}, params);
+    const BiomeDatabase one = analysis::analyse({in}, params);
+    const BiomeDatabase two = analysis::analyse({in, in}, params);
     REQUIRE(one.regions.size() == two.regions.size());
     CHECK(two.inputs.size() == 2);
     for (std::size_t r = 0; r < one.regions.size(); ++r) {
@@ -376,30 +376,30 @@ TEST_CASE("two inputs pool: areas and counts add, ratios and g stay", "[analysis
 }
 
 TEST_CASE("the database is bit-identical with 1 and 2 threads", "[analysis]") {
-    const AnalysisInput in = randomInput(3);
-    AnalysisParams params;
+    const analysis::AnalysisInput in = randomInput(3);
+    analysis::AnalysisParams params;
     params.minClusterAreaM2 = 100;
     const int before = omp_get_max_threads();
     omp_set_num_threads(1);
-    const BiomeDatabase a = analyse({in}, params);
+    const BiomeDatabase a = analysis::analyse({in}, params);
     omp_set_num_threads(2);
-    const BiomeDatabase b = analyse({in}, params);
+    const BiomeDatabase b = analysis::analyse({in}, params);
     omp_set_num_threads(before);
     requireIdentical(a, b);
 }
 
 TEST_CASE("inconsistent inputs and parameters are ValidationErrors naming the problem", "[analysis][errors]") {
-    AnalysisInput in = flatInput(10, 10);
-    AnalysisParams params;
+    analysis::AnalysisInput in = flatInput(10, 10);
+    analysis::AnalysisParams params;
     params.kMax = 0;
-    CHECK_THROWS_WITH(analyse({in}, params), Catch::Contains("kmax = 0"));
-    params = AnalysisParams{};
+    CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("kmax = 0"));
+    params = analysis::AnalysisParams{};
     in.features[Factor::Moisture] = Grid<float>(9, 10, 1.0);
-    CHECK_THROWS_WITH(analyse({in}, params), Catch::Contains("moisture grid differs"));
+    CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("moisture grid differs"));
     in = flatInput(10, 10);
     in.undergrowth.push_back(Plant{99, 1, 1, 0, 1, 1});
-    CHECK_THROWS_WITH(analyse({in}, params), Catch::Contains("species id 99"));
-    CHECK_THROWS_AS(analyse({}, params), ValidationError);
+    CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("species id 99"));
+    CHECK_THROWS_AS(analysis::analyse({}, params), ValidationError);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -411,7 +411,7 @@ TEST_CASE("readSimulation: last snapshot, chosen year, abiotics beside the file,
     eco::test::TempDir dir("sim");
     const std::string sim = dir.file("sim.h5");
     writeFakeSimulation(sim, dir.file("abiotics.h5"));
-    const LoadedSimulation last = readSimulation(sim, {});
+    const analysis::LoadedSimulation last = analysis::readSimulation(sim, {});
     CHECK(last.years == std::vector<int>{1, 10});
     CHECK(last.input.provenance.year == 10);
     CHECK(last.input.undergrowth.size() == 1500);
@@ -420,25 +420,25 @@ TEST_CASE("readSimulation: last snapshot, chosen year, abiotics beside the file,
     CHECK(last.input.window.x1 == 1050.0);
     CHECK(last.seedOuterRadiusFactor == 12.0);
     CHECK(last.input.features[Factor::Sun](0, 0) == Approx(9.0));  // annual mean of 8, 9, 10
-    SimulationReadOptions opt;
+    analysis::SimulationReadOptions opt;
     opt.year = 1;
-    CHECK(readSimulation(sim, opt).input.undergrowth.size() == 100);
+    CHECK(analysis::readSimulation(sim, opt).input.undergrowth.size() == 100);
     opt.year = 5;
-    CHECK_THROWS_WITH(readSimulation(sim, opt), Catch::Contains("no snapshot of year 5") && Catch::Contains("1, 10"));
+    CHECK_THROWS_WITH(analysis::readSimulation(sim, opt), Catch::Contains("no snapshot of year 5") && Catch::Contains("1, 10"));
 }
 
 TEST_CASE("readSimulation: missing datasets and wrong files are IoErrors naming file and dataset", "[analysis][io][errors]") {
     eco::test::TempDir dir("sim");
     const std::string ab = dir.file("abiotics.h5");
     writeFakeSimulation(dir.file("nosnap.h5"), ab, "/snapshots");
-    CHECK_THROWS_WITH(readSimulation(dir.file("nosnap.h5"), {}), Catch::Contains("nosnap.h5") && Catch::Contains("/snapshots"));
+    CHECK_THROWS_WITH(analysis::readSimulation(dir.file("nosnap.h5"), {}), Catch::Contains("nosnap.h5") && Catch::Contains("/snapshots"));
     writeFakeSimulation(dir.file("nocanopy.h5"), ab, "/canopy");
-    CHECK_THROWS_WITH(readSimulation(dir.file("nocanopy.h5"), {}), Catch::Contains("nocanopy.h5") && Catch::Contains("/canopy"));
+    CHECK_THROWS_WITH(analysis::readSimulation(dir.file("nocanopy.h5"), {}), Catch::Contains("nocanopy.h5") && Catch::Contains("/canopy"));
     writeFakeSimulation(dir.file("nox.h5"), ab, "x");
-    CHECK_THROWS_WITH(readSimulation(dir.file("nox.h5"), {}), Catch::Contains("nox.h5") && Catch::Contains("year_0020/x"));
-    CHECK_THROWS_WITH(readSimulation(ab, {}), Catch::Contains("abiotics.h5") && Catch::Contains("not a simulation file"));
+    CHECK_THROWS_WITH(analysis::readSimulation(dir.file("nox.h5"), {}), Catch::Contains("nox.h5") && Catch::Contains("year_0020/x"));
+    CHECK_THROWS_WITH(analysis::readSimulation(ab, {}), Catch::Contains("abiotics.h5") && Catch::Contains("not a simulation file"));
     writeFakeSimulation(dir.file("good.h5"), ab);
-    SimulationReadOptions opt;
+    analysis::SimulationReadOptions opt;
     opt.abioticsPath = dir.file("missing-abiotics.h5");
-    CHECK_THROWS_WITH(readSimulation(dir.file("good.h5"), opt), Catch::Contains("missing-abiotics.h5"));
+    CHECK_THROWS_WITH(analysis::readSimulation(dir.file("good.h5"), opt), Catch::Contains("missing-abiotics.h5"));
 }

@@ -91,7 +91,7 @@ TEST_CASE("placer recovers known trees from a synthetic CHM", "[canopy]") {
     const int fir = b.speciesIndex("Douglas-Fir");
     const SyntheticForest f = syntheticForest(b, fir);
     const Grid<float> terrain = Grid<float>::like(f.chm, 100.f);
-    const CanopyResult r = placeCanopy(f.chm, terrain, uniformMap(f.chm, fir), b, CanopyParams{});
+    const synth::CanopyResult r = synth::placeCanopy(f.chm, terrain, uniformMap(f.chm, fir), b, synth::CanopyParams{});
     const double truth = static_cast<double>(f.trees.size());
     INFO("truth " << truth << " placed " << r.trees.size() << " initial " << r.initialSeeds << " final coverage "
                   << r.final.coverage << " rmse " << r.final.rmseM << " stop " << r.stopReason);
@@ -138,12 +138,12 @@ TEST_CASE("placer output is identical with 1 and 2 threads", "[canopy]") {
     Grid<float> terrain = Grid<float>::like(chm);
     for (int iy = 0; iy < chm.height(); ++iy)
         for (int ix = 0; ix < chm.width(); ++ix) terrain(ix, iy) = static_cast<float>(50 + 0.3 * ix + 0.1 * iy);
-    CanopyParams p;
+    synth::CanopyParams p;
     p.seed = 11;
     omp_set_num_threads(1);
-    const CanopyResult one = placeCanopy(chm, terrain, map, b, p);
+    const synth::CanopyResult one = synth::placeCanopy(chm, terrain, map, b, p);
     omp_set_num_threads(2);
-    const CanopyResult two = placeCanopy(chm, terrain, map, b, p);
+    const synth::CanopyResult two = synth::placeCanopy(chm, terrain, map, b, p);
     CHECK(one.iterations.size() >= 2);
     CHECK(sameTrees(one.trees, two.trees));
     REQUIRE(one.iterations.size() == two.iterations.size());
@@ -156,7 +156,7 @@ TEST_CASE("placer output is identical with 1 and 2 threads", "[canopy]") {
     CHECK(one.stopReason == two.stopReason);
     // A different seed changes the ring sampling.
     p.seed = 12;
-    const CanopyResult other = placeCanopy(chm, terrain, map, b, p);
+    const synth::CanopyResult other = synth::placeCanopy(chm, terrain, map, b, p);
     CHECK_FALSE(sameTrees(one.trees, other.trees));
 }
 
@@ -168,7 +168,7 @@ TEST_CASE("trees where no species can grow take the nearest mapped species", "[c
     const int w = f.chm.width();
     for (int iy = 0; iy < f.chm.height(); ++iy)
         for (int ix = 0; ix < w; ++ix) map(ix, iy) = ix < w / 3 ? -1 : (ix < 2 * w / 3 ? fir : redwood);
-    const CanopyResult r = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), map, b, CanopyParams{});
+    const synth::CanopyResult r = synth::placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), map, b, synth::CanopyParams{});
     std::size_t west = 0;
     for (const auto& p : r.trees) {
         const int ix = f.chm.cellX(p.xM);
@@ -182,7 +182,7 @@ TEST_CASE("trees where no species can grow take the nearest mapped species", "[c
     CHECK(west > 20);
     CHECK(r.fallbackTrees == west);
     // Nothing mapped at all: the tallest canopy species (Redwood, 110 m).
-    const CanopyResult none = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, -1), b, CanopyParams{});
+    const synth::CanopyResult none = synth::placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, -1), b, synth::CanopyParams{});
     REQUIRE(!none.trees.empty());
     for (const auto& p : none.trees) CHECK(p.speciesId == redwood);
     CHECK(none.fallbackTrees == none.trees.size());
@@ -194,21 +194,21 @@ TEST_CASE("seeds are strict local maxima at or above the seed height; a plateau 
     chm(8, 6) = chm(9, 6) = 7.f;  // a two-cell plateau
     chm(5, 8) = 2.5f;           // below 3 m
     chm(0, 0) = 4.f;            // a corner counts
-    const auto seeds = chmLocalMaxima(chm, 3.0, 1);
+    const auto seeds = synth::chmLocalMaxima(chm, 3.0, 1);
     REQUIRE(seeds.size() == 3);
     CHECK(seeds[0] == chm.index(0, 0));
     CHECK(seeds[1] == chm.index(3, 3));
     CHECK(seeds[2] == chm.index(8, 6));
     // A wider window merges nearby peaks.
     chm(5, 3) = 9.f;
-    CHECK(chmLocalMaxima(chm, 3.0, 1).size() == 4);
-    CHECK(chmLocalMaxima(chm, 3.0, 2).size() == 3);
+    CHECK(synth::chmLocalMaxima(chm, 3.0, 1).size() == 4);
+    CHECK(synth::chmLocalMaxima(chm, 3.0, 2).size() == 3);
 }
 
 TEST_CASE("crowns render as spheres with depth ties to the lower index", "[canopy]") {
     const Grid<float> like(40, 40, 0.5, 10.0, 20.0);
     std::vector<Plant> plants = {{0, 20.0, 30.0, 0, 12.0, 4.0}, {1, 20.0, 30.0, 0, 12.0, 4.0}};
-    const CrownRender r = renderCrowns(plants, like);
+    const synth::CrownRender r = synth::renderCrowns(plants, like);
     for (int iy = 0; iy < like.height(); ++iy)
         for (int ix = 0; ix < like.width(); ++ix) {
             const double d = std::hypot(like.cellCentreX(ix) - 20.0, like.cellCentreY(iy) - 30.0);
@@ -222,7 +222,7 @@ TEST_CASE("crowns render as spheres with depth ties to the lower index", "[canop
         }
     // A taller crown wins where it is higher.
     plants.push_back({2, 22.0, 30.0, 0, 14.0, 3.0});
-    const CrownRender r2 = renderCrowns(plants, like);
+    const synth::CrownRender r2 = synth::renderCrowns(plants, like);
     CHECK(r2.treeIndex(like.cellX(22.1), like.cellY(30.1)) == 2);
 }
 
@@ -234,7 +234,7 @@ TEST_CASE("duplicates: close trunks and crowns inside larger crowns are removed"
         {0, 10.5, 0.5, 0, 17.0, 1.0},  // sphere (centre z 16, r 1) inside (centre z 16, r 4): removed
         {0, 13.5, 0.0, 0, 19.9, 2.0},  // overlaps but sticks out: kept
     };
-    CHECK(removeDuplicateTrees(plants, 1.0) == 2);
+    CHECK(synth::removeDuplicateTrees(plants, 1.0) == 2);
     REQUIRE(plants.size() == 3);
     CHECK(plants[0].xM == 0.0);
     CHECK(plants[1].xM == 10.0);
@@ -245,11 +245,11 @@ TEST_CASE("duplicates: close trunks and crowns inside larger crowns are removed"
     Grid<float> chm(60, 60, 0.5, 0, 0, 0.f);
     const double h = 20, r = b.species[static_cast<std::size_t>(fir)].allometry.crownRadiusM(h);
     rasterizeCrowns({{13.7, 15.1, h, r}, {16.2, 15.1, h - 0.3, r}}, chm);
-    CanopyParams p;
+    synth::CanopyParams p;
     p.maxIterations = 0;  // only the seeding and the final clean-up
-    CHECK(placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p).trees.size() == 2);
+    CHECK(synth::placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p).trees.size() == 2);
     p.minTrunkDistanceM = 3.0;
-    const auto merged = placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p);
+    const auto merged = synth::placeCanopy(chm, Grid<float>::like(chm, 0.f), uniformMap(chm, fir), b, p);
     CHECK(merged.trees.size() == 1);
     CHECK(merged.duplicatesRemoved == 1);
 }
@@ -260,20 +260,20 @@ TEST_CASE("bad placer input is rejected with a clear message", "[canopy]") {
     const Grid<float> chm(20, 20, 1.0, 0, 0, 10.f);
     const Grid<float> terrain = Grid<float>::like(chm, 0.f);
     const auto map = uniformMap(chm, fir);
-    CHECK_THROWS_WITH(placeCanopy(chm, Grid<float>(21, 20, 1.0), map, b, {}),
+    CHECK_THROWS_WITH(synth::placeCanopy(chm, Grid<float>(21, 20, 1.0), map, b, {}),
                       Catch::Contains("terrain") && Catch::Contains("geometry"));
-    CHECK_THROWS_WITH(placeCanopy(chm, Grid<float>(20, 20, 2.0), map, b, {}), Catch::Contains("geometry"));
-    CHECK_THROWS_WITH(placeCanopy(chm, terrain, Grid<std::int32_t>(20, 19, 1.0), b, {}), Catch::Contains("species map"));
+    CHECK_THROWS_WITH(synth::placeCanopy(chm, Grid<float>(20, 20, 2.0), map, b, {}), Catch::Contains("geometry"));
+    CHECK_THROWS_WITH(synth::placeCanopy(chm, terrain, Grid<std::int32_t>(20, 19, 1.0), b, {}), Catch::Contains("species map"));
     Grid<float> negative = chm;
     negative(4, 7) = -1.f;
-    CHECK_THROWS_WITH(placeCanopy(negative, terrain, map, b, {}), Catch::Contains("(4, 7)") && Catch::Contains("negative"));
-    CHECK_THROWS_WITH(placeCanopy(chm, terrain, uniformMap(chm, b.speciesIndex("Toyon")), b, {}),
+    CHECK_THROWS_WITH(synth::placeCanopy(negative, terrain, map, b, {}), Catch::Contains("(4, 7)") && Catch::Contains("negative"));
+    CHECK_THROWS_WITH(synth::placeCanopy(chm, terrain, uniformMap(chm, b.speciesIndex("Toyon")), b, {}),
                       Catch::Contains("not a canopy species"));
-    CanopyParams p;
+    synth::CanopyParams p;
     p.minVisibleFraction = 1.5;
-    CHECK_THROWS_WITH(placeCanopy(chm, terrain, map, b, p), Catch::Contains("min_visible_fraction"));
-    CHECK_THROWS_WITH(setCanopyParam(p, "min_visibel_fraction", 0.2), Catch::Contains("unknown canopy parameter"));
-    CHECK_THROWS_WITH(setCanopyParam(p, "max_iterations", 2.5), Catch::Contains("integer"));
+    CHECK_THROWS_WITH(synth::placeCanopy(chm, terrain, map, b, p), Catch::Contains("min_visible_fraction"));
+    CHECK_THROWS_WITH(synth::setCanopyParam(p, "min_visibel_fraction", 0.2), Catch::Contains("unknown canopy parameter"));
+    CHECK_THROWS_WITH(synth::setCanopyParam(p, "max_iterations", 2.5), Catch::Contains("integer"));
 }
 
 TEST_CASE("canopy parameters: one description drives setting, validation and the docs table", "[canopy]") {
@@ -283,18 +283,18 @@ TEST_CASE("canopy parameters: one description drives setting, validation and the
     REQUIRE(in);
     std::stringstream docs;
     docs << in.rdbuf();
-    const CanopyParams defaults;
-    REQUIRE_NOTHROW(validateCanopyParams(defaults));
-    for (const auto& f : canopyParamFields()) {
+    const synth::CanopyParams defaults;
+    REQUIRE_NOTHROW(synth::validateCanopyParams(defaults));
+    for (const auto& f : synth::canopyParamFields()) {
         INFO(f.key);
         CHECK(docs.str().find(paramDocRow(f)) != std::string::npos);
-        if (f.kind == CanopyParamField::Kind::Seed) continue;
+        if (f.kind == synth::CanopyParamField::Kind::Seed) continue;
         const ParamRange& r = f.range;
         const double outside = r.highBound != ParamRange::Bound::None ? r.hi + 1 : r.lo - 1;
-        CanopyParams p;
-        setCanopyParam(p, f.key, outside);
+        synth::CanopyParams p;
+        synth::setCanopyParam(p, f.key, outside);
         CHECK(f.value(p) == outside);
-        CHECK_THROWS_WITH(validateCanopyParams(p), Catch::Contains(std::string("'") + f.key + "' " + r.text()));
+        CHECK_THROWS_WITH(synth::validateCanopyParams(p), Catch::Contains(std::string("'") + f.key + "' " + r.text()));
     }
     CHECK(ParamRange::openClosed(0, 10).text() == "must lie in (0, 10]");
     CHECK(ParamRange::atLeast(0).text() == "must be >= 0");
@@ -306,9 +306,9 @@ TEST_CASE("canopy configs are read strictly", "[canopy]") {
     {
         std::ofstream(dir.file("ok.toml")) << "[canopy]\nmin_visible_fraction = 0.3\nmax_iterations = 7\nseed = 99\n"
                                               "canopy_threshold_m = 2.5\ntarget_tolerance = 0.005\n[other]\nx = 1\n";
-        CanopyParams c;
-        SpeciesMapParams s;
-        loadCanopyConfig(dir.file("ok.toml"), c, s);
+        synth::CanopyParams c;
+        synth::SpeciesMapParams s;
+        synth::loadCanopyConfig(dir.file("ok.toml"), c, s);
         CHECK(c.minVisibleFraction == 0.3);
         CHECK(c.maxIterations == 7);
         CHECK(c.seed == 99u);
@@ -318,22 +318,22 @@ TEST_CASE("canopy configs are read strictly", "[canopy]") {
     }
     {
         std::ofstream(dir.file("typo.toml")) << "move_factor = 0.5\nring_facter = 1.0\n";
-        CanopyParams c;
-        SpeciesMapParams s;
-        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("typo.toml"), c, s),
+        synth::CanopyParams c;
+        synth::SpeciesMapParams s;
+        CHECK_THROWS_WITH(synth::loadCanopyConfig(dir.file("typo.toml"), c, s),
                           Catch::Contains("typo.toml:2") && Catch::Contains("ring_facter") && Catch::Contains("unknown key"));
     }
     {
         std::ofstream(dir.file("type.toml")) << "[canopy]\nmax_iterations = 2.5\n";
-        CanopyParams c;
-        SpeciesMapParams s;
-        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("type.toml"), c, s), Catch::Contains("expected an integer"));
+        synth::CanopyParams c;
+        synth::SpeciesMapParams s;
+        CHECK_THROWS_WITH(synth::loadCanopyConfig(dir.file("type.toml"), c, s), Catch::Contains("expected an integer"));
     }
     {
         std::ofstream(dir.file("range.toml")) << "min_visible_fraction = 2\n";
-        CanopyParams c;
-        SpeciesMapParams s;
-        CHECK_THROWS_WITH(loadCanopyConfig(dir.file("range.toml"), c, s), Catch::Contains("min_visible_fraction"));
+        synth::CanopyParams c;
+        synth::SpeciesMapParams s;
+        CHECK_THROWS_WITH(synth::loadCanopyConfig(dir.file("range.toml"), c, s), Catch::Contains("min_visible_fraction"));
     }
 }
 
@@ -342,14 +342,14 @@ TEST_CASE("canopy files round-trip", "[canopy]") {
     const Biome b = defaultBiome();
     const int fir = b.speciesIndex("Douglas-Fir");
     const SyntheticForest f = syntheticForest(b, fir);
-    CanopyRecord rec;
+    synth::CanopyRecord rec;
     rec.chmM = f.chm;
     rec.terrainM = Grid<float>::like(f.chm, 42.f);
     rec.speciesMap = uniformMap(f.chm, fir);
     rec.params.seed = 1234;
-    rec.result = placeCanopy(rec.chmM, rec.terrainM, rec.speciesMap, b, rec.params);
+    rec.result = synth::placeCanopy(rec.chmM, rec.terrainM, rec.speciesMap, b, rec.params);
     rec.targets.push_back({"Douglas-Fir", 0.5, 0.49, 0.9, true, 1.5, 0.645, 12});
-    writeCanopyFile(dir.file("c.h5"), rec, b);
+    synth::writeCanopyFile(dir.file("c.h5"), rec, b);
     const CanopyFileData d = readCanopyFile(dir.file("c.h5"), b);
     CHECK(sameTrees(d.trees, rec.result.trees));
     CHECK(d.speciesMap.data() == rec.speciesMap.data());
@@ -362,7 +362,7 @@ TEST_CASE("canopy files round-trip", "[canopy]") {
     const h5::File h = h5::File::openRead(dir.file("c.h5"));
     CHECK(h.attrString("/", "format") == "eco-canopy");
     CHECK(h.attrInt("/", "schema_version") == 1);
-    for (const auto& field : canopyParamFields())
+    for (const auto& field : synth::canopyParamFields())
         if (std::string(field.key) != "seed") CHECK(h.hasAttr("/", field.key));
     CHECK(h.attrString("/", "biome_toml").find("Redwood") != std::string::npos);
     CHECK(h.readStrings("/targets/species") == std::vector<std::string>{"Douglas-Fir"});
@@ -384,27 +384,27 @@ TEST_CASE("apex trees stay at their CHM maximum with its height; the best state 
     const std::vector<GeneratedTree> trees = {{20.0, 20.0, 30.0, a.crownRadiusM(30)}, {20.0 + 1.3 * a.crownRadiusM(30), 20.3, 27.0, a.crownRadiusM(27)}};
     rasterizeCrowns(trees, chm);
     const Grid<float> terrain = Grid<float>::like(chm, 0.f);
-    CanopyParams p;
+    synth::CanopyParams p;
     p.ringSamples = 0;
     p.maxIterations = 5;
     p.coverageEpsilon = 0;
-    const CanopyResult anchored = placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult anchored = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     INFO("seeds " << anchored.initialSeeds << ", duplicates " << anchored.duplicatesRemoved << ", final removed " << anchored.final.removed);
     REQUIRE(anchored.trees.size() == 2);
     for (const GeneratedTree& t : trees) CHECK(nearestDistance(anchored.trees, t.x, t.y) < 0.3);
     for (const Plant& t : anchored.trees) CHECK(std::abs(t.heightM - chm(chm.cellX(t.xM), chm.cellY(t.yM))) < 0.3);
     p.anchorApexTrees = 0;
     p.keepBestState = 0;
-    const CanopyResult moved = placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult moved = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     REQUIRE(moved.trees.size() == 2);
     CHECK(nearestDistance(moved.trees, trees[1].x, trees[1].y) > 0.3);  // the paper's move: off the apex
 
     // Keep-best: the coverage of the returned state is the best of the iterations.
     const SyntheticForest f = syntheticForest(b, df);
-    CanopyParams q;
+    synth::CanopyParams q;
     q.coverageEpsilon = 0;  // stop only when an iteration loses coverage
     q.maxIterations = 8;
-    const CanopyResult r = placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, df), b, q);
+    const synth::CanopyResult r = synth::placeCanopy(f.chm, Grid<float>::like(f.chm, 0.f), uniformMap(f.chm, df), b, q);
     double best = 0;
     for (const IterationStats& s : r.iterations) best = std::max(best, s.coverage);
     CHECK(r.final.coverage >= best - 0.01);  // the final clean-up may drop a starved tree or two

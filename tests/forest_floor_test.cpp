@@ -34,28 +34,28 @@ Plant plantAt(const Biome& b, const std::string& species, double x, double y, do
 
 TEST_CASE("grass suitability follows the grass responses of the abiotics", "[forest_floor]") {
     const Biome b = defaultBiome();
-    ForestFloorParams p;
+    synth::ForestFloorParams p;
     // At the optimum of every response: full density.
     const auto best = uniformFeatures(8, 8, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
                                       static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
-    const ForestFloor open = computeForestFloor(best, {}, {}, b, p);
+    const synth::ForestFloor open = synth::computeForestFloor(best, {}, {}, b, p);
     CHECK(open.suitability(3, 3) == Approx(1.0f));
     CHECK(open.grass(3, 3) == Approx(1.0f));
     CHECK(open.litter(3, 3) == 0.0f);
     // One response at its range: g(r) = (1 + a) * 0.01 - a < 0, clamped to 0.
     auto dark = best;
     dark[Factor::Sun].fill(static_cast<float>(p.grassResponse(Factor::Sun).c - p.grassResponse(Factor::Sun).r));
-    CHECK(computeForestFloor(dark, {}, {}, b, p).grass(3, 3) == 0.0f);
+    CHECK(synth::computeForestFloor(dark, {}, {}, b, p).grass(3, 3) == 0.0f);
     // Halfway: the biome's shape at half the range.
     auto half = best;
     half[Factor::Slope].fill(static_cast<float>(p.grassResponse(Factor::Slope).c + 0.5 * p.grassResponse(Factor::Slope).r));
-    CHECK(computeForestFloor(half, {}, {}, b, p).grass(3, 3) ==
+    CHECK(synth::computeForestFloor(half, {}, {}, b, p).grass(3, 3) ==
           Approx(b.vigour.g(0.5 * p.grassResponse(Factor::Slope).r, p.grassResponse(Factor::Slope).r)).epsilon(1e-5));
 }
 
 TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter", "[forest_floor]") {
     const Biome b = defaultBiome();
-    ForestFloorParams p;
+    synth::ForestFloorParams p;
     p.litterFullAlpha = 2.0;
     const auto f = uniformFeatures(20, 20, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
                                    static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
@@ -65,7 +65,7 @@ TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter",
     const double aR = b.species[static_cast<std::size_t>(redwood.speciesId)].alpha;
     const double aO = b.species[static_cast<std::size_t>(oak.speciesId)].alpha;
     const double aF = b.species[static_cast<std::size_t>(fern.speciesId)].alpha;
-    const ForestFloor ff = computeForestFloor(f, {redwood, oak}, {fern}, b, p);
+    const synth::ForestFloor ff = synth::computeForestFloor(f, {redwood, oak}, {fern}, b, p);
     // Cell (4, 10): centre (4.5, 10.5), under the Redwood only.
     CHECK(ff.grass(4, 10) == Approx(1.0 - aR).epsilon(1e-5));
     CHECK(ff.litter(4, 10) == Approx(aR / 2.0).epsilon(1e-5));
@@ -79,15 +79,15 @@ TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter",
     CHECK(ff.litter(1, 1) == 0.0f);
     // Only the canopy shades when asked.
     p.undergrowthShades = false;
-    CHECK(computeForestFloor(f, {redwood, oak}, {fern}, b, p).grass(15, 15) == Approx(1.0f));
+    CHECK(synth::computeForestFloor(f, {redwood, oak}, {fern}, b, p).grass(15, 15) == Approx(1.0f));
     // Litter saturates at 1.
     p.litterFullAlpha = 0.5;
-    CHECK(computeForestFloor(f, {redwood, oak}, {}, b, p).litter(8, 10) == 1.0f);
+    CHECK(synth::computeForestFloor(f, {redwood, oak}, {}, b, p).litter(8, 10) == 1.0f);
 }
 
 TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any thread count", "[forest_floor]") {
     const Biome b = defaultBiome();
-    ForestFloorParams p;
+    synth::ForestFloorParams p;
     const auto f = uniformFeatures(120, 90, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),
                                    static_cast<float>(p.grassResponse(Factor::Temperature).c), static_cast<float>(p.grassResponse(Factor::Slope).c));
     std::vector<Plant> canopy, under;
@@ -99,9 +99,9 @@ TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any
         under.push_back(plantAt(b, names[3 + i % 2], rs.uniform(0, 120), rs.uniform(0, 90), rs.uniform(0.1, 1)));
     const int before = omp_get_max_threads();
     omp_set_num_threads(1);
-    const ForestFloor one = computeForestFloor(f, canopy, under, b, p);
+    const synth::ForestFloor one = synth::computeForestFloor(f, canopy, under, b, p);
     omp_set_num_threads(2);
-    const ForestFloor two = computeForestFloor(f, canopy, under, b, p);
+    const synth::ForestFloor two = synth::computeForestFloor(f, canopy, under, b, p);
     omp_set_num_threads(before);
     CHECK(one.grass.data() == two.grass.data());
     CHECK(one.litter.data() == two.litter.data());
@@ -117,13 +117,13 @@ TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any
 }
 
 TEST_CASE("forest floor parameters are validated", "[forest_floor]") {
-    ForestFloorParams p;
+    synth::ForestFloorParams p;
     p.grassResponse(Factor::Sun).r = 0;
     CHECK_THROWS_WITH(p.validate(), Catch::Contains("grass_sun"));
-    ForestFloorParams q;
+    synth::ForestFloorParams q;
     q.litterFullAlpha = -1;
     CHECK_THROWS_WITH(q.validate(), Catch::Contains("litter_full_alpha"));
     FactorGrids f = uniformFeatures(4, 4, 10, 80, 15, 0);
     f[Factor::Slope] = Grid<float>(5, 4, 1.0);
-    CHECK_THROWS_AS(computeForestFloor(f, {}, {}, defaultBiome(), ForestFloorParams{}), ValidationError);
+    CHECK_THROWS_AS(synth::computeForestFloor(f, {}, {}, defaultBiome(), synth::ForestFloorParams{}), ValidationError);
 }

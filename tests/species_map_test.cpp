@@ -21,8 +21,8 @@ namespace {
 /// A small landscape with gradients: sun 4..14 h along x, moisture 30..190 mm along y,
 /// temperature 19 C, slope 20 degrees, a 30 m CHM with a bare strip on the west edge. A
 /// little per-cell noise keeps whole rows and columns from tying (as in real maps).
-SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
-    SpeciesMapInputs in;
+synth::SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
+    synth::SpeciesMapInputs in;
     in.chmM = Grid<float>(w, h, 1.0, 0, 0, 30.f);
     in.features = FactorGrids::uniform(in.chmM, {0, 0, 19, 20});
     for (int iy = 0; iy < h; ++iy)
@@ -37,7 +37,7 @@ SpeciesMapInputs gradientInputs(int w = 64, int h = 48) {
 }
 
 /// Reference argmax from Biome::vigourOf, written independently of the library.
-int referenceArgmax(const Biome& b, const SpeciesMapInputs& in, int ix, int iy) {
+int referenceArgmax(const Biome& b, const synth::SpeciesMapInputs& in, int ix, int iy) {
     int best = -1;
     double bestV = 0;
     for (const auto& s : b.species) {
@@ -62,7 +62,7 @@ TEST_CASE("unweighted vigour equals Biome::vigourOf (Eq. 1 with the exact g)", "
                      slope = rng.uniform(0, 80);
         for (const auto& s : b.species) {
             const double ref = b.vigourOf(s.id, {sun, moist, temp, slope});
-            const double fast = unweightedVigour(b, s.id, {sun, moist, temp, slope});
+            const double fast = synth::unweightedVigour(b, s.id, {sun, moist, temp, slope});
             REQUIRE(fast == Approx(ref).margin(1e-12));
             exact += fast == ref;
             ++total;
@@ -75,18 +75,18 @@ TEST_CASE("unweighted vigour equals Biome::vigourOf (Eq. 1 with the exact g)", "
     for (std::size_t f = 0; f < kFactorCount; ++f) optimum[f] = rw.responses[f].c;
     Features offSun = optimum;
     offSun[factorIndex(Factor::Sun)] += rw.response(Factor::Sun).r;
-    CHECK(unweightedVigour(b, rw.id, optimum) == Approx(rw.alpha));
-    CHECK(unweightedVigour(b, rw.id, offSun) ==
+    CHECK(synth::unweightedVigour(b, rw.id, optimum) == Approx(rw.alpha));
+    CHECK(synth::unweightedVigour(b, rw.id, offSun) ==
           Approx(rw.alpha * (1.2 * 0.01 - 0.2)));
 }
 
 TEST_CASE("species map is the vigour argmax over tall-enough canopy species", "[species_map]") {
     const Biome b = defaultBiome();
-    SpeciesMapInputs in = gradientInputs();
+    synth::SpeciesMapInputs in = gradientInputs();
     // Some cells taller than every species but Redwood (110 m), some taller than all.
     in.chmM(40, 10) = 60.f;
     in.chmM(41, 10) = 120.f;
-    const Grid<std::int32_t> map = computeSpeciesMap(b, in);
+    const Grid<std::int32_t> map = synth::computeSpeciesMap(b, in);
     REQUIRE(map.sameGeometry(in.chmM));
     std::set<int> seen;
     for (int iy = 0; iy < in.chmM.height(); ++iy)
@@ -107,24 +107,24 @@ TEST_CASE("species map is the vigour argmax over tall-enough canopy species", "[
 
 TEST_CASE("a cell where every vigour is <= 0 has no species", "[species_map]") {
     const Biome b = defaultBiome();
-    SpeciesMapInputs in = gradientInputs(8, 8);
+    synth::SpeciesMapInputs in = gradientInputs(8, 8);
     in.features[Factor::Temperature].fill(80.f);  // far outside every temperature range
-    const auto map = computeSpeciesMap(b, in);
+    const auto map = synth::computeSpeciesMap(b, in);
     for (const auto s : map.data()) CHECK(s == -1);
 }
 
 TEST_CASE("species map and target bisection do not depend on the thread count", "[species_map]") {
     const Biome b = defaultBiome();
-    const SpeciesMapInputs in = gradientInputs(96, 80);
+    const synth::SpeciesMapInputs in = gradientInputs(96, 80);
     const int redwood = b.speciesIndex("Redwood");
     omp_set_num_threads(1);
-    SpeciesMapParams p1;
-    const auto r1 = meetTarget(b, in, p1, redwood, 0.3);
-    const auto m1 = computeSpeciesMap(b, in, p1);
+    synth::SpeciesMapParams p1;
+    const auto r1 = synth::meetTarget(b, in, p1, redwood, 0.3);
+    const auto m1 = synth::computeSpeciesMap(b, in, p1);
     omp_set_num_threads(2);
-    SpeciesMapParams p2;
-    const auto r2 = meetTarget(b, in, p2, redwood, 0.3);
-    const auto m2 = computeSpeciesMap(b, in, p2);
+    synth::SpeciesMapParams p2;
+    const auto r2 = synth::meetTarget(b, in, p2, redwood, 0.3);
+    const auto m2 = synth::computeSpeciesMap(b, in, p2);
     CHECK(m1.data() == m2.data());
     CHECK(r1.weight == r2.weight);
     CHECK(r1.achieved == r2.achieved);
@@ -132,12 +132,12 @@ TEST_CASE("species map and target bisection do not depend on the thread count", 
 
 TEST_CASE("bisection meets a feasible global target within 1 %", "[species_map]") {
     const Biome b = defaultBiome();
-    const SpeciesMapInputs in = gradientInputs();
+    const synth::SpeciesMapInputs in = gradientInputs();
     for (const char* name : {"Redwood", "Douglas-Fir", "Oregon White Oak"}) {
         for (double target : {0.1, 0.35, 0.6}) {
-            SpeciesMapParams p;
+            synth::SpeciesMapParams p;
             const int s = b.speciesIndex(name);
-            const TargetResult r = meetTarget(b, in, p, s, target);
+            const synth::TargetResult r = synth::meetTarget(b, in, p, s, target);
             INFO(name << " target " << target << " achieved " << r.achieved << " reachable " << r.reachable);
             if (target > r.reachable + p.targetTolerance) {
                 CHECK_FALSE(r.feasible);
@@ -146,8 +146,8 @@ TEST_CASE("bisection meets a feasible global target within 1 %", "[species_map]"
             CHECK(r.feasible);
             CHECK(std::abs(r.achieved - target) <= 0.01);
             // The map computed with the new weights holds exactly the reported fraction.
-            const auto map = computeSpeciesMap(b, in, p);
-            CHECK(speciesFraction(map, in.chmM, s, p.canopyThresholdM) == r.achieved);
+            const auto map = synth::computeSpeciesMap(b, in, p);
+            CHECK(synth::speciesFraction(map, in.chmM, s, p.canopyThresholdM) == r.achieved);
             CHECK(r.alpha == Approx(r.weight * b.species[static_cast<std::size_t>(s)].alpha));
             // The biome's own alpha (its light absorption) is left alone.
             CHECK(b.species[static_cast<std::size_t>(s)].alpha == defaultBiome().species[static_cast<std::size_t>(s)].alpha);
@@ -155,83 +155,83 @@ TEST_CASE("bisection meets a feasible global target within 1 %", "[species_map]"
     }
     // Coast Live Oak grows to 25 m only: on a 30 m canopy no target above 0 is reachable.
     {
-        SpeciesMapParams p;
-        const auto oak = meetTarget(b, in, p, b.speciesIndex("Coast Live Oak"), 0.2);
+        synth::SpeciesMapParams p;
+        const auto oak = synth::meetTarget(b, in, p, b.speciesIndex("Coast Live Oak"), 0.2);
         CHECK_FALSE(oak.feasible);
         CHECK(oak.reachable == 0.0);
         CHECK(oak.achieved == 0.0);
     }
-    SpeciesMapParams p;
-    const auto zero = meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.0);
+    synth::SpeciesMapParams p;
+    const auto zero = synth::meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.0);
     CHECK(zero.feasible);
     CHECK(zero.achieved == 0.0);
 }
 
 TEST_CASE("an infeasible target is reported with the best reachable fraction", "[species_map]") {
     const Biome b = defaultBiome();
-    SpeciesMapInputs in = gradientInputs();
+    synth::SpeciesMapInputs in = gradientInputs();
     // Redwood's temperature range is 19 +- 32 C: make half the forest far too hot for it but
     // fine for Coast Live Oak? No species survives 60 C, so that half has no species at all.
     for (int iy = 0; iy < in.chmM.height() / 2; ++iy)
         for (int ix = 0; ix < in.chmM.width(); ++ix) in.features[Factor::Temperature](ix, iy) = 60.f;
-    SpeciesMapParams p;
+    synth::SpeciesMapParams p;
     const int redwood = b.speciesIndex("Redwood");
-    const TargetResult r = meetTarget(b, in, p, redwood, 0.9);
+    const synth::TargetResult r = synth::meetTarget(b, in, p, redwood, 0.9);
     CHECK_FALSE(r.feasible);
     CHECK(r.reachable < 0.9 - 0.01);
     CHECK(r.achieved == Approx(r.reachable).margin(1e-12));
     CHECK(r.reachable == Approx(0.5).margin(0.03));
-    const auto map = computeSpeciesMap(b, in, p);
-    CHECK(speciesFraction(map, in.chmM, redwood, p.canopyThresholdM) == r.achieved);
+    const auto map = synth::computeSpeciesMap(b, in, p);
+    CHECK(synth::speciesFraction(map, in.chmM, redwood, p.canopyThresholdM) == r.achieved);
 }
 
 TEST_CASE("a target inside a brush mask changes the map only inside it", "[species_map]") {
     const Biome b = defaultBiome();
-    const SpeciesMapInputs in = gradientInputs();
+    const synth::SpeciesMapInputs in = gradientInputs();
     auto mask = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>::like(in.chmM, 0));
     for (int iy = 10; iy < 40; ++iy)
         for (int ix = 20; ix < 50; ++ix) (*mask)(ix, iy) = 1;
-    SpeciesMapParams p;
-    const auto before = computeSpeciesMap(b, in, p);
+    synth::SpeciesMapParams p;
+    const auto before = synth::computeSpeciesMap(b, in, p);
     const int fir = b.speciesIndex("Douglas-Fir");
-    const TargetResult r = meetTarget(b, in, p, fir, 0.5, mask, "brush");
+    const synth::TargetResult r = synth::meetTarget(b, in, p, fir, 0.5, mask, "brush");
     CHECK(r.feasible);
     CHECK(std::abs(r.achieved - 0.5) <= 0.01);
     REQUIRE(p.localWeights.size() == 1);
     CHECK(p.weights.empty());  // the global weights are untouched
-    const auto after = computeSpeciesMap(b, in, p);
-    CHECK(speciesFraction(after, in.chmM, fir, p.canopyThresholdM, mask.get()) == r.achieved);
+    const auto after = synth::computeSpeciesMap(b, in, p);
+    CHECK(synth::speciesFraction(after, in.chmM, fir, p.canopyThresholdM, mask.get()) == r.achieved);
     for (std::size_t i = 0; i < after.size(); ++i)
         if (mask->data()[i] == 0) REQUIRE(after.data()[i] == before.data()[i]);
     // Meeting it again with the same brush replaces the brush weight, not adds another.
-    meetTarget(b, in, p, fir, 0.3, mask, "brush");
+    synth::meetTarget(b, in, p, fir, 0.3, mask, "brush");
     CHECK(p.localWeights.size() == 1);
 }
 
 TEST_CASE("several targets are met one after another", "[species_map]") {
     const Biome b = defaultBiome();
-    const SpeciesMapInputs in = gradientInputs();
-    SpeciesMapParams p;
-    const auto results = meetTargets(b, in, p, {{"Redwood", 0.3}, {"Douglas-Fir", 0.2}});
+    const synth::SpeciesMapInputs in = gradientInputs();
+    synth::SpeciesMapParams p;
+    const auto results = synth::meetTargets(b, in, p, {{"Redwood", 0.3}, {"Douglas-Fir", 0.2}});
     REQUIRE(results.size() == 2);
-    const auto map = computeSpeciesMap(b, in, p);
+    const auto map = synth::computeSpeciesMap(b, in, p);
     for (const auto& r : results) {
         INFO(r.species << " achieved " << r.achieved);
         CHECK(r.feasible);
         CHECK(std::abs(r.achieved - r.requested) <= 0.01);
-        CHECK(speciesFraction(map, in.chmM, b.speciesIndex(r.species), p.canopyThresholdM) == r.achieved);
+        CHECK(synth::speciesFraction(map, in.chmM, b.speciesIndex(r.species), p.canopyThresholdM) == r.achieved);
     }
 }
 
 TEST_CASE("targets are parsed strictly", "[species_map]") {
     const Biome b = defaultBiome();
-    const auto t = parseSpeciesTarget("Redwood=0.4", b);
+    const auto t = synth::parseSpeciesTarget("Redwood=0.4", b);
     CHECK(t.species == "Redwood");
     CHECK(t.fraction == 0.4);
-    CHECK(parseSpeciesTarget("Coast Live Oak = 1", b).species == "Coast Live Oak");
+    CHECK(synth::parseSpeciesTarget("Coast Live Oak = 1", b).species == "Coast Live Oak");
     auto message = [&](const std::string& text) {
         try {
-            parseSpeciesTarget(text, b);
+            synth::parseSpeciesTarget(text, b);
         } catch (const ValidationError& e) {
             return std::string(e.what());
         }
@@ -248,28 +248,28 @@ TEST_CASE("targets are parsed strictly", "[species_map]") {
 
 TEST_CASE("bad species-map input is rejected with a clear message", "[species_map]") {
     const Biome b = defaultBiome();
-    SpeciesMapParams p;
+    synth::SpeciesMapParams p;
     {
-        SpeciesMapInputs in = gradientInputs();
+        synth::SpeciesMapInputs in = gradientInputs();
         in.chmM(3, 5) = -2.f;
-        CHECK_THROWS_WITH(computeSpeciesMap(b, in), Catch::Contains("negative height") && Catch::Contains("(3, 5)"));
+        CHECK_THROWS_WITH(synth::computeSpeciesMap(b, in), Catch::Contains("negative height") && Catch::Contains("(3, 5)"));
     }
     {
-        SpeciesMapInputs in = gradientInputs();
+        synth::SpeciesMapInputs in = gradientInputs();
         in.features[Factor::Slope] = Grid<float>(10, 10, 1.0);
-        CHECK_THROWS_AS(computeSpeciesMap(b, in), ValidationError);
+        CHECK_THROWS_AS(synth::computeSpeciesMap(b, in), ValidationError);
     }
-    const SpeciesMapInputs in = gradientInputs();
-    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 1.2), Catch::Contains("[0, 1]"));
-    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Toyon"), 0.2), Catch::Contains("not a canopy species"));
-    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Redwood", 0.7}, {"Douglas-Fir", 0.5}}), Catch::Contains("sum to"));
-    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Redwood", 0.2}, {"Redwood", 0.3}}), Catch::Contains("twice"));
-    CHECK_THROWS_WITH(meetTargets(b, in, p, {{"Nope", 0.2}}), Catch::Contains("unknown species"));
+    const synth::SpeciesMapInputs in = gradientInputs();
+    CHECK_THROWS_WITH(synth::meetTarget(b, in, p, b.speciesIndex("Redwood"), 1.2), Catch::Contains("[0, 1]"));
+    CHECK_THROWS_WITH(synth::meetTarget(b, in, p, b.speciesIndex("Toyon"), 0.2), Catch::Contains("not a canopy species"));
+    CHECK_THROWS_WITH(synth::meetTargets(b, in, p, {{"Redwood", 0.7}, {"Douglas-Fir", 0.5}}), Catch::Contains("sum to"));
+    CHECK_THROWS_WITH(synth::meetTargets(b, in, p, {{"Redwood", 0.2}, {"Redwood", 0.3}}), Catch::Contains("twice"));
+    CHECK_THROWS_WITH(synth::meetTargets(b, in, p, {{"Nope", 0.2}}), Catch::Contains("unknown species"));
     auto empty = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>::like(in.chmM, 0));
-    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, empty, "m.png"),
+    CHECK_THROWS_WITH(synth::meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, empty, "m.png"),
                       Catch::Contains("no forested cell") && Catch::Contains("m.png"));
     auto small = std::make_shared<Grid<std::uint8_t>>(Grid<std::uint8_t>(5, 5, 1.0, 0, 0, 1));
-    CHECK_THROWS_WITH(meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, small, "m.png"), Catch::Contains("geometry"));
+    CHECK_THROWS_WITH(synth::meetTarget(b, in, p, b.speciesIndex("Redwood"), 0.2, small, "m.png"), Catch::Contains("geometry"));
 }
 
 TEST_CASE("a mask image must have the CHM's pixel size", "[species_map]") {
@@ -279,11 +279,11 @@ TEST_CASE("a mask image must have the CHM's pixel size", "[species_map]") {
     for (int iy = 0; iy < 24; ++iy)
         for (int ix = 0; ix < 32; ++ix) grey(ix, iy) = ix < 16 ? 1.f : 0.f;
     writeTerrainImage(dir.file("mask.png"), grey);
-    const auto mask = readMaskImage(dir.file("mask.png"), chm);
+    const auto mask = synth::readMaskImage(dir.file("mask.png"), chm);
     CHECK(mask(0, 0) == 1);
     CHECK(mask(31, 23) == 0);
-    CHECK(forestedCells(Grid<float>::like(chm, 10.f), 3.0, &mask) == 16u * 24u);
+    CHECK(synth::forestedCells(Grid<float>::like(chm, 10.f), 3.0, &mask) == 16u * 24u);
     writeTerrainImage(dir.file("small.png"), Grid<float>(16, 16, 1.0));
-    CHECK_THROWS_WITH(readMaskImage(dir.file("small.png"), chm),
+    CHECK_THROWS_WITH(synth::readMaskImage(dir.file("small.png"), chm),
                       Catch::Contains("small.png") && Catch::Contains("never resampled"));
 }

@@ -70,24 +70,24 @@ Plant undergrowthPlant(int species, double x, double y, double h) {
 bool inside(double x, double y) { return x >= 0 && y >= 0 && x < kSideM && y < kSideM; }
 
 BiomeDatabase analyseScene(const Scene& s, const std::vector<Plant>& undergrowth) {
-    AnalysisInput in;
+    analysis::AnalysisInput in;
     in.biome = &sonoma();
     in.canopy = s.canopy;
     in.undergrowth = undergrowth;
     in.features = s.features;
     in.window = RectWindow{0, 0, kSideM, kSideM};
     in.provenance.path = "memory";
-    AnalysisParams ap;
+    analysis::AnalysisParams ap;
     ap.kMax = 1;
-    return analyse({in}, ap);
+    return analysis::analyse({in}, ap);
 }
 
-UndergrowthSample synthesize(const Scene& s, const BiomeDatabase& db, SynthMethod method, std::uint64_t seed = 3) {
-    SynthParams p;
+synth::UndergrowthSample synthesize(const Scene& s, const BiomeDatabase& db, synth::SynthMethod method, std::uint64_t seed = 3) {
+    synth::SynthParams p;
     p.method = method;
     p.seed = seed;
-    const ClusterMap map = computeClusterMap(db, sonoma(), s.canopy, s.features, p);
-    return sampleUndergrowth(db, sonoma(), s.canopy, map, s.terrain, p);
+    const synth::ClusterMap map = synth::computeClusterMap(db, sonoma(), s.canopy, s.features, p);
+    return synth::sampleUndergrowth(db, sonoma(), s.canopy, map, s.terrain, p);
 }
 
 /// Pooled g of a pattern in the square, 0.25 m bins to 10 m (translation correction).
@@ -136,7 +136,7 @@ TEST_CASE("a clustered (Thomas) pattern is synthesized with its clustering", "[s
     const double inShort = meanOver(gIn, 2, 8);  // 0.5 .. 2 m
     REQUIRE(inShort > 4.0);                      // the input is strongly clustered
 
-    const UndergrowthSample structured = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample structured = synthesize(s, db, synth::SynthMethod::Structured);
     REQUIRE(structured.plants.size() > 1500);
     REQUIRE(structured.structure.size() == 1);
     CHECK(structured.structure[0].scales >= 1);
@@ -147,7 +147,7 @@ TEST_CASE("a clustered (Thomas) pattern is synthesized with its clustering", "[s
     CHECK(meanOver(gOut, 28, 40) == Approx(1.0).margin(0.25));  // 7-10 m: no clustering left
 
     // The dart sampler on the same database has none of it.
-    const std::vector<double> gDarts = pooledG(synthesize(s, db, SynthMethod::Darts).plants);
+    const std::vector<double> gDarts = pooledG(synthesize(s, db, synth::SynthMethod::Darts).plants);
     INFO("darts " << meanOver(gDarts, 2, 8));
     CHECK(meanOver(gDarts, 2, 8) < 1.5);
 }
@@ -171,7 +171,7 @@ TEST_CASE("an inhibited (hard-core) pattern keeps its hard core", "[synth][struc
     }
     REQUIRE(ug.size() == want);
     const BiomeDatabase db = analyseScene(s, ug);
-    const UndergrowthSample out = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample out = synthesize(s, db, synth::SynthMethod::Structured);
     REQUIRE(out.structure[0].hardCoreM.size() == sonoma().species.size() * sonoma().species.size());
     CHECK(out.structure[0].hardCoreM[static_cast<std::size_t>(toyon) * sonoma().species.size() + static_cast<std::size_t>(toyon)] ==
           Approx(1.0));
@@ -194,7 +194,7 @@ TEST_CASE("an inhibited (hard-core) pattern keeps its hard core", "[synth][struc
     CHECK(meanOver(g, 0, 4) < 0.05);
     CHECK(meanOver(g, 8, 40) == Approx(1.0).margin(0.2));
     // The darts have plenty of pairs inside the hard core.
-    CHECK(meanOver(pooledG(synthesize(s, db, SynthMethod::Darts).plants), 0, 4) > 0.5);
+    CHECK(meanOver(pooledG(synthesize(s, db, synth::SynthMethod::Darts).plants), 0, 4) > 0.5);
 }
 
 TEST_CASE("species keep their canopy context: shade lovers under crowns, others in the gaps", "[synth][structured]") {
@@ -219,12 +219,12 @@ TEST_CASE("species keep their canopy context: shade lovers under crowns, others 
             }
         return n > 0 ? c / n : -1.0;
     };
-    const UndergrowthSample out = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample out = synthesize(s, db, synth::SynthMethod::Structured);
     // Context bins are whole cells (0.5 m), so a rim of plants within a cell of the crown
     // edge can land on the other side.
     CHECK(shareCovered(out.plants, sorrel) > 0.85);
     CHECK(shareCovered(out.plants, toyon) < 0.1);
-    const UndergrowthSample darts = synthesize(s, db, SynthMethod::Darts);
+    const synth::UndergrowthSample darts = synthesize(s, db, synth::SynthMethod::Darts);
     CHECK(shareCovered(darts.plants, sorrel) < 0.5);
     CHECK(shareCovered(darts.plants, toyon) > 0.1);
 }
@@ -241,7 +241,7 @@ TEST_CASE("sizes are coupled by allometry and nothing is taller than the crown a
                                       species == fern ? rng.uniform(0.05, 1.2) : rng.uniform(0.1, 3.0)));
     }
     const BiomeDatabase db = analyseScene(s, ug);
-    const UndergrowthSample out = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample out = synthesize(s, db, synth::SynthMethod::Structured);
     const CanopyCover cover(s.canopy);
     std::size_t covered = 0, tooTall = 0, offAllometry = 0;
     for (const Plant& p : out.plants) {
@@ -262,7 +262,7 @@ TEST_CASE("sizes are coupled by allometry and nothing is taller than the crown a
     for (const Plant& p : out.plants) tallOpen += !cover.covered(p.xM, p.yM) && p.heightM > 2.0;
     CHECK(tallOpen > 100);
     // The dart sampler breaks both rules on the same database.
-    const UndergrowthSample darts = synthesize(s, db, SynthMethod::Darts);
+    const synth::UndergrowthSample darts = synthesize(s, db, synth::SynthMethod::Darts);
     std::size_t dartsTooTall = 0;
     for (const Plant& p : darts.plants) dartsTooTall += !(p.heightM < cover.lowestCrownAboveM(p.xM, p.yM));
     CHECK(dartsTooTall > 0);
@@ -278,9 +278,9 @@ TEST_CASE("the structured sampler is identical for 1 and 2 threads", "[synth][st
     const BiomeDatabase db = analyseScene(s, ug);
     const int before = omp_get_max_threads();
     omp_set_num_threads(1);
-    const UndergrowthSample one = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample one = synthesize(s, db, synth::SynthMethod::Structured);
     omp_set_num_threads(2);
-    const UndergrowthSample two = synthesize(s, db, SynthMethod::Structured);
+    const synth::UndergrowthSample two = synthesize(s, db, synth::SynthMethod::Structured);
     omp_set_num_threads(before);
     REQUIRE(one.plants.size() == two.plants.size());
     for (std::size_t i = 0; i < one.plants.size(); ++i) {

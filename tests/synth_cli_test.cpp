@@ -48,13 +48,13 @@ struct WorldFiles {
 WorldFiles writeWorld(const World& w, const test::TempDir& dir) {
     WorldFiles f{dir.file("terrain.h5"), dir.file("canopy.h5"), dir.file("abiotics.h5"), dir.file("db.h5")};
     writeTerrainH5(f.terrain, w.terrain);
-    CanopyRecord rec;
+    synth::CanopyRecord rec;
     rec.result.trees = w.canopy;
     rec.speciesMap = Grid<std::int32_t>::like(w.terrain, -1);
     rec.chmM = Grid<float>::like(w.terrain, 0.0f);
     rec.terrainM = w.terrain;
     rec.terrainSource = f.terrain;
-    writeCanopyFile(f.canopy, rec, w.biome);
+    synth::writeCanopyFile(f.canopy, rec, w.biome);
     Abiotics ab;
     for (int m = 0; m < 12; ++m) {
         ab.sunHours.months.push_back(w.features[Factor::Sun]);
@@ -124,12 +124,12 @@ TEST_CASE("eco synth refuses bad inputs with one clear line and no output", "[sy
     SECTION("a canopy tree outside the terrain") {
         std::vector<Plant> trees = w.canopy;
         trees[3].xM = kSide * kCell + 25.0;
-        CanopyRecord rec;
+        synth::CanopyRecord rec;
         rec.result.trees = trees;
         rec.speciesMap = Grid<std::int32_t>::like(w.terrain, -1);
         rec.chmM = Grid<float>::like(w.terrain, 0.0f);
         rec.terrainM = w.terrain;
-        writeCanopyFile(dir.file("outside.h5"), rec, w.biome);
+        synth::writeCanopyFile(dir.file("outside.h5"), rec, w.biome);
         const auto r = synth(f.terrain, dir.file("outside.h5"), f.db);
         INFO(r.output);
         CHECK(r.exitCode != 0);
@@ -254,7 +254,7 @@ TEST_CASE("a georeferenced round trip: GeoTIFF in, scene out as GeoPackage and G
     CHECK_THAT(sceneTerrain.crsWkt(), Catch::Contains("UTM zone 10N"));
 
     // Plants: every one in the GeoPackage, in UTM zone 10N, at the scene's coordinates.
-    const SceneData s = readSceneFile(scene, w.biome);
+    const synth::SceneData s = synth::readSceneFile(scene, w.biome);
     REQUIRE(s.undergrowth.size() > 1000);
     {
         GDALDataset* g = GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);

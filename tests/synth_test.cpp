@@ -156,7 +156,7 @@ TEST_CASE("seeding labels match a direct per-cell evaluation of the analyser's r
 
 TEST_CASE("the cluster map assigns each cell the database's nearest region", "[synth]") {
     const World w = makeWorld();
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, synth::SynthParams{});
     std::set<int> seen;
     for (int iy = 0; iy < kSide; iy += 2)
         for (int ix = 0; ix < kSide; ix += 2) {
@@ -176,30 +176,30 @@ TEST_CASE("histogram quantiles invert the histogram's CDF", "[synth]") {
     DbHistogram h;
     h.edges = {0, 1, 2, 4};
     h.counts = {1, 0, 3};
-    CHECK(histogramQuantile(h, 0.0) == Approx(0.0));
-    CHECK(histogramQuantile(h, 0.125) == Approx(0.5));
-    CHECK(histogramQuantile(h, 0.25) == Approx(2.0));
-    CHECK(histogramQuantile(h, 0.625) == Approx(3.0));
+    CHECK(synth::histogramQuantile(h, 0.0) == Approx(0.0));
+    CHECK(synth::histogramQuantile(h, 0.125) == Approx(0.5));
+    CHECK(synth::histogramQuantile(h, 0.25) == Approx(2.0));
+    CHECK(synth::histogramQuantile(h, 0.625) == Approx(3.0));
     DbHistogram empty;
     empty.edges = {0, 1};
     empty.counts = {0};
-    CHECK(histogramQuantile(empty, 0.5) < 0);
+    CHECK(synth::histogramQuantile(empty, 0.5) < 0);
 }
 
 TEST_CASE("the dart sampler's density, species proportions and sizes match the database", "[synth]") {
     const World w = makeWorld();
-    SynthParams params;
-    params.method = SynthMethod::Darts;  // height and radius histograms met one by one
+    synth::SynthParams params;
+    params.method = synth::SynthMethod::Darts;  // height and radius histograms met one by one
     params.seed = 11;
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
-    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+    const synth::UndergrowthSample s = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
     REQUIRE(s.plants.size() > 20000);
     for (const auto& r : s.regions) {
         INFO("region " << r.region);
         CHECK(r.placed == r.targetCount);
     }
     // Re-analysed from the plants alone (as eco compare does).
-    const SceneComparison c = compareScene(w.canopy, s.plants, map.region, w.db);
+    const synth::SceneComparison c = synth::compareScene(w.canopy, s.plants, map.region, w.db);
     int checked = 0;
     for (const auto& r : c.regions) {
         if (r.areaM2 < 1000) continue;  // "enough area": at least 1000 m^2 (hundreds of plants)
@@ -256,8 +256,8 @@ TEST_CASE("the dart sampler's density, species proportions and sizes match the d
 
 TEST_CASE("species respect the seeding sub-biomes of each cell", "[synth]") {
     const World w = makeWorld();
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
-    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, SynthParams{});
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, synth::SynthParams{});
+    const synth::UndergrowthSample s = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, synth::SynthParams{});
     for (const Plant& p : s.plants) {
         const int mask = map.combination(map.combination.cellX(p.xM), map.combination.cellY(p.yM));
         int speciesMask = 0;
@@ -268,24 +268,24 @@ TEST_CASE("species respect the seeding sub-biomes of each cell", "[synth]") {
 
 TEST_CASE("synthesis is identical with 1 and 2 threads", "[synth]") {
     const World w = makeWorld();
-    SynthParams params;
+    synth::SynthParams params;
     params.seed = 5;
-    RefineParams rp;
+    synth::RefineParams rp;
     rp.sweeps = 2;  // both tilings (the second is shifted by half a tile)
     const int before = omp_get_max_threads();
     struct Out {
-        ClusterMap map;
+        synth::ClusterMap map;
         std::vector<Plant> plants;
-        RefineResult refine;
-        ForestFloor floor;
+        synth::RefineResult refine;
+        synth::ForestFloor floor;
     };
     auto run = [&](int threads) {
         omp_set_num_threads(threads);
         Out o;
-        o.map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
-        o.plants = sampleUndergrowth(w.db, w.biome, w.canopy, o.map, w.terrain, params).plants;
-        o.refine = refineUndergrowth(o.plants, w.canopy, o.map, w.terrain, w.db, params, rp);
-        o.floor = computeForestFloor(w.features, w.canopy, o.plants, w.biome, ForestFloorParams{});
+        o.map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+        o.plants = synth::sampleUndergrowth(w.db, w.biome, w.canopy, o.map, w.terrain, params).plants;
+        o.refine = synth::refineUndergrowth(o.plants, w.canopy, o.map, w.terrain, w.db, params, rp);
+        o.floor = synth::computeForestFloor(w.features, w.canopy, o.plants, w.biome, synth::ForestFloorParams{});
         return o;
     };
     const Out a = run(1), b = run(2);
@@ -302,11 +302,11 @@ TEST_CASE("synthesis is identical with 1 and 2 threads", "[synth]") {
 
 TEST_CASE("another seed gives another scene with the same statistics", "[synth]") {
     const World w = makeWorld();
-    SynthParams p1, p2;
+    synth::SynthParams p1, p2;
     p2.seed = 2;
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, p1);
-    const auto a = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p1);
-    const auto b = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p2);
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, p1);
+    const auto a = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p1);
+    const auto b = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, p2);
     CHECK(a.plants.size() == b.plants.size());
     CHECK_FALSE(samePlants(a.plants, b.plants));
 }
@@ -315,14 +315,14 @@ TEST_CASE("another seed gives another scene with the same statistics", "[synth]"
 
 TEST_CASE("refinement lowers the pair-correlation distance and keeps the canopy, regions and species", "[synth]") {
     const World w = makeWorld(1.0);  // the database's undergrowth keeps 1 m apart; sampling does not
-    SynthParams params;
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
-    UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
+    synth::SynthParams params;
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, params);
+    synth::UndergrowthSample s = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, params);
     std::vector<Plant> plants = s.plants;
     const std::vector<Plant> canopyBefore = w.canopy;
-    RefineParams rp;
+    synth::RefineParams rp;
     rp.sweeps = 3;
-    const RefineResult r = refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, params, rp);
+    const synth::RefineResult r = synth::refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, params, rp);
     INFO("distance " << r.distanceBefore << " -> " << r.distanceAfter << ", accepted " << r.accepted << " of " << r.proposals);
     CHECK(r.distanceAfter < 0.8 * r.distanceBefore);
     REQUIRE(r.objectivePerSweep.size() == 4);
@@ -339,20 +339,20 @@ TEST_CASE("refinement lowers the pair-correlation distance and keeps the canopy,
         REQUIRE(plants[i].groundZM == Approx(w.terrain.sampleBilinear(plants[i].xM, plants[i].yM)));
     }
     // The distance compareScene reports agrees (same estimator, all sources).
-    const SceneComparison after = compareScene(w.canopy, plants, map.region, w.db, nullptr, 0);
+    const synth::SceneComparison after = synth::compareScene(w.canopy, plants, map.region, w.db, nullptr, 0);
     CHECK(after.pcfDistance == Approx(r.distanceAfter).epsilon(0.05));
 }
 
 TEST_CASE("refinement inside a window moves only the plants inside it", "[synth]") {
     const World w = makeWorld(1.0);
-    const ClusterMap map = computeClusterMap(w.db, w.biome, w.canopy, w.features, SynthParams{});
-    const UndergrowthSample s = sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, SynthParams{});
+    const synth::ClusterMap map = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, synth::SynthParams{});
+    const synth::UndergrowthSample s = synth::sampleUndergrowth(w.db, w.biome, w.canopy, map, w.terrain, synth::SynthParams{});
     std::vector<Plant> plants = s.plants;
-    RefineParams rp;
+    synth::RefineParams rp;
     rp.sweeps = 1;
     rp.useWindow = true;
     rp.window = RectWindow{50, 50, 100, 100};
-    const RefineResult r = refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, SynthParams{}, rp);
+    const synth::RefineResult r = synth::refineUndergrowth(plants, w.canopy, map, w.terrain, w.db, synth::SynthParams{}, rp);
     CHECK(r.accepted > 0);
     CHECK(r.distanceAfter < r.distanceBefore);
     for (std::size_t i = 0; i < plants.size(); ++i) {
@@ -367,17 +367,17 @@ TEST_CASE("refinement inside a window moves only the plants inside it", "[synth]
 TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
     const World w = makeWorld();
     test::TempDir dir("synth_files");
-    SceneRecord rec;
+    synth::SceneRecord rec;
     rec.params.seed = 77;
-    rec.clusterMap = computeClusterMap(w.db, w.biome, w.canopy, w.features, rec.params);
-    rec.sampling = sampleUndergrowth(w.db, w.biome, w.canopy, rec.clusterMap, w.terrain, rec.params);
+    rec.clusterMap = synth::computeClusterMap(w.db, w.biome, w.canopy, w.features, rec.params);
+    rec.sampling = synth::sampleUndergrowth(w.db, w.biome, w.canopy, rec.clusterMap, w.terrain, rec.params);
     rec.undergrowth = rec.sampling.plants;
     rec.canopy = w.canopy;
     rec.terrainM = w.terrain;
-    rec.floor = computeForestFloor(w.features, w.canopy, rec.undergrowth, w.biome, rec.floorParams);
+    rec.floor = synth::computeForestFloor(w.features, w.canopy, rec.undergrowth, w.biome, rec.floorParams);
     rec.databasePath = "in-memory";
-    writeSceneFile(dir.file("scene.h5"), rec, w.biome, w.db);
-    const SceneData d = readSceneFile(dir.file("scene.h5"), w.biome);
+    synth::writeSceneFile(dir.file("scene.h5"), rec, w.biome, w.db);
+    const synth::SceneData d = synth::readSceneFile(dir.file("scene.h5"), w.biome);
     CHECK(samePlants(d.canopy, rec.canopy));
     CHECK(samePlants(d.undergrowth, rec.undergrowth));
     CHECK(d.clusterMap.data() == rec.clusterMap.region.data());
@@ -394,8 +394,8 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
         CHECK(f.readF64("/regions/placed").size() == w.db.regions.size());
     }
 
-    writePdb(dir.file("scene.pdb"), rec.canopy, rec.undergrowth);
-    const std::vector<PdbSpecies> pdb = readPdb(dir.file("scene.pdb"));
+    synth::writePdb(dir.file("scene.pdb"), rec.canopy, rec.undergrowth);
+    const std::vector<synth::PdbSpecies> pdb = synth::readPdb(dir.file("scene.pdb"));
     std::size_t total = 0;
     for (const auto& sp : pdb) {
         total += sp.plants.size();
@@ -405,19 +405,19 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
         }
     }
     CHECK(total == rec.canopy.size() + rec.undergrowth.size());
-    CHECK(std::is_sorted(pdb.begin(), pdb.end(), [](const PdbSpecies& a, const PdbSpecies& b) { return a.speciesId < b.speciesId; }));
+    CHECK(std::is_sorted(pdb.begin(), pdb.end(), [](const synth::PdbSpecies& a, const synth::PdbSpecies& b) { return a.speciesId < b.speciesId; }));
     // The first canopy tree is the first plant of its species block (canopy is written first).
-    const auto it = std::find_if(pdb.begin(), pdb.end(), [&](const PdbSpecies& s) { return s.speciesId == w.canopy[0].speciesId; });
+    const auto it = std::find_if(pdb.begin(), pdb.end(), [&](const synth::PdbSpecies& s) { return s.speciesId == w.canopy[0].speciesId; });
     REQUIRE(it != pdb.end());
     CHECK(it->plants[0].xM == Approx(w.canopy[0].xM).margin(1e-4));
     CHECK(it->plants[0].groundZM == Approx(w.canopy[0].groundZM).margin(1e-4));
     // A truncated file names the line.
     {
         std::ofstream(dir.file("bad.pdb")) << "1\n3 0.1 2.0 0.5\n2\n1 2 3 4 5\n";
-        CHECK_THROWS_WITH(readPdb(dir.file("bad.pdb")), Catch::Contains("bad.pdb") && Catch::Contains("file ends"));
+        CHECK_THROWS_WITH(synth::readPdb(dir.file("bad.pdb")), Catch::Contains("bad.pdb") && Catch::Contains("file ends"));
     }
 
-    writeScenePlantsCsv(dir.file("plants.csv"), rec.canopy, rec.undergrowth, w.biome);
+    synth::writeScenePlantsCsv(dir.file("plants.csv"), rec.canopy, rec.undergrowth, w.biome);
     std::ifstream csv(dir.file("plants.csv"));
     std::string header;
     std::getline(csv, header);
@@ -426,16 +426,16 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
     for (std::string l; std::getline(csv, l);) ++lines;
     CHECK(lines == total);
 
-    writeScenePng(dir.file("scene.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "test");
-    const RectWindow crop = defaultZoomWindow(w.terrain, 40);
-    writeScenePng(dir.file("zoom.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "zoom", &crop, 400);
+    synth::writeScenePng(dir.file("scene.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "test");
+    const RectWindow crop = synth::defaultZoomWindow(w.terrain, 40);
+    synth::writeScenePng(dir.file("zoom.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "zoom", &crop, 400);
     CHECK(std::filesystem::file_size(dir.file("scene.png")) > 1000);
     CHECK(std::filesystem::file_size(dir.file("zoom.png")) > 1000);
 }
 
 TEST_CASE("the database's biome must match its species list", "[synth]") {
     World w = makeWorld();
-    CHECK_NOTHROW(databaseBiome(w.db));
+    CHECK_NOTHROW(synth::databaseBiome(w.db));
     std::swap(w.db.speciesNames[0], w.db.speciesNames[1]);
-    CHECK_THROWS_WITH(databaseBiome(w.db), Catch::Contains("species 0"));
+    CHECK_THROWS_WITH(synth::databaseBiome(w.db), Catch::Contains("species 0"));
 }

@@ -14,7 +14,7 @@
 #include "text_format.h"
 #include "undergrowth.h"
 
-namespace eco {
+namespace eco::validate {
 
 namespace {
 
@@ -310,7 +310,7 @@ PatternSummary summarisePattern(const std::string& name, const std::vector<Plant
         for (auto& v : s.radiusRatio) std::sort(v.begin(), v.end());
 
     // Pair correlation per region (region windows), canopy trees as categories.
-    const ScenePairStats stats = scenePairStatistics(ctx.canopy, inPlot, labels, ctx.nRegions, S, params.bins, &W, 0, 1);
+    const synth::ScenePairStats stats = synth::scenePairStatistics(ctx.canopy, inPlot, labels, ctx.nRegions, S, params.bins, &W, 0, 1);
     const int nCat = stats.nCategories, nb = params.bins.count;
     out.pairs.resize(static_cast<std::size_t>(ctx.nRegions));
     for (int r = 0; r < ctx.nRegions; ++r) {
@@ -328,7 +328,7 @@ PatternSummary summarisePattern(const std::string& name, const std::vector<Plant
                                 static_cast<std::size_t>(nb) +
                             static_cast<std::size_t>(k)] = R.g(i, j, k, params.bins, nCat);
         out.scopes[static_cast<std::size_t>(1 + r)].pooledG =
-            R.count.empty() ? std::vector<double>(static_cast<std::size_t>(nb), 0.0) : pooledUndergrowthG(stats, r, S);
+            R.count.empty() ? std::vector<double>(static_cast<std::size_t>(nb), 0.0) : synth::pooledUndergrowthG(stats, r, S);
     }
     // Unmarked pattern in the plot rectangle: g and Ripley's L.
     PcfOptions opt;
@@ -736,4 +736,4 @@ void writeFidelityCsv(const std::string& path, const FidelityReport& r) {
     writeTextFile(path, csv.str());
 }
 
-}  // namespace eco
+}  // namespace eco::validate

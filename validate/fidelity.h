@@ -28,7 +28,7 @@
 #include "plants.h"
 #include "point_pattern.h"
 
-namespace eco {
+namespace eco::validate {
 
 /// Every parameter of the protocol's measures (recorded in the CSV; docs/fidelity.md).
 struct FidelityParams {
@@ -172,4 +172,4 @@ double sortedQuantile(const std::vector<double>& sorted, double q);
 /// Xu et al. 2015's PCT.DEV: |I_synthesis - I_sample| / |I_sample| x 100 (NaN when I_sample is 0).
 double pctDev(double synthesis, double sample);
 
-}  // namespace eco
+}  // namespace eco::validate

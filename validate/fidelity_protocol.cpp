@@ -174,7 +174,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     FidelityParams params = a.params;
     params.window = pipeline::parseWindow(a.crop, "--crop");
     params.validate();
-    parseSynthMethod(a.synthMethod);  // an unknown --synth-method is refused before any stage runs
+    synth::parseSynthMethod(a.synthMethod);  // an unknown --synth-method is refused before any stage runs
     for (const auto& [path, option] : std::vector<std::pair<std::string, std::string>>{
              {a.terrain, "--terrain"}, {a.chm, "--chm"}, {a.abiotics, "--abiotics"}, {a.canopy, "--canopy"},
              {a.reference, "--reference"}, {a.replicate, "--replicate"}, {a.database, "--database"}, {a.scene, "--scene"}})
@@ -294,17 +294,17 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     const bool haveDb = !database.empty();
     if (haveDb) {
         db = readBiomeDatabase(database);
-        biomeOwner = std::make_shared<Biome>(databaseBiome(db));
+        biomeOwner = std::make_shared<Biome>(synth::databaseBiome(db));
     }
-    SimulationReadOptions readOptions;
-    LoadedSimulation A = readSimulation(simA, readOptions);
-    LoadedSimulation B = readSimulation(simB, readOptions);
+    analysis::SimulationReadOptions readOptions;
+    analysis::LoadedSimulation A = analysis::readSimulation(simA, readOptions);
+    analysis::LoadedSimulation B = analysis::readSimulation(simB, readOptions);
     if (!biomeOwner) biomeOwner = B.biome;
     const Biome& biome = *biomeOwner;
     for (const auto* sim : {&A, &B})
         if (sim->biome->species.size() != biome.species.size())
             throw ValidationError("fidelity: the simulations and the database have different species lists");
-    const SceneData sceneData = readSceneFile(scene, biome);
+    const synth::SceneData sceneData = synth::readSceneFile(scene, biome);
 
     FidelityContext ctx;
     ctx.biome = &biome;

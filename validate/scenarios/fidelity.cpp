@@ -93,7 +93,7 @@ struct SceneInputs {
     Grid<float> terrainM, chmM;
     Abiotics abiotics;
     std::vector<Plant> canopy;
-    std::vector<TargetResult> targets;
+    std::vector<synth::TargetResult> targets;
 };
 
 SceneInputs makeSceneInputs(const FidelitySettings& st, const FidelitySettings::Size& size, const Biome& biome) {
@@ -112,18 +112,18 @@ SceneInputs makeSceneInputs(const FidelitySettings& st, const FidelitySettings::
     ap.sun.stepMinutes = st.sunStepMinutes;
     in.abiotics = computeAbiotics(in.terrainM, biome, ap);
     // As `eco canopy --seed S --target ...`.
-    CanopyParams canopyParams;
+    synth::CanopyParams canopyParams;
     canopyParams.seed = st.terrainSeed;
-    SpeciesMapParams speciesParams;
+    synth::SpeciesMapParams speciesParams;
     speciesParams.canopyThresholdM = canopyParams.canopyThresholdM;
-    validateCanopyParams(canopyParams);
-    std::vector<SpeciesTarget> targets;
+    synth::validateCanopyParams(canopyParams);
+    std::vector<synth::SpeciesTarget> targets;
     for (std::size_t i = 0; i < st.canopyTargetSpecies.size(); ++i)
-        targets.push_back(SpeciesTarget{st.canopyTargetSpecies[i], st.canopyTargetFractions[i]});
-    const SpeciesMapInputs mapInputs = speciesMapInputs(in.abiotics, in.chmM);
-    if (!targets.empty()) in.targets = meetTargets(biome, mapInputs, speciesParams, targets);
-    const Grid<std::int32_t> speciesMap = computeSpeciesMap(biome, mapInputs, speciesParams);
-    in.canopy = placeCanopy(in.chmM, in.terrainM, speciesMap, biome, canopyParams).trees;
+        targets.push_back(synth::SpeciesTarget{st.canopyTargetSpecies[i], st.canopyTargetFractions[i]});
+    const synth::SpeciesMapInputs mapInputs = synth::speciesMapInputs(in.abiotics, in.chmM);
+    if (!targets.empty()) in.targets = synth::meetTargets(biome, mapInputs, speciesParams, targets);
+    const Grid<std::int32_t> speciesMap = synth::computeSpeciesMap(biome, mapInputs, speciesParams);
+    in.canopy = synth::placeCanopy(in.chmM, in.terrainM, speciesMap, biome, canopyParams).trees;
     return in;
 }
 
@@ -171,7 +171,7 @@ PlotSimulation simulatePlot(const FidelitySettings& st, const FidelitySettings::
 /// The biome database from simulation A, as `eco analyse A --seed S --kmax K`.
 BiomeDatabase analyseSimulation(const FidelitySettings& st, const PlotSimulation& a, int years, const SceneInputs& scene,
                                 const Biome& biome) {
-    AnalysisInput in;
+    analysis::AnalysisInput in;
     in.biome = &biome;
     in.canopy = a.canopy;
     in.undergrowth = a.undergrowth;
@@ -184,21 +184,21 @@ BiomeDatabase analyseSimulation(const FidelitySettings& st, const PlotSimulation
     in.provenance.seed = st.seedA;
     in.provenance.year = years;
     in.provenance.parameters = st.params.toToml();
-    AnalysisParams params;
+    analysis::AnalysisParams params;
     params.kMax = st.kMax;
     params.seed = st.analysisSeed;
     params.seedingRadiusFactor = st.params.seedOuterRadiusFactor;  // the simulation's seeding disc
-    return analyse({in}, params);
+    return analysis::analyse({in}, params);
 }
 
 /// Undergrowth synthesized by `method` on the scene's terrain, canopy and abiotics.
-UndergrowthSample synthesize(const BiomeDatabase& db, const Biome& dbBiome, const SceneInputs& scene,
-                             const ClusterMap& clusters, SynthMethod method, std::uint64_t seed) {
-    SynthParams p;
+synth::UndergrowthSample synthesize(const BiomeDatabase& db, const Biome& dbBiome, const SceneInputs& scene,
+                                    const synth::ClusterMap& clusters, synth::SynthMethod method, std::uint64_t seed) {
+    synth::SynthParams p;
     p.method = method;
     p.seed = seed;
     p.validate();
-    return sampleUndergrowth(db, dbBiome, scene.canopy, clusters, scene.terrainM, p);
+    return synth::sampleUndergrowth(db, dbBiome, scene.canopy, clusters, scene.terrainM, p);
 }
 
 /// Text for a Markdown table cell: '|' escaped.
@@ -294,18 +294,18 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
     const BiomeDatabase db = analyseSimulation(st, A, size.years, scene, biome);
     const double analyseS = secondsSince(t);
     if (db.regions.empty()) throw ValidationError(sc.path + ": the database from simulation A holds no region");
-    const Biome dbBiome = databaseBiome(db);
+    const Biome dbBiome = synth::databaseBiome(db);
 
     // The cluster map of the scene (the sun under its canopy, as the analyser's regions were
     // made); it does not depend on the sampler.
     t = Clock::now();
     Abiotics shaded = scene.abiotics;
     shaded.sunHours = applyCanopyShade(scene.abiotics.sunHours, shadingTrees(scene.canopy, dbBiome));
-    SynthParams clusterParams;
+    synth::SynthParams clusterParams;
     clusterParams.seed = st.synthSeed;
-    const ClusterMap clusters = computeClusterMap(db, dbBiome, scene.canopy, annualFactors(shaded), clusterParams);
-    const UndergrowthSample structured = synthesize(db, dbBiome, scene, clusters, SynthMethod::Structured, st.synthSeed);
-    const UndergrowthSample darts = synthesize(db, dbBiome, scene, clusters, SynthMethod::Darts, st.synthSeed);
+    const synth::ClusterMap clusters = synth::computeClusterMap(db, dbBiome, scene.canopy, annualFactors(shaded), clusterParams);
+    const synth::UndergrowthSample structured = synthesize(db, dbBiome, scene, clusters, synth::SynthMethod::Structured, st.synthSeed);
+    const synth::UndergrowthSample darts = synthesize(db, dbBiome, scene, clusters, synth::SynthMethod::Darts, st.synthSeed);
     const double synthS = secondsSince(t);
 
     // The protocol's measures (docs/fidelity.md), for both samplers against the same A, B and CSR.
@@ -370,7 +370,7 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
     std::int64_t seeded = 0;
     for (std::size_t i = 0; i < clusters.region.size(); ++i) seeded += clusters.region.data()[i] >= 0;
     std::string targets;
-    for (const TargetResult& tr : scene.targets)
+    for (const synth::TargetResult& tr : scene.targets)
         targets += (targets.empty() ? "" : ", ") + tr.species + " " + fixed(tr.achieved, 3) + " of the forest (asked " +
                    fixed(tr.requested, 3) + ")";
     r.details.push_back("- Scene (as `eco fidelity`, docs/fidelity.md, but every stage through the libraries in memory): "
