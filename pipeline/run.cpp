@@ -75,6 +75,60 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     ensureDirectory(out);
     const auto at = [&](const std::string& name) { return (std::filesystem::path(out) / name).string(); };
 
+    // The stages of one scene, the simulated one (dir "") or the synthesis target (dir
+    // "target/"): the same options, each scene in its own folder. Filled in below as the
+    // tables are read.
+    double sunStepMinutes = 10;
+    std::string canopyConfig;
+    std::vector<std::string> canopyTargets;
+    const auto generatedTerrain = [&](const std::string& dir, const TerrainGenParams& params) {
+        TerrainGenerateOptions o;
+        o.out = at(dir + "terrain.h5");
+        o.params = params;
+        o.pngDir = at(dir + "png");
+        return o;
+    };
+    const auto generatedChm = [&](const std::string& dir, const std::string& terrainPath, const TerrainReadFlags& read,
+                                  std::uint64_t chmSeed) {
+        ChmGenerateOptions o;
+        o.terrain = terrainPath;
+        o.out = at(dir + "chm.h5");
+        o.chm.seed = chmSeed;
+        o.pngDir = at(dir + "png");
+        o.terrainRead = read;
+        return o;
+    };
+    const auto abioticsOf = [&](const std::string& dir, const std::string& terrainPath, const TerrainReadFlags& read) {
+        AbioticsOptions o;
+        o.terrain = terrainPath;
+        o.out = at(dir + "abiotics.h5");
+        o.pngDir = at(dir + "png/abiotics");
+        if (gis) o.geotiffDir = at(dir + "gis");
+        o.sunStepMinutes = sunStepMinutes;
+        o.terrainRead = read;
+        o.biome = biome;
+        return o;
+    };
+    const auto canopyOf = [&](const std::string& dir, const std::string& terrainPath, const std::string& chmPath,
+                              const TerrainReadFlags& read, std::uint64_t canopySeed) {
+        CanopyOptions o;
+        o.terrain = terrainPath;
+        o.chm = chmPath;
+        o.abiotics = at(dir + "abiotics.h5");
+        o.out = at(dir + "canopy.h5");
+        o.pngDir = at(dir + "png/canopy");
+        if (gis) {
+            o.geotiffDir = at(dir + "gis");
+            o.gpkg = at(dir + "gis/canopy.gpkg");
+        }
+        o.seed = canopySeed;
+        o.terrainRead = read;
+        o.config = canopyConfig;
+        o.targets = canopyTargets;
+        o.biome = biome;
+        return o;
+    };
+
     // Terrain: a given file, or the generated default.
     std::string terrain = at("terrain.h5");
     TerrainReadFlags terrainRead;
@@ -86,15 +140,11 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             if (t.has("cell_size_m")) terrainRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
             if (t.has("vertical_scale")) terrainRead.verticalScale = asOnCommandLine(t.positive("vertical_scale"));
         } else {
-            TerrainGenerateOptions o;
-            o.out = terrain;
-            o.params.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", 512), 2, 1 << 16));
-            o.params.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", 512), 2, 1 << 16));
-            o.params.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", 0.914));
-            o.params.seed = seedValue(t, "seed", t.integerOr("seed", seed));
-            o.pngDir = at("png");
-            terrainParams = o.params;
-            stages.push_back({"terrain", o});
+            terrainParams.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", 512), 2, 1 << 16));
+            terrainParams.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", 512), 2, 1 << 16));
+            terrainParams.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", 0.914));
+            terrainParams.seed = seedValue(t, "seed", t.integerOr("seed", seed));
+            stages.push_back({"terrain", generatedTerrain("", terrainParams)});
         }
         t.finish();
     }
@@ -105,12 +155,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         if (t.has("path")) {
             chm = t.string("path");
         } else {
-            ChmGenerateOptions o;
-            o.terrain = terrain;
-            o.out = chm;
-            o.chm.seed = seedValue(t, "seed", t.integerOr("seed", seed));
-            o.pngDir = at("png");
-            o.terrainRead = terrainRead;
+            ChmGenerateOptions o = generatedChm("", terrain, terrainRead, seedValue(t, "seed", t.integerOr("seed", seed)));
             if (t.has("sketch")) o.sketchImage = t.string("sketch");
             stages.push_back({"chm", o});
         }
@@ -118,47 +163,22 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     }
     // Abiotics.
     const std::string abiotics = at("abiotics.h5");
-    double sunStepMinutes = 10;
     {
         StrictTable t(top.table("abiotics"), configPath, "[abiotics]");
         sunStepMinutes = asOnCommandLine(t.positiveOr("sun_step_minutes", sunStepMinutes));
         if (sunStepMinutes < 0.1 || sunStepMinutes > 720) t.fail("sun_step_minutes", "must be in 0.1 .. 720 minutes");
-        AbioticsOptions o;
-        o.terrain = terrain;
-        o.out = abiotics;
-        o.pngDir = at("png/abiotics");
-        if (gis) o.geotiffDir = at("gis");
-        o.sunStepMinutes = sunStepMinutes;
-        o.terrainRead = terrainRead;
-        o.biome = biome;
-        stages.push_back({"abiotics", o});
+        stages.push_back({"abiotics", abioticsOf("", terrain, terrainRead)});
         t.finish();
     }
     // Canopy trees from the CHM.
     const std::string canopy = at("canopy.h5");
-    std::string canopyConfig;
-    std::vector<std::string> canopyTargets;
     const bool placesCanopy = top.has("canopy");
     if (const toml::table* tt = top.optionalTable("canopy")) {
         StrictTable t(*tt, configPath, "[canopy]");
-        CanopyOptions o;
-        o.terrain = terrain;
-        o.chm = chm;
-        o.abiotics = abiotics;
-        o.out = canopy;
-        o.pngDir = at("png/canopy");
-        o.csv = at("canopy.csv");
-        if (gis) {
-            o.geotiffDir = at("gis");
-            o.gpkg = at("gis/canopy.gpkg");
-        }
-        o.seed = static_cast<std::uint64_t>(seed);
-        o.terrainRead = terrainRead;
         if (t.has("config")) canopyConfig = t.string("config");
-        o.config = canopyConfig;
         if (t.has("targets")) canopyTargets = t.strings("targets");
-        o.targets = canopyTargets;
-        o.biome = biome;
+        CanopyOptions o = canopyOf("", terrain, chm, terrainRead, static_cast<std::uint64_t>(seed));
+        o.csv = at("canopy.csv");
         stages.push_back({"canopy", o});
         t.finish();
     }
@@ -220,58 +240,20 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             targetTerrain = t.string("terrain");
             if (t.has("cell_size_m")) targetRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
         } else {
-            TerrainGenerateOptions o;
-            o.out = targetTerrain;
-            o.params.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", terrainParams.width), 2, 1 << 16));
-            o.params.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", terrainParams.height), 2, 1 << 16));
-            o.params.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", terrainParams.cellSizeM));
-            o.params.seed = ts;
-            o.pngDir = at("target/png");
-            stages.push_back({"target terrain", o});
+            TerrainGenParams p;
+            p.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", terrainParams.width), 2, 1 << 16));
+            p.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", terrainParams.height), 2, 1 << 16));
+            p.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", terrainParams.cellSizeM));
+            p.seed = ts;
+            stages.push_back({"target terrain", generatedTerrain("target/", p)});
         }
         std::string targetChm = at("target/chm.h5");
-        if (t.has("chm")) {
-            targetChm = t.string("chm");
-        } else {
-            ChmGenerateOptions o;
-            o.terrain = targetTerrain;
-            o.out = targetChm;
-            o.chm.seed = ts;
-            o.pngDir = at("target/png");
-            o.terrainRead = targetRead;
-            stages.push_back({"target chm", o});
-        }
+        if (t.has("chm")) targetChm = t.string("chm");
+        else stages.push_back({"target chm", generatedChm("target/", targetTerrain, targetRead, ts)});
         const std::string targetAbiotics = at("target/abiotics.h5");
-        {
-            AbioticsOptions o;
-            o.terrain = targetTerrain;
-            o.out = targetAbiotics;
-            o.pngDir = at("target/png/abiotics");
-            if (gis) o.geotiffDir = at("target/gis");
-            o.sunStepMinutes = sunStepMinutes;
-            o.terrainRead = targetRead;
-            o.biome = biome;
-            stages.push_back({"target abiotics", o});
-        }
+        stages.push_back({"target abiotics", abioticsOf("target/", targetTerrain, targetRead)});
         const std::string targetCanopy = at("target/canopy.h5");
-        {
-            CanopyOptions o;
-            o.terrain = targetTerrain;
-            o.chm = targetChm;
-            o.abiotics = targetAbiotics;
-            o.out = targetCanopy;
-            o.pngDir = at("target/png/canopy");
-            if (gis) {
-                o.geotiffDir = at("target/gis");
-                o.gpkg = at("target/gis/canopy.gpkg");
-            }
-            o.seed = ts;
-            o.terrainRead = targetRead;
-            o.config = canopyConfig;
-            o.targets = canopyTargets;
-            o.biome = biome;
-            stages.push_back({"target canopy", o});
-        }
+        stages.push_back({"target canopy", canopyOf("target/", targetTerrain, targetChm, targetRead, ts)});
         const std::string scene = at("scene.h5");
         {
             SynthOptions o;
