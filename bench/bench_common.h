@@ -32,6 +32,15 @@ inline double loadAverage() {
     return l;
 }
 
+/// Prints `usage` and returns true when the first argument asks for help (-h, --help) or is
+/// any other option: the benchmarks take positional arguments, and a flag must not become
+/// the name of the results file.
+inline bool wantsUsage(int argc, char** argv, const char* usage) {
+    if (argc < 2 || argv[1][0] != '-') return false;
+    std::cout << usage;
+    return true;
+}
+
 /// "1024,2048,3072" -> {1024, 2048, 3072}.
 inline std::vector<int> parseSizes(const std::string& s) {
     std::vector<int> out;
