@@ -451,6 +451,21 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     db.contextBins = params.contextBins;
     db.parameters = params.asParameters();
 
+    // Pairs farther apart than half a window's shorter side are too few (and the edge
+    // correction too large) for a pair correlation; far beyond it every bin would be 0.
+    // Checked before any work.
+    for (std::size_t i = 0; i < inputs.size(); ++i) {
+        const AnalysisInput& in = inputs[i];
+        const Grid<float>& g = in.features.geometry();
+        const double wx = std::min(in.window.x1, g.originX() + g.extentX()) - std::max(in.window.x0, g.originX());
+        const double wy = std::min(in.window.y1, g.originY() + g.extentY()) - std::max(in.window.y0, g.originY());
+        const double halfShorter = 0.5 * std::min(wx, wy);
+        if (wx > 0 && wy > 0 && params.pcfBins.rMaxM > halfShorter)
+            throw ValidationError("analyse: input " + std::to_string(i) + " (" + in.provenance.path + "): the pair-correlation "
+                                  "range (--rmax / pcf_rmax_m) " + num(params.pcfBins.rMaxM) + " m is more than half the shorter side "
+                                  "of its window (" + num(wx) + " x " + num(wy) + " m); use at most " + num(halfShorter) + " m");
+    }
+
     // 1. Combination labels of every analysed cell.
     report("labels", 0.0);
     std::vector<PreparedInput> prep(inputs.size());

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <iostream>
+#include <new>
 
 #include "cli_common.h"
 #include "eco_version.h"
@@ -15,11 +16,14 @@ std::unique_ptr<CLI::App> makeApp() {
         "eco: simulate plant ecosystems, analyse them into biome databases, and synthesize "
         "large scenes from them.\nRun 'eco <command> --help' for each command.",
         "eco");
+    app->footer("Exit status: 0 success; 1 bad input data (a file, a value in it, or a value out of range: one line "
+                "naming the file, field and value); 2 usage error (unknown option, missing or malformed argument); "
+                "3 eco validate: a check failed; 4 internal error (a bug: please report it).");
     app->set_version_flag("--version", std::string("eco ") + ECO_VERSION_STRING);
     app->require_subcommand(1);
     auto threads = std::make_shared<int>(0);
-    app->add_option("--threads", *threads, "OpenMP threads (default: all cores); results do not depend on it")
-        ->check(CLI::NonNegativeNumber);
+    app->add_option("--threads", *threads, "OpenMP threads, 1..1024 (default: all cores); results do not depend on it")
+        ->check(CLI::Range(0, 1024));
     app->parse_complete_callback([threads] {
         if (*threads > 0) omp_set_num_threads(*threads);
     });
@@ -41,21 +45,35 @@ std::unique_ptr<CLI::App> makeApp() {
 
 }  // namespace eco::cli
 
+namespace {
+// The exit codes, documented in eco --help and the README.
+constexpr int kExitBadInput = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitInternal = 4;  // 3 is eco validate's "a check failed" (cmd_validate.cpp)
+}  // namespace
+
 int main(int argc, char** argv) {
     auto app = eco::cli::makeApp();
     try {
         app->parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app->exit(e);
+        // --help and --version end parsing with code 0; every other parse error is a usage
+        // error: CLI11's message, then one exit code (2) whatever CLI11's own code.
+        const int code = app->exit(e);
+        return code == 0 ? 0 : kExitUsage;
     } catch (const eco::cli::ExitStatus& e) {
         std::cerr << "eco: " << e.message << "\n";
         return e.code;
     } catch (const eco::Error& e) {
         std::cerr << "eco: error: " << e.what() << "\n";
-        return 1;
+        return kExitBadInput;
+    } catch (const std::bad_alloc&) {
+        std::cerr << "eco: error: out of memory (the machine could not give what this run needs; try a smaller "
+                     "scene or fewer threads)\n";
+        return kExitBadInput;
     } catch (const std::exception& e) {
         std::cerr << "eco: internal error: " << e.what() << "\n";
-        return 2;
+        return kExitInternal;
     }
     return 0;
 }

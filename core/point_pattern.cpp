@@ -102,8 +102,11 @@ std::vector<CellWindow> CellWindow::fromLabels(const Grid<std::int32_t>& labels,
     if (!(maxLagM >= 0.0) || !std::isfinite(maxLagM))
         throw ValidationError("CellWindow: maximum lag must be finite and >= 0, got " + num(maxLagM));
     const double cs = labels.cellSizeM();
-    // One extra lag so that the bilinear interpolation is defined up to maxLagM.
-    const int lag = static_cast<int>(std::ceil(maxLagM / cs)) + 1;
+    // One extra lag so that the bilinear interpolation is defined up to maxLagM; no more
+    // lags than the grid has (beyond them every overlap is 0, which the lookup returns for
+    // lags outside the table), so a huge maxLagM neither overflows nor allocates.
+    const double lagCells = std::ceil(maxLagM / cs) + 1;
+    const int lag = static_cast<int>(std::min(lagCells, static_cast<double>(std::max(labels.width(), labels.height()))));
     const int side = 2 * lag + 1;
     const std::size_t tableSize = static_cast<std::size_t>(side) * static_cast<std::size_t>(side);
     const std::size_t nl = static_cast<std::size_t>(nLabels);

@@ -70,4 +70,17 @@ TEST_CASE("eco analyse: bad input gives one clear line, a non-zero exit and no o
     r = eco::test::runEco("inspect " + ab);
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.output, Catch::Contains("not a biome database"));
+    // A pair-correlation range beyond the window (issue 26: 1e12 gave g = 0 everywhere and
+    // exit 0; 1e6 ran out of memory) is refused with the largest usable value.
+    writeFakeSimulation(dir.file("sim.h5"), dir.file("abiotics2.h5"));
+    for (const char* rmax : {"1e12", "1e6", "500"}) {
+        r = eco::test::runEco("analyse " + dir.file("sim.h5") + " --out " + db + " --rmax " + rmax);
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("more than half the shorter side") && Catch::Contains("use at most"));
+        // the input's summary line, then the error as one line; no progress: refused before any work
+        CHECK(lineCount(r.output) == 2);
+        CHECK_THAT(r.output, Catch::Contains("\neco: error: analyse: input 0"));
+        CHECK_FALSE(std::filesystem::exists(db));
+    }
 }

@@ -43,9 +43,26 @@ TEST_CASE("every command has --help", "[cli]") {
 }
 
 TEST_CASE("no command or an unknown one is an error", "[cli]") {
-    CHECK(runEco("").exitCode != 0);
+    CHECK(runEco("").exitCode == 2);
     const auto r = runEco("frobnicate");
-    CHECK(r.exitCode != 0);
+    CHECK(r.exitCode == 2);
+}
+
+TEST_CASE("usage errors exit 2 whatever CLI11 calls them; bad data exits 1", "[cli]") {
+    // CLI11 gives 105-109 for these; eco documents one code (eco --help, README).
+    for (const char* args : {"simulate --no-such-flag", "terrain generate --width", "terrain generate --width abc --out x.h5",
+                             "canopy --chm c.h5", "--threads 100000 pcf pts.csv", "--threads -1 pcf pts.csv"}) {
+        const auto r = runEco(args);
+        INFO(args << "\n" << r.output);
+        CHECK(r.exitCode == 2);
+    }
+    const auto threads = runEco("--threads 100000 terrain generate --out x.h5");  // was a stack overflow in libgomp
+    CHECK_THAT(threads.output, Catch::Contains("--threads") && Catch::Contains("1024"));
+    CHECK_FALSE(std::filesystem::exists("x.h5"));
+    CHECK(runEco("terrain convert /no/such/file.asc out.h5").exitCode == 1);
+    const auto help = runEco("--help");
+    CHECK(help.exitCode == 0);
+    CHECK_THAT(help.output, Catch::Contains("Exit status") && Catch::Contains("2 usage error"));
 }
 
 TEST_CASE("a bad number for a flag names the flag and the value", "[cli]") {
