@@ -1,5 +1,7 @@
 #include "generate.h"
 
+#include "memory.h"
+
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -221,6 +223,9 @@ Grid<float> generateTerrain(const TerrainGenParams& p) {
 Grid<float> generateTerrain(const TerrainGenParams& p, TerrainFeatures& features) {
     validate(p);
     const int w = p.width, h = p.height;
+    // The result, the creek distance field and the octave sums: about 16 bytes a cell.
+    requireMemory(16.0 * w * h, "a terrain of " + std::to_string(w) + " x " + std::to_string(h) + " cells",
+                  "a smaller --width / --height, or larger cells");
     const double cell = p.cellSizeM;
     const double extentX = w * cell, extentY = h * cell;
     const double smallestM = p.smallestFeatureCells * cell;
@@ -534,6 +539,14 @@ Grid<float> generateChm(const Grid<std::int32_t>& sketch, const ChmGenParams& p,
     // position, height and priority come from its own stream, so they do not depend on
     // which other candidates are accepted.
     const double maxRadius = chmCrownRadiusM(p, p.maxHeightM);
+    {  // one candidate per jittered cell of half the spacing (an upper bound over the levels)
+        const double spacing = std::min(p.denseSpacingM, p.sparseSpacingM);
+        const double cells = std::ceil(extentX / (0.5 * spacing)) * std::ceil(extentY / (0.5 * spacing));
+        requireMemory(cells * static_cast<double>(sizeof(Candidate)) * 2.0,
+                      "the CHM generator's " + formatNumber(cells, 3) + " tree candidates (spacing " +
+                          formatNumber(spacing, 6) + " m over " + formatNumber(extentX, 6) + " x " + formatNumber(extentY, 6) + " m)",
+                      "a larger --dense-spacing / --sparse-spacing");
+    }
     std::vector<Candidate> candidates;
     for (const std::int32_t level : {Dense, Sparse}) {
         const double spacing = level == Dense ? p.denseSpacingM : p.sparseSpacingM;

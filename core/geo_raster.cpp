@@ -20,6 +20,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "h5io.h"
+#include "memory.h"
 
 namespace eco {
 
@@ -279,6 +280,9 @@ GeoRaster readGeoRaster(const std::string& path) {
     out.driver = ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "";
     const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
     if (w <= 0 || h <= 0 || ds->GetRasterCount() < 1) throw IoError(path + ": the raster has no cells or no band");
+    // Cells as double, the nodata mask and the grid: about 13 bytes a cell.
+    requireMemory(13.0 * w * h, path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells",
+                  "crop or resample it first, e.g. gdal_translate -srcwin / gdalwarp -tr");
     double gt[6];
     if (ds->GetGeoTransform(gt) != CE_None)
         throw ValidationError(path + ": no georeferencing (geotransform) in the file; give the cell size with --cell-size "

@@ -18,6 +18,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "geo_raster.h"
+#include "memory.h"
 #include "text_format.h"
 
 namespace eco {
@@ -247,10 +248,13 @@ Grid<float> readAscImpl(const std::string& path, const TerrainReadOptions& optio
     const double cell = require("cellsize");
     const auto [xll, xIsCentre] = requireEither("xllcorner", "xllcenter");
     const auto [yll, yIsCentre] = requireEither("yllcorner", "yllcenter");
-    if (ncolsD < 1 || ncolsD != std::floor(ncolsD) || ncolsD > 1e7)
-        throw IoError(path + ": ncols must be a positive integer, got " + numberText(ncolsD));
-    if (nrowsD < 1 || nrowsD != std::floor(nrowsD) || nrowsD > 1e7)
-        throw IoError(path + ": nrows must be a positive integer, got " + numberText(nrowsD));
+    for (const auto& [key, v] : {std::pair<const char*, double>{"ncols", ncolsD}, {"nrows", nrowsD}}) {
+        if (v < 1 || v != std::floor(v))
+            throw IoError(path + ": " + key + " must be a positive whole number, got " + numberText(v));
+        if (v > 1e7) throw IoError(path + ": " + key + " = " + numberText(v) + " is larger than eco reads (at most 10000000 a side)");
+    }
+    requireMemory(8.0 * ncolsD * nrowsD, path + ": a grid of " + numberText(ncolsD) + " x " + numberText(nrowsD) + " cells",
+                  "crop or resample it first, e.g. gdal_translate -srcwin / gdalwarp -tr");
     if (!(cell > 0)) throw IoError(path + ": cellsize must be > 0, got " + numberText(cell));
     checkCellSize(path, cell, options);
 
@@ -346,6 +350,9 @@ Grid<float> readTerrainImage(const std::string& path, const TerrainReadOptions& 
     const int w = spec.width, h = spec.height;
     if (w <= 0 || h <= 0 || spec.nchannels < 1)
         throw IoError(path + ": image has no pixels");
+    // The pixels as float, then the grid: 8 bytes a cell (the header alone can claim any size).
+    requireMemory(8.0 * w * h, path + ": an image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels",
+                  "crop or resample it first");
     std::vector<float> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
     // Channel 0 only; OIIO maps unsigned integer pixels to [0, 1] and leaves floats as stored.
     if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data())) {

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "memory.h"
 #include "sampling_detail.h"
 #include "rng.h"
 #include "text_format.h"
@@ -321,6 +322,19 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
     if (static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h) >= (std::uint64_t{1} << 32))
         throw ValidationError("undergrowth sampling: terrain of " + std::to_string(w) + " x " + std::to_string(h) +
                               " cells is too large (at most 2^32 cells)");
+    {  // The plants the database asks for here, before any allocation: a database density of
+        // 1e12 per m2 must be a clear error, not an abort inside a parallel region.
+        std::vector<double> cellsOf(db.regions.size(), 0.0);
+        for (const std::int32_t r : map.region.data())
+            if (r >= 0 && static_cast<std::size_t>(r) < cellsOf.size()) cellsOf[static_cast<std::size_t>(r)] += 1;
+        double plants = 0;
+        for (std::size_t r = 0; r < db.regions.size(); ++r)
+            plants += cellsOf[r] * terrainM.cellSizeM() * terrainM.cellSizeM() * db.regions[r].densityPerM2;
+        // A plant, its candidates (about 2.5 per plant) and the sort buffers: about 200 bytes.
+        requireMemory(200.0 * plants, "undergrowth sampling of about " + formatNumber(plants, 3) +
+                                          " plants (the database's densities over this terrain)",
+                      "a smaller terrain, or check the database's densities with eco inspect");
+    }
     if (params.method == SynthMethod::Structured) return sampleStructured(db, biome, canopy, map, terrainM, params);
     const double cs = terrainM.cellSizeM();
     const double cellArea = cs * cs;

@@ -192,3 +192,38 @@ TEST_CASE("eco run: a stage without what it needs is a clear error before anythi
     CHECK_THAT(r.output, Catch::Contains("bad.toml") && Catch::Contains("[synth]") && Catch::Contains("analyse"));
     CHECK_FALSE(std::filesystem::exists(dir.file("out/terrain.h5")));
 }
+
+TEST_CASE("sizes beyond the memory are refused before allocating, with what they need", "[cli][errors]") {
+    // Under a 3 GB address-space limit (the check takes the smaller of it and the machine's
+    // available memory), each of these was a bad_alloc or an abort inside a parallel region.
+    constexpr long kLimitKb = 3L * 1024 * 1024;
+    eco::test::TempDir dir("cli_memory");
+    const auto terrain = runEco("terrain generate --width 65536 --height 65536 --out " + dir.file("t.h5"), kLimitKb);
+    CHECK(terrain.exitCode == 1);
+    CHECK_THAT(terrain.output, Catch::Contains("65536 x 65536 cells needs about") && Catch::Contains("GB available") &&
+                                   Catch::Contains("--width"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("t.h5")));
+
+    REQUIRE(runEco("terrain generate --width 64 --height 64 --out " + dir.file("small.h5")).exitCode == 0);
+    const auto chm = runEco("chm generate --terrain " + dir.file("small.h5") + " --dense-spacing 0.001 --out " + dir.file("c.h5"), kLimitKb);
+    CHECK(chm.exitCode == 1);
+    CHECK_THAT(chm.output, Catch::Contains("tree candidates") && Catch::Contains("needs about") && Catch::Contains("--dense-spacing"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("c.h5")));
+
+    const std::string asc = dir.file("huge.asc");
+    {
+        std::ofstream f(asc);
+        f << "ncols 100000\nnrows 100000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2 3\n";
+    }
+    const auto big = runEco("terrain convert " + asc + " " + dir.file("h.h5"), kLimitKb);
+    CHECK(big.exitCode == 1);
+    CHECK_THAT(big.output, Catch::Contains("huge.asc: a grid of 100000 x 100000 cells needs about 80 GB"));
+    {
+        std::ofstream f(asc);
+        f << "ncols 2e9\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2 3\n";
+    }
+    const auto side = runEco("terrain convert " + asc + " " + dir.file("h.h5"));
+    CHECK(side.exitCode == 1);
+    CHECK_THAT(side.output, Catch::Contains("ncols = 2e+09 is larger than eco reads (at most 10000000 a side)"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("h.h5")));
+}

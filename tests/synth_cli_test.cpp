@@ -319,3 +319,18 @@ TEST_CASE("a georeferenced round trip: GeoTIFF in, scene out as GeoPackage and G
     REQUIRE(r2.exitCode == 0);
     CHECK_THAT(r2.output, Catch::Contains("the terrain's CRS"));
 }
+
+TEST_CASE("eco synth: a database asking for more plants than fit in memory is refused before sampling", "[synth][cli][errors]") {
+    World w = makeWorld();
+    w.db.regions[0].densityPerM2 = 1e12;  // issue 26: grew past 5 GB and aborted inside an OpenMP region
+    test::TempDir dir("synth_memory");
+    const WorldFiles f = writeWorld(w, dir);
+    const auto r = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                                    " --abiotics " + f.abiotics + " --out " + dir.file("scene.h5"),
+                                3L * 1024 * 1024);
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("undergrowth sampling of about") && Catch::Contains("needs about") &&
+                             Catch::Contains("eco inspect"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("scene.h5")));
+}

@@ -18,8 +18,11 @@ struct CommandResult {
 
 #ifdef ECO_BINARY  // defined for eco_cli_tests only: unit tests do not run the binary
 /// Run the eco binary with `args` (a shell-quoted string), capturing its output.
-inline CommandResult runEco(const std::string& args) {
-    const std::string cmd = std::string(ECO_BINARY) + " " + args + " 2>&1";
+/// Runs eco with its arguments; with `memoryLimitKb` > 0 under that address-space limit
+/// (ulimit -v), so that memory checks are tested the same on any machine.
+inline CommandResult runEco(const std::string& args, long memoryLimitKb = 0) {
+    const std::string run = std::string(ECO_BINARY) + " " + args + " 2>&1";
+    const std::string cmd = memoryLimitKb > 0 ? "ulimit -v " + std::to_string(memoryLimitKb) + "; " + run : run;
     CommandResult r;
     FILE* pipe = ::popen(cmd.c_str(), "r");
     if (!pipe) return r;

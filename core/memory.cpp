@@ -1,0 +1,48 @@
+// Memory checks before large allocations (memory.h).
+#include "memory.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "error.h"
+
+namespace eco {
+
+std::uint64_t availableMemoryBytes() {
+    std::uint64_t avail = 0;
+    std::ifstream in("/proc/meminfo");
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.rfind("MemAvailable:", 0) != 0) continue;
+        std::istringstream ss(line.substr(13));
+        std::uint64_t kb = 0;
+        if (ss >> kb) avail = kb * 1024;
+        break;
+    }
+    rlimit lim{};
+    if (getrlimit(RLIMIT_AS, &lim) == 0 && lim.rlim_cur != RLIM_INFINITY) {
+        const auto cap = static_cast<std::uint64_t>(lim.rlim_cur);
+        avail = avail == 0 ? cap : std::min(avail, cap);
+    }
+    return avail;
+}
+
+std::string bytesText(double bytes) {
+    char buf[64];
+    if (bytes >= 1e9) std::snprintf(buf, sizeof buf, "%.3g GB", bytes / 1e9);
+    else std::snprintf(buf, sizeof buf, "%.3g MB", bytes / 1e6);
+    return buf;
+}
+
+void requireMemory(double bytes, const std::string& what, const std::string& hint) {
+    const std::uint64_t avail = availableMemoryBytes();
+    if (avail == 0 || bytes <= static_cast<double>(avail)) return;
+    throw ValidationError(what + " needs about " + bytesText(bytes) + " of memory but the machine has " +
+                          bytesText(static_cast<double>(avail)) + " available" + (hint.empty() ? "" : " (" + hint + ")"));
+}
+
+}  // namespace eco
