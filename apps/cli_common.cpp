@@ -2,6 +2,7 @@
 
 #include "error.h"
 #include "simulator.h"
+#include "text_format.h"
 
 #include <unistd.h>
 
@@ -64,6 +65,25 @@ CLI::Validator numberCheck(bool zeroAllowed) {
         zeroAllowed ? "NUMBER >= 0" : "NUMBER > 0");
 }
 }  // namespace
+
+CLI::Validator numberIn(double lo, double hi) {
+    const std::string range = "[" + formatNumber(lo, 10) + ", " + formatNumber(hi, 10) + "]";
+    return CLI::Validator(
+        [lo, hi, range](std::string& text) -> std::string {
+            char* end = nullptr;
+            errno = 0;
+            const double v = std::strtod(text.c_str(), &end);
+            if (text.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) return "'" + text + "' is not a number";
+            if (v < lo || v > hi) return "must lie in " + range + ", got " + text;
+            return "";
+        },
+        "NUMBER in " + range);
+}
+
+const CLI::Validator& cellSizeRange() {
+    static const CLI::Validator v = numberIn(1e-3, 1e4);
+    return v;
+}
 
 const CLI::Validator& positiveNumber() {
     static const CLI::Validator v = numberCheck(false);

@@ -64,6 +64,10 @@ private:
 /// instead. The value must be a finite number, and > 0 or >= 0.
 const CLI::Validator& positiveNumber();
 const CLI::Validator& nonNegativeNumber();
+/// A finite number in [lo, hi] ("must lie in [0.001, 10000], got 1e-300").
+CLI::Validator numberIn(double lo, double hi);
+/// Metres per cell: 1 mm .. 10 km (a cell size of 1e-300 m was accepted and gave nonsense).
+const CLI::Validator& cellSizeRange();
 
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);

@@ -47,7 +47,7 @@ void registerAbioticsCommand(CLI::App& app) {
                     "shade with their canopy themselves and want the unshaded file");
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM,
                     "Metres per cell (required for image terrains; checked against .asc / .h5)")
-        ->check(positiveNumber());
+        ->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrains only: metres per stored unit")
         ->capture_default_str();
     args->offsetOpt = cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrains only: metres added after scaling")

@@ -46,6 +46,10 @@ std::string replaceExtension(const std::string& path, const std::string& ext) {
 void runPcf(const PcfArgs& args) {
     const RectWindow window = parseWindow(args.window, "--window");
     const PointPattern pattern = readPointPatternCsv(args.points, &window);
+    // g needs pairs: with 0 or 1 point every bin would read 0 (issue 26).
+    if (pattern.size() < 2)
+        throw ValidationError(args.points + ": " + std::to_string(pattern.size()) + " point(s) inside the window " + args.window +
+                              "; the pair correlation needs at least 2");
     PcfOptions opt;
     const double halfShorter = 0.5 * std::min(window.widthM(), window.heightM());
     opt.bins = DistanceBins{args.rMaxM > 0 ? args.rMaxM : 0.5 * halfShorter, args.bins};

@@ -99,7 +99,7 @@ void registerCanopyCommand(CLI::App& app) {
     args->seedHeightOpt = cmd->add_option("--min-seed-height", args->minSeedHeightM,
                                           "Trees stand only where the CHM is >= this, metres (3)");
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for plain images; georeferenced rasters carry it)")
-        ->check(positiveNumber());
+        ->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")
         ->capture_default_str();
     args->offsetOpt = cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrain only: metres added after scaling")

@@ -96,7 +96,7 @@ void registerFidelityCommand(CLI::App& app) {
     opt("--terrain-seed", a->terrainSeed, "Seed of the generated terrain, CHM and canopy")->capture_default_str()->check(nonNegativeNumber());
     opt("--width", a->width, "Generated terrain: cells along x")->capture_default_str()->check(positiveNumber());
     opt("--height", a->height, "Generated terrain: cells along y")->capture_default_str()->check(positiveNumber());
-    opt("--cell-size", a->cellSizeM, "Generated terrain: metres per cell")->capture_default_str()->check(positiveNumber());
+    opt("--cell-size", a->cellSizeM, "Generated terrain: metres per cell")->capture_default_str()->check(cellSizeRange());
     opt("--sun-step", a->sunStepMinutes, "Abiotics: sun step, minutes")->capture_default_str()->check(positiveNumber());
     opt("--target", a->canopyTargets, "Canopy species targets, e.g. Douglas-Fir=0.3 (repeatable)");
     opt("--sim-config", a->simConfig, "Simulation configuration (model constants)")->capture_default_str();

@@ -95,7 +95,7 @@ void registerSynthCommand(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--no-undergrowth-shade", a->noUndergrowthShade,
                   "Forest floor: only canopy crowns shade the grass and drop litter");
-    args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for image terrains)")->check(positiveNumber());
+    args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for image terrains)")->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")->capture_default_str();
     args->offsetOpt = cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrain only: metres added after scaling")
         ->capture_default_str();
@@ -116,7 +116,8 @@ void registerCompareCommand(CLI::App& app) {
     cmd->add_option("--pcf-sources", a->pcfSources,
                     "Pair correlation: at most this many undergrowth plants per region as sources (a random sample; "
                     "every plant is a neighbour); 0 = all")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(numberIn(0, 1e9));
     cmd->callback([a] {
         CliReporter reporter;
         pipeline::compareStage(*a, reporter);

@@ -70,7 +70,7 @@ void addTerrainReadOptions(CLI::App* cmd, ChmGenerateArgs& a) {
     a.cellOpt = cmd->add_option("--cell-size", a.cellSize,
                     "Metres per cell. Required when the terrain is an image; for .asc/.h5 it is read from "
                     "the file and, if given, must agree")
-        ->check(positiveNumber());
+        ->check(cellSizeRange());
     a.scaleOpt = cmd->add_option("--vertical-scale", a.verticalScale,
                     "Image terrains only: metres per stored unit (16-bit PNG values are 0..1), "
                     "elevation = value * scale + offset")
@@ -99,7 +99,7 @@ void registerTerrainCommands(CLI::App& app) {
             ->capture_default_str();
         gen->add_option("--height", a->options.params.height, "Rows (cells along y, north)")->check(CLI::Range(2, 1 << 16))
             ->capture_default_str();
-        gen->add_option("--cell-size", a->options.params.cellSizeM, "Metres per cell")->check(positiveNumber())
+        gen->add_option("--cell-size", a->options.params.cellSizeM, "Metres per cell")->check(cellSizeRange())
             ->capture_default_str();
         gen->add_option("--seed", a->options.params.seed, "Random seed")->capture_default_str();
         gen->add_option("--relief", a->options.params.reliefM, "Height range of the hills above the valley rim (m)")
@@ -126,7 +126,7 @@ void registerTerrainCommands(CLI::App& app) {
         conv->add_option("OUT", a->out, "Output terrain (written atomically)")->required();
         a->cellOpt = conv->add_option("--cell-size", a->cellSize,
                          "Metres per cell: required for plain image inputs; checked against .asc/.h5 and georeferenced inputs")
-            ->check(positiveNumber());
+            ->check(cellSizeRange());
         a->scaleOpt = conv->add_option("--vertical-scale", a->verticalScale,
                                        "Metres per stored image unit: elevation = value * scale + offset "
                                        "(PNG output default: chosen and printed)")

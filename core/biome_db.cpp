@@ -1,5 +1,7 @@
 #include "biome_db.h"
 
+#include "text_format.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -456,6 +458,27 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
 // ---------------------------------------------------------------------------------------
 // Reading
 
+namespace {
+
+/// IoError naming the dataset, the index and the value unless every value is finite and >= 0
+/// (counts, areas, densities, g: a NaN or a negative density would give an empty or broken
+/// scene without a word).
+void requireNonNegative(const std::string& path, const std::string& dataset, const std::vector<double>& v) {
+    for (std::size_t i = 0; i < v.size(); ++i)
+        if (!(v[i] >= 0) || !std::isfinite(v[i]))
+            throw IoError(path + ": " + dataset + ": value " + std::to_string(i) + " is " + formatNumber(v[i], 6) +
+                          "; it must be finite and non-negative");
+}
+
+/// IoError unless every value is finite.
+void requireFinite(const std::string& path, const std::string& dataset, const std::vector<double>& v) {
+    for (std::size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(v[i]))
+            throw IoError(path + ": " + dataset + ": value " + std::to_string(i) + " is " + formatNumber(v[i], 6) + "; it must be finite");
+}
+
+}  // namespace
+
 BiomeDatabase readBiomeDatabase(const std::string& path) {
     const h5::File f = h5::File::openRead(path);
     if (!f.hasAttr("/", "format"))
@@ -558,6 +581,10 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const std::size_t kTried = static_cast<std::size_t>(silShape[1]);
     const auto cSil = rd.f64("/combinations/silhouette", {nc, kTried});
 
+    requireNonNegative(path, "/combinations/area_m2", cArea);
+    requireNonNegative(path, "/combinations/cell_count", cCells);
+    requireFinite(path, "/combinations/feature_mean", cMean);
+    requireFinite(path, "/combinations/feature_std", cStd);
     const std::size_t nr = rd.length("/regions/combination");
     for (std::size_t i = 0; i < nc; ++i) {
         DbCombination c;
@@ -590,6 +617,21 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto rSpecies = rd.f64("/regions/species_count", {nr, ns});
     const auto rProp = rd.f64("/regions/species_proportion", {nr, ns});
     const auto rCanSp = rd.f64("/regions/canopy_species_count", {nr, ns});
+    requireFinite(path, "/regions/centroid_normalised", rCz);
+    requireFinite(path, "/regions/centroid_raw", rCr);
+    for (const auto& [name, v] : {std::pair<const char*, const std::vector<double>*>{"/regions/area_m2", &rArea},
+                                  {"/regions/cell_count", &rCells},
+                                  {"/regions/undergrowth_count", &rUnder},
+                                  {"/regions/canopy_count", &rCanopy},
+                                  {"/regions/density_per_m2", &rDensity},
+                                  {"/regions/species_count", &rSpecies},
+                                  {"/regions/species_proportion", &rProp},
+                                  {"/regions/canopy_species_count", &rCanSp}})
+        requireNonNegative(path, name, *v);
+    for (std::size_t i = 0; i < rProp.size(); ++i)
+        if (rProp[i] > 1 + 1e-9)
+            throw IoError(path + ": /regions/species_proportion: value " + std::to_string(i) + " is " + formatNumber(rProp[i], 6) +
+                          "; a share must lie in [0, 1]");
     for (std::size_t ri = 0; ri < nr; ++ri) {
         DbRegion r;
         r.combination = rComb[ri];
@@ -614,6 +656,16 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
             const auto edges = rd.f64(stem + "_edges_m", {ns, bins + 1});
             const auto counts = rd.f64(stem + "_counts", {ns, bins});
             const auto over = rd.f64(stem + "_overflow", {ns});
+            requireNonNegative(path, stem + "_edges_m", edges);
+            requireNonNegative(path, stem + "_counts", counts);
+            requireNonNegative(path, stem + "_overflow", over);
+            for (std::size_t sp = 0; sp < ns; ++sp)
+                for (std::size_t b = 0; b < bins; ++b)
+                    if (!(edges[sp * (bins + 1) + b + 1] > edges[sp * (bins + 1) + b]))
+                        throw IoError(path + ": " + stem + "_edges_m: the edges of species " + std::to_string(sp) +
+                                      " must increase (edge " + std::to_string(b + 1) + " is " +
+                                      formatNumber(edges[sp * (bins + 1) + b + 1], 6) + " after " +
+                                      formatNumber(edges[sp * (bins + 1) + b], 6) + ")");
             auto& hists = which == 0 ? r.height : r.crownRadius;
             for (std::size_t s = 0; s < ns; ++s)
                 hists.push_back(DbHistogram{rowOf(edges, s, bins + 1), rowOf(counts, s, bins), over[s]});
@@ -647,6 +699,14 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         const auto sep = rd.f64(pg + "/separation_count", {np, nsep});
         const auto under = rd.f64(pg + "/separation_underflow", {np});
         const auto sources = rd.f64(pg + "/separation_sources", {np});
+        for (const auto& [name, v] : {std::pair<const char*, const std::vector<double>*>{"/pair_count", &cnt},
+                                      {"/translate_weighted", &tw},
+                                      {"/normalisation_per_m2", &norm},
+                                      {"/g", &gg},
+                                      {"/separation_count", &sep},
+                                      {"/separation_underflow", &under},
+                                      {"/separation_sources", &sources}})
+            requireNonNegative(path, pg + name, *v);
         for (std::size_t p = 0; p < np; ++p) {
             DbPairStats ps;
             ps.source = src[p];

@@ -142,6 +142,12 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
     result.database = analysis::analyse(inputs, params, progress);
     if (bar) bar->finish();
     const BiomeDatabase& db = result.database;
+    // A database without a region synthesizes nothing (eco synth refuses it); say why here
+    // instead of writing it (issue 26: --seeding-radius-factor 1e-9 wrote one).
+    if (db.regions.empty())
+        throw ValidationError("analyse: no region: no analysed cell lies within the seeding disc of a canopy tree (seeding "
+                              "radius factor " + formatNumber(params.seedingRadiusFactor, 6) + " x crown radius) or inside the "
+                              "inputs' windows; nothing written to " + args.out);
 
     const std::filesystem::path parent = std::filesystem::path(args.out).parent_path();
     if (!parent.empty()) ensureDirectory(parent.string());

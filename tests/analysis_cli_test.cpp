@@ -70,6 +70,13 @@ TEST_CASE("eco analyse: bad input gives one clear line, a non-zero exit and no o
     r = eco::test::runEco("inspect " + ab);
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.output, Catch::Contains("not a biome database"));
+    // A seeding disc so small that no cell is in a region: refused, nothing written (it wrote
+    // a database of 0 regions).
+    writeFakeSimulation(dir.file("sim0.h5"), dir.file("abiotics0.h5"));
+    r = eco::test::runEco("analyse " + dir.file("sim0.h5") + " --out " + db + " --seeding-radius-factor 1e-9");
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("no region") && Catch::Contains("nothing written"));
+    CHECK_FALSE(std::filesystem::exists(db));
     // A pair-correlation range beyond the window (issue 26: 1e12 gave g = 0 everywhere and
     // exit 0; 1e6 ran out of memory) is refused with the largest usable value.
     writeFakeSimulation(dir.file("sim.h5"), dir.file("abiotics2.h5"));

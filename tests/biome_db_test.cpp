@@ -2,6 +2,8 @@
 // checks, and the region lookup the synthesizer uses.
 #include <catch2/catch.hpp>
 
+#include <functional>
+
 #include <cmath>
 #include <limits>
 
@@ -233,6 +235,41 @@ TEST_CASE("a NaN or negative canopy-context value is a clear IoError naming the 
     db = sampleDb();
     db.regions[2].contextCellPairs.clear();
     CHECK_THROWS_WITH(writeBiomeDatabase(dir.file("partial.h5"), db), Catch::Contains("missing in some regions"));
+}
+
+TEST_CASE("every number of a database is checked on reading: densities, shares, histograms, g", "[biome_db][errors]") {
+    // Issue 26: a negative density gave an empty scene, a NaN g a NaN refinement objective,
+    // NaN bin edges were read without a word.
+    eco::test::TempDir dir("db_values");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    struct Case {
+        const char* name;
+        std::function<void(BiomeDatabase&)> spoil;
+        const char* dataset;
+    };
+    const std::vector<Case> cases = {
+        {"negative density", [](BiomeDatabase& d) { d.regions[1].densityPerM2 = -0.5; }, "/regions/density_per_m2: value 1 is -0.5"},
+        {"NaN density", [&](BiomeDatabase& d) { d.regions[0].densityPerM2 = nan; }, "/regions/density_per_m2: value 0 is nan"},
+        {"share above 1", [](BiomeDatabase& d) { d.regions[0].speciesProportion[0] = 1.5; }, "a share must lie in [0, 1]"},
+        {"NaN g", [&](BiomeDatabase& d) { d.regions[0].pairs[0].g[3] = nan; }, "region_0000/pairs/g"},
+        {"negative pair count", [](BiomeDatabase& d) { d.regions[2].pairs[0].pairCount[0] = -1; }, "region_0002/pairs/pair_count"},
+        {"NaN height edge", [&](BiomeDatabase& d) { d.regions[0].height[0].edges[1] = nan; }, "region_0000/height_edges_m"},
+        {"edges not increasing",
+         [](BiomeDatabase& d) { std::swap(d.regions[0].crownRadius[0].edges[1], d.regions[0].crownRadius[0].edges[2]); },
+         "must increase"},
+        {"NaN centroid", [&](BiomeDatabase& d) { d.regions[1].centroidRaw[0] = nan; }, "/regions/centroid_raw"},
+    };
+    for (const Case& c : cases) {
+        INFO(c.name);
+        BiomeDatabase db = sampleDb();
+        c.spoil(db);
+        const std::string path = dir.file("bad.h5");
+        writeBiomeDatabase(path, db);
+        CHECK_THROWS_WITH(readBiomeDatabase(path), Catch::Contains("bad.h5") && Catch::Contains(c.dataset));
+    }
+    const std::string good = dir.file("good.h5");
+    writeBiomeDatabase(good, sampleDb());
+    CHECK_NOTHROW(readBiomeDatabase(good));
 }
 
 TEST_CASE("reading a database with another schema version or format is a clear IoError", "[biome_db][errors]") {

@@ -75,7 +75,7 @@ TEST_CASE("a bad number for a flag names the flag and the value", "[cli]") {
     CHECK_THAT(negative.output, Catch::Contains("--years: must be > 0, got -3"));
     const auto zero = runEco("terrain generate --cell-size 0 --out unused.h5");
     CHECK(zero.exitCode != 0);
-    CHECK_THAT(zero.output, Catch::Contains("--cell-size: must be > 0, got 0"));
+    CHECK_THAT(zero.output, Catch::Contains("--cell-size: must lie in [0.001, 10000], got 0"));
     const auto huge = runEco("simulate --seed 1e400");
     CHECK(huge.exitCode != 0);
     CHECK_THAT(huge.output, Catch::Contains("--seed: '1e400' is not a number"));
@@ -226,4 +226,28 @@ TEST_CASE("sizes beyond the memory are refused before allocating, with what they
     CHECK(side.exitCode == 1);
     CHECK_THAT(side.output, Catch::Contains("ncols = 2e+09 is larger than eco reads (at most 10000000 a side)"));
     CHECK_FALSE(std::filesystem::exists(dir.file("h.h5")));
+}
+
+TEST_CASE("values that were accepted with exit 0 are refused (issue 26)", "[cli][errors]") {
+    eco::test::TempDir dir("cli_accepted");
+    const auto tiny = runEco("terrain generate --cell-size 1e-300 --width 8 --height 8 --out " + dir.file("t.h5"));
+    CHECK(tiny.exitCode == 2);
+    CHECK_THAT(tiny.output, Catch::Contains("--cell-size: must lie in [0.001, 10000], got 1e-300"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("t.h5")));
+    for (const char* n : {"0", "1"}) {
+        const std::string csv = dir.file(std::string("p") + n + ".csv");
+        {
+            std::ofstream f(csv);
+            f << "x,y\n";
+            if (std::string(n) == "1") f << "3,4\n";
+        }
+        const auto r = runEco("pcf " + csv + " --window 0,0,10,10 --out " + dir.file("g.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains(std::string(n) + " point(s) inside the window") && Catch::Contains("at least 2"));
+        CHECK_FALSE(std::filesystem::exists(dir.file("g.csv")));
+    }
+    const auto sources = runEco("compare scene.h5 db.h5 --pcf-sources -1");
+    CHECK(sources.exitCode == 2);
+    CHECK_THAT(sources.output, Catch::Contains("--pcf-sources: must lie in [0, 1000000000], got -1"));
 }
