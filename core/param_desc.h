@@ -45,17 +45,24 @@ struct ParamRange {
         if (highBound == Bound::Open && v >= hi) return false;
         return true;
     }
-    /// The rule as message text: "must be >= 0", "must be > 0", "must lie in (0, 10]".
-    std::string text() const {
+    /// The allowed values as documentation text: "> 0", ">= 0", "[0, 1]", "(0, 10]", or
+    /// "any number" when unbounded.
+    std::string valuesText() const {
         auto num = [](double v) { return formatNumber(v, 6); };
         if (highBound == Bound::None) {
-            if (lowBound == Bound::Closed) return "must be >= " + num(lo);
-            if (lowBound == Bound::Open) return "must be > " + num(lo);
-            return "must be finite";
+            if (lowBound == Bound::Closed) return ">= " + num(lo);
+            if (lowBound == Bound::Open) return "> " + num(lo);
+            return "any number";
         }
-        if (lowBound == Bound::None) return std::string("must be ") + (highBound == Bound::Closed ? "<= " : "< ") + num(hi);
-        return std::string("must lie in ") + (lowBound == Bound::Closed ? "[" : "(") + num(lo) + ", " + num(hi) +
+        if (lowBound == Bound::None) return std::string(highBound == Bound::Closed ? "<= " : "< ") + num(hi);
+        return std::string(lowBound == Bound::Closed ? "[" : "(") + num(lo) + ", " + num(hi) +
                (highBound == Bound::Closed ? "]" : ")");
+    }
+    /// The rule as message text: "must be >= 0", "must be > 0", "must lie in (0, 10]".
+    std::string text() const {
+        if (highBound == Bound::None && lowBound == Bound::None) return "must be finite";
+        const bool interval = highBound != Bound::None && lowBound != Bound::None;
+        return (interval ? "must lie in " : "must be ") + valuesText();
     }
 };
 
