@@ -10,6 +10,7 @@
 #include <vector>
 #include <string>
 
+#include "param_desc.h"
 #include "point_pattern.h"
 #include "reporter.h"
 #include "stage_common.h"
@@ -64,6 +65,16 @@ private:
 /// instead. The value must be a finite number, and > 0 or >= 0.
 const CLI::Validator& positiveNumber();
 const CLI::Validator& nonNegativeNumber();
+
+/// A flag's help text from the description of the parameter it sets (core/param_desc.h),
+/// so that --help and the docs' parameter tables say the same: `prefix` and the doc line,
+/// capitalised when there is no prefix.
+template <typename S>
+std::string paramHelp(const ParamDesc<S>& f, const std::string& prefix = "") {
+    std::string doc = f.doc;
+    if (prefix.empty() && !doc.empty() && doc[0] >= 'a' && doc[0] <= 'z') doc[0] = static_cast<char>(doc[0] - 'a' + 'A');
+    return prefix + doc;
+}
 
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);
