@@ -16,7 +16,10 @@ namespace eco::analysis {
 
 namespace {
 
-std::string num(double v) { return formatNumber(v, 12); }
+// The database records reals with twelve significant digits.
+constexpr int kRecordDigits = 12;
+
+std::string num(double v) { return formatNumber(v, kRecordDigits); }
 
 /// Sources per work item of the pair loop. Fixed, never derived from the thread count, so
 /// that the floating-point sums (per item, then added in item order) are reproducible.
@@ -369,61 +372,74 @@ void contextCellPairs(const std::vector<PreparedInput>& prep, const std::vector<
 
 // ---------------------------------------------------------------------------------------
 
-void AnalysisParams::validate() const {
-    auto fail = [](const std::string& name, const std::string& value, const std::string& rule) {
-        throw ValidationError("analysis parameter " + name + " = " + value + ": " + rule);
+const std::vector<AnalysisParamField>& analysisParamFields() {
+    using K = AnalysisParamField::Kind;
+    using R = ParamRange;
+    using P = AnalysisParams;
+    static const std::vector<AnalysisParamField> fields = {
+        {"seeding_radius_factor", "seeding disc, x crown radius (`eco analyse`: the simulation's when it records one)",
+         K::Real, &P::seedingRadiusFactor, nullptr, R::above(0), nullptr, "must be positive"},
+        {"kmax", "largest k tried per combination (`--kmax`)", K::Integer, nullptr, &P::kMax, R::closed(1, 64)},
+        {"silhouette_threshold", "best mean silhouette below this: k = 1", K::Real, &P::silhouetteThreshold, nullptr,
+         R::closed(-1, 1)},
+        {"min_cluster_area_m2", "k <= combination area / this (m^2)", K::Real, &P::minClusterAreaM2, nullptr,
+         R::atLeast(0)},
+        {"kmeans_sample_cells", "k-means runs on at most this many cells (seeded sample)", K::Integer, nullptr,
+         &P::kmeansSampleCells, R::atLeast(1)},
+        {"silhouette_sample_cells", "silhouettes on at most this many of those (O(n^2))", K::Integer, nullptr,
+         &P::silhouetteSampleCells, R::atLeast(2)},
+        {"kmeans_restarts", "k-means++ restarts; the lowest inertia wins", K::Integer, nullptr, &P::kmeansRestarts,
+         R::atLeast(1)},
+        {"kmeans_max_iterations", "Lloyd iterations per restart", K::Integer, nullptr, &P::kmeansMaxIterations,
+         R::atLeast(1)},
+        {"seed", "seed of k-means++ and the samples (`--seed`)", K::Seed, nullptr, nullptr, R::any(), &P::seed},
+        {"height_bins", "height histogram bins per species, 0 .. its tallest undergrowth plant", K::Integer, nullptr,
+         &P::heightBins, R::closed(1, 10000)},
+        {"radius_bins", "crown radius histogram bins per species, 0 .. its widest undergrowth crown", K::Integer,
+         nullptr, &P::radiusBins, R::closed(1, 10000)},
+        {"context_pair_sample_cells", "context cell pairs: at most this many source cells per region", K::Integer,
+         nullptr, &P::contextPairSampleCells, R::atLeast(1)},
     };
-    if (!(seedingRadiusFactor > 0) || !std::isfinite(seedingRadiusFactor))
-        fail("seeding_radius_factor", num(seedingRadiusFactor), "must be positive");
-    if (kMax < 1 || kMax > 64) fail("kmax", std::to_string(kMax), "must be in 1..64");
-    if (!(silhouetteThreshold >= -1 && silhouetteThreshold <= 1))
-        fail("silhouette_threshold", num(silhouetteThreshold), "must be in [-1, 1]");
-    if (!(minClusterAreaM2 >= 0) || !std::isfinite(minClusterAreaM2))
-        fail("min_cluster_area_m2", num(minClusterAreaM2), "must be finite and >= 0");
-    if (kmeansSampleCells < 1) fail("kmeans_sample_cells", std::to_string(kmeansSampleCells), "must be >= 1");
-    if (silhouetteSampleCells < 2) fail("silhouette_sample_cells", std::to_string(silhouetteSampleCells), "must be >= 2");
-    if (kmeansRestarts < 1) fail("kmeans_restarts", std::to_string(kmeansRestarts), "must be >= 1");
-    if (kmeansMaxIterations < 1) fail("kmeans_max_iterations", std::to_string(kmeansMaxIterations), "must be >= 1");
+    return fields;
+}
+
+void AnalysisParams::validate() const {
+    validateParams(*this, analysisParamFields(), "analysis parameter");
     pcfBins.validate("analysis parameter pcf bins");
     separationBins.validate("analysis parameter separation bins");
-    if (heightBins < 1 || heightBins > 10000) fail("height_bins", std::to_string(heightBins), "must be in 1..10000");
-    if (radiusBins < 1 || radiusBins > 10000) fail("radius_bins", std::to_string(radiusBins), "must be in 1..10000");
     contextBins.validate("analysis parameter context_edges_m");
-    if (contextPairSampleCells < 1)
-        fail("context_pair_sample_cells", std::to_string(contextPairSampleCells), "must be >= 1");
 }
 
 std::vector<std::pair<std::string, std::string>> AnalysisParams::asParameters() const {
-    return {
-        {"seeding_radius_factor", num(seedingRadiusFactor)},
-        {"canopy_membership", toString(membership)},
-        {"kmax", std::to_string(kMax)},
-        {"k_criterion", "max mean silhouette over k = 2..kmax; k = 1 when it is below silhouette_threshold"},
-        {"silhouette_threshold", num(silhouetteThreshold)},
-        {"min_cluster_area_m2", num(minClusterAreaM2)},
-        {"kmeans_sample_cells", std::to_string(kmeansSampleCells)},
-        {"silhouette_sample_cells", std::to_string(silhouetteSampleCells)},
-        {"kmeans_restarts", std::to_string(kmeansRestarts)},
-        {"kmeans_max_iterations", std::to_string(kmeansMaxIterations)},
-        {"seed", std::to_string(seed)},
-        {"feature_normalisation", "per combination: z = (value - mean) / std over its cells, all inputs"},
-        {"pcf_rmax_m", num(pcfBins.rMaxM)},
-        {"pcf_bins", std::to_string(pcfBins.count)},
-        {"pcf_estimator", "annulus; translation edge correction, exact set covariance of the region's cells"},
-        {"separation_min_m", num(separationBins.minM)},
-        {"separation_max_m", num(separationBins.maxM)},
-        {"separation_bins", std::to_string(separationBins.count)},
-        {"separation_edge_rule", "sources nearer the input window's edge than separation_max + r_source + max r_target are left out"},
-        {"height_bins", std::to_string(heightBins)},
-        {"radius_bins", std::to_string(radiusBins)},
-        {"context_edges_m", [this] {
-             std::string t;
-             for (double e : contextBins.edgesM) t += (t.empty() ? "" : ",") + num(e);
-             return t;
-         }()},
-        {"context_depth", "signed distance (m) from a cell centre to the canopy cover edge, + under cover (core/canopy_context.h)"},
-        {"context_pair_sample_cells", std::to_string(contextPairSampleCells)},
+    // The database's /parameters in the order files have them: each field of the table,
+    // followed by the choices, bins and descriptions recorded after it.
+    std::string edges;
+    for (double e : contextBins.edgesM) edges += (edges.empty() ? "" : ",") + num(e);
+    const std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> after = {
+        {"seeding_radius_factor", {{"canopy_membership", toString(membership)}}},
+        {"kmax", {{"k_criterion", "max mean silhouette over k = 2..kmax; k = 1 when it is below silhouette_threshold"}}},
+        {"seed",
+         {{"feature_normalisation", "per combination: z = (value - mean) / std over its cells, all inputs"},
+          {"pcf_rmax_m", num(pcfBins.rMaxM)},
+          {"pcf_bins", std::to_string(pcfBins.count)},
+          {"pcf_estimator", "annulus; translation edge correction, exact set covariance of the region's cells"},
+          {"separation_min_m", num(separationBins.minM)},
+          {"separation_max_m", num(separationBins.maxM)},
+          {"separation_bins", std::to_string(separationBins.count)},
+          {"separation_edge_rule",
+           "sources nearer the input window's edge than separation_max + r_source + max r_target are left out"}}},
+        {"radius_bins",
+         {{"context_edges_m", edges},
+          {"context_depth",
+           "signed distance (m) from a cell centre to the canopy cover edge, + under cover (core/canopy_context.h)"}}},
     };
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& f : analysisParamFields()) {
+        out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+        for (const auto& [key, entries] : after)
+            if (key == f.key) out.insert(out.end(), entries.begin(), entries.end());
+    }
+    return out;
 }
 
 BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisParams& params,

@@ -19,6 +19,7 @@
 #include "biome_db.h"
 #include "canopy_context.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "plants.h"
 #include "point_pattern.h"
 #include "seeding.h"
@@ -58,11 +59,20 @@ struct AnalysisParams {
     /// Context cell pairs: at most this many source cells per region (every k-th cell).
     int contextPairSampleCells = 20000;
 
-    /// ValidationError naming the parameter and value when one is out of range.
+    /// ValidationError naming the parameter and value when one is out of range
+    /// (analysisParamFields, then the bins).
     void validate() const;
-    /// (name, value) of every parameter, as recorded in the database.
+    /// (name, value) of every parameter, as recorded in the database: analysisParamFields()
+    /// in order, with the membership, the bins and descriptions of the method between them.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
+
+/// One numeric parameter of AnalysisParams (core/param_desc.h): its key in the database's
+/// /parameters and docs/analysis.md's table, its doc line and its range.
+using AnalysisParamField = ParamDesc<AnalysisParams>;
+/// The numeric parameters of AnalysisParams that are fields of it (the bins are their own
+/// structs), in record order: the one description of them.
+const std::vector<AnalysisParamField>& analysisParamFields();
 
 /// One analysed pattern: a simulation's last snapshot, or a field survey.
 struct AnalysisInput {

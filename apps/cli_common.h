@@ -10,6 +10,7 @@
 #include <vector>
 #include <string>
 
+#include "param_desc.h"
 #include "point_pattern.h"
 #include "reporter.h"
 #include "stage_common.h"
@@ -68,6 +69,16 @@ const CLI::Validator& nonNegativeNumber();
 CLI::Validator numberIn(double lo, double hi);
 /// Metres per cell: 1 mm .. 10 km (a cell size of 1e-300 m was accepted and gave nonsense).
 const CLI::Validator& cellSizeRange();
+
+/// A flag's help text from the description of the parameter it sets (core/param_desc.h),
+/// so that --help and the docs' parameter tables say the same: `prefix` and the doc line,
+/// capitalised when there is no prefix.
+template <typename S>
+std::string paramHelp(const ParamDesc<S>& f, const std::string& prefix = "") {
+    std::string doc = f.doc;
+    if (prefix.empty() && !doc.empty() && doc[0] >= 'a' && doc[0] <= 'z') doc[0] = static_cast<char>(doc[0] - 'a' + 'A');
+    return prefix + doc;
+}
 
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);

@@ -3,6 +3,7 @@
 #include <memory>
 #include <string>
 
+#include "abiotics.h"
 #include "abiotics_stage.h"
 #include "cli_common.h"
 
@@ -52,8 +53,9 @@ void registerAbioticsCommand(CLI::App& app) {
         ->capture_default_str();
     args->offsetOpt = cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrains only: metres added after scaling")
         ->capture_default_str();
-    cmd->add_option("--sun-step", o.sunStepMinutes, "Sampling interval of the sun path, minutes")
-        ->check(CLI::Range(0.1, 720.0))
+    const ParamDesc<SunParams>& step = paramField(sunParamFields(), "sun_step_minutes");
+    cmd->add_option("--sun-step", o.sunStepMinutes, paramHelp(step))
+        ->check(CLI::Range(step.range.lo, step.range.hi))
         ->capture_default_str();
     cmd->callback([args] { runAbiotics(*args); });
 }

@@ -6,6 +6,8 @@
 
 #include "cli_common.h"
 #include "synth_stages.h"
+#include "forest_floor.h"
+#include "undergrowth.h"
 
 namespace eco::cli {
 
@@ -51,21 +53,22 @@ void registerSynthCommand(CLI::App& app) {
                     "Abiotics file from 'eco abiotics' for this terrain (default: computed with default parameters)");
     CLI::Option* refine = cmd->add_flag(
         "--refine", a->refine, "Refine the undergrowth towards the database's pair correlation (slow; canopy never moves)");
-    args->sweepsOpt = cmd->add_option("--refine-sweeps", args->refine.sweeps, "Refinement: proposals per plant")
+    // Help texts of the parameters' flags from their descriptions (synth/synth_params.cpp).
+    auto synthHelp = [](const char* key) { return paramHelp(paramField(synth::synthParamFields(), key)); };
+    auto refineHelp = [](const char* key) { return paramHelp(paramField(synth::refineParamFields(), key), "Refinement: "); };
+    args->sweepsOpt = cmd->add_option("--refine-sweeps", args->refine.sweeps, refineHelp("refine_sweeps"))
         ->capture_default_str()
         ->needs(refine);
-    args->rMaxOpt = cmd->add_option("--refine-rmax", args->refine.rMaxM,
-                    "Refinement: match pair correlation up to this distance, m (0 = automatic, about 400 neighbours "
-                    "in the densest region)")
+    args->rMaxOpt = cmd->add_option("--refine-rmax", args->refine.rMaxM, refineHelp("refine_rmax_m"))
         ->capture_default_str()
         ->needs(refine);
     cmd->add_option("--refine-window", a->refineWindow,
                     "Refinement: only inside x0,y0,x1,y1 (metres); the rest of the undergrowth stays as sampled")
         ->needs(refine);
-    args->moveOpt = cmd->add_option("--refine-move", args->refine.moveRadiusM, "Refinement: displacement radius, m")
+    args->moveOpt = cmd->add_option("--refine-move", args->refine.moveRadiusM, refineHelp("refine_move_radius_m"))
         ->capture_default_str()
         ->needs(refine);
-    args->swapOpt = cmd->add_option("--refine-swap", args->refine.swapRadiusM, "Refinement: swap partner radius, m")
+    args->swapOpt = cmd->add_option("--refine-swap", args->refine.swapRadiusM, refineHelp("refine_swap_radius_m"))
         ->capture_default_str()
         ->needs(refine);
     cmd->add_option("--png", a->pngDir,
@@ -83,15 +86,13 @@ void registerSynthCommand(CLI::App& app) {
                     "database's pair correlation; heights below the crown above, radius by allometry) or 'darts' "
                     "(the earlier uniform darts with sizes from the histograms)")
         ->capture_default_str();
-    cmd->add_option("--max-passes", a->params.maxPasses, "Largest number of dart-throwing passes")->capture_default_str();
-    cmd->add_option("--seed-inner-radius-factor", a->params.seedInnerRadiusFactor,
-                    "Seeding kernel: full weight within this x crown radius")
+    cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))->capture_default_str();
+    cmd->add_option("--seed-inner-radius-factor", a->params.seedInnerRadiusFactor, synthHelp("seed_inner_radius_factor"))
         ->capture_default_str();
-    cmd->add_option("--trunk-exclusion", a->params.trunkExclusionFactor,
-                    "No undergrowth within this x crown radius of a canopy trunk")
+    cmd->add_option("--trunk-exclusion", a->params.trunkExclusionFactor, synthHelp("trunk_exclusion_factor"))
         ->capture_default_str();
     cmd->add_option("--litter-full-alpha", a->floorParams.litterFullAlpha,
-                    "Forest floor: cumulative crown alpha at which litter density reaches 1")
+                    paramHelp(paramField(synth::forestFloorParamFields(), "litter_full_alpha"), "Forest floor: "))
         ->capture_default_str();
     cmd->add_flag("--no-undergrowth-shade", a->noUndergrowthShade,
                   "Forest floor: only canopy crowns shade the grass and drop litter");

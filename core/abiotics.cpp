@@ -68,17 +68,7 @@ void validateSoil(const Soil& s) {
         throw ValidationError("soil: evaporation_fraction must be in [0, 1], got " + num(s.evaporationFraction));
 }
 
-void validateSunParams(const SunParams& p) {
-    // Counts of samples per day are kept in 16 bits: at most 65535 samples (>= 0.022 min).
-    if (!std::isfinite(p.stepMinutes) || p.stepMinutes < 0.1 || p.stepMinutes > 720)
-        throw ValidationError("sun: step_minutes must be in [0.1, 720], got " + num(p.stepMinutes));
-    if (p.skyAzimuths < 1 || p.skyAzimuths > 4096)
-        throw ValidationError("sun: sky_azimuths must be in [1, 4096], got " + std::to_string(p.skyAzimuths));
-    if (p.skyElevations < 1 || p.skyElevations > 1024)
-        throw ValidationError("sun: sky_elevations must be in [1, 1024], got " + std::to_string(p.skyElevations));
-    if (p.dayOfMonth < 1 || p.dayOfMonth > 28)
-        throw ValidationError("sun: day_of_month must be in [1, 28], got " + std::to_string(p.dayOfMonth));
-}
+void validateSunParams(const SunParams& p) { validateParams(p, sunParamFields(), "sun parameter"); }
 
 // ---------------------------------------------------------------------------------------
 // Gradient
@@ -914,15 +904,40 @@ void validateElevation(const Grid<float>& elevationM, const std::string& what) {
                                       ") is not finite");
 }
 
+const std::vector<ParamDesc<SunParams>>& sunParamFields() {
+    using K = ParamDesc<SunParams>::Kind;
+    using R = ParamRange;
+    using P = SunParams;
+    static const std::vector<ParamDesc<SunParams>> fields = {
+        // Counts of samples per day are kept in 16 bits: at most 65535 samples (>= 0.022 min).
+        {"sun_step_minutes", "sampling interval of the sun path, minutes (about)", K::Real, &P::stepMinutes, nullptr,
+         R::closed(0.1, 720)},
+        {"sun_sky_azimuths", "azimuths of the sky-view sweeps", K::Integer, nullptr, &P::skyAzimuths,
+         R::closed(1, 4096)},
+        {"sun_sky_elevations", "elevation bands of the sky-view sweeps (0..90 degrees)", K::Integer, nullptr,
+         &P::skyElevations, R::closed(1, 1024)},
+        {"sun_day_of_month", "representative day of each month", K::Integer, nullptr, &P::dayOfMonth,
+         R::closed(1, 28)},
+    };
+    return fields;
+}
+
+const std::vector<ParamDesc<AbioticParams>>& abioticParamFields() {
+    using K = ParamDesc<AbioticParams>::Kind;
+    static const std::vector<ParamDesc<AbioticParams>> fields = {
+        {"moisture_spin_up_years", "years of moisture routing run before the recorded year", K::Integer, nullptr,
+         &AbioticParams::moistureSpinUpYears, ParamRange::closed(0, 1000)},
+    };
+    return fields;
+}
+
 Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, const AbioticParams& params,
                          const std::function<void(const std::string& stage, double fraction)>& progress) {
     validateElevation(elevationM);
     validateClimate(biome.climate);
     validateSoil(biome.soil);
     validateSunParams(params.sun);
-    if (params.moistureSpinUpYears < 0 || params.moistureSpinUpYears > 1000)
-        throw ValidationError("moisture: spin_up_years must be in [0, 1000], got " +
-                              std::to_string(params.moistureSpinUpYears));
+    validateParams(params, abioticParamFields(), "abiotics parameter");
     auto report = [&](const char* stage, double f) {
         if (progress) progress(stage, f);
     };
@@ -951,6 +966,15 @@ constexpr const char* kFormat = "eco-abiotics";
 constexpr std::int64_t kSchemaVersion = 1;
 
 std::vector<double> toVector(const std::array<double, 12>& a) { return std::vector<double>(a.begin(), a.end()); }
+
+// The fields of a table as attributes of `object`: reals as double, integers as int64.
+template <typename S>
+void writeParamAttrs(h5::File& f, const std::string& object, const S& p, const std::vector<ParamDesc<S>>& fields) {
+    for (const auto& field : fields) {
+        if (field.kind == ParamDesc<S>::Kind::Real) f.setAttr(object, field.key, p.*(field.real));
+        else f.setAttr(object, field.key, static_cast<std::int64_t>(field.value(p)));
+    }
+}
 
 }  // namespace
 
@@ -992,10 +1016,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
         f.setAttr(root, "soil_slope_max_deg", biome.soil.slopeMaxDeg);
         f.setAttr(root, "soil_evaporation_fraction", biome.soil.evaporationFraction);
         f.setAttr(root, "soil_saturation_mm", biome.soil.saturationMm);
-        f.setAttr(root, "sun_step_minutes", params.sun.stepMinutes);
-        f.setAttr(root, "sun_sky_azimuths", static_cast<std::int64_t>(params.sun.skyAzimuths));
-        f.setAttr(root, "sun_sky_elevations", static_cast<std::int64_t>(params.sun.skyElevations));
-        f.setAttr(root, "sun_day_of_month", static_cast<std::int64_t>(params.sun.dayOfMonth));
+        writeParamAttrs(f, root, params.sun, sunParamFields());
         std::vector<double> dayLengths;
         for (int m = 0; m < kMonths; ++m)
             dayLengths.push_back(dayLengthHours(biome.climate.latitudeDeg, dayOfYearFor(m, params.sun.dayOfMonth)));
@@ -1003,7 +1024,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
         f.setAttr(root, "sun_model",
                   std::string("sky_clarity*direct_hours + (1-sky_clarity)*sky_view*day_length; direct: terrain "
                               "self-shadowing sweeps and facing test at interval midpoints, no refraction"));
-        f.setAttr(root, "moisture_spin_up_years", static_cast<std::int64_t>(params.moistureSpinUpYears));
+        writeParamAttrs(f, root, params, abioticParamFields());
         f.setAttr(root, "moisture_model",
                   std::string("soil store W (mm) after each month: rain plus run-on infiltrates (fraction by slope, "
                               "capped by runoff limit and saturation), the rest runs off by multiple flow directions "

@@ -16,6 +16,7 @@
 #include "biome.h"
 #include "factors.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "plants.h"
 
 namespace eco {
@@ -36,13 +37,19 @@ MonthlyGrids<float> temperatureC(const Grid<float>& elevationM, const Climate& c
 // ---------------------------------------------------------------------------------------
 // Sun
 
-/// Parameters of the sunlight model (all written into every abiotics file).
+/// Parameters of the sunlight model (all written into every abiotics file; described once
+/// in sunParamFields()).
 struct SunParams {
     double stepMinutes = 10;  ///< sampling interval of the sun path, minutes (about)
     int skyAzimuths = 16;     ///< azimuths of the sky-view sweeps
     int skyElevations = 6;    ///< elevation bands of the sky-view sweeps (0..90 degrees)
     int dayOfMonth = 15;      ///< representative day of each month, 1..28
 };
+
+/// The fields of SunParams (core/param_desc.h), keyed as the abiotics file's attributes
+/// (sun_step_minutes ...) and docs/abiotics.md's table: the one description of them, from
+/// which validation and the attributes come.
+const std::vector<ParamDesc<SunParams>>& sunParamFields();
 
 /// Solar declination in radians for day of year 1..366 (1 = 1 January), from the sun's
 /// ecliptic longitude with the first-order orbital eccentricity correction.
@@ -135,8 +142,12 @@ MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& cli
 
 struct AbioticParams {
     SunParams sun;
-    int moistureSpinUpYears = 1;
+    int moistureSpinUpYears = 1;  ///< years of moisture routing run before the recorded one
 };
+
+/// The fields of AbioticParams besides `sun` (sunParamFields), keyed as the abiotics file's
+/// attributes and docs/abiotics.md's table.
+const std::vector<ParamDesc<AbioticParams>>& abioticParamFields();
 
 struct Abiotics {
     MonthlyGrids<float> sunHours;      ///< hours/day

@@ -53,7 +53,84 @@ Response readResponse(StrictTable& parent, const std::string& key, const std::st
     return r;
 }
 
+// Reads key f of a [[species]] table into s, checked against the biome read so far (its
+// sub-biomes, growth periods and allometries); messages name the file, line, species and key.
+void readSpeciesField(StrictTable& t, const SpeciesField& f, Species& s, const Biome& b,
+                      const std::vector<Allometry>& allometries, const std::string& file, const std::string& ctx) {
+    const std::string& key = f.key;
+    switch (f.kind) {
+        case SpeciesField::Kind::Name:
+            s.name = t.string(key);
+            for (const auto& other : b.species)
+                if (other.name == s.name) t.fail(key, "duplicate species name '" + s.name + "'");
+            break;
+        case SpeciesField::Kind::SubBiomes:
+            for (auto n : t.integers(key)) {
+                if (n < 1 || n > static_cast<std::int64_t>(b.subBiomes.size()))
+                    t.fail(key, "sub-biome " + std::to_string(n) + " does not exist (1.." +
+                                    std::to_string(b.subBiomes.size()) + ")");
+                s.subBiomes.push_back(static_cast<int>(n));
+            }
+            if (s.subBiomes.empty()) t.fail(key, "must name at least one sub-biome");
+            break;
+        case SpeciesField::Kind::Real: {
+            const double v = t.number(key);
+            if (!f.range.contains(v)) t.fail(key, "value " + StrictTable::fmt(v) + " " + f.ruleText());
+            s.*(f.real) = v;
+            break;
+        }
+        case SpeciesField::Kind::Response: s.response(f.factor) = readResponse(t, key, file, ctx); break;
+        case SpeciesField::Kind::GrowthPeriod: {
+            s.growthPeriod = t.string(key);
+            bool found = false;
+            for (const auto& [name, months] : b.growthPeriods)
+                if (name == s.growthPeriod) {
+                    s.growthMonths = months;
+                    found = true;
+                }
+            if (!found) t.fail(key, "unknown growth period '" + s.growthPeriod + "'");
+            break;
+        }
+        case SpeciesField::Kind::Allometry: {
+            const std::string code = t.string(key);
+            bool found = false;
+            for (const auto& al : allometries)
+                if (al.code == code) {
+                    s.allometry = al;
+                    found = true;
+                }
+            if (!found) t.fail(key, "unknown allometry code '" + code + "'");
+            break;
+        }
+        case SpeciesField::Kind::Flag: s.*(f.flag) = t.boolean(key); break;
+    }
+}
+
+// Key f of species s as a TOML value in a [[species]] table (the inverse of readSpeciesField).
+void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s) {
+    switch (f.kind) {
+        case SpeciesField::Kind::Name: st.insert(f.key, s.name); break;
+        case SpeciesField::Kind::SubBiomes: {
+            toml::array subsOf;
+            for (int n : s.subBiomes) subsOf.push_back(static_cast<std::int64_t>(n));
+            st.insert(f.key, subsOf);
+            break;
+        }
+        case SpeciesField::Kind::Real: st.insert(f.key, s.*(f.real)); break;
+        case SpeciesField::Kind::Response:
+            st.insert(f.key, toml::table{{"c", s.response(f.factor).c}, {"r", s.response(f.factor).r}});
+            break;
+        case SpeciesField::Kind::GrowthPeriod: st.insert(f.key, s.growthPeriod); break;
+        case SpeciesField::Kind::Allometry: st.insert(f.key, s.allometry.code); break;
+        case SpeciesField::Kind::Flag: st.insert(f.key, s.*(f.flag)); break;
+    }
+}
+
 }  // namespace
+
+std::string speciesDocRow(const SpeciesField& f) {
+    return "| `" + f.key + "` | " + f.doc + " | " + f.allowedText() + " |";
+}
 
 Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
     const toml::table root = parseTomlText(tomlText, sourceName);
@@ -168,39 +245,7 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
             StrictTable t(*st, file, ctx);
             Species s;
             s.id = static_cast<int>(i);
-            s.name = t.string("name");
-            for (const auto& other : b.species)
-                if (other.name == s.name) t.fail("name", "duplicate species name '" + s.name + "'");
-            for (auto n : t.integers("sub_biomes")) {
-                if (n < 1 || n > static_cast<std::int64_t>(b.subBiomes.size()))
-                    t.fail("sub_biomes", "sub-biome " + std::to_string(n) + " does not exist (1.." +
-                                             std::to_string(b.subBiomes.size()) + ")");
-                s.subBiomes.push_back(static_cast<int>(n));
-            }
-            if (s.subBiomes.empty()) t.fail("sub_biomes", "must name at least one sub-biome");
-            const double age = t.number("max_age_years");
-            if (!(age > 0)) t.fail("max_age_years", "value " + StrictTable::fmt(age) + " must be positive");
-            s.maxAgeYears = age;
-            s.maxHeightM = t.positive("max_height_m");
-            s.alpha = t.numberIn("alpha", 0, 1);
-            for (std::size_t f = 0; f < kFactorCount; ++f) s.responses[f] = readResponse(t, kFactors[f].key, file, ctx);
-            s.growthPeriod = t.string("growth_period");
-            bool found = false;
-            for (const auto& [name, months] : b.growthPeriods)
-                if (name == s.growthPeriod) {
-                    s.growthMonths = months;
-                    found = true;
-                }
-            if (!found) t.fail("growth_period", "unknown growth period '" + s.growthPeriod + "'");
-            const std::string code = t.string("allometry");
-            found = false;
-            for (const auto& al : allometries)
-                if (al.code == code) {
-                    s.allometry = al;
-                    found = true;
-                }
-            if (!found) t.fail("allometry", "unknown allometry code '" + code + "'");
-            s.canopy = t.boolean("canopy");
+            for (const SpeciesField& f : speciesFields()) readSpeciesField(t, f, s, b, allometries, file, ctx);
             t.finish();
             b.species.push_back(s);
         }
@@ -275,19 +320,9 @@ std::string biomeToToml(const Biome& b) {
     }
     root.insert("sub_biome", subs);
     toml::array sps;
-    auto resp = [](const Response& r) { return toml::table{{"c", r.c}, {"r", r.r}}; };
     for (const auto& s : b.species) {
-        toml::array subsOf;
-        for (int n : s.subBiomes) subsOf.push_back(static_cast<std::int64_t>(n));
-        toml::table st{{"name", s.name},
-                       {"sub_biomes", subsOf},
-                       {"max_age_years", s.maxAgeYears},
-                       {"max_height_m", s.maxHeightM},
-                       {"alpha", s.alpha},
-                       {"growth_period", s.growthPeriod},
-                       {"allometry", s.allometry.code},
-                       {"canopy", s.canopy}};
-        for (std::size_t f = 0; f < kFactorCount; ++f) st.insert(kFactors[f].key, resp(s.responses[f]));
+        toml::table st;
+        for (const SpeciesField& f : speciesFields()) printSpeciesField(st, f, s);
         sps.push_back(std::move(st));
     }
     root.insert("species", sps);

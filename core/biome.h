@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "factors.h"
+#include "param_desc.h"
 #include "vigour.h"
 
 namespace eco {
@@ -41,6 +42,76 @@ struct Species {
     const Response& response(Factor f) const { return responses[factorIndex(f)]; }
     Response& response(Factor f) { return responses[factorIndex(f)]; }
 };
+
+/// One key of a biome file's [[species]] table: what it means (with units), which values it
+/// allows and where it lands in Species. parseBiome reads and checks every key from this
+/// description, biomeToToml prints it, and docs/biome.md's species table has its row
+/// (speciesDocRow; tests/biome_test.cpp checks each row), so a new numeric species
+/// parameter is its field in Species and one Real row in speciesFields() below.
+struct SpeciesField {
+    enum class Kind {
+        Name,          ///< the species' name, unique in the biome
+        SubBiomes,     ///< the 1-based sub-biomes it belongs to
+        Real,          ///< a number within `range`, in member `real`
+        Response,      ///< { c = optimum, r = range } for factor `factor`
+        GrowthPeriod,  ///< a name from [growth_periods] (also sets growthMonths)
+        Allometry,     ///< a code from [allometry]
+        Flag,          ///< true or false, in member `flag`
+    };
+    std::string key;   ///< the TOML key
+    std::string doc;   ///< meaning and units: docs/biome.md's row
+    Kind kind;
+    std::string allowed;               ///< the allowed values in words (Real: range.valuesText())
+    double Species::*real = nullptr;
+    ParamRange range{};
+    const char* rule = nullptr;        ///< message text of the range when not range.text()
+    bool Species::*flag = nullptr;
+    Factor factor = Factor::Sun;
+
+    /// The allowed values as docs/biome.md states them.
+    std::string allowedText() const { return kind == Kind::Real ? range.valuesText() : allowed; }
+    /// The message text of a Real value outside its range ("must be positive").
+    std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
+};
+
+/// Every key of a [[species]] table, in the order files list them: the one description of a
+/// species' parameters. All keys are required.
+inline const std::vector<SpeciesField>& speciesFields() {
+    using K = SpeciesField::Kind;
+    using R = ParamRange;
+    static const std::vector<SpeciesField> fields = [] {
+        std::vector<SpeciesField> v = {
+            {"name", "the species' name in every output and in `--target`", K::Name, "text, unique in the biome"},
+            {"sub_biomes", "the sub-biomes (`[[sub_biome]]` numbers) the species grows in", K::SubBiomes,
+             "a non-empty list of existing sub-biome numbers"},
+            {"max_age_years", "l_s: maximum age, years", K::Real, "", &Species::maxAgeYears, R::above(0),
+             "must be positive"},
+            {"max_height_m", "h'_s: maximum height, m", K::Real, "", &Species::maxHeightM, R::above(0),
+             "must be positive"},
+            {"alpha", "alpha_s: share of the light the crown absorbs, and the vigour scale (Eq. 1)", K::Real, "",
+             &Species::alpha, R::closed(0, 1)},
+        };
+        // One response per abiotic factor, named by the factor table (core/factors.h).
+        for (std::size_t f = 0; f < kFactorCount; ++f) {
+            SpeciesField r{kFactors[f].key,
+                           std::string("response to ") + kFactors[f].label + " (Eq. 1): `{ c = optimum, r = range }`, " +
+                               kFactors[f].unit,
+                           K::Response, "c any number, r > 0"};
+            r.factor = static_cast<Factor>(f);
+            v.push_back(r);
+        }
+        v.push_back({"growth_period", "the months in which carbon overflow drives growth", K::GrowthPeriod,
+                     "a name from `[growth_periods]`"});
+        v.push_back({"allometry", "crown radius from height", K::Allometry, "a code from `[allometry]`"});
+        v.push_back({"canopy", "the species can be a canopy tree", K::Flag, "true or false", nullptr, {}, nullptr,
+                     &Species::canopy});
+        return v;
+    }();
+    return fields;
+}
+
+/// docs/biome.md's row of a species key: "| `key` | doc | allowed values |".
+std::string speciesDocRow(const SpeciesField& f);
 
 struct SubBiome {
     int number = 1;  ///< 1-based, as in the paper

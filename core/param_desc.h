@@ -1,14 +1,17 @@
 // One description per parameter (issue 23, item 5): key, one-line doc with units, and the
 // allowed range, so that one table drives setting by key (TOML and flags), the attributes
 // written into outputs, validation with its messages, and the documentation (a test checks
-// each key's row in the docs). Described this way: the canopy placer's CanopyParams
-// (synth/canopy_placer.h, canopyParamFields) and the simulator's [model] keys
-// (sim/sim_config.h, simParamFields); the other parameter structs still describe themselves
-// by hand (docs/factors.md, the end).
+// each key's row in the docs). The tables: canopyParamFields and speciesMapParamFields
+// (synth/), simParamFields (sim/sim_config.h), synthParamFields, refineParamFields and
+// forestFloorParamFields (synth/), analysisParamFields (analysis/), sunParamFields and
+// abioticParamFields (core/abiotics.h); the biome's species keys have a descriptor of their
+// own built on ParamRange (SpeciesField, core/biome.h). What is still described by hand:
+// docs/factors.md, the end.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -45,17 +48,24 @@ struct ParamRange {
         if (highBound == Bound::Open && v >= hi) return false;
         return true;
     }
-    /// The rule as message text: "must be >= 0", "must be > 0", "must lie in (0, 10]".
-    std::string text() const {
+    /// The allowed values as documentation text: "> 0", ">= 0", "[0, 1]", "(0, 10]", or
+    /// "any number" when unbounded.
+    std::string valuesText() const {
         auto num = [](double v) { return formatNumber(v, 6); };
         if (highBound == Bound::None) {
-            if (lowBound == Bound::Closed) return "must be >= " + num(lo);
-            if (lowBound == Bound::Open) return "must be > " + num(lo);
-            return "must be finite";
+            if (lowBound == Bound::Closed) return ">= " + num(lo);
+            if (lowBound == Bound::Open) return "> " + num(lo);
+            return "any number";
         }
-        if (lowBound == Bound::None) return std::string("must be ") + (highBound == Bound::Closed ? "<= " : "< ") + num(hi);
-        return std::string("must lie in ") + (lowBound == Bound::Closed ? "[" : "(") + num(lo) + ", " + num(hi) +
+        if (lowBound == Bound::None) return std::string(highBound == Bound::Closed ? "<= " : "< ") + num(hi);
+        return std::string(lowBound == Bound::Closed ? "[" : "(") + num(lo) + ", " + num(hi) +
                (highBound == Bound::Closed ? "]" : ")");
+    }
+    /// The rule as message text: "must be >= 0", "must be > 0", "must lie in (0, 10]".
+    std::string text() const {
+        if (highBound == Bound::None && lowBound == Bound::None) return "must be finite";
+        const bool interval = highBound != Bound::None && lowBound != Bound::None;
+        return (interval ? "must lie in " : "must be ") + valuesText();
     }
 };
 
@@ -127,10 +137,35 @@ void validateParams(const S& p, const std::vector<ParamDesc<S>>& fields, const s
     }
 }
 
+/// The value of field f of p as text, for records that store parameters as strings (scene
+/// attributes, the database's /parameters): integers and seeds in full, reals with
+/// `significant` digits (formatNumber).
+template <typename S>
+std::string paramText(const ParamDesc<S>& f, const S& p, int significant) {
+    switch (f.kind) {
+        case ParamDesc<S>::Kind::Real: return formatNumber(p.*(f.real), significant);
+        case ParamDesc<S>::Kind::Integer: return std::to_string(p.*(f.integer));
+        case ParamDesc<S>::Kind::Seed: return std::to_string(p.*(f.seed));
+    }
+    return {};
+}
+
+/// The field `key` of a table (a flag's help text and range come from it); std::logic_error
+/// for a key the table does not have, a programming error that the CLI tests meet at start.
+template <typename S>
+const ParamDesc<S>& paramField(const std::vector<ParamDesc<S>>& fields, const std::string& key) {
+    for (const auto& f : fields)
+        if (key == f.key) return f;
+    throw std::logic_error("no parameter '" + key + "' in its table");
+}
+
 /// The documentation row of a field: "| `key` | default | doc |" (default from S{}).
 template <typename S>
 std::string paramDocRow(const ParamDesc<S>& f) {
-    return std::string("| `") + f.key + "` | " + formatNumber(f.value(S{}), 6) + " | " + f.doc + " |";
+    // Static, so that every byte (padding too) is initialised: GCC warns of reading a
+    // temporary's padding through a member pointer it cannot see.
+    static const S defaults{};
+    return std::string("| `") + f.key + "` | " + formatNumber(f.value(defaults), 6) + " | " + f.doc + " |";
 }
 
 }  // namespace eco

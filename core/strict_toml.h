@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "error.h"
+#include "param_desc.h"
 #include "text_format.h"
 
 namespace eco {
@@ -156,6 +157,31 @@ private:
     std::string context_;
     std::set<std::string> used_;
 };
+
+/// Reads the keys of `fields` that table t has into p (absent keys keep p's values): reals
+/// as numbers, integers as TOML integers within int's range, seeds as non-negative
+/// integers. Ranges are left to validateParams, which the caller runs on the whole struct.
+template <typename S>
+void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
+    for (const auto& f : fields) {
+        if (!t.has(f.key)) continue;
+        switch (f.kind) {
+            case ParamDesc<S>::Kind::Real: p.*(f.real) = t.number(f.key); break;
+            case ParamDesc<S>::Kind::Integer: {
+                const std::int64_t v = t.integer(f.key);
+                if (v < -2147483647 || v > 2147483647) t.fail(f.key, "value " + std::to_string(v) + " out of range");
+                p.*(f.integer) = static_cast<int>(v);
+                break;
+            }
+            case ParamDesc<S>::Kind::Seed: {
+                const std::int64_t v = t.integer(f.key);
+                if (v < 0) t.fail(f.key, "must be >= 0");
+                p.*(f.seed) = static_cast<std::uint64_t>(v);
+                break;
+            }
+        }
+    }
+}
 
 /// Parse TOML text; IoError "<source>:<line>: invalid TOML: ..." on a syntax error.
 toml::table parseTomlText(const std::string& text, const std::string& sourceName);

@@ -9,11 +9,13 @@
 #include <ostream>
 #include <sstream>
 
+#include "abiotics.h"
 #include "atomic_file.h"
 #include "biome_db.h"
 #include "eco_version.h"
 #include "error.h"
 #include "strict_toml.h"
+#include "text_format.h"
 
 namespace eco::pipeline {
 
@@ -165,8 +167,10 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     const std::string abiotics = at("abiotics.h5");
     {
         StrictTable t(top.table("abiotics"), configPath, "[abiotics]");
-        sunStepMinutes = asOnCommandLine(t.positiveOr("sun_step_minutes", sunStepMinutes));
-        if (sunStepMinutes < 0.1 || sunStepMinutes > 720) t.fail("sun_step_minutes", "must be in 0.1 .. 720 minutes");
+        const ParamDesc<SunParams>& step = paramField(sunParamFields(), "sun_step_minutes");
+        sunStepMinutes = asOnCommandLine(t.numberOr(step.key, sunStepMinutes));
+        if (!step.range.contains(sunStepMinutes))
+            t.fail(step.key, "value " + formatNumber(sunStepMinutes) + " " + step.ruleText() + " (minutes)");
         stages.push_back({"abiotics", abioticsOf("", terrain, terrainRead)});
         t.finish();
     }

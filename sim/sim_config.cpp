@@ -239,17 +239,7 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("model")) {
         StrictTable s(*t, sourceName, "[model]");
-        for (const auto& f : simParamFields()) {
-            if (f.kind == ParamDesc<SimParams>::Kind::Integer) {
-                int& v = c.params.*(f.integer);
-                const std::int64_t i = s.integerOr(f.key, v);
-                if (i < -2147483647 || i > 2147483647) s.fail(f.key, "value out of range");
-                v = static_cast<int>(i);
-            } else {
-                double& v = c.params.*(f.real);
-                v = s.numberOr(f.key, v);
-            }
-        }
+        readParams(s, c.params, simParamFields());
         readEnum(s, "growth_rule", kGrowthRules, c.params.growthRule);
         readEnum(s, "competition", kCompetitionModes, c.params.competition);
         s.finish();

@@ -905,30 +905,12 @@ std::size_t removeDuplicateTrees(std::vector<Plant>& plants, double minTrunkDist
 // ------------------------------------------------------------------------- configuration
 
 void readCanopyConfig(StrictTable& t, CanopyParams& canopy, SpeciesMapParams& speciesMap) {
-    for (const auto& f : canopyParamFields()) {
-        if (!t.has(f.key)) continue;
-        switch (f.kind) {
-            case CanopyParamField::Kind::Real: canopy.*(f.real) = t.number(f.key); break;
-            case CanopyParamField::Kind::Integer: {
-                const std::int64_t v = t.integer(f.key);
-                if (v < -1000000000 || v > 1000000000) t.fail(f.key, "value " + std::to_string(v) + " out of range");
-                canopy.*(f.integer) = static_cast<int>(v);
-                break;
-            }
-            case CanopyParamField::Kind::Seed: {
-                const std::int64_t v = t.integer(f.key);
-                if (v < 0) t.fail(f.key, "must be >= 0");
-                canopy.seed = static_cast<std::uint64_t>(v);
-                break;
-            }
-        }
-    }
+    readParams(t, canopy, canopyParamFields());
     speciesMap.canopyThresholdM = canopy.canopyThresholdM;
-    speciesMap.targetTolerance = t.numberOr("target_tolerance", speciesMap.targetTolerance);
-    if (t.has("max_bisection_steps")) speciesMap.maxBisectionSteps = static_cast<int>(t.integer("max_bisection_steps"));
-    if (t.has("target_sweeps")) speciesMap.targetSweeps = static_cast<int>(t.integer("target_sweeps"));
+    readParams(t, speciesMap, speciesMapParamFields());
     try {
         validateCanopyParams(canopy);
+        validateParams(speciesMap, speciesMapParamFields(), "species map parameter");
     } catch (const ValidationError& e) {
         throw ValidationError(t.file() + ": " + (t.context().empty() ? "" : t.context() + ": ") + e.what());
     }
@@ -947,9 +929,6 @@ void loadCanopyConfig(const std::string& path, CanopyParams& canopy, SpeciesMapP
         readCanopyConfig(table, canopy, speciesMap);
         table.finish();
     }
-    if (speciesMap.targetTolerance <= 0 || speciesMap.targetTolerance >= 1 || speciesMap.maxBisectionSteps < 1 ||
-        speciesMap.targetSweeps < 1)
-        throw ValidationError(path + ": target_tolerance must lie in (0, 1), max_bisection_steps and target_sweeps >= 1");
 }
 
 // ------------------------------------------------------------------------- files
@@ -980,9 +959,12 @@ void writeCanopyFile(const std::string& path, const CanopyRecord& rec, const Bio
     c.seed = rec.params.seed;
     for (const auto& field : canopyParamFields())
         if (field.kind != CanopyParamField::Kind::Seed) c.realParameters.emplace_back(field.key, canopyParamValue(rec.params, field));
-    c.realParameters.emplace_back("target_tolerance", rec.speciesParams.targetTolerance);
-    c.integerParameters.emplace_back("max_bisection_steps", static_cast<std::int64_t>(rec.speciesParams.maxBisectionSteps));
-    c.integerParameters.emplace_back("target_sweeps", static_cast<std::int64_t>(rec.speciesParams.targetSweeps));
+    for (const auto& field : speciesMapParamFields()) {  // reals as double, integers as int64 attributes
+        if (field.kind == SpeciesMapParamField::Kind::Real)
+            c.realParameters.emplace_back(field.key, field.value(rec.speciesParams));
+        else
+            c.integerParameters.emplace_back(field.key, static_cast<std::int64_t>(rec.speciesParams.*(field.integer)));
+    }
     c.speciesWeights.assign(biome.species.size(), 1.0);
     for (std::size_t i = 0; i < rec.speciesParams.weights.size() && i < c.speciesWeights.size(); ++i)
         c.speciesWeights[i] = rec.speciesParams.weights[i];

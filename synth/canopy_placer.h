@@ -155,9 +155,9 @@ std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chmM, double minHeigh
 // ------------------------------------------------------------------------- configuration
 
 /// Read canopy and species-map parameters from a strict TOML table (keys of
-/// canopyParamFields() plus target_tolerance, max_bisection_steps, target_sweeps;
-/// canopy_threshold_m sets both structs). Keys absent keep their values; unknown keys are
-/// errors (the caller's StrictTable::finish reports them).
+/// canopyParamFields() and speciesMapParamFields(); canopy_threshold_m sets both structs).
+/// Keys absent keep their values; unknown keys are errors (the caller's StrictTable::finish
+/// reports them); values outside their ranges are errors naming the file and key.
 void readCanopyConfig(StrictTable& table, CanopyParams& canopy, SpeciesMapParams& speciesMap);
 /// Same from a file: its [canopy] table when there is one (other tables belong to other
 /// stages), else its top level. IoError / ValidationError naming the file, line and key.

@@ -11,7 +11,10 @@ namespace eco::synth {
 
 namespace {
 
-std::string num(double v) { return formatNumber(v, 10); }
+// Scene files record reals with ten significant digits.
+constexpr int kRecordDigits = 10;
+
+std::string num(double v) { return formatNumber(v, kRecordDigits); }
 
 void checkResponse(const Response& r, const std::string& key) {
     if (!std::isfinite(r.c) || !(r.r > 0) || !std::isfinite(r.r))
@@ -21,10 +24,18 @@ void checkResponse(const Response& r, const std::string& key) {
 
 }  // namespace
 
+const std::vector<ParamDesc<ForestFloorParams>>& forestFloorParamFields() {
+    using K = ParamDesc<ForestFloorParams>::Kind;
+    static const std::vector<ParamDesc<ForestFloorParams>> fields = {
+        {"litter_full_alpha", "cumulative crown alpha at which litter density reaches 1", K::Real,
+         &ForestFloorParams::litterFullAlpha, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+    };
+    return fields;
+}
+
 void ForestFloorParams::validate() const {
     for (std::size_t f = 0; f < kFactorCount; ++f) checkResponse(grass[f], std::string("grass_") + kFactors[f].key);
-    if (!(litterFullAlpha > 0) || !std::isfinite(litterFullAlpha))
-        throw ValidationError("forest floor: litter_full_alpha must be positive, got " + num(litterFullAlpha));
+    validateParams(*this, forestFloorParamFields(), "forest floor parameter");
 }
 
 std::vector<std::pair<std::string, std::string>> ForestFloorParams::asParameters() const {
@@ -35,7 +46,7 @@ std::vector<std::pair<std::string, std::string>> ForestFloorParams::asParameters
         out.emplace_back(key + "_r", num(grass[f].r));
     }
     out.emplace_back("undergrowth_shades", undergrowthShades ? "true" : "false");
-    out.emplace_back("litter_full_alpha", num(litterFullAlpha));
+    for (const auto& f : forestFloorParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
     return out;
 }
 

@@ -18,6 +18,7 @@
 
 #include "biome.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "plants.h"
 #include "undergrowth.h"
 
@@ -34,9 +35,18 @@ struct ForestFloorParams {
     bool undergrowthShades = true;          ///< undergrowth crowns shade grass and drop litter too
     double litterFullAlpha = 2.0;           ///< cumulative alpha at which litter density reaches 1
 
+    /// ValidationError naming the parameter: the grass responses (finite c, positive r),
+    /// then forestFloorParamFields().
     void validate() const;
+    /// (key, value text) as recorded in scene files: grass_<factor>_c / _r per factor,
+    /// undergrowth_shades, then forestFloorParamFields() in order.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
+
+/// The numeric fields of ForestFloorParams (core/param_desc.h), keyed as scene files and
+/// docs/synth.md's table have them; the grass responses are one pair per factor, named by
+/// the factor table, and undergrowth_shades a choice.
+const std::vector<ParamDesc<ForestFloorParams>>& forestFloorParamFields();
 
 struct ForestFloor {
     Grid<float> grass;           ///< grass / forb density, [0, 1]

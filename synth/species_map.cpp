@@ -189,6 +189,21 @@ void validateSpeciesMapInputs(const SpeciesMapInputs& in) {
                                       " m at cell (" + std::to_string(ix) + ", " + std::to_string(iy) + ")");
 }
 
+const std::vector<SpeciesMapParamField>& speciesMapParamFields() {
+    using K = SpeciesMapParamField::Kind;
+    using R = ParamRange;
+    using P = SpeciesMapParams;
+    static const std::vector<SpeciesMapParamField> fields = {
+        {"target_tolerance", "species map: a target is met within this share", K::Real, &P::targetTolerance, nullptr,
+         R{R::Bound::Open, 0, R::Bound::Open, 1}},
+        {"max_bisection_steps", "species map: evaluations per bisection", K::Integer, nullptr, &P::maxBisectionSteps,
+         R::closed(1, 10000)},
+        {"target_sweeps", "species map: rounds over several targets", K::Integer, nullptr, &P::targetSweeps,
+         R::closed(1, 1000)},
+    };
+    return fields;
+}
+
 void validateSpeciesMapParams(const SpeciesMapParams& p, const Biome& biome) {
     if (!std::isfinite(p.canopyThresholdM) || p.canopyThresholdM < 0)
         throw ValidationError("species map: canopy_threshold_m must be >= 0, got " + num(p.canopyThresholdM));
@@ -208,13 +223,7 @@ void validateSpeciesMapParams(const SpeciesMapParams& p, const Biome& biome) {
                                   "' must be >= 0, got " + num(lw.weight));
         if (!lw.mask) throw ValidationError("species map: brush weight without a mask");
     }
-    if (!std::isfinite(p.targetTolerance) || p.targetTolerance <= 0 || p.targetTolerance >= 1)
-        throw ValidationError("species map: target_tolerance must lie in (0, 1), got " + num(p.targetTolerance));
-    if (p.maxBisectionSteps < 1 || p.maxBisectionSteps > 10000)
-        throw ValidationError("species map: max_bisection_steps must lie in [1, 10000], got " +
-                              std::to_string(p.maxBisectionSteps));
-    if (p.targetSweeps < 1 || p.targetSweeps > 1000)
-        throw ValidationError("species map: target_sweeps must lie in [1, 1000], got " + std::to_string(p.targetSweeps));
+    validateParams(p, speciesMapParamFields(), "species map parameter");
 }
 
 Grid<std::int32_t> computeSpeciesMap(const Biome& biome, const SpeciesMapInputs& in, const SpeciesMapParams& params) {

@@ -21,6 +21,7 @@
 #include "abiotics.h"
 #include "biome.h"
 #include "grid.h"
+#include "param_desc.h"
 
 namespace eco::synth {
 
@@ -63,6 +64,14 @@ struct SpeciesMapParams {
     /// early when every target is met (later targets disturb earlier ones a little).
     int targetSweeps = 5;
 };
+
+/// One parameter of SpeciesMapParams (core/param_desc.h): key in canopy configs, canopy
+/// files and docs/canopy.md's table, doc line and range.
+using SpeciesMapParamField = ParamDesc<SpeciesMapParams>;
+/// The target bisection's parameters, in record order: the one description of them. Not
+/// listed: the weights (per species, from targets and brushes) and canopyThresholdM, which
+/// is the canopy placer's canopy_threshold_m (canopyParamFields) copied here.
+const std::vector<SpeciesMapParamField>& speciesMapParamFields();
 
 /// ValidationError naming the field when a parameter is out of range.
 void validateSpeciesMapParams(const SpeciesMapParams& p, const Biome& biome);

@@ -39,6 +39,7 @@
 #include "biome.h"
 #include "biome_db.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "plants.h"
 #include "point_pattern.h"
 #include "seeding.h"
@@ -106,11 +107,19 @@ struct SynthParams {
     /// ... where a Poisson pattern would have had at least this many pairs per bin.
     double hardCoreMinExpectedPairs = 10;
 
-    /// ValidationError naming the field when one is out of range.
+    /// ValidationError naming the field when one is out of range (synthParamFields).
     void validate() const;
-    /// (key, value text) of every parameter, as recorded in scene files.
+    /// (key, value text) of every parameter, as recorded in scene files: the method, then
+    /// synthParamFields() in order.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
+
+/// One parameter of SynthParams (core/param_desc.h): its key in scene files and
+/// docs/synth.md's table, its doc line and its range.
+using SynthParamField = ParamDesc<SynthParams>;
+/// Every numeric parameter of SynthParams (all but the method), in record order: the one
+/// description of them (synth/synth_params.cpp).
+const std::vector<SynthParamField>& synthParamFields();
 
 // ------------------------------------------------------------------------- cluster map
 
@@ -256,9 +265,18 @@ struct RefineParams {
     std::size_t distanceSources = 20000;
     std::uint64_t seed = 1;
 
+    /// ValidationError naming the field when one is out of range (refineParamFields).
     void validate() const;
+    /// (key, value text) of every parameter, as recorded in scene files: refineParamFields()
+    /// in order, then refine_window, refine_distance_sources and refine_seed.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
+
+/// One parameter of RefineParams, keyed as scene files record it (refine_sweeps ...).
+using RefineParamField = ParamDesc<RefineParams>;
+/// The numeric parameters of RefineParams that users set (not the window, the number of
+/// distance sources or the seed), in record order (synth/synth_params.cpp).
+const std::vector<RefineParamField>& refineParamFields();
 
 struct RefineResult {
     double distanceBefore = 0;             ///< pcfDistance over all database bins (sampled sources)

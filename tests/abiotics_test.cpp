@@ -18,6 +18,7 @@
 #include "abiotics_fixture.h"
 #include "error.h"
 #include "h5io.h"
+#include "param_table_check.h"
 #include "terrain_io.h"
 #include "test_util.h"
 
@@ -514,6 +515,22 @@ TEST_CASE("abiotics: computeAbiotics reports every stage and validates its input
     REQUIRE_THROWS_WITH(computeAbiotics(z, badBiome, params), Catch::Contains("April"));
 }
 
+TEST_CASE("abiotics parameters: one description drives validation, the attributes and the docs", "[abiotics]") {
+    const Grid<float> z(4, 4, 1.0);
+    const Biome biome = testBiome();
+    test::checkParamTable(
+        sunParamFields(), "docs/abiotics.md",
+        [&](const SunParams& sun) {
+            AbioticParams p;
+            p.sun = sun;
+            computeAbiotics(z, biome, p);
+        },
+        [](const SunParams&) { return std::vector<std::pair<std::string, std::string>>{}; }, 0);
+    test::checkParamTable(
+        abioticParamFields(), "docs/abiotics.md", [&](const AbioticParams& p) { computeAbiotics(z, biome, p); },
+        [](const AbioticParams&) { return std::vector<std::pair<std::string, std::string>>{}; }, 0);
+}
+
 TEST_CASE("abiotics HDF5 round trip", "[abiotics]") {
     test::TempDir dir("abiotics_h5");
     const Grid<float> z = roughTerrain(26, 19, 2.0);
@@ -544,6 +561,13 @@ TEST_CASE("abiotics HDF5 round trip", "[abiotics]") {
     REQUIRE(f.attrInt("/", "sun_sky_azimuths") == 16);
     REQUIRE(f.attrInt("/", "moisture_spin_up_years") == 2);
     REQUIRE(f.attrDouble("/", "soil_saturation_mm") == 180.0);
+    for (const auto& field : sunParamFields()) {  // every parameter of the table, typed by its kind
+        INFO(field.key);
+        if (field.kind == ParamDesc<SunParams>::Kind::Real) CHECK(f.attrDouble("/", field.key) == field.value(params.sun));
+        else CHECK(f.attrInt("/", field.key) == static_cast<std::int64_t>(field.value(params.sun)));
+    }
+    for (const auto& field : abioticParamFields())
+        CHECK(f.attrInt("/", field.key) == static_cast<std::int64_t>(field.value(params)));
     REQUIRE(f.attrDouble("/", "lapse_rate_c_per_km") == 9.8);
     REQUIRE(f.attrDoubles("/", "climate_rainfall_mm").size() == 12);
     REQUIRE(f.attrDoubles("/", "climate_sky_clarity")[0] == 0.43);

@@ -16,6 +16,7 @@
 #include "biome_db.h"
 #include "error.h"
 #include "h5io.h"
+#include "param_table_check.h"
 #include "plants.h"
 #include "rng.h"
 #include "sim_file.h"
@@ -388,11 +389,25 @@ TEST_CASE("the database is bit-identical with 1 and 2 threads", "[analysis]") {
     requireIdentical(a, b);
 }
 
+TEST_CASE("analysis parameters: one description drives validation, the database record and the docs", "[analysis]") {
+    test::checkParamTable(
+        analysis::analysisParamFields(), "docs/analysis.md", [](const analysis::AnalysisParams& p) { p.validate(); },
+        [](const analysis::AnalysisParams& p) { return p.asParameters(); }, 12);
+    // The record keeps the order the databases have (each name once).
+    const auto rec = analysis::AnalysisParams{}.asParameters();
+    REQUIRE(rec.size() == 24);
+    CHECK(rec[1].first == "canopy_membership");
+    CHECK(rec[3].first == "k_criterion");
+    CHECK(rec[11].first == "feature_normalisation");
+    CHECK(rec[21].first == "context_edges_m");
+    CHECK(rec[23].first == "context_pair_sample_cells");
+}
+
 TEST_CASE("inconsistent inputs and parameters are ValidationErrors naming the problem", "[analysis][errors]") {
     analysis::AnalysisInput in = flatInput(10, 10);
     analysis::AnalysisParams params;
     params.kMax = 0;
-    CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("kmax = 0"));
+    CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("'kmax' must lie in [1, 64], got 0"));
     params = analysis::AnalysisParams{};
     in.features[Factor::Moisture] = Grid<float>(9, 10, 1.0);
     CHECK_THROWS_WITH(analysis::analyse({in}, params), Catch::Contains("moisture grid differs"));

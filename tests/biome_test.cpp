@@ -2,10 +2,12 @@
 #include <catch2/catch.hpp>
 
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "biome.h"
 #include "error.h"
+#include "text_format.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -121,8 +123,8 @@ TEST_CASE("biome validation names the file, the species and the field", "[biome]
         std::string what, anchor, from, to, expectField, expectWords;
     };
     const std::vector<Case> cases = {
-        {"alpha above 1", "name = \"Toyon\"", "alpha = 0.68", "alpha = 1.4", "alpha", "outside [0, 1]"},
-        {"negative alpha", "name = \"Toyon\"", "alpha = 0.68", "alpha = -0.1", "alpha", "outside [0, 1]"},
+        {"alpha above 1", "name = \"Toyon\"", "alpha = 0.68", "alpha = 1.4", "alpha", "must lie in [0, 1]"},
+        {"negative alpha", "name = \"Toyon\"", "alpha = 0.68", "alpha = -0.1", "alpha", "must lie in [0, 1]"},
         {"zero max age", "name = \"Toyon\"", "max_age_years = 150", "max_age_years = 0", "max_age_years", "positive"},
         {"negative max height", "name = \"Toyon\"", "max_height_m = 9.0", "max_height_m = -9.0", "max_height_m", "positive"},
         {"zero range r", "name = \"Toyon\"", "sun = { c = 9.5, r = 11 }", "sun = { c = 9.5, r = 0 }", "'r'", "positive"},
@@ -142,6 +144,39 @@ TEST_CASE("biome validation names the file, the species and the field", "[biome]
             CHECK_THAT(msg, Catch::Contains(c.expectField));
             CHECK_THAT(msg, Catch::Contains(c.expectWords));
         }
+    }
+}
+
+TEST_CASE("one description of the species keys drives reading, printing, messages and the docs table", "[biome]") {
+    std::ifstream in(test::sourcePath("docs/biome.md"));
+    REQUIRE(in);
+    std::stringstream docs;
+    docs << in.rdbuf();
+    const std::string base = sonomaText();
+    const Biome sonoma = parseBiome(base, "sonoma.toml");
+    const Species& toyon = sonoma.species[static_cast<std::size_t>(sonoma.speciesIndex("Toyon"))];
+    const Biome again = parseBiome(biomeToToml(sonoma), "roundtrip.toml");
+    const Species& toyonAgain = again.species[static_cast<std::size_t>(again.speciesIndex("Toyon"))];
+    std::set<std::string> keys;
+    for (const SpeciesField& f : speciesFields()) {
+        INFO(f.key);
+        CHECK(keys.insert(f.key).second);
+        CHECK(docs.str().find(speciesDocRow(f)) != std::string::npos);
+        // Every key is required: without it the species is refused, naming the key.
+        const auto at = base.find("\n" + f.key + " = ", base.find("name = \"Toyon\"") - 1);
+        REQUIRE(at != std::string::npos);
+        const auto eol = base.find('\n', at + 1);
+        const std::string without = base.substr(0, at) + base.substr(eol);
+        CHECK_THROWS_WITH(parseBiome(without, "mutated.toml"),
+                          Catch::Contains("mutated.toml") && Catch::Contains("field '" + f.key + "': missing"));
+        if (f.kind != SpeciesField::Kind::Real) continue;
+        // Printed and read back unchanged; a value outside the range is refused with the rule.
+        CHECK(toyonAgain.*(f.real) == toyon.*(f.real));
+        const double outside = f.range.highBound != ParamRange::Bound::None ? f.range.hi + 1 : f.range.lo - 1;
+        const std::string bad = base.substr(0, at) + "\n" + f.key + " = " + formatNumber(outside, 17) + base.substr(eol);
+        CHECK_THROWS_WITH(parseBiome(bad, "mutated.toml"),
+                          Catch::Contains("mutated.toml:") && Catch::Contains("species 'Toyon'") &&
+                              Catch::Contains("field '" + f.key + "'") && Catch::Contains(f.ruleText()));
     }
 }
 

@@ -335,6 +335,13 @@ TEST_CASE("canopy configs are read strictly", "[canopy]") {
         synth::SpeciesMapParams s;
         CHECK_THROWS_WITH(synth::loadCanopyConfig(dir.file("range.toml"), c, s), Catch::Contains("min_visible_fraction"));
     }
+    {
+        std::ofstream(dir.file("sweeps.toml")) << "[canopy]\ntarget_sweeps = 0\n";
+        synth::CanopyParams c;
+        synth::SpeciesMapParams s;
+        CHECK_THROWS_WITH(synth::loadCanopyConfig(dir.file("sweeps.toml"), c, s),
+                          Catch::Contains("sweeps.toml") && Catch::Contains("'target_sweeps' must lie in [1, 1000], got 0"));
+    }
 }
 
 TEST_CASE("canopy files round-trip", "[canopy]") {

@@ -9,6 +9,7 @@
 #include "biome.h"
 #include "error.h"
 #include "forest_floor.h"
+#include "param_table_check.h"
 #include "rng.h"
 
 using namespace eco;
@@ -114,6 +115,12 @@ TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any
         else REQUIRE(g < 1.0f);
         REQUIRE(one.litter.data()[i] == Approx(std::min(1.0, a / p.litterFullAlpha)).margin(1e-6));
     }
+}
+
+TEST_CASE("forest floor parameters: one description drives validation, the record and the docs", "[forest_floor]") {
+    test::checkParamTable(
+        synth::forestFloorParamFields(), "docs/synth.md", [](const synth::ForestFloorParams& p) { p.validate(); },
+        [](const synth::ForestFloorParams& p) { return p.asParameters(); }, 10);
 }
 
 TEST_CASE("forest floor parameters are validated", "[forest_floor]") {

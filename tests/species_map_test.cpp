@@ -9,6 +9,7 @@
 
 #include "biome.h"
 #include "error.h"
+#include "param_table_check.h"
 #include "rng.h"
 #include "species_map.h"
 #include "terrain_io.h"
@@ -244,6 +245,15 @@ TEST_CASE("targets are parsed strictly", "[species_map]") {
     CHECK_THAT(message("Redwood=0.4x"), Catch::Contains("not a number"));
     CHECK_THAT(message("Redwood=nan"), Catch::Contains("[0, 1]"));
     CHECK_THAT(message("Redwood"), Catch::Contains("SPECIES=FRACTION"));
+}
+
+TEST_CASE("species-map parameters: one description drives validation, the canopy config and the docs",
+          "[species_map]") {
+    const Biome biome = defaultBiome();
+    test::checkParamTable(
+        synth::speciesMapParamFields(), "docs/canopy.md",
+        [&](const synth::SpeciesMapParams& p) { synth::validateSpeciesMapParams(p, biome); },
+        [](const synth::SpeciesMapParams&) { return std::vector<std::pair<std::string, std::string>>{}; }, 0);
 }
 
 TEST_CASE("bad species-map input is rejected with a clear message", "[species_map]") {

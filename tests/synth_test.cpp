@@ -28,6 +28,7 @@
 #include "error.h"
 #include "forest_floor.h"
 #include "h5io.h"
+#include "param_table_check.h"
 #include "scene.h"
 #include "synth_world_fixture.h"
 #include "terrain_io.h"
@@ -431,6 +432,19 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
     synth::writeScenePng(dir.file("zoom.png"), rec.canopy, rec.undergrowth, w.terrain, &rec.floor, w.biome, "zoom", &crop, 400);
     CHECK(std::filesystem::file_size(dir.file("scene.png")) > 1000);
     CHECK(std::filesystem::file_size(dir.file("zoom.png")) > 1000);
+}
+
+TEST_CASE("synthesis and refinement parameters: one description drives validation, the record and the docs",
+          "[synth]") {
+    test::checkParamTable(
+        synth::synthParamFields(), "docs/synth.md", [](const synth::SynthParams& p) { p.validate(); },
+        [](const synth::SynthParams& p) { return p.asParameters(); }, 10);
+    test::checkParamTable(
+        synth::refineParamFields(), "docs/synth.md", [](const synth::RefineParams& p) { p.validate(); },
+        [](const synth::RefineParams& p) { return p.asParameters(); }, 10);
+    synth::SynthParams p;
+    p.clusterSigmaMaxM = 0.1;  // below the smallest scale
+    CHECK_THROWS_WITH(p.validate(), Catch::Contains("cluster_sigma_max_m") && Catch::Contains("cluster_sigma_min_m"));
 }
 
 TEST_CASE("the database's biome must match its species list", "[synth]") {

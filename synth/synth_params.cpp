@@ -1,0 +1,111 @@
+// The parameters of undergrowth synthesis and refinement described once (core/param_desc.h):
+// validation with its messages, the scene file's record and docs/synth.md's table (tested)
+// come from synthParamFields() and refineParamFields(). Kept apart from the samplers so
+// that a parameter's description and its record change in one place.
+#include <cmath>
+
+#include "error.h"
+#include "text_format.h"
+#include "undergrowth.h"
+
+namespace eco::synth {
+
+namespace {
+
+// Scene files record reals with ten significant digits.
+constexpr int kRecordDigits = 10;
+
+std::string num(double v) { return formatNumber(v, kRecordDigits); }
+
+}  // namespace
+
+const std::vector<SynthParamField>& synthParamFields() {
+    using K = SynthParamField::Kind;
+    using R = ParamRange;
+    using P = SynthParams;
+    static const std::vector<SynthParamField> fields = {
+        {"seed", "`--seed`; sampling and refinement", K::Seed, nullptr, nullptr, R::any(), &P::seed},
+        {"seed_inner_radius_factor",
+         "seeding kernel: full weight within this x crown radius (the outer radius is the database's "
+         "`seeding_radius_factor`)",
+         K::Real, &P::seedInnerRadiusFactor, nullptr, R::atLeast(0)},
+        {"trunk_exclusion_factor", "no undergrowth within this x crown radius of a canopy trunk", K::Real,
+         &P::trunkExclusionFactor, nullptr, R{R::Bound::Closed, 0, R::Bound::Open, 1}},
+        {"max_passes", "dart-throwing passes at most", K::Integer, nullptr, &P::maxPasses, R::closed(1, 10000)},
+        {"candidate_oversample", "darts per missing plant in a pass (structured: doubled in each later pass)", K::Real,
+         &P::candidateOversample, nullptr, R::closed(1, 100)},
+        {"cluster_sigma_min_m", "structured: smallest cluster scale searched (m)", K::Real, &P::clusterSigmaMinM,
+         nullptr, R::above(0)},
+        // Also at least cluster_sigma_min_m (SynthParams::validate).
+        {"cluster_sigma_max_m", "structured: largest cluster scale searched (m), at least the smallest", K::Real,
+         &P::clusterSigmaMaxM, nullptr, R::openClosed(0, 1000)},
+        {"cluster_min_plants", "structured: fewer plants of a species in a region: the pooled clustering",
+         K::Integer, nullptr, &P::clusterMinPlants, R::atLeast(0)},
+        {"quota_tile_m", "structured: quotas per (region, species, tile of this side, m); 0 = per region", K::Real,
+         &P::quotaTileM, nullptr, R::atLeast(0)},
+        {"hard_core_g", "structured: inhibition where the database's g stays below this in the leading bins",
+         K::Real, &P::hardCoreG, nullptr, R::closed(0, 1)},
+        {"hard_core_min_expected_pairs",
+         "structured: ... of those bins where a Poisson pattern has at least this many pairs", K::Real,
+         &P::hardCoreMinExpectedPairs, nullptr, R::atLeast(0)},
+    };
+    return fields;
+}
+
+void SynthParams::validate() const {
+    validateParams(*this, synthParamFields(), "synthesis parameter");
+    if (!(clusterSigmaMaxM >= clusterSigmaMinM))
+        throw ValidationError("synthesis parameter 'cluster_sigma_max_m' must be >= cluster_sigma_min_m (" +
+                              num(clusterSigmaMinM) + "), got " + num(clusterSigmaMaxM));
+}
+
+const char* toString(SynthMethod m) { return m == SynthMethod::Darts ? "darts" : "structured"; }
+
+SynthMethod parseSynthMethod(const std::string& name) {
+    if (name == "structured") return SynthMethod::Structured;
+    if (name == "darts") return SynthMethod::Darts;
+    throw ValidationError("synthesis: method '" + name + "' is not known (structured or darts)");
+}
+
+std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() const {
+    std::vector<std::pair<std::string, std::string>> out = {{"method", toString(method)}};
+    for (const auto& f : synthParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+    return out;
+}
+
+const std::vector<RefineParamField>& refineParamFields() {
+    using K = RefineParamField::Kind;
+    using R = ParamRange;
+    using P = RefineParams;
+    static const std::vector<RefineParamField> fields = {
+        {"refine_sweeps", "proposals per plant", K::Integer, nullptr, &P::sweeps, R::closed(0, 100000)},
+        {"refine_move_radius_m", "displacement proposals: uniform in a disc of this radius (m)", K::Real,
+         &P::moveRadiusM, nullptr, R::above(0), nullptr, "must be positive"},
+        {"refine_swap_radius_m", "swap proposals: a partner within this distance (m)", K::Real, &P::swapRadiusM,
+         nullptr, R::above(0), nullptr, "must be positive"},
+        {"refine_swap_probability", "share of swap proposals", K::Real, &P::swapProbability, nullptr, R::closed(0, 1)},
+        {"refine_rmax_m", "pair correlation matched up to this distance (m); 0 = automatic", K::Real, &P::rMaxM,
+         nullptr, R::atLeast(0)},
+        {"refine_auto_neighbours", "neighbours per plant the automatic range aims at", K::Real, &P::autoNeighbours,
+         nullptr, R::above(0), nullptr, "must be positive"},
+    };
+    return fields;
+}
+
+void RefineParams::validate() const {
+    validateParams(*this, refineParamFields(), "refinement parameter");
+    if (useWindow) window.validate("refinement window");
+}
+
+std::vector<std::pair<std::string, std::string>> RefineParams::asParameters() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& f : refineParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+    out.emplace_back("refine_window", useWindow ? num(window.x0) + "," + num(window.y0) + "," + num(window.x1) + "," +
+                                                      num(window.y1)
+                                                : std::string("none"));
+    out.emplace_back("refine_distance_sources", std::to_string(distanceSources));
+    out.emplace_back("refine_seed", std::to_string(seed));  // the synthesis seed (pipeline/synth_stages.cpp)
+    return out;
+}
+
+}  // namespace eco::synth
