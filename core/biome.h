@@ -84,10 +84,10 @@ inline const std::vector<SpeciesField>& speciesFields() {
             {"name", "the species' name in every output and in `--target`", K::Name, "text, unique in the biome"},
             {"sub_biomes", "the sub-biomes (`[[sub_biome]]` numbers) the species grows in", K::SubBiomes,
              "a non-empty list of existing sub-biome numbers"},
-            {"max_age_years", "l_s: maximum age, years", K::Real, "", &Species::maxAgeYears, R::above(0),
-             "must be positive"},
-            {"max_height_m", "h'_s: maximum height, m", K::Real, "", &Species::maxHeightM, R::above(0),
-             "must be positive"},
+            // Upper bounds well above any living plant (the oldest about 5000 years, the
+            // tallest about 116 m): a typo such as 1e300 is refused, not simulated.
+            {"max_age_years", "l_s: maximum age, years", K::Real, "", &Species::maxAgeYears, R::openClosed(0, 10000)},
+            {"max_height_m", "h'_s: maximum height, m", K::Real, "", &Species::maxHeightM, R::openClosed(0, 200)},
             {"alpha", "alpha_s: share of the light the crown absorbs, and the vigour scale (Eq. 1)", K::Real, "",
              &Species::alpha, R::closed(0, 1)},
         };

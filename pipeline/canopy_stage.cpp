@@ -79,6 +79,17 @@ synth::CanopyParams canopyParamsFrom(const CanopyOptions& a, synth::SpeciesMapPa
     return p;
 }
 
+}  // namespace
+
+void checkCanopyOptions(const CanopyOptions& a) {
+    synth::SpeciesMapParams sm;
+    canopyParamsFrom(a, sm);
+    const Biome biome = a.biome.empty() ? defaultBiome() : loadBiome(a.biome);
+    for (const auto& t : a.targets) synth::parseSpeciesTarget(t, biome);
+}
+
+namespace {
+
 void printIteration(std::ostream& out, const IterationStats& s) {
     char line[160];
     if (s.iteration < 0)

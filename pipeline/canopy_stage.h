@@ -40,6 +40,9 @@ struct CanopyStageResult {
     std::vector<std::string> written;
 };
 CanopyStageResult canopyStage(const CanopyOptions& options, Reporter& reporter);
+/// The stage's settings checked without reading its inputs: the placer configuration file and
+/// overrides, the biome, the targets' species. ValidationError naming the file and key.
+void checkCanopyOptions(const CanopyOptions& options);
 std::vector<std::string> commandLine(const CanopyOptions& options);
 
 }  // namespace eco::pipeline

@@ -287,6 +287,17 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         t.finish();
     }
     top.finish();
+    // Every stage's own settings (the simulation's and the placer's configuration files, the
+    // biome, the targets) checked now, not when the stage starts minutes into the run.
+    if (!biome.empty()) loadBiome(biome);
+    for (const PlannedStage& s : stages) {
+        try {
+            if (const auto* o = std::get_if<SimulateOptions>(&s.options)) simulateConfig(*o);
+            if (const auto* o = std::get_if<CanopyOptions>(&s.options)) checkCanopyOptions(*o);
+        } catch (const Error& e) {
+            throw ValidationError(configPath + ": stage '" + s.name + "': " + e.what());
+        }
+    }
     return {configPath, out, stages};
 }
 

@@ -9,7 +9,7 @@
 
 namespace eco::pipeline {
 
-SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
+sim::RunConfig simulateConfig(const SimulateOptions& o) {
     sim::RunConfig cfg = o.config.empty() ? sim::RunConfig{} : sim::loadRunConfig(o.config);
     if (!o.terrain.empty()) cfg.terrainPath = o.terrain;
     if (!o.abiotics.empty()) cfg.abioticsPath = o.abiotics;
@@ -27,6 +27,11 @@ SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
     if (!o.growthRule.empty()) cfg.params.growthRule = sim::parseGrowthRule(o.growthRule, "--growth-rule");
     if (!o.competition.empty()) cfg.params.competition = sim::parseCompetitionMode(o.competition, "--competition");
     cfg.validate();
+    return cfg;
+}
+
+SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
+    sim::RunConfig cfg = simulateConfig(o);
 
     reporter.info("simulate: " + std::to_string(cfg.years) + " years, seed " + std::to_string(cfg.seed) + ", " +
                   std::to_string(omp_get_max_threads()) + " threads, growth rule " +

@@ -29,6 +29,10 @@ struct SimulateResult {
 /// Run the simulation; progress through reporter.simulationProgress, stopped (with an Error
 /// naming the checkpoint) when reporter.stopRequested().
 SimulateResult simulateStage(const SimulateOptions& options, Reporter& reporter);
+/// The run configuration the stage would use (its file read, the options applied, checked):
+/// ValidationError naming the file and key. Reads no input data (eco run checks every stage
+/// with it before the first runs).
+sim::RunConfig simulateConfig(const SimulateOptions& options);
 std::vector<std::string> commandLine(const SimulateOptions& options);
 
 }  // namespace eco::pipeline

@@ -125,8 +125,10 @@ TEST_CASE("biome validation names the file, the species and the field", "[biome]
     const std::vector<Case> cases = {
         {"alpha above 1", "name = \"Toyon\"", "alpha = 0.68", "alpha = 1.4", "alpha", "must lie in [0, 1]"},
         {"negative alpha", "name = \"Toyon\"", "alpha = 0.68", "alpha = -0.1", "alpha", "must lie in [0, 1]"},
-        {"zero max age", "name = \"Toyon\"", "max_age_years = 150", "max_age_years = 0", "max_age_years", "positive"},
-        {"negative max height", "name = \"Toyon\"", "max_height_m = 9.0", "max_height_m = -9.0", "max_height_m", "positive"},
+        {"zero max age", "name = \"Toyon\"", "max_age_years = 150", "max_age_years = 0", "max_age_years", "must lie in (0, 10000]"},
+        {"negative max height", "name = \"Toyon\"", "max_height_m = 9.0", "max_height_m = -9.0", "max_height_m", "must lie in (0, 200]"},
+        {"max height of 1e300", "name = \"Toyon\"", "max_height_m = 9.0", "max_height_m = 1e300", "max_height_m", "must lie in (0, 200]"},
+        {"max age of 1e300", "name = \"Toyon\"", "max_age_years = 150", "max_age_years = 1e300", "max_age_years", "value 1e+300 must lie in (0, 10000]"},
         {"zero range r", "name = \"Toyon\"", "sun = { c = 9.5, r = 11 }", "sun = { c = 9.5, r = 0 }", "'r'", "positive"},
         {"unknown key", "name = \"Toyon\"", "canopy = false", "canopy = false\ncanopy_height = 3", "canopy_height", "unknown key"},
         {"missing field", "name = \"Toyon\"", "alpha = 0.68\n", "", "alpha", "missing"},

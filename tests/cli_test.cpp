@@ -191,6 +191,32 @@ TEST_CASE("eco run: a stage without what it needs is a clear error before anythi
     CHECK(r.exitCode != 0);
     CHECK_THAT(r.output, Catch::Contains("bad.toml") && Catch::Contains("[synth]") && Catch::Contains("analyse"));
     CHECK_FALSE(std::filesystem::exists(dir.file("out/terrain.h5")));
+
+    // A bad value in a stage's own configuration file (or a target species the biome does not
+    // have) is found before the first stage, not when that stage starts (issue 26).
+    const std::string simCfg = dir.file("sim.toml");
+    {
+        std::ofstream f(simCfg);
+        f << "[run]\nyears = 5\n[model]\nseeding_probability = -1\n";
+    }
+    {
+        std::ofstream f(cfg);
+        f << "[run]\nout_dir = \"" << dir.file("out") << "\"\n[terrain]\n[chm]\n[abiotics]\n[canopy]\n"
+          << "[simulate]\nconfig = \"" << simCfg << "\"\n";
+    }
+    const auto sim = runEco("run " + cfg);
+    CHECK(sim.exitCode == 1);
+    CHECK_THAT(sim.output, Catch::Contains("stage 'simulate'") && Catch::Contains("sim.toml") &&
+                               Catch::Contains("seeding_probability") && Catch::Contains("-1"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("out/terrain.h5")));
+    {
+        std::ofstream f(cfg);
+        f << "[run]\nout_dir = \"" << dir.file("out") << "\"\n[terrain]\n[chm]\n[abiotics]\n[canopy]\n"
+          << "targets = [\"Baobab=0.3\"]\n";
+    }
+    const auto target = runEco("run " + cfg + " --dry-run");
+    CHECK(target.exitCode == 1);
+    CHECK_THAT(target.output, Catch::Contains("stage 'canopy'") && Catch::Contains("Baobab"));
 }
 
 TEST_CASE("sizes beyond the memory are refused before allocating, with what they need", "[cli][errors]") {
