@@ -1,10 +1,12 @@
 #include "atomic_file.h"
 
+#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <system_error>
 
@@ -48,13 +50,34 @@ void removeStaleTemporaries(const std::filesystem::path& finalPath) {
     }
 }
 
+/// fsync of a finished temporary; IoError naming the output when the data cannot be flushed.
+void syncPath(const std::string& temp, const std::string& output) {
+    const int fd = ::open(temp.c_str(), O_RDONLY);
+    if (fd < 0) throw IoError(output + ": cannot open the finished output to flush it: " + std::strerror(errno));
+    const int rc = ::fsync(fd);
+    const int err = errno;
+    ::close(fd);
+    if (rc != 0 && err != EINVAL && err != EROFS)  // EINVAL: the file system does not sync (pipes, some FUSE)
+        throw IoError(output + ": cannot flush the output to disk: " + std::strerror(err));
+}
+
 }  // namespace
 
 void AtomicOutput::commit() {
+    // The data on disk before the name: after a power cut the output is the old file or the
+    // whole new one, never a new name over a partly written file (rename alone orders nothing).
+    syncPath(temp_, final_);
     std::error_code ec;
     std::filesystem::rename(temp_, final_, ec);
     if (ec) throw IoError(final_ + ": cannot move finished output into place: " + ec.message());
     committed_ = true;
+    // The directory entry too (best effort: some file systems refuse fsync on a directory).
+    const std::filesystem::path p(final_);
+    const int dirFd = ::open(p.has_parent_path() ? p.parent_path().c_str() : ".", O_RDONLY | O_DIRECTORY);
+    if (dirFd >= 0) {
+        ::fsync(dirFd);
+        ::close(dirFd);
+    }
     removeStaleTemporaries(final_);
 }
 

@@ -16,7 +16,8 @@ public:
 
     const std::string& tempPath() const { return temp_; }
     const std::string& finalPath() const { return final_; }
-    /// Atomically replace finalPath with the temporary file. Throws IoError on failure. Then
+    /// Atomically replace finalPath with the temporary file, flushed to disk first (fsync of the
+    /// file, then of its directory after the rename). Throws IoError on failure. Then
     /// removes the temporaries of finalPath left by processes that no longer run (killed
     /// before their own commit or cleanup).
     void commit();
