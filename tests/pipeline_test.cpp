@@ -30,10 +30,26 @@ private:
     std::string info_;
 };
 
+/// Runs a scope from another working directory: configurations name their files relative to
+/// the repository root (configs/demo.toml says so), and planning now reads them.
+class InDirectory {
+public:
+    explicit InDirectory(const std::string& dir) : previous_(std::filesystem::current_path()) {
+        std::filesystem::current_path(dir);
+    }
+    ~InDirectory() { std::filesystem::current_path(previous_); }
+    InDirectory(const InDirectory&) = delete;
+    InDirectory& operator=(const InDirectory&) = delete;
+
+private:
+    std::filesystem::path previous_;
+};
+
 }  // namespace
 
 TEST_CASE("pipeline: the demo configuration plans the stages and command lines eco run always printed", "[pipeline]") {
     eco::test::TempDir dir("pipeline_plan");
+    const InDirectory root(eco::test::sourcePath(""));
     const std::string o = dir.file("demo");
     const eco::pipeline::RunPlan plan =
         eco::pipeline::planRun(eco::test::sourcePath("configs/demo.toml"), o);
@@ -131,6 +147,7 @@ TEST_CASE("pipeline: a stage called directly reports through its Reporter", "[pi
 
 TEST_CASE("pipeline: [run] gis = true asks every grid stage for GeoTIFFs and the plants as GeoPackages", "[pipeline]") {
     eco::test::TempDir dir("pipeline_gis");
+    const InDirectory root(eco::test::sourcePath(""));
     const std::string config = dir.file("gis.toml"), o = dir.file("out");
     {
         std::ofstream f(config);
