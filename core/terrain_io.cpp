@@ -355,9 +355,11 @@ Grid<float> readTerrainImage(const std::string& path, const TerrainReadOptions& 
                   "crop or resample it first");
     std::vector<float> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
     // Channel 0 only; OIIO maps unsigned integer pixels to [0, 1] and leaves floats as stored.
-    if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data())) {
+    // A truncated TIFF can come back "read" with the missing strips as zeros: an error the
+    // reader recorded on the way counts too (issue 26).
+    if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()) || in->has_error()) {
         std::string why = in->geterror();
-        throw IoError(path + ": cannot read image pixels (corrupt file?)" + (why.empty() ? "" : ": " + why));
+        throw IoError(path + ": cannot read image pixels (corrupt or truncated file?)" + (why.empty() ? "" : ": " + why));
     }
     in->close();
     Grid<float> g(w, h, options.cellSizeM, options.originX, options.originY);

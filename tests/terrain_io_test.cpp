@@ -107,6 +107,27 @@ TEST_CASE("terrain: PNG clamps values outside [offset, offset + scale]", "[terra
     CHECK(r(1, 1) == Approx(50.0f).margin(100.0 / 65535));
 }
 
+TEST_CASE("terrain: a truncated TIFF is an error, not zeros", "[terrain][errors]") {
+    // Issue 26: the strips missing from a truncated file came back as 0 m with exit 0.
+    TempDir dir("tio_trunc");
+    const Grid<float> g = sampleTerrain();
+    const std::string whole = dir.file("whole.tif"), cut = dir.file("cut.tif");
+    eco::writeTerrain(whole, g);
+    const auto size = std::filesystem::file_size(whole);
+    {
+        std::ifstream in(whole, std::ios::binary);
+        std::string bytes(static_cast<std::size_t>(size), '\0');
+        in.read(bytes.data(), static_cast<std::streamsize>(size));
+        std::ofstream out(cut, std::ios::binary);
+        out.write(bytes.data(), static_cast<std::streamsize>(size / 2));
+    }
+    eco::TerrainReadOptions ro;
+    ro.cellSizeM = g.cellSizeM();
+    CHECK(eco::readTerrain(whole, ro).data() == g.data());
+    CHECK_THROWS_AS(eco::readTerrain(cut, ro), eco::IoError);
+    CHECK_THROWS_WITH(eco::readTerrain(cut, ro), Catch::Contains("cut.tif") && Catch::Contains("truncated"));
+}
+
 TEST_CASE("terrain: float TIFF and EXR round trips are exact after scaling", "[terrain]") {
     TempDir dir("tio_float");
     const Grid<float> g = sampleTerrain();
