@@ -80,8 +80,38 @@ CLI::Validator numberIn(double lo, double hi) {
         "NUMBER in " + range);
 }
 
+CLI::Validator oneOf(const std::vector<std::string>& choices) {
+    std::string list;
+    for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
+    return CLI::Validator(
+        [choices, list](std::string& text) -> std::string {
+            for (const auto& c : choices)
+                if (text == c) return "";
+            return "'" + text + "' is not one of " + list;
+        },
+        "one of " + list);
+}
+
+CLI::Validator parsedBy(const std::string& flag, const std::function<void(const std::string&)>& parse) {
+    return CLI::Validator(
+        [flag, parse](std::string& text) -> std::string {
+            try {
+                parse(text);
+            } catch (const Error& e) {
+                std::string why = e.what();
+                for (const std::string& prefix : {flag + ": ", flag + " "})
+                    if (why.rfind(prefix, 0) == 0) why = why.substr(prefix.size());
+                return why;
+            }
+            return "";
+        },
+        "");
+}
+
+void usageError(const std::string& flags, const std::string& message) { throw CLI::ValidationError(flags, message); }
+
 const CLI::Validator& cellSizeRange() {
-    static const CLI::Validator v = numberIn(1e-3, 1e4);
+    static const CLI::Validator v = numberIn(kMinCellSizeM, kMaxCellSizeM);
     return v;
 }
 

@@ -5,7 +5,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <functional>
 #include <memory>
 #include <vector>
 #include <string>
@@ -69,6 +73,38 @@ const CLI::Validator& nonNegativeNumber();
 CLI::Validator numberIn(double lo, double hi);
 /// Metres per cell: 1 mm .. 10 km (a cell size of 1e-300 m was accepted and gave nonsense).
 const CLI::Validator& cellSizeRange();
+
+/// The range of a parameter's description (core/param_desc.h) as a flag check, so that a
+/// flag out of range is a usage error naming the flag ("--max-passes: must lie in [1,
+/// 10000], got 0"; exit 2) rather than a message in the parameter's TOML key after parsing.
+template <typename S>
+CLI::Validator paramCheck(const ParamDesc<S>& f) {
+    const ParamRange range = f.range;
+    const bool integer = f.kind != ParamDesc<S>::Kind::Real;
+    return CLI::Validator(
+        [range, integer](std::string& text) -> std::string {
+            char* end = nullptr;
+            errno = 0;
+            const double v = std::strtod(text.c_str(), &end);
+            if (text.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) return "'" + text + "' is not a number";
+            if (integer && v != std::floor(v)) return "'" + text + "' is not a whole number";
+            if (!range.contains(v)) return range.text() + ", got " + text;
+            return "";
+        },
+        (integer ? "INT " : "NUMBER ") + range.valuesText());
+}
+
+/// One of `choices` ("--growth-rule: 'slow' is not one of ideal, literal").
+CLI::Validator oneOf(const std::vector<std::string>& choices);
+
+/// A text flag checked by `parse` (which throws eco::Error with its reason) at parse time,
+/// so that a malformed window, crop or list is a usage error (exit 2) naming the flag.
+/// `flag` is dropped from the front of the reason (CLI11 prints it before the reason).
+CLI::Validator parsedBy(const std::string& flag, const std::function<void(const std::string&)>& parse);
+
+/// A usage error found after parsing, from flags read together (e.g. --min-height above
+/// --max-height): thrown as CLI11's, so it prints and exits as every usage error (2).
+[[noreturn]] void usageError(const std::string& flags, const std::string& message);
 
 /// A flag's help text from the description of the parameter it sets (core/param_desc.h),
 /// so that --help and the docs' parameter tables say the same: `prefix` and the doc line,

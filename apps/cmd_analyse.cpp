@@ -61,6 +61,7 @@ void runPcf(const PcfArgs& args) {
                                 ? replaceExtension(args.points, "") + "_pcf.csv"
                                 : args.out;
     const std::string png = replaceExtension(csv, ".png");
+    pipeline::requireOutputsNotInputs({{"--out", csv}, {"plot", png}}, {args.points});
     const std::filesystem::path parent = std::filesystem::path(csv).parent_path();
     if (!parent.empty()) ensureDirectory(parent.string());
     writePcfCsv(csv, sums, pattern.typeNames);
@@ -163,7 +164,9 @@ void registerPcfCommand(CLI::App& app) {
         "Pair correlation g(r) of a point pattern (e.g. a field stem map), cross-type g_ij with a species column; "
         "translation and isotropic edge correction; CSV and PNG");
     cmd->add_option("points", args->points, "CSV with a header x,y[,species] (x_m, y_m also accepted), metres")->required();
-    cmd->add_option("--window", args->window, "Observation window x0,y0,x1,y1 in metres")->required();
+    cmd->add_option("--window", args->window, "Observation window x0,y0,x1,y1 in metres")
+        ->required()
+        ->check(parsedBy("--window", [](const std::string& t) { parseWindow(t, "--window"); }));
     cmd->add_option("--rmax", args->rMaxM, "Largest distance, m (default: a quarter of the shorter side; at most half)")
         ->check(positiveNumber());
     cmd->add_option("--bins", args->bins, "Number of distance bins")->check(CLI::Range(1, 100000))->capture_default_str();

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "canopy_stage.h"
+#include "canopy_placer.h"
 #include "cli_common.h"
 
 namespace eco::cli {
@@ -82,22 +83,30 @@ void registerCanopyCommand(CLI::App& app) {
                     "with the inputs' geotransform and CRS");
     cmd->add_option("--config", o.config,
                     "TOML with placer parameters ([canopy] table or top-level keys; unknown keys are errors)");
+    auto canopyCheck = [](const char* key) { return paramCheck(paramField(synth::canopyParamFields(), key)); };
     args->seedOpt = cmd->add_option("--seed", args->seed, "Random seed of the ring seeding")->capture_default_str();
     args->maxIterationsOpt =
-        cmd->add_option("--max-iterations", args->maxIterations, "Iteration cap (default 30)")->check(nonNegativeNumber());
+        cmd->add_option("--max-iterations", args->maxIterations, "Iteration cap (default 30)")->check(canopyCheck("max_iterations"));
     args->minVisibleOpt = cmd->add_option("--min-visible-fraction", args->minVisibleFraction,
-                                          "Remove trees whose visible crown is below this fraction of the disc (0.2)");
+                                          "Remove trees whose visible crown is below this fraction of the disc (0.2)")
+        ->check(canopyCheck("min_visible_fraction"));
     args->moveOpt = cmd->add_option("--move-factor", args->moveFactor,
-                                    "Fraction of the way to the visible centroid moved per iteration (0.5; 1 = the paper)");
-    args->ringOpt = cmd->add_option("--ring-factor", args->ringFactor, "Ring radius = factor * (r_i + r_new) (0.8)");
+                                    "Fraction of the way to the visible centroid moved per iteration (0.5; 1 = the paper)")
+        ->check(canopyCheck("move_factor"));
+    args->ringOpt = cmd->add_option("--ring-factor", args->ringFactor, "Ring radius = factor * (r_i + r_new) (0.8)")
+        ->check(canopyCheck("ring_factor"));
     args->trunkOpt = cmd->add_option("--min-trunk-distance", args->minTrunkDistanceM,
-                                     "Duplicates: trunks closer than this, metres (1)");
+                                     "Duplicates: trunks closer than this, metres (1)")
+        ->check(canopyCheck("min_trunk_distance_m"));
     args->epsilonOpt = cmd->add_option("--coverage-epsilon", args->coverageEpsilon,
-                                       "Stop when an iteration gains less coverage than this (0.0005)");
+                                       "Stop when an iteration gains less coverage than this (0.0005)")
+        ->check(canopyCheck("coverage_epsilon"));
     args->thresholdOpt = cmd->add_option("--canopy-threshold", args->canopyThresholdM,
-                                         "CHM cells >= this are canopy (forested), metres (3)");
+                                         "CHM cells >= this are canopy (forested), metres (3)")
+        ->check(canopyCheck("canopy_threshold_m"));
     args->seedHeightOpt = cmd->add_option("--min-seed-height", args->minSeedHeightM,
-                                          "Trees stand only where the CHM is >= this, metres (3)");
+                                          "Trees stand only where the CHM is >= this, metres (3)")
+        ->check(canopyCheck("min_seed_height_m"));
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for plain images; georeferenced rasters carry it)")
         ->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")
@@ -107,6 +116,7 @@ void registerCanopyCommand(CLI::App& app) {
     cmd->add_option("--chm-gaps", o.chmGaps,
                     "Nodata cells of the CHM: fill (from their neighbours, up to --chm-fill-max from data; the rest 0), "
                     "zero (non-forest) or fail")
+        ->check(oneOf({"fill", "zero", "fail"}))
         ->capture_default_str();
     cmd->add_option("--chm-fill-max", o.chmFillMaxM, "fill: how far from data a gap is filled, metres")
         ->capture_default_str()

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "cli_common.h"
+#include "sim_config.h"
 #include "simulate_stage.h"
 
 namespace eco::cli {
@@ -21,8 +22,10 @@ void registerSimulateCommand(CLI::App& app) {
     sub->add_option("--biome", opt->biome, "Biome TOML (default: the embedded Sonoma biome)");
     sub->add_option("--years", opt->years, "Years to simulate")->check(positiveNumber());
     sub->add_option("--seed", opt->seed, "Random seed")->check(nonNegativeNumber());
-    sub->add_option("--crop", opt->crop, "Area to simulate: x0,y0,x1,y1 in world metres");
-    sub->add_option("--snapshot-years", opt->snapshotYears, "Years to snapshot, e.g. 25,50,75 (the last is always added)");
+    sub->add_option("--crop", opt->crop, "Area to simulate: x0,y0,x1,y1 in world metres")
+        ->check(parsedBy("--crop", [](const std::string& t) { sim::parseArea(t, "--crop"); }));
+    sub->add_option("--snapshot-years", opt->snapshotYears, "Years to snapshot, e.g. 25,50,75 (the last is always added)")
+        ->check(parsedBy("--snapshot-years", [](const std::string& t) { sim::parseYearList(t, "--snapshot-years"); }));
     sub->add_option("--out", opt->out, "Output HDF5");
     sub->add_option("--csv", opt->csv, "CSV of the final plants");
     sub->add_option("--png", opt->png, "Directory for PNG renders of the snapshots and the species plot");
@@ -30,8 +33,10 @@ void registerSimulateCommand(CLI::App& app) {
         ->check(nonNegativeNumber());
     sub->add_flag("--resume", opt->resume, "Continue from the checkpoint of this run when it exists");
     sub->add_option("--initial", opt->initial, "Initial undergrowth: PLANTS.csv or PLANTS.h5[:/group]");
-    sub->add_option("--growth-rule", opt->growthRule, "Overflow-to-growth rule: ideal (default) or literal ([model] growth_rule)");
-    sub->add_option("--competition", opt->competition, "Competition model: resources (default) or deussen ([model] competition)");
+    sub->add_option("--growth-rule", opt->growthRule, "Overflow-to-growth rule: ideal (default) or literal ([model] growth_rule)")
+        ->check(parsedBy("--growth-rule", [](const std::string& t) { sim::parseGrowthRule(t, "--growth-rule"); }));
+    sub->add_option("--competition", opt->competition, "Competition model: resources (default) or deussen ([model] competition)")
+        ->check(parsedBy("--competition", [](const std::string& t) { sim::parseCompetitionMode(t, "--competition"); }));
     sub->callback([opt] {
         CliReporter reporter;
         pipeline::simulateStage(*opt, reporter);

@@ -56,24 +56,32 @@ void registerSynthCommand(CLI::App& app) {
     // Help texts of the parameters' flags from their descriptions (synth/synth_params.cpp).
     auto synthHelp = [](const char* key) { return paramHelp(paramField(synth::synthParamFields(), key)); };
     auto refineHelp = [](const char* key) { return paramHelp(paramField(synth::refineParamFields(), key), "Refinement: "); };
+    auto synthCheck = [](const char* key) { return paramCheck(paramField(synth::synthParamFields(), key)); };
+    auto refineCheck = [](const char* key) { return paramCheck(paramField(synth::refineParamFields(), key)); };
     args->sweepsOpt = cmd->add_option("--refine-sweeps", args->refine.sweeps, refineHelp("refine_sweeps"))
+        ->check(refineCheck("refine_sweeps"))
         ->capture_default_str()
         ->needs(refine);
     args->rMaxOpt = cmd->add_option("--refine-rmax", args->refine.rMaxM, refineHelp("refine_rmax_m"))
+        ->check(refineCheck("refine_rmax_m"))
         ->capture_default_str()
         ->needs(refine);
     cmd->add_option("--refine-window", a->refineWindow,
                     "Refinement: only inside x0,y0,x1,y1 (metres); the rest of the undergrowth stays as sampled")
+        ->check(parsedBy("--refine-window", [](const std::string& t) { parseWindow(t, "--refine-window"); }))
         ->needs(refine);
     args->moveOpt = cmd->add_option("--refine-move", args->refine.moveRadiusM, refineHelp("refine_move_radius_m"))
+        ->check(refineCheck("refine_move_radius_m"))
         ->capture_default_str()
         ->needs(refine);
     args->swapOpt = cmd->add_option("--refine-swap", args->refine.swapRadiusM, refineHelp("refine_swap_radius_m"))
+        ->check(refineCheck("refine_swap_radius_m"))
         ->capture_default_str()
         ->needs(refine);
     cmd->add_option("--png", a->pngDir,
                     "Also write scene.png, scene_zoom.png, grass.png, litter.png and cluster_map.png into this directory");
-    cmd->add_option("--zoom", a->zoom, "Crop of scene_zoom.png: x,y,side or x0,y0,x1,y1 in metres (default: 60 m at the centre)");
+    cmd->add_option("--zoom", a->zoom, "Crop of scene_zoom.png: x,y,side or x0,y0,x1,y1 in metres (default: 60 m at the centre)")
+        ->check(parsedBy("--zoom", [](const std::string& t) { parseWindow(t, "--zoom", true); }));
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
     cmd->add_option("--gpkg", a->gpkg, "Also write all plants as a GeoPackage point layer, in the terrain's CRS (QGIS, ArcGIS)");
@@ -85,14 +93,20 @@ void registerSynthCommand(CLI::App& app) {
                     "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "
                     "database's pair correlation; heights below the crown above, radius by allometry) or 'darts' "
                     "(the earlier uniform darts with sizes from the histograms)")
+        ->check(oneOf({"structured", "darts"}))
         ->capture_default_str();
-    cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))->capture_default_str();
+    cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))
+        ->check(synthCheck("max_passes"))
+        ->capture_default_str();
     cmd->add_option("--seed-inner-radius-factor", a->params.seedInnerRadiusFactor, synthHelp("seed_inner_radius_factor"))
+        ->check(synthCheck("seed_inner_radius_factor"))
         ->capture_default_str();
     cmd->add_option("--trunk-exclusion", a->params.trunkExclusionFactor, synthHelp("trunk_exclusion_factor"))
+        ->check(synthCheck("trunk_exclusion_factor"))
         ->capture_default_str();
     cmd->add_option("--litter-full-alpha", a->floorParams.litterFullAlpha,
                     paramHelp(paramField(synth::forestFloorParamFields(), "litter_full_alpha"), "Forest floor: "))
+        ->check(paramCheck(paramField(synth::forestFloorParamFields(), "litter_full_alpha")))
         ->capture_default_str();
     cmd->add_flag("--no-undergrowth-shade", a->noUndergrowthShade,
                   "Forest floor: only canopy crowns shade the grass and drop litter");
@@ -112,7 +126,8 @@ void registerCompareCommand(CLI::App& app) {
     cmd->add_option("scene", a->scene, "Scene file from 'eco synth'")->required();
     cmd->add_option("database", a->database, "Biome database")->required();
     cmd->add_option("--png", a->png, "Also write a picture of the pair correlations, scene against database");
-    cmd->add_option("--window", a->window, "Compare only inside x0,y0,x1,y1 (metres)");
+    cmd->add_option("--window", a->window, "Compare only inside x0,y0,x1,y1 (metres)")
+        ->check(parsedBy("--window", [](const std::string& t) { parseWindow(t, "--window"); }));
     cmd->add_option("--out", a->out, "Also write the Markdown table to this file");
     cmd->add_option("--pcf-sources", a->pcfSources,
                     "Pair correlation: at most this many undergrowth plants per region as sources (a random sample; "

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "cli_common.h"
+#include "text_format.h"
 #include "terrain_stages.h"
 
 namespace eco::cli {
@@ -168,12 +169,24 @@ void registerTerrainCommands(CLI::App& app) {
             ->check(positiveNumber())->capture_default_str();
         gen->add_option("--sparse-spacing", a->options.chm.sparseSpacingM, "Typical tree spacing in Sparse areas (m)")
             ->check(positiveNumber())->capture_default_str();
-        gen->add_option("--min-height", a->options.chm.minHeightM, "Shortest canopy tree (m)")->check(positiveNumber())
+        // Trees of 0.1 .. 200 m (the tallest trees on Earth are about 116 m; 1e9 was accepted).
+        gen->add_option("--min-height", a->options.chm.minHeightM, "Shortest canopy tree (m)")->check(numberIn(0.1, 200))
             ->capture_default_str();
-        gen->add_option("--max-height", a->options.chm.maxHeightM, "Tallest canopy tree (m)")->check(positiveNumber())
+        gen->add_option("--max-height", a->options.chm.maxHeightM, "Tallest canopy tree (m)")->check(numberIn(0.1, 200))
             ->capture_default_str();
         gen->add_option("--png", a->options.pngDir, "Also write pictures of the CHM and the sketch into this directory");
-        gen->callback([a] { runChmGenerate(*a); });
+        gen->callback([a] {
+            if (a->options.chm.minHeightM > a->options.chm.maxHeightM)
+                usageError("--min-height, --max-height", "the shortest tree (" + formatNumber(a->options.chm.minHeightM) +
+                                                             " m) must not be taller than the tallest (" +
+                                                             formatNumber(a->options.chm.maxHeightM) + " m)");
+            if (a->options.sketchImage.empty() && a->options.sketch.emptyFraction + a->options.sketch.denseFraction > 1 + 1e-12)
+                usageError("--empty-fraction, --dense-fraction",
+                           "the shares add up to " +
+                               formatNumber(a->options.sketch.emptyFraction + a->options.sketch.denseFraction) +
+                               "; together they must not exceed 1");
+            runChmGenerate(*a);
+        });
     }
 }
 

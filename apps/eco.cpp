@@ -57,6 +57,24 @@ int main(int argc, char** argv) {
     try {
         app->parse(argc, argv);
     } catch (const CLI::ParseError& e) {
+        // An unknown command: CLI11 only says "A subcommand is required"; name the word.
+        if (app->get_subcommands().empty()) {
+            for (int i = 1; i < argc; ++i) {
+                const std::string word = argv[i];
+                if (word == "--threads") ++i;  // the global option's value
+                if (word.empty() || word[0] == '-') continue;
+                std::string commands;
+                bool known = false;
+                for (const CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) {
+                    commands += (commands.empty() ? "" : ", ") + sub->get_name();
+                    known = known || sub->get_name() == word;
+                }
+                if (known) break;
+                std::cerr << "eco: unknown command '" << word << "' (commands: " << commands << ")\n"
+                          << "Run with --help for more information.\n";
+                return kExitUsage;
+            }
+        }
         // --help and --version end parsing with code 0; every other parse error is a usage
         // error: CLI11's message, then one exit code (2) whatever CLI11's own code.
         const int code = app->exit(e);

@@ -15,6 +15,7 @@
 
 #include "atomic_file.h"
 #include "eco_version.h"
+#include "geo_raster.h"
 #include "error.h"
 #include "h5io.h"
 #include "text_format.h"
@@ -1084,6 +1085,17 @@ Abiotics readAbiotics(const std::string& path) {
     a.sunHours = readMonthly("/sun");
     a.moistureMm = readMonthly("/moisture");
     a.temperatureC = readMonthly("/temperature");
+    // The values too (issue 26): a NaN sun or a negative moisture would flow into every
+    // vigour, species map and database feature without a word.
+    requireGridIn(a.elevationM, -1e5, 1e5, path, "/elevation");
+    requireGridIn(a.slopeDeg, 0, 90, path, "/slope");
+    const std::pair<const char*, const MonthlyGrids<float>*> monthly[] = {
+        {"/sun", &a.sunHours}, {"/moisture", &a.moistureMm}, {"/temperature", &a.temperatureC}};
+    const double lo[] = {0, 0, -100}, hi[] = {24, 1e6, 100};
+    for (std::size_t k = 0; k < 3; ++k)
+        for (std::size_t m = 0; m < monthly[k].second->months.size(); ++m)
+            requireGridIn(monthly[k].second->months[m], lo[k], hi[k], path,
+                          std::string(monthly[k].first) + " (month " + std::to_string(m) + ")");
     return a;
 }
 

@@ -466,7 +466,7 @@ namespace {
 void requireNonNegative(const std::string& path, const std::string& dataset, const std::vector<double>& v) {
     for (std::size_t i = 0; i < v.size(); ++i)
         if (!(v[i] >= 0) || !std::isfinite(v[i]))
-            throw IoError(path + ": " + dataset + ": value " + std::to_string(i) + " is " + formatNumber(v[i], 6) +
+            throw IoError(path + ": " + dataset + ": entry " + std::to_string(i) + " is " + formatNumber(v[i], 6) +
                           "; it must be finite and non-negative");
 }
 
@@ -474,7 +474,7 @@ void requireNonNegative(const std::string& path, const std::string& dataset, con
 void requireFinite(const std::string& path, const std::string& dataset, const std::vector<double>& v) {
     for (std::size_t i = 0; i < v.size(); ++i)
         if (!std::isfinite(v[i]))
-            throw IoError(path + ": " + dataset + ": value " + std::to_string(i) + " is " + formatNumber(v[i], 6) + "; it must be finite");
+            throw IoError(path + ": " + dataset + ": entry " + std::to_string(i) + " is " + formatNumber(v[i], 6) + "; it must be finite");
 }
 
 }  // namespace
@@ -530,8 +530,16 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     }
     const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
     const std::size_t nsep = static_cast<std::size_t>(db.separationBins.count);
-    rd.f64("/bins/pcf_edges_m", {nb + 1});
-    rd.f64("/bins/separation_edges_m", {nsep + 1});
+    // The edges are written for readers of the file; ours derive them from the attributes,
+    // and a file whose edges disagree with its attributes is corrupt.
+    const auto requireEdges = [&](const char* dataset, const std::vector<double>& stored, const std::vector<double>& expected) {
+        for (std::size_t i = 0; i < expected.size(); ++i)
+            if (!(std::abs(stored[i] - expected[i]) <= 1e-9 * std::max(1.0, std::abs(expected[i]))))
+                throw IoError(path + ": " + dataset + ": edge " + std::to_string(i) + " is " + formatNumber(stored[i], 9) +
+                              ", but the /bins attributes give " + formatNumber(expected[i], 9));
+    };
+    requireEdges("/bins/pcf_edges_m", rd.f64("/bins/pcf_edges_m", {nb + 1}), db.pcfBins.edgesM());
+    requireEdges("/bins/separation_edges_m", rd.f64("/bins/separation_edges_m", {nsep + 1}), db.separationBins.edgesM());
     std::size_t nctx = 0;
     if (version >= 3) {
         const std::size_t ne = rd.length("/bins/context_edges_m");
@@ -596,6 +604,11 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         c.featureMean = featuresAt(cMean, i);
         c.featureStd = featuresAt(cStd, i);
         c.silhouette = rowOf(cSil, i, kTried);
+        const int maxMask = (1 << db.subBiomeNames.size()) - 1;
+        if (c.mask < 1 || c.mask > maxMask || (i > 0 && c.mask <= cMask[i - 1]))
+            throw IoError(path + ": /combinations/mask: combination " + std::to_string(i) + " has mask " +
+                          std::to_string(c.mask) + "; masks must lie in 1.." + std::to_string(maxMask) +
+                          " (one bit per sub-biome) and increase");
         if (c.k < 1 || c.firstRegion < 0 || static_cast<std::size_t>(c.firstRegion + c.k) > nr)
             throw IoError(path + ": /combinations: combination " + std::to_string(c.mask) + " refers to regions " +
                           std::to_string(c.firstRegion) + " .. " + std::to_string(c.firstRegion + c.k - 1) + " of " +
@@ -630,8 +643,17 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         requireNonNegative(path, name, *v);
     for (std::size_t i = 0; i < rProp.size(); ++i)
         if (rProp[i] > 1 + 1e-9)
-            throw IoError(path + ": /regions/species_proportion: value " + std::to_string(i) + " is " + formatNumber(rProp[i], 6) +
+            throw IoError(path + ": /regions/species_proportion: entry " + std::to_string(i) + " is " + formatNumber(rProp[i], 6) +
                           "; a share must lie in [0, 1]");
+    for (const DbCombination& c : db.combinations)
+        for (int k = 0; k < c.k; ++k) {
+            const std::size_t ri = static_cast<std::size_t>(c.firstRegion + k);
+            if (rComb[ri] != c.mask || rCluster[ri] != k)
+                throw IoError(path + ": /regions: region " + std::to_string(ri) + " has combination " +
+                              std::to_string(rComb[ri]) + ", cluster " + std::to_string(rCluster[ri]) +
+                              " but /combinations assigns it combination " + std::to_string(c.mask) + ", cluster " +
+                              std::to_string(k));
+        }
     for (std::size_t ri = 0; ri < nr; ++ri) {
         DbRegion r;
         r.combination = rComb[ri];
@@ -685,8 +707,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
             for (const auto& [name, v] : contextSets)
                 for (std::size_t i = 0; i < v->size(); ++i)
                     if (!((*v)[i] >= 0) || !std::isfinite((*v)[i]))
-                        throw IoError(path + ": " + g + "/" + name + ": value " + std::to_string(i) + " is " +
-                                      std::to_string((*v)[i]) + "; it must be finite and non-negative");
+                        throw IoError(path + ": " + g + "/" + name + ": entry " + std::to_string(i) + " is " +
+                                      formatNumber((*v)[i], 6) + "; it must be finite and non-negative");
         }
         const std::string pg = g + "/pairs";
         const std::size_t np = rd.length(pg + "/source");

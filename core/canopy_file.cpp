@@ -2,6 +2,7 @@
 
 #include "atomic_file.h"
 #include "eco_version.h"
+#include "geo_raster.h"
 #include "error.h"
 
 namespace eco {
@@ -126,6 +127,7 @@ CanopyFileData readCanopyFile(const std::string& path, const Biome& biome, Canop
     if (!f.exists("/chm/height"))
         throw IoError(path + ": no /chm/height dataset (the canopy height model is needed for the canopy limit)");
     d.chmM = f.readGrid("/chm/height");
+    requireGridIn(d.chmM, 0, 500, path, "/chm/height");
     if (parts == CanopyFileParts::TreesAndChm) return d;
     d.speciesMap = f.readGridI32("/species_map");
     d.terrainM = f.readGrid("/terrain/elevation");

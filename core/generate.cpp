@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "image_in.h"
 #include "error.h"
 #include "rng.h"
 #include "text_format.h"
@@ -376,30 +377,17 @@ Grid<std::int32_t> generateDensitySketch(int width, int height, double cellSizeM
 }
 
 Grid<std::int32_t> readDensitySketch(const std::string& imagePath, const Grid<float>& like) {
-    if (std::FILE* f = std::fopen(imagePath.c_str(), "rb")) std::fclose(f);
-    else throw IoError(imagePath + ": cannot open density sketch (missing or unreadable)");
-    // Keep colours as painted even where alpha is 0 (OIIO would premultiply them by default).
-    OIIO::ImageSpec config;
-    config.attribute("oiio:UnassociatedAlpha", 1);
-    auto in = OIIO::ImageInput::open(imagePath, &config);
-    if (!in) {
-        std::string why = OIIO::geterror();
-        throw IoError(imagePath + ": cannot read density sketch image: " +
-                      (why.empty() ? std::string("unrecognised or corrupt image") : why));
-    }
-    const OIIO::ImageSpec& spec = in->spec();
-    const int w = spec.width, h = spec.height, nch = spec.nchannels;
-    if (w != like.width() || h != like.height())
-        throw ValidationError(imagePath + ": density sketch is " + std::to_string(w) + " x " +
-                              std::to_string(h) + " pixels but the terrain is " + std::to_string(like.width()) +
-                              " x " + std::to_string(like.height()) +
-                              " cells; resample the sketch to the terrain's size (it is not resampled "
-                              "automatically)");
-    if (nch < 1) throw IoError(imagePath + ": density sketch has no channels");
-    std::vector<float> px(static_cast<std::size_t>(w) * h * nch);
-    if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, px.data()))
-        throw IoError(imagePath + ": cannot read density sketch pixels: " + in->geterror());
-    in->close();
+    // Colours kept as painted even where alpha is 0; the size checked before the pixels.
+    const ImagePixels image = readImagePixels(imagePath, "density sketch", 0, [&](int w, int h, int) {
+        if (w != like.width() || h != like.height())
+            throw ValidationError(imagePath + ": density sketch is " + std::to_string(w) + " x " + std::to_string(h) +
+                                  " pixels but the terrain is " + std::to_string(like.width()) + " x " +
+                                  std::to_string(like.height()) +
+                                  " cells; resample the sketch to the terrain's size (it is not resampled "
+                                  "automatically)");
+    });
+    const int w = image.width, h = image.height, nch = image.channels;
+    const std::vector<float>& px = image.values;
     // Grey value: mean of the colour channels (alpha, the 2nd of 2 or the 4th, ignored).
     const int colour = nch >= 3 ? 3 : 1;
     Grid<std::int32_t> out = Grid<std::int32_t>::like(like, Sparse);

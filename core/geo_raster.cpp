@@ -312,6 +312,9 @@ GeoRaster readGeoRaster(const std::string& path) {
                                       " m); reproject it to a CRS in metres with gdalwarp -t_srs");
         }
     }
+    // After the CRS (a geographic raster's cells in degrees get that message instead).
+    if (!cellSizeInRange(cw))
+        throw ValidationError(path + ": cell size " + formatNumber(cw) + " in the geotransform " + cellSizeRangeText());
     GDALRasterBand* band = ds->GetRasterBand(1);
     std::vector<double> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
     if (band->RasterIO(GF_Read, 0, 0, w, h, px.data(), w, h, GDT_Float64, 0, 0) != CE_None)

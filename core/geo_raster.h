@@ -12,6 +12,7 @@
 // Cell positions in messages follow one convention everywhere (cellText): column and row
 // from the LOWER-LEFT corner, 0-based, and the world x, y of the cell centre.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "biome.h"
+#include "error.h"
 #include "grid.h"
 #include "plants.h"
 #include "text_format.h"
@@ -89,6 +91,20 @@ template <typename T>
 std::string cellText(const Grid<T>& g, int ix, int iy) {
     return "column " + std::to_string(ix) + ", row " + std::to_string(iy) + " from the lower left (0-based; x = " +
            formatNumber(g.cellCentreX(ix), 10) + " m, y = " + formatNumber(g.cellCentreY(iy), 10) + " m)";
+}
+
+/// IoError naming the file, the dataset, the first cell (as cellText) whose value is not
+/// finite or lies outside [lo, hi], and that value: grids read back from our own files
+/// (abiotics, canopy), which a damaged or edited file could fill with anything.
+template <typename T>
+void requireGridIn(const Grid<T>& g, double lo, double hi, const std::string& path, const std::string& dataset) {
+    for (int iy = 0; iy < g.height(); ++iy)
+        for (int ix = 0; ix < g.width(); ++ix) {
+            const double v = static_cast<double>(g(ix, iy));
+            if (std::isfinite(v) && v >= lo && v <= hi) continue;
+            throw IoError(path + ": " + dataset + ": value " + formatNumber(v, 6) + " at " + cellText(g, ix, iy) +
+                          " must lie in [" + formatNumber(lo, 6) + ", " + formatNumber(hi, 6) + "]");
+        }
 }
 
 }  // namespace eco

@@ -29,6 +29,15 @@
 
 namespace eco {
 
+/// Cell sizes accepted anywhere, from flags and from files: 1 mm .. 10 km (a cell size of
+/// 1e-300 m in a file was read and gave nonsense; issue 26).
+inline constexpr double kMinCellSizeM = 1e-3;
+inline constexpr double kMaxCellSizeM = 1e4;
+/// True when `cellM` is a finite number in [kMinCellSizeM, kMaxCellSizeM].
+inline bool cellSizeInRange(double cellM) { return cellM >= kMinCellSizeM && cellM <= kMaxCellSizeM; }
+/// " must lie in [0.001, 10000] m" as message text.
+inline std::string cellSizeRangeText() { return "must lie in [0.001, 10000] m"; }
+
 template <typename T>
 class Grid {
 public:

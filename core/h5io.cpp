@@ -1,4 +1,5 @@
 #include "h5io.h"
+#include "text_format.h"
 
 #include <cstdio>
 #include <numeric>
@@ -382,8 +383,8 @@ struct Geometry {
 Geometry readGeometry(const File& f, const std::string& name) {
     Geometry g{f.attrDouble(name, "cell_size_m"), f.attrDouble(name, "origin_x_m"),
                f.attrDouble(name, "origin_y_m"), f.hasAttr(name, "crs_wkt") ? f.attrString(name, "crs_wkt") : std::string()};
-    if (!(g.cell > 0) || !std::isfinite(g.cell))
-        throw IoError(f.path() + ": " + name + ": cell_size_m must be positive, got " + std::to_string(g.cell));
+    if (!cellSizeInRange(g.cell))
+        throw IoError(f.path() + ": " + name + ": cell_size_m " + formatNumber(g.cell, 6) + " " + cellSizeRangeText());
     if (f.hasAttr(name, "row_order") && f.attrString(name, "row_order") != "south_to_north")
         throw IoError(f.path() + ": " + name + ": unsupported row_order '" +
                       f.attrString(name, "row_order") + "'");

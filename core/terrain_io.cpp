@@ -18,6 +18,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "geo_raster.h"
+#include "image_in.h"
 #include "memory.h"
 #include "text_format.h"
 
@@ -253,9 +254,9 @@ Grid<float> readAscImpl(const std::string& path, const TerrainReadOptions& optio
             throw IoError(path + ": " + key + " must be a positive whole number, got " + numberText(v));
         if (v > 1e7) throw IoError(path + ": " + key + " = " + numberText(v) + " is larger than eco reads (at most 10000000 a side)");
     }
-    requireMemory(8.0 * ncolsD * nrowsD, path + ": a grid of " + numberText(ncolsD) + " x " + numberText(nrowsD) + " cells",
+    requireMemory(8.0 * ncolsD * nrowsD, path + ": a grid of " + formatNumber(ncolsD, 10) + " x " + formatNumber(nrowsD, 10) + " cells",
                   "crop or resample it first, e.g. gdal_translate -srcwin / gdalwarp -tr");
-    if (!(cell > 0)) throw IoError(path + ": cellsize must be > 0, got " + numberText(cell));
+    if (!cellSizeInRange(cell)) throw IoError(path + ": cellsize " + numberText(cell) + " " + cellSizeRangeText());
     checkCellSize(path, cell, options);
 
     const int ncols = static_cast<int>(ncolsD), nrows = static_cast<int>(nrowsD);
@@ -336,32 +337,15 @@ Grid<float> readTerrainImage(const std::string& path, const TerrainReadOptions& 
     checkReadOptions(path, options);
     requireReadable(path);
     if (!(options.cellSizeM > 0))
-        throw ValidationError(path + ": an image terrain has no cell size: give it with --cell-size "
-                              "(TerrainReadOptions::cellSizeM, metres per pixel)");
-    OIIO::ImageSpec config;
-    config.attribute("oiio:UnassociatedAlpha", 1);  // never premultiply heights by an alpha channel
-    auto in = OIIO::ImageInput::open(path, &config);
-    if (!in) {
-        std::string why = OIIO::geterror();
-        if (why.empty()) why = "unrecognised or corrupt image";
-        throw IoError(path + ": cannot read image: " + why);
-    }
-    const OIIO::ImageSpec& spec = in->spec();
-    const int w = spec.width, h = spec.height;
-    if (w <= 0 || h <= 0 || spec.nchannels < 1)
-        throw IoError(path + ": image has no pixels");
-    // The pixels as float, then the grid: 8 bytes a cell (the header alone can claim any size).
-    requireMemory(8.0 * w * h, path + ": an image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels",
-                  "crop or resample it first");
-    std::vector<float> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-    // Channel 0 only; OIIO maps unsigned integer pixels to [0, 1] and leaves floats as stored.
-    // A truncated TIFF can come back "read" with the missing strips as zeros: an error the
-    // reader recorded on the way counts too (issue 26).
-    if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()) || in->has_error()) {
-        std::string why = in->geterror();
-        throw IoError(path + ": cannot read image pixels (corrupt or truncated file?)" + (why.empty() ? "" : ": " + why));
-    }
-    in->close();
+        throw ValidationError(path + ": an image terrain has no cell size: give it with --cell-size (metres per pixel)");
+    // Channel 0 only. The pixels as float, then the grid: 8 bytes a cell (the header alone
+    // can claim any size).
+    const ImagePixels image = readImagePixels(path, "image", 1, [&](int w, int h, int) {
+        requireMemory(8.0 * w * h, path + ": an image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels",
+                      "crop or resample it first");
+    });
+    const int w = image.width, h = image.height;
+    const std::vector<float>& px = image.values;
     Grid<float> g(w, h, options.cellSizeM, options.originX, options.originY);
     for (int row = 0; row < h; ++row) {  // image row 0 = northern edge
         const int iy = h - 1 - row;

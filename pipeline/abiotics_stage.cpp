@@ -71,6 +71,7 @@ void writePictures(const std::string& dir, const Abiotics& a, const Biome& biome
 }  // namespace
 
 AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
+    requireOutputsNotInputs({{"--out", args.out}}, {args.terrain, args.biome, args.canopy});
     const Grid<float> terrain = readTerrain(args.terrain, args.terrainRead.options());
     validateElevation(terrain, args.terrain);
     const Biome biome = args.biome.empty() ? defaultBiome() : loadBiome(args.biome);

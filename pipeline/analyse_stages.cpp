@@ -96,6 +96,9 @@ void writeRegionPlots(const std::string& dir, const BiomeDatabase& db, std::size
 }  // namespace
 
 AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
+    std::vector<std::string> inputFiles = args.simulations;
+    inputFiles.insert(inputFiles.end(), args.abiotics.begin(), args.abiotics.end());
+    requireOutputsNotInputs({{"--out", args.out}}, inputFiles);
     if (!args.abiotics.empty() && args.abiotics.size() != 1 && args.abiotics.size() != args.simulations.size())
         throw ValidationError("--abiotics: give one file for all simulations or one per simulation (" +
                               std::to_string(args.simulations.size()) + "), got " + std::to_string(args.abiotics.size()));
@@ -179,6 +182,7 @@ std::vector<std::string> commandLine(const AnalyseOptions& a) {
 }
 
 InspectResult inspectStage(const InspectOptions& args, Reporter& reporter) {
+    requireOutputsNotInputs({{"--out", args.out}}, {args.database});
     const BiomeDatabase db = readBiomeDatabase(args.database);
     std::ostringstream o;
     o << "biome database " << args.database << "\n";

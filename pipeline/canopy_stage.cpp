@@ -105,6 +105,8 @@ void printIteration(std::ostream& out, const IterationStats& s) {
 
 CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     // Everything that can be checked cheaply is checked before any heavy work.
+    requireOutputsNotInputs({{"--out", args.out}, {"--csv", args.csv}, {"--gpkg", args.gpkg}},
+                            {args.terrain, args.chm, args.biome, args.abiotics, args.mask, args.config});
     const Biome biome = args.biome.empty() ? defaultBiome() : loadBiome(args.biome);
     std::vector<synth::SpeciesTarget> targets;
     for (const auto& t : args.targets) targets.push_back(synth::parseSpeciesTarget(t, biome));

@@ -139,12 +139,12 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         StrictTable t(top.table("terrain"), configPath, "[terrain]");
         if (t.has("path")) {
             terrain = t.string("path");
-            if (t.has("cell_size_m")) terrainRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
+            if (t.has("cell_size_m")) terrainRead.cellSizeM = asOnCommandLine(t.numberIn("cell_size_m", kMinCellSizeM, kMaxCellSizeM));
             if (t.has("vertical_scale")) terrainRead.verticalScale = asOnCommandLine(t.positive("vertical_scale"));
         } else {
             terrainParams.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", 512), 2, 1 << 16));
             terrainParams.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", 512), 2, 1 << 16));
-            terrainParams.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", 0.914));
+            terrainParams.cellSizeM = asOnCommandLine(t.numberInOr("cell_size_m", kMinCellSizeM, kMaxCellSizeM, 0.914));
             terrainParams.seed = seedValue(t, "seed", t.integerOr("seed", seed));
             stages.push_back({"terrain", generatedTerrain("", terrainParams)});
         }
@@ -242,12 +242,12 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         ensureDirectory(at("target"));
         if (t.has("terrain")) {
             targetTerrain = t.string("terrain");
-            if (t.has("cell_size_m")) targetRead.cellSizeM = asOnCommandLine(t.positive("cell_size_m"));
+            if (t.has("cell_size_m")) targetRead.cellSizeM = asOnCommandLine(t.numberIn("cell_size_m", kMinCellSizeM, kMaxCellSizeM));
         } else {
             TerrainGenParams p;
             p.width = static_cast<int>(integerIn(t, "width", t.integerOr("width", terrainParams.width), 2, 1 << 16));
             p.height = static_cast<int>(integerIn(t, "height", t.integerOr("height", terrainParams.height), 2, 1 << 16));
-            p.cellSizeM = asOnCommandLine(t.positiveOr("cell_size_m", terrainParams.cellSizeM));
+            p.cellSizeM = asOnCommandLine(t.numberInOr("cell_size_m", kMinCellSizeM, kMaxCellSizeM, terrainParams.cellSizeM));
             p.seed = ts;
             stages.push_back({"target terrain", generatedTerrain("target/", p)});
         }

@@ -1,4 +1,5 @@
 #include "simulate_stage.h"
+#include "stage_common.h"
 
 #include <omp.h>
 
@@ -32,6 +33,8 @@ sim::RunConfig simulateConfig(const SimulateOptions& o) {
 
 SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
     sim::RunConfig cfg = simulateConfig(o);
+    requireOutputsNotInputs({{"--out", cfg.outputPath}, {"--csv", cfg.csvPath}},
+                            {o.config, cfg.abioticsPath, cfg.canopyPath, cfg.terrainPath, cfg.biomePath, cfg.initialPath});
 
     reporter.info("simulate: " + std::to_string(cfg.years) + " years, seed " + std::to_string(cfg.seed) + ", " +
                   std::to_string(omp_get_max_threads()) + " threads, growth rule " +

@@ -47,6 +47,20 @@ void prepareOutput(const std::string& path) {
     if (p.has_parent_path()) ensureDirectory(p.parent_path().string());
 }
 
+void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::string>>& outputs,
+                             const std::vector<std::string>& inputs) {
+    for (const auto& [flag, out] : outputs) {
+        if (out.empty()) continue;
+        for (const std::string& in : inputs) {
+            if (in.empty()) continue;
+            std::error_code ec;
+            if (std::filesystem::equivalent(out, in, ec) && !ec)
+                throw ValidationError(flag + " '" + out + "' is the input '" + in +
+                                      "': writing it would destroy the input; choose another output path");
+        }
+    }
+}
+
 void writeGeoTiffs(const std::string& h5Path, const std::string& dir, Reporter& reporter, std::vector<std::string>& written) {
     ensureDirectory(dir);
     const std::vector<std::string> files =

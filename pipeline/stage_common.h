@@ -38,6 +38,12 @@ std::string quotedCommand(const std::vector<std::string>& args);
 /// Create the folder an output file goes into, before any heavy work.
 void prepareOutput(const std::string& path);
 
+/// ValidationError when an output file (`outputs`: {flag, path}, "" = not written) is the
+/// same file as one of the `inputs` ("" skipped): `eco analyse sim.h5 --out sim.h5`
+/// replaced the simulation by the database (issue 26). Checked before any work.
+void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::string>>& outputs,
+                             const std::vector<std::string>& inputs);
+
 /// --geotiff DIR of a stage: every grid of the stage's HDF5 output as a GeoTIFF in `dir`
 /// (named <output stem>_<dataset>.tif, with the grid's geotransform and CRS; see
 /// core/geo_raster.h exportGridsAsGeoTiff), one line to the user, the files added to `written`.

@@ -32,6 +32,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     SynthResult result;
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
+    requireOutputsNotInputs({{"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--gpkg", a.gpkg}},
+                            {a.terrain, a.canopy, a.database, a.abiotics});
     synth::SynthParams params = a.params;
     params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
@@ -58,9 +60,21 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
          std::to_string(db.combinations.size()) + " combinations; seeding disc " + num(db.seedingRadiusFactor) +
          " x crown radius");
     if (db.regions.empty()) throw ValidationError(a.database + ": the database holds no region; nothing to synthesize from");
+    if (params.seedInnerRadiusFactor > db.seedingRadiusFactor)
+        throw ValidationError("--seed-inner-radius-factor " + num(params.seedInnerRadiusFactor) +
+                              " exceeds the seeding disc of the database " + a.database + " (" + num(db.seedingRadiusFactor) +
+                              " x crown radius): the full-weight core must lie inside the disc");
 
     Grid<float> terrain = readTerrain(a.terrain, a.terrainRead.options());
     reporter.info("terrain: " + a.terrain + ": " + terrain.geometryText());
+    if (refineParams.useWindow) {
+        const RectWindow& w = refineParams.window;
+        const double tx0 = terrain.originX(), ty0 = terrain.originY();
+        if (w.x0 >= tx0 + terrain.extentX() || w.x1 <= tx0 || w.y0 >= ty0 + terrain.extentY() || w.y1 <= ty0)
+            throw ValidationError("--refine-window " + a.refineWindow + " lies outside the terrain '" + a.terrain + "' (" +
+                                  num(tx0) + "," + num(ty0) + "," + num(tx0 + terrain.extentX()) + "," +
+                                  num(ty0 + terrain.extentY()) + " in metres): nothing would be refined");
+    }
     const CanopyFileData canopyFile = readCanopyFile(a.canopy, biome);
     if (!canopyFile.terrainM.sameGeometry(terrain))
         throw ValidationError("canopy '" + a.canopy + "' was placed on a terrain of " + canopyFile.terrainM.geometryText() +
@@ -236,6 +250,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
 CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     std::ostream& out = reporter.out();
     CompareResult result;
+    requireOutputsNotInputs({{"--out", a.out}, {"--png", a.png}}, {a.scene, a.database});
     const BiomeDatabase db = readBiomeDatabase(a.database);
     const Biome biome = synth::databaseBiome(db);
     const synth::SceneData scene = synth::readSceneFile(a.scene, biome);

@@ -179,6 +179,7 @@ std::vector<std::string> commandLine(const TerrainGenerateOptions& a) {
 }
 
 TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& reporter) {
+    requireOutputsNotInputs({{"OUT", a.out}}, {a.in});
     const std::string inExt = fileExtension(a.in), outExt = fileExtension(a.out);
     const bool inImage = isTerrainImageExtension(inExt), outImage = isTerrainImageExtension(outExt);
     if (!isTerrainOutput(outExt))
@@ -221,6 +222,7 @@ TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& repo
 }
 
 ChmResult generateChmStage(const ChmGenerateOptions& a, Reporter& reporter) {
+    requireOutputsNotInputs({{"--out", a.out}}, {a.terrain, a.sketchImage});
     const std::string outExt = fileExtension(a.out);
     if (!isTerrainOutput(outExt))
         throw ValidationError(a.out + ": unknown output format '" + outExt + "'; supported: " +

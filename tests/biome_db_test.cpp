@@ -230,7 +230,7 @@ TEST_CASE("a NaN or negative canopy-context value is a clear IoError naming the 
     db.regions[0].contextSpeciesCount[2] = -1;
     const std::string negPath = dir.file("neg.h5");
     writeBiomeDatabase(negPath, db);
-    CHECK_THROWS_WITH(readBiomeDatabase(negPath), Catch::Contains("region_0000/context_species_count") && Catch::Contains("value 2"));
+    CHECK_THROWS_WITH(readBiomeDatabase(negPath), Catch::Contains("region_0000/context_species_count") && Catch::Contains("entry 2"));
     // A database with context in some regions but not all is refused on writing.
     db = sampleDb();
     db.regions[2].contextCellPairs.clear();
@@ -248,8 +248,8 @@ TEST_CASE("every number of a database is checked on reading: densities, shares, 
         const char* dataset;
     };
     const std::vector<Case> cases = {
-        {"negative density", [](BiomeDatabase& d) { d.regions[1].densityPerM2 = -0.5; }, "/regions/density_per_m2: value 1 is -0.5"},
-        {"NaN density", [&](BiomeDatabase& d) { d.regions[0].densityPerM2 = nan; }, "/regions/density_per_m2: value 0 is nan"},
+        {"negative density", [](BiomeDatabase& d) { d.regions[1].densityPerM2 = -0.5; }, "/regions/density_per_m2: entry 1 is -0.5"},
+        {"NaN density", [&](BiomeDatabase& d) { d.regions[0].densityPerM2 = nan; }, "/regions/density_per_m2: entry 0 is nan"},
         {"share above 1", [](BiomeDatabase& d) { d.regions[0].speciesProportion[0] = 1.5; }, "a share must lie in [0, 1]"},
         {"NaN g", [&](BiomeDatabase& d) { d.regions[0].pairs[0].g[3] = nan; }, "region_0000/pairs/g"},
         {"negative pair count", [](BiomeDatabase& d) { d.regions[2].pairs[0].pairCount[0] = -1; }, "region_0002/pairs/pair_count"},

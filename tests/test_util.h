@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 
@@ -20,8 +21,11 @@ struct CommandResult {
 /// Run the eco binary with `args` (a shell-quoted string), capturing its output.
 /// Runs eco with its arguments; with `memoryLimitKb` > 0 under that address-space limit
 /// (ulimit -v), so that memory checks are tested the same on any machine.
+/// ECO_TEST_BINARY in the environment runs another build's binary instead (e.g. the bad-input
+/// corpus against an older commit).
 inline CommandResult runEco(const std::string& args, long memoryLimitKb = 0) {
-    const std::string run = std::string(ECO_BINARY) + " " + args + " 2>&1";
+    const char* other = std::getenv("ECO_TEST_BINARY");
+    const std::string run = std::string(other != nullptr && *other != '\0' ? other : ECO_BINARY) + " " + args + " 2>&1";
     const std::string cmd = memoryLimitKb > 0 ? "ulimit -v " + std::to_string(memoryLimitKb) + "; " + run : run;
     CommandResult r;
     FILE* pipe = ::popen(cmd.c_str(), "r");
