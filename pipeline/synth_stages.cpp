@@ -60,10 +60,6 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
          std::to_string(db.combinations.size()) + " combinations; seeding disc " + num(db.seedingRadiusFactor) +
          " x crown radius");
     if (db.regions.empty()) throw ValidationError(a.database + ": the database holds no region; nothing to synthesize from");
-    if (params.seedInnerRadiusFactor > db.seedingRadiusFactor)
-        throw ValidationError("--seed-inner-radius-factor " + num(params.seedInnerRadiusFactor) +
-                              " exceeds the seeding disc of the database " + a.database + " (" + num(db.seedingRadiusFactor) +
-                              " x crown radius): the full-weight core must lie inside the disc");
 
     Grid<float> terrain = readTerrain(a.terrain, a.terrainRead.options());
     reporter.info("terrain: " + a.terrain + ": " + terrain.geometryText());

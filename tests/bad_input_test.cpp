@@ -613,8 +613,8 @@ std::vector<BadCase> corpus() {
          {"--refine-window", "outside the terrain"}});
     add({"synth refine rmax", nullptr, synth + " --refine --refine-rmax -2", 2, {"--refine-rmax", "-2"}});
     add({"synth refine move NaN", nullptr, synth + " --refine --refine-move nan", 2, {"--refine-move", "'nan'"}});
-    add({"synth inner radius beyond disc", nullptr, synth + " --seed-inner-radius-factor 100", 1,
-         {"--seed-inner-radius-factor", "100", "db.h5"}});
+    add({"synth inner radius NaN", nullptr, synth + " --seed-inner-radius-factor nan", 2,
+         {"--seed-inner-radius-factor", "'nan'"}});
     add({"synth terrain of other cells", nullptr, "synth --terrain {I}/x.asc --canopy {C} --database {D} --out {O}/s.h5", 1,
          {"can.h5", "x.asc", "4 x 3"}});
     c.back().make = textCase("x.asc", ascHeader("4", "3", "1") + kRows);
