@@ -28,6 +28,46 @@ double Allometry::heightForCrownRadiusM(double crownRadiusM) const {
     return b != 0.0 ? std::exp((std::log(crownRadiusM) - a) / b) : 0.0;
 }
 
+const std::vector<ParamDesc<Climate>>& climateFields() {
+    using K = ParamDesc<Climate>::Kind;
+    using R = ParamRange;
+    static const std::vector<ParamDesc<Climate>> f = {
+        {"latitude_deg", "latitude of the biome, degrees north (the sun's path)", K::Real, &Climate::latitudeDeg, nullptr,
+         R::closed(-90, 90)},
+        {"lapse_rate_c_per_km", "temperature fall with elevation, C per km", K::Real, &Climate::lapseRateCPerKm, nullptr,
+         R::closed(0, 50)},
+    };
+    return f;
+}
+
+const std::vector<ParamDesc<Soil>>& soilFields() {
+    using K = ParamDesc<Soil>::Kind;
+    using R = ParamRange;
+    static const std::vector<ParamDesc<Soil>> f = {
+        {"runoff_limit_mm", "most water a cell absorbs in a month, mm", K::Real, &Soil::runoffLimitMm, nullptr, R::above(0)},
+        {"slope_threshold_deg", "below this slope all water infiltrates, degrees", K::Real, &Soil::slopeThresholdDeg, nullptr,
+         R::closed(0, 90)},
+        {"slope_max_deg", "above this slope all water runs off, degrees (> slope_threshold_deg)", K::Real,
+         &Soil::slopeMaxDeg, nullptr, R::closed(0, 90)},
+        {"evaporation_fraction", "share of the soil water evaporated per month", K::Real, &Soil::evaporationFraction,
+         nullptr, R::closed(0, 1)},
+        {"saturation_mm", "soil water capacity, mm", K::Real, &Soil::saturationMm, nullptr, R::above(0)},
+    };
+    return f;
+}
+
+const std::vector<ParamDesc<VigourShape>>& vigourFields() {
+    using K = ParamDesc<VigourShape>::Kind;
+    using R = ParamRange;
+    static const std::vector<ParamDesc<VigourShape>> f = {
+        {"a", "g(d) = (1 + a) exp((d / r)^p ln q) - a (Eq. 1): depth of the penalty beyond the range", K::Real,
+         &VigourShape::a, nullptr, R::closed(0, 10)},
+        {"q", "Eq. 1: (g + a) / (1 + a) at d = r", K::Real, &VigourShape::q, nullptr, R::open(0, 1)},
+        {"p", "Eq. 1: sharpness of the fall towards the range", K::Real, &VigourShape::p, nullptr, R::above(0)},
+    };
+    return f;
+}
+
 double Biome::vigourOf(int s, const Features& x) const {
     const Species& sp = species[static_cast<std::size_t>(s)];
     return sp.alpha * minResponse(vigour, sp.responses, x);
@@ -146,8 +186,7 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
     }
     {
         StrictTable t(top.table("climate"), file, "[climate]");
-        b.climate.latitudeDeg = t.numberIn("latitude_deg", -90, 90);
-        b.climate.lapseRateCPerKm = t.numberIn("lapse_rate_c_per_km", 0, 50);
+        readRequiredParams(t, b.climate, climateFields());
         const auto temp = t.numbers("temperature_c", 12);
         const auto rain = t.numbers("rainfall_mm", 12);
         const auto clar = t.numbers("sky_clarity", 12);
@@ -163,21 +202,14 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
     }
     {
         StrictTable t(top.table("soil"), file, "[soil]");
-        b.soil.runoffLimitMm = t.positive("runoff_limit_mm");
-        b.soil.slopeThresholdDeg = t.numberIn("slope_threshold_deg", 0, 90);
-        b.soil.slopeMaxDeg = t.numberIn("slope_max_deg", 0, 90);
+        readRequiredParams(t, b.soil, soilFields());
         if (b.soil.slopeMaxDeg <= b.soil.slopeThresholdDeg)
             t.fail("slope_max_deg", "must exceed slope_threshold_deg (" + StrictTable::fmt(b.soil.slopeThresholdDeg) + ")");
-        b.soil.evaporationFraction = t.numberIn("evaporation_fraction", 0, 1);
-        b.soil.saturationMm = t.positive("saturation_mm");
         t.finish();
     }
     {
         StrictTable t(top.table("vigour"), file, "[vigour]");
-        b.vigour.a = t.numberIn("a", 0, 10);
-        b.vigour.q = t.number("q");
-        if (!(b.vigour.q > 0 && b.vigour.q < 1)) t.fail("q", "value " + StrictTable::fmt(b.vigour.q) + " must lie in (0, 1)");
-        b.vigour.p = t.positive("p");
+        readRequiredParams(t, b.vigour, vigourFields());
         t.finish();
     }
     {
@@ -287,17 +319,18 @@ std::string biomeToToml(const Biome& b) {
         for (auto v : values) a.push_back(v);
         return a;
     };
-    root.insert("climate", toml::table{{"latitude_deg", b.climate.latitudeDeg},
-                                       {"lapse_rate_c_per_km", b.climate.lapseRateCPerKm},
-                                       {"temperature_c", arr(b.climate.temperatureC)},
-                                       {"rainfall_mm", arr(b.climate.rainfallMm)},
-                                       {"sky_clarity", arr(b.climate.skyClarity)}});
-    root.insert("soil", toml::table{{"runoff_limit_mm", b.soil.runoffLimitMm},
-                                    {"slope_threshold_deg", b.soil.slopeThresholdDeg},
-                                    {"slope_max_deg", b.soil.slopeMaxDeg},
-                                    {"evaporation_fraction", b.soil.evaporationFraction},
-                                    {"saturation_mm", b.soil.saturationMm}});
-    root.insert("vigour", toml::table{{"a", b.vigour.a}, {"q", b.vigour.q}, {"p", b.vigour.p}});
+    auto paramTable = [](const auto& p, const auto& fields) {
+        toml::table t;
+        for (const auto& f : fields) t.insert(f.key, p.*(f.real));
+        return t;
+    };
+    toml::table climate = paramTable(b.climate, climateFields());
+    climate.insert("temperature_c", arr(b.climate.temperatureC));
+    climate.insert("rainfall_mm", arr(b.climate.rainfallMm));
+    climate.insert("sky_clarity", arr(b.climate.skyClarity));
+    root.insert("climate", std::move(climate));
+    root.insert("soil", paramTable(b.soil, soilFields()));
+    root.insert("vigour", paramTable(b.vigour, vigourFields()));
     toml::table periods;
     for (const auto& [name, months] : b.growthPeriods) {
         toml::array a;

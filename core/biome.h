@@ -135,6 +135,13 @@ struct Soil {
     double saturationMm = 180.0;       ///< soil water capacity
 };
 
+/// The scalar keys of the biome's [climate] table (the monthly lists are read by hand),
+/// [soil] and [vigour] (core/param_desc.h): read by loadBiome, written by biomeToToml,
+/// documented in docs/biome.md. slope_max_deg must also exceed slope_threshold_deg.
+const std::vector<ParamDesc<Climate>>& climateFields();
+const std::vector<ParamDesc<Soil>>& soilFields();
+const std::vector<ParamDesc<VigourShape>>& vigourFields();
+
 struct Biome {
     std::string name;
     std::string sourcePath;

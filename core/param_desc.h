@@ -38,6 +38,8 @@ struct ParamRange {
     static ParamRange closed(double lo, double hi) { return {Bound::Closed, lo, Bound::Closed, hi}; }
     /// lo < v <= hi
     static ParamRange openClosed(double lo, double hi) { return {Bound::Open, lo, Bound::Closed, hi}; }
+    /// lo < v < hi
+    static ParamRange open(double lo, double hi) { return {Bound::Open, lo, Bound::Open, hi}; }
 
     /// True when v is finite and within the bounds.
     bool contains(double v) const {

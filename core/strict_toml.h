@@ -162,6 +162,21 @@ private:
 /// as numbers, integers as TOML integers within int's range, seeds as non-negative
 /// integers. Ranges are left to validateParams, which the caller runs on the whole struct.
 template <typename S>
+void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields);
+
+/// Every (real) field of `fields` required, each checked against its range as it is read,
+/// so that the message names the file, the line, the table and the key (the biome's
+/// [climate], [soil] and [vigour] tables).
+template <typename S>
+void readRequiredParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
+    for (const auto& f : fields) {
+        const double v = t.number(f.key);
+        if (!f.range.contains(v)) t.fail(f.key, "value " + StrictTable::fmt(v) + " " + f.ruleText());
+        p.*(f.real) = v;
+    }
+}
+
+template <typename S>
 void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
     for (const auto& f : fields) {
         if (!t.has(f.key)) continue;

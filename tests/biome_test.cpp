@@ -8,6 +8,7 @@
 #include "biome.h"
 #include "error.h"
 #include "text_format.h"
+#include "param_table_check.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -214,4 +215,33 @@ TEST_CASE("biome validation of months, climate and structure", "[biome]") {
     SECTION("unknown species name lists the known ones") {
         CHECK_THROWS_WITH(defaultBiome().speciesIndex("Oak"), Catch::Contains("unknown species 'Oak'") && Catch::Contains("Redwood"));
     }
+}
+
+TEST_CASE("the biome's [climate], [soil] and [vigour] keys: one table drives reading, writing, ranges and docs", "[biome]") {
+    // Validation through the real path: the default biome with the struct set, printed as
+    // TOML and parsed back; a value out of range must be refused naming the key and rule.
+    auto roundTrip = [](auto set) {
+        eco::Biome b = eco::defaultBiome();
+        set(b);
+        return eco::parseBiome(eco::biomeToToml(b), "b.toml");
+    };
+    auto none = [](const auto&) { return std::vector<std::pair<std::string, std::string>>{}; };
+    eco::test::checkParamTable(
+        eco::climateFields(), "docs/biome.md",
+        [&](const eco::Climate& c) { roundTrip([&](eco::Biome& b) { b.climate = c; }); }, none, 0);
+    eco::test::checkParamTable(
+        eco::soilFields(), "docs/biome.md", [&](const eco::Soil& s) { roundTrip([&](eco::Biome& b) { b.soil = s; }); },
+        none, 0);
+    eco::test::checkParamTable(
+        eco::vigourFields(), "docs/biome.md",
+        [&](const eco::VigourShape& v) { roundTrip([&](eco::Biome& b) { b.vigour = v; }); }, none, 0);
+    // The defaults of the structs are the Sonoma biome's, and a round trip keeps every value.
+    const eco::Biome sonoma = eco::defaultBiome();
+    for (const auto& f : eco::soilFields()) CHECK(sonoma.soil.*(f.real) == eco::Soil{}.*(f.real));
+    for (const auto& f : eco::vigourFields()) CHECK(sonoma.vigour.*(f.real) == eco::VigourShape{}.*(f.real));
+    const eco::Biome back = eco::parseBiome(eco::biomeToToml(sonoma), "b.toml");
+    CHECK(eco::biomeToToml(back) == eco::biomeToToml(sonoma));
+    // The cross-key rule stays.
+    CHECK_THROWS_WITH(roundTrip([](eco::Biome& b) { b.soil.slopeMaxDeg = b.soil.slopeThresholdDeg; }),
+                      Catch::Contains("'slope_max_deg'") && Catch::Contains("must exceed slope_threshold_deg"));
 }
