@@ -10,6 +10,7 @@
 
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "text_format.h"
 
 namespace eco::analysis {

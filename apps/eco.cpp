@@ -8,6 +8,7 @@
 #include "cli_common.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 
 namespace eco::cli {
 
@@ -24,8 +25,13 @@ std::unique_ptr<CLI::App> makeApp() {
     auto threads = std::make_shared<int>(0);
     app->add_option("--threads", *threads, "OpenMP threads, 1..1024 (default: all cores); results do not depend on it")
         ->check(CLI::Range(0, 1024));
-    app->parse_complete_callback([threads] {
+    auto noProvenance = std::make_shared<bool>(false);
+    app->add_flag("--no-provenance", *noProvenance,
+                  "Leave the /provenance group (wall times, thread counts, dates) out of every HDF5 output, so that "
+                  "two runs of the same inputs and seed write byte-identical files, whatever --threads");
+    app->parse_complete_callback([threads, noProvenance] {
         if (*threads > 0) omp_set_num_threads(*threads);
+        setProvenanceRecorded(!*noProvenance);
     });
 
     registerTerrainCommands(*app);

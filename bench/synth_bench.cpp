@@ -49,6 +49,7 @@
 #include "biome_db.h"
 #include "canopy_placer.h"
 #include "eco_version.h"
+#include "provenance.h"
 #include "forest_floor.h"
 #include "generate.h"
 #include "species_map.h"

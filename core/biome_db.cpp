@@ -11,6 +11,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "h5io.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -189,15 +190,6 @@ int BiomeDatabase::nearestRegionOf(std::size_t combinationIdx, const Features& r
     return best < 0 ? c.firstRegion : best;
 }
 
-std::string utcTimestamp() {
-    const std::time_t now = std::time(nullptr);
-    std::tm tm{};
-    gmtime_r(&now, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return buf;
-}
-
 bool BiomeDatabase::hasContext() const {
     if (schemaVersion < 3 || contextBins.edgesM.empty()) return false;
     const std::size_t nc = static_cast<std::size_t>(contextBins.count()), ns = speciesNames.size();
@@ -236,7 +228,6 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.setAttr("/", "format", std::string(kBiomeDbFormat));
         f.setAttr("/", "schema_version", static_cast<std::int64_t>(withContext ? kBiomeDbSchemaVersion : 2));
         f.setAttr("/", "code_version", db.codeVersion);
-        f.setAttr("/", "created_utc", db.createdUtc);
         f.setAttr("/", "biome_name", db.biomeName);
         f.setAttr("/", "biome_toml", db.biomeToml);
         f.setAttr("/", "units",
@@ -451,6 +442,7 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
             f.writeF64(pg + "/separation_underflow", under, {hs(np)});
             f.writeF64(pg + "/separation_sources", sources, {hs(np)});
         }
+        if (!db.createdUtc.empty()) writeProvenance(f, {{"created_utc", db.createdUtc}});
     }
     out.commit();
 }
@@ -498,7 +490,9 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     BiomeDatabase db;
     db.schemaVersion = static_cast<int>(version);
     db.codeVersion = f.attrString("/", "code_version");
-    db.createdUtc = f.attrString("/", "created_utc");
+    // The creation date is provenance (/provenance, docs/hdf5.md); schema 2 and 3 files have
+    // it at the root; `eco --no-provenance` leaves it out.
+    db.createdUtc = readProvenanceString(f, "created_utc", "created_utc").value_or("");
     db.biomeName = f.attrString("/", "biome_name");
     db.biomeToml = f.attrString("/", "biome_toml");
     db.seedingRadiusFactor = f.attrDouble("/", "seeding_radius_factor");

@@ -25,11 +25,15 @@
 
 namespace eco {
 
+/// 4: the creation date moved from the root attribute created_utc to /provenance
+///    (docs/hdf5.md; left out with eco --no-provenance), so that two analyses of the same
+///    inputs write the same bytes;
 /// 3: canopy context per region (density of each species by depth under the canopy cover,
 ///    heights under crowns, cell pairs by context for the context part of g(r));
 /// 2: region features use the canopy-shaded annual sun (1: the terrain's own sun).
-/// Version 2 files are still read (without the context statistics: hasContext() false).
-constexpr int kBiomeDbSchemaVersion = 3;
+/// Version 2 and 3 files are still read (version 2 without the context statistics:
+/// hasContext() false).
+constexpr int kBiomeDbSchemaVersion = 4;
 constexpr int kBiomeDbOldestReadableVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";
 
@@ -127,7 +131,7 @@ struct DbRegion {
 struct BiomeDatabase {
     int schemaVersion = kBiomeDbSchemaVersion;
     std::string codeVersion;
-    std::string createdUtc;   ///< ISO 8601
+    std::string createdUtc;   ///< ISO 8601 (provenance); "" when not recorded
     std::string biomeName;
     std::string biomeToml;    ///< the biome the inputs were made with
     std::vector<std::string> speciesNames;    ///< biome order
@@ -180,8 +184,5 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db);
 /// an eco-biome-db file, has another schema_version (the message gives the found and the
 /// expected version), or a dataset is missing or has the wrong shape.
 BiomeDatabase readBiomeDatabase(const std::string& path);
-
-/// Current UTC time as ISO 8601 ("2024-05-01T12:00:00Z").
-std::string utcTimestamp();
 
 }  // namespace eco

@@ -4,6 +4,7 @@
 #include "eco_version.h"
 #include "geo_raster.h"
 #include "error.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -18,7 +19,7 @@ void writeIterations(h5::File& f, const CanopyFileContents& c) {
     const std::vector<IterationStats>& its = c.iterations;
     const hsize_t n = its.size();
     std::vector<std::int32_t> iteration(n), trees(n), removed(n), added(n);
-    std::vector<double> coverage(n), rmse(n), seconds(n);
+    std::vector<double> coverage(n), rmse(n);
     for (std::size_t i = 0; i < its.size(); ++i) {
         iteration[i] = its[i].iteration;
         trees[i] = static_cast<std::int32_t>(its[i].trees);
@@ -26,7 +27,6 @@ void writeIterations(h5::File& f, const CanopyFileContents& c) {
         added[i] = static_cast<std::int32_t>(its[i].added);
         coverage[i] = its[i].coverage;
         rmse[i] = its[i].rmseM;
-        seconds[i] = its[i].seconds;
     }
     f.ensureGroup("/iterations");
     f.writeI32("/iterations/iteration", iteration, {n});
@@ -35,12 +35,10 @@ void writeIterations(h5::File& f, const CanopyFileContents& c) {
     f.writeI32("/iterations/added", added, {n});
     f.writeF64("/iterations/coverage", coverage, {n});
     f.writeF64("/iterations/rmse_m", rmse, {n});
-    f.writeF64("/iterations/seconds", seconds, {n});
     f.setAttr("/iterations", "stop_reason", c.stopReason);
     f.setAttr("/iterations", "initial_seeds", c.initialSeeds);
     f.setAttr("/iterations", "duplicates_removed", c.duplicatesRemoved);
     f.setAttr("/iterations", "fallback_trees", c.fallbackTrees);
-    f.setAttr("/iterations", "seconds", c.seconds);
     f.setAttr("/iterations", "note", std::string("iteration 0 = initial seeding, -1 = final clean-up; coverage "
                                                  "= fraction of CHM cells >= canopy_threshold_m under a crown"));
 }
@@ -108,6 +106,10 @@ void writeCanopyFile(const std::string& path, const CanopyFileContents& c, const
         f.setAttr("/", "biome_source", c.biomeSource);
         f.setAttr("/", "mask_source", c.maskSource);
         f.setAttr("/", "units", std::string("metres; x east, y north, world coordinates of the input grids"));
+        // Wall times are measured, not computed (docs/hdf5.md): /provenance, in /iterations order.
+        std::vector<double> iterationSeconds;
+        for (const IterationStats& s : c.iterations) iterationSeconds.push_back(s.seconds);
+        writeProvenance(f, {{"placement_seconds", c.seconds}, {"iteration_seconds", iterationSeconds}});
     }
     out.commit();
 }
@@ -118,8 +120,8 @@ CanopyFileData readCanopyFile(const std::string& path, const Biome& biome, Canop
         throw IoError(path + ": not an eco-canopy file (root attribute format != '" + std::string(kCanopyFormat) +
                       "'; is this a canopy file written by 'eco canopy'?)");
     const std::int64_t version = f.attrInt("/", "schema_version");
-    if (version != kCanopySchemaVersion)
-        throw IoError(path + ": eco-canopy schema version " + std::to_string(version) + " is not supported (expected " +
+    if (version != kCanopySchemaVersion && version != 1)
+        throw IoError(path + ": eco-canopy schema version " + std::to_string(version) + " is not supported (expected 1 or " +
                       std::to_string(kCanopySchemaVersion) + ")");
     CanopyFileData d;
     if (!f.exists("/canopy")) throw IoError(path + ": no /canopy plant group");
@@ -138,7 +140,18 @@ CanopyFileData readCanopyFile(const std::string& path, const Biome& biome, Canop
     const auto added = f.readI32("/iterations/added");
     const auto coverage = f.readF64("/iterations/coverage");
     const auto rmse = f.readF64("/iterations/rmse_m");
-    const auto seconds = f.readF64("/iterations/seconds");
+    // Wall times: /provenance (version 2; absent with --no-provenance), /iterations/seconds in version 1.
+    const std::vector<double> seconds = [&] {
+        if (f.hasAttr(kProvenanceGroup, "iteration_seconds")) {
+            auto s = f.attrDoubles(kProvenanceGroup, "iteration_seconds");
+            if (s.size() != iteration.size())
+                throw IoError(path + ": /provenance iteration_seconds has " + std::to_string(s.size()) +
+                              " values for " + std::to_string(iteration.size()) + " iterations");
+            return s;
+        }
+        if (version == 1) return f.readF64("/iterations/seconds");
+        return std::vector<double>(iteration.size(), 0.0);
+    }();
     for (const auto* v : {&trees, &removed, &added})
         if (v->size() != iteration.size()) throw IoError(path + ": /iterations arrays differ in length");
     for (const auto* v : {&coverage, &rmse, &seconds})

@@ -8,12 +8,15 @@
 //   /species_map            int32 grid, "species id, -1 none" (ids index /canopy/species_names)
 //   /chm/height             float grid, m: the input CHM
 //   /terrain/elevation      float grid, m: the input terrain
-//   /iterations/{iteration, trees, removed, added (int32), coverage, rmse_m, seconds}  per iteration
+//   /iterations/{iteration, trees, removed, added (int32), coverage, rmse_m}  per iteration
 //                           (iteration -1 = the final clean-up) and attributes stop_reason,
-//                           initial_seeds, duplicates_removed, fallback_trees, seconds
+//                           initial_seeds, duplicates_removed, fallback_trees
+//   /provenance             attributes placement_seconds and iteration_seconds (wall times, in
+//                           /iterations order; core/provenance.h): absent with --no-provenance
 //   /targets/{species, requested, achieved, reachable, feasible, weight, alpha, iterations}
 //                           and /targets/mask (int32 grid, 1 = inside) when a brush was used
-//   root attributes: format = "eco-canopy", schema_version = 1, code_version, seed, every
+//   root attributes: format = "eco-canopy", schema_version = 2 (1: the wall times were
+//   /iterations/seconds and the attribute /iterations seconds; still read), code_version, seed, every
 //   placer parameter by key, species_weights (global user weights, biome order), biome_name,
 //   biome_toml, and the sources terrain_source, chm_source, abiotics_source, biome_source,
 //   mask_source.
@@ -33,7 +36,8 @@
 namespace eco {
 
 inline constexpr const char* kCanopyFormat = "eco-canopy";
-inline constexpr std::int64_t kCanopySchemaVersion = 1;
+/// 2: wall times moved to /provenance (1: /iterations/seconds; still read).
+inline constexpr std::int64_t kCanopySchemaVersion = 2;
 
 /// One iteration of the canopy placer: one row of /iterations.
 struct IterationStats {
@@ -43,7 +47,7 @@ struct IterationStats {
     std::size_t added = 0;     ///< trees seeded in it
     double coverage = 0;       ///< fraction of the CHM footprint covered by some crown
     double rmseM = 0;          ///< RMS of (rendered crown surface - CHM) over the footprint, metres
-    double seconds = 0;        ///< wall time of the iteration
+    double seconds = 0;        ///< wall time of the iteration (provenance; 0 when not recorded)
 };
 
 /// One species target of the species map: one row of /targets.

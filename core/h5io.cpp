@@ -33,6 +33,15 @@ std::size_t product(const std::vector<hsize_t>& dims) {
                            [](std::size_t a, hsize_t b) { return a * static_cast<std::size_t>(b); });
 }
 
+/// A creation property list of `cls` without object modification times: HDF5 stamps every
+/// group and dataset with the time it was written unless told not to, which alone makes two
+/// runs of the same inputs differ in bytes (docs/hdf5.md "Byte-identical outputs").
+Handle untimedCreationList(hid_t cls) {
+    Handle plist(H5Pcreate(cls));
+    H5Pset_obj_track_times(plist.id(), false);
+    return plist;
+}
+
 std::string parentOf(const std::string& path) {
     const auto pos = path.find_last_of('/');
     if (pos == std::string::npos || pos == 0) return "/";
@@ -55,7 +64,9 @@ Handle::~Handle() {
 }
 
 File File::create(const std::string& path) {
-    const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    // The file creation list is also the root group's: no modification time on it either.
+    const Handle fcpl = untimedCreationList(H5P_FILE_CREATE);
+    const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.id(), H5P_DEFAULT);
     if (id < 0) throw IoError(path + ": cannot create HDF5 file");
     return File(path, id);
 }
@@ -93,7 +104,8 @@ void File::ensureGroup(const std::string& groupPath) {
         if (part.empty()) continue;
         sofar += "/" + part;
         if (H5Lexists(id(), sofar.c_str(), H5P_DEFAULT) > 0) continue;
-        Handle g(H5Gcreate2(id(), sofar.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+        const Handle gcpl = untimedCreationList(H5P_GROUP_CREATE);
+        Handle g(H5Gcreate2(id(), sofar.c_str(), H5P_DEFAULT, gcpl.id(), H5P_DEFAULT));
         if (!g.valid()) throw IoError(where(sofar) + ": cannot create group");
     }
 }
@@ -111,7 +123,7 @@ void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
         throw ValidationError(f.path() + ": " + name + ": data size does not match its shape");
     f.ensureGroup(parentOf(name));
     Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr));
-    Handle plist(H5Pcreate(H5P_DATASET_CREATE));
+    Handle plist = untimedCreationList(H5P_DATASET_CREATE);
     // Compress large datasets; chunk along the first axis.
     if (n >= 4096 && !dims.empty()) {
         std::vector<hsize_t> chunk = dims;
@@ -208,7 +220,8 @@ void File::writeStrings(const std::string& name, const std::vector<std::string>&
     const hsize_t n = v.size();
     Handle space(H5Screate_simple(1, &n, nullptr));
     if (H5Lexists(id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(id(), name.c_str(), H5P_DEFAULT);
-    Handle ds(H5Dcreate2(id(), name.c_str(), type.id(), space.id(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    const Handle dcpl = untimedCreationList(H5P_DATASET_CREATE);
+    Handle ds(H5Dcreate2(id(), name.c_str(), type.id(), space.id(), H5P_DEFAULT, dcpl.id(), H5P_DEFAULT));
     if (!ds.valid()) throw IoError(where(name) + ": cannot create string dataset");
     if (n > 0 && H5Dwrite(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
         throw IoError(where(name) + ": cannot write string dataset");

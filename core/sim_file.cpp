@@ -8,6 +8,7 @@
 #include "atomic_file.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -118,9 +119,6 @@ void writeSimulationFile(const std::string& path, const SimulationFileInfo& info
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr("/", "seed", static_cast<std::int64_t>(info.seed));
         f.setAttr("/", "years", static_cast<std::int64_t>(info.years));
-        f.setAttr("/", "wall_time_s", info.wallSeconds);
-        f.setAttr("/", "threads", static_cast<std::int64_t>(info.threads));
-        f.setAttr("/", "resumed_from_year", static_cast<std::int64_t>(info.resumedFromYear));
         f.setAttr("/", "x0", info.x0);
         f.setAttr("/", "y0", info.y0);
         f.setAttr("/", "x1", info.x1);
@@ -149,6 +147,11 @@ void writeSimulationFile(const std::string& path, const SimulationFileInfo& info
         writePlants(f, "/canopy", canopy, biome);
         f.setAttr("/canopy", "selection", std::string("canopy trees whose crown or seeding disc (outer factor x r) reaches the area"));
         f.writeStrings("/species_names", speciesNames(biome));
+        // How the run went, not what it computed: a resumed run writes the same bytes as
+        // an uninterrupted one everywhere else.
+        writeProvenance(f, {{"wall_time_s", info.wallSeconds},
+                            {"threads", static_cast<std::int64_t>(info.threads)},
+                            {"resumed_from_year", static_cast<std::int64_t>(info.resumedFromYear)}});
     }
     out.commit();
 }

@@ -9,10 +9,13 @@
 //                         crown_area float64 [ny][ns], species_names
 //   /canopy               the canopy trees that influence the area (plants.h layout)
 //   /species_names        the biome's species names
+//   /provenance           attributes wall_time_s, threads, resumed_from_year (core/provenance.h;
+//                         absent with eco --no-provenance; files written before
+//                         the group have them at the root)
 //   root attributes: format = "eco-simulation", schema_version = 1, code_version, seed, years,
-//   wall_time_s, threads, resumed_from_year, the area x0, y0, x1, y1, every model parameter by
-//   key, model_toml, biome_name, biome_toml, the input paths (terrain_path, abiotics_path,
-//   canopy_path, biome_path, initial_path, config_path) and the run's counters.
+//   the area x0, y0, x1, y1, every model parameter by key, model_toml, biome_name,
+//   biome_toml, the input paths (terrain_path, abiotics_path, canopy_path, biome_path,
+//   initial_path, config_path) and the run's counters.
 #pragma once
 
 #include <cstdint>
@@ -47,9 +50,9 @@ using SnapshotList = std::vector<std::pair<int, std::vector<UndergrowthPlant>>>;
 struct SimulationFileInfo {
     std::uint64_t seed = 0;
     int years = 0;                   ///< complete years simulated
-    double wallSeconds = 0;
-    int threads = 0;
-    int resumedFromYear = -1;        ///< -1 when not resumed
+    double wallSeconds = 0;          ///< provenance: wall time of every process of the run
+    int threads = 0;                 ///< provenance: OpenMP threads of the last process
+    int resumedFromYear = -1;        ///< provenance: -1 when not resumed
     double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< simulated area, world metres
     std::vector<std::pair<std::string, double>> parameters;  ///< model parameters by key
     std::string modelToml;

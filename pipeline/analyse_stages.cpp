@@ -187,7 +187,7 @@ InspectResult inspectStage(const InspectOptions& args, Reporter& reporter) {
     std::ostringstream o;
     o << "biome database " << args.database << "\n";
     o << "  format " << kBiomeDbFormat << ", schema " << db.schemaVersion << ", code " << db.codeVersion << ", created "
-      << db.createdUtc << "\n";
+      << (db.createdUtc.empty() ? std::string("(not recorded: written with --no-provenance)") : db.createdUtc) << "\n";
     o << "  biome " << db.biomeName << ": " << db.speciesCount() << " species, " << db.subBiomeNames.size()
       << " sub-biomes; seeding disc " << num(db.seedingRadiusFactor) << " x crown radius\n";
     o << "  pair correlation: " << db.pcfBins.count << " bins of " << num(db.pcfBins.widthM()) << " m to "

@@ -14,6 +14,7 @@
 #include "biome_db.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "strict_toml.h"
 #include "text_format.h"
 

@@ -16,6 +16,7 @@
 #include "canopy_file.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "sim_render.h"
 #include "terrain_io.h"
 
@@ -170,7 +171,8 @@ namespace {
 
 // The checkpoint is the simulator's own file (written and read here only).
 constexpr const char* kCheckpointFormat = "eco-simulation-checkpoint";
-constexpr std::int64_t kCheckpointSchemaVersion = 1;
+// 2: wall_seconds_before moved from the root to /provenance (absent with --no-provenance).
+constexpr std::int64_t kCheckpointSchemaVersion = 2;
 
 }  // namespace
 
@@ -215,12 +217,14 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
         f.setAttr("/", "schema_version", kCheckpointSchemaVersion);
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr("/", "years_done", static_cast<std::int64_t>(sim.yearsDone()));
-        f.setAttr("/", "wall_seconds_before", record.wallSecondsBefore);
         sim.saveState(f, "/state");
         writeTimeseries(f, "/record/timeseries", record.timeseries, sim.biome());
         f.ensureGroup("/record/snapshots");
         for (const auto& [year, plants] : record.snapshots)
             writeSnapshot(f, snapshotGroup("/record/snapshots", year), year, plants, sim.biome());
+        // The wall time so far is measured, not simulated: provenance, so that two runs of the
+        // same configuration write the same checkpoint bytes (docs/hdf5.md).
+        writeProvenance(f, {{"wall_seconds_before", record.wallSecondsBefore}});
     }
     out.commit();
 }
@@ -238,7 +242,8 @@ void readCheckpoint(const std::string& path, Simulation& sim, RunRecord& record)
         const std::string g = "/record/snapshots/" + n;
         r.snapshots.emplace_back(static_cast<int>(f.attrInt(g, "year")), readSnapshot(f, g, sim.biome()));
     }
-    r.wallSecondsBefore = f.attrDouble("/", "wall_seconds_before");
+    // Version 1 checkpoints kept it at the root; without provenance the earlier time is unknown.
+    r.wallSecondsBefore = readProvenanceDouble(f, "wall_seconds_before", "wall_seconds_before").value_or(0.0);
     r.resumedFromYear = sim.yearsDone();
     record = std::move(r);
 }

@@ -14,6 +14,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
+#include "provenance.h"
 #include "text_format.h"
 
 namespace eco::synth {
@@ -35,7 +36,6 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.setAttr("/", "format", std::string(kSceneFormat));
         f.setAttr("/", "schema_version", static_cast<std::int64_t>(kSceneSchemaVersion));
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
-        f.setAttr("/", "created_utc", utcTimestamp());
         // The seed's 64 bits, as an int64 attribute (as the database stores seeds).
         f.setAttr("/", "seed", static_cast<std::int64_t>(sc.params.seed));
         for (const auto& [k, v] : sc.params.asParameters())
@@ -45,7 +45,6 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         if (sc.refined)
             for (const auto& [k, v] : sc.refineParams.asParameters()) f.setAttr("/", k, v);
         f.setAttr("/", "database_path", sc.databasePath);
-        f.setAttr("/", "database_created_utc", sc.databaseCreatedUtc.empty() ? db.createdUtc : sc.databaseCreatedUtc);
         f.setAttr("/", "database_code_version", sc.databaseCodeVersion.empty() ? db.codeVersion : sc.databaseCodeVersion);
         f.setAttr("/", "database_seeding_radius_factor", db.seedingRadiusFactor);
         f.setAttr("/", "terrain_source", sc.terrainSource);
@@ -90,7 +89,6 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.setAttr("/regions", "passes", static_cast<std::int64_t>(sc.sampling.passes));
         f.setAttr("/regions", "darts", static_cast<std::int64_t>(sc.sampling.darts));
         f.setAttr("/regions", "darts_on_trunks", static_cast<std::int64_t>(sc.sampling.dartsOnTrunks));
-        f.setAttr("/regions", "sampling_seconds", sc.sampling.seconds);
         f.writeI32("/regions/region", region, {n});
         f.writeI32("/regions/combination", combination, {n});
         f.writeI32("/regions/cluster", cluster, {n});
@@ -135,9 +133,15 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
             f.setAttr("/refinement", "proposals", static_cast<std::int64_t>(rr.proposals));
             f.setAttr("/refinement", "accepted", static_cast<std::int64_t>(rr.accepted));
             f.setAttr("/refinement", "rmax_m", rr.rMaxM);
-            f.setAttr("/refinement", "seconds", rr.seconds);
             f.writeF64("/refinement/objective_per_sweep", rr.objectivePerSweep, {rr.objectivePerSweep.size()});
         }
+
+        // Dates and wall times: measured, not computed (docs/hdf5.md), so kept apart.
+        std::vector<ProvenanceEntry> prov{{"created_utc", utcTimestamp()}, {"sampling_seconds", sc.sampling.seconds}};
+        if (sc.refined) prov.push_back({"refinement_seconds", sc.refineResult.seconds});
+        const std::string dbCreated = sc.databaseCreatedUtc.empty() ? db.createdUtc : sc.databaseCreatedUtc;
+        if (!dbCreated.empty()) prov.push_back({"database_created_utc", dbCreated});
+        writeProvenance(f, prov);
     }
     out.commit();
 }

@@ -48,7 +48,9 @@ struct SceneRecord {
 ///   /terrain/elevation         float grid, m
 ///   /regions/...               per database region: cells, area, target and placed counts
 ///   /refinement                attributes (and objective per sweep) when refined
-///   root attributes: format = "eco-scene", schema_version = 1, code_version, created_utc,
+///   /provenance                created_utc, sampling_seconds, refinement_seconds,
+///                              database_created_utc (core/provenance.h; not with --no-provenance)
+///   root attributes: format = "eco-scene", schema_version = 1, code_version,
 ///   seed, every parameter by key, database_path, terrain_source, canopy_source,
 ///   abiotics_source, biome_name, biome_toml, units.
 void writeSceneFile(const std::string& path, const SceneRecord& scene, const Biome& biome,

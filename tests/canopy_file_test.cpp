@@ -3,6 +3,7 @@
 
 #include "canopy_file.h"
 #include "error.h"
+#include "provenance.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -74,4 +75,44 @@ TEST_CASE("canopy file: other files, versions and missing datasets are refused b
     }
     CHECK_THROWS_WITH(readCanopyFile(dir.file("nochm.h5"), biome, CanopyFileParts::TreesAndChm),
                       Catch::Contains("nochm.h5") && Catch::Contains("/chm/height"));
+}
+
+TEST_CASE("canopy file: wall times in /provenance, or none with provenance off, or in /iterations in version 1",
+          "[canopy_file][provenance]") {
+    test::TempDir dir("canopy_file");
+    const Biome biome = defaultBiome();
+    writeCanopyFile(dir.file("c.h5"), smallCanopy(biome), biome);
+    CHECK(readCanopyFile(dir.file("c.h5"), biome).iterations[1].seconds == 0.02);
+    {
+        const h5::File f = h5::File::openRead(dir.file("c.h5"));
+        CHECK(f.attrDoubles(kProvenanceGroup, "iteration_seconds") == std::vector<double>{0.01, 0.02});
+        CHECK_FALSE(f.exists("/iterations/seconds"));
+    }
+
+    setProvenanceRecorded(false);
+    writeCanopyFile(dir.file("v1.h5"), smallCanopy(biome), biome);
+    setProvenanceRecorded(true);
+    CHECK(readCanopyFile(dir.file("v1.h5"), biome).iterations[1].seconds == 0.0);
+    // Make it a version 1 file: the wall times in /iterations/seconds.
+    {
+        const hid_t file = H5Fopen(dir.file("v1.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+        REQUIRE(file >= 0);
+        const hsize_t n = 2;
+        const double seconds[2] = {0.5, 0.75};
+        const hid_t space = H5Screate_simple(1, &n, nullptr);
+        const hid_t ds = H5Dcreate2(file, "/iterations/seconds", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, seconds);
+        const std::int64_t one = 1;
+        const hid_t version = H5Aopen(file, "schema_version", H5P_DEFAULT);
+        H5Awrite(version, H5T_NATIVE_INT64, &one);
+        H5Aclose(version);
+        H5Dclose(ds);
+        H5Sclose(space);
+        H5Fclose(file);
+    }
+    REQUIRE(h5::File::openRead(dir.file("v1.h5")).attrInt("/", "schema_version") == 1);
+    const CanopyFileData old = readCanopyFile(dir.file("v1.h5"), biome);
+    REQUIRE(old.iterations.size() == 2);
+    CHECK(old.iterations[0].seconds == 0.5);
+    CHECK(old.iterations[1].seconds == 0.75);
 }

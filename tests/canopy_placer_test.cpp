@@ -368,7 +368,7 @@ TEST_CASE("canopy files round-trip", "[canopy]") {
     CHECK(d.iterations.back().iteration == -1);
     const h5::File h = h5::File::openRead(dir.file("c.h5"));
     CHECK(h.attrString("/", "format") == "eco-canopy");
-    CHECK(h.attrInt("/", "schema_version") == 1);
+    CHECK(h.attrInt("/", "schema_version") == kCanopySchemaVersion);
     for (const auto& field : synth::canopyParamFields())
         if (std::string(field.key) != "seed") CHECK(h.hasAttr("/", field.key));
     CHECK(h.attrString("/", "biome_toml").find("Redwood") != std::string::npos);

@@ -1,12 +1,16 @@
 // Round trips through the HDF5 layer and its error messages.
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <fstream>
+#include <iterator>
+#include <thread>
 #include <string>
 #include <vector>
 
 #include "error.h"
 #include "h5io.h"
+#include "provenance.h"
 #include "test_util.h"
 
 using eco::Grid;
@@ -157,4 +161,43 @@ TEST_CASE("h5io: a missing or non-HDF5 file gives a clear error", "[h5io]") {
     CHECK_THROWS_WITH(File::openRead(text), Catch::Contains(text) && Catch::Contains("not an HDF5 file"));
     // Creating in a directory that does not exist.
     CHECK_THROWS_AS(File::create(dir.file("no/such/dir/x.h5")), eco::IoError);
+}
+
+TEST_CASE("h5io: the same content written at different times has the same bytes, and provenance stays apart", "[h5io][provenance]") {
+    eco::test::TempDir dir("h5_bytes");
+    const auto write = [&](const std::string& path) {
+        File f = File::create(path);
+        f.writeGrid("/a/grid", sampleGrid(80, 60, 2.0f), "m");  // chunked and compressed
+        f.writeStrings("/a/names", {"x", "yy"});
+        f.setAttr("/", "format", std::string("test"));
+        eco::writeProvenance(f, {{"wall_time_s", 1.5}, {"threads", std::int64_t{2}}, {"dates", std::string("now")}});
+    };
+    const auto bytes = [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary);
+        return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    };
+    {
+        eco::setProvenanceRecorded(false);
+        write(dir.file("one.h5"));
+        // HDF5's object times have a resolution of one second.
+        std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+        write(dir.file("two.h5"));
+        eco::setProvenanceRecorded(true);
+    }
+    CHECK(bytes(dir.file("one.h5")) == bytes(dir.file("two.h5")));
+    CHECK_FALSE(File::openRead(dir.file("one.h5")).exists(eco::kProvenanceGroup));
+
+    write(dir.file("prov.h5"));
+    const File f = File::openRead(dir.file("prov.h5"));
+    CHECK(f.attrDouble(eco::kProvenanceGroup, "wall_time_s") == 1.5);
+    CHECK(f.attrInt(eco::kProvenanceGroup, "threads") == 2);
+    CHECK(eco::readProvenanceString(f, "dates") == std::string("now"));
+    CHECK_FALSE(eco::readProvenanceDouble(f, "missing").has_value());
+    // Files written before the group: the value at the root.
+    {
+        File old = File::create(dir.file("old.h5"));
+        old.setAttr("/", "created_utc", std::string("2025-01-01T00:00:00Z"));
+    }
+    CHECK(eco::readProvenanceString(File::openRead(dir.file("old.h5")), "created_utc", "created_utc") ==
+          std::string("2025-01-01T00:00:00Z"));
 }

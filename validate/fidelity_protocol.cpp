@@ -13,6 +13,7 @@
 #include "canopy_placer.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "run.h"
 #include "scene.h"
 #include "sim_input.h"

@@ -11,6 +11,7 @@
 #include "biome_db.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "scenario_context.h"
 #include "text_format.h"
 
