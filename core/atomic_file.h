@@ -2,7 +2,6 @@
 // command appear together (AtomicOutputSet); what killed writers left behind is cleaned up.
 #pragma once
 
-#include <memory>
 #include <string>
 #include <vector>
 
