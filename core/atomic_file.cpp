@@ -6,47 +6,52 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <set>
 #include <system_error>
 
 #include "error.h"
 
 namespace eco {
 
-AtomicOutput::AtomicOutput(std::string finalPath) : final_(std::move(finalPath)) {
-    const std::filesystem::path p(final_);
-    const std::filesystem::path dir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
-    if (!std::filesystem::is_directory(dir))
-        throw IoError(final_ + ": output directory '" + dir.string() + "' does not exist");
-    temp_ = (dir / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()))).string();
-}
-
-AtomicOutput::~AtomicOutput() {
-    if (!committed_) std::remove(temp_.c_str());
-}
-
 namespace {
 
-// The temporaries of `finalPath` that processes killed before their commit left behind (a
-// kill -9 skips the destructor; a killed simulation's checkpoint can be gigabytes): removed.
-// Only names of the form AtomicOutput gives, and only when no process of that id runs on
-// this machine; anything unexpected is left alone (this never fails the output).
-void removeStaleTemporaries(const std::filesystem::path& finalPath) {
-    const std::filesystem::path dir = finalPath.has_parent_path() ? finalPath.parent_path() : std::filesystem::path(".");
-    const std::string prefix = "." + finalPath.filename().string() + ".tmp";
-    std::error_code ec;
-    std::filesystem::directory_iterator it(dir, ec);
-    for (const std::filesystem::directory_iterator end; !ec && it != end; it.increment(ec)) {
-        const std::string name = it->path().filename().string();
-        if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-        const std::string digits = name.substr(prefix.size());
-        if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
-        const pid_t pid = static_cast<pid_t>(std::stol(digits));
-        if (pid <= 0 || pid == ::getpid()) continue;
-        if (::kill(pid, 0) == 0 || errno != ESRCH) continue;  // running (or not ours to ask about)
-        std::error_code removeError;
-        std::filesystem::remove(it->path(), removeError);
+namespace fs = std::filesystem;
+
+// The set open on this thread (AtomicOutputSet): commits of AtomicOutput go to it.
+thread_local AtomicOutputSet* currentSet = nullptr;
+
+constexpr const char* kJournalHeader = "eco-output-set 1";
+constexpr const char* kJournalEnd = "end";
+
+fs::path directoryOf(const fs::path& p) { return p.has_parent_path() ? p.parent_path() : fs::path("."); }
+
+/// Whether no process of id `pid` runs on this machine (a process we may not signal counts
+/// as running: not ours to judge).
+bool processIsGone(pid_t pid) { return pid > 0 && pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH; }
+
+/// A hidden name AtomicOutput or AtomicOutputSet gives: `.<output name><tag><pid>`, with tag
+/// ".tmp" (a temporary) or ".set" (a set's journal). Fills `output` and `pid`.
+bool parseHiddenName(const std::string& name, const char* tag, std::string& output, pid_t& pid) {
+    if (name.size() < 2 || name[0] != '.') return false;
+    const std::size_t at = name.rfind(tag);
+    if (at == std::string::npos || at <= 1) return false;
+    const std::string digits = name.substr(at + std::strlen(tag));
+    if (digits.empty() || digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) return false;
+    output = name.substr(1, at - 1);
+    pid = static_cast<pid_t>(std::stol(digits));
+    return true;
+}
+
+void syncDirectory(const fs::path& dir) {
+    // Best effort: some file systems refuse fsync on a directory.
+    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+    if (fd >= 0) {
+        ::fsync(fd);
+        ::close(fd);
     }
 }
 
@@ -61,25 +66,223 @@ void syncPath(const std::string& temp, const std::string& output) {
         throw IoError(output + ": cannot flush the output to disk: " + std::strerror(err));
 }
 
+/// Finish the set commit a dead process recorded in `journal` when the journal is complete
+/// (every temporary it names was whole before the first rename): rename the temporaries
+/// still there. An incomplete journal (killed while writing it) commits nothing. The journal
+/// is removed either way.
+void completeSet(const fs::path& journal) {
+    std::ifstream in(journal);
+    std::string line;
+    std::vector<std::pair<std::string, std::string>> moves;
+    bool complete = false, header = false;
+    while (std::getline(in, line)) {
+        if (!header) {
+            header = line == kJournalHeader;
+            if (!header) break;
+            continue;
+        }
+        if (line == kJournalEnd) {
+            complete = true;
+            break;
+        }
+        const std::size_t tab = line.find('\t');
+        if (tab == std::string::npos) break;
+        moves.emplace_back(line.substr(0, tab), line.substr(tab + 1));
+    }
+    in.close();
+    if (complete) {
+        std::set<fs::path> dirs;
+        for (const auto& [temp, final] : moves) {
+            std::error_code ec;
+            if (!fs::exists(temp, ec)) continue;  // renamed before the kill
+            fs::rename(temp, final, ec);
+            if (!ec) dirs.insert(directoryOf(final));
+        }
+        for (const fs::path& d : dirs) syncDirectory(d);
+    }
+    std::error_code ec;
+    fs::remove(journal, ec);
+}
+
+/// Cleans `dir` after dead writers; only of the output named `onlyOutput` when not empty.
+void cleanDirectory(const fs::path& dir, const std::string& onlyOutput) {
+    // Two passes: interrupted set commits first (their temporaries are the set's files), then
+    // the temporaries of dead writers.
+    for (const char* tag : {".set", ".tmp"}) {
+        std::vector<fs::path> found;
+        std::error_code ec;
+        fs::directory_iterator it(dir, ec);
+        for (const fs::directory_iterator end; !ec && it != end; it.increment(ec)) {
+            std::string output;
+            pid_t pid = 0;
+            if (!parseHiddenName(it->path().filename().string(), tag, output, pid)) continue;
+            if (!onlyOutput.empty() && output != onlyOutput) continue;
+            if (processIsGone(pid)) found.push_back(it->path());
+        }
+        for (const fs::path& p : found) {
+            if (tag[1] == 's') {
+                completeSet(p);
+            } else {
+                std::error_code removeError;
+                fs::remove(p, removeError);
+            }
+        }
+    }
+}
+
 }  // namespace
 
+// ------------------------------------------------------------------ cleaning up
+
+void cleanUpAfterDeadWriters(const std::string& finalPath) {
+    const fs::path p(finalPath);
+    if (p.filename().empty()) return;
+    cleanDirectory(directoryOf(p), p.filename().string());
+}
+
+void cleanUpDirectoryAfterDeadWriters(const std::string& dir) {
+    std::error_code ec;
+    if (fs::is_directory(dir, ec)) cleanDirectory(dir, "");
+}
+
+// ------------------------------------------------------------------ the test seam
+
+void testPausePoint(const std::string& point) {
+    struct Wanted {
+        std::string point;
+        long count = 1;
+        long reached = 0;
+    };
+    static Wanted wanted = [] {
+        Wanted w;
+        const char* spec = std::getenv("ECO_TEST_PAUSE_AT");
+        if (!spec) return w;
+        w.point = spec;
+        const std::size_t hash = w.point.rfind('#');
+        if (hash != std::string::npos && hash + 1 < w.point.size() &&
+            w.point.find_first_not_of("0123456789", hash + 1) == std::string::npos) {
+            w.count = std::stol(w.point.substr(hash + 1));
+            w.point.resize(hash);
+        }
+        return w;
+    }();
+    if (wanted.point.empty() || point != wanted.point) return;
+    if (++wanted.reached == wanted.count) ::raise(SIGSTOP);
+}
+
+// ------------------------------------------------------------------ one output
+
+AtomicOutput::AtomicOutput(std::string finalPath) : final_(std::move(finalPath)) {
+    const fs::path p(final_);
+    const fs::path dir = directoryOf(p);
+    if (!fs::is_directory(dir))
+        throw IoError(final_ + ": output directory '" + dir.string() + "' does not exist");
+    cleanUpAfterDeadWriters(final_);
+    temp_ = (dir / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()))).string();
+}
+
+AtomicOutput::~AtomicOutput() {
+    if (!committed_) std::remove(temp_.c_str());
+}
+
+void AtomicOutput::midWritePoint() const { testPausePoint("write:" + fs::path(final_).filename().string()); }
+
 void AtomicOutput::commit() {
+    testPausePoint("commit:" + fs::path(final_).filename().string());
     // The data on disk before the name: after a power cut the output is the old file or the
     // whole new one, never a new name over a partly written file (rename alone orders nothing).
     syncPath(temp_, final_);
+    if (currentSet) {
+        currentSet->adopt(temp_, final_);
+        committed_ = true;
+        return;
+    }
     std::error_code ec;
-    std::filesystem::rename(temp_, final_, ec);
+    fs::rename(temp_, final_, ec);
     if (ec) throw IoError(final_ + ": cannot move finished output into place: " + ec.message());
     committed_ = true;
-    // The directory entry too (best effort: some file systems refuse fsync on a directory).
-    const std::filesystem::path p(final_);
-    const int dirFd = ::open(p.has_parent_path() ? p.parent_path().c_str() : ".", O_RDONLY | O_DIRECTORY);
-    if (dirFd >= 0) {
-        ::fsync(dirFd);
-        ::close(dirFd);
-    }
-    removeStaleTemporaries(final_);
+    syncDirectory(directoryOf(fs::path(final_)));
+    // A killed simulation's checkpoint can be gigabytes: removed as soon as possible.
+    cleanUpAfterDeadWriters(final_);
 }
+
+// ------------------------------------------------------------------ a set of outputs
+
+AtomicOutputSet::AtomicOutputSet() : outer_(currentSet) { currentSet = this; }
+
+AtomicOutputSet::~AtomicOutputSet() {
+    if (currentSet == this) currentSet = outer_;
+    if (!committed_)
+        for (const Member& m : members_) std::remove(m.temp.c_str());
+}
+
+void AtomicOutputSet::adopt(const std::string& temp, const std::string& final) {
+    const std::string absTemp = fs::absolute(temp).string(), absFinal = fs::absolute(final).string();
+    for (Member& m : members_)
+        if (m.final == absFinal) {  // written twice: the later file counts
+            if (m.temp != absTemp) std::remove(m.temp.c_str());
+            m.temp = absTemp;
+            return;
+        }
+    members_.push_back({absTemp, absFinal});
+}
+
+std::string AtomicOutputSet::readablePath(const std::string& finalPath) const {
+    const std::string absFinal = fs::absolute(finalPath).string();
+    for (const Member& m : members_)
+        if (m.final == absFinal) return m.temp;
+    return finalPath;
+}
+
+std::vector<std::string> AtomicOutputSet::finalPaths() const {
+    std::vector<std::string> out;
+    for (const Member& m : members_) out.push_back(m.final);
+    return out;
+}
+
+void AtomicOutputSet::commit() {
+    if (currentSet == this) currentSet = outer_;
+    if (committed_ || members_.empty()) {
+        committed_ = true;
+        return;
+    }
+    const fs::path first(members_.front().final);
+    const fs::path journal = directoryOf(first) / ("." + first.filename().string() + ".set" + std::to_string(::getpid()));
+    if (members_.size() > 1) {
+        // The journal, flushed before the first rename: from here on the set is decided.
+        std::FILE* f = std::fopen(journal.c_str(), "w");
+        if (!f) throw IoError(members_.front().final + ": cannot write the journal of its output set " + journal.string());
+        bool ok = std::fprintf(f, "%s\n", kJournalHeader) > 0;
+        for (const Member& m : members_) ok = ok && std::fprintf(f, "%s\t%s\n", m.temp.c_str(), m.final.c_str()) > 0;
+        ok = ok && std::fprintf(f, "%s\n", kJournalEnd) > 0;
+        ok = ok && std::fflush(f) == 0 && (::fsync(::fileno(f)) == 0 || errno == EINVAL || errno == EROFS);
+        if (std::fclose(f) != 0 || !ok) {
+            std::remove(journal.c_str());
+            throw IoError(members_.front().final + ": cannot write the journal of its output set " + journal.string());
+        }
+        syncDirectory(directoryOf(first));
+    }
+    committed_ = true;  // the temporaries now belong to the journal (completed by the next writer if we die)
+    std::set<fs::path> dirs;
+    for (const Member& m : members_) {
+        testPausePoint("rename:" + fs::path(m.final).filename().string());
+        std::error_code ec;
+        fs::rename(m.temp, m.final, ec);
+        if (ec)
+            throw IoError(m.final + ": cannot move finished output into place: " + ec.message() +
+                          (members_.size() > 1 ? " (its output set is incomplete; journal " + journal.string() + ")" : ""));
+        dirs.insert(directoryOf(fs::path(m.final)));
+    }
+    for (const fs::path& d : dirs) syncDirectory(d);
+    if (members_.size() > 1) {
+        std::error_code ec;
+        fs::remove(journal, ec);
+        syncDirectory(directoryOf(first));
+    }
+    for (const Member& m : members_) cleanUpAfterDeadWriters(m.final);
+}
+
+// ------------------------------------------------------------------ helpers
 
 void writeTextFile(const std::string& path, const std::string& text) {
     AtomicOutput out(path);
@@ -94,8 +297,8 @@ void writeTextFile(const std::string& path, const std::string& text) {
 
 void ensureDirectory(const std::string& dir) {
     std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec || !std::filesystem::is_directory(dir))
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir))
         throw IoError(dir + ": cannot create output directory" + (ec ? ": " + ec.message() : ""));
 }
 

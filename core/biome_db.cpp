@@ -264,6 +264,7 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         }
         f.writeStrings("/parameters/names", pNames);
         f.writeStrings("/parameters/values", pValues);
+        out.midWritePoint();
 
         f.ensureGroup("/bins");
         f.setAttr("/bins", "pcf_rmax_m", db.pcfBins.rMaxM);

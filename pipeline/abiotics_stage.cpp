@@ -84,7 +84,9 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     reporter.info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")") +
                   ", latitude " + num(biome.climate.latitudeDeg) + " deg");
 
-    if (!args.geotiffDir.empty()) ensureDirectory(args.geotiffDir);
+    cleanUpAfterDeadWriters(args.out);  // what killed runs left
+    if (!args.geotiffDir.empty()) prepareOutputDirectory(args.geotiffDir);
+    if (!args.pngDir.empty()) cleanUpDirectoryAfterDeadWriters(args.pngDir);
     // Read the canopy first: a bad file fails before the long computation.
     std::vector<Plant> canopy;
     if (!args.canopy.empty()) {
@@ -106,13 +108,15 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
         maps.canopyShadeSource = args.canopy;
     }
 
+    AtomicOutputSet outputs;  // the abiotics file, GeoTIFFs and pictures together
     writeAbiotics(args.out, maps, biome, params);
     result.written.push_back(args.out);
     reporter.out() << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
                    << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
                    << ", /moisture mm, /temperature degC)\n";
-    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, args.geotiffDir, reporter, result.written);
+    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, outputs, args.geotiffDir, reporter, result.written);
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome, reporter, result.written);
+    outputs.commit();
     return result;
 }
 

@@ -99,6 +99,7 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
     std::vector<std::string> inputFiles = args.simulations;
     inputFiles.insert(inputFiles.end(), args.abiotics.begin(), args.abiotics.end());
     requireOutputsNotInputs({{"--out", args.out}}, inputFiles);
+    cleanUpAfterDeadWriters(args.out);  // what killed runs left (the directory may not exist yet)
     if (!args.abiotics.empty() && args.abiotics.size() != 1 && args.abiotics.size() != args.simulations.size())
         throw ValidationError("--abiotics: give one file for all simulations or one per simulation (" +
                               std::to_string(args.simulations.size()) + "), got " + std::to_string(args.abiotics.size()));
@@ -152,8 +153,7 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
                               "radius factor " + formatNumber(params.seedingRadiusFactor, 6) + " x crown radius) or inside the "
                               "inputs' windows; nothing written to " + args.out);
 
-    const std::filesystem::path parent = std::filesystem::path(args.out).parent_path();
-    if (!parent.empty()) ensureDirectory(parent.string());
+    prepareOutput(args.out);
     writeBiomeDatabase(args.out, db);
     double area = 0, plants = 0;
     for (const auto& r : db.regions) {
@@ -227,12 +227,13 @@ InspectResult inspectStage(const InspectOptions& args, Reporter& reporter) {
     }
     std::ostream& out = reporter.out();
     out << o.str();
+    AtomicOutputSet outputs;  // the summary and the pictures together
     if (!args.out.empty()) {
         writeTextFile(args.out, o.str());
         out << "wrote summary: " << args.out << "\n";
     }
     if (!args.pngDir.empty()) {
-        ensureDirectory(args.pngDir);
+        prepareOutputDirectory(args.pngDir);
         auto bar = reporter.progress("inspect pictures", static_cast<long>(db.regions.size()));
         for (std::size_t ri = 0; ri < db.regions.size(); ++ri) {
             writeRegionPlots(args.pngDir, db, ri, args.maxPairs);
@@ -242,6 +243,7 @@ InspectResult inspectStage(const InspectOptions& args, Reporter& reporter) {
         out << "wrote pictures: " << args.pngDir << "/ (region_NNNN_pcf.png, region_NNNN_heights.png for "
             << db.regions.size() << " regions)\n";
     }
+    outputs.commit();
     return {o.str()};
 }
 

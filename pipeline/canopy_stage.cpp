@@ -119,7 +119,8 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     // canopy file written alone.
     for (const std::string* o : {&args.out, &args.csv, &args.gpkg})
         if (!o->empty()) prepareOutput(*o);
-    if (!args.geotiffDir.empty()) ensureDirectory(args.geotiffDir);
+    if (!args.geotiffDir.empty()) prepareOutputDirectory(args.geotiffDir);
+    if (!args.pngDir.empty()) cleanUpDirectoryAfterDeadWriters(args.pngDir);
     const TerrainReadOptions readOptions = args.terrainRead.options();
     Grid<float> terrain = readTerrain(args.terrain, readOptions);
     ChmReadOptions chmOptions;
@@ -222,6 +223,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     record.abioticsSource = args.abiotics.empty() ? "computed from the terrain (default parameters)" : args.abiotics;
     record.biomeSource = args.biome.empty() ? "embedded" : args.biome;
     record.maskSource = args.mask;
+    AtomicOutputSet outputs;  // the canopy file, side files and pictures together
     synth::writeCanopyFile(args.out, record, biome);
     stageResult.written.push_back(args.out);
     out << "wrote canopy: " << args.out << " (/canopy trees, /species_map, /chm/height, /terrain/elevation, "
@@ -231,7 +233,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
         stageResult.written.push_back(args.gpkg);
         out << "wrote trees: " << args.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the input's CRS") << ")\n";
     }
-    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, args.geotiffDir, reporter, stageResult.written);
+    if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, outputs, args.geotiffDir, reporter, stageResult.written);
     if (!args.csv.empty()) {
         writePlantsCsv(args.csv, result.trees, biome, "canopy");
         stageResult.written.push_back(args.csv);
@@ -249,6 +251,7 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
                                                                args.pngDir + "/chm.png"});
         out << "wrote pictures: " << args.pngDir << "/ (canopy.png, species_map.png, chm.png)\n";
     }
+    outputs.commit();
     return stageResult;
 }
 

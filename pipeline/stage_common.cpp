@@ -45,6 +45,7 @@ std::string quotedCommand(const std::vector<std::string>& args) {
 void prepareOutput(const std::string& path) {
     const std::filesystem::path p(path);
     if (p.has_parent_path()) ensureDirectory(p.parent_path().string());
+    cleanUpAfterDeadWriters(path);
 }
 
 void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::string>>& outputs,
@@ -61,10 +62,16 @@ void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::strin
     }
 }
 
-void writeGeoTiffs(const std::string& h5Path, const std::string& dir, Reporter& reporter, std::vector<std::string>& written) {
+void prepareOutputDirectory(const std::string& dir) {
+    ensureDirectory(dir);
+    cleanUpDirectoryAfterDeadWriters(dir);
+}
+
+void writeGeoTiffs(const std::string& h5Path, const AtomicOutputSet& outputs, const std::string& dir, Reporter& reporter,
+                   std::vector<std::string>& written) {
     ensureDirectory(dir);
     const std::vector<std::string> files =
-        exportGridsAsGeoTiff(h5Path, dir, std::filesystem::path(h5Path).stem().string() + "_");
+        exportGridsAsGeoTiff(outputs.readablePath(h5Path), dir, std::filesystem::path(h5Path).stem().string() + "_");
     std::string names;
     for (const std::string& f : files) names += (names.empty() ? "" : ", ") + std::filesystem::path(f).filename().string();
     reporter.out() << "wrote GeoTIFFs: " << dir << "/ (" << names << ")\n";

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "abiotics.h"
+#include "atomic_file.h"
 #include "biome.h"
 #include "grid.h"
 #include "point_pattern.h"
@@ -35,8 +36,12 @@ double asOnCommandLine(double v);
 /// "eco a b 'c d'": a command line a user can copy.
 std::string quotedCommand(const std::vector<std::string>& args);
 
-/// Create the folder an output file goes into, before any heavy work.
+/// Create the folder an output file goes into, before any heavy work, and clean up after
+/// killed writers of that file (core/atomic_file.h cleanUpAfterDeadWriters: an interrupted
+/// set commit is completed, dead temporaries removed).
 void prepareOutput(const std::string& path);
+/// The same for a directory of outputs (pictures, GeoTIFFs): created, dead writers' files removed.
+void prepareOutputDirectory(const std::string& dir);
 
 /// ValidationError when an output file (`outputs`: {flag, path}, "" = not written) is the
 /// same file as one of the `inputs` ("" skipped): `eco analyse sim.h5 --out sim.h5`
@@ -47,7 +52,9 @@ void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::strin
 /// --geotiff DIR of a stage: every grid of the stage's HDF5 output as a GeoTIFF in `dir`
 /// (named <output stem>_<dataset>.tif, with the grid's geotransform and CRS; see
 /// core/geo_raster.h exportGridsAsGeoTiff), one line to the user, the files added to `written`.
-void writeGeoTiffs(const std::string& h5Path, const std::string& dir, Reporter& reporter, std::vector<std::string>& written);
+/// `outputs` is the stage's open output set, which holds the HDF5 output until it commits.
+void writeGeoTiffs(const std::string& h5Path, const AtomicOutputSet& outputs, const std::string& dir, Reporter& reporter,
+                   std::vector<std::string>& written);
 
 /// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
 /// terrain's geometry, or, when the path is empty, computed with default parameters (as

@@ -84,8 +84,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
     for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
         if (!out->empty()) prepareOutput(*out);
-    if (!a.pngDir.empty()) ensureDirectory(a.pngDir);
-    if (!a.geotiffDir.empty()) ensureDirectory(a.geotiffDir);
+    if (!a.pngDir.empty()) prepareOutputDirectory(a.pngDir);
+    if (!a.geotiffDir.empty()) prepareOutputDirectory(a.geotiffDir);
 
     const Abiotics abiotics = abioticsForTerrain(a.abiotics, terrain, a.terrain, biome,
                                                  "the database's biome; give --abiotics FILE to reuse them", reporter);
@@ -195,6 +195,9 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     record.terrainSource = a.terrain;
     record.canopySource = a.canopy;
     record.abioticsSource = a.abiotics.empty() ? "computed from the terrain (default parameters)" : a.abiotics;
+    // The scene file, side files and pictures are committed together (core/atomic_file.h):
+    // a kill leaves the previous set, or a journal beside the scene that the next run completes.
+    AtomicOutputSet outputs;
     synth::writeSceneFile(a.out, record, biome, db);
     result.written.push_back(a.out);
     result.canopyTrees = record.canopy.size();
@@ -213,7 +216,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         result.written.push_back(a.gpkg);
         out << "wrote plants: " << a.gpkg << " (GeoPackage" << (crs.empty() ? ", no CRS" : ", the terrain's CRS") << ")\n";
     }
-    if (!a.geotiffDir.empty()) writeGeoTiffs(a.out, a.geotiffDir, reporter, result.written);
+    if (!a.geotiffDir.empty()) writeGeoTiffs(a.out, outputs, a.geotiffDir, reporter, result.written);
     if (!a.pdb.empty()) {
         synth::writePdb(a.pdb, record.canopy, record.undergrowth);
         result.written.push_back(a.pdb);
@@ -239,6 +242,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
             result.written.push_back(dir + name);
         out << "wrote pictures: " << a.pngDir << "/ (scene.png, scene_zoom.png, grass.png, litter.png, cluster_map.png)\n";
     }
+    outputs.commit();
     reporter.info("synthesis finished in " + num(secondsSince(tStart), 3) + " s");
     return result;
 }
@@ -252,6 +256,7 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     const synth::SceneData scene = synth::readSceneFile(a.scene, biome);
     RectWindow window{};
     if (!a.window.empty()) window = parseWindow(a.window, "--window", false);
+    if (!a.out.empty()) cleanUpAfterDeadWriters(a.out);  // what killed runs left
     if (!a.png.empty()) prepareOutput(a.png);
     const auto t = Clock::now();
     result.comparison = synth::compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
@@ -265,6 +270,7 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
          << synth::comparisonTable(c, db);
     result.table = text.str();
     out << text.str();
+    AtomicOutputSet outputs;  // the table and the picture together
     if (!a.out.empty()) {
         writeTextFile(a.out, text.str());
         out << "wrote table: " << a.out << "\n";
@@ -273,6 +279,7 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
         synth::writeComparisonPng(a.png, c, db);
         out << "wrote picture: " << a.png << "\n";
     }
+    outputs.commit();
     return result;
 }
 

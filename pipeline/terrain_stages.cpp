@@ -76,7 +76,7 @@ bool isTerrainOutput(const std::string& ext) {
 
 void writeTerrainPictures(const std::string& dir, const Grid<float>& terrain, std::ostream& out,
                           std::vector<std::string>& written) {
-    ensureDirectory(dir);
+    prepareOutputDirectory(dir);
     const std::string elevation = (std::filesystem::path(dir) / "terrain_elevation.png").string();
     const std::string shade = (std::filesystem::path(dir) / "terrain_hillshade.png").string();
     writeMapPng(elevation, terrain, "Elevation", "m", Colormap::Terrain);
@@ -152,6 +152,7 @@ TerrainResult generateTerrainStage(const TerrainGenerateOptions& a, Reporter& re
     result.terrain = generateTerrain(a.params);
     const Grid<float>& terrain = result.terrain;
     const TerrainWriteOptions enc = chooseEncoding(a.out, terrain, a.verticalScale, a.verticalOffsetM, reporter);
+    AtomicOutputSet outputs;  // the terrain and its pictures together
     writeTerrain(a.out, terrain, enc);
     result.written.push_back(a.out);
     std::ostream& out = reporter.out();
@@ -159,6 +160,7 @@ TerrainResult generateTerrainStage(const TerrainGenerateOptions& a, Reporter& re
     const std::string hint = readBackHint(a.out, terrain, enc);
     if (!hint.empty()) out << hint << "\n";
     if (!a.pngDir.empty()) writeTerrainPictures(a.pngDir, terrain, out, result.written);
+    outputs.commit();
     return result;
 }
 
@@ -244,6 +246,7 @@ ChmResult generateChmStage(const ChmGenerateOptions& a, Reporter& reporter) {
     const Grid<float>& chm = result.chm;
 
     std::ostream& out = reporter.out();
+    AtomicOutputSet outputs;  // the CHM, its sketch and pictures together
     if (outExt == ".h5" || outExt == ".hdf5") {
         writeChmH5(a.out, chm, sketch, trees, a);
         result.written.push_back(a.out);
@@ -263,7 +266,7 @@ ChmResult generateChmStage(const ChmGenerateOptions& a, Reporter& reporter) {
         out << "wrote density sketch: " << sketchPath << " (black empty, grey sparse, white dense)\n";
     }
     if (!a.pngDir.empty()) {
-        ensureDirectory(a.pngDir);
+        prepareOutputDirectory(a.pngDir);
         const std::string chmPng = (std::filesystem::path(a.pngDir) / "chm.png").string();
         const std::string sketchPng = (std::filesystem::path(a.pngDir) / "sketch.png").string();
         writeMapPng(chmPng, chm, "Canopy height model (generated)", "m above ground", Colormap::Viridis, 0.0,
@@ -272,6 +275,7 @@ ChmResult generateChmStage(const ChmGenerateOptions& a, Reporter& reporter) {
         result.written.insert(result.written.end(), {chmPng, sketchPng});
         out << "wrote picture: " << chmPng << "\n" << "wrote picture: " << sketchPng << "\n";
     }
+    outputs.commit();
     return result;
 }
 

@@ -218,6 +218,7 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr("/", "years_done", static_cast<std::int64_t>(sim.yearsDone()));
         sim.saveState(f, "/state");
+        out.midWritePoint();
         writeTimeseries(f, "/record/timeseries", record.timeseries, sim.biome());
         f.ensureGroup("/record/snapshots");
         for (const auto& [year, plants] : record.snapshots)
@@ -258,6 +259,13 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
     const auto start = std::chrono::steady_clock::now();
     auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
 
+    const std::string checkpoint = config.effectiveCheckpointPath();
+    // What killed runs of these outputs left: an interrupted commit of the outputs is
+    // completed, temporaries (a checkpoint's can be gigabytes) removed, before any work.
+    for (const std::string* path : {&config.outputPath, &config.csvPath, &checkpoint})
+        if (!path->empty()) cleanUpAfterDeadWriters(*path);
+    if (!config.pngDir.empty()) cleanUpDirectoryAfterDeadWriters(config.pngDir);
+
     Biome biome = loadRunBiome(config);
     SimInputs inputs = loadSimInputs(config, biome);
     std::vector<UndergrowthPlant> initial;
@@ -267,7 +275,6 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
         log("initial plants outside the area dropped: " + std::to_string(sim.droppedInitialPlants()));
 
     RunRecord record;
-    const std::string checkpoint = config.effectiveCheckpointPath();
     if (resume) {
         std::error_code ec;
         if (std::filesystem::exists(checkpoint, ec)) {
@@ -325,6 +332,10 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
         summary.wallSeconds = elapsed();
         return summary;
     }
+    // The simulation file, CSV and pictures are committed as one set (core/atomic_file.h): a
+    // kill while they are written leaves the previous set, or a journal that the next run
+    // completes; the checkpoint of the last year is written before, so --resume only writes them.
+    AtomicOutputSet outputs;
     const double wall = record.wallSecondsBefore + elapsed();
     writeSimulationH5(config.outputPath, sim, record, config, wall, omp_get_max_threads());
     summary.written.push_back(config.outputPath);
@@ -349,6 +360,7 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
         plotSpeciesCountsPng(plot, record.timeseries, sim.biome(), "Plants per species per year");
         summary.written.push_back(plot);
     }
+    outputs.commit();
     summary.wallSeconds = elapsed();
     return summary;
 }

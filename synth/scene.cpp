@@ -57,6 +57,7 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         writePlants(f, "/canopy", sc.canopy, biome);
         f.setAttr("/canopy", "layer", std::string("canopy"));
         writePlants(f, "/undergrowth", sc.undergrowth, biome);
+        out.midWritePoint();
         f.setAttr("/undergrowth", "layer", std::string("undergrowth"));
 
         f.ensureGroup("/forest_floor");

@@ -25,6 +25,7 @@
 #include "h5io.h"
 #include "scene.h"
 #include "synth_world_fixture.h"
+#include "synth_world_files.h"
 #include "terrain_io.h"
 #include "test_util.h"
 #include "undergrowth.h"
@@ -40,33 +41,8 @@ using test::kSide;
 using test::makeWorld;
 using test::World;
 
-/// Files of the world for the command-line tests.
-struct WorldFiles {
-    std::string terrain, canopy, abiotics, db;
-};
-
-WorldFiles writeWorld(const World& w, const test::TempDir& dir) {
-    WorldFiles f{dir.file("terrain.h5"), dir.file("canopy.h5"), dir.file("abiotics.h5"), dir.file("db.h5")};
-    writeTerrainH5(f.terrain, w.terrain);
-    synth::CanopyRecord rec;
-    rec.result.trees = w.canopy;
-    rec.speciesMap = Grid<std::int32_t>::like(w.terrain, -1);
-    rec.chmM = Grid<float>::like(w.terrain, 0.0f);
-    rec.terrainM = w.terrain;
-    rec.terrainSource = f.terrain;
-    synth::writeCanopyFile(f.canopy, rec, w.biome);
-    Abiotics ab;
-    for (int m = 0; m < 12; ++m) {
-        ab.sunHours.months.push_back(w.features[Factor::Sun]);
-        ab.moistureMm.months.push_back(w.features[Factor::Moisture]);
-        ab.temperatureC.months.push_back(w.features[Factor::Temperature]);
-    }
-    ab.slopeDeg = w.features[Factor::Slope];
-    ab.elevationM = w.terrain;
-    writeAbiotics(f.abiotics, ab, w.biome, AbioticParams{});
-    writeBiomeDatabase(f.db, w.db);
-    return f;
-}
+using test::WorldFiles;
+using test::writeWorld;
 
 }  // namespace
 
