@@ -94,39 +94,27 @@ struct H5Edit {
         H5Sclose(s);
     }
     void remove(const std::string& object) { REQUIRE(H5Ldelete(file, object.c_str(), H5P_DEFAULT) >= 0); }
-    void setAttr(const std::string& object, const std::string& name, double value) {
+    /// Replace (or add) a scalar attribute of `fileType`, written from `value` in `memType`.
+    void putScalarAttr(const std::string& object, const std::string& name, hid_t fileType, hid_t memType, const void* value) {
         if (H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) > 0)
             H5Adelete_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT);
         const hid_t s = H5Screate(H5S_SCALAR);
-        const hid_t a = H5Acreate_by_name(file, object.c_str(), name.c_str(), H5T_IEEE_F64LE, s, H5P_DEFAULT, H5P_DEFAULT,
-                                          H5P_DEFAULT);
+        const hid_t a = H5Acreate_by_name(file, object.c_str(), name.c_str(), fileType, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
         REQUIRE(a >= 0);
-        H5Awrite(a, H5T_NATIVE_DOUBLE, &value);
+        H5Awrite(a, memType, value);
         H5Aclose(a);
         H5Sclose(s);
+    }
+    void setAttr(const std::string& object, const std::string& name, double value) {
+        putScalarAttr(object, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
     }
     void setAttrInt(const std::string& object, const std::string& name, long long value) {
-        if (H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) > 0)
-            H5Adelete_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT);
-        const hid_t s = H5Screate(H5S_SCALAR);
-        const hid_t a = H5Acreate_by_name(file, object.c_str(), name.c_str(), H5T_STD_I64LE, s, H5P_DEFAULT, H5P_DEFAULT,
-                                          H5P_DEFAULT);
-        REQUIRE(a >= 0);
-        H5Awrite(a, H5T_NATIVE_LLONG, &value);
-        H5Aclose(a);
-        H5Sclose(s);
+        putScalarAttr(object, name, H5T_STD_I64LE, H5T_NATIVE_LLONG, &value);
     }
     void setAttrText(const std::string& object, const std::string& name, const std::string& value) {
-        if (H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) > 0)
-            H5Adelete_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT);
         const hid_t t = H5Tcopy(H5T_C_S1);
         H5Tset_size(t, value.size() + 1);
-        const hid_t s = H5Screate(H5S_SCALAR);
-        const hid_t a = H5Acreate_by_name(file, object.c_str(), name.c_str(), t, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-        REQUIRE(a >= 0);
-        H5Awrite(a, t, value.c_str());
-        H5Aclose(a);
-        H5Sclose(s);
+        putScalarAttr(object, name, t, t, value.c_str());
         H5Tclose(t);
     }
 };
