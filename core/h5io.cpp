@@ -5,6 +5,8 @@
 #include <numeric>
 #include <sstream>
 
+#include "memory.h"
+
 namespace eco::h5 {
 
 namespace {
@@ -40,6 +42,17 @@ Handle untimedCreationList(hid_t cls) {
     Handle plist(H5Pcreate(cls));
     H5Pset_obj_track_times(plist.id(), false);
     return plist;
+}
+
+/// The number of elements of a dataset or attribute of shape `dims` read from a file, checked
+/// against memory before a buffer is allocated for it: a damaged file may declare any shape
+/// (a product of sizes that overflows, or 10^12 elements), which was a std::bad_alloc or a
+/// std::length_error escaping as an internal error.
+std::size_t elementsToRead(const std::vector<hsize_t>& dims, double elementBytes, const std::string& what) {
+    double n = 1;
+    for (hsize_t d : dims) n *= static_cast<double>(d);
+    requireMemory(n * elementBytes, what + " (shape of " + formatNumber(n, 10) + " elements; a damaged file?)", "");
+    return static_cast<std::size_t>(n);  // exact: it fits in memory, so well below 2^53
 }
 
 std::string parentOf(const std::string& path) {
@@ -154,7 +167,7 @@ std::vector<T> readTyped(const File& f, const std::string& name, std::vector<hsi
     const int rank = H5Sget_simple_extent_ndims(space.id());
     std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
     H5Sget_simple_extent_dims(space.id(), dims.data(), nullptr);
-    std::vector<T> out(product(dims));
+    std::vector<T> out(elementsToRead(dims, sizeof(T), f.path() + ": " + name));
     if (!out.empty() && H5Dread(ds.id(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
         throw IoError(f.path() + ": " + name + ": cannot read dataset (corrupt file?)");
     if (dimsOut) *dimsOut = dims;
@@ -230,11 +243,15 @@ void File::writeStrings(const std::string& name, const std::vector<std::string>&
 std::vector<std::string> File::readStrings(const std::string& name) const {
     requireObject(name);
     Handle ds(H5Dopen2(id(), name.c_str(), H5P_DEFAULT));
+    if (!ds.valid()) throw IoError(where(name) + ": not a dataset");
     Handle ftype(H5Dget_type(ds.id()));
     if (H5Tget_class(ftype.id()) != H5T_STRING) throw IoError(where(name) + ": not a string dataset");
     Handle space(H5Dget_space(ds.id()));
+    // One dimension only: the sizes are written into n (a 2-D dataset wrote past it).
+    if (H5Sget_simple_extent_ndims(space.id()) != 1) throw IoError(where(name) + ": not a one-dimensional string dataset");
     hsize_t n = 0;
     H5Sget_simple_extent_dims(space.id(), &n, nullptr);
+    n = elementsToRead({n}, sizeof(char*) + sizeof(std::string), where(name));
     Handle type(H5Tcopy(H5T_C_S1));
     H5Tset_size(type.id(), H5T_VARIABLE);
     H5Tset_cset(type.id(), H5Tget_cset(ftype.id()));
@@ -322,7 +339,7 @@ std::string File::attrString(const std::string& object, const std::string& attr)
         H5free_memory(p);
         return s;
     }
-    const std::size_t n = H5Tget_size(type.id());
+    const std::size_t n = elementsToRead({H5Tget_size(type.id())}, 1, where(object) + ": attribute " + attr);
     std::string s(n, '\0');
     if (H5Aread(a.id(), type.id(), s.data()) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
     s.resize(s.find('\0') == std::string::npos ? n : s.find('\0'));
@@ -350,7 +367,8 @@ std::vector<double> File::attrDoubles(const std::string& object, const std::stri
     Handle a = openAttr(*this, object, attr, obj);
     Handle space(H5Aget_space(a.id()));
     const hssize_t n = H5Sget_simple_extent_npoints(space.id());
-    std::vector<double> v(static_cast<std::size_t>(std::max<hssize_t>(n, 0)));
+    std::vector<double> v(elementsToRead({static_cast<hsize_t>(std::max<hssize_t>(n, 0))}, sizeof(double),
+                                         where(object) + ": attribute " + attr));
     if (!v.empty() && H5Aread(a.id(), H5T_NATIVE_DOUBLE, v.data()) < 0)
         throw IoError(where(object) + ": cannot read attribute " + attr);
     return v;

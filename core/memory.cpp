@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -27,6 +28,14 @@ std::uint64_t availableMemoryBytes() {
     if (getrlimit(RLIMIT_AS, &lim) == 0 && lim.rlim_cur != RLIM_INFINITY) {
         const auto cap = static_cast<std::uint64_t>(lim.rlim_cur);
         avail = avail == 0 ? cap : std::min(avail, cap);
+    }
+    if (const char* env = std::getenv("ECO_MEMORY_LIMIT_MB")) {
+        char* end = nullptr;
+        const unsigned long long mb = std::strtoull(env, &end, 10);
+        if (end != env && *end == '\0' && mb > 0 && mb < (1ull << 40)) {
+            const std::uint64_t cap = mb * 1024 * 1024;
+            avail = avail == 0 ? cap : std::min(avail, cap);
+        }
     }
     return avail;
 }

@@ -9,8 +9,10 @@
 namespace eco {
 
 /// Bytes this process can still allocate: the smaller of the machine's available memory
-/// (MemAvailable in /proc/meminfo) and the address-space limit (RLIMIT_AS); 0 when neither
-/// is known.
+/// (MemAvailable in /proc/meminfo), the address-space limit (RLIMIT_AS) and the environment
+/// variable ECO_MEMORY_LIMIT_MB (megabytes, when set to a positive integer); 0 when none is
+/// known. The variable is for processes that cannot run under `ulimit -v`, such as builds
+/// with AddressSanitizer (which reserves terabytes of address space) and the fuzz targets.
 std::uint64_t availableMemoryBytes();
 
 /// "12.3 GB" / "512 MB": a byte count for messages.

@@ -248,7 +248,9 @@ std::vector<PdbSpecies> readPdb(const std::string& path) {
             std::istringstream ss(text);
             if (!(ss >> n) || n < 0) fail("expected the number of plants of species " + std::to_string(sp.speciesId));
         }
-        sp.plants.reserve(static_cast<std::size_t>(n));
+        // The count comes from the file: reserve no more than a small file could hold, so that
+        // a damaged count (1e14) ends in "file ends" below, not in a huge allocation.
+        sp.plants.reserve(static_cast<std::size_t>(std::min<long>(n, 4096)));
         for (long i = 0; i < n; ++i) {
             next("a plant line (x y z height crown_radius)");
             Plant p;

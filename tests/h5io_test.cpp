@@ -201,3 +201,54 @@ TEST_CASE("h5io: the same content written at different times has the same bytes,
     CHECK(eco::readProvenanceString(File::openRead(dir.file("old.h5")), "created_utc", "created_utc") ==
           std::string("2025-01-01T00:00:00Z"));
 }
+
+TEST_CASE("h5io: a dataset whose declared shape does not fit in memory is refused before allocating", "[h5io]") {
+    // A damaged file may declare any shape; the reader allocated it (std::bad_alloc escaping as
+    // an internal error; fuzz_biome_db grew past 1.6 GB on such a file). Chunked storage is
+    // allocated lazily, so this file of 2^40 doubles (8.8 TB) is a few KB.
+    eco::test::TempDir dir("h5io_huge");
+    const std::string path = dir.file("huge.h5");
+    {
+        const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+        const hsize_t dims[1] = {hsize_t{1} << 40};
+        const hsize_t chunk[1] = {1024};
+        const hid_t space = H5Screate_simple(1, dims, nullptr);
+        const hid_t plist = H5Pcreate(H5P_DATASET_CREATE);
+        H5Pset_chunk(plist, 1, chunk);
+        const hid_t ds = H5Dcreate2(f, "/huge", H5T_IEEE_F64LE, space, H5P_DEFAULT, plist, H5P_DEFAULT);
+        REQUIRE(ds >= 0);
+        const hid_t strings = H5Dcreate2(f, "/names", H5T_C_S1, space, H5P_DEFAULT, plist, H5P_DEFAULT);
+        REQUIRE(strings >= 0);
+        H5Dclose(strings);
+        H5Dclose(ds);
+        H5Pclose(plist);
+        H5Sclose(space);
+        H5Fclose(f);
+    }
+    const File f = File::openRead(path);
+    CHECK_THROWS_AS(f.readF64("/huge"), eco::ValidationError);
+    CHECK_THROWS_WITH(f.readF64("/huge"), Catch::Contains("huge.h5") && Catch::Contains("/huge") &&
+                                              Catch::Contains("needs about") && Catch::Contains("memory"));
+    CHECK_THROWS_WITH(f.readStrings("/names"), Catch::Contains("/names") && Catch::Contains("needs about"));
+}
+
+TEST_CASE("h5io: a string dataset of two dimensions is refused", "[h5io]") {
+    // readStrings wrote the sizes of every dimension into one variable (a stack overflow for 2-D).
+    eco::test::TempDir dir("h5io_strings2d");
+    const std::string path = dir.file("s.h5");
+    {
+        const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+        const hsize_t dims[2] = {2, 3};
+        const hid_t space = H5Screate_simple(2, dims, nullptr);
+        const hid_t type = H5Tcopy(H5T_C_S1);
+        H5Tset_size(type, H5T_VARIABLE);
+        const hid_t ds = H5Dcreate2(f, "/names", type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        REQUIRE(ds >= 0);
+        H5Dclose(ds);
+        H5Tclose(type);
+        H5Sclose(space);
+        H5Fclose(f);
+    }
+    const File f = File::openRead(path);
+    CHECK_THROWS_WITH(f.readStrings("/names"), Catch::Contains("s.h5") && Catch::Contains("one-dimensional"));
+}

@@ -417,6 +417,13 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
         std::ofstream(dir.file("bad.pdb")) << "1\n3 0.1 2.0 0.5\n2\n1 2 3 4 5\n";
         CHECK_THROWS_WITH(synth::readPdb(dir.file("bad.pdb")), Catch::Contains("bad.pdb") && Catch::Contains("file ends"));
     }
+    // A damaged plant count is the same error, not an allocation of 10^14 plants (fuzz_csv:
+    // AddressSanitizer's allocation-size-too-big; std::bad_alloc in a plain build).
+    {
+        std::ofstream(dir.file("count.pdb")) << "1\n3 0.1 2.0 0.5\n99999999999999\n1 2 3 4 5\n";
+        CHECK_THROWS_AS(synth::readPdb(dir.file("count.pdb")), IoError);
+        CHECK_THROWS_WITH(synth::readPdb(dir.file("count.pdb")), Catch::Contains("count.pdb:4") && Catch::Contains("file ends"));
+    }
 
     synth::writeScenePlantsCsv(dir.file("plants.csv"), rec.canopy, rec.undergrowth, w.biome);
     std::ifstream csv(dir.file("plants.csv"));

@@ -10,6 +10,17 @@
 #include <filesystem>
 #include <string>
 
+// AddressSanitizer reserves terabytes of address space at start, so a process built with it
+// cannot run under `ulimit -v`; such builds pass the limit as ECO_MEMORY_LIMIT_MB instead
+// (core/memory.h), which the memory checks read the same way.
+#if defined(__SANITIZE_ADDRESS__)
+#define ECO_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ECO_TEST_ASAN 1
+#endif
+#endif
+
 namespace eco::test {
 
 struct CommandResult {
@@ -26,7 +37,12 @@ struct CommandResult {
 inline CommandResult runEco(const std::string& args, long memoryLimitKb = 0) {
     const char* other = std::getenv("ECO_TEST_BINARY");
     const std::string run = std::string(other != nullptr && *other != '\0' ? other : ECO_BINARY) + " " + args + " 2>&1";
-    const std::string cmd = memoryLimitKb > 0 ? "ulimit -v " + std::to_string(memoryLimitKb) + "; " + run : run;
+#ifdef ECO_TEST_ASAN
+    const std::string limit = "ECO_MEMORY_LIMIT_MB=" + std::to_string(memoryLimitKb / 1024) + " ";
+#else
+    const std::string limit = "ulimit -v " + std::to_string(memoryLimitKb) + "; ";
+#endif
+    const std::string cmd = memoryLimitKb > 0 ? limit + run : run;
     CommandResult r;
     FILE* pipe = ::popen(cmd.c_str(), "r");
     if (!pipe) return r;
