@@ -79,7 +79,15 @@ Handle::~Handle() {
 File File::create(const std::string& path) {
     // The file creation list is also the root group's: no modification time on it either.
     const Handle fcpl = untimedCreationList(H5P_FILE_CREATE);
-    const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.id(), H5P_DEFAULT);
+    // The HDF5 1.10 file format, low and high bound: its superblock, object headers and chunk
+    // indexes carry checksums that the library verifies on reading, so a damaged file is
+    // refused with an error instead of being parsed (HDF5 1.10.8 itself crashes on some
+    // damaged metadata of the older format: docs/robustness.md). Pinning the high bound
+    // keeps the bytes the same with a newer library. Every HDF5 since 1.10 (2016), h5py and
+    // R's hdf5r read it.
+    const Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
+    H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V110, H5F_LIBVER_V110);
+    const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.id(), fapl.id());
     if (id < 0) throw IoError(path + ": cannot create HDF5 file");
     return File(path, id);
 }
@@ -146,6 +154,9 @@ void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
         H5Pset_chunk(plist.id(), static_cast<int>(chunk.size()), chunk.data());
         H5Pset_shuffle(plist.id());
         H5Pset_deflate(plist.id(), 4);
+        // A checksum of each compressed chunk: damage to the data itself (which the
+        // metadata checksums do not cover) is an error on reading, not wrong values.
+        H5Pset_fletcher32(plist.id());
     }
     if (H5Lexists(f.id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(f.id(), name.c_str(), H5P_DEFAULT);
     Handle ds(H5Dcreate2(f.id(), name.c_str(), fileType, space.id(), H5P_DEFAULT, plist.id(), H5P_DEFAULT));

@@ -346,8 +346,10 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     reporter.out() << md;
     const std::string outMd = a.outMd.empty() ? at("fidelity" + variant + ".md") : a.outMd;
     const std::string outCsv = a.outCsv.empty() ? at("fidelity" + variant + ".csv") : a.outCsv;
+    AtomicOutputSet outputs;  // the report and its table together
     writeTextFile(outMd, md);
     writeFidelityCsv(outCsv, report);
+    outputs.commit();
     reporter.info("fidelity: wrote " + outMd + " and " + outCsv);
     return {report, md, outMd, outCsv};
 }

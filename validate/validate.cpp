@@ -176,6 +176,10 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         for (const auto& f : s.figures) md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
     }
     const std::string reportPath = outDir + "/report.md", csvPath = outDir + "/results.csv";
+    // The report and the table appear together or not at all (a kill between them would
+    // leave a new report beside the old table). The figures were each written whole as their
+    // scenario finished.
+    AtomicOutputSet outputs;
     writeTextFile(reportPath, md.str());
     std::ostringstream csv;
     csv << "mode,scenario,check,value,comparator,target,tolerance,expected,result,units,note\n";
@@ -187,6 +191,7 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
                 << csvField(c.spec.expectedText()) << "," << c.outcome() << "," << csvField(c.spec.units) << ","
                 << csvField(c.note) << "\n";
     writeTextFile(csvPath, csv.str());
+    outputs.commit();
     return {reportPath, csvPath};
 }
 
