@@ -188,6 +188,12 @@ private:
 
 }  // namespace
 
+namespace {
+bool gThreadsFlagGiven = false;
+}
+bool threadsFlagGiven() { return gThreadsFlagGiven; }
+void setThreadsFlagGiven(bool given) { gThreadsFlagGiven = given; }
+
 std::ostream& CliReporter::out() { return std::cout; }
 void CliReporter::info(const std::string& line) { cli::info(line); }
 std::unique_ptr<pipeline::ProgressBar> CliReporter::progress(const std::string& label, long total) {

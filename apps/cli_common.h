@@ -34,6 +34,7 @@ void registerSynthCommand(CLI::App& app);      // eco synth --terrain --canopy -
 void registerCompareCommand(CLI::App& app);    // eco compare SCENE.h5 DB.h5
 void registerValidateCommand(CLI::App& app);   // eco validate [--quick] [--out DIR]
 void registerFidelityCommand(CLI::App& app);   // eco fidelity [--config F] [--scene S --reference A --replicate B]
+void registerEnsembleCommand(CLI::App& app);   // eco ensemble SPEC.toml (many simulations, MPI)
 
 /// Thrown by a command that completed but must end with a particular non-zero exit status
 /// (e.g. `eco validate` when a check failed); main() prints the message and returns `code`.
@@ -118,6 +119,9 @@ std::string paramHelp(const ParamDesc<S>& f, const std::string& prefix = "") {
 
 /// Print one informational line to stderr (stdout is kept for results).
 void info(const std::string& line);
+/// True when the command line gave --threads (eco ensemble then leaves the threads alone).
+bool threadsFlagGiven();
+void setThreadsFlagGiven(bool given);
 
 /// The command line's Reporter: results on stdout, information on stderr, Progress bars,
 /// the simulation's year line, and SIGINT / SIGTERM during a simulation as a stop request.

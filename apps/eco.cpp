@@ -31,6 +31,7 @@ std::unique_ptr<CLI::App> makeApp() {
                   "two runs of the same inputs and seed write byte-identical files, whatever --threads");
     app->parse_complete_callback([threads, noProvenance] {
         if (*threads > 0) omp_set_num_threads(*threads);
+        setThreadsFlagGiven(*threads > 0);
         setProvenanceRecorded(!*noProvenance);
     });
 
@@ -46,6 +47,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerCompareCommand(*app);
     registerValidateCommand(*app);
     registerFidelityCommand(*app);
+    registerEnsembleCommand(*app);
     return app;
 }
 

@@ -8,7 +8,8 @@ source tools/apt_install.sh
 install_missing setup \
   cmake g++ make pkg-config \
   libeigen3-dev libhdf5-dev libopenimageio-dev openimageio-tools libflann-dev liblz4-dev \
-  libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools libgdal-dev
+  libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools libgdal-dev \
+  libopenmpi-dev openmpi-bin
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"

@@ -18,6 +18,7 @@
 #include "scene.h"
 #include "sim_input.h"
 #include "stage_common.h"
+#include "stage_runner.h"
 #include "strict_toml.h"
 #include "text_format.h"
 #include "undergrowth.h"
@@ -27,52 +28,6 @@ namespace eco::validate {
 namespace {
 
 std::string fmt(double v) { return formatNumber(v, 10); }
-
-std::string readText(const std::string& path) {
-    std::ifstream in(path);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-/// The stages in order; a stage is reused when its output exists, the command it was made
-/// with (recorded beside it as OUTPUT.cmd) is the same, and no earlier stage was rerun.
-class StageRunner {
-public:
-    StageRunner(pipeline::Reporter& reporter, const std::function<std::unique_ptr<pipeline::Reporter>()>& stageReporter)
-        : reporter_(reporter), stageReporter_(stageReporter) {}
-
-    void run(const std::string& name, const std::string& output, const pipeline::StageOptions& options) {
-        const std::string stamp = output + ".cmd";
-        // The code's identity joins the command: a database of an older schema (or files of
-        // another eco version) is made again rather than reused.
-        const std::string cmd = pipeline::quotedCommand(pipeline::commandLine(options)) + "\n# eco " + ECO_VERSION_STRING +
-                                ", biome database schema " + std::to_string(kBiomeDbSchemaVersion);
-        if (!rerun_ && std::filesystem::exists(output) && std::filesystem::exists(stamp) && readText(stamp) == cmd + "\n") {
-            reporter_.info("fidelity: " + name + ": reusing " + output + " (made with the same settings)");
-            return;
-        }
-        reporter_.info("fidelity: " + name + ":\n   " + cmd);
-        const auto t0 = std::chrono::steady_clock::now();
-        {
-            const std::unique_ptr<pipeline::Reporter> stageReporter = stageReporter_();
-            try {
-                pipeline::runStage(options, *stageReporter);
-            } catch (const Error& e) {
-                throw Error("fidelity stage '" + name + "' failed: " + e.what());
-            }
-        }
-        writeTextFile(stamp, cmd + "\n");
-        rerun_ = true;
-        reporter_.info("fidelity: " + name + " done in " +
-                       formatNumber(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 3) + " s");
-    }
-
-private:
-    pipeline::Reporter& reporter_;
-    const std::function<std::unique_ptr<pipeline::Reporter>()>& stageReporter_;
-    bool rerun_ = false;
-};
 
 /// Settings the stages accept (the limits of their own command lines), checked before any runs.
 void checkStageSettings(const FidelityRunOptions& a) {
@@ -188,7 +143,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     checkStageSettings(a);
     ensureDirectory(a.outDir);
     const auto at = [&](const std::string& n) { return (std::filesystem::path(a.outDir) / n).string(); };
-    StageRunner stages(reporter, stageReporter);
+    pipeline::StageRunner stages("fidelity", reporter, stageReporter);
 
     // Inputs of the plot: terrain, CHM, abiotics, canopy (as configs/demo.toml makes them).
     const bool needRun = a.scene.empty() || a.reference.empty() || a.replicate.empty();
