@@ -82,23 +82,13 @@ void lockOutDir(const std::string& outDir) {
     // Kept open (and locked) until the process ends.
 }
 
-std::string settingsText(const pipeline::EnsembleMember& m) {
-    std::string s;
-    for (const auto& [k, v] : m.overrides) {
-        std::ostringstream value;
-        v.visit([&](const auto& x) { value << x; });
-        s += (s.empty() ? "" : ", ") + std::string(k.str()) + " = " + value.str();
-    }
-    return s.empty() ? "the base configuration" : s;
-}
-
 /// Members run in this process, one after the other, claimed from the shared queue.
 void runInProcess(const pipeline::EnsembleSpec& spec, const std::string& run, ProcessGroup& group, const std::string& who,
                   pipeline::Reporter& reporter) {
     for (std::size_t i = 0; i < spec.members.size() && !reporter.stopRequested(); ++i) {
         if (pipeline::memberStatus(spec, i).state == "done") continue;
         if (!pipeline::claimMember(spec, i, run)) continue;
-        info(who + "member " + spec.members[i].id + " started (" + settingsText(spec.members[i]) + ")");
+        info(who + "member " + spec.members[i].id + " started (" + pipeline::overridesText(spec.members[i]) + ")");
         const pipeline::MemberStatus s = pipeline::runMember(spec, i, run, reporter);
         info(who + "member " + s.id + " " + s.state + " in " + formatNumber(s.seconds, 3) + " s" +
              (s.plants >= 0 ? ", " + std::to_string(s.plants) + " plants" : "") + (s.error.empty() ? "" : ": " + s.error) +
@@ -133,7 +123,7 @@ void runInChildren(const pipeline::EnsembleSpec& spec, const std::string& run, p
         if (rc != 0) throw IoError("ensemble: cannot start a process for member " + spec.members[i].id + ": " + std::strerror(rc));
         running[pid] = i;
         info("ensemble: member " + spec.members[i].id + " started in process " + std::to_string(pid) + " (" +
-             settingsText(spec.members[i]) + ")");
+             pipeline::overridesText(spec.members[i]) + ")");
     };
     bool forwarded = false;
     while (true) {
@@ -188,7 +178,7 @@ void runOneMember(const EnsembleArgs& a) {
 void printMembers(const pipeline::EnsembleSpec& spec) {
     for (std::size_t i = 0; i < spec.members.size(); ++i) {
         const pipeline::MemberStatus s = pipeline::memberStatus(spec, i);
-        std::printf("%s\t%s\t%s\n", s.id.c_str(), s.state.c_str(), settingsText(spec.members[i]).c_str());
+        std::printf("%s\t%s\t%s\n", s.id.c_str(), s.state.c_str(), pipeline::overridesText(spec.members[i]).c_str());
     }
 }
 
@@ -255,8 +245,9 @@ void runEnsemble(const EnsembleArgs& a) {
             if (c.done < static_cast<int>(spec.members.size())) {
                 verdict = std::to_string(spec.members.size() - static_cast<std::size_t>(c.done)) + " of " +
                           std::to_string(spec.members.size()) + " members not done (" + std::to_string(c.failed) + " failed, " +
-                          std::to_string(c.stopped + c.pending) + " stopped or not started; see " + manifest +
-                          "); run the same command again to finish them" + (spec.database ? " and build the database" : "");
+                          std::to_string(c.stopped + c.pending) + " stopped or not started; see " + manifest + "); " +
+                          (c.failed > 0 ? "fix what failed, then run" : "run") +
+                          " the same command again: finished members are kept" + (spec.database ? ", and the database is built when all are done" : "");
             } else if (spec.database) {
                 const std::string db = pipeline::buildEnsembleDatabase(spec, reporter);
                 std::printf("%s\n%s\n", manifest.c_str(), db.c_str());

@@ -59,10 +59,20 @@ std::string tomlText(const toml::table& t) {
     return s.str();
 }
 
+/// A value as a person writes it: strings without quotes, numbers to 10 significant digits
+/// (0.0003, not toml++'s 0.00029999999999999997), arrays in brackets.
 std::string valueText(const toml::node& n) {
+    if (const auto* str = n.as_string()) return str->get();
+    if (const auto* f = n.as_floating_point()) return formatNumber(f->get(), 10);
+    if (const auto* i = n.as_integer()) return std::to_string(i->get());
+    if (const auto* b = n.as_boolean()) return b->get() ? "true" : "false";
+    if (const auto* a = n.as_array()) {
+        std::string s = "[";
+        for (std::size_t k = 0; k < a->size(); ++k) s += (k ? ", " : "") + valueText(*a->get(k));
+        return s + "]";
+    }
     std::ostringstream s;
-    if (const auto* str = n.as_string()) s << str->get();  // without TOML's quotes
-    else n.visit([&](const auto& v) { s << v; });
+    n.visit([&](const auto& v) { s << v; });
     return s.str();
 }
 
@@ -134,14 +144,15 @@ MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
         const auto parts = splitKey(key);
         const std::string where = spec.path + ": member '" + m.id + "': override '" + key + "'";
         if (parts.size() < 2) throw ValidationError(where + ": expected TABLE.KEY (e.g. terrain.seed)");
-        if (parts[0] == "model") {
+        if (parts[0] == "model" || parts[0] == "simulation") {
             if (!simChanged) {
                 const auto* cfg = run["simulate"]["config"].as_string();
                 if (!cfg) throw ValidationError(where + ": the base configuration's [simulate] has no config file to override");
                 sim = parseTomlFile(cfg->get());
                 simChanged = true;
             }
-            setPath(sim, parts, 0, v, where);
+            // model.KEY is short for simulation.model.KEY.
+            setPath(sim, parts, parts[0] == "simulation" ? 1 : 0, v, where);
         } else if (parts[0] == "biome") {
             if (!biomeChanged) {
                 const auto* file = run["run"]["biome"].as_string();
@@ -262,6 +273,12 @@ std::string csvField(const std::string& s) {
 }
 
 }  // namespace
+
+std::string overridesText(const EnsembleMember& member) {
+    std::string s;
+    for (const auto& [k, v] : member.overrides) s += (s.empty() ? "" : ", ") + std::string(k.str()) + " = " + valueText(v);
+    return s.empty() ? "the base configuration" : s;
+}
 
 std::string memberDir(const EnsembleSpec& spec, std::size_t index) {
     return (fs::path(spec.outDir) / "members" / spec.members[index].id).string();

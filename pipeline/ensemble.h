@@ -24,7 +24,10 @@ namespace eco::pipeline {
 
 struct EnsembleMember {
     std::string id;         ///< its folder under OUT/members/
-    toml::table overrides;  ///< dotted keys ("terrain.seed", "model.seeding_probability", "biome.species.Toyon.alpha")
+    /// Dotted keys: of the eco run configuration ("terrain.seed"), of its simulation
+    /// configuration ("simulation.run.checkpoint_every_years"; "model.KEY" for its [model]) or
+    /// of its biome ("biome.species.Toyon.alpha", species and sub-biomes by name).
+    toml::table overrides;
 };
 
 struct EnsembleSpec {
@@ -44,6 +47,9 @@ struct EnsembleSpec {
 /// every member's configuration as eco run would, so that a bad override stops the run
 /// before anything is simulated. `outOverride` replaces [ensemble] out_dir when not empty.
 EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOverride = "");
+
+/// "terrain.seed = 2, model.seeding_probability = 0.0003" (or "the base configuration").
+std::string overridesText(const EnsembleMember& member);
 
 /// OUT/members/<id>.
 std::string memberDir(const EnsembleSpec& spec, std::size_t index);

@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "canopy_file.h"
+#include "eco_child.h"
 #include "h5_compare.h"
 #include "sim_file_fixture.h"
 #include "sim_run.h"
@@ -33,92 +34,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-/// An eco process started by the test; killed (SIGKILL, by its pid) and reaped at scope exit
-/// if the test left it running or stopped.
-class EcoChild {
-public:
-    /// Starts `eco args...` with its output in `logPath`; with `pauseAt` non-empty the child
-    /// stops itself at that point (ECO_TEST_PAUSE_AT).
-    EcoChild(const std::vector<std::string>& args, const std::string& pauseAt, const std::string& logPath) {
-        pid_ = ::fork();
-        if (pid_ == 0) {
-            if (pauseAt.empty()) ::unsetenv("ECO_TEST_PAUSE_AT");
-            else ::setenv("ECO_TEST_PAUSE_AT", pauseAt.c_str(), 1);
-            const int fd = ::open(logPath.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-            if (fd >= 0) {
-                ::dup2(fd, 1);
-                ::dup2(fd, 2);
-                ::close(fd);
-            }
-            std::vector<char*> argv{const_cast<char*>(ECO_BINARY)};
-            for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-            argv.push_back(nullptr);
-            ::execv(ECO_BINARY, argv.data());
-            ::_exit(127);
-        }
-    }
-    EcoChild(const EcoChild&) = delete;
-    EcoChild& operator=(const EcoChild&) = delete;
-    ~EcoChild() {
-        if (pid_ > 0 && !reaped_) {
-            ::kill(pid_, SIGKILL);
-            int status = 0;
-            ::waitpid(pid_, &status, 0);
-        }
-    }
-    pid_t pid() const { return pid_; }
-
-    /// Waits for the child to stop at its pause point and kills it there: true; false when it
-    /// exited instead (the point was never reached).
-    bool killAtPausePoint() {
-        int status = 0;
-        if (::waitpid(pid_, &status, WUNTRACED) != pid_) return false;
-        if (!WIFSTOPPED(status)) {
-            reaped_ = true;
-            exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-            return false;
-        }
-        return killNow();
-    }
-    /// Kills the child `delay` after now unless it exits before: true when it was killed.
-    bool killAfter(std::chrono::milliseconds delay) {
-        const auto until = Clock::now() + delay;
-        while (Clock::now() < until) {
-            int status = 0;
-            if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-                reaped_ = true;
-                exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-                return false;
-            }
-            std::this_thread::sleep_for(std::chrono::milliseconds(2));
-        }
-        return killNow();
-    }
-    /// Waits for the child to end by itself: its exit code (-1: killed by a signal).
-    int wait() {
-        if (!reaped_) {
-            int status = 0;
-            ::waitpid(pid_, &status, 0);
-            reaped_ = true;
-            exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        }
-        return exitCode_;
-    }
-    int exitCode() const { return exitCode_; }
-
-private:
-    bool killNow() {
-        ::kill(pid_, SIGKILL);
-        int status = 0;
-        ::waitpid(pid_, &status, 0);
-        reaped_ = true;
-        return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
-    }
-    pid_t pid_ = -1;
-    bool reaped_ = false;
-    int exitCode_ = -1;
-};
+using test::EcoChild;
+using test::snapshotFiles;
 
 std::string readLog(const std::string& path) { return test::fileBytes(path); }
 
@@ -133,15 +50,6 @@ std::vector<std::string> hiddenFiles(const fs::path& dir) {
 std::string tempOf(const std::string& finalPath, pid_t pid) {
     const fs::path p(finalPath);
     return (p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(pid))).string();
-}
-
-/// The bytes of every regular, non-hidden file under `dir`, by path relative to it.
-std::map<std::string, std::string> snapshotFiles(const fs::path& dir) {
-    std::map<std::string, std::string> out;
-    for (const auto& e : fs::recursive_directory_iterator(dir))
-        if (e.is_regular_file() && e.path().filename().string().rfind('.', 0) != 0)
-            out[fs::relative(e.path(), dir).string()] = test::fileBytes(e.path().string());
-    return out;
 }
 
 // Scene files of the simulator tests: abiotics.h5 and canopy.h5 (as simulator_cli_test.cpp).

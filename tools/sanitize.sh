@@ -69,7 +69,9 @@ png_error_tests='^terrain: a corrupt image is named$'
 # identity of synthesis and fidelity, refinement, and the end-to-end runs of eco run and eco
 # fidelity (fuzz/make_seeds.sh below runs a small eco run under the sanitizers). The Release
 # stage runs them all.
-slow_tests='^(synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*)$'
+# Also the ensemble's kill test and its comparison of child processes and MPI ranks with one
+# process (three ensemble runs each; the specification reader runs sanitized in the others).
+slow_tests='^(eco ensemble: killed at a checkpoint write.*|eco ensemble: members in child processes.*|synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*)$'
 ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -LE validation -E "$png_error_tests|$slow_tests" --timeout 900
 ASAN_OPTIONS="$ASAN_OPTIONS:fast_unwind_on_malloc=0" ctest --test-dir "$build" --output-on-failure --no-tests=error -R "$png_error_tests"
 stamp "tests passed under ASan and UBSan"
