@@ -564,6 +564,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             DbRegion r;
             r.combination = m;
             r.cluster = c;
+            r.inputAreaM2.assign(inputs.size(), 0.0);
             r.centroidNormalised = sel.centroids[static_cast<std::size_t>(c)];
             for (std::size_t f = 0; f < kFactorCount; ++f)
                 r.centroidRaw[f] = comb.featureMean[f] + comb.featureStd[f] * r.centroidNormalised[f];
@@ -594,6 +595,7 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             DbRegion& r = db.regions[static_cast<std::size_t>(prep[cell.first].region.data()[cell.second])];
             const double cs = inputs[cell.first].features.geometry().cellSizeM();
             r.areaM2 += cs * cs;
+            r.inputAreaM2[cell.first] += cs * cs;
             ++r.cellCount;
         }
         db.combinations.push_back(std::move(comb));

@@ -35,6 +35,11 @@ void registerCompareCommand(CLI::App& app);    // eco compare SCENE.h5 DB.h5
 void registerValidateCommand(CLI::App& app);   // eco validate [--quick] [--out DIR]
 void registerFidelityCommand(CLI::App& app);   // eco fidelity [--config F] [--scene S --reference A --replicate B]
 void registerEnsembleCommand(CLI::App& app);   // eco ensemble SPEC.toml (many simulations, MPI)
+void registerDatabaseCommands(CLI::App& app);  // eco database build BIOME.toml --out DB.h5
+/// Runs an ensemble specification as eco ensemble does (this process, its child processes or
+/// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
+/// is not done.
+int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun);
 
 /// Thrown by a command that completed but must end with a particular non-zero exit status
 /// (e.g. `eco validate` when a check failed); main() prints the message and returns `code`.

@@ -183,9 +183,22 @@ void printMembers(const pipeline::EnsembleSpec& spec) {
 }
 
 void runEnsemble(const EnsembleArgs& a) {
-    installStopHandlers();
-    if (!a.member.empty()) return runOneMember(a);
+    if (!a.member.empty()) {
+        installStopHandlers();
+        return runOneMember(a);
+    }
     if (!a.run.empty()) usageError("--run", "only with --member");
+    runEnsembleFile(a.spec, a.outDir, a.dryRun);
+}
+
+}  // namespace
+
+int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun) {
+    installStopHandlers();
+    EnsembleArgs a;
+    a.spec = specPath;
+    a.outDir = outDir;
+    a.dryRun = dryRun;
     const std::unique_ptr<ProcessGroup> group = joinProcessGroup();
     const int rank = group->rank();
     // Ranks that share a machine share its cores, unless told otherwise.
@@ -217,7 +230,7 @@ void runEnsemble(const EnsembleArgs& a) {
     if (rank != 0) spec = pipeline::loadEnsembleSpec(a.spec, a.outDir);
     if (a.dryRun) {
         if (rank == 0) printMembers(spec);
-        return;
+        return rank;
     }
     const std::string& run = start;
     if (rank == 0) {
@@ -261,9 +274,8 @@ void runEnsemble(const EnsembleArgs& a) {
     }
     verdict = group->broadcast(verdict);
     if (!verdict.empty()) throw ExitStatus(1, rank == 0 ? "ensemble: " + verdict : who + "the run is not complete (rank 0 says why)");
+    return rank;
 }
-
-}  // namespace
 
 void registerEnsembleCommand(CLI::App& app) {
     auto a = std::make_shared<EnsembleArgs>();

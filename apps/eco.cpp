@@ -48,6 +48,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerValidateCommand(*app);
     registerFidelityCommand(*app);
     registerEnsembleCommand(*app);
+    registerDatabaseCommands(*app);
     return app;
 }
 

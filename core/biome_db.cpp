@@ -114,6 +114,11 @@ std::vector<double> rowOf(const std::vector<double>& flat, std::size_t row, std:
 
 }  // namespace
 
+int DbRegion::replicates() const {
+    if (inputAreaM2.empty()) return -1;
+    return static_cast<int>(std::count_if(inputAreaM2.begin(), inputAreaM2.end(), [](double a) { return a > 0; }));
+}
+
 const DbPairStats* DbRegion::pair(int source, int target) const {
     auto it = std::lower_bound(pairs.begin(), pairs.end(), std::make_pair(source, target),
                                [](const DbPairStats& p, const std::pair<int, int>& key) {
@@ -129,7 +134,9 @@ std::string BiomeDatabase::categoryName(int category) const {
     return category >= ns ? name + " (canopy)" : name;
 }
 
-std::string BiomeDatabase::combinationName(int mask) const {
+std::string BiomeDatabase::combinationName(int mask) const { return eco::combinationName(subBiomeNames, mask); }
+
+std::string combinationName(const std::vector<std::string>& subBiomeNames, int mask) {
     std::string numbers, names;
     for (std::size_t b = 0; b < 31; ++b) {
         if (!(mask & (1 << b))) continue;
@@ -358,6 +365,11 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.writeF64("/regions/undergrowth_count", rUnder, {hs(nr)});
         f.writeF64("/regions/canopy_count", rCanopy, {hs(nr)});
         f.writeF64("/regions/density_per_m2", rDensity, {hs(nr)});
+        const std::size_t ni = db.inputs.size();
+        if (ni > 0 && std::all_of(db.regions.begin(), db.regions.end(), [&](const DbRegion& r) { return r.inputAreaM2.size() == ni; }))
+            f.writeF64("/regions/input_area_m2",
+                       flatten(db.regions, ni, [](const DbRegion& r) -> const std::vector<double>& { return r.inputAreaM2; }),
+                       {hs(nr), hs(ni)});
         f.writeF64("/regions/species_count",
                    flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.speciesCount; }),
                    {hs(nr), hs(ns)});
@@ -636,6 +648,21 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
                                   {"/regions/species_proportion", &rProp},
                                   {"/regions/canopy_species_count", &rCanSp}})
         requireNonNegative(path, name, *v);
+    // Per input (optional: files before it was recorded have none): non-negative, and each
+    // row adds up to the region's area.
+    std::vector<double> rInputArea;
+    if (f.exists("/regions/input_area_m2")) {
+        const std::size_t ni = db.inputs.size();
+        rInputArea = rd.f64("/regions/input_area_m2", {nr, ni});
+        requireNonNegative(path, "/regions/input_area_m2", rInputArea);
+        for (std::size_t ri = 0; ri < nr; ++ri) {
+            double sum = 0;
+            for (std::size_t i = 0; i < ni; ++i) sum += rInputArea[ri * ni + i];
+            if (std::abs(sum - rArea[ri]) > 1e-6 * std::max(1.0, rArea[ri]))
+                throw IoError(path + ": /regions/input_area_m2: region " + std::to_string(ri) + " adds up to " +
+                              formatNumber(sum, 10) + " m^2 but /regions/area_m2 is " + formatNumber(rArea[ri], 10));
+        }
+    }
     for (std::size_t i = 0; i < rProp.size(); ++i)
         if (rProp[i] > 1 + 1e-9)
             throw IoError(path + ": /regions/species_proportion: entry " + std::to_string(i) + " is " + formatNumber(rProp[i], 6) +
@@ -660,6 +687,7 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         r.undergrowthCount = rUnder[ri];
         r.canopyCount = rCanopy[ri];
         r.densityPerM2 = rDensity[ri];
+        if (!rInputArea.empty()) r.inputAreaM2 = rowOf(rInputArea, ri, db.inputs.size());
         r.speciesCount = rowOf(rSpecies, ri, ns);
         r.speciesProportion = rowOf(rProp, ri, ns);
         r.canopySpeciesCount = rowOf(rCanSp, ri, ns);

@@ -110,6 +110,12 @@ struct DbRegion {
     double undergrowthCount = 0;     ///< plants
     double canopyCount = 0;          ///< trees
     double densityPerM2 = 0;         ///< undergrowth plants per m^2
+    /// [inputs] area of the region's cells in each analysed input (m^2; they sum to areaM2):
+    /// how many simulations stand behind the region (replicates()). Empty when read from a
+    /// file written before it was recorded.
+    std::vector<double> inputAreaM2;
+    /// Inputs with cells in the region; -1 when inputAreaM2 was not recorded.
+    int replicates() const;
     std::vector<double> speciesCount;        ///< [nSpecies] undergrowth plants
     std::vector<double> speciesProportion;   ///< [nSpecies] speciesCount / undergrowthCount
     std::vector<double> canopySpeciesCount;  ///< [nSpecies] canopy trees
@@ -127,6 +133,9 @@ struct DbRegion {
     /// Pair statistics of source -> target, or nullptr when that pair did not occur.
     const DbPairStats* pair(int source, int target) const;
 };
+
+/// "1+3 (Conifer, Valley Oak)": a combination mask (bit b-1 for sub-biome b) by its sub-biomes.
+std::string combinationName(const std::vector<std::string>& subBiomeNames, int mask);
 
 struct BiomeDatabase {
     int schemaVersion = kBiomeDbSchemaVersion;

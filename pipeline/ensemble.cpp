@@ -296,6 +296,7 @@ EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOve
         spec.membersAtOnce = static_cast<int>(e.integerOr("members_at_once", 1));
         if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) e.fail("members_at_once", "must be in 1 .. 256");
         spec.database = e.booleanOr("database", true);
+        spec.databasePath = e.has("database_path") ? e.string("database_path") : (fs::path(spec.outDir) / "biome-db.h5").string();
         const std::int64_t kmax = e.integerOr("kmax", 6);
         if (kmax < 1 || kmax > 64) e.fail("kmax", "value " + std::to_string(kmax) + " must be in 1 .. 64");
         spec.kMax = static_cast<int>(kmax);
@@ -560,7 +561,7 @@ std::string buildEnsembleDatabase(const EnsembleSpec& spec, Reporter& reporter) 
         }
     }
     const auto at = [&](const std::string& name) { return (fs::path(spec.outDir) / name).string(); };
-    analyse.out = at("biome-db.h5");
+    analyse.out = spec.databasePath;
     // The analysis' command names the simulations by path: a member rerun with another
     // configuration leaves it the same, so the members' fingerprints decide too.
     std::string members;

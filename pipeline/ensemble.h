@@ -36,7 +36,8 @@ struct EnsembleSpec {
     toml::table base;    ///< the members' eco run configuration before the overrides
     std::string baseSource;
     int membersAtOnce = 1;  ///< members side by side in one process (child processes)
-    bool database = true;   ///< analyse every member's simulation into OUT/biome-db.h5
+    bool database = true;   ///< analyse every member's simulation into databasePath
+    std::string databasePath;  ///< [ensemble] database_path, default OUT/biome-db.h5
     int kMax = 6;
     std::int64_t seed = 1;  ///< the analysis' seed
     std::vector<EnsembleMember> members;
@@ -99,7 +100,8 @@ std::string progressLine(const EnsembleSpec& spec, const EnsembleCounts& counts,
 /// key, error, folder), written atomically. Returns its path.
 std::string writeManifest(const EnsembleSpec& spec);
 
-/// Analyses every member's simulation into OUT/biome-db.h5 (and OUT/database.txt), reused
+/// Analyses every member's simulation into spec.databasePath (its summary in
+/// OUT/database.txt, its pictures in OUT/png/database), reused
 /// when up to date. ValidationError when a member is not done. Returns the database path.
 std::string buildEnsembleDatabase(const EnsembleSpec& spec, Reporter& reporter);
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <ostream>
 #include <sstream>
 
@@ -110,6 +111,22 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     }
     reporter.info("cluster map: " + num(clusterS, 3) + " s; " + std::to_string(seeded) + " of " + std::to_string(clusters.region.size()) +
          " cells seeded by a canopy tree, " + std::to_string(labelled) + " in a database region");
+    // Combinations of the target that no analysed simulation had: said once each, with the
+    // stand-in whose statistics their cells get (or none), so that a user knows where the
+    // scene rests on other conditions than its own (eco database build makes them all).
+    std::map<std::int32_t, std::int64_t> cellsOfMask;
+    for (std::size_t i = 0; i < clusters.combination.size(); ++i)
+        if (const std::int32_t m = clusters.combination.data()[i]; m != 0 && db.combinationIndex(m) < 0) ++cellsOfMask[m];
+    const double cellArea = clusters.combination.cellSizeM() * clusters.combination.cellSizeM();
+    for (const auto& [mask, cells] : cellsOfMask) {
+        const int stand = db.standInCombination(mask);
+        reporter.info("warning: database " + a.database + " has no simulated statistics for combination '" +
+                      db.combinationName(mask) + "' (" + num(static_cast<double>(cells) * cellArea, 4) + " m^2 of the target, " +
+                      num(100.0 * static_cast<double>(cells) / static_cast<double>(std::max<std::int64_t>(seeded, 1)), 3) +
+                      " % of the seeded cells): " +
+                      (stand < 0 ? std::string("left without undergrowth")
+                                 : "its cells use the statistics of '" + db.combinationName(stand) + "'"));
+    }
 
     synth::UndergrowthSample sample = synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params);
     reporter.info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +

@@ -212,7 +212,6 @@ std::function<void(const GoodInputs&, const CaseDirs&)> biomeCase(std::string fr
     return [from, to](const GoodInputs& g, const CaseDirs& d) { writeText(d.file("b.toml"), replaceOnce(readText(g.biome), from, to)); };
 }
 
-std::string ascGrid(const std::string& header, const std::string& rows) { return header + rows; }
 std::string ascHeader(const std::string& ncols, const std::string& nrows, const std::string& cell) {
     return "ncols " + ncols + "\nnrows " + nrows + "\nxllcorner 0\nyllcorner 0\ncellsize " + cell + "\n";
 }

@@ -1,0 +1,76 @@
+// eco database build: parsing only; the plan (an ensemble of every sub-biome combination on
+// several terrains) and the coverage table are in pipeline/database_build, the run is eco
+// ensemble's.
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "atomic_file.h"
+#include "biome.h"
+#include "biome_db.h"
+#include "cli_common.h"
+#include "database_build.h"
+
+namespace eco::cli {
+
+namespace {
+
+struct BuildArgs {
+    pipeline::DatabaseBuildOptions options;
+    bool dryRun = false;
+};
+
+void buildDatabase(BuildArgs a) {
+    pipeline::DatabaseBuildOptions& o = a.options;
+    if (o.workDir.empty()) {
+        const std::filesystem::path out(o.out);
+        o.workDir = (out.parent_path() / (out.stem().string() + "-ensemble")).string();
+    }
+    const std::string spec = pipeline::writeDatabaseBuildSpec(o);
+    info("database build: " + spec + " (the ensemble's specification; members, logs and manifest in " + o.workDir + ")");
+    if (runEnsembleFile(spec, "", a.dryRun) != 0 || a.dryRun) return;
+    const BiomeDatabase db = readBiomeDatabase(o.out);
+    const Biome biome = o.biome.empty() ? defaultBiome() : loadBiome(o.biome);
+    const auto rows = pipeline::coverage(db, biome);
+    const std::string csv = (std::filesystem::path(o.out).parent_path() / (std::filesystem::path(o.out).stem().string() + "-coverage.csv")).string();
+    writeTextFile(csv, pipeline::coverageCsv(rows));
+    std::printf("coverage of %s (combination x cluster):\n%s%s\n", o.out.c_str(), pipeline::coverageText(rows).c_str(), csv.c_str());
+    std::fflush(stdout);
+}
+
+}  // namespace
+
+void registerDatabaseCommands(CLI::App& app) {
+    CLI::App* group = app.add_subcommand("database", "Biome databases made from many simulations");
+    group->require_subcommand(1);
+    auto a = std::make_shared<BuildArgs>();
+    pipeline::DatabaseBuildOptions& o = a->options;
+    o.simConfig = "configs/sim-default.toml";
+    CLI::App* sub = group->add_subcommand(
+        "build",
+        "A complete biome database from one command: an ensemble (eco ensemble) of one simulation per combination of the "
+        "biome's canopy sub-biomes (15 for 4) on each of several generated terrains, analysed into one database, and "
+        "a coverage table (combination x cluster: simulated area, plants, replicates) printed and stored as "
+        "DB-coverage.csv. Restartable and MPI-capable as eco ensemble (docs/ensemble.md).");
+    sub->add_option("biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)")->check(CLI::ExistingFile);
+    sub->add_option("--out", o.out, "The database to write")->required();
+    sub->add_option("--work-dir", o.workDir, "The ensemble's folder (default: DB's folder/<DB name>-ensemble)");
+    sub->add_option("--sim-config", o.simConfig, "Simulation configuration (model constants)")
+        ->capture_default_str()
+        ->check(CLI::ExistingFile);
+    sub->add_option("--terrains", o.terrains, "Generated terrains (replicates) per combination, 1..100")->capture_default_str();
+    sub->add_option("--terrain-cells", o.terrainCells, "Terrain width and height in cells of 0.914 m, 32..4096")->capture_default_str();
+    sub->add_option("--plot", o.plotM, "Side of the simulated plot in metres, centred on the terrain")->capture_default_str();
+    sub->add_option("--years", o.years, "Simulated years")->capture_default_str();
+    sub->add_option("--kmax", o.kMax, "Largest number of clusters per combination, 1..64")->capture_default_str();
+    sub->add_option("--members-at-once", o.membersAtOnce, "Members side by side in child processes (one process; "
+                                                          "under MPI the ranks share the members)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 256));
+    sub->add_option("--seed", o.seed, "Seed of the analysis")->capture_default_str();
+    sub->add_flag("--dry-run", a->dryRun, "Write the specification and list the members without running them");
+    sub->callback([a] { buildDatabase(*a); });
+}
+
+}  // namespace eco::cli
