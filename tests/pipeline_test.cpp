@@ -8,6 +8,8 @@
 #include <map>
 #include <sstream>
 
+#include "database_build.h"
+#include "ensemble.h"
 #include "run.h"
 #include "stage_common.h"
 #include "terrain_stages.h"
@@ -163,4 +165,59 @@ TEST_CASE("pipeline: [run] gis = true asks every grid stage for GeoTIFFs and the
     CHECK_THAT(lines.at("target canopy"), Catch::Contains("--gpkg " + o + "/target/gis/canopy.gpkg --geotiff " + o + "/target/gis"));
     CHECK_THAT(lines.at("synth"), Catch::Contains("--gpkg " + o + "/gis/scene.gpkg --geotiff " + o + "/gis"));
     CHECK(lines.at("simulate").find("--geotiff") == std::string::npos);  // the simulation file has no maps of its own
+}
+
+TEST_CASE("ensemble: configs/ensemble.toml plans its members with their overrides", "[pipeline][ensemble]") {
+    eco::test::TempDir dir("ensemble_plan");
+    const InDirectory root(eco::test::sourcePath(""));
+    const auto spec = eco::pipeline::loadEnsembleSpec(eco::test::sourcePath("configs/ensemble.toml"), dir.file("out"));
+    REQUIRE(spec.members.size() == 5);
+    CHECK(spec.members[0].id == "m01");
+    CHECK(eco::pipeline::overridesText(spec.members[0]) == "canopy.targets = [Douglas-Fir=0.3], terrain.seed = 1");
+    CHECK(eco::pipeline::overridesText(spec.members[3]) == "canopy.targets = [Douglas-Fir=0.6], terrain.seed = 2");
+    CHECK(spec.members[4].id == "toyon-alpha");
+    CHECK(spec.variedKeys == std::vector<std::string>{"biome.species.Toyon.alpha", "canopy.targets", "terrain.seed"});
+    CHECK(spec.databasePath == dir.file("out") + "/biome-db.h5");
+    // The biome override reached the member's own biome file, and only that member's.
+    const std::string biome = dir.file("out/members/toyon-alpha/biome.toml");
+    REQUIRE(std::filesystem::exists(biome));
+    const eco::Biome b = eco::loadBiome(biome);
+    CHECK(b.species[static_cast<std::size_t>(b.speciesIndex("Toyon"))].alpha == 0.5);
+    CHECK_FALSE(std::filesystem::exists(dir.file("out/members/m01/biome.toml")));
+    for (std::size_t i = 0; i < spec.members.size(); ++i) CHECK(eco::pipeline::memberStatus(spec, i).state == "pending");
+}
+
+TEST_CASE("database build: one member per sub-biome combination and terrain, each with its canopy mix", "[pipeline][ensemble]") {
+    const eco::Biome biome = eco::defaultBiome();
+    // Sonoma: 4 sub-biomes with canopy species -> 15 combinations.
+    for (int mask = 1; mask < 16; ++mask) {
+        INFO("combination " << mask);
+        double inMix = 0, outside = 0;
+        for (const std::string& t : eco::pipeline::combinationTargets(biome, mask)) {
+            const auto eq = t.find('=');
+            const std::string species = t.substr(0, eq);
+            const double share = std::stod(t.substr(eq + 1));
+            bool in = false;
+            for (std::size_t b = 0; b < biome.subBiomes.size(); ++b)
+                for (const auto& s : biome.subBiomes[b].canopySpecies) in = in || (s == species && ((mask >> b) & 1));
+            (in ? inMix : outside) += share;
+            if (in) CHECK(share > 0);
+        }
+        CHECK(inMix == Approx(0.9));
+        CHECK(outside == 0);
+    }
+    eco::test::TempDir dir("database_build");
+    const InDirectory root(eco::test::sourcePath(""));
+    eco::pipeline::DatabaseBuildOptions o;
+    o.out = dir.file("db.h5");
+    o.workDir = dir.file("work");
+    o.simConfig = "configs/sim-default.toml";
+    o.terrains = 2;
+    const auto spec = eco::pipeline::loadEnsembleSpec(eco::pipeline::writeDatabaseBuildSpec(o));
+    REQUIRE(spec.members.size() == 30);
+    CHECK(spec.members.front().id == "c01-t1");
+    CHECK(spec.members.back().id == "c15-t2");
+    CHECK(spec.databasePath == o.out);
+    o.plotM = 500;  // wider than the 146 m terrain
+    CHECK_THROWS_WITH(eco::pipeline::writeDatabaseBuildSpec(o), Catch::Contains("--plot"));
 }
