@@ -18,8 +18,9 @@
 // a variable window filter (Popescu & Wynne 2004): a cell is a tree top when, on the CHM
 // smoothed by a 3 x 3 Gaussian, no cell within k x crown radius(h) is higher (ties to the
 // lower index), k the best of 0.2 .. 1.0 on each scene (a strong baseline). The placer runs
-// with its defaults (apex trees anchored, the best state kept, added trees on CHM bumps of
-// their own) and with the paper's rules (all three off), as it was before issue 25.
+// with its defaults (apex trees anchored, the best state kept, trees added at residual apices,
+// added trees supported by CHM cells no crown explains) and with the paper's rules (all four
+// off), as it was before issue 25.
 //
 // Usage: bench_canopy_accuracy [OUT (default bench/results/canopy_accuracy.txt)] [SIZE (256)]
 #include <omp.h>
@@ -316,7 +317,8 @@ int main(int argc, char** argv) {
             eco::synth::CanopyParams paper;
             paper.anchorApexTrees = 0;
             paper.keepBestState = 0;
-            paper.supportBumpFactor = 0;
+            paper.residualApices = 0;
+            paper.supportFraction = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);

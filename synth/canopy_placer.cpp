@@ -33,6 +33,39 @@ std::string num(double v) { return formatNumber(v, 6); }
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+/// Strict maxima of the CHM >= minHeightM over a (2R + 1)^2 window among the cells for which
+/// inSet(index) holds (cells outside the set neither are maxima nor compete); a plateau goes
+/// to its cell of lowest index. Cell indices in row order.
+template <typename InSet>
+std::vector<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, int radiusCells, InSet&& inSet) {
+    const int w = chm.width(), h = chm.height(), R = std::max(1, radiusCells);
+    std::vector<std::vector<std::size_t>> rows(static_cast<std::size_t>(h));
+#pragma omp parallel for schedule(dynamic, 16)
+    for (int iy = 0; iy < h; ++iy) {
+        for (int ix = 0; ix < w; ++ix) {
+            const float v = chm(ix, iy);
+            if (!(v >= minHeightM)) continue;
+            const std::size_t i = chm.index(ix, iy);
+            if (!inSet(i)) continue;
+            bool isMax = true;
+            for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R) && isMax; ++jy)
+                for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
+                    const float u = chm(jx, jy);
+                    const std::size_t j = chm.index(jx, jy);
+                    if (j == i || !inSet(j)) continue;
+                    if (u > v || (u == v && j < i)) {
+                        isMax = false;
+                        break;
+                    }
+                }
+            if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
+        }
+    }
+    std::vector<std::size_t> out;
+    for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
+    return out;
+}
+
 // ------------------------------------------------------------------------- rendering
 
 /// A crown to render: trunk (x, y), apex height h, radius r (metres).
@@ -131,17 +164,23 @@ struct Visibility {
     std::vector<std::int64_t> sumX;     ///< sum of their column indices
     std::vector<std::int64_t> sumY;     ///< sum of their row indices
     std::vector<std::uint8_t> open;     ///< per cell: on the footprint and uncovered
+    /// per cell: on the footprint and uncovered, or above the crown surface by more than the
+    /// tolerance (no crown explains it)
+    std::vector<std::uint8_t> unexplained;
     std::int64_t footprint = 0;
     std::int64_t covered = 0;
     double sumSquaredErrorM2 = 0;
 };
 
-void measure(const Frame& f, const Grid<float>& chm, double thresholdM, std::size_t nCrowns, Visibility& v) {
+void measure(const Frame& f, const Grid<float>& chm, double thresholdM, double toleranceM, std::size_t nCrowns,
+             Visibility& v) {
     const int w = chm.width(), h = chm.height();
     v.visible.assign(nCrowns, 0);
     v.sumX.assign(nCrowns, 0);
     v.sumY.assign(nCrowns, 0);
     v.open.resize(chm.size());
+    v.unexplained.resize(chm.size());
+    const float tol = static_cast<float>(toleranceM);
     std::vector<std::int64_t> rowFoot(static_cast<std::size_t>(h), 0), rowCovered(static_cast<std::size_t>(h), 0);
     std::vector<double> rowSq(static_cast<std::size_t>(h), 0.0);
     std::int64_t* visible = v.visible.data();
@@ -173,6 +212,7 @@ void measure(const Frame& f, const Grid<float>& chm, double thresholdM, std::siz
             const float c = chm.data()[i];
             const std::int32_t id = f.id[i];
             v.open[i] = c >= thresholdM && id < 0;
+            v.unexplained[i] = c >= thresholdM && (id < 0 || c > f.depth[i] + tol);
             if (!(c >= thresholdM)) continue;
             ++foot;
             const double rendered = id >= 0 ? static_cast<double>(f.depth[i]) : 0.0;
@@ -346,7 +386,7 @@ struct Tree {
     double radiusM;  ///< crown radius
     std::int32_t species;
     std::uint64_t uid;  ///< creation order; keys the tree's random stream
-    bool apex = false;  ///< seeded at a CHM maximum: stays there, at the CHM's height
+    bool apex = false;  ///< at a maximum of the CHM or of its unexplained cells: stays there
 };
 
 /// Read-only lookups of the placer: CHM heights, species, crown radii.
@@ -428,10 +468,10 @@ std::vector<Crown> crownsOf(const std::vector<Tree>& trees) {
 }
 
 /// Render the trees and measure them against the CHM.
-void renderAndMeasure(const std::vector<Tree>& trees, const Grid<float>& chm, double thresholdM, Frame& frame,
+void renderAndMeasure(const std::vector<Tree>& trees, const Grid<float>& chm, const CanopyParams& p, Frame& frame,
                       Visibility& vis) {
     render(crownsOf(trees), chm.width(), chm.height(), chm.cellSizeM(), chm.originX(), chm.originY(), frame);
-    measure(frame, chm, thresholdM, trees.size(), vis);
+    measure(frame, chm, p.canopyThresholdM, p.residualToleranceM, trees.size(), vis);
 }
 
 void fillStats(IterationStats& s, std::size_t trees, const Visibility& vis) {
@@ -446,31 +486,43 @@ bool starved(std::size_t t, const Frame& frame, const Visibility& vis, double mi
     return static_cast<double>(vis.visible[t]) < minFraction * disc;
 }
 
-/// Initial seeds at the CHM maxima, refined to sub-cell precision by a parabola through each
-/// maximum and its two neighbours along x and along y.
+/// A tree at the CHM maximum of cell (ix, iy), refined to sub-cell precision by a parabola
+/// through the cell and its two neighbours along x and along y when both are in the set of
+/// the maximum (inSet), with the CHM's height there.
+template <typename InSet>
+Tree apexTree(const Scene& scene, int ix, int iy, std::uint64_t uid, bool anchored, InSet&& inSet) {
+    const Grid<float>& chm = scene.chm();
+    const double c = chm(ix, iy);
+    auto offset = [&](int x0, int y0, int x1, int y1) {
+        if (!chm.inside(x0, y0) || !chm.inside(x1, y1) || !inSet(chm.index(x0, y0)) || !inSet(chm.index(x1, y1))) return 0.0;
+        const double lo = chm(x0, y0), hi = chm(x1, y1);
+        const double curvature = lo - 2.0 * c + hi;
+        if (!(curvature < 0)) return 0.0;
+        return std::clamp(0.5 * (lo - hi) / curvature, -0.5, 0.5);
+    };
+    const double ox = offset(ix - 1, iy, ix + 1, iy);
+    const double oy = offset(ix, iy - 1, ix, iy + 1);
+    const double x = chm.cellCentreX(ix) + ox * chm.cellSizeM();
+    const double y = chm.cellCentreY(iy) + oy * chm.cellSizeM();
+    double height = scene.heightAt(x, y);
+    if (height < c) height = c;  // the maximum cell is a lower bound of the apex
+    Tree t = scene.makeTree(x, y, height, uid);
+    t.apex = anchored;
+    return t;
+}
+
+/// Initial seeds at the CHM maxima.
 std::vector<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
     const Grid<float>& chm = scene.chm();
     const auto maxima = chmLocalMaxima(chm, p.minSeedHeightM, p.localMaximumRadiusCells);
     std::vector<Tree> trees(maxima.size());
-    const int w = chm.width(), h = chm.height();
+    const std::size_t w = static_cast<std::size_t>(chm.width());
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(maxima.size()); ++k) {
         const std::size_t i = maxima[static_cast<std::size_t>(k)];
-        const int ix = static_cast<int>(i % static_cast<std::size_t>(w)), iy = static_cast<int>(i / static_cast<std::size_t>(w));
-        const double c = chm(ix, iy);
-        auto offset = [&](double lo, double hi) {
-            const double curvature = lo - 2.0 * c + hi;
-            if (!(curvature < 0)) return 0.0;
-            return std::clamp(0.5 * (lo - hi) / curvature, -0.5, 0.5);
-        };
-        const double ox = (ix > 0 && ix < w - 1) ? offset(chm(ix - 1, iy), chm(ix + 1, iy)) : 0.0;
-        const double oy = (iy > 0 && iy < h - 1) ? offset(chm(ix, iy - 1), chm(ix, iy + 1)) : 0.0;
-        const double x = chm.cellCentreX(ix) + ox * chm.cellSizeM();
-        const double y = chm.cellCentreY(iy) + oy * chm.cellSizeM();
-        double height = scene.heightAt(x, y);
-        if (height < c) height = c;  // the maximum cell is a lower bound of the apex
-        trees[static_cast<std::size_t>(k)] = scene.makeTree(x, y, height, static_cast<std::uint64_t>(k));
-        trees[static_cast<std::size_t>(k)].apex = p.anchorApexTrees != 0;
+        trees[static_cast<std::size_t>(k)] = apexTree(scene, static_cast<int>(i % w), static_cast<int>(i / w),
+                                                      static_cast<std::uint64_t>(k), p.anchorApexTrees != 0,
+                                                      [](std::size_t) { return true; });
     }
     return trees;
 }
@@ -541,11 +593,14 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          R::closed(0, 1024)},
         {"ring_factor", "ring radius = factor * (r_i + r_new)", K::Real, &CanopyParams::ringFactor, nullptr,
          R::openClosed(0, 10)},
-        {"support_bump_factor",
-         "an added tree needs a CHM bump of its own (below); 0 = the paper's rule",
-         K::Real, &CanopyParams::supportBumpFactor, nullptr, R::closed(0, 10)},
         {"anchor_apex_trees", "trees seeded at CHM maxima stay there, at the CHM's height; 0 = they move", K::Integer,
          nullptr, &CanopyParams::anchorApexTrees, R::closed(0, 1)},
+        {"residual_apices", "each iteration adds trees at maxima of the CHM cells no crown explains; 0 = ring only",
+         K::Integer, nullptr, &CanopyParams::residualApices, R::closed(0, 1)},
+        {"residual_tolerance_m", "a covered cell more than this above the crowns is unexplained (m)", K::Real,
+         &CanopyParams::residualToleranceM, nullptr, R::atLeast(0)},
+        {"support_fraction", "an added tree needs this share of its disc unexplained; 0 = the paper's rule", K::Real,
+         &CanopyParams::supportFraction, nullptr, R::closed(0, 1)},
         {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", K::Integer, nullptr,
          &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this (m)", K::Real, &CanopyParams::minTrunkDistanceM,
@@ -568,31 +623,7 @@ void validateCanopyParams(const CanopyParams& p) { validateParams(p, canopyParam
 // ------------------------------------------------------------------------- public functions
 
 std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chm, double minHeightM, int radiusCells) {
-    const int w = chm.width(), h = chm.height(), R = std::max(1, radiusCells);
-    std::vector<std::vector<std::size_t>> rows(static_cast<std::size_t>(h));
-#pragma omp parallel for schedule(dynamic, 16)
-    for (int iy = 0; iy < h; ++iy) {
-        for (int ix = 0; ix < w; ++ix) {
-            const float v = chm(ix, iy);
-            if (!(v >= minHeightM)) continue;
-            const std::size_t i = chm.index(ix, iy);
-            bool isMax = true;
-            for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R) && isMax; ++jy)
-                for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
-                    const float u = chm(jx, jy);
-                    const std::size_t j = chm.index(jx, jy);
-                    if (j == i) continue;
-                    if (u > v || (u == v && j < i)) {
-                        isMax = false;
-                        break;
-                    }
-                }
-            if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
-        }
-    }
-    std::vector<std::size_t> out;
-    for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
-    return out;
+    return localMaxima(chm, minHeightM, radiusCells, [](std::size_t) { return true; });
 }
 
 CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& like) {
@@ -658,7 +689,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     Visibility vis;
     std::vector<std::uint8_t> candValid;
     std::vector<Tree> candTree;
-    renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+    renderAndMeasure(trees, chmM, params, frame, vis);
     {
         IterationStats s;
         s.iteration = 0;
@@ -693,7 +724,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(next.size()); ++k) {
             Tree& tr = next[static_cast<std::size_t>(k)];
-            if (tr.apex) continue;  // at its CHM maximum already
+            if (tr.apex) continue;  // at its apex already
             const std::size_t t = from[static_cast<std::size_t>(k)];
             const std::int64_t n = vis.visible[t];
             if (n <= 0) continue;
@@ -707,16 +738,87 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         }
         trees.swap(next);
 
+        const float* chmData = chmM.data().data();
+        auto unexplained = [&](std::size_t i) { return vis.unexplained[i] != 0; };
+        // Support of a crown of radius r centred on cell (ix, iy): the share of its disc's cells
+        // (centres inside, clipped to the grid) that are unexplained.
+        auto supported = [&](int ix, int iy, double radiusM) {
+            if (!(params.supportFraction > 0)) return true;
+            const double reach = radiusM / cell;
+            const int rows = static_cast<int>(reach);
+            std::int64_t disc = 0, open = 0;
+            for (int dy = -rows; dy <= rows; ++dy) {
+                const int jy = iy + dy;
+                if (jy < 0 || jy >= chmM.height()) continue;
+                const double half = std::sqrt(std::max(0.0, reach * reach - dy * dy));
+                // Strictly inside: the cells whose centre offset |dx| < half.
+                const int span = static_cast<int>(std::ceil(half)) - 1;
+                if (span < 0) continue;
+                const int jx0 = std::max(0, ix - span), jx1 = std::min(chmM.width() - 1, ix + span);
+                const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(chmM.width());
+                disc += jx1 - jx0 + 1;
+                for (int jx = jx0; jx <= jx1; ++jx) open += unexplained(row + static_cast<std::size_t>(jx));
+            }
+            return static_cast<double>(open) >= params.supportFraction * static_cast<double>(disc);
+        };
+        // Trunks of the trees so far, for the residual apices and the ring (new trees appended).
+        BucketGrid grid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
+        for (std::size_t t = 0; t < trees.size(); ++t) grid.insert(trees[t].x, trees[t].y, static_cast<std::int32_t>(t));
+        if (params.residualApices != 0) {
+            // Residual apices: strict maxima of the CHM among the footprint cells that no
+            // crown of the last render explains (uncovered, or standing above the rendered
+            // surface by more than the tolerance). A tree whose top shows beside a taller
+            // neighbour's crown is not a maximum of the CHM, but it is one of this set.
+            const auto apices = localMaxima(chmM, params.minSeedHeightM, 1, unexplained);
+            // Support and the candidate trees depend on the last render only: in parallel.
+            const std::size_t w = static_cast<std::size_t>(chmM.width());
+            std::vector<Tree> cand(apices.size());
+            std::vector<std::uint8_t> candSupported(apices.size());
+#pragma omp parallel for schedule(dynamic, 64)
+            for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(apices.size()); ++k) {
+                const std::size_t i = apices[static_cast<std::size_t>(k)];
+                const int ix = static_cast<int>(i % w), iy = static_cast<int>(i / w);
+                const double r = scene.radiusFor(scene.speciesAt(chmM.cellCentreX(ix), chmM.cellCentreY(iy)), chmData[i]);
+                candSupported[static_cast<std::size_t>(k)] = supported(ix, iy, r);
+                if (candSupported[static_cast<std::size_t>(k)])
+                    cand[static_cast<std::size_t>(k)] = apexTree(scene, ix, iy, 0, params.anchorApexTrees != 0, unexplained);
+            }
+            // Tallest first: a lower candidate inside an accepted one's crown and below its
+            // surface is explained by it (one uncovered crown gives one tree, not one per bump).
+            std::vector<std::size_t> order;
+            for (std::size_t k = 0; k < apices.size(); ++k)
+                if (candSupported[k]) order.push_back(k);
+            std::stable_sort(order.begin(), order.end(),
+                             [&](std::size_t a, std::size_t b) { return chmData[apices[a]] > chmData[apices[b]]; });
+            const std::size_t firstNew = trees.size();
+            const double d2 = params.minTrunkDistanceM * params.minTrunkDistanceM;
+            for (const std::size_t k : order) {
+                const std::size_t i = apices[k];
+                const double x = chmM.cellCentreX(static_cast<int>(i % w)), y = chmM.cellCentreY(static_cast<int>(i / w));
+                const double z = chmData[i];
+                const bool explained = grid.any(x, y, maxRadius, [&](std::int32_t j) {
+                    const Tree& o = trees[static_cast<std::size_t>(j)];
+                    const double dd = (o.x - x) * (o.x - x) + (o.y - y) * (o.y - y);
+                    if (dd < d2) return true;
+                    if (static_cast<std::size_t>(j) < firstNew || dd >= o.radiusM * o.radiusM) return false;
+                    return z <= o.heightM - o.radiusM + std::sqrt(o.radiusM * o.radiusM - dd) + params.residualToleranceM;
+                });
+                if (explained) continue;
+                Tree c = cand[k];
+                c.uid = nextUid++;
+                grid.insert(c.x, c.y, static_cast<std::int32_t>(trees.size()));
+                trees.push_back(c);
+            }
+            s.added += trees.size() - firstNew;
+        }
+
         // Ring seeding where the CHM is uncovered: candidates per tree in parallel (pure
-        // functions of the tree and its random stream), accepted serially in tree order.
+        // functions of the tree and its random stream), accepted serially in tree order. A
+        // candidate needs the same support as a residual apex.
         if (params.ringSamples > 0) {
-            BucketGrid grid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
-            for (std::size_t t = 0; t < trees.size(); ++t) grid.insert(trees[t].x, trees[t].y, static_cast<std::int32_t>(t));
             const int K = params.ringSamples;
             std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
             for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
-            double ring8[8][2];
-            for (int k = 0; k < 8; ++k) ring8[k][0] = std::cos(kTwoPi * k / 8), ring8[k][1] = std::sin(kTwoPi * k / 8);
             // One slot per (tree, direction): a flag array (cleared each iteration) and tree
             // slots that are only written when valid, kept across iterations.
             candValid.assign(trees.size() * static_cast<std::size_t>(K), 0);
@@ -743,49 +845,19 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     const double gh = scene.heightAt(gx, gy);
                     const double rNew = gh >= params.minSeedHeightM ? scene.radiusFor(scene.speciesAt(gx, gy), gh) : tr.radiusM;
                     const double d = params.ringFactor * (tr.radiusM + rNew);
-                    const double x0 = tr.x + d * ux, y0 = tr.y + d * uy;
-                    if (!scene.inside(x0, y0)) continue;
-                    const std::size_t ci = scene.cellIndex(x0, y0);
+                    const double x = tr.x + d * ux, y = tr.y + d * uy;
+                    if (!scene.inside(x, y)) continue;
+                    const std::size_t ci = scene.cellIndex(x, y);
                     if (!vis.open[ci]) continue;
-                    double hNew = scene.heightAt(x0, y0);
+                    const double hNew = scene.heightAt(x, y);
                     if (hNew < params.minSeedHeightM) continue;
-                    double x = x0, y = y0;
-                    if (params.supportBumpFactor > 0) {
-                        // Support: a crown of its own in the CHM. The cell within r_new / 2
-                        // that stands highest above the mean of its ring at r_new / 2 (a bump
-                        // whatever the slope it sits on) takes the tree, if it stands at
-                        // least supportBumpFactor x r_new above that ring and is uncovered.
-                        const Grid<float>& chm = scene.chm();
-                        const double rr = scene.radiusFor(scene.speciesAt(x, y), hNew);
-                        const int reach = std::max(1, static_cast<int>(std::lround(0.5 * rr / cell)));
-                        const int cx0 = chm.cellX(x), cy0 = chm.cellY(y);
-                        double bestBump = -1e300;
-                        int bx = cx0, by = cy0;
-                        for (int dy = -reach; dy <= reach; ++dy)
-                            for (int dx = -reach; dx <= reach; ++dx) {
-                                if (dx * dx + dy * dy > reach * reach) continue;
-                                const int ix = cx0 + dx, iy = cy0 + dy;
-                                if (!chm.inside(ix, iy)) continue;
-                                double ringSum = 0;
-                                for (int k = 0; k < 8; ++k)
-                                    ringSum += chm.clamped(ix + static_cast<int>(std::lround(reach * ring8[k][0])),
-                                                           iy + static_cast<int>(std::lround(reach * ring8[k][1])));
-                                const double bump = chm(ix, iy) - ringSum / 8.0;
-                                if (bump > bestBump) bestBump = bump, bx = ix, by = iy;
-                            }
-                        if (!(bestBump >= params.supportBumpFactor * rr)) continue;
-                        x = chm.cellCentreX(bx);
-                        y = chm.cellCentreY(by);
-                        if (!vis.open[scene.cellIndex(x, y)]) continue;
-                        hNew = scene.heightAt(x, y);
-                        if (hNew < params.minSeedHeightM) continue;
-                    }
                     const bool inCrown = grid.any(x, y, maxRadius, [&](std::int32_t j) {
                         const Tree& o = trees[static_cast<std::size_t>(j)];
                         const double dx = o.x - x, dy = o.y - y;
                         return dx * dx + dy * dy < o.radiusM * o.radiusM;
                     });
                     if (inCrown) continue;
+                    if (!supported(chmM.cellX(x), chmM.cellY(y), scene.radiusFor(scene.speciesAt(x, y), hNew))) continue;
                     const std::size_t slot = static_cast<std::size_t>(tt) * static_cast<std::size_t>(K) + static_cast<std::size_t>(k);
                     candValid[slot] = 1;
                     candTree[slot] = scene.makeTree(x, y, hNew, 0);
@@ -809,11 +881,11 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 fresh.push_back(c);
                 fresh.back().uid = nextUid++;
             }
-            s.added = fresh.size();
+            s.added += fresh.size();
             trees.insert(trees.end(), fresh.begin(), fresh.end());
         }
 
-        renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+        renderAndMeasure(trees, chmM, params, frame, vis);
         fillStats(s, trees.size(), vis);
         s.seconds = secondsSince(tIter);
         const double gain = s.coverage - result.iterations.back().coverage;
@@ -832,7 +904,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
 
     if (params.keepBestState != 0 && bestIteration + 1 != result.iterations.size()) {
         trees = bestTrees;
-        renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+        renderAndMeasure(trees, chmM, params, frame, vis);
         result.stopReason += "; back to iteration " + std::to_string(result.iterations[bestIteration].iteration) +
                              " (coverage " + num(result.iterations[bestIteration].coverage) + ")";
     }
@@ -857,7 +929,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         result.duplicatesRemoved = trees.size() - kept.size();
         trees.swap(kept);
     }
-    renderAndMeasure(trees, chmM, params.canopyThresholdM, frame, vis);
+    renderAndMeasure(trees, chmM, params, frame, vis);
     fillStats(fin, trees.size(), vis);
     fin.seconds = secondsSince(tIter);
     result.final = fin;

@@ -4,9 +4,11 @@
 //   1. Seed a tree at every strict local maximum of the CHM that is >= minSeedHeightM.
 //   2. Iterate: render every crown top-down into a depth / tree-id buffer at CHM resolution;
 //      remove trees whose visible crown (on the CHM footprint) is below minVisibleFraction of
-//      their disc; move every other tree toward the centroid of its visible pixels; seed new
-//      trees on a ring around each tree where the CHM is uncovered. Stop when the coverage of
-//      the CHM footprint gains less than coverageEpsilon, or after maxIterations.
+//      their disc; move every other tree toward the centroid of its visible pixels; add trees
+//      at the maxima of the CHM cells no crown explains (residual apices), then on a ring
+//      around each tree where the CHM is uncovered, each new crown supported by unexplained
+//      cells. Stop when the coverage of the CHM footprint gains less than coverageEpsilon, or
+//      after maxIterations.
 //   3. Remove starved trees of the last render and duplicates (trunks closer than
 //      minTrunkDistanceM; crowns whose sphere lies entirely inside a larger one).
 //
@@ -73,15 +75,23 @@ struct CanopyParams {
     /// below 1 the new crown overlaps it, which reaches the crescents a hidden neighbour
     /// leaves uncovered beside a crown (docs/canopy.md).
     double ringFactor = 0.8;
-    /// Optional support rule for added trees: within half its crown radius, a cell at least
-    /// this many crown radii above the mean of the CHM on a ring of half a radius around it
-    /// (a bump on any slope), to which the tree moves. 0 (default): the paper's rule, any
-    /// uncovered cell (bench_canopy_accuracy: the rule did not raise precision on lidar-like
-    /// CHMs and lowered recall and coverage on dense sphere CHMs; docs/canopy.md).
-    double supportBumpFactor = 0.0;
     /// 1: trees seeded at CHM maxima stay at their apex with the CHM's height (on real lidar
     /// the visible-centroid move pulls them off it); 0: they move like added trees.
     int anchorApexTrees = 1;
+    /// 1: each iteration also adds a tree at every residual apex: a strict 3 x 3 maximum of
+    /// the CHM among the footprint cells no crown explains (see residualToleranceM), with
+    /// the CHM's height there, anchored like a seed. The top of a tree beside a taller
+    /// neighbour is often no maximum of the CHM (the neighbour's flank rises past it) but is
+    /// one of that set. 0: added trees come from the ring only (the paper).
+    int residualApices = 1;
+    /// A footprint cell is explained by the crowns when it is covered and stands at most this
+    /// much (metres) above the rendered surface (lidar noise and crown shapes other than
+    /// spheres leave small excesses that are no tree of their own).
+    double residualToleranceM = 0.3;
+    /// An added tree (residual apex or ring) needs at least this fraction of the cells of its
+    /// crown disc unexplained: a crown of its own in the CHM, not a rim that an existing
+    /// crown, slightly off, leaves uncovered. 0: any uncovered cell will do (the paper).
+    double supportFraction = 0.3;
     /// 1: the placer ends in the state of highest coverage when later iterations lost some.
     int keepBestState = 1;
     /// Final duplicate removal: of two trunks closer than this (metres) the lower tree goes.

@@ -416,3 +416,29 @@ TEST_CASE("apex trees stay at their CHM maximum with its height; the best state 
     for (const IterationStats& s : r.iterations) best = std::max(best, s.coverage);
     CHECK(r.final.coverage >= best - 0.01);  // the final clean-up may drop a starved tree or two
 }
+
+TEST_CASE("a top on a taller neighbour's flank is no CHM maximum but is found as a residual apex", "[canopy]") {
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    // The lower tree's apex stands 0.6 m above the taller crown's surface, a cell (0.5 m)
+    // toward the taller trunk that surface is higher than the apex: no strict maximum.
+    const double rTall = a.crownRadiusM(30);
+    const std::vector<GeneratedTree> trees = {{20.25, 20.25, 30.0, rTall}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}};
+    Grid<float> chm(80, 80, 0.5, 0, 0, 0.f);
+    rasterizeCrowns(trees, chm);
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    REQUIRE(4.35 < rTall);
+    for (const std::size_t i : synth::chmLocalMaxima(chm, 3.0, 1))
+        CHECK(std::hypot(chm.cellCentreX(static_cast<int>(i % 80)) - trees[1].x, chm.cellCentreY(static_cast<int>(i / 80)) - trees[1].y) > 1.0);
+    synth::CanopyParams p;
+    p.ringSamples = 0;  // trees come from the seeding and the residual apices only
+    const synth::CanopyResult found = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    INFO("trees " << found.trees.size() << ", seeds " << found.initialSeeds);
+    REQUIRE(found.trees.size() == 2);
+    for (const GeneratedTree& t : trees) CHECK(nearestDistance(found.trees, t.x, t.y) < 0.5);
+    for (const Plant& t : found.trees) CHECK(std::abs(t.heightM - (t.xM > 22 ? 27.0 : 30.0)) < 0.3);
+    p.residualApices = 0;
+    const synth::CanopyResult missed = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    CHECK(nearestDistance(missed.trees, trees[1].x, trees[1].y) > 1.0);
+}
