@@ -98,15 +98,40 @@ void distanceTransform1d(const double* f, int n, double* d, int* v, double* z) {
 std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8_t target) {
     const int w = mask.width(), h = mask.height();
     std::vector<double> g(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    // Along the columns the input is 0 or kFar, so the transform is the squared distance to
+    // the nearest target cell in the column (what distanceTransform1d gives exactly): two
+    // sweeps down and up the rows of a block of columns, reading the grid row by row instead
+    // of a column at a time.
+    constexpr int kBlockColumns = 256;
+    const int nBlocks = (w + kBlockColumns - 1) / kBlockColumns;
 #pragma omp parallel
     {
-        std::vector<double> f(static_cast<std::size_t>(h)), d(static_cast<std::size_t>(h)), z(static_cast<std::size_t>(h) + 1);
-        std::vector<int> v(static_cast<std::size_t>(h));
+        std::vector<int> nearest(static_cast<std::size_t>(kBlockColumns));
 #pragma omp for schedule(static)
-        for (int ix = 0; ix < w; ++ix) {
-            for (int iy = 0; iy < h; ++iy) f[static_cast<std::size_t>(iy)] = mask(ix, iy) == target ? 0.0 : kFar;
-            distanceTransform1d(f.data(), h, d.data(), v.data(), z.data());
-            for (int iy = 0; iy < h; ++iy) g[mask.index(ix, iy)] = d[static_cast<std::size_t>(iy)];
+        for (int b = 0; b < nBlocks; ++b) {
+            const int x0 = b * kBlockColumns, x1 = std::min(w, x0 + kBlockColumns);
+            std::fill(nearest.begin(), nearest.end(), -1);
+            for (int iy = 0; iy < h; ++iy) {
+                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
+                double* row = g.data() + mask.index(0, iy);
+                for (int ix = x0; ix < x1; ++ix) {
+                    int& above = nearest[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == target) above = iy;
+                    const double d = double(iy - above);
+                    row[ix] = above < 0 ? kFar : d * d;
+                }
+            }
+            std::fill(nearest.begin(), nearest.end(), -1);
+            for (int iy = h - 1; iy >= 0; --iy) {
+                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
+                double* row = g.data() + mask.index(0, iy);
+                for (int ix = x0; ix < x1; ++ix) {
+                    int& below = nearest[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == target) below = iy;
+                    const double d = double(below - iy);
+                    if (below >= 0 && d * d < row[ix]) row[ix] = d * d;
+                }
+            }
         }
     }
 #pragma omp parallel

@@ -543,12 +543,15 @@ struct HeightDraw {
 /// (and inhibits others).
 ///
 /// The sequential rule has one result (the greedy independent set in key order), found here
-/// without sorting by key and mostly in parallel: the candidates are grouped by buckets of
-/// the hard-core range (in the order they come, rows), each one's neighbours of lower key
-/// within its hard cores listed in parallel (one near a plant of an earlier pass is dropped
-/// there and then), then each candidate decided after the neighbours it depends on (a
-/// depth-first walk in bucket order, local in memory): admitted unless one of them was.
-/// Placed plants of earlier passes sit in a bucket grid (linked lists through them).
+/// without sorting by key and mostly in parallel: only the candidates a hard core concerns
+/// take part (a species inhibited in its region, or one that some hard core keeps others
+/// away from; the rest are admitted and inhibit no one, usually most of them). Those are
+/// grouped by buckets of the hard-core range (in the order they come, rows), each one's
+/// neighbours of lower key within its hard cores listed in parallel (one near a plant of an
+/// earlier pass is dropped there and then), then each candidate decided after the neighbours
+/// it depends on (a depth-first walk in bucket order, local in memory): admitted unless one
+/// of them was. Placed plants of earlier passes that inhibit others sit in a bucket grid
+/// (linked lists through them).
 struct HardCore {
     const std::vector<RegionStructure>& structure;
     std::size_t nSpecies;
@@ -558,15 +561,18 @@ struct HardCore {
     std::vector<std::int32_t> next;  ///< per placed plant
     std::vector<Candidate> placed;
     std::vector<char> speciesInhibited;  ///< [region][species]: some pair of it has a hard core
+    std::vector<char> speciesInhibits;   ///< [species]: some region's hard core keeps others from it
 
     HardCore(const std::vector<RegionStructure>& st, std::size_t ns, double extentX, double extentY)
         : structure(st), nSpecies(ns) {
         speciesInhibited.assign(st.size() * ns, 0);
+        speciesInhibits.assign(ns, 0);
         for (std::size_t r = 0; r < st.size(); ++r)
             for (std::size_t i = 0; i < st[r].hardCoreM.size(); ++i)
                 if (st[r].hardCoreM[i] > 0) {
                     maxM = std::max(maxM, st[r].hardCoreM[i]);
                     speciesInhibited[r * ns + i / ns] = 1;
+                    speciesInhibits[i % ns] = 1;
                 }
         if (!(maxM > 0)) return;
         bucketM = std::max(maxM, 1.0);
@@ -595,18 +601,31 @@ struct HardCore {
                     if (conflict(c, placed[static_cast<std::size_t>(o)], hc)) return true;
         return false;
     }
-    /// The admitted candidates of a pass (in bucket order); those are placed. The dropped
-    /// ones go to `dropped`.
-    std::vector<Candidate> select(const std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
-        const std::size_t n = cand.size(), nb = head.size();
-        // The candidates by bucket, in the order they came inside a bucket: position p.
+    /// Removes the dropped candidates of a pass from `cand` (the admitted keep their order)
+    /// and appends them to `dropped`; the admitted ones that inhibit others are placed.
+    void select(std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
+        const std::size_t nb = head.size();
+        auto inhibited = [&](const Candidate& c) {
+            return speciesInhibited[static_cast<std::size_t>(regionOfCell[c.cell]) * nSpecies + c.species] != 0;
+        };
+        auto concerned = [&](const Candidate& c) { return speciesInhibits[c.species] != 0 || inhibited(c); };
+        // The concerned candidates by bucket, in the order they came inside a bucket: position p;
+        // origin[p] its index in cand.
         std::vector<std::uint32_t> start(nb + 1, 0);
-        for (const Candidate& c : cand) ++start[bucketOf(c) + 1];
+        for (const Candidate& c : cand)
+            if (concerned(c)) ++start[bucketOf(c) + 1];
         for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
+        const std::size_t n = start[nb];
         std::vector<Candidate> cb(n);
+        std::vector<std::uint32_t> origin(n);
         {
             std::vector<std::uint32_t> pos(start.begin(), start.end() - 1);
-            for (const Candidate& c : cand) cb[pos[bucketOf(c)]++] = c;
+            for (std::size_t i = 0; i < cand.size(); ++i)
+                if (concerned(cand[i])) {
+                    const std::uint32_t p = pos[bucketOf(cand[i])]++;
+                    cb[p] = cand[i];
+                    origin[p] = static_cast<std::uint32_t>(i);
+                }
         }
         // q (position) comes before c (position p) in the sequential order: lower key, then
         // lower cell, then earlier position.
@@ -686,20 +705,27 @@ struct HardCore {
                 }
             }
         }
-        std::vector<Candidate> kept;
-        kept.reserve(n);
+        // Dropped candidates out of cand, in place; admitted ones that inhibit others placed.
+        std::vector<char> drop(cand.size(), 0);
         for (std::size_t p = 0; p < n; ++p) {
             if (state[p] != 1) {
-                dropped.push_back(cb[p]);
+                drop[origin[p]] = 1;
                 continue;
             }
+            if (!speciesInhibits[cb[p].species]) continue;
             const std::size_t b = bucketOf(cb[p]);
             next.push_back(head[b]);
             head[b] = static_cast<std::int32_t>(placed.size());
             placed.push_back(cb[p]);
-            kept.push_back(cb[p]);
         }
-        return kept;
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < cand.size(); ++i) {
+            if (drop[i])
+                dropped.push_back(cand[i]);
+            else
+                cand[k++] = cand[i];
+        }
+        cand.resize(k);
     }
 };
 
@@ -1210,10 +1236,9 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         // throw darts for what is missing.
         if (hardCore.maxM > 0) {
             std::vector<Candidate> dropped;
-            std::vector<Candidate> kept = hardCore.select(passAccepted, map.region.data().data(), dropped);
+            hardCore.select(passAccepted, map.region.data().data(), dropped);
             for (const Candidate& c : dropped) --placedG[groupOf(c.cell, c.species)];
-            out.dartsInhibited += static_cast<std::int64_t>(passAccepted.size() - kept.size());
-            passAccepted.swap(kept);
+            out.dartsInhibited += static_cast<std::int64_t>(dropped.size());
         }
         accepted.insert(accepted.end(), passAccepted.begin(), passAccepted.end());
         phase("hard core");

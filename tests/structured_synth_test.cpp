@@ -317,3 +317,38 @@ TEST_CASE("canopy depth map: the distance to the crown-cover edge, signed", "[sy
     CHECK(bins.coveredBin(5));
     CHECK_FALSE(bins.coveredBin(4));
 }
+
+TEST_CASE("canopy depth map: equal to a brute-force distance transform", "[synth][structured]") {
+    // Random crowns, some columns and rows without cover, on a grid small enough for the
+    // direct evaluation of the definition: the distance between cell centres to the nearest
+    // cell of the other kind, less half a cell, capped.
+    const int w = 61, h = 47;
+    const double cs = 0.7;
+    const Grid<float> geometry(w, h, cs, 3, -2);
+    std::vector<Plant> canopy;
+    RandomStream rs(5, 17);
+    for (int i = 0; i < 14; ++i) {
+        Plant t;
+        t.xM = 3 + rs.uniform(0, 0.6 * w * cs);
+        t.yM = -2 + rs.uniform(0, h * cs);
+        t.crownRadiusM = rs.uniform(0.3, 4.0);
+        t.heightM = 10;
+        canopy.push_back(t);
+    }
+    const Grid<std::uint8_t> mask = canopyCoverMask(geometry, canopy);
+    const Grid<float> depth = canopyDepthMap(geometry, canopy);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            const bool covered = mask(ix, iy) != 0;
+            double best = -1;
+            for (int jy = 0; jy < h; ++jy)
+                for (int jx = 0; jx < w; ++jx)
+                    if ((mask(jx, jy) != 0) != covered) {
+                        const double d2 = double(jx - ix) * (jx - ix) + double(jy - iy) * (jy - iy);
+                        if (best < 0 || d2 < best) best = d2;
+                    }
+            const double dm = best < 0 ? kCanopyDepthCapM : std::min(kCanopyDepthCapM, (std::sqrt(best) - 0.5) * cs);
+            INFO("cell " << ix << "," << iy);
+            REQUIRE(depth(ix, iy) == static_cast<float>(covered ? dm : -dm));
+        }
+}
