@@ -1,5 +1,7 @@
 #include "canopy_context.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -40,21 +42,27 @@ Grid<std::uint8_t> canopyCoverMask(const Grid<float>& geometry, const std::vecto
     Grid<std::uint8_t> mask = Grid<std::uint8_t>::like(geometry, 0);
     const double cs = geometry.cellSizeM();
     const int w = geometry.width(), h = geometry.height();
-    for (const Plant& t : canopy) {
-        const double r = t.crownRadiusM;
-        if (!(r > 0)) continue;
-        const int y0 = std::max(0, static_cast<int>(std::floor((t.yM - r - geometry.originY()) / cs - 0.5)));
-        const int y1 = std::min(h - 1, static_cast<int>(std::ceil((t.yM + r - geometry.originY()) / cs - 0.5)));
-        for (int iy = y0; iy <= y1; ++iy) {
-            const double dy = geometry.cellCentreY(iy) - t.yM;
-            const double span2 = r * r - dy * dy;
-            if (!(span2 > 0)) continue;
-            const double half = std::sqrt(span2);
-            int x0 = std::max(0, static_cast<int>(std::floor((t.xM - half - geometry.originX()) / cs - 0.5)));
-            int x1 = std::min(w - 1, static_cast<int>(std::ceil((t.xM + half - geometry.originX()) / cs - 0.5)));
-            for (int ix = x0; ix <= x1; ++ix) {
-                const double dx = geometry.cellCentreX(ix) - t.xM;
-                if (dx * dx + dy * dy < r * r) mask(ix, iy) = 1;
+    // Each thread marks the cells of its own share of the rows, from every tree.
+#pragma omp parallel
+    {
+        const long long nt = omp_get_num_threads(), t0 = omp_get_thread_num();
+        const int rowLo = static_cast<int>(h * t0 / nt), rowHi = static_cast<int>(h * (t0 + 1) / nt) - 1;
+        for (const Plant& t : canopy) {
+            const double r = t.crownRadiusM;
+            if (!(r > 0)) continue;
+            const int y0 = std::max(rowLo, static_cast<int>(std::floor((t.yM - r - geometry.originY()) / cs - 0.5)));
+            const int y1 = std::min(rowHi, static_cast<int>(std::ceil((t.yM + r - geometry.originY()) / cs - 0.5)));
+            for (int iy = y0; iy <= y1; ++iy) {
+                const double dy = geometry.cellCentreY(iy) - t.yM;
+                const double span2 = r * r - dy * dy;
+                if (!(span2 > 0)) continue;
+                const double half = std::sqrt(span2);
+                int x0 = std::max(0, static_cast<int>(std::floor((t.xM - half - geometry.originX()) / cs - 0.5)));
+                int x1 = std::min(w - 1, static_cast<int>(std::ceil((t.xM + half - geometry.originX()) / cs - 0.5)));
+                for (int ix = x0; ix <= x1; ++ix) {
+                    const double dx = geometry.cellCentreX(ix) - t.xM;
+                    if (dx * dx + dy * dy < r * r) mask(ix, iy) = 1;
+                }
             }
         }
     }

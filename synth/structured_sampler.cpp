@@ -26,6 +26,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include <omp.h>
+
 #include "canopy_context.h"
 #include "error.h"
 #include "rng.h"
@@ -372,19 +374,52 @@ struct Candidate {
     std::uint16_t pass;
 };
 
+/// A counting sort of items 0 .. n-1 into buckets, in parallel: each thread counts, then
+/// places, a contiguous share of the items, so a bucket holds its items in input order for
+/// any number of threads. bucketOf(i) is in [0, nBuckets]; nBuckets leaves the item out.
+/// place(i, p) puts item i at position p. Returns the buckets' starts (nBuckets + 1).
+template <typename BucketOf, typename Place>
+std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, BucketOf bucketOf, Place place) {
+    const std::size_t maxThreads = static_cast<std::size_t>(omp_get_max_threads());
+    std::vector<std::size_t> next(maxThreads * (nBuckets + 1), 0);  // [thread][bucket]: count, then position
+    std::vector<std::size_t> start(nBuckets + 1, 0);
+#pragma omp parallel
+    {
+        const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
+        const std::size_t lo = n * t / nt, hi = n * (t + 1) / nt;
+        std::size_t* mine = &next[t * (nBuckets + 1)];
+        for (std::size_t i = lo; i < hi; ++i) ++mine[bucketOf(i)];
+#pragma omp barrier
+#pragma omp single
+        {
+            std::size_t at = 0;
+            for (std::size_t b = 0; b < nBuckets; ++b) {
+                start[b] = at;
+                for (std::size_t u = 0; u < nt; ++u) {
+                    std::size_t& c = next[u * (nBuckets + 1) + b];
+                    const std::size_t k = c;
+                    c = at;
+                    at += k;
+                }
+            }
+            start[nBuckets] = at;
+        }
+        for (std::size_t i = lo; i < hi; ++i) {
+            const std::size_t b = bucketOf(i);
+            if (b < nBuckets) place(i, mine[b]++);
+        }
+    }
+    return start;
+}
+
 /// Sorts v by `less`: a counting pass into buckets (bucketOf must not decrease along `less`),
 /// then each bucket sorted on its own, in parallel. The same order as std::sort for a strict
 /// total order, for any thread count.
 template <typename BucketOf, typename Less>
 void sortInBuckets(std::vector<Candidate>& v, std::size_t nBuckets, BucketOf bucketOf, Less less) {
-    std::vector<std::size_t> start(nBuckets + 1, 0);
-    for (const Candidate& c : v) ++start[bucketOf(c) + 1];
-    for (std::size_t b = 0; b < nBuckets; ++b) start[b + 1] += start[b];
     std::vector<Candidate> sorted(v.size());
-    {
-        std::vector<std::size_t> pos(start.begin(), start.end() - 1);
-        for (const Candidate& c : v) sorted[pos[bucketOf(c)]++] = c;
-    }
+    const std::vector<std::size_t> start = scatterByBucket(
+        v.size(), nBuckets, [&](std::size_t i) { return bucketOf(v[i]); }, [&](std::size_t i, std::size_t p) { sorted[p] = v[i]; });
 #pragma omp parallel for schedule(dynamic, 256)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nBuckets); ++b) {
         const std::size_t lo = start[static_cast<std::size_t>(b)], hi = start[static_cast<std::size_t>(b) + 1];
@@ -575,7 +610,7 @@ struct HardCore {
                     speciesInhibits[i % ns] = 1;
                 }
         if (!(maxM > 0)) return;
-        bucketM = std::max(maxM, 1.0);
+        bucketM = std::max(maxM, 2.0);  // not finer: the buckets are counted and cleared every pass
         nx = std::max(1, static_cast<int>(std::ceil(extentX / bucketM)));
         ny = std::max(1, static_cast<int>(std::ceil(extentY / bucketM)));
         head.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), -1);
@@ -611,22 +646,23 @@ struct HardCore {
         auto concerned = [&](const Candidate& c) { return speciesInhibits[c.species] != 0 || inhibited(c); };
         // The concerned candidates by bucket, in the order they came inside a bucket: position p;
         // origin[p] its index in cand.
-        std::vector<std::uint32_t> start(nb + 1, 0);
-        for (const Candidate& c : cand)
-            if (concerned(c)) ++start[bucketOf(c) + 1];
-        for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
-        const std::size_t n = start[nb];
+        std::vector<std::uint32_t> concernedBucket(cand.size());
+        std::size_t n = 0;
+#pragma omp parallel for schedule(static) reduction(+ : n)
+        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(cand.size()); ++ii) {
+            const Candidate& c = cand[static_cast<std::size_t>(ii)];
+            const bool in = concerned(c);
+            concernedBucket[static_cast<std::size_t>(ii)] = static_cast<std::uint32_t>(in ? bucketOf(c) : nb);
+            n += in;
+        }
         std::vector<Candidate> cb(n);
         std::vector<std::uint32_t> origin(n);
-        {
-            std::vector<std::uint32_t> pos(start.begin(), start.end() - 1);
-            for (std::size_t i = 0; i < cand.size(); ++i)
-                if (concerned(cand[i])) {
-                    const std::uint32_t p = pos[bucketOf(cand[i])]++;
-                    cb[p] = cand[i];
-                    origin[p] = static_cast<std::uint32_t>(i);
-                }
-        }
+        const std::vector<std::size_t> start = scatterByBucket(
+            cand.size(), nb, [&](std::size_t i) { return concernedBucket[i]; },
+            [&](std::size_t i, std::size_t p) {
+                cb[p] = cand[i];
+                origin[p] = static_cast<std::uint32_t>(i);
+            });
         // q (position) comes before c (position p) in the sequential order: lower key, then
         // lower cell, then earlier position.
         auto before = [&](std::size_t q, std::size_t p) {
@@ -661,8 +697,8 @@ struct HardCore {
                         for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
                             for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x) {
                                 const std::size_t b = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x);
-                                for (std::uint32_t q = start[b]; q < start[b + 1]; ++q)
-                                    if (q != p && conflict(c, cb[q], hc) && before(q, p)) dk.push_back(q);
+                                for (std::size_t q = start[b]; q < start[b + 1]; ++q)
+                                    if (q != p && conflict(c, cb[q], hc) && before(q, p)) dk.push_back(static_cast<std::uint32_t>(q));
                             }
                     }
                 }
@@ -705,8 +741,9 @@ struct HardCore {
                 }
             }
         }
-        // Dropped candidates out of cand, in place; admitted ones that inhibit others placed.
-        std::vector<char> drop(cand.size(), 0);
+        // Admitted ones that inhibit others placed; the dropped ones moved out of cand (in
+        // place: a copy would be one more large array to fault in).
+        std::vector<std::uint8_t> drop(cand.size(), 0);
         for (std::size_t p = 0; p < n; ++p) {
             if (state[p] != 1) {
                 drop[origin[p]] = 1;
@@ -979,6 +1016,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
     phase("masks, quotas, trunks");
     std::vector<Candidate> accepted;
+    // No group takes more than its quota: one allocation for every pass's plants.
+    accepted.reserve(static_cast<std::size_t>(std::accumulate(quotaG.begin(), quotaG.end(), std::int64_t{0})));
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
         // still missing. Every pass draws from the same model: the free part, and offspring
@@ -1168,33 +1207,32 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             }
         }
         phase("candidates");
-        // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
-        // keys of each group gathered in one array (groups in order), each group's threshold
-        // found by nth_element in parallel (the k-th smallest key does not depend on the order).
-        std::vector<std::vector<std::uint32_t>> rowGroup(static_cast<std::size_t>(h));
-#pragma omp parallel for schedule(dynamic, 16)
-        for (int iy = 0; iy < h; ++iy) {
-            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-            auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-            grp.resize(cand.size());
-            for (std::size_t j = 0; j < cand.size(); ++j) grp[j] = static_cast<std::uint32_t>(groupOf(cand[j].cell, cand[j].species));
-        }
-        std::vector<std::size_t> groupStart(nGroups + 1, 0);
+        // The pass's candidates in one array, rows in order, with their groups.
+        std::vector<std::size_t> rowStart(static_cast<std::size_t>(h) + 1, 0);
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            for (const std::uint32_t g : rowGroup[static_cast<std::size_t>(iy)]) ++groupStart[g + 1];
+            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCand[static_cast<std::size_t>(iy)].size();
         }
-        for (std::size_t g = 0; g < nGroups; ++g) groupStart[g + 1] += groupStart[g];
-        std::vector<std::uint64_t> keys(groupStart[nGroups]);
-        {
-            std::vector<std::size_t> pos(groupStart.begin(), groupStart.end() - 1);
-            for (int iy = 0; iy < h; ++iy) {
-                const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-                const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-                for (std::size_t j = 0; j < cand.size(); ++j) keys[pos[grp[j]]++] = cand[j].key;
+        const std::size_t nCand = rowStart[static_cast<std::size_t>(h)];
+        std::vector<Candidate> cand(nCand);
+        std::vector<std::uint32_t> grp(nCand);
+#pragma omp parallel for schedule(dynamic, 16)
+        for (int iy = 0; iy < h; ++iy) {
+            std::vector<Candidate>& row = rowCand[static_cast<std::size_t>(iy)];
+            const std::size_t at = rowStart[static_cast<std::size_t>(iy)];
+            for (std::size_t j = 0; j < row.size(); ++j) {
+                cand[at + j] = row[j];
+                grp[at + j] = static_cast<std::uint32_t>(groupOf(row[j].cell, row[j].species));
             }
+            std::vector<Candidate>().swap(row);
         }
+        // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
+        // keys of each group gathered in one array, each group's threshold found by
+        // nth_element in parallel (the k-th smallest key does not depend on the order).
+        std::vector<std::uint64_t> keys(nCand);
+        const std::vector<std::size_t> groupStart = scatterByBucket(
+            nCand, nGroups, [&](std::size_t i) { return grp[i]; }, [&](std::size_t i, std::size_t p) { keys[p] = cand[i].key; });
         std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
         std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
 #pragma omp parallel for schedule(dynamic, 64)
@@ -1208,6 +1246,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             }
             const auto b = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i]);
             const auto e = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i + 1]);
+            placedG[i] += std::min<std::int64_t>(missing, e - b);  // less those the hard cores drop, below
             if (e - b <= missing) continue;
             std::nth_element(b, b + (missing - 1), e);
             threshold[i] = b[missing - 1];
@@ -1216,20 +1255,26 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             equalQuota[i] = missing - less;
         }
         std::vector<std::uint64_t>().swap(keys);
-        std::vector<Candidate> passAccepted;
-        for (int iy = 0; iy < h; ++iy) {
-            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-            const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-            for (std::size_t j = 0; j < cand.size(); ++j) {
-                const std::size_t i = grp[j];
-                if (cand[j].key < threshold[i] || (cand[j].key == threshold[i] && equalQuota[i]-- > 0)) {
-                    passAccepted.push_back(cand[j]);
-                    ++placedG[i];  // less those the hard cores drop, below
-                }
-            }
-            std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
-            std::vector<std::uint32_t>().swap(rowGroup[static_cast<std::size_t>(iy)]);
+        // Below the threshold: taken; at it: the first equalQuota[g] in candidate order (a
+        // key drawn twice), decided in order after the parallel pass.
+        std::vector<std::uint8_t> take(nCand);
+        std::size_t nTaken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : nTaken)
+        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(nCand); ++ii) {
+            const std::size_t i = static_cast<std::size_t>(ii);
+            const std::uint64_t t = threshold[grp[i]];
+            take[i] = cand[i].key < t ? 1 : cand[i].key == t ? 2 : 0;
+            nTaken += take[i] == 1;
         }
+        for (std::size_t i = 0; i < nCand; ++i)
+            if (take[i] == 2) {
+                take[i] = equalQuota[grp[i]]-- > 0 ? 1 : 0;
+                nTaken += take[i];
+            }
+        std::vector<Candidate> passAccepted(nTaken);
+        scatterByBucket(
+            nCand, 1, [&](std::size_t i) { return take[i] == 1 ? std::size_t{0} : std::size_t{1}; },
+            [&](std::size_t i, std::size_t p) { passAccepted[p] = cand[i]; });
         phase("quota selection");
         // Inhibition: in ascending key order, a candidate closer than the hard-core distance
         // to a plant already placed is dropped (random sequential adsorption); later passes
