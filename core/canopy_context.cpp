@@ -115,31 +115,26 @@ std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8
 #pragma omp parallel
     {
         std::vector<int> nearest(static_cast<std::size_t>(kBlockColumns));
+        // Rows first .. last (exclusive) in steps of step: the squared distance to the nearest
+        // target met so far in each column; kept only where nearer when `nearer`.
+        auto sweep = [&](int x0, int x1, int first, int last, int step, bool nearer) {
+            std::fill(nearest.begin(), nearest.end(), -1);
+            for (int iy = first; iy != last; iy += step) {
+                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
+                double* row = g.data() + mask.index(0, iy);
+                for (int ix = x0; ix < x1; ++ix) {
+                    int& met = nearest[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == target) met = iy;
+                    const double d = double(iy - met), d2 = met < 0 ? kFar : d * d;
+                    if (!nearer || d2 < row[ix]) row[ix] = d2;
+                }
+            }
+        };
 #pragma omp for schedule(static)
         for (int b = 0; b < nBlocks; ++b) {
             const int x0 = b * kBlockColumns, x1 = std::min(w, x0 + kBlockColumns);
-            std::fill(nearest.begin(), nearest.end(), -1);
-            for (int iy = 0; iy < h; ++iy) {
-                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
-                double* row = g.data() + mask.index(0, iy);
-                for (int ix = x0; ix < x1; ++ix) {
-                    int& above = nearest[static_cast<std::size_t>(ix - x0)];
-                    if (m[ix] == target) above = iy;
-                    const double d = double(iy - above);
-                    row[ix] = above < 0 ? kFar : d * d;
-                }
-            }
-            std::fill(nearest.begin(), nearest.end(), -1);
-            for (int iy = h - 1; iy >= 0; --iy) {
-                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
-                double* row = g.data() + mask.index(0, iy);
-                for (int ix = x0; ix < x1; ++ix) {
-                    int& below = nearest[static_cast<std::size_t>(ix - x0)];
-                    if (m[ix] == target) below = iy;
-                    const double d = double(below - iy);
-                    if (below >= 0 && d * d < row[ix]) row[ix] = d * d;
-                }
-            }
+            sweep(x0, x1, 0, h, 1, false);
+            sweep(x0, x1, h - 1, -1, -1, true);
         }
     }
 #pragma omp parallel
