@@ -374,6 +374,11 @@ struct Candidate {
     std::uint16_t pass;
 };
 
+/// Below this many items a loop over candidates runs on one thread: the later passes handle
+/// a few per cent of the plants, and a parallel region's barriers cost more than they save
+/// (much more when other processes hold the cores).
+constexpr std::size_t kParallelMin = std::size_t{1} << 16;
+
 /// A counting sort of items 0 .. n-1 into buckets, in parallel: each thread counts, then
 /// places, a contiguous share of the items, so a bucket holds its items in input order for
 /// any number of threads. bucketOf(i) is in [0, nBuckets]; nBuckets leaves the item out.
@@ -383,7 +388,7 @@ std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, Bu
     const std::size_t maxThreads = static_cast<std::size_t>(omp_get_max_threads());
     std::vector<std::size_t> next(maxThreads * (nBuckets + 1), 0);  // [thread][bucket]: count, then position
     std::vector<std::size_t> start(nBuckets + 1, 0);
-#pragma omp parallel
+#pragma omp parallel if (n >= kParallelMin)
     {
         const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
         const std::size_t lo = n * t / nt, hi = n * (t + 1) / nt;
@@ -420,7 +425,7 @@ void sortInBuckets(std::vector<Candidate>& v, std::size_t nBuckets, BucketOf buc
     std::vector<Candidate> sorted(v.size());
     const std::vector<std::size_t> start = scatterByBucket(
         v.size(), nBuckets, [&](std::size_t i) { return bucketOf(v[i]); }, [&](std::size_t i, std::size_t p) { sorted[p] = v[i]; });
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (v.size() >= kParallelMin)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nBuckets); ++b) {
         const std::size_t lo = start[static_cast<std::size_t>(b)], hi = start[static_cast<std::size_t>(b) + 1];
         if (hi - lo > 1) std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(lo), sorted.begin() + static_cast<std::ptrdiff_t>(hi), less);
@@ -648,7 +653,7 @@ struct HardCore {
         // origin[p] its index in cand.
         std::vector<std::uint32_t> concernedBucket(cand.size());
         std::size_t n = 0;
-#pragma omp parallel for schedule(static) reduction(+ : n)
+#pragma omp parallel for schedule(static) reduction(+ : n) if (cand.size() >= kParallelMin)
         for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(cand.size()); ++ii) {
             const Candidate& c = cand[static_cast<std::size_t>(ii)];
             const bool in = concerned(c);
@@ -677,7 +682,7 @@ struct HardCore {
         const std::size_t nChunks = (n + kChunk - 1) / kChunk;
         std::vector<std::uint8_t> state(n, 0);
         std::vector<std::vector<std::uint32_t>> deps(nChunks), depEnd(nChunks);
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMin)
         for (std::int64_t k = 0; k < static_cast<std::int64_t>(nChunks); ++k) {
             const std::size_t lo = static_cast<std::size_t>(k) * kChunk, hi = std::min(n, lo + kChunk);
             auto& dk = deps[static_cast<std::size_t>(k)];
@@ -1239,7 +1244,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         const std::size_t nCand = rowStart[static_cast<std::size_t>(h)];
         std::vector<Candidate> cand(nCand);
         std::vector<std::uint32_t> grp(nCand);
-#pragma omp parallel for schedule(dynamic, 16)
+#pragma omp parallel for schedule(dynamic, 16) if (nCand >= kParallelMin)
         for (int iy = 0; iy < h; ++iy) {
             const std::size_t i = static_cast<std::size_t>(iy);
             const Candidate* row = threadCand[static_cast<std::size_t>(rowThread[i])].data() + rowFrom[i];
@@ -1256,7 +1261,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             nCand, nGroups, [&](std::size_t i) { return grp[i]; }, [&](std::size_t i, std::size_t p) { keys[p] = cand[i].key; });
         std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
         std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
-#pragma omp parallel for schedule(dynamic, 64)
+#pragma omp parallel for schedule(dynamic, 64) if (nCand >= kParallelMin)
         for (std::int64_t gi = 0; gi < static_cast<std::int64_t>(nGroups); ++gi) {
             const std::size_t i = static_cast<std::size_t>(gi);
             const std::int64_t missing = quotaG[i] - placedG[i];
@@ -1280,7 +1285,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         // key drawn twice), decided in order after the parallel pass.
         std::vector<std::uint8_t> take(nCand);
         std::size_t nTaken = 0;
-#pragma omp parallel for schedule(static) reduction(+ : nTaken)
+#pragma omp parallel for schedule(static) reduction(+ : nTaken) if (nCand >= kParallelMin)
         for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(nCand); ++ii) {
             const std::size_t i = static_cast<std::size_t>(ii);
             const std::uint64_t t = threshold[grp[i]];
