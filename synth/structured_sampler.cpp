@@ -1035,7 +1035,6 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     std::vector<Candidate> accepted;
     // No group takes more than its quota: one allocation for every pass's plants.
     accepted.reserve(static_cast<std::size_t>(std::accumulate(quotaG.begin(), quotaG.end(), std::int64_t{0})));
-    std::vector<std::vector<Candidate>> threadCand(static_cast<std::size_t>(omp_get_max_threads()));
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
         // still missing. Every pass draws from the same model: the free part, and offspring
@@ -1101,19 +1100,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             for (std::size_t m = 0; m < masks.size(); ++m)
                 for (std::size_t c = 0; c < nCtx; ++c)
                     expFree[(r * masks.size() + m) * nCtx + c] = std::exp(-std::min(100.0, table.total(r, m, c) * cellArea));
-        // Each thread appends the candidates of its rows to its own list (no allocation per
-        // row); rowFrom / rowCount say where each row's are.
-        for (std::vector<Candidate>& list : threadCand) list.clear();
-        std::vector<std::size_t> rowFrom(static_cast<std::size_t>(h)), rowCount(static_cast<std::size_t>(h));
-        std::vector<int> rowThread(static_cast<std::size_t>(h));
+        // Per row a list of candidates (one per thread would grow by copies of hundreds of MB
+        // on big terrains).
+        std::vector<std::vector<Candidate>> rowCand(static_cast<std::size_t>(h));
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
 #pragma omp parallel for schedule(dynamic, 8)
         for (int iy = 0; iy < h; ++iy) {
-            const int thread = omp_get_thread_num();
-            auto& cand = threadCand[static_cast<std::size_t>(thread)];
-            rowThread[static_cast<std::size_t>(iy)] = thread;
-            rowFrom[static_cast<std::size_t>(iy)] = cand.size();
+            auto& cand = rowCand[static_cast<std::size_t>(iy)];
             std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
             // A candidate off the trunks joins the row's list.
             auto keep = [&](double x, double y, std::size_t cell, std::size_t s, std::uint64_t key) {
@@ -1179,59 +1173,57 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     keep(x, y, cell, s, key);
                 }
             }
-            if (pass == 0) {
-                // Cluster parents of each field (the same in every pass): per row a Poisson number
-                // at the row's total rate kappa x area, each in a cell drawn by its rate; then
-                // their offspring of each attached species.
-                std::vector<double> cum(static_cast<std::size_t>(w));
-                for (int k = 0; k < 2; ++k) {
-                    double total = 0;
-                    for (int ix = 0; ix < w; ++ix) {
-                        const int r = map.region(ix, iy);
-                        if (r >= 0 && map.seedWeight(ix, iy) > 0 && out.structure[static_cast<std::size_t>(r)].scales > k)
-                            total += out.structure[static_cast<std::size_t>(r)].parentsPerM2[k] * cellArea;
-                        cum[static_cast<std::size_t>(ix)] = total;
-                    }
-                    if (!(total > 0)) continue;
-                    RandomStream prs(params.seed, mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(iy)), 0);
-                    const int nParents = poissonCount(prs, total, 1 << 30);
-                    for (int j = 0; j < nParents; ++j) {
-                        const double u = prs.uniform() * total;
-                        int ix = static_cast<int>(std::upper_bound(cum.begin(), cum.end(), u) - cum.begin());
-                        ix = std::min(ix, w - 1);
-                        const double px = ox + (ix + prs.uniform()) * cs, py = oy + (iy + prs.uniform()) * cs;
-                        const int r = map.region(ix, iy);
-                        if (!activeRegion[static_cast<std::size_t>(r)]) continue;
-                        const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
-                        for (std::size_t s = 0; s < nS; ++s) {
-                            const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
-                            const std::size_t i = static_cast<std::size_t>(r) * nS + s;
-                            const double lmax = scale[i] * rhoMax[i];
-                            if (!(a > 0) || !(lmax > 0) || !(passFactor[i] > 0)) continue;
-                            const std::uint64_t oStream = mixStream(
-                                mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
-                                          static_cast<std::uint64_t>(iy)),
-                                static_cast<std::uint64_t>(j) * nS + s);
-                            RandomStream ors(params.seed, oStream, 0);
-                            const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
-                            for (int o = 0; o < n; ++o) {
-                                // Gaussian displacement: both coordinates of one Box-Muller pair.
-                                const double u1 = 1.0 - ors.uniform(), u2 = ors.uniform();
-                                const double radius = st.sigmaM[k] * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
-                                const double x = px + radius * std::cos(angle), y = py + radius * std::sin(angle);
-                                const double uThin = ors.uniform();
-                                const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
-                                ++rowThrown[static_cast<std::size_t>(iy)];
-                                const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
-                                if (!terrainM.inside(cx, cy)) continue;
-                                const std::size_t oc = terrainM.index(cx, cy);
-                                if (uThin * lmax < intensity(oc, s)) keep(x, y, oc, s, key);
-                            }
+            if (pass != 0) continue;
+            // Cluster parents of each field (the same in every pass): per row a Poisson number
+            // at the row's total rate kappa x area, each in a cell drawn by its rate; then
+            // their offspring of each attached species.
+            std::vector<double> cum(static_cast<std::size_t>(w));
+            for (int k = 0; k < 2; ++k) {
+                double total = 0;
+                for (int ix = 0; ix < w; ++ix) {
+                    const int r = map.region(ix, iy);
+                    if (r >= 0 && map.seedWeight(ix, iy) > 0 && out.structure[static_cast<std::size_t>(r)].scales > k)
+                        total += out.structure[static_cast<std::size_t>(r)].parentsPerM2[k] * cellArea;
+                    cum[static_cast<std::size_t>(ix)] = total;
+                }
+                if (!(total > 0)) continue;
+                RandomStream prs(params.seed, mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(iy)), 0);
+                const int nParents = poissonCount(prs, total, 1 << 30);
+                for (int j = 0; j < nParents; ++j) {
+                    const double u = prs.uniform() * total;
+                    int ix = static_cast<int>(std::upper_bound(cum.begin(), cum.end(), u) - cum.begin());
+                    ix = std::min(ix, w - 1);
+                    const double px = ox + (ix + prs.uniform()) * cs, py = oy + (iy + prs.uniform()) * cs;
+                    const int r = map.region(ix, iy);
+                    if (!activeRegion[static_cast<std::size_t>(r)]) continue;
+                    const RegionStructure& st = out.structure[static_cast<std::size_t>(r)];
+                    for (std::size_t s = 0; s < nS; ++s) {
+                        const double a = st.attachment[s * 2 + static_cast<std::size_t>(k)];
+                        const std::size_t i = static_cast<std::size_t>(r) * nS + s;
+                        const double lmax = scale[i] * rhoMax[i];
+                        if (!(a > 0) || !(lmax > 0) || !(passFactor[i] > 0)) continue;
+                        const std::uint64_t oStream = mixStream(
+                            mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
+                                      static_cast<std::uint64_t>(iy)),
+                            static_cast<std::uint64_t>(j) * nS + s);
+                        RandomStream ors(params.seed, oStream, 0);
+                        const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
+                        for (int o = 0; o < n; ++o) {
+                            // Gaussian displacement: both coordinates of one Box-Muller pair.
+                            const double u1 = 1.0 - ors.uniform(), u2 = ors.uniform();
+                            const double radius = st.sigmaM[k] * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
+                            const double x = px + radius * std::cos(angle), y = py + radius * std::sin(angle);
+                            const double uThin = ors.uniform();
+                            const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
+                            ++rowThrown[static_cast<std::size_t>(iy)];
+                            const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
+                            if (!terrainM.inside(cx, cy)) continue;
+                            const std::size_t oc = terrainM.index(cx, cy);
+                            if (uThin * lmax < intensity(oc, s)) keep(x, y, oc, s, key);
                         }
                     }
                 }
             }
-            rowCount[static_cast<std::size_t>(iy)] = cand.size() - rowFrom[static_cast<std::size_t>(iy)];
         }
         phase("candidates");
         // The pass's candidates in one array, rows in order, with their groups.
@@ -1239,19 +1231,19 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCount[static_cast<std::size_t>(iy)];
+            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCand[static_cast<std::size_t>(iy)].size();
         }
         const std::size_t nCand = rowStart[static_cast<std::size_t>(h)];
         std::vector<Candidate> cand(nCand);
         std::vector<std::uint32_t> grp(nCand);
 #pragma omp parallel for schedule(dynamic, 16) if (nCand >= kParallelMin)
         for (int iy = 0; iy < h; ++iy) {
-            const std::size_t i = static_cast<std::size_t>(iy);
-            const Candidate* row = threadCand[static_cast<std::size_t>(rowThread[i])].data() + rowFrom[i];
-            for (std::size_t j = 0, at = rowStart[i]; j < rowCount[i]; ++j, ++at) {
+            std::vector<Candidate>& row = rowCand[static_cast<std::size_t>(iy)];
+            for (std::size_t j = 0, at = rowStart[static_cast<std::size_t>(iy)]; j < row.size(); ++j, ++at) {
                 cand[at] = row[j];
                 grp[at] = static_cast<std::uint32_t>(groupOf(row[j].cell, row[j].species));
             }
+            std::vector<Candidate>().swap(row);
         }
         // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
         // keys of each group gathered in one array, each group's threshold found by
