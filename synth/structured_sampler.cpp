@@ -1011,24 +1011,12 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     // Target intensity of species s at a cell (per m^2), before the oversampling factor.
     std::vector<double> scale(nR * nS, 0.0);
     for (std::size_t i = 0; i < nR * nS; ++i) scale[i] = expected[i] > 0 ? double(quota[i]) / expected[i] : 0.0;
-    // It depends on the cell only through the cell's class (region, mask, context; 0: no
-    // plants), as RateTable: one lookup per offspring instead of four grids.
-    std::vector<double> classIntensity((nR * masks.size() * nCtx + 1) * nS, 0.0);
-    for (std::size_t r = 0; r < nR; ++r)
-        for (std::size_t m = 0; m < masks.size(); ++m)
-            for (std::size_t c = 0; c < nCtx; ++c)
-                for (std::size_t s = 0; s < nS; ++s)
-                    if (admits(m, s))
-                        classIntensity[(1 + (r * masks.size() + m) * nCtx + c) * nS + s] = scale[r * nS + s] * rho[(r * nS + s) * nCtx + c];
-    std::vector<std::uint32_t> cellClass(terrainM.size(), 0);
-#pragma omp parallel for schedule(static)
-    for (std::int64_t ci = 0; ci < static_cast<std::int64_t>(cellClass.size()); ++ci) {
-        const std::size_t cell = static_cast<std::size_t>(ci);
+    auto intensity = [&](std::size_t cell, std::size_t s) -> double {
         const int r = map.region.data()[cell];
-        if (r >= 0 && map.seedWeight.data()[cell] > 0)
-            cellClass[cell] = static_cast<std::uint32_t>(1 + (static_cast<std::size_t>(r) * masks.size() + maskIdx.data()[cell]) * nCtx + ctx.data()[cell]);
-    }
-    auto intensity = [&](std::size_t cell, std::size_t s) { return classIntensity[cellClass[cell] * nS + s]; };
+        if (r < 0 || !admits(maskIdx.data()[cell], s)) return 0.0;
+        if (!(map.seedWeight.data()[cell] > 0)) return 0.0;
+        return scale[static_cast<std::size_t>(r) * nS + s] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + ctx.data()[cell]];
+    };
 
     HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
     phase("masks, quotas, trunks");
