@@ -585,13 +585,13 @@ struct HeightDraw {
 /// The sequential rule has one result (the greedy independent set in key order), found here
 /// without sorting by key and mostly in parallel: only the candidates a hard core concerns
 /// take part (a species inhibited in its region, or one that some hard core keeps others
-/// away from; the rest are admitted and inhibit no one, usually most of them). Those are
-/// grouped by buckets of the hard-core range (in the order they come, rows), each one's
-/// neighbours of lower key within its hard cores listed in parallel (one near a plant of an
-/// earlier pass is dropped there and then), then each candidate decided after the neighbours
-/// it depends on (a depth-first walk in bucket order, local in memory): admitted unless one
-/// of them was. Placed plants of earlier passes that inhibit others sit in a bucket grid
-/// (linked lists through them).
+/// away from; the rest, half of them on the benchmark scenes, are admitted and inhibit no
+/// one). Those are grouped by buckets of the hard-core range (in the order they come, rows),
+/// each one's neighbours of lower key within its hard cores listed in parallel (one near a
+/// plant of an earlier pass is dropped there and then), then each candidate decided after
+/// the neighbours it depends on (a depth-first walk in bucket order, local in memory):
+/// admitted unless one of them was. Placed plants of earlier passes that inhibit others sit
+/// in a bucket grid (linked lists through them).
 struct HardCore {
     const std::vector<RegionStructure>& structure;
     std::size_t nSpecies;
