@@ -1,5 +1,7 @@
 #include "canopy_context.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -40,21 +42,27 @@ Grid<std::uint8_t> canopyCoverMask(const Grid<float>& geometry, const std::vecto
     Grid<std::uint8_t> mask = Grid<std::uint8_t>::like(geometry, 0);
     const double cs = geometry.cellSizeM();
     const int w = geometry.width(), h = geometry.height();
-    for (const Plant& t : canopy) {
-        const double r = t.crownRadiusM;
-        if (!(r > 0)) continue;
-        const int y0 = std::max(0, static_cast<int>(std::floor((t.yM - r - geometry.originY()) / cs - 0.5)));
-        const int y1 = std::min(h - 1, static_cast<int>(std::ceil((t.yM + r - geometry.originY()) / cs - 0.5)));
-        for (int iy = y0; iy <= y1; ++iy) {
-            const double dy = geometry.cellCentreY(iy) - t.yM;
-            const double span2 = r * r - dy * dy;
-            if (!(span2 > 0)) continue;
-            const double half = std::sqrt(span2);
-            int x0 = std::max(0, static_cast<int>(std::floor((t.xM - half - geometry.originX()) / cs - 0.5)));
-            int x1 = std::min(w - 1, static_cast<int>(std::ceil((t.xM + half - geometry.originX()) / cs - 0.5)));
-            for (int ix = x0; ix <= x1; ++ix) {
-                const double dx = geometry.cellCentreX(ix) - t.xM;
-                if (dx * dx + dy * dy < r * r) mask(ix, iy) = 1;
+    // Each thread marks the cells of its own share of the rows, from every tree.
+#pragma omp parallel
+    {
+        const long long nt = omp_get_num_threads(), t0 = omp_get_thread_num();
+        const int rowLo = static_cast<int>(h * t0 / nt), rowHi = static_cast<int>(h * (t0 + 1) / nt) - 1;
+        for (const Plant& t : canopy) {
+            const double r = t.crownRadiusM;
+            if (!(r > 0)) continue;
+            const int y0 = std::max(rowLo, static_cast<int>(std::floor((t.yM - r - geometry.originY()) / cs - 0.5)));
+            const int y1 = std::min(rowHi, static_cast<int>(std::ceil((t.yM + r - geometry.originY()) / cs - 0.5)));
+            for (int iy = y0; iy <= y1; ++iy) {
+                const double dy = geometry.cellCentreY(iy) - t.yM;
+                const double span2 = r * r - dy * dy;
+                if (!(span2 > 0)) continue;
+                const double half = std::sqrt(span2);
+                int x0 = std::max(0, static_cast<int>(std::floor((t.xM - half - geometry.originX()) / cs - 0.5)));
+                int x1 = std::min(w - 1, static_cast<int>(std::ceil((t.xM + half - geometry.originX()) / cs - 0.5)));
+                for (int ix = x0; ix <= x1; ++ix) {
+                    const double dx = geometry.cellCentreX(ix) - t.xM;
+                    if (dx * dx + dy * dy < r * r) mask(ix, iy) = 1;
+                }
             }
         }
     }
@@ -98,15 +106,35 @@ void distanceTransform1d(const double* f, int n, double* d, int* v, double* z) {
 std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8_t target) {
     const int w = mask.width(), h = mask.height();
     std::vector<double> g(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    // Along the columns the input is 0 or kFar, so the transform is the squared distance to
+    // the nearest target cell in the column (what distanceTransform1d gives exactly): two
+    // sweeps down and up the rows of a block of columns, reading the grid row by row instead
+    // of a column at a time.
+    constexpr int kBlockColumns = 256;
+    const int nBlocks = (w + kBlockColumns - 1) / kBlockColumns;
 #pragma omp parallel
     {
-        std::vector<double> f(static_cast<std::size_t>(h)), d(static_cast<std::size_t>(h)), z(static_cast<std::size_t>(h) + 1);
-        std::vector<int> v(static_cast<std::size_t>(h));
+        std::vector<int> nearest(static_cast<std::size_t>(kBlockColumns));
+        // Rows first .. last (exclusive) in steps of step: the squared distance to the nearest
+        // target met so far in each column; kept only where nearer when `nearer`.
+        auto sweep = [&](int x0, int x1, int first, int last, int step, bool nearer) {
+            std::fill(nearest.begin(), nearest.end(), -1);
+            for (int iy = first; iy != last; iy += step) {
+                const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
+                double* row = g.data() + mask.index(0, iy);
+                for (int ix = x0; ix < x1; ++ix) {
+                    int& met = nearest[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == target) met = iy;
+                    const double d = double(iy - met), d2 = met < 0 ? kFar : d * d;
+                    if (!nearer || d2 < row[ix]) row[ix] = d2;
+                }
+            }
+        };
 #pragma omp for schedule(static)
-        for (int ix = 0; ix < w; ++ix) {
-            for (int iy = 0; iy < h; ++iy) f[static_cast<std::size_t>(iy)] = mask(ix, iy) == target ? 0.0 : kFar;
-            distanceTransform1d(f.data(), h, d.data(), v.data(), z.data());
-            for (int iy = 0; iy < h; ++iy) g[mask.index(ix, iy)] = d[static_cast<std::size_t>(iy)];
+        for (int b = 0; b < nBlocks; ++b) {
+            const int x0 = b * kBlockColumns, x1 = std::min(w, x0 + kBlockColumns);
+            sweep(x0, x1, 0, h, 1, false);
+            sweep(x0, x1, h - 1, -1, -1, true);
         }
     }
 #pragma omp parallel
@@ -154,27 +182,64 @@ Grid<std::uint8_t> canopyContextMap(const Grid<float>& depthM, const CanopyConte
 }
 
 CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
-    std::vector<double> x, y, r, hgt;
+    double x0 = kNone, y0 = kNone, x1 = -kNone, y1 = -kNone, radiusSum = 0;
     for (const Plant& t : canopy) {
         if (!(t.crownRadiusM > 0)) continue;
-        x.push_back(t.xM);
-        y.push_back(t.yM);
-        r.push_back(t.crownRadiusM);
-        hgt.push_back(t.heightM);
-        maxRadius_ = std::max(maxRadius_, t.crownRadiusM);
+        x_.push_back(t.xM);
+        y_.push_back(t.yM);
+        radius_.push_back(t.crownRadiusM);
+        height_.push_back(t.heightM);
+        x0 = std::min(x0, t.xM - t.crownRadiusM);
+        x1 = std::max(x1, t.xM + t.crownRadiusM);
+        y0 = std::min(y0, t.yM - t.crownRadiusM);
+        y1 = std::max(y1, t.yM + t.crownRadiusM);
+        radiusSum += t.crownRadiusM;
     }
-    if (x.empty()) return;
-    grid_ = PointGrid(x, y, std::max(1.0, maxRadius_));
-    radius_ = grid_.permuted(r);
-    height_ = grid_.permuted(hgt);
+    if (x_.empty()) return;
+    // Cells of about the mean crown radius: a crown spans a few of them, a cell lists a few
+    // crowns (at most 4096 cells a side, for memory). A crown is listed one cell beyond its
+    // bounding box on each side, so that a point that the rounded distance test puts inside
+    // it is never in a cell that does not list it.
+    const double cell = std::max({0.25, radiusSum / static_cast<double>(x_.size()), std::max(x1 - x0, y1 - y0) / 4096});
+    invCellM_ = 1.0 / cell;
+    originX_ = x0 - cell;
+    originY_ = y0 - cell;
+    nx_ = static_cast<int>((x1 - originX_) * invCellM_) + 2;
+    ny_ = static_cast<int>((y1 - originY_) * invCellM_) + 2;
+    const std::size_t nCells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
+    struct Box {
+        int x0, x1, y0, y1;
+    };
+    std::vector<Box> box(x_.size());
+    for (std::size_t t = 0; t < x_.size(); ++t) {
+        auto cellOf = [&](double v, double origin, int n) { return std::clamp(static_cast<int>(std::floor((v - origin) * invCellM_)), 0, n - 1); };
+        box[t] = Box{std::max(0, cellOf(x_[t] - radius_[t], originX_, nx_) - 1), std::min(nx_ - 1, cellOf(x_[t] + radius_[t], originX_, nx_) + 1),
+                     std::max(0, cellOf(y_[t] - radius_[t], originY_, ny_) - 1), std::min(ny_ - 1, cellOf(y_[t] + radius_[t], originY_, ny_) + 1)};
+    }
+    start_.assign(nCells + 1, 0);
+    for (const Box& b : box)
+        for (int iy = b.y0; iy <= b.y1; ++iy)
+            for (int ix = b.x0; ix <= b.x1; ++ix) ++start_[static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(ix) + 1];
+    for (std::size_t c = 0; c < nCells; ++c) start_[c + 1] += start_[c];
+    crown_.resize(start_[nCells]);
+    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t t = 0; t < box.size(); ++t)
+        for (int iy = box[t].y0; iy <= box[t].y1; ++iy)
+            for (int ix = box[t].x0; ix <= box[t].x1; ++ix)
+                crown_[fill[static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(ix)]++] = static_cast<std::uint32_t>(t);
 }
 
 double CanopyCover::lowestCrownAboveM(double xM, double yM) const {
     double lowest = kNone;
-    if (!(maxRadius_ > 0)) return lowest;
-    grid_.forEachWithin(xM, yM, maxRadius_, [&](std::size_t s, double, double, double d2) {
-        if (d2 < radius_[s] * radius_[s]) lowest = std::min(lowest, height_[s]);
-    });
+    if (x_.empty()) return lowest;
+    const double fx = std::floor((xM - originX_) * invCellM_), fy = std::floor((yM - originY_) * invCellM_);
+    if (!(fx >= 0 && fx < nx_ && fy >= 0 && fy < ny_)) return lowest;  // beyond every crown
+    const std::size_t c = static_cast<std::size_t>(fy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(fx);
+    for (std::uint32_t e = start_[c]; e < start_[c + 1]; ++e) {
+        const std::size_t t = crown_[e];
+        const double dx = x_[t] - xM, dy = y_[t] - yM;
+        if (dx * dx + dy * dy < radius_[t] * radius_[t]) lowest = std::min(lowest, height_[t]);
+    }
     return lowest;
 }
 

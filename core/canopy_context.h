@@ -21,7 +21,6 @@
 
 #include "grid.h"
 #include "plants.h"
-#include "point_pattern.h"
 
 namespace eco {
 
@@ -52,7 +51,9 @@ Grid<float> canopyDepthMap(const Grid<float>& geometry, const std::vector<Plant>
 /// Context bin of every cell of a depth map.
 Grid<std::uint8_t> canopyContextMap(const Grid<float>& depthM, const CanopyContextBins& bins);
 
-/// Exact point queries on the crown discs of a canopy.
+/// Exact point queries on the crown discs of a canopy: a grid of square cells, each listing
+/// the crowns that may reach into it, so a query tests a few crowns whatever the largest
+/// crown is.
 class CanopyCover {
 public:
     explicit CanopyCover(const std::vector<Plant>& canopy);
@@ -64,9 +65,11 @@ public:
     static constexpr double kNone = std::numeric_limits<double>::infinity();
 
 private:
-    PointGrid grid_;
-    std::vector<double> radius_, height_;  ///< per sorted tree
-    double maxRadius_ = 0;
+    double originX_ = 0, originY_ = 0, invCellM_ = 1;
+    int nx_ = 0, ny_ = 0;
+    std::vector<std::uint32_t> start_;  ///< [ny][nx] + 1: first entry of each cell in crown_
+    std::vector<std::uint32_t> crown_;  ///< per entry: a tree whose crown may reach the cell
+    std::vector<double> x_, y_, radius_, height_;  ///< per tree with a crown
 };
 
 }  // namespace eco

@@ -2,6 +2,8 @@
 // refinement; synth/structured_sampler.cpp: the structured sampler). Private to synth/.
 #pragma once
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -158,12 +160,18 @@ inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std:
     Grid<std::uint8_t> near = Grid<std::uint8_t>::like(geometry, 0);
     if (!(factor > 0)) return near;
     const int w = geometry.width(), h = geometry.height();
-    for (const Plant& t : canopy) {
-        const double re = factor * t.crownRadiusM;
-        const int x0 = std::max(0, geometry.cellX(t.xM - re)), x1 = std::min(w - 1, geometry.cellX(t.xM + re));
-        const int y0 = std::max(0, geometry.cellY(t.yM - re)), y1 = std::min(h - 1, geometry.cellY(t.yM + re));
-        for (int iy = y0; iy <= y1; ++iy)
-            for (int ix = x0; ix <= x1; ++ix) near(ix, iy) = 1;
+    // Each thread marks the cells of its own share of the rows, from every tree.
+#pragma omp parallel
+    {
+        const long long nt = omp_get_num_threads(), t0 = omp_get_thread_num();
+        const int rowLo = static_cast<int>(h * t0 / nt), rowHi = static_cast<int>(h * (t0 + 1) / nt) - 1;
+        for (const Plant& t : canopy) {
+            const double re = factor * t.crownRadiusM;
+            const int x0 = std::max(0, geometry.cellX(t.xM - re)), x1 = std::min(w - 1, geometry.cellX(t.xM + re));
+            const int y0 = std::max(rowLo, geometry.cellY(t.yM - re)), y1 = std::min(rowHi, geometry.cellY(t.yM + re));
+            for (int iy = y0; iy <= y1; ++iy)
+                for (int ix = x0; ix <= x1; ++ix) near(ix, iy) = 1;
+        }
     }
     return near;
 }

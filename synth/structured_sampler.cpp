@@ -26,6 +26,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include <omp.h>
+
 #include "canopy_context.h"
 #include "error.h"
 #include "rng.h"
@@ -372,20 +374,58 @@ struct Candidate {
     std::uint16_t pass;
 };
 
+/// Below this many items a loop over candidates runs on one thread: the later passes handle
+/// a few per cent of the plants, and a parallel region's barriers cost more than they save
+/// (much more when other processes hold the cores).
+constexpr std::size_t kParallelMin = std::size_t{1} << 16;
+
+/// A counting sort of items 0 .. n-1 into buckets, in parallel: each thread counts, then
+/// places, a contiguous share of the items, so a bucket holds its items in input order for
+/// any number of threads. bucketOf(i) is in [0, nBuckets]; nBuckets leaves the item out.
+/// place(i, p) puts item i at position p. Returns the buckets' starts (nBuckets + 1).
+template <typename BucketOf, typename Place>
+std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, BucketOf bucketOf, Place place) {
+    const std::size_t maxThreads = static_cast<std::size_t>(omp_get_max_threads());
+    std::vector<std::size_t> next(maxThreads * (nBuckets + 1), 0);  // [thread][bucket]: count, then position
+    std::vector<std::size_t> start(nBuckets + 1, 0);
+#pragma omp parallel if (n >= kParallelMin)
+    {
+        const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
+        const std::size_t lo = n * t / nt, hi = n * (t + 1) / nt;
+        std::size_t* mine = &next[t * (nBuckets + 1)];
+        for (std::size_t i = lo; i < hi; ++i) ++mine[bucketOf(i)];
+#pragma omp barrier
+#pragma omp single
+        {
+            std::size_t at = 0;
+            for (std::size_t b = 0; b < nBuckets; ++b) {
+                start[b] = at;
+                for (std::size_t u = 0; u < nt; ++u) {
+                    std::size_t& c = next[u * (nBuckets + 1) + b];
+                    const std::size_t k = c;
+                    c = at;
+                    at += k;
+                }
+            }
+            start[nBuckets] = at;
+        }
+        for (std::size_t i = lo; i < hi; ++i) {
+            const std::size_t b = bucketOf(i);
+            if (b < nBuckets) place(i, mine[b]++);
+        }
+    }
+    return start;
+}
+
 /// Sorts v by `less`: a counting pass into buckets (bucketOf must not decrease along `less`),
 /// then each bucket sorted on its own, in parallel. The same order as std::sort for a strict
 /// total order, for any thread count.
 template <typename BucketOf, typename Less>
 void sortInBuckets(std::vector<Candidate>& v, std::size_t nBuckets, BucketOf bucketOf, Less less) {
-    std::vector<std::size_t> start(nBuckets + 1, 0);
-    for (const Candidate& c : v) ++start[bucketOf(c) + 1];
-    for (std::size_t b = 0; b < nBuckets; ++b) start[b + 1] += start[b];
     std::vector<Candidate> sorted(v.size());
-    {
-        std::vector<std::size_t> pos(start.begin(), start.end() - 1);
-        for (const Candidate& c : v) sorted[pos[bucketOf(c)]++] = c;
-    }
-#pragma omp parallel for schedule(dynamic, 256)
+    const std::vector<std::size_t> start = scatterByBucket(
+        v.size(), nBuckets, [&](std::size_t i) { return bucketOf(v[i]); }, [&](std::size_t i, std::size_t p) { sorted[p] = v[i]; });
+#pragma omp parallel for schedule(dynamic, 256) if (v.size() >= kParallelMin)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nBuckets); ++b) {
         const std::size_t lo = start[static_cast<std::size_t>(b)], hi = start[static_cast<std::size_t>(b) + 1];
         if (hi - lo > 1) std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(lo), sorted.begin() + static_cast<std::ptrdiff_t>(hi), less);
@@ -543,12 +583,15 @@ struct HeightDraw {
 /// (and inhibits others).
 ///
 /// The sequential rule has one result (the greedy independent set in key order), found here
-/// without sorting by key and mostly in parallel: the candidates are grouped by buckets of
-/// the hard-core range (in the order they come, rows), each one's neighbours of lower key
-/// within its hard cores listed in parallel (one near a plant of an earlier pass is dropped
-/// there and then), then each candidate decided after the neighbours it depends on (a
-/// depth-first walk in bucket order, local in memory): admitted unless one of them was.
-/// Placed plants of earlier passes sit in a bucket grid (linked lists through them).
+/// without sorting by key and mostly in parallel: only the candidates a hard core concerns
+/// take part (a species inhibited in its region, or one that some hard core keeps others
+/// away from; the rest, half of them on the benchmark scenes, are admitted and inhibit no
+/// one). Those are grouped by buckets of the hard-core range (in the order they come, rows),
+/// each one's neighbours of lower key within its hard cores listed in parallel (one near a
+/// plant of an earlier pass is dropped there and then), then each candidate decided after
+/// the neighbours it depends on (a depth-first walk in bucket order, local in memory):
+/// admitted unless one of them was. Placed plants of earlier passes that inhibit others sit
+/// in a bucket grid (linked lists through them).
 struct HardCore {
     const std::vector<RegionStructure>& structure;
     std::size_t nSpecies;
@@ -558,18 +601,21 @@ struct HardCore {
     std::vector<std::int32_t> next;  ///< per placed plant
     std::vector<Candidate> placed;
     std::vector<char> speciesInhibited;  ///< [region][species]: some pair of it has a hard core
+    std::vector<char> speciesInhibits;   ///< [species]: some region's hard core keeps others from it
 
     HardCore(const std::vector<RegionStructure>& st, std::size_t ns, double extentX, double extentY)
         : structure(st), nSpecies(ns) {
         speciesInhibited.assign(st.size() * ns, 0);
+        speciesInhibits.assign(ns, 0);
         for (std::size_t r = 0; r < st.size(); ++r)
             for (std::size_t i = 0; i < st[r].hardCoreM.size(); ++i)
                 if (st[r].hardCoreM[i] > 0) {
                     maxM = std::max(maxM, st[r].hardCoreM[i]);
                     speciesInhibited[r * ns + i / ns] = 1;
+                    speciesInhibits[i % ns] = 1;
                 }
         if (!(maxM > 0)) return;
-        bucketM = std::max(maxM, 1.0);
+        bucketM = std::max(maxM, 2.0);  // not finer: the buckets are counted and cleared every pass
         nx = std::max(1, static_cast<int>(std::ceil(extentX / bucketM)));
         ny = std::max(1, static_cast<int>(std::ceil(extentY / bucketM)));
         head.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), -1);
@@ -595,19 +641,33 @@ struct HardCore {
                     if (conflict(c, placed[static_cast<std::size_t>(o)], hc)) return true;
         return false;
     }
-    /// The admitted candidates of a pass (in bucket order); those are placed. The dropped
-    /// ones go to `dropped`.
-    std::vector<Candidate> select(const std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
-        const std::size_t n = cand.size(), nb = head.size();
-        // The candidates by bucket, in the order they came inside a bucket: position p.
-        std::vector<std::uint32_t> start(nb + 1, 0);
-        for (const Candidate& c : cand) ++start[bucketOf(c) + 1];
-        for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
-        std::vector<Candidate> cb(n);
-        {
-            std::vector<std::uint32_t> pos(start.begin(), start.end() - 1);
-            for (const Candidate& c : cand) cb[pos[bucketOf(c)]++] = c;
+    /// Removes the dropped candidates of a pass from `cand` (the admitted keep their order)
+    /// and appends them to `dropped`; the admitted ones that inhibit others are placed.
+    void select(std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
+        const std::size_t nb = head.size();
+        auto inhibited = [&](const Candidate& c) {
+            return speciesInhibited[static_cast<std::size_t>(regionOfCell[c.cell]) * nSpecies + c.species] != 0;
+        };
+        auto concerned = [&](const Candidate& c) { return speciesInhibits[c.species] != 0 || inhibited(c); };
+        // The concerned candidates by bucket, in the order they came inside a bucket: position p;
+        // origin[p] its index in cand.
+        std::vector<std::uint32_t> concernedBucket(cand.size());
+        std::size_t n = 0;
+#pragma omp parallel for schedule(static) reduction(+ : n) if (cand.size() >= kParallelMin)
+        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(cand.size()); ++ii) {
+            const Candidate& c = cand[static_cast<std::size_t>(ii)];
+            const bool in = concerned(c);
+            concernedBucket[static_cast<std::size_t>(ii)] = static_cast<std::uint32_t>(in ? bucketOf(c) : nb);
+            n += in;
         }
+        std::vector<Candidate> cb(n);
+        std::vector<std::uint32_t> origin(n);
+        const std::vector<std::size_t> start = scatterByBucket(
+            cand.size(), nb, [&](std::size_t i) { return concernedBucket[i]; },
+            [&](std::size_t i, std::size_t p) {
+                cb[p] = cand[i];
+                origin[p] = static_cast<std::uint32_t>(i);
+            });
         // q (position) comes before c (position p) in the sequential order: lower key, then
         // lower cell, then earlier position.
         auto before = [&](std::size_t q, std::size_t p) {
@@ -622,7 +682,7 @@ struct HardCore {
         const std::size_t nChunks = (n + kChunk - 1) / kChunk;
         std::vector<std::uint8_t> state(n, 0);
         std::vector<std::vector<std::uint32_t>> deps(nChunks), depEnd(nChunks);
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMin)
         for (std::int64_t k = 0; k < static_cast<std::int64_t>(nChunks); ++k) {
             const std::size_t lo = static_cast<std::size_t>(k) * kChunk, hi = std::min(n, lo + kChunk);
             auto& dk = deps[static_cast<std::size_t>(k)];
@@ -642,8 +702,8 @@ struct HardCore {
                         for (int y = std::max(0, by - 1); y <= std::min(ny - 1, by + 1); ++y)
                             for (int x = std::max(0, bx - 1); x <= std::min(nx - 1, bx + 1); ++x) {
                                 const std::size_t b = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(x);
-                                for (std::uint32_t q = start[b]; q < start[b + 1]; ++q)
-                                    if (q != p && conflict(c, cb[q], hc) && before(q, p)) dk.push_back(q);
+                                for (std::size_t q = start[b]; q < start[b + 1]; ++q)
+                                    if (q != p && conflict(c, cb[q], hc) && before(q, p)) dk.push_back(static_cast<std::uint32_t>(q));
                             }
                     }
                 }
@@ -686,20 +746,28 @@ struct HardCore {
                 }
             }
         }
-        std::vector<Candidate> kept;
-        kept.reserve(n);
+        // Admitted ones that inhibit others placed; the dropped ones moved out of cand (in
+        // place: a copy would be one more large array to fault in).
+        std::vector<std::uint8_t> drop(cand.size(), 0);
         for (std::size_t p = 0; p < n; ++p) {
             if (state[p] != 1) {
-                dropped.push_back(cb[p]);
+                drop[origin[p]] = 1;
                 continue;
             }
+            if (!speciesInhibits[cb[p].species]) continue;
             const std::size_t b = bucketOf(cb[p]);
             next.push_back(head[b]);
             head[b] = static_cast<std::int32_t>(placed.size());
             placed.push_back(cb[p]);
-            kept.push_back(cb[p]);
         }
-        return kept;
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < cand.size(); ++i) {
+            if (drop[i])
+                dropped.push_back(cand[i]);
+            else
+                cand[k++] = cand[i];
+        }
+        cand.resize(k);
     }
 };
 
@@ -953,6 +1021,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
     phase("masks, quotas, trunks");
     std::vector<Candidate> accepted;
+    // No group takes more than its quota: one allocation for every pass's plants.
+    accepted.reserve(static_cast<std::size_t>(std::accumulate(quotaG.begin(), quotaG.end(), std::int64_t{0})));
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
         // still missing. Every pass draws from the same model: the free part, and offspring
@@ -1018,6 +1088,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             for (std::size_t m = 0; m < masks.size(); ++m)
                 for (std::size_t c = 0; c < nCtx; ++c)
                     expFree[(r * masks.size() + m) * nCtx + c] = std::exp(-std::min(100.0, table.total(r, m, c) * cellArea));
+        // Per row a list of candidates (one per thread would grow by copies of hundreds of MB
+        // on big terrains).
         std::vector<std::vector<Candidate>> rowCand(static_cast<std::size_t>(h));
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
@@ -1142,36 +1214,34 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             }
         }
         phase("candidates");
-        // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
-        // keys of each group gathered in one array (groups in order), each group's threshold
-        // found by nth_element in parallel (the k-th smallest key does not depend on the order).
-        std::vector<std::vector<std::uint32_t>> rowGroup(static_cast<std::size_t>(h));
-#pragma omp parallel for schedule(dynamic, 16)
-        for (int iy = 0; iy < h; ++iy) {
-            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-            auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-            grp.resize(cand.size());
-            for (std::size_t j = 0; j < cand.size(); ++j) grp[j] = static_cast<std::uint32_t>(groupOf(cand[j].cell, cand[j].species));
-        }
-        std::vector<std::size_t> groupStart(nGroups + 1, 0);
+        // The pass's candidates in one array, rows in order, with their groups.
+        std::vector<std::size_t> rowStart(static_cast<std::size_t>(h) + 1, 0);
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            for (const std::uint32_t g : rowGroup[static_cast<std::size_t>(iy)]) ++groupStart[g + 1];
+            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCand[static_cast<std::size_t>(iy)].size();
         }
-        for (std::size_t g = 0; g < nGroups; ++g) groupStart[g + 1] += groupStart[g];
-        std::vector<std::uint64_t> keys(groupStart[nGroups]);
-        {
-            std::vector<std::size_t> pos(groupStart.begin(), groupStart.end() - 1);
-            for (int iy = 0; iy < h; ++iy) {
-                const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-                const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-                for (std::size_t j = 0; j < cand.size(); ++j) keys[pos[grp[j]]++] = cand[j].key;
+        const std::size_t nCand = rowStart[static_cast<std::size_t>(h)];
+        std::vector<Candidate> cand(nCand);
+        std::vector<std::uint32_t> grp(nCand);
+#pragma omp parallel for schedule(dynamic, 16) if (nCand >= kParallelMin)
+        for (int iy = 0; iy < h; ++iy) {
+            std::vector<Candidate>& row = rowCand[static_cast<std::size_t>(iy)];
+            for (std::size_t j = 0, at = rowStart[static_cast<std::size_t>(iy)]; j < row.size(); ++j, ++at) {
+                cand[at] = row[j];
+                grp[at] = static_cast<std::uint32_t>(groupOf(row[j].cell, row[j].species));
             }
+            std::vector<Candidate>().swap(row);
         }
+        // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
+        // keys of each group gathered in one array, each group's threshold found by
+        // nth_element in parallel (the k-th smallest key does not depend on the order).
+        std::vector<std::uint64_t> keys(nCand);
+        const std::vector<std::size_t> groupStart = scatterByBucket(
+            nCand, nGroups, [&](std::size_t i) { return grp[i]; }, [&](std::size_t i, std::size_t p) { keys[p] = cand[i].key; });
         std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
         std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
-#pragma omp parallel for schedule(dynamic, 64)
+#pragma omp parallel for schedule(dynamic, 64) if (nCand >= kParallelMin)
         for (std::int64_t gi = 0; gi < static_cast<std::int64_t>(nGroups); ++gi) {
             const std::size_t i = static_cast<std::size_t>(gi);
             const std::int64_t missing = quotaG[i] - placedG[i];
@@ -1182,6 +1252,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             }
             const auto b = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i]);
             const auto e = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i + 1]);
+            placedG[i] += std::min<std::int64_t>(missing, e - b);  // less those the hard cores drop, below
             if (e - b <= missing) continue;
             std::nth_element(b, b + (missing - 1), e);
             threshold[i] = b[missing - 1];
@@ -1190,30 +1261,35 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             equalQuota[i] = missing - less;
         }
         std::vector<std::uint64_t>().swap(keys);
-        std::vector<Candidate> passAccepted;
-        for (int iy = 0; iy < h; ++iy) {
-            const auto& cand = rowCand[static_cast<std::size_t>(iy)];
-            const auto& grp = rowGroup[static_cast<std::size_t>(iy)];
-            for (std::size_t j = 0; j < cand.size(); ++j) {
-                const std::size_t i = grp[j];
-                if (cand[j].key < threshold[i] || (cand[j].key == threshold[i] && equalQuota[i]-- > 0)) {
-                    passAccepted.push_back(cand[j]);
-                    ++placedG[i];  // less those the hard cores drop, below
-                }
-            }
-            std::vector<Candidate>().swap(rowCand[static_cast<std::size_t>(iy)]);
-            std::vector<std::uint32_t>().swap(rowGroup[static_cast<std::size_t>(iy)]);
+        // Below the threshold: taken; at it: the first equalQuota[g] in candidate order (a
+        // key drawn twice), decided in order after the parallel pass.
+        std::vector<std::uint8_t> take(nCand);
+        std::size_t nTaken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : nTaken) if (nCand >= kParallelMin)
+        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(nCand); ++ii) {
+            const std::size_t i = static_cast<std::size_t>(ii);
+            const std::uint64_t t = threshold[grp[i]];
+            take[i] = cand[i].key < t ? 1 : cand[i].key == t ? 2 : 0;
+            nTaken += take[i] == 1;
         }
+        for (std::size_t i = 0; i < nCand; ++i)
+            if (take[i] == 2) {
+                take[i] = equalQuota[grp[i]]-- > 0 ? 1 : 0;
+                nTaken += take[i];
+            }
+        std::vector<Candidate> passAccepted(nTaken);
+        scatterByBucket(
+            nCand, 1, [&](std::size_t i) { return take[i] == 1 ? std::size_t{0} : std::size_t{1}; },
+            [&](std::size_t i, std::size_t p) { passAccepted[p] = cand[i]; });
         phase("quota selection");
         // Inhibition: in ascending key order, a candidate closer than the hard-core distance
         // to a plant already placed is dropped (random sequential adsorption); later passes
         // throw darts for what is missing.
         if (hardCore.maxM > 0) {
             std::vector<Candidate> dropped;
-            std::vector<Candidate> kept = hardCore.select(passAccepted, map.region.data().data(), dropped);
+            hardCore.select(passAccepted, map.region.data().data(), dropped);
             for (const Candidate& c : dropped) --placedG[groupOf(c.cell, c.species)];
-            out.dartsInhibited += static_cast<std::int64_t>(passAccepted.size() - kept.size());
-            passAccepted.swap(kept);
+            out.dartsInhibited += static_cast<std::int64_t>(dropped.size());
         }
         accepted.insert(accepted.end(), passAccepted.begin(), passAccepted.end());
         phase("hard core");

@@ -98,11 +98,17 @@ struct RegionLookup {
             combinationIndex.push_back(stand < 0 ? -1 : db.combinationIndex(stand));
         }
     }
-    int region(std::int32_t mask, const Features& x) const {
+    /// Index of mask in masks, -1 when absent.
+    int maskIndex(std::int32_t mask) const {
         const auto it = std::lower_bound(masks.begin(), masks.end(), mask);
-        if (it == masks.end() || *it != mask) return -1;
-        const int ci = combinationIndex[static_cast<std::size_t>(it - masks.begin())];
+        return (it == masks.end() || *it != mask) ? -1 : static_cast<int>(it - masks.begin());
+    }
+    /// The region of a cell with mask index m (>= 0) and features x.
+    int region(int m, const Features& x) const {
+        const int ci = combinationIndex[static_cast<std::size_t>(m)];
         if (ci < 0) return -1;
+        const DbCombination& c = db.combinations[static_cast<std::size_t>(ci)];
+        if (c.k == 1) return c.firstRegion;  // nearestRegionOf's answer without the features
         return db.nearestRegionOf(static_cast<std::size_t>(ci), x);
     }
 };
@@ -172,16 +178,23 @@ ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const 
     map.region = Grid<std::int32_t>::like(g, -1);
     const int w = g.width(), h = g.height();
 #pragma omp parallel for schedule(static)
-    for (int iy = 0; iy < h; ++iy)
+    for (int iy = 0; iy < h; ++iy) {
+        // Neighbouring cells mostly share a mask: its index looked up once per run of them.
+        std::int32_t lastMask = 0;
+        int m = -1;
         for (int ix = 0; ix < w; ++ix) {
-            const std::int32_t m = map.combination(ix, iy);
+            const std::int32_t mask = map.combination(ix, iy);
+            if (mask != lastMask) {
+                lastMask = mask;
+                m = lookup.maskIndex(mask);
+            }
             int r = -1;
-            if (m != 0)
-                r = lookup.region(m, features.at(ix, iy));
+            if (mask != 0 && m >= 0) r = lookup.region(m, features.at(ix, iy));
             map.region(ix, iy) = r;
             // No darts where no species of the region may grow (a stand-in combination).
-            if (r < 0 || !(roulette.total(r, roulette.maskIndex(m)) > 0)) map.seedWeight(ix, iy) = 0.0f;
+            if (r < 0 || !(roulette.total(r, m) > 0)) map.seedWeight(ix, iy) = 0.0f;
         }
+    }
     return map;
 }
 

@@ -317,3 +317,72 @@ TEST_CASE("canopy depth map: the distance to the crown-cover edge, signed", "[sy
     CHECK(bins.coveredBin(5));
     CHECK_FALSE(bins.coveredBin(4));
 }
+
+TEST_CASE("canopy cover: lowest crown above a point equal to a direct search", "[synth][structured]") {
+    // Crowns of very different radii (the cover's cells follow the mean one), points inside,
+    // on and beyond them: the answer is the lowest tree whose disc holds the point.
+    std::vector<Plant> canopy;
+    RandomStream rs(9, 3);
+    for (int i = 0; i < 300; ++i) {
+        Plant t;
+        t.xM = rs.uniform(-50, 50);
+        t.yM = rs.uniform(0, 80);
+        t.crownRadiusM = i % 50 == 0 ? rs.uniform(8, 15) : i % 7 == 0 ? 0.0 : rs.uniform(0.5, 3);
+        t.heightM = rs.uniform(2, 30);
+        canopy.push_back(t);
+    }
+    const CanopyCover cover(canopy);
+    int covered = 0;
+    for (int k = 0; k < 20000; ++k) {
+        double x = rs.uniform(-70, 70), y = rs.uniform(-20, 100);
+        if (k % 4 == 0) {  // on a crown's rim
+            const Plant& t = canopy[static_cast<std::size_t>(k) % canopy.size()];
+            x = t.xM + t.crownRadiusM;
+            y = t.yM;
+        }
+        double lowest = CanopyCover::kNone;
+        for (const Plant& t : canopy) {
+            const double dx = t.xM - x, dy = t.yM - y;
+            if (t.crownRadiusM > 0 && dx * dx + dy * dy < t.crownRadiusM * t.crownRadiusM) lowest = std::min(lowest, t.heightM);
+        }
+        covered += lowest < CanopyCover::kNone;
+        REQUIRE(cover.lowestCrownAboveM(x, y) == lowest);
+    }
+    CHECK(covered > 2000);
+    CHECK(CanopyCover({}).lowestCrownAboveM(0, 0) == CanopyCover::kNone);
+}
+
+TEST_CASE("canopy depth map: equal to a brute-force distance transform", "[synth][structured]") {
+    // Random crowns, some columns and rows without cover, on a grid small enough for the
+    // direct evaluation of the definition: the distance between cell centres to the nearest
+    // cell of the other kind, less half a cell, capped.
+    const int w = 61, h = 47;
+    const double cs = 0.7;
+    const Grid<float> geometry(w, h, cs, 3, -2);
+    std::vector<Plant> canopy;
+    RandomStream rs(5, 17);
+    for (int i = 0; i < 14; ++i) {
+        Plant t;
+        t.xM = 3 + rs.uniform(0, 0.6 * w * cs);
+        t.yM = -2 + rs.uniform(0, h * cs);
+        t.crownRadiusM = rs.uniform(0.3, 4.0);
+        t.heightM = 10;
+        canopy.push_back(t);
+    }
+    const Grid<std::uint8_t> mask = canopyCoverMask(geometry, canopy);
+    const Grid<float> depth = canopyDepthMap(geometry, canopy);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            const bool covered = mask(ix, iy) != 0;
+            double best = -1;
+            for (int jy = 0; jy < h; ++jy)
+                for (int jx = 0; jx < w; ++jx)
+                    if ((mask(jx, jy) != 0) != covered) {
+                        const double d2 = double(jx - ix) * (jx - ix) + double(jy - iy) * (jy - iy);
+                        if (best < 0 || d2 < best) best = d2;
+                    }
+            const double dm = best < 0 ? kCanopyDepthCapM : std::min(kCanopyDepthCapM, (std::sqrt(best) - 0.5) * cs);
+            INFO("cell " << ix << "," << iy);
+            REQUIRE(depth(ix, iy) == static_cast<float>(covered ? dm : -dm));
+        }
+}
