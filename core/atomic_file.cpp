@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <system_error>
 
 #include "error.h"
@@ -293,6 +294,13 @@ void writeTextFile(const std::string& path, const std::string& text) {
         if (std::fclose(f) != 0 || !ok) throw IoError(path + ": error while writing");
     }
     out.commit();
+}
+
+std::string readTextFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
 }
 
 void ensureDirectory(const std::string& dir) {

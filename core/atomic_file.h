@@ -97,6 +97,9 @@ void testPausePoint(const std::string& point);
 
 /// Write `text` to `path` atomically (reports, Markdown tables); IoError naming the path.
 void writeTextFile(const std::string& path, const std::string& text);
+/// The whole of a small text file (stamps, configurations, reports); "" when it does not
+/// exist or cannot be read (callers compare it with what they expect).
+std::string readTextFile(const std::string& path);
 
 /// Create a directory and its parents (no-op if it exists); IoError naming it on failure.
 void ensureDirectory(const std::string& dir);

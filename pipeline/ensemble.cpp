@@ -27,13 +27,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string readText(const std::string& path) {
-    std::ifstream in(path);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
 /// FNV-1a, 64 bits, in hex: a stable fingerprint of configuration text (std::hash is not
 /// the same across builds).
 std::string fingerprint(const std::string& text) {
@@ -50,7 +43,7 @@ std::string fingerprint(const std::string& text) {
 /// Writes `text` to `path` (atomically) unless the file already holds it: processes of a run
 /// write a member's configuration files again when they check its status.
 void writeIfChanged(const std::string& path, const std::string& text) {
-    if (!fs::exists(path) || readText(path) != text) writeTextFile(path, text);
+    if (!fs::exists(path) || readTextFile(path) != text) writeTextFile(path, text);
 }
 
 std::string tomlText(const toml::table& t) {
@@ -181,8 +174,8 @@ MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
     writeIfChanged(config, runText);
     // The files a member reads by path (its simulation configuration, its biome) count too.
     std::string inputs;
-    if (const auto* cfg = run["simulate"]["config"].as_string()) inputs += readText(cfg->get());
-    if (const auto* b = run["run"]["biome"].as_string()) inputs += readText(b->get());
+    if (const auto* cfg = run["simulate"]["config"].as_string()) inputs += readTextFile(cfg->get());
+    if (const auto* b = run["run"]["biome"].as_string()) inputs += readTextFile(b->get());
     return {config, fingerprint(runText + inputs + ECO_VERSION_STRING)};
 }
 
@@ -425,7 +418,7 @@ MemberStatus runMember(const EnsembleSpec& spec, std::size_t index, const std::s
     // their stamps would not see the change, and the checkpoint belongs to the old model.
     const fs::path hashFile = fs::path(dir) / "config.hash";
     MemberFiles files = writeMemberFiles(spec, index);
-    if (fs::exists(hashFile) && readText(hashFile.string()) != files.hash) {
+    if (fs::exists(hashFile) && readTextFile(hashFile.string()) != files.hash) {
         for (const auto& e : fs::directory_iterator(dir))
             if (e.path().filename().string().rfind(".claim-", 0) != 0) fs::remove_all(e.path());
         files = writeMemberFiles(spec, index);
@@ -567,7 +560,7 @@ std::string buildEnsembleDatabase(const EnsembleSpec& spec, Reporter& reporter) 
     std::string members;
     for (std::size_t i = 0; i < spec.members.size(); ++i) members += spec.members[i].id + " " + memberStatus(spec, i).configHash + "\n";
     const std::string membersStamp = analyse.out + ".members";
-    if (!fs::exists(membersStamp) || readText(membersStamp) != members) fs::remove(analyse.out + ".cmd");
+    if (!fs::exists(membersStamp) || readTextFile(membersStamp) != members) fs::remove(analyse.out + ".cmd");
     analyse.kMax = spec.kMax;
     analyse.seed = spec.seed;
     InspectOptions inspect;

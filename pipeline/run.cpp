@@ -328,12 +328,6 @@ void pictures(std::ostringstream& md, const std::filesystem::path& outDir, const
     for (const auto& n : names) picture(md, outDir, relDir + "/" + n, n);
 }
 
-std::string fileText(const std::filesystem::path& p) {
-    std::ifstream in(p);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 /// out_dir/report.md: what ran, how long each stage took, the pictures and the comparison.
 std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds, double totalSeconds) {
@@ -365,7 +359,7 @@ std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds,
         pictures(md, outDir, "png/simulation", 6);
     }
     if (std::filesystem::exists(outDir / "database.txt"))
-        md << "## Biome database\n\n```\n" << fileText(outDir / "database.txt") << "```\n\n";
+        md << "## Biome database\n\n```\n" << readTextFile((outDir / "database.txt").string()) << "```\n\n";
     pictures(md, outDir, "png/database", 4);
     if (std::filesystem::is_directory(outDir / "png/synth")) {
         md << "## Synthesis on the target terrain\n\n";
@@ -374,7 +368,7 @@ std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds,
         pictures(md, outDir, "png/synth", 8);
     }
     if (std::filesystem::exists(outDir / "compare.md"))
-        md << "## Synthesized against the database\n\n" << fileText(outDir / "compare.md") << "\n";
+        md << "## Synthesized against the database\n\n" << readTextFile((outDir / "compare.md").string()) << "\n";
     const std::string path = (outDir / "report.md").string();
     writeTextFile(path, md.str());
     return path;

@@ -14,17 +14,6 @@
 
 namespace eco::pipeline {
 
-namespace {
-
-std::string readText(const std::string& path) {
-    std::ifstream in(path);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-}  // namespace
-
 StageRunner::StageRunner(std::string label, Reporter& reporter, std::function<std::unique_ptr<Reporter>()> stageReporter)
     : label_(std::move(label)), reporter_(reporter), stageReporter_(std::move(stageReporter)) {}
 
@@ -34,7 +23,7 @@ bool StageRunner::run(const std::string& name, const std::string& output, const 
     // another eco version) is made again rather than reused.
     const std::string cmd = quotedCommand(commandLine(options)) + "\n# eco " + ECO_VERSION_STRING +
                             ", biome database schema " + std::to_string(kBiomeDbSchemaVersion);
-    if (!rerun_ && std::filesystem::exists(output) && std::filesystem::exists(stamp) && readText(stamp) == cmd + "\n") {
+    if (!rerun_ && std::filesystem::exists(output) && std::filesystem::exists(stamp) && readTextFile(stamp) == cmd + "\n") {
         reporter_.info(label_ + ": " + name + ": reusing " + output + " (made with the same settings)");
         return false;
     }

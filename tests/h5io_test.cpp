@@ -25,6 +25,13 @@ Grid<float> sampleGrid(int w, int h, float base) {
     return g;
 }
 
+/// 300 x 170 cells: large enough to be stored compressed in chunks.
+Grid<float> largeGrid() {
+    Grid<float> g(300, 170, 0.914);
+    for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = static_cast<float>(i % 1013) * 0.37f;
+    return g;
+}
+
 }  // namespace
 
 TEST_CASE("h5io: float grid round trip keeps values and geometry", "[h5io]") {
@@ -53,8 +60,7 @@ TEST_CASE("h5io: float grid round trip keeps values and geometry", "[h5io]") {
 TEST_CASE("h5io: large grids (compressed, chunked) round trip", "[h5io]") {
     eco::test::TempDir dir("h5_big");
     const std::string path = dir.file("big.h5");
-    Grid<float> g(300, 170, 0.914);
-    for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = static_cast<float>(i % 1013) * 0.37f;
+    const Grid<float> g = largeGrid();
     {
         File f = File::create(path);
         f.writeGrid("/big", g, "m");
@@ -155,8 +161,7 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
     // different value (with the older format a flip in an attribute or a shape was).
     eco::test::TempDir dir("h5_flip");
     const std::string path = dir.file("flip.h5");
-    Grid<float> g(300, 170, 0.914);
-    for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = static_cast<float>(i % 1013) * 0.37f;
+    const Grid<float> g = largeGrid();
     {
         File f = File::create(path);
         f.writeGrid("/big", g, "m");
