@@ -3,9 +3,11 @@
 // 1. Scaling: an ensemble of 8 small members (96 x 96 cells, a 60 m plot, 40 years; terrain
 //    seeds 1..4 x simulation seeds 1..2) run three ways from scratch: one process with one
 //    thread, one process with two threads (OpenMP within each member), and two MPI ranks of
-//    one thread each (mpirun -n 2). Speed-up of the ranks over one process, members per hour,
-//    and the overhead per member (wall time x ranks, less the members' own time, per member).
-//    The three runs' outputs are compared byte for byte (--no-provenance).
+//    one thread each (mpirun -n 2), without the database (analysed once at the end by one
+//    process, a serial part timed on its own after). Speed-up of the ranks over one process,
+//    members per hour, and the overhead per member (wall time x ranks, less the members' own
+//    time, per member). The three runs' outputs are compared byte for byte (--no-provenance;
+//    each run in the same folder, which the files record, then moved aside).
 // 2. With `--full`: the complete Sonoma database of eco database build with its defaults
 //    (15 sub-biome combinations x 2 terrains, 160 x 160 cells, 100 m plots, 150 years), its
 //    wall time on this machine and its coverage table.
@@ -95,7 +97,8 @@ int main(int argc, char** argv) {
     report << "ensemble benchmark (" << eco << ")\nload average at start: " << loadAverage() << "\n\n";
 
     const std::string spec = (work / "scaling.toml").string();
-    std::ofstream(spec) << "[ensemble]\nout_dir = \"" << (work / "unused").string() << "\"\nkmax = 2\n"
+    const std::string runDir = (work / "run").string();
+    std::ofstream(spec) << "[ensemble]\nout_dir = \"" << runDir << "\"\nkmax = 2\ndatabase = false\n"
                         << "[ensemble.base.run]\nout_dir = \"set per member\"\n"
                         << "[ensemble.base.terrain]\nwidth = 96\nheight = 96\n"
                         << "[ensemble.base.chm]\n[ensemble.base.abiotics]\nsun_step_minutes = 30\n[ensemble.base.canopy]\n"
@@ -107,13 +110,11 @@ int main(int argc, char** argv) {
         int workers;
     };
     const std::vector<Way> ways = {
-        {"1 process, 1 thread", eco + " --threads 1 --no-provenance ensemble " + spec + " --out-dir " + (work / "one").string(),
-         (work / "one").string(), 1},
-        {"1 process, 2 threads", eco + " --threads 2 --no-provenance ensemble " + spec + " --out-dir " + (work / "threads").string(),
-         (work / "threads").string(), 1},
+        {"1 process, 1 thread", eco + " --threads 1 --no-provenance ensemble " + spec, (work / "one").string(), 1},
+        {"1 process, 2 threads", eco + " --threads 2 --no-provenance ensemble " + spec, (work / "threads").string(), 1},
         {"2 MPI ranks x 1 thread",
          "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -n 2 " + eco +
-             " --threads 1 --no-provenance ensemble " + spec + " --out-dir " + (work / "mpi").string(),
+             " --threads 1 --no-provenance ensemble " + spec,
          (work / "mpi").string(), 2},
     };
     if (scaling) {
@@ -125,6 +126,7 @@ int main(int argc, char** argv) {
             report << w.label << ": FAILED (exit " << r.exitCode << ")\n" << r.output << "\n";
             continue;
         }
+        fs::rename(runDir, w.dir);
         wall[w.label] = r.seconds;
         const double own = memberSeconds(w.dir + "/manifest.csv");
         char line[300];
@@ -141,6 +143,17 @@ int main(int argc, char** argv) {
         const auto a = h5Files(work / "one"), b = h5Files(work / "threads"), c = h5Files(work / "mpi");
         report << "HDF5 outputs (" << a.size() << " files) byte-identical across the three ways: "
                << (a == b && a == c ? "yes" : "NO") << "\n";
+        // The serial part: the database of the 8 members, by one process (2 threads).
+        fs::rename(ways[0].dir, runDir);
+        std::string sims, abiotics;
+        for (const auto& e : fs::directory_iterator(fs::path(runDir) / "members")) {
+            sims += (e.path() / "simulation.h5").string() + " ";
+            abiotics += " --abiotics " + (e.path() / "abiotics.h5").string();
+        }
+        const Run db = run(eco + " --threads 2 --no-provenance analyse " + sims + "--kmax 2 --out " + (work / "db.h5").string() + abiotics);
+        std::snprintf(line, sizeof line, "the database of the 8 members (eco analyse, 1 process of 2 threads; the serial part): %.1f s%s\n",
+                      db.seconds, db.exitCode == 0 ? "" : " FAILED");
+        report << line;
     }
     report << "load average after: " << loadAverage() << "\n";
     }
