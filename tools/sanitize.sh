@@ -91,14 +91,18 @@ stamp "seed corpus made"
 # configs/ from there). A finding is saved as $build/fuzz-findings/<target>-crash-..., and
 # libFuzzer exits non-zero. -rss_limit_mb=2048: a process above 2 GB, or one allocation
 # above it, is a finding; the targets give our memory checks half of it (fuzz_common.h).
-# A report is HDF5's own when the first frame of its stack below the sanitizer's interceptors
-# (malloc, memcpy, ... compiled into the target) lies in libhdf5: a crash inside the library
-# on a damaged file, whatever the frames of ours further down.
+# A report is HDF5's own when the first frame of its stack below the sanitizer's and
+# libFuzzer's own frames (interceptors such as malloc and memcpy compiled into the target,
+# the timeout and out-of-memory handlers, libc's signal return) lies in libhdf5: a crash,
+# a timeout or an allocation inside the library on a damaged file, whatever frames of ours
+# lie further down.
 inside_hdf5() {
   awk '/^==[0-9]+== ?ERROR: |^SUMMARY: / { on = 1 }
        on && /^ *#[0-9]+ 0x/ {
-         if ($0 ~ / in (__interceptor_|__asan_|__sanitizer_)?(malloc|calloc|realloc|free|memcpy|memmove|memset|strlen|strnlen|memcmp|operator new|operator delete)/ && $0 !~ /libhdf5/) next
-         found = ($0 ~ /libhdf5/); exit }
+         if ($0 ~ /libhdf5/) { found = 1; exit }
+         if ($0 ~ / in (__sanitizer|__asan|__lsan|__interceptor_|fuzzer::)/ || $0 ~ /\/libc\.so/ ||
+             $0 ~ / in (malloc|calloc|realloc|free|memcpy|memmove|memset|strlen|strnlen|memcmp|operator new|operator delete)[ (]/) next
+         exit }
        END { exit !found }' "$1"
 }
 findings="$build/fuzz-findings"
@@ -134,7 +138,7 @@ for target in asc image biome_toml run_config csv biome_db sim_file canopy_file 
     # A crash inside the HDF5 library itself that the targets' walk of the file did not
     # foresee (it can depend on the library's state): third party, not a finding of ours
     # (docs/robustness.md). Shown, not failed.
-    echo "sanitize: fuzz_$target: stopped by a crash inside HDF5 1.10.8 (third party; input in $findings/):"
+    echo "sanitize: fuzz_$target: stopped inside HDF5 1.10.8 (a crash, timeout or allocation there; third party; input in $findings/):"
     grep -E '^SUMMARY|^    #[0-9]+ ' "$build/fuzz-$target.log" | head -n 12
   else
     echo "sanitize: fuzz_$target FOUND A PROBLEM (input saved in $findings/):"
