@@ -1,6 +1,7 @@
 #include "h5io.h"
 #include "text_format.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <numeric>
 #include <sstream>
@@ -137,6 +138,23 @@ void File::requireObject(const std::string& name) const {
 
 namespace {
 
+/// The largest dataset kept in its object header (compact layout; HDF5 allows 64 KB).
+constexpr std::size_t kCompactMaxBytes = 32 * 1024;
+
+/// The storage of a dataset too small to be compressed: in its object header (compact) up to
+/// kCompactMaxBytes, where the HDF5 1.10 format's header checksum covers the values too,
+/// else chunked with Fletcher-32. Contiguous storage (HDF5's default) has no checksum, so a
+/// damaged byte in a small table or a list of names was read back as another value.
+void setSmallLayout(hid_t plist, std::size_t bytes, std::size_t elementBytes = 0, hsize_t elements = 0) {
+    if (bytes <= kCompactMaxBytes) {
+        H5Pset_layout(plist, H5D_COMPACT);
+        return;
+    }
+    const hsize_t chunk = std::max<hsize_t>(1, std::min<hsize_t>(elements, 65536 / std::max<std::size_t>(1, elementBytes)));
+    H5Pset_chunk(plist, 1, &chunk);
+    H5Pset_fletcher32(plist);
+}
+
 template <typename T>
 void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
                 const std::vector<hsize_t>& dims, hid_t memType, hid_t fileType) {
@@ -157,6 +175,8 @@ void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
         // A checksum of each compressed chunk: damage to the data itself (which the
         // metadata checksums do not cover) is an error on reading, not wrong values.
         H5Pset_fletcher32(plist.id());
+    } else {
+        setSmallLayout(plist.id(), n * sizeof(T));
     }
     if (H5Lexists(f.id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(f.id(), name.c_str(), H5P_DEFAULT);
     Handle ds(H5Dcreate2(f.id(), name.c_str(), fileType, space.id(), H5P_DEFAULT, plist.id(), H5P_DEFAULT));
@@ -235,19 +255,27 @@ bool File::isIntegerDataset(const std::string& name) const {
 
 void File::writeStrings(const std::string& name, const std::vector<std::string>& v) {
     ensureGroup(parentOf(name));
-    std::vector<const char*> ptrs;
-    ptrs.reserve(v.size());
-    for (const auto& s : v) ptrs.push_back(s.c_str());
+    // Fixed-length strings, each padded with NULs to the longest (at least 1 byte): a
+    // variable-length string keeps its bytes in the file's global heap, which carries no
+    // checksum, and HDF5 1.10.8 allocates whatever length a damaged heap declares (4 GB from
+    // one flipped byte, found by fuzz_canopy_file). Fixed-length data lives in the dataset
+    // itself, its type and size in the checksummed object header.
+    std::size_t width = 1;
+    for (const auto& s : v) width = std::max(width, s.size());
+    std::vector<char> bytes(v.size() * width, '\0');
+    for (std::size_t i = 0; i < v.size(); ++i) std::copy(v[i].begin(), v[i].end(), bytes.begin() + static_cast<std::ptrdiff_t>(i * width));
     Handle type(H5Tcopy(H5T_C_S1));
-    H5Tset_size(type.id(), H5T_VARIABLE);
+    H5Tset_size(type.id(), width);
+    H5Tset_strpad(type.id(), H5T_STR_NULLPAD);
     H5Tset_cset(type.id(), H5T_CSET_UTF8);
     const hsize_t n = v.size();
     Handle space(H5Screate_simple(1, &n, nullptr));
     if (H5Lexists(id(), name.c_str(), H5P_DEFAULT) > 0) H5Ldelete(id(), name.c_str(), H5P_DEFAULT);
     const Handle dcpl = untimedCreationList(H5P_DATASET_CREATE);
+    setSmallLayout(dcpl.id(), bytes.size(), width, n);
     Handle ds(H5Dcreate2(id(), name.c_str(), type.id(), space.id(), H5P_DEFAULT, dcpl.id(), H5P_DEFAULT));
     if (!ds.valid()) throw IoError(where(name) + ": cannot create string dataset");
-    if (n > 0 && H5Dwrite(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
+    if (n > 0 && H5Dwrite(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes.data()) < 0)
         throw IoError(where(name) + ": cannot write string dataset");
 }
 
@@ -263,13 +291,32 @@ std::vector<std::string> File::readStrings(const std::string& name) const {
     hsize_t n = 0;
     H5Sget_simple_extent_dims(space.id(), &n, nullptr);
     n = elementsToRead({n}, sizeof(char*) + sizeof(std::string), where(name));
+    std::vector<std::string> out;
+    if (H5Tis_variable_str(ftype.id()) <= 0) {
+        // Fixed-length (what writeStrings writes): n strings of `width` bytes, NUL-padded or
+        // NUL-terminated; a space-padded string keeps its spaces, as h5py shows them.
+        const std::size_t width = H5Tget_size(ftype.id());
+        if (width == 0) throw IoError(where(name) + ": string dataset of width 0");
+        elementsToRead({n, width}, 1, where(name));
+        std::vector<char> bytes(n * width);
+        Handle mem(H5Tcopy(ftype.id()));
+        if (n > 0 && H5Dread(ds.id(), mem.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes.data()) < 0)
+            throw IoError(where(name) + ": cannot read string dataset");
+        out.reserve(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const char* b = bytes.data() + i * width;
+            out.emplace_back(b, static_cast<std::size_t>(std::find(b, b + width, '\0') - b));
+        }
+        return out;
+    }
+    // Variable-length: files written before fixed-length strings (their bytes in the global
+    // heap; a damaged heap is not detected, see writeStrings).
     Handle type(H5Tcopy(H5T_C_S1));
     H5Tset_size(type.id(), H5T_VARIABLE);
     H5Tset_cset(type.id(), H5Tget_cset(ftype.id()));
     std::vector<char*> ptrs(n, nullptr);
     if (n > 0 && H5Dread(ds.id(), type.id(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
         throw IoError(where(name) + ": cannot read string dataset");
-    std::vector<std::string> out;
     out.reserve(n);
     for (char* p : ptrs) out.emplace_back(p ? p : "");
     if (n > 0) H5Dvlen_reclaim(type.id(), space.id(), H5P_DEFAULT, ptrs.data());

@@ -61,6 +61,11 @@ TEST_CASE("h5io: large grids (compressed, chunked) round trip", "[h5io]") {
     eco::test::TempDir dir("h5_big");
     const std::string path = dir.file("big.h5");
     const Grid<float> g = largeGrid();
+    // A small table and a list of names too: kept in their object headers (compact layout)
+    // under its checksum; they were contiguous, unchecked, before.
+    std::vector<double> small(300);
+    for (std::size_t i = 0; i < small.size(); ++i) small[i] = 0.25 * static_cast<double>(i) + 1.0 / 3.0;
+    const std::vector<std::string> names{"Douglas-Fir", "Coast Redwood", "Swordfern", ""};
     {
         File f = File::create(path);
         f.writeGrid("/big", g, "m");
@@ -162,10 +167,17 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
     eco::test::TempDir dir("h5_flip");
     const std::string path = dir.file("flip.h5");
     const Grid<float> g = largeGrid();
+    // A small table and a list of names too: kept in their object headers (compact layout)
+    // under its checksum; they were contiguous, unchecked, before.
+    std::vector<double> small(300);
+    for (std::size_t i = 0; i < small.size(); ++i) small[i] = 0.25 * static_cast<double>(i) + 1.0 / 3.0;
+    const std::vector<std::string> names{"Douglas-Fir", "Coast Redwood", "Swordfern", ""};
     {
         File f = File::create(path);
         f.writeGrid("/big", g, "m");
         f.setAttr("/big", "note", std::string("some text"));
+        f.writeF64("/plants/height", small, {small.size()});
+        f.writeStrings("/plants/species_names", names);
     }
     std::string bytes;
     {
@@ -190,6 +202,10 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
             REQUIRE(r.data() == g.data());
             REQUIRE(f.attrString("/big", "units") == "m");
             REQUIRE(f.attrString("/big", "note") == "some text");
+            const std::vector<double> height = f.readF64("/plants/height");
+            const std::vector<std::string> species = f.readStrings("/plants/species_names");
+            REQUIRE(height == small);
+            REQUIRE(species == names);
             ++same;
         } catch (const eco::Error&) {
             ++refused;
@@ -281,6 +297,39 @@ TEST_CASE("h5io: a dataset whose declared shape does not fit in memory is refuse
     CHECK_THROWS_WITH(f.readF64("/huge"), Catch::Contains("huge.h5") && Catch::Contains("/huge") &&
                                               Catch::Contains("needs about") && Catch::Contains("memory"));
     CHECK_THROWS_WITH(f.readStrings("/names"), Catch::Contains("/names") && Catch::Contains("needs about"));
+}
+
+TEST_CASE("h5io: names are written as fixed-length strings, variable-length ones of older files still read", "[h5io]") {
+    // Variable-length strings live in the global heap, which has no checksum: a damaged length
+    // there made HDF5 allocate 4 GB (fuzz_canopy_file). writeStrings writes fixed-length ones.
+    eco::test::TempDir dir("h5io_strings");
+    const std::string path = dir.file("s.h5");
+    const std::vector<std::string> names{"Coast Redwood", "", "Toyon \xC3\xA9", std::string(200, 'x')};
+    {
+        File f = File::create(path);
+        f.writeStrings("/new", names);
+        const hid_t type = H5Tcopy(H5T_C_S1);
+        H5Tset_size(type, H5T_VARIABLE);
+        const hsize_t n = names.size();
+        const hid_t space = H5Screate_simple(1, &n, nullptr);
+        const hid_t ds = H5Dcreate2(f.id(), "/old", type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        REQUIRE(ds >= 0);
+        std::vector<const char*> ptrs;
+        for (const auto& s : names) ptrs.push_back(s.c_str());
+        REQUIRE(H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) >= 0);
+        H5Dclose(ds);
+        H5Sclose(space);
+        H5Tclose(type);
+    }
+    const File f = File::openRead(path);
+    CHECK(f.readStrings("/new") == names);
+    CHECK(f.readStrings("/old") == names);
+    const hid_t ds = H5Dopen2(f.id(), "/new", H5P_DEFAULT);
+    const hid_t type = H5Dget_type(ds);
+    CHECK(H5Tis_variable_str(type) == 0);
+    CHECK(H5Tget_size(type) == 200);
+    H5Tclose(type);
+    H5Dclose(ds);
 }
 
 TEST_CASE("h5io: a string dataset of two dimensions is refused", "[h5io]") {
