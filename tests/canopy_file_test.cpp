@@ -26,7 +26,7 @@ CanopyFileContents smallCanopy(const Biome& biome) {
 
 }  // namespace
 
-TEST_CASE("canopy file: written and read back; the simulator's parts alone", "[canopy_file]") {
+TEST_CASE("canopy file: written and read back, the simulator's parts alone", "[canopy_file]") {
     test::TempDir dir("canopy_file");
     const Biome biome = defaultBiome();
     const std::string path = dir.file("c.h5");

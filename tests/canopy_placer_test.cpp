@@ -188,7 +188,7 @@ TEST_CASE("trees where no species can grow take the nearest mapped species", "[c
     CHECK(none.fallbackTrees == none.trees.size());
 }
 
-TEST_CASE("seeds are strict local maxima at or above the seed height; a plateau gives one", "[canopy]") {
+TEST_CASE("seeds are strict local maxima at or above the seed height, a plateau gives one", "[canopy]") {
     Grid<float> chm(12, 10, 1.0, 0, 0, 0.f);
     chm(3, 3) = 10.f;           // a peak
     chm(8, 6) = chm(9, 6) = 7.f;  // a two-cell plateau
@@ -378,7 +378,7 @@ TEST_CASE("canopy files round-trip", "[canopy]") {
     CHECK_THROWS_WITH(readCanopyFile(dir.file("missing.h5"), b), Catch::Contains("missing.h5"));
 }
 
-TEST_CASE("apex trees stay at their CHM maximum with its height; the best state is kept", "[canopy]") {
+TEST_CASE("apex trees stay at their CHM maximum with its height, the best state is kept", "[canopy]") {
     const Biome b = defaultBiome();
     int df = -1;
     for (const Species& s : b.species)

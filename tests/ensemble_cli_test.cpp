@@ -86,7 +86,7 @@ void requireSameResults(const fs::path& a, const fs::path& b) {
 
 }  // namespace
 
-TEST_CASE("eco ensemble: every member simulated, a manifest and one database; a rerun reuses all of it", "[ensemble][cli]") {
+TEST_CASE("eco ensemble: every member simulated, a manifest and one database, a rerun reuses all of it", "[ensemble][cli]") {
     test::TempDir dir("ensemble");
     const std::string spec = writeSpec(dir);
     const auto dry = test::runEco("ensemble " + spec + " --dry-run");
@@ -158,8 +158,17 @@ TEST_CASE("eco ensemble: bad specifications are refused before anything runs", "
         INFO(member << "\n" << r.output);
         CHECK(r.exitCode == 1);
         CHECK(r.output.find(expect) != std::string::npos);
-        CHECK_FALSE(fs::exists(dir.file("out/members/m01/terrain.h5")));
+        // Checked before anything is written: no member's files, no output folder at all,
+        // and the messages name the real folder, not the scratch copy they were checked in.
+        CHECK_FALSE(fs::exists(dir.file("out")));
+        CHECK(r.output.find("eco-ensemble-check") == std::string::npos);
     }
+    // --dry-run lists the members and writes nothing either.
+    const auto dry = test::runEco("ensemble --dry-run " + writeSpec(dir));
+    INFO(dry.output);
+    CHECK(dry.exitCode == 0);
+    CHECK(dry.output.find("sparse") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir.file("out")));
     const std::string emptyVary = writeSpec(dir, "");
     std::ofstream(emptyVary, std::ios::app) << "[vary]\n";
     const auto r = test::runEco("ensemble " + emptyVary);

@@ -226,7 +226,7 @@ TEST_CASE("fidelity: the CSR pattern keeps counts and sizes, stays on region cel
     CHECK(validate::csrPattern(ref, ctx, params)[5].xM == csr[5].xM);  // a pure function of its seed
 }
 
-TEST_CASE("fidelity: score and guard; PCT.DEV", "[fidelity]") {
+TEST_CASE("fidelity: score and guard, PCT.DEV", "[fidelity]") {
     bool scored = false;
     CHECK(validate::fidelityScore(0.3, 0.1, 0.5, 0.05, scored) == Approx(0.5));
     CHECK(scored);

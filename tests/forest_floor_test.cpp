@@ -86,7 +86,7 @@ TEST_CASE("crowns reduce grass by (1 - alpha) each and add alpha to the litter",
     CHECK(synth::computeForestFloor(f, {redwood, oak}, {}, b, p).litter(8, 10) == 1.0f);
 }
 
-TEST_CASE("grass falls and litter rises with cumulative alpha; identical for any thread count", "[forest_floor]") {
+TEST_CASE("grass falls and litter rises with cumulative alpha, identical for any thread count", "[forest_floor]") {
     const Biome b = defaultBiome();
     synth::ForestFloorParams p;
     const auto f = uniformFeatures(120, 90, static_cast<float>(p.grassResponse(Factor::Sun).c), static_cast<float>(p.grassResponse(Factor::Moisture).c),

@@ -67,7 +67,7 @@ TEST_CASE("GeoTIFF: scale and offset of the band are applied", "[geo]") {
     CHECK(g(3, 0) == Approx(22.0));
 }
 
-TEST_CASE("GeoTIFF terrain: a nodata cell is refused with its position; cell size must agree", "[geo]") {
+TEST_CASE("GeoTIFF terrain: a nodata cell is refused with its position, cell size must agree", "[geo]") {
     TempDir dir("geo_terrain");
     const std::string path = dir.file("dem.tif");
     writeGeoTiff(path, chmSpec());
@@ -144,7 +144,7 @@ TEST_CASE("CHM: gaps filled from their neighbours or set to 0, negative cells cl
     CHECK_THROWS_WITH(eco::parseChmGapRule("smooth", "--chm-gaps"), Catch::Contains("--chm-gaps") && Catch::Contains("smooth"));
 }
 
-TEST_CASE("CHM: a wide gap is filled only near the data; an .asc NODATA cell is a gap too", "[geo]") {
+TEST_CASE("CHM: a wide gap is filled only near the data, an .asc NODATA cell is a gap too", "[geo]") {
     TempDir dir("geo_gap");
     GeoTiffSpec s;
     s.width = 7;
@@ -176,7 +176,7 @@ TEST_CASE("CHM: a wide gap is filled only near the data; an .asc NODATA cell is 
     CHECK(a.chm(1, 0) == 6.0f);
 }
 
-TEST_CASE("CRS: the same system matches however written; two different ones are refused by name", "[geo]") {
+TEST_CASE("CRS: the same system matches however written, two different ones are refused by name", "[geo]") {
     TempDir dir("geo_crs");
     const std::string utm10 = dir.file("utm10.tif"), utm11 = dir.file("utm11.tif"), none = dir.file("none.asc");
     writeGeoTiff(utm10, GeoTiffSpec{});

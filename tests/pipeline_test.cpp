@@ -178,7 +178,10 @@ TEST_CASE("ensemble: configs/ensemble.toml plans its members with their override
     CHECK(spec.members[4].id == "toyon-alpha");
     CHECK(spec.variedKeys == std::vector<std::string>{"biome.species.Toyon.alpha", "canopy.targets", "terrain.seed"});
     CHECK(spec.databasePath == dir.file("out") + "/biome-db.h5");
-    // The biome override reached the member's own biome file, and only that member's.
+    // Loading (and checking) wrote nothing; once written, the biome override reached the
+    // member's own biome file, and only that member's.
+    CHECK_FALSE(std::filesystem::exists(dir.file("out")));
+    for (std::size_t i = 0; i < spec.members.size(); ++i) eco::pipeline::writeMemberConfig(spec, i);
     const std::string biome = dir.file("out/members/toyon-alpha/biome.toml");
     REQUIRE(std::filesystem::exists(biome));
     const eco::Biome b = eco::loadBiome(biome);

@@ -65,7 +65,7 @@ TEST_CASE("plants CSV has a header and one row per plant", "[plants]") {
     CHECK(row == "undergrowth,0,\"Redwood Sorrel\",1.000,2.000,3.000,0.200,0.800");
 }
 
-TEST_CASE("undergrowth tables round-trip their state columns; plain readers see plain plants", "[plants]") {
+TEST_CASE("undergrowth tables round-trip their state columns, plain readers see plain plants", "[plants]") {
     test::TempDir dir("plants");
     const Biome biome = defaultBiome();
     UndergrowthPlant a;

@@ -7,7 +7,7 @@
 
 using namespace eco;
 
-TEST_CASE("simulation file: snapshots, canopy and context read back; years listed", "[sim_file]") {
+TEST_CASE("simulation file: snapshots, canopy and context read back, years listed", "[sim_file]") {
     test::TempDir dir("sim_file");
     const Biome biome = defaultBiome();
     SimulationFileInfo info;

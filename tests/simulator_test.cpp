@@ -878,7 +878,7 @@ TEST_CASE("limits: a grid over 65535 cells wide, a biome of over 2048 species or
     CHECK_NOTHROW(Simulation(periods, SimParams{}, 1));
 }
 
-TEST_CASE("deussen: ability is vigour x relative height; crowns intersect strictly", "[sim][deussen]") {
+TEST_CASE("deussen: ability is vigour x relative height, crowns intersect strictly", "[sim][deussen]") {
     CHECK(competitiveAbility(0.5, 2.0, 8.0) == Approx(0.125));
     CHECK(competitiveAbility(-0.1, 2.0, 8.0) < 0);
     CHECK(crownsIntersect(0, 0, 1, 1.5, 0, 0.6));

@@ -160,7 +160,7 @@ TEST_CASE("terrain: float TIFF and EXR round trips are exact after scaling", "[t
     CHECK_FALSE(leftovers(dir));
 }
 
-TEST_CASE("terrain: HDF5 round trip is exact; a CHM file reads as /chm/height", "[terrain]") {
+TEST_CASE("terrain: HDF5 round trip is exact, a CHM file reads as /chm/height", "[terrain]") {
     TempDir dir("tio_h5");
     const Grid<float> g = sampleTerrain();
     const std::string path = dir.file("t.h5");

@@ -132,7 +132,7 @@ TEST_CASE("Deussen circles: log mean area against log density has slope about -1
     CHECK(r.fitLastStep - r.fitFirstStep > 50);
 }
 
-TEST_CASE("CheckSpec: approx, min and max; NaN never passes", "[validate][report]") {
+TEST_CASE("CheckSpec: approx, min and max, NaN never passes", "[validate][report]") {
     CheckSpec a;
     a.kind = CheckSpec::Kind::Approx;
     a.target = -1.5;
@@ -225,7 +225,7 @@ TEST_CASE("A known deviation is reported with its value but does not fail the su
     CHECK(std::string(healed.outcome()) == "pass");
 }
 
-TEST_CASE("Forest scenarios may measure at their own year; known_deviation is read", "[validate][config]") {
+TEST_CASE("Forest scenarios may measure at their own year, known_deviation is read", "[validate][config]") {
     const std::string text = R"(
 [scenario]
 name = "eq"
@@ -337,7 +337,7 @@ seeding_probability = 0.01
     CHECK_THROWS_WITH(parseForestSceneConfig(deussen, "scene.toml"), Catch::Contains("competition"));
 }
 
-TEST_CASE("A check may have a looser quick bound, with a reason; a stricter one is an error", "[validate][config]") {
+TEST_CASE("A check may have a looser quick bound, with a reason, a stricter one is an error", "[validate][config]") {
     const std::string base = kMinimalCircles;
     auto replaced = [&](const std::string& from, const std::string& to) {
         std::string t = base;
