@@ -116,20 +116,19 @@ bool isIdentifier(const std::string& s) {
            std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'; });
 }
 
-/// The member's configuration files written into its folder (member.toml, and simulate.toml
-/// and biome.toml when it overrides model or biome keys); returns member.toml's path and the
-/// fingerprint of all of them with the code version.
+/// The member's configuration files (member.toml, and simulate.toml and biome.toml when it
+/// overrides model or biome keys), composed in memory: their paths in its folder, their
+/// texts and the fingerprint of all of them with the code version.
 struct MemberFiles {
-    std::string config;
+    std::string config;  ///< member.toml's path
     std::string hash;
+    std::vector<std::pair<std::string, std::string>> texts;  ///< path, content
 };
 
-MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
+MemberFiles composeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
     const EnsembleMember& m = spec.members[index];
     const std::string dir = memberDir(spec, index);
-    ensureDirectory(dir);
     toml::table run = spec.base;
-    std::string simText, biomeText;
     toml::table sim, biome;
     bool simChanged = false, biomeChanged = false;
     for (const auto& [k, v] : m.overrides) {
@@ -158,26 +157,45 @@ MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
         }
     }
     const auto at = [&](const std::string& name) { return (fs::path(dir) / name).string(); };
+    MemberFiles files;
+    // The files a member reads by path (its simulation configuration, its biome) count too.
+    std::string inputs;
     if (simChanged) {
-        simText = tomlText(sim);
-        writeIfChanged(at("simulate.toml"), simText);
+        files.texts.emplace_back(at("simulate.toml"), tomlText(sim));
         setPath(run, {"simulate", "config"}, 0, toml::value<std::string>(at("simulate.toml")), spec.path);
+        inputs += files.texts.back().second;
+    } else if (const auto* cfg = run["simulate"]["config"].as_string()) {
+        inputs += readTextFile(cfg->get());
     }
     if (biomeChanged) {
-        biomeText = tomlText(biome);
-        writeIfChanged(at("biome.toml"), biomeText);
+        files.texts.emplace_back(at("biome.toml"), tomlText(biome));
         setPath(run, {"run", "biome"}, 0, toml::value<std::string>(at("biome.toml")), spec.path);
+        inputs += files.texts.back().second;
+    } else if (const auto* b = run["run"]["biome"].as_string()) {
+        inputs += readTextFile(b->get());
     }
     setPath(run, {"run", "out_dir"}, 0, toml::value<std::string>(dir), spec.path);
     const std::string runText = "# ensemble " + spec.path + ", member " + m.id + " (written by eco ensemble)\n" + tomlText(run);
-    const std::string config = at("member.toml");
-    writeIfChanged(config, runText);
-    // The files a member reads by path (its simulation configuration, its biome) count too.
-    std::string inputs;
-    if (const auto* cfg = run["simulate"]["config"].as_string()) inputs += readTextFile(cfg->get());
-    if (const auto* b = run["run"]["biome"].as_string()) inputs += readTextFile(b->get());
-    return {config, fingerprint(runText + inputs + ECO_VERSION_STRING)};
+    files.config = at("member.toml");
+    files.texts.emplace_back(files.config, runText);
+    files.hash = fingerprint(runText + inputs + ECO_VERSION_STRING);
+    return files;
 }
+
+/// composeMemberFiles, written into the member's folder (files whose content is unchanged
+/// are left alone).
+MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
+    MemberFiles files = composeMemberFiles(spec, index);
+    ensureDirectory(memberDir(spec, index));
+    for (const auto& [path, text] : files.texts) writeIfChanged(path, text);
+    return files;
+}
+
+}  // namespace
+
+std::string writeMemberConfig(const EnsembleSpec& spec, std::size_t index) { return writeMemberFiles(spec, index).config; }
+
+namespace {
 
 std::string statusPath(const EnsembleSpec& spec, std::size_t index) { return (fs::path(memberDir(spec, index)) / "status.toml").string(); }
 
@@ -383,13 +401,30 @@ EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOve
     }
     spec.variedKeys.assign(keys.begin(), keys.end());
 
-    // Every member's configuration checked as eco run checks its own, before anything runs.
+    // Every member's configuration checked as eco run checks its own, before anything runs
+    // and before anything is written: in a scratch copy of the output folder (eco run's
+    // checks read the files and create the output folders), removed afterwards, so that a
+    // bad member or --dry-run leaves the output folder as it was. Messages name the real folder.
+    const fs::path scratch = fs::temp_directory_path() / ("eco-ensemble-check-" + fingerprint(path + std::to_string(::getpid())));
+    struct RemoveScratch {
+        fs::path dir;
+        ~RemoveScratch() {
+            std::error_code ec;
+            fs::remove_all(dir, ec);
+        }
+    } removeScratch{scratch};
+    EnsembleSpec check = spec;
+    check.outDir = (scratch / "out").string();
+    const auto realNames = [&](std::string message) {
+        for (std::size_t at = message.find(check.outDir); at != std::string::npos; at = message.find(check.outDir, at + spec.outDir.size()))
+            message.replace(at, check.outDir.size(), spec.outDir);
+        return message;
+    };
     for (std::size_t i = 0; i < spec.members.size(); ++i) {
-        const MemberFiles files = writeMemberFiles(spec, i);
         try {
-            planRun(files.config);
+            planRun(writeMemberFiles(check, i).config);
         } catch (const Error& err) {
-            throw ValidationError(path + ": member '" + spec.members[i].id + "': " + err.what());
+            throw ValidationError(path + ": member '" + spec.members[i].id + "': " + realNames(err.what()));
         }
     }
     return spec;
@@ -398,7 +433,7 @@ EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOve
 MemberStatus memberStatus(const EnsembleSpec& spec, std::size_t index) {
     MemberStatus s = recordedStatus(spec, index);
     if (s.state == "pending") return s;
-    if (s.configHash != writeMemberFiles(spec, index).hash) {
+    if (s.configHash != composeMemberFiles(spec, index).hash) {
         MemberStatus fresh;
         fresh.id = s.id;
         return fresh;
@@ -456,7 +491,7 @@ void recordMemberFailure(const EnsembleSpec& spec, std::size_t index, const std:
     s.run = run;
     s.state = "failed";
     s.error = why;
-    s.configHash = writeMemberFiles(spec, index).hash;
+    s.configHash = composeMemberFiles(spec, index).hash;
     writeStatus(spec, index, s);
 }
 

@@ -46,7 +46,8 @@ struct EnsembleSpec {
 
 /// Reads and checks a specification (ValidationError naming the file and key), and checks
 /// every member's configuration as eco run would, so that a bad override stops the run
-/// before anything is simulated. `outOverride` replaces [ensemble] out_dir when not empty.
+/// before anything is simulated; writes nothing into the output folder.
+/// `outOverride` replaces [ensemble] out_dir when not empty.
 EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOverride = "");
 
 /// "terrain.seed = 2, model.seeding_probability = 0.0003" (or "the base configuration").
@@ -54,6 +55,11 @@ std::string overridesText(const EnsembleMember& member);
 
 /// OUT/members/<id>.
 std::string memberDir(const EnsembleSpec& spec, std::size_t index);
+
+/// Writes the member's configuration files into its folder (member.toml; simulate.toml and
+/// biome.toml when it overrides model or biome keys) and returns member.toml's path.
+/// loadEnsembleSpec writes nothing; runMember calls this.
+std::string writeMemberConfig(const EnsembleSpec& spec, std::size_t index);
 
 struct MemberStatus {
     std::string id;
