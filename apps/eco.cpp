@@ -49,6 +49,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerFidelityCommand(*app);
     registerEnsembleCommand(*app);
     registerDatabaseCommands(*app);
+    registerSensitivityCommand(*app);
     return app;
 }
 

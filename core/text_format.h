@@ -15,4 +15,13 @@ inline std::string formatNumber(double v, int significant = 6) {
     return os.str();
 }
 
+/// A CSV field (RFC 4180): as it is, or in double quotes (a quote doubled) when it holds a
+/// comma, a quote or a line break.
+inline std::string csvField(const std::string& s) {
+    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+    std::string out = "\"";
+    for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return out + "\"";
+}
+
 }  // namespace eco

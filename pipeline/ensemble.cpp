@@ -268,19 +268,15 @@ private:
 };
 
 /// A stage of a member, as the member runs it: the simulation continues from its checkpoint.
+/// Line breaks as spaces: one manifest row per line.
+std::string oneLine(std::string s) {
+    std::replace(s.begin(), s.end(), '\n', ' ');
+    return s;
+}
+
 StageOptions asMemberStage(StageOptions options) {
     if (auto* o = std::get_if<SimulateOptions>(&options)) o->resume = true;
     return options;
-}
-
-std::string csvField(const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string q = "\"";
-    for (char c : s) {
-        if (c == '"') q += '"';
-        q += c == '\n' ? ' ' : c;
-    }
-    return q + "\"";
 }
 
 }  // namespace
@@ -566,7 +562,7 @@ std::string writeManifest(const EnsembleSpec& spec) {
             csv << ",";
             if (const toml::node* v = spec.members[i].overrides.get(k)) csv << csvField(valueText(*v));
         }
-        csv << "," << csvField(s.error) << "," << csvField(memberDir(spec, i)) << "\n";
+        csv << "," << csvField(oneLine(s.error)) << "," << csvField(memberDir(spec, i)) << "\n";
     }
     const std::string path = (fs::path(spec.outDir) / "manifest.csv").string();
     writeTextFile(path, csv.str());

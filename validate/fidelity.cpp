@@ -671,13 +671,6 @@ std::string cell(double v, int decimals = 3) {
 
 std::string csvNum(double v) { return std::isfinite(v) ? formatNumber(v, 8) : std::string(); }
 
-std::string csvText(const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string out = "\"";
-    for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return out + "\"";
-}
-
 }  // namespace
 
 std::string fidelityMarkdown(const FidelityReport& r, const std::string& heading) {
@@ -717,13 +710,13 @@ void writeFidelityCsv(const std::string& path, const FidelityReport& r) {
     std::ostringstream csv;
     csv << "kind,quantity,scope,species,scene,reference_a,replicate_b,csr,score\n";
     for (const auto& f : r.figures)
-        csv << "figure," << csvText(f.figure) << "," << csvText(f.scope) << ",," << csvNum(f.scene) << ",,"
+        csv << "figure," << csvField(f.figure) << "," << csvField(f.scope) << ",," << csvNum(f.scene) << ",,"
             << csvNum(f.replicate) << "," << csvNum(f.csr) << "," << (f.scored ? csvNum(f.score) : std::string()) << "\n";
     for (const auto& s : r.species)
-        csv << "species," << csvText(s.quantity) << ",overall," << csvText(s.species) << "," << csvNum(s.scene) << ","
+        csv << "species," << csvField(s.quantity) << ",overall," << csvField(s.species) << "," << csvNum(s.scene) << ","
             << csvNum(s.reference) << "," << csvNum(s.replicate) << "," << csvNum(s.csr) << ",\n";
     for (const auto& v : r.values)
-        csv << "value," << csvText(v.quantity) << "," << csvText(v.scope) << ",," << csvNum(v.scene) << ","
+        csv << "value," << csvField(v.quantity) << "," << csvField(v.scope) << ",," << csvNum(v.scene) << ","
             << csvNum(v.reference) << "," << csvNum(v.replicate) << "," << csvNum(v.csr) << ",\n";
     for (std::size_t k = 0; k < r.binUpperM.size(); ++k) {
         const std::string rr = csvNum(r.binUpperM[k]);
@@ -732,7 +725,7 @@ void writeFidelityCsv(const std::string& path, const FidelityReport& r) {
         csv << "curve,L(r) - r (plot rectangle) at r_hi_m," << rr << ",," << csvNum(r.lScene[k]) << "," << csvNum(r.lA[k])
             << "," << csvNum(r.lB[k]) << "," << csvNum(r.lCsr[k]) << ",\n";
     }
-    for (const auto& [k, v] : r.params.asParameters()) csv << "parameter," << csvText(k) << ",,," << csvText(v) << ",,,,\n";
+    for (const auto& [k, v] : r.params.asParameters()) csv << "parameter," << csvField(k) << ",,," << csvField(v) << ",,,,\n";
     writeTextFile(path, csv.str());
 }
 
