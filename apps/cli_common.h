@@ -37,6 +37,7 @@ void registerFidelityCommand(CLI::App& app);   // eco fidelity [--config F] [--s
 void registerEnsembleCommand(CLI::App& app);   // eco ensemble SPEC.toml (many simulations, MPI)
 void registerDatabaseCommands(CLI::App& app);  // eco database build BIOME.toml --out DB.h5
 void registerSensitivityCommand(CLI::App& app); // eco sensitivity SPEC.toml (Morris screening)
+void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit parameters to observations)
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
 /// is not done.

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -71,15 +72,20 @@ std::string makeRunToken() {
 }
 
 /// Holds OUT/.ensemble.lock for the life of the process: two runs of one ensemble at a time
-/// would run its members twice.
+/// would run its members twice. A process may run the same ensemble again (eco calibrate
+/// runs one per evaluation): a folder it already holds is not locked twice.
 void lockOutDir(const std::string& outDir) {
     ensureDirectory(outDir);
     const std::string path = (std::filesystem::path(outDir) / ".ensemble.lock").string();
+    static std::set<std::string> held;
+    const std::string key = std::filesystem::weakly_canonical(path).string();
+    if (held.count(key)) return;
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) throw IoError(path + ": cannot open the ensemble's lock: " + std::strerror(errno));
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0)
         throw ValidationError(outDir + ": another eco ensemble is running in this folder (it holds " + path + ")");
     // Kept open (and locked) until the process ends.
+    held.insert(key);
 }
 
 /// Members run in this process, one after the other, claimed from the shared queue.

@@ -50,6 +50,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerEnsembleCommand(*app);
     registerDatabaseCommands(*app);
     registerSensitivityCommand(*app);
+    registerCalibrateCommand(*app);
     return app;
 }
 

@@ -24,65 +24,9 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-int parseYear(const std::string& s, const std::string& where, const std::string& text) {
-    if (s.empty() || s.size() > 6 || !std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
-        throw ValidationError(where + ": output '" + text + "': '" + s + "' is not a year (a whole number)");
-    return std::stoi(s);
-}
-
 double mean(const std::vector<double>& v) { return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size()); }
 
 }  // namespace
-
-std::string SensitivityOutput::units() const {
-    switch (measure) {
-        case Measure::Share: return "fraction of undergrowth plants";
-        case Measure::Density: return "plants per m2";
-        case Measure::MeanHeight: return "m";
-        case Measure::Cover: return "crown area per m2";
-        case Measure::CountCv: return "coefficient of variation";
-    }
-    return "";
-}
-
-SensitivityOutput parseSensitivityOutput(const std::string& text, const std::string& where) {
-    SensitivityOutput o;
-    o.text = text;
-    const auto at = text.find('@');
-    if (at == std::string::npos)
-        throw ValidationError(where + ": output '" + text + "': expected MEASURE[:SPECIES]@YEAR (e.g. share:Toyon@30, density@30) or cv@FIRST-LAST");
-    std::string head = text.substr(0, at);
-    const std::string when = text.substr(at + 1);
-    const auto colon = head.find(':');
-    if (colon != std::string::npos) {
-        o.species = head.substr(colon + 1);
-        head = head.substr(0, colon);
-        if (o.species.empty()) throw ValidationError(where + ": output '" + text + "': empty species name after ':'");
-    }
-    if (head == "share") o.measure = SensitivityOutput::Measure::Share;
-    else if (head == "density") o.measure = SensitivityOutput::Measure::Density;
-    else if (head == "mean_height") o.measure = SensitivityOutput::Measure::MeanHeight;
-    else if (head == "cover") o.measure = SensitivityOutput::Measure::Cover;
-    else if (head == "cv") o.measure = SensitivityOutput::Measure::CountCv;
-    else
-        throw ValidationError(where + ": output '" + text + "': unknown measure '" + head +
-                              "' (share, density, mean_height, cover or cv)");
-    if (o.measure == SensitivityOutput::Measure::Share && o.species.empty())
-        throw ValidationError(where + ": output '" + text + "': share needs a species (share:SPECIES@YEAR)");
-    if (o.measure == SensitivityOutput::Measure::Density && !o.species.empty())
-        throw ValidationError(where + ": output '" + text + "': density is of all undergrowth (share:SPECIES gives a species' part)");
-    if (o.measure == SensitivityOutput::Measure::CountCv) {
-        if (!o.species.empty()) throw ValidationError(where + ": output '" + text + "': cv is of the total plant count (no species)");
-        const auto dash = when.find('-');
-        if (dash == std::string::npos) throw ValidationError(where + ": output '" + text + "': cv needs a window of years, cv@FIRST-LAST");
-        o.year = parseYear(when.substr(0, dash), where, text);
-        o.yearEnd = parseYear(when.substr(dash + 1), where, text);
-        if (o.yearEnd <= o.year) throw ValidationError(where + ": output '" + text + "': the window's last year must follow its first");
-    } else {
-        o.year = o.yearEnd = parseYear(when, where, text);
-    }
-    return o;
-}
 
 SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& outOverride) {
     const toml::table root = parseTomlFile(path);
@@ -112,34 +56,21 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
             const std::string where = path + ": [sensitivity.parameters] '" + key + "'";
             const auto* a = v.as_array();
             if (!a || a->size() != 2) throw ValidationError(where + ": expected [LOW, HIGH]");
-            SensitivityParameter p;
-            p.key = key;
             const auto num = [&](std::size_t i) {
                 const toml::node* n = a->get(i);
                 if (const auto* f = n->as_floating_point()) return f->get();
                 if (const auto* in = n->as_integer()) return static_cast<double>(in->get());
                 throw ValidationError(where + ": expected numbers [LOW, HIGH]");
             };
-            p.low = num(0);
-            p.high = num(1);
-            if (!std::isfinite(p.low) || !std::isfinite(p.high) || !(p.low < p.high))
-                throw ValidationError(where + ": expected LOW < HIGH, got [" + formatNumber(p.low, 10) + ", " + formatNumber(p.high, 10) + "]");
-            if (key == "run.seed") throw ValidationError(where + ": run.seed is the replicates' own key");
-            if (key.find('.') == std::string::npos) throw ValidationError(where + ": expected TABLE.KEY (e.g. biome.species.Toyon.alpha)");
+            const StudyParameter p = makeStudyParameter(key, num(0), num(1), where);
             spec.parameters.push_back(p);
         }
         if (spec.parameters.empty()) s.fail("parameters", "no parameter to vary");
         if (spec.parameters.size() > 200) s.fail("parameters", "more than 200 parameters");
     }
-    for (const std::string& o : s.strings("outputs")) spec.outputs.push_back(parseSensitivityOutput(o, path + ": [sensitivity] outputs"));
+    for (const std::string& o : s.strings("outputs")) spec.outputs.push_back(parseSimulationOutput(o, path + ": [sensitivity] outputs"));
     if (spec.outputs.empty()) s.fail("outputs", "no output to measure");
-    if (const toml::node& b = s.node("base"); const auto* file = b.as_string()) {
-        spec.base = parseTomlFile(file->get());
-    } else if (const auto* t = b.as_table()) {
-        spec.base = *t;
-    } else {
-        s.fail("base", "expected an eco run configuration file name or a table [sensitivity.base]");
-    }
+    spec.base = studyBase(s.node("base"), path + ": [sensitivity] base");
     s.finish();
     top.finish();
     const std::size_t members = static_cast<std::size_t>(spec.trajectories) * (spec.parameters.size() + 1) *
@@ -256,21 +187,8 @@ std::string sensitivityMemberName(int t, int j, int r) {
     return buf;
 }
 
-namespace {
-
-double physical(const SensitivityParameter& p, double unit) { return p.low + unit * (p.high - p.low); }
-
-std::string ensembleDir(const SensitivitySpec& spec) { return (fs::path(spec.outDir) / "ensemble").string(); }
-
-}  // namespace
-
 std::string writeSensitivityEnsemble(const SensitivitySpec& spec, const MorrisDesign& design) {
-    toml::table ensemble;
-    ensemble.insert("out_dir", ensembleDir(spec));
-    ensemble.insert("database", false);
-    ensemble.insert("members_at_once", static_cast<std::int64_t>(spec.membersAtOnce));
-    ensemble.insert("base", spec.base);
-    toml::array members;
+    std::vector<StudyMember> members;
     std::ostringstream csv;
     csv << "trajectory,point,moved";
     for (const auto& p : spec.parameters) csv << "," << p.key;
@@ -278,95 +196,26 @@ std::string writeSensitivityEnsemble(const SensitivitySpec& spec, const MorrisDe
     for (int t = 0; t < design.trajectories; ++t)
         for (std::size_t j = 0; j < design.points[static_cast<std::size_t>(t)].size(); ++j) {
             const auto& x = design.points[static_cast<std::size_t>(t)][j];
+            std::vector<double> values;
+            for (std::size_t i = 0; i < x.size(); ++i) values.push_back(spec.parameters[i].at(x[i]));
             csv << t + 1 << "," << j << "," << (j == 0 ? std::string("") : spec.parameters[static_cast<std::size_t>(design.moved[static_cast<std::size_t>(t)][j - 1])].key);
-            for (std::size_t i = 0; i < x.size(); ++i) csv << "," << formatNumber(physical(spec.parameters[i], x[i]), 12);
+            for (double v : values) csv << "," << formatNumber(v, 12);
             csv << "\n";
-            for (int r = 0; r < spec.replicates; ++r) {
-                toml::table m;
-                m.insert("name", sensitivityMemberName(t, static_cast<int>(j), r));
-                for (std::size_t i = 0; i < x.size(); ++i) m.insert(spec.parameters[i].key, physical(spec.parameters[i], x[i]));
-                m.insert("run.seed", static_cast<std::int64_t>(r + 1));
-                members.push_back(std::move(m));
-            }
+            for (int r = 0; r < spec.replicates; ++r) members.push_back({sensitivityMemberName(t, static_cast<int>(j), r), values, r + 1});
         }
-    toml::table root;
-    root.insert("ensemble", std::move(ensemble));
-    root.insert("member", std::move(members));
-    std::ostringstream text;
-    text << "# The members of eco sensitivity " << spec.path << ": one per Morris design point and replicate\n"
-         << "# (written by eco sensitivity; run.seed is the replicate).\n"
-         << root << "\n";
-    ensureDirectory(spec.outDir);
-    const std::string path = (fs::path(spec.outDir) / "ensemble.toml").string();
-    if (!fs::exists(path) || readTextFile(path) != text.str()) writeTextFile(path, text.str());
+    const std::string path = writeStudyEnsemble(spec.outDir, spec.base, spec.membersAtOnce, spec.parameters, members,
+                                                "# The members of eco sensitivity " + spec.path + ": one per Morris design point and replicate\n"
+                                                "# (written by eco sensitivity; run.seed is the replicate).\n");
     const std::string designPath = (fs::path(spec.outDir) / "design.csv").string();
     if (!fs::exists(designPath) || readTextFile(designPath) != csv.str()) writeTextFile(designPath, csv.str());
     return path;
-}
-
-double measureOutput(const std::string& simulationPath, const SensitivityOutput& output) {
-    const h5::File f = h5::File::openRead(simulationPath);
-    if (!f.hasAttr("/", "format") || f.attrString("/", "format") != kSimulationFormat)
-        throw IoError(simulationPath + ": not an eco-simulation file");
-    const std::vector<std::string> names = f.readStrings("/species_names");
-    const std::vector<YearRecord> series = readTimeseries(f, "/timeseries", names.size());
-    const double area = (f.attrDouble("/", "x1") - f.attrDouble("/", "x0")) * (f.attrDouble("/", "y1") - f.attrDouble("/", "y0"));
-    if (!(area > 0)) throw IoError(simulationPath + ": the simulated area (x0, y0, x1, y1) is empty");
-    int species = -1;
-    if (!output.species.empty()) {
-        const auto it = std::find(names.begin(), names.end(), output.species);
-        if (it == names.end()) throw ValidationError(simulationPath + ": output '" + output.text + "': no species '" + output.species + "' in the simulation's biome");
-        species = static_cast<int>(it - names.begin());
-    }
-    const auto record = [&](int year) -> const YearRecord& {
-        for (const YearRecord& r : series)
-            if (r.year == year) return r;
-        throw ValidationError(simulationPath + ": output '" + output.text + "': year " + std::to_string(year) + " is not in its time series (years " +
-                              (series.empty() ? std::string("none") : std::to_string(series.front().year) + " .. " + std::to_string(series.back().year)) + ")");
-    };
-    const auto total = [](const YearRecord& r) {
-        double n = 0;
-        for (auto c : r.count) n += c;
-        return n;
-    };
-    using M = SensitivityOutput::Measure;
-    if (output.measure == M::CountCv) {
-        std::vector<double> counts;
-        for (int y = output.year; y <= output.yearEnd; ++y) counts.push_back(total(record(y)));
-        const double m = mean(counts);
-        double sq = 0;
-        for (double c : counts) sq += (c - m) * (c - m);
-        return m > 0 ? std::sqrt(sq / static_cast<double>(counts.size())) / m : 0.0;
-    }
-    const YearRecord& r = record(output.year);
-    const auto s = static_cast<std::size_t>(species);
-    switch (output.measure) {
-        case M::Share: {
-            const double n = total(r);
-            return n > 0 ? r.count[s] / n : 0.0;
-        }
-        case M::Density: return total(r) / area;
-        case M::MeanHeight: {
-            if (species >= 0) return r.meanHeightM[s];
-            double h = 0;
-            for (std::size_t i = 0; i < r.count.size(); ++i) h += r.count[i] * r.meanHeightM[i];
-            const double n = total(r);
-            return n > 0 ? h / n : 0.0;
-        }
-        case M::Cover: {
-            if (species >= 0) return r.crownAreaM2[s] / area;
-            return std::accumulate(r.crownAreaM2.begin(), r.crownAreaM2.end(), 0.0) / area;
-        }
-        case M::CountCv: break;
-    }
-    return 0;
 }
 
 namespace {
 
 /// mu* against sigma, one marker per parameter with its name, and the seed-noise level of
 /// mu* (twice it: the threshold of the report) as a dashed vertical line.
-void writeMorrisPng(const std::string& path, const SensitivitySpec& spec, const SensitivityOutput& out,
+void writeMorrisPng(const std::string& path, const SensitivitySpec& spec, const SimulationOutput& out,
                     const std::vector<MorrisStats>& stats, const SeedNoise& noise) {
     Chart c;
     c.left = 90;
@@ -447,14 +296,14 @@ SensitivityReport writeSensitivityReport(const SensitivitySpec& spec, const Morr
        << "replicates, of each step's difference: the replicates' seeds are the same at every point). A parameter whose mu* is not above twice that cannot be told from seed noise with this design "
        << "(more replicates or trajectories would tell).\n";
     for (std::size_t o = 0; o < spec.outputs.size(); ++o) {
-        const SensitivityOutput& out = spec.outputs[o];
+        const SimulationOutput& out = spec.outputs[o];
         std::vector<std::vector<double>> y(static_cast<std::size_t>(design.trajectories));
         std::vector<std::vector<std::vector<double>>> values(static_cast<std::size_t>(design.trajectories));
         for (int t = 0; t < design.trajectories; ++t)
             for (std::size_t j = 0; j <= k; ++j) {
                 std::vector<double> reps;
                 for (int r = 0; r < spec.replicates; ++r) {
-                    const std::string sim = (fs::path(ensembleDir(spec)) / "members" / sensitivityMemberName(t, static_cast<int>(j), r) / "simulation.h5").string();
+                    const std::string sim = studySimulation(spec.outDir, sensitivityMemberName(t, static_cast<int>(j), r));
                     reps.push_back(measureOutput(sim, out));
                 }
                 y[static_cast<std::size_t>(t)].push_back(mean(reps));
@@ -472,7 +321,7 @@ SensitivityReport writeSensitivityReport(const SensitivitySpec& spec, const Morr
         summary << out.text << ":";
         for (std::size_t rank = 0; rank < k; ++rank) {
             const std::size_t i = order[rank];
-            const SensitivityParameter& p = spec.parameters[i];
+            const StudyParameter& p = spec.parameters[i];
             const MorrisStats& s = stats[i];
             const bool measured = std::isfinite(noise.muStarNoise) && noise.muStarNoise > 0;
             const std::string ratio = measured ? formatNumber(s.muStar / noise.muStarNoise, 3) : std::string("-");

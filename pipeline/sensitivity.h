@@ -7,34 +7,13 @@
 // docs/sensitivity.md describes the file, the method and the report.
 #pragma once
 
-#include <toml++/toml.h>
-
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "parameter_study.h"
+
 namespace eco::pipeline {
-
-/// A parameter varied over [low, high]: a dotted key of the ensemble's overrides
-/// ("biome.species.Toyon.alpha", "model.seeding_probability").
-struct SensitivityParameter {
-    std::string key;
-    double low = 0, high = 1;
-};
-
-/// An output measured from a member's simulation file (its /timeseries).
-struct SensitivityOutput {
-    enum class Measure { Share, Density, MeanHeight, Cover, CountCv };
-    std::string text;      ///< as written: "share:Toyon@30", "density@30", "cv@20-30"
-    Measure measure = Measure::Density;
-    std::string species;   ///< share (required), mean_height and cover (optional: all undergrowth)
-    int year = 0;          ///< the year; for cv the first year of the window
-    int yearEnd = 0;       ///< cv: the last year of the window
-    std::string units() const;
-};
-
-/// Parses "MEASURE[:SPECIES]@YEAR" or "cv@FIRST-LAST". ValidationError naming `where`.
-SensitivityOutput parseSensitivityOutput(const std::string& text, const std::string& where);
 
 struct SensitivitySpec {
     std::string path;
@@ -44,8 +23,8 @@ struct SensitivitySpec {
     int replicates = 2;     ///< seeds per design point (run.seed = 1 .. replicates)
     std::uint64_t seed = 1; ///< of the design
     int membersAtOnce = 1;
-    std::vector<SensitivityParameter> parameters;
-    std::vector<SensitivityOutput> outputs;
+    std::vector<StudyParameter> parameters;
+    std::vector<SimulationOutput> outputs;
     toml::table base;       ///< [sensitivity.base]: the members' eco run configuration
 };
 
@@ -94,10 +73,6 @@ std::string sensitivityMemberName(int t, int j, int r);
 /// values and run.seed), no database; returns its path. The design is written as
 /// OUT/design.csv.
 std::string writeSensitivityEnsemble(const SensitivitySpec& spec, const MorrisDesign& design);
-
-/// The output measured from a simulation file. ValidationError naming the file when the
-/// year is not in its time series or the species not in its biome.
-double measureOutput(const std::string& simulationPath, const SensitivityOutput& output);
 
 struct SensitivityReport {
     std::string csvPath, markdownPath;

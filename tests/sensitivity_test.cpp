@@ -116,12 +116,12 @@ TEST_CASE("Morris seed noise: common seeds cancel, independent noise is measured
 }
 
 TEST_CASE("Sensitivity outputs: parsed from their text, measured from a simulation's time series", "[sensitivity]") {
-    CHECK_THROWS_WITH(parseSensitivityOutput("share@30", "s.toml"), Catch::Contains("s.toml") && Catch::Contains("needs a species"));
-    CHECK_THROWS_WITH(parseSensitivityOutput("height@30", "s.toml"), Catch::Contains("unknown measure 'height'"));
-    CHECK_THROWS_WITH(parseSensitivityOutput("density", "s.toml"), Catch::Contains("MEASURE[:SPECIES]@YEAR"));
-    CHECK_THROWS_WITH(parseSensitivityOutput("cv@30", "s.toml"), Catch::Contains("window"));
-    CHECK_THROWS_WITH(parseSensitivityOutput("cv@30-20", "s.toml"), Catch::Contains("must follow"));
-    CHECK_THROWS_WITH(parseSensitivityOutput("density@x1", "s.toml"), Catch::Contains("not a year"));
+    CHECK_THROWS_WITH(parseSimulationOutput("share@30", "s.toml"), Catch::Contains("s.toml") && Catch::Contains("needs a species"));
+    CHECK_THROWS_WITH(parseSimulationOutput("height@30", "s.toml"), Catch::Contains("unknown measure 'height'"));
+    CHECK_THROWS_WITH(parseSimulationOutput("density", "s.toml"), Catch::Contains("MEASURE[:SPECIES]@YEAR"));
+    CHECK_THROWS_WITH(parseSimulationOutput("cv@30", "s.toml"), Catch::Contains("window"));
+    CHECK_THROWS_WITH(parseSimulationOutput("cv@30-20", "s.toml"), Catch::Contains("must follow"));
+    CHECK_THROWS_WITH(parseSimulationOutput("density@x1", "s.toml"), Catch::Contains("not a year"));
 
     test::TempDir dir("sensitivity_measure");
     const Biome biome = defaultBiome();
@@ -151,14 +151,14 @@ TEST_CASE("Sensitivity outputs: parsed from their text, measured from a simulati
     }
     const std::string path = dir.file("sim.h5");
     writeSimulationFile(path, info, biome, {{3, {}}}, series, {});
-    CHECK(measureOutput(path, parseSensitivityOutput("share:Toyon@1", "t")) == Approx(20.0 / 50));
-    CHECK(measureOutput(path, parseSensitivityOutput("density@3", "t")) == Approx(70.0 / 200));
-    CHECK(measureOutput(path, parseSensitivityOutput("mean_height@0", "t")) == Approx((10 * 2.0 + 30 * 1.0) / 40));
-    CHECK(measureOutput(path, parseSensitivityOutput("mean_height:Western Swordfern@2", "t")) == Approx(1.0));
-    CHECK(measureOutput(path, parseSensitivityOutput("cover@2", "t")) == Approx(60.0 / 200));
-    CHECK(measureOutput(path, parseSensitivityOutput("cover:Toyon@2", "t")) == Approx(50.0 / 200));
+    CHECK(measureOutput(path, parseSimulationOutput("share:Toyon@1", "t")) == Approx(20.0 / 50));
+    CHECK(measureOutput(path, parseSimulationOutput("density@3", "t")) == Approx(70.0 / 200));
+    CHECK(measureOutput(path, parseSimulationOutput("mean_height@0", "t")) == Approx((10 * 2.0 + 30 * 1.0) / 40));
+    CHECK(measureOutput(path, parseSimulationOutput("mean_height:Western Swordfern@2", "t")) == Approx(1.0));
+    CHECK(measureOutput(path, parseSimulationOutput("cover@2", "t")) == Approx(60.0 / 200));
+    CHECK(measureOutput(path, parseSimulationOutput("cover:Toyon@2", "t")) == Approx(50.0 / 200));
     // Totals 40, 50, 60, 70 over years 0-3: mean 55, population sd sqrt(125).
-    CHECK(measureOutput(path, parseSensitivityOutput("cv@0-3", "t")) == Approx(std::sqrt(125.0) / 55));
-    CHECK_THROWS_WITH(measureOutput(path, parseSensitivityOutput("density@9", "t")), Catch::Contains("year 9") && Catch::Contains("0 .. 3"));
-    CHECK_THROWS_WITH(measureOutput(path, parseSensitivityOutput("share:Nonesuch@1", "t")), Catch::Contains("no species 'Nonesuch'"));
+    CHECK(measureOutput(path, parseSimulationOutput("cv@0-3", "t")) == Approx(std::sqrt(125.0) / 55));
+    CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("density@9", "t")), Catch::Contains("year 9") && Catch::Contains("0 .. 3"));
+    CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("share:Nonesuch@1", "t")), Catch::Contains("no species 'Nonesuch'"));
 }

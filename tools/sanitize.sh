@@ -71,9 +71,10 @@ png_error_tests='^terrain: a corrupt image is named$'
 # stage runs them all.
 # Also the ensemble's runs: its members and database, its kill test and its comparison of
 # child processes and MPI ranks with one process (one to three ensemble runs of three members
-# each; the specification reader runs sanitized in the others), and eco sensitivity's (twelve
-# simulations; its specification and report code run sanitized in the other tests).
-slow_tests='^(eco sensitivity: Morris screening.*|eco ensemble: every member simulated.*|eco ensemble: killed at a checkpoint write.*|eco ensemble: members in child processes.*|synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*)$'
+# each; the specification reader runs sanitized in the others), and those of eco sensitivity (twelve
+# simulations) and eco calibrate (about twelve; their specification and report code run
+# sanitized in the other tests).
+slow_tests='^(eco sensitivity: Morris screening.*|eco calibrate: recovers a known.*|eco ensemble: every member simulated.*|eco ensemble: killed at a checkpoint write.*|eco ensemble: members in child processes.*|synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*)$'
 # The test that feeds HDF5 files with a damaged byte: HDF5 1.10.8 leaks small blocks on the
 # error paths of damaged files, so it runs with the HDF5 fuzz targets' suppressions.
 hdf5_damage_tests='^h5io: a damaged byte anywhere in a file is an error, never a changed value$'

@@ -1,0 +1,60 @@
+// eco calibrate SPEC.toml: parsing only; the search, the uncertainty and the report are in
+// pipeline/calibrate, the simulations run as eco ensemble's members.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "calibrate.h"
+#include "cli_common.h"
+
+namespace eco::cli {
+
+namespace {
+
+struct CalibrateArgs {
+    std::string spec, outDir;
+};
+
+void runCalibrate(const CalibrateArgs& a) {
+    const pipeline::CalibrationSpec spec = pipeline::loadCalibrationSpec(a.spec, a.outDir);
+    info("calibrate: " + std::to_string(spec.parameters.size()) + " parameters to " + std::to_string(spec.targets.size()) +
+         " targets, NLopt " + spec.algorithm + ", at most " + std::to_string(spec.maxEvaluations) + " evaluations of " +
+         std::to_string(spec.replicates) + " simulations; in " + spec.outDir);
+    CliReporter reporter;
+    // Each evaluation's simulations run as members of one ensemble (OUT/ensemble.toml, written
+    // again with every evaluation: finished members are skipped).
+    int rank = 0;
+    const pipeline::CalibrationResult r =
+        pipeline::calibrate(spec, [&](const std::string& members) { rank = runEnsembleFile(members, "", false); }, reporter);
+    if (rank != 0) return;
+    const pipeline::Evaluation& best = r.history[r.best];
+    std::printf("best of %zu evaluations (%s): chi2 = %g\n", r.history.size(), r.stopReason.c_str(), best.chi2);
+    for (std::size_t i = 0; i < spec.parameters.size(); ++i)
+        std::printf("  %s = %g%s\n", spec.parameters[i].key.c_str(), best.values[i],
+                    std::isfinite(r.parameterSd[i]) ? (" +- " + formatNumber(r.parameterSd[i], 3)).c_str() : "");
+    std::printf("%s\n%s\n", r.reportPath.c_str(), r.historyPath.c_str());
+    if (!r.bestBiome.empty()) std::printf("%s\n", r.bestBiome.c_str());
+    if (!r.bestSimulation.empty()) std::printf("%s\n", r.bestSimulation.c_str());
+    std::fflush(stdout);
+}
+
+}  // namespace
+
+void registerCalibrateCommand(CLI::App& app) {
+    auto a = std::make_shared<CalibrateArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "calibrate",
+        "Fit species parameters and model constants within bounds to observations (species shares, density, mean "
+        "heights, cover at a year; cv of the plant count), each with its sd: a derivative-free search (NLopt) of "
+        "chi2 over simulations averaged over replicate seeds, run as an eco ensemble (parallel; a killed calibration "
+        "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
+        "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");
+    sub->add_option("spec", a->spec, "Calibration specification (TOML; configs/calibrate.toml is an example)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    sub->add_option("--out-dir", a->outDir, "Override [calibrate] out_dir");
+    sub->callback([a] { runCalibrate(*a); });
+}
+
+}  // namespace eco::cli

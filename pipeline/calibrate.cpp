@@ -1,0 +1,405 @@
+#include "calibrate.h"
+
+#include <nlopt.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <sstream>
+
+#include "atomic_file.h"
+#include "chart.h"
+#include "error.h"
+#include "image_out.h"
+#include "strict_toml.h"
+#include "text_format.h"
+
+namespace eco::pipeline {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double numberNode(const toml::node& n, const std::string& where) {
+    if (const auto* f = n.as_floating_point()) return f->get();
+    if (const auto* i = n.as_integer()) return static_cast<double>(i->get());
+    throw ValidationError(where + ": expected a number");
+}
+
+nlopt_algorithm algorithmOf(const std::string& name) {
+    if (name == "sbplx") return NLOPT_LN_SBPLX;
+    if (name == "neldermead") return NLOPT_LN_NELDERMEAD;
+    if (name == "bobyqa") return NLOPT_LN_BOBYQA;
+    if (name == "cobyla") return NLOPT_LN_COBYLA;
+    throw ValidationError("unknown algorithm '" + name + "'");
+}
+
+std::string stopText(nlopt_result r) {
+    switch (r) {
+        case NLOPT_SUCCESS: return "converged";
+        case NLOPT_STOPVAL_REACHED: return "chi2 reached its stop value";
+        case NLOPT_FTOL_REACHED: return "chi2 changed less than the tolerance";
+        case NLOPT_XTOL_REACHED: return "the parameters changed less than the tolerance";
+        case NLOPT_MAXEVAL_REACHED: return "max_evaluations reached";
+        case NLOPT_MAXTIME_REACHED: return "time limit reached";
+        case NLOPT_ROUNDOFF_LIMITED: return "stopped by round-off";
+        case NLOPT_FORCED_STOP: return "stopped";
+        default: return "the optimiser failed (NLopt code " + std::to_string(static_cast<int>(r)) + ")";
+    }
+}
+
+std::string joinValues(const std::vector<StudyParameter>& params, const std::vector<double>& v) {
+    std::string s;
+    for (std::size_t i = 0; i < params.size(); ++i) s += (i ? ", " : "") + params[i].key + " = " + formatNumber(v[i], 6);
+    return s;
+}
+
+}  // namespace
+
+CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& outOverride) {
+    const toml::table root = parseTomlFile(path);
+    StrictTable top(root, path, "");
+    CalibrationSpec spec;
+    spec.path = path;
+    StrictTable c(top.table("calibrate"), path, "[calibrate]");
+    spec.outDir = outOverride.empty() ? c.string("out_dir") : outOverride;
+    if (!outOverride.empty() && c.has("out_dir")) c.string("out_dir");
+    spec.algorithm = c.stringOr("algorithm", spec.algorithm);
+    try {
+        algorithmOf(spec.algorithm);
+    } catch (const ValidationError&) {
+        c.fail("algorithm", "'" + spec.algorithm + "' is not one of sbplx, neldermead, bobyqa, cobyla");
+    }
+    spec.maxEvaluations = static_cast<int>(c.integerOr("max_evaluations", spec.maxEvaluations));
+    if (spec.maxEvaluations < 2 || spec.maxEvaluations > 10000) c.fail("max_evaluations", "must be in 2 .. 10000");
+    spec.replicates = static_cast<int>(c.integerOr("replicates", spec.replicates));
+    if (spec.replicates < 1 || spec.replicates > 100) c.fail("replicates", "must be in 1 .. 100");
+    spec.tolerance = c.numberInOr("tolerance", 1e-9, 0.5, spec.tolerance);
+    spec.initialStep = c.numberInOr("initial_step", 1e-3, 1.0, spec.initialStep);
+    spec.uncertainty = c.booleanOr("uncertainty", spec.uncertainty);
+    spec.membersAtOnce = static_cast<int>(c.integerOr("members_at_once", 1));
+    if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) c.fail("members_at_once", "must be in 1 .. 256");
+    for (const auto& [k, v] : c.table("parameters")) {
+        const std::string key(k.str());
+        const std::string where = path + ": [calibrate.parameters] '" + key + "'";
+        // [LOW, HIGH] (start in the middle) or { low = , high = , start = }.
+        double low = 0, high = 0, start = std::nan("");
+        if (const auto* a = v.as_array(); a && a->size() == 2) {
+            low = numberNode(*a->get(0), where);
+            high = numberNode(*a->get(1), where);
+        } else if (const auto* t = v.as_table()) {
+            StrictTable p(*t, path, "[calibrate.parameters] '" + key + "'");
+            low = p.number("low");
+            high = p.number("high");
+            start = p.numberOr("start", std::nan(""));
+            p.finish();
+        } else {
+            throw ValidationError(where + ": expected [LOW, HIGH] or { low = LOW, high = HIGH, start = START }");
+        }
+        spec.parameters.push_back(makeStudyParameter(key, low, high, where));
+        if (std::isnan(start)) start = 0.5 * (low + high);
+        if (!(start >= low && start <= high))
+            throw ValidationError(where + ": start " + formatNumber(start, 10) + " lies outside [" + formatNumber(low, 10) + ", " + formatNumber(high, 10) + "]");
+        spec.start.push_back(start);
+    }
+    if (spec.parameters.empty()) c.fail("parameters", "no parameter to fit");
+    if (spec.parameters.size() > 50) c.fail("parameters", "more than 50 parameters");
+    spec.base = studyBase(c.node("base"), path + ": [calibrate] base");
+    if (const toml::table* truth = c.optionalTable("truth")) {
+        StrictTable t(*truth, path, "[calibrate.truth]");
+        for (std::size_t i = 0; i < spec.parameters.size(); ++i) {
+            const StudyParameter& p = spec.parameters[i];
+            const double v = t.number(p.key);
+            if (!(v >= p.low && v <= p.high))
+                t.fail(p.key, "the true value " + formatNumber(v, 10) + " lies outside its range [" + formatNumber(p.low, 10) + ", " + formatNumber(p.high, 10) + "]");
+            spec.truth.push_back(v);
+        }
+        t.finish();
+    }
+    c.finish();
+    const toml::array* targets = top.has("target") ? &top.array("target") : nullptr;
+    if (!targets || targets->empty()) throw ValidationError(path + ": no [[target]]: the observations to fit");
+    for (std::size_t i = 0; i < targets->size(); ++i) {
+        const auto* t = targets->get(i)->as_table();
+        const std::string ctx = "[[target]] " + std::to_string(i + 1);
+        if (!t) throw ValidationError(path + ": " + ctx + ": expected a table");
+        StrictTable tt(*t, path, ctx);
+        CalibrationTarget target;
+        target.output = parseSimulationOutput(tt.string("output"), path + ": " + ctx);
+        // Without a value only when the truth gives it.
+        target.value = spec.truth.empty() ? tt.number("value") : tt.numberOr("value", std::nan(""));
+        target.sd = tt.positive("sd");
+        tt.finish();
+        spec.targets.push_back(target);
+    }
+    top.finish();
+    return spec;
+}
+
+std::string calibrationMemberName(int evaluation, int replicate) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "e%04d-r%02d", evaluation, replicate + 1);
+    return buf;
+}
+
+double chiSquare(const std::vector<CalibrationTarget>& targets, const std::vector<double>& simulated) {
+    double chi2 = 0;
+    for (std::size_t t = 0; t < targets.size(); ++t) {
+        const double r = (simulated.at(t) - targets[t].value) / targets[t].sd;
+        chi2 += r * r;
+    }
+    return chi2;
+}
+
+std::vector<double> linearisedSd(const std::vector<std::vector<double>>& jacobian) {
+    const std::size_t rows = jacobian.size(), cols = rows ? jacobian[0].size() : 0;
+    std::vector<double> sd(cols, std::nan(""));
+    if (rows == 0 || cols == 0) return sd;
+    Eigen::MatrixXd j(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(cols));
+    for (std::size_t r = 0; r < rows; ++r)
+        for (std::size_t c = 0; c < cols; ++c) j(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = jacobian[r][c];
+    // Columns scaled to unit length first, so that parameters of very different units do not
+    // make a well-posed problem look singular.
+    Eigen::VectorXd scale = j.colwise().norm().transpose();
+    for (Eigen::Index c = 0; c < scale.size(); ++c)
+        if (!(scale(c) > 0)) return sd;  // a parameter that moves no target: nothing is identifiable about it
+    const Eigen::MatrixXd js = j * scale.cwiseInverse().asDiagonal();
+    const Eigen::MatrixXd jtj = js.transpose() * js;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(jtj);
+    if (eig.eigenvalues().minCoeff() <= 1e-10 * eig.eigenvalues().maxCoeff()) return sd;
+    const Eigen::MatrixXd cov = jtj.inverse();
+    for (std::size_t c = 0; c < cols; ++c) sd[c] = std::sqrt(cov(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(c))) / scale(static_cast<Eigen::Index>(c));
+    return sd;
+}
+
+namespace {
+
+class Calibrator {
+public:
+    Calibrator(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter, std::vector<StudyMember> members)
+        : spec_(spec), run_(run), reporter_(reporter), members_(std::move(members)) {}
+
+    /// chi2 at these parameter values (evaluated once; a repeated point is looked up).
+    const Evaluation& evaluate(const std::vector<double>& values, const std::string& purpose) {
+        if (const auto it = seen_.find(values); it != seen_.end()) return history_[it->second];
+        Evaluation e;
+        e.index = static_cast<int>(history_.size()) + 1;
+        e.purpose = purpose;
+        e.values = values;
+        for (int r = 0; r < spec_.replicates; ++r) members_.push_back({calibrationMemberName(e.index, r), values, r + 1});
+        run_(writeStudyEnsemble(spec_.outDir, spec_.base, spec_.membersAtOnce, spec_.parameters, members_,
+                                "# The simulations of eco calibrate " + spec_.path + ": one per evaluation and replicate\n"
+                                "# (written by eco calibrate; run.seed is the replicate).\n"));
+        for (const CalibrationTarget& t : spec_.targets) {
+            std::vector<double> reps;
+            for (int r = 0; r < spec_.replicates; ++r) reps.push_back(measureOutput(studySimulation(spec_.outDir, calibrationMemberName(e.index, r)), t.output));
+            const double m = std::accumulate(reps.begin(), reps.end(), 0.0) / static_cast<double>(reps.size());
+            double sq = 0;
+            for (double v : reps) sq += (v - m) * (v - m);
+            e.simulated.push_back(m);
+            e.spread.push_back(reps.size() > 1 ? std::sqrt(sq / static_cast<double>(reps.size() - 1)) : 0.0);
+        }
+        e.chi2 = chiSquare(spec_.targets, e.simulated);
+        seen_[values] = history_.size();
+        history_.push_back(e);
+        if (history_.size() == 1 || e.chi2 < history_[best_].chi2) best_ = history_.size() - 1;
+        reporter_.info("calibrate: evaluation " + std::to_string(e.index) + " (" + purpose + "): " + joinValues(spec_.parameters, values) +
+                       "; chi2 = " + formatNumber(e.chi2, 5) + " (best " + formatNumber(history_[best_].chi2, 5) + ")");
+        return history_.back();
+    }
+
+    std::vector<Evaluation>& history() { return history_; }
+    std::size_t best() const { return best_; }
+
+private:
+    const CalibrationSpec& spec_;
+    const MemberRunner& run_;
+    Reporter& reporter_;
+    std::vector<StudyMember> members_;
+    std::vector<Evaluation> history_;
+    std::map<std::vector<double>, std::size_t> seen_;
+    std::size_t best_ = 0;
+};
+
+struct Objective {
+    Calibrator* calibrator;
+    const CalibrationSpec* spec;
+    nlopt_opt opt;
+    std::exception_ptr error;
+};
+
+double objective(unsigned n, const double* u, double* /*grad*/, void* data) {
+    auto* o = static_cast<Objective*>(data);
+    try {
+        std::vector<double> values(n);
+        for (unsigned i = 0; i < n; ++i) values[i] = o->spec->parameters[i].at(std::clamp(u[i], 0.0, 1.0));
+        return o->calibrator->evaluate(values, "search").chi2;
+    } catch (...) {
+        // No exception may cross NLopt's C frames: kept, and rethrown after the optimiser stops.
+        o->error = std::current_exception();
+        nlopt_force_stop(o->opt);
+        return HUGE_VAL;
+    }
+}
+
+/// log10(chi2) of each evaluation, the search in blue, the uncertainty's in grey.
+void writeConvergencePng(const std::string& path, const CalibrationResult& r) {
+    ChartSeries search, extra, best;
+    search.name = "search";
+    search.colour = {0.12f, 0.47f, 0.71f};
+    search.strokeOffsetsPx = {0, 1};
+    search.pointRadiusPx = 3;
+    extra.colour = {0.55f, 0.55f, 0.55f};
+    extra.strokeOffsetsPx = {};
+    extra.pointRadiusPx = 3;
+    best.colour = {0.84f, 0.15f, 0.16f};
+    best.strokeOffsetsPx = {};
+    best.pointRadiusPx = 6;
+    double lo = 1e300, hi = -1e300;
+    for (const Evaluation& e : r.history) {
+        const double y = std::log10(std::max(e.chi2, 1e-6));
+        (e.purpose == "search" ? search : extra).x.push_back(e.index);
+        (e.purpose == "search" ? search : extra).y.push_back(y);
+        lo = std::min(lo, y);
+        hi = std::max(hi, y);
+    }
+    best.x = {static_cast<double>(r.history[r.best].index)};
+    best.y = {std::log10(std::max(r.history[r.best].chi2, 1e-6))};
+    const double pad = std::max(0.1, 0.08 * (hi - lo));
+    Canvas c = chartCanvas({search, extra, best}, 0, static_cast<double>(r.history.size()) + 1, std::floor(lo - pad), std::ceil(hi + pad),
+                           "evaluation (blue: search, grey: uncertainty; red: best)", "log10 chi2");
+    c.writePng(path);
+}
+
+}  // namespace
+
+CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& run, Reporter& reporter) {
+    const std::size_t k = given.parameters.size();
+    CalibrationSpec spec = given;
+    CalibrationResult result;
+    // A known truth: the targets' values are its simulations' outputs (other seeds).
+    std::vector<StudyMember> truthMembers;
+    for (std::size_t r = 0; r < given.truth.size() && r < static_cast<std::size_t>(given.replicates); ++r)
+        truthMembers.push_back({"truth-r" + std::string(r < 9 ? "0" : "") + std::to_string(r + 1), given.truth, 1001 + static_cast<int>(r)});
+    if (!truthMembers.empty()) {
+        run(writeStudyEnsemble(spec.outDir, spec.base, spec.membersAtOnce, spec.parameters, truthMembers,
+                               "# The simulations of eco calibrate " + spec.path + " (written by eco calibrate).\n"));
+        for (CalibrationTarget& t : spec.targets) {
+            double sum = 0;
+            for (const StudyMember& m : truthMembers) sum += measureOutput(studySimulation(spec.outDir, m.name), t.output);
+            t.value = sum / static_cast<double>(truthMembers.size());
+        }
+        std::string line = "calibrate: targets from the truth (" + joinValues(spec.parameters, given.truth) + "):";
+        for (const CalibrationTarget& t : spec.targets) line += " " + t.output.text + " = " + formatNumber(t.value, 6);
+        reporter.info(line);
+    }
+    for (const CalibrationTarget& t : spec.targets) result.targetValues.push_back(t.value);
+    Calibrator cal(spec, run, reporter, truthMembers);
+    // The search in the unit cube: every parameter's range is [0, 1] to the optimiser.
+    nlopt_opt opt = nlopt_create(algorithmOf(spec.algorithm), static_cast<unsigned>(k));
+    if (!opt) throw ValidationError("calibrate: NLopt could not create its optimiser");
+    Objective data{&cal, &spec, opt, nullptr};
+    std::vector<double> lower(k, 0.0), upper(k, 1.0), u(k);
+    for (std::size_t i = 0; i < k; ++i) u[i] = (spec.start[i] - spec.parameters[i].low) / (spec.parameters[i].high - spec.parameters[i].low);
+    nlopt_set_lower_bounds(opt, lower.data());
+    nlopt_set_upper_bounds(opt, upper.data());
+    nlopt_set_min_objective(opt, objective, &data);
+    nlopt_set_maxeval(opt, spec.maxEvaluations);
+    nlopt_set_xtol_rel(opt, spec.tolerance);
+    nlopt_set_initial_step1(opt, spec.initialStep);
+    double minimum = 0;
+    const nlopt_result status = nlopt_optimize(opt, u.data(), &minimum);
+    nlopt_destroy(opt);
+    if (data.error) std::rethrow_exception(data.error);
+    result.stopReason = stopText(status);
+    if (cal.history().empty()) throw ValidationError("calibrate: the optimiser stopped before any evaluation (" + result.stopReason + ")");
+    const Evaluation bestSearch = cal.history()[cal.best()];
+
+    // Uncertainty: the Jacobian of the normalised residuals by forward differences of a tenth
+    // of each range (backwards at the upper bound), at the same replicate seeds.
+    result.parameterSd.assign(k, std::nan(""));
+    if (spec.uncertainty) {
+        std::vector<std::vector<double>> jac(spec.targets.size(), std::vector<double>(k, 0.0));
+        for (std::size_t i = 0; i < k; ++i) {
+            std::vector<double> v = bestSearch.values;
+            const StudyParameter& p = spec.parameters[i];
+            const double h = 0.1 * (p.high - p.low);
+            v[i] = v[i] + h <= p.high ? v[i] + h : v[i] - h;
+            const Evaluation e = cal.evaluate(v, "uncertainty");
+            for (std::size_t t = 0; t < spec.targets.size(); ++t)
+                jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (v[i] - bestSearch.values[i]);
+        }
+        result.parameterSd = linearisedSd(jac);
+    }
+    result.history = cal.history();
+    // The best of the search (an uncertainty step may score lower by chance; it is not a fit).
+    result.best = static_cast<std::size_t>(bestSearch.index - 1);
+    const Evaluation& best = result.history[result.best];
+
+    // Outputs, together: the history, the report, the picture, the best configuration files.
+    AtomicOutputSet outputs;
+    const auto at = [&](const std::string& name) { return (fs::path(spec.outDir) / name).string(); };
+    std::ostringstream csv;
+    csv << "evaluation,purpose";
+    for (const auto& p : spec.parameters) csv << "," << csvField(p.key);
+    for (const auto& t : spec.targets) csv << "," << csvField(t.output.text);
+    csv << ",chi2\n";
+    for (const Evaluation& e : result.history) {
+        csv << e.index << "," << e.purpose;
+        for (double v : e.values) csv << "," << formatNumber(v, 12);
+        for (double v : e.simulated) csv << "," << formatNumber(v, 10);
+        csv << "," << formatNumber(e.chi2, 10) << "\n";
+    }
+    result.historyPath = at("history.csv");
+    writeTextFile(result.historyPath, csv.str());
+    const std::string bestDir = (fs::path(spec.outDir) / "ensemble" / "members" / calibrationMemberName(best.index, 0)).string();
+    for (const auto& [name, out] : {std::pair<std::string, std::string*>{"biome.toml", &result.bestBiome}, {"simulate.toml", &result.bestSimulation}}) {
+        const fs::path src = fs::path(bestDir) / name;
+        if (!fs::exists(src)) continue;
+        *out = at("best-" + name);
+        writeTextFile(*out, "# eco calibrate " + spec.path + ": the best fit, evaluation " + std::to_string(best.index) + " (chi2 " +
+                                formatNumber(best.chi2, 6) + ")\n" + readTextFile(src.string()));
+    }
+    ensureDirectory(at("png"));
+    writeConvergencePng(at("png/chi2.png"), result);
+    std::ostringstream md;
+    md << "# Calibration\n\n"
+       << "Specification `" << spec.path << "`: " << k << " parameter" << (k > 1 ? "s" : "") << ", " << spec.targets.size() << " target"
+       << (spec.targets.size() > 1 ? "s" : "") << ", NLopt `" << spec.algorithm << "` in the unit cube of the ranges (first step "
+       << formatNumber(spec.initialStep, 3) << ", tolerance " << formatNumber(spec.tolerance, 3) << "), " << spec.replicates
+       << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (run.seed 1 .. " << spec.replicates << ", the same at every evaluation). "
+       << result.history.size() << " evaluations (" << result.history.size() * static_cast<std::size_t>(spec.replicates)
+       << " simulations); the search stopped: " << result.stopReason << ". chi2 = sum over targets of ((simulated - observed) / sd)^2.\n\n"
+       << (spec.truth.empty() ? "" : "The targets' values are the outputs of simulations at known parameter values (`[calibrate.truth]`, seeds 1001 .. 1000 + replicates): a test of whether the calibration recovers them.\n\n")
+       << "## Parameters\n\n| parameter | range | start | best | ± sd (linearised) |" << (spec.truth.empty() ? "" : " truth | best - truth |")
+       << "\n|---|---|---:|---:|---:|" << (spec.truth.empty() ? "" : "---:|---:|") << "\n";
+    for (std::size_t i = 0; i < k; ++i)
+        md << "| `" << spec.parameters[i].key << "` | " << formatNumber(spec.parameters[i].low, 6) << " .. " << formatNumber(spec.parameters[i].high, 6)
+           << " | " << formatNumber(spec.start[i], 6) << " | " << formatNumber(best.values[i], 6) << " | "
+           << (std::isfinite(result.parameterSd[i]) ? formatNumber(result.parameterSd[i], 3) : std::string(spec.uncertainty ? "not identifiable" : "-")) << " |"
+           << (spec.truth.empty() ? std::string() : " " + formatNumber(spec.truth[i], 6) + " | " + formatNumber(best.values[i] - spec.truth[i], 3) + " |") << "\n";
+    md << "\nThe sd comes from the Jacobian of the residuals at the best point (forward differences of a tenth of each range, "
+          "same seeds): (J^T J)^-1 with the targets' sd as the residuals' scale. It says how far a parameter can move before "
+          "the fit gets worse by one sd of the targets; \"not identifiable\": the targets cannot tell the parameters apart.\n\n"
+       << "## Fit (evaluation " << best.index << ", chi2 " << formatNumber(best.chi2, 5) << ")\n\n"
+       << "| target | observed | sd | simulated (mean of replicates) | replicate sd | residual / sd |\n|---|---:|---:|---:|---:|---:|\n";
+    for (std::size_t t = 0; t < spec.targets.size(); ++t)
+        md << "| `" << spec.targets[t].output.text << "` | " << formatNumber(spec.targets[t].value, 5) << " | " << formatNumber(spec.targets[t].sd, 3) << " | "
+           << formatNumber(best.simulated[t], 5) << " | " << formatNumber(best.spread[t], 3) << " | "
+           << formatNumber((best.simulated[t] - spec.targets[t].value) / spec.targets[t].sd, 3) << " |\n";
+    md << "\n![chi2 per evaluation](png/chi2.png)\n\nFiles: `history.csv` (every evaluation)"
+       << (result.bestBiome.empty() ? "" : ", `best-biome.toml` (the biome with the best values)")
+       << (result.bestSimulation.empty() ? "" : ", `best-simulate.toml` (the simulation configuration with the best values)")
+       << ", the simulations in `ensemble/`.\n";
+    result.reportPath = at("calibration.md");
+    writeTextFile(result.reportPath, md.str());
+    outputs.commit();
+    return result;
+}
+
+}  // namespace eco::pipeline

@@ -1,0 +1,95 @@
+// eco calibrate SPEC.toml (issue 28 item 4): fits chosen parameters (species parameters of
+// the biome, model constants) within bounds to target observations (species shares, density,
+// mean heights, cover at a year; the cv of the plant count over a window), each with its
+// uncertainty: minimises chi2 = sum over targets of ((simulated - observed) / sd)^2, the
+// simulated value the mean over replicate seeds (the same seeds at every evaluation), with a
+// derivative-free optimiser of NLopt (Debian's libnlopt). Every evaluation's simulations are
+// members of one ensemble (pipeline/ensemble.h): run in parallel, never twice, and a killed
+// calibration run again replays the optimiser over the finished simulations to where it
+// stopped. Writes the best biome and simulation configuration, the history of evaluations,
+// the fit against each target and a linearised estimate of the parameters' uncertainty.
+// docs/calibration.md describes the file and the outputs.
+#pragma once
+
+#include <toml++/toml.h>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "parameter_study.h"
+#include "reporter.h"
+
+namespace eco::pipeline {
+
+struct CalibrationTarget {
+    SimulationOutput output;
+    double value = 0;  ///< observed
+    double sd = 1;     ///< its uncertainty: the residual's scale
+};
+
+struct CalibrationSpec {
+    std::string path;
+    std::string outDir;
+    std::string algorithm = "sbplx";  ///< sbplx, neldermead, bobyqa, cobyla (NLopt's LN_ local methods)
+    int maxEvaluations = 40;
+    int replicates = 2;
+    double tolerance = 1e-3;     ///< relative change of the parameters (in their ranges) that stops
+    double initialStep = 0.25;   ///< first step of the optimiser, as a fraction of each range
+    bool uncertainty = true;     ///< k more evaluations at the optimum (finite differences)
+    int membersAtOnce = 1;
+    std::vector<StudyParameter> parameters;
+    std::vector<double> start;   ///< starting values (default: the middle of each range)
+    std::vector<CalibrationTarget> targets;
+    toml::table base;
+    /// [calibrate.truth]: known values of every parameter. When given, the targets' values
+    /// are replaced by the outputs of simulations at these values with other seeds (1001 ..
+    /// 1000 + replicates), so that the calibration shows whether it recovers them.
+    std::vector<double> truth;
+};
+
+/// Reads and checks a specification (ValidationError naming the file and key).
+CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& outOverride = "");
+
+struct Evaluation {
+    int index = 0;                 ///< 1-based
+    std::string purpose;           ///< "search" or "uncertainty"
+    std::vector<double> values;    ///< the parameters
+    std::vector<double> simulated; ///< per target: mean over the replicates
+    std::vector<double> spread;    ///< per target: standard deviation over the replicates (0 for one)
+    double chi2 = 0;
+};
+
+struct CalibrationResult {
+    std::vector<Evaluation> history;
+    std::size_t best = 0;               ///< index into history
+    std::string stopReason;
+    /// Linearised standard deviation of each parameter at the optimum (NaN when not
+    /// estimated or not identifiable from the targets).
+    std::vector<double> parameterSd;
+    std::string bestBiome, bestSimulation;  ///< written files ("" when no key of that kind)
+    std::string reportPath, historyPath;
+    std::vector<double> targetValues;  ///< the values fitted (from the truth when given)
+};
+
+/// Runs a set of members: writes nothing itself; given the ensemble specification's path it
+/// runs the members not yet done (eco ensemble's runner: this process, its children or MPI
+/// ranks) and returns when all are done (throws when one failed).
+using MemberRunner = std::function<void(const std::string& ensembleSpecPath)>;
+
+/// The member name of replicate r (0-based) of evaluation e (1-based).
+std::string calibrationMemberName(int evaluation, int replicate);
+
+/// chi2 of simulated values against the targets.
+double chiSquare(const std::vector<CalibrationTarget>& targets, const std::vector<double>& simulated);
+
+/// Linearised parameter covariance from the Jacobian of the normalised residuals (rows:
+/// targets, columns: parameters, d residual / d parameter in the parameters' units):
+/// (J^T J)^-1; NaN for the parameters the targets cannot tell apart (rank-deficient J).
+std::vector<double> linearisedSd(const std::vector<std::vector<double>>& jacobian);
+
+/// The whole calibration (the truth's simulations when given, search, uncertainty, outputs),
+/// running members through `run`, one line per evaluation through `reporter`.
+CalibrationResult calibrate(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter);
+
+}  // namespace eco::pipeline
