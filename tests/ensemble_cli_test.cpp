@@ -35,27 +35,9 @@ std::string writeSpec(const test::TempDir& dir, const std::string& extra = "") {
 
 /// The manifest's rows by member: its fields by column name.
 std::map<std::string, std::map<std::string, std::string>> readManifest(const std::string& path) {
-    std::ifstream in(path);
-    std::string line;
-    std::getline(in, line);
-    std::vector<std::string> header;
-    std::stringstream hs(line);
-    for (std::string f; std::getline(hs, f, ',');) header.push_back(f);
     std::map<std::string, std::map<std::string, std::string>> rows;
-    while (std::getline(in, line)) {
-        // Fields split at commas outside double quotes ("" inside quotes is a quote).
-        std::vector<std::string> fields(1);
-        bool quoted = false;
-        for (std::size_t k = 0; k < line.size(); ++k) {
-            const char c = line[k];
-            if (c == '"' && quoted && k + 1 < line.size() && line[k + 1] == '"') fields.back() += line[++k];
-            else if (c == '"') quoted = !quoted;
-            else if (c == ',' && !quoted) fields.emplace_back();
-            else fields.back() += c;
-        }
-        REQUIRE(fields.size() == header.size());
-        std::map<std::string, std::string> row;
-        for (std::size_t i = 0; i < header.size(); ++i) row[header[i]] = fields[i];
+    for (auto& row : test::readCsvRows(path)) {
+        REQUIRE(row.count("<fields>") == 0);
         rows[row["member"]] = row;
     }
     return rows;

@@ -35,20 +35,9 @@ std::string writeSpec(const test::TempDir& dir, const std::string& outputs) {
 
 /// sensitivity.csv as (output, parameter) -> column -> value.
 std::map<std::pair<std::string, std::string>, std::map<std::string, std::string>> readCsv(const std::string& path) {
-    std::ifstream in(path);
-    std::string line;
-    std::getline(in, line);
-    std::vector<std::string> header;
-    std::stringstream hs(line);
-    for (std::string f; std::getline(hs, f, ',');) header.push_back(f);
     std::map<std::pair<std::string, std::string>, std::map<std::string, std::string>> rows;
-    while (std::getline(in, line)) {
-        std::vector<std::string> fields;
-        std::stringstream ls(line);
-        for (std::string f; std::getline(ls, f, ',');) fields.push_back(f);
-        REQUIRE(fields.size() == header.size());
-        std::map<std::string, std::string> row;
-        for (std::size_t i = 0; i < header.size(); ++i) row[header[i]] = fields[i];
+    for (auto& row : test::readCsvRows(path)) {
+        REQUIRE(row.count("<fields>") == 0);
         rows[{row["output"], row["parameter"]}] = row;
     }
     return rows;

@@ -9,6 +9,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
+#include <fstream>
+#include <map>
 
 // AddressSanitizer reserves terabytes of address space at start, so a process built with it
 // cannot run under `ulimit -v`; such builds pass the limit as ECO_MEMORY_LIMIT_MB instead
@@ -81,5 +84,36 @@ private:
 
 /// Path of a file in the source tree.
 inline std::string sourcePath(const std::string& rel) { return std::string(ECO_SOURCE_DIR) + "/" + rel; }
+
+/// The rows of a CSV file with a header line, each as column name -> field (fields split at
+/// commas outside double quotes; "" inside quotes is a quote). An empty list when the file
+/// is missing.
+inline std::vector<std::map<std::string, std::string>> readCsvRows(const std::string& path) {
+    std::ifstream in(path);
+    std::vector<std::map<std::string, std::string>> rows;
+    const auto split = [](const std::string& line) {
+        std::vector<std::string> fields(1);
+        bool quoted = false;
+        for (std::size_t k = 0; k < line.size(); ++k) {
+            const char c = line[k];
+            if (c == '"' && quoted && k + 1 < line.size() && line[k + 1] == '"') fields.back() += line[++k];
+            else if (c == '"') quoted = !quoted;
+            else if (c == ',' && !quoted) fields.emplace_back();
+            else fields.back() += c;
+        }
+        return fields;
+    };
+    std::string line;
+    if (!std::getline(in, line)) return rows;
+    const std::vector<std::string> header = split(line);
+    while (std::getline(in, line)) {
+        const std::vector<std::string> fields = split(line);
+        std::map<std::string, std::string> row;
+        for (std::size_t i = 0; i < header.size(); ++i) row[header[i]] = i < fields.size() ? fields[i] : std::string("<missing>");
+        if (fields.size() != header.size()) row["<fields>"] = std::to_string(fields.size());
+        rows.push_back(std::move(row));
+    }
+    return rows;
+}
 
 }  // namespace eco::test
