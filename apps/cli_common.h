@@ -38,6 +38,7 @@ void registerEnsembleCommand(CLI::App& app);   // eco ensemble SPEC.toml (many s
 void registerDatabaseCommands(CLI::App& app);  // eco database build BIOME.toml --out DB.h5
 void registerSensitivityCommand(CLI::App& app); // eco sensitivity SPEC.toml (Morris screening)
 void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit parameters to observations)
+void registerInstanceCommand(CLI::App& app);    // eco instance SCENE.h5 --prototypes K --out DIR
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
 /// is not done.

@@ -51,6 +51,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerDatabaseCommands(*app);
     registerSensitivityCommand(*app);
     registerCalibrateCommand(*app);
+    registerInstanceCommand(*app);
     return app;
 }
 

@@ -27,6 +27,7 @@
 #include "synth_world_fixture.h"
 #include "synth_world_files.h"
 #include "terrain_io.h"
+#include "atomic_file.h"
 #include "test_util.h"
 #include "undergrowth.h"
 
@@ -67,6 +68,30 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
     REQUIRE(c.exitCode == 0);
     CHECK_THAT(c.output, Catch::Contains("| region |") && Catch::Contains("pair-correlation distance"));
     CHECK(std::filesystem::exists(dir.file("compare.png")));
+
+    // Approximate instancing of the scene: every plant an instance, at most K prototypes per
+    // species, the same bytes with 1 and 2 threads.
+    for (const char* threads : {"1", "2"}) {
+        const auto inst = test::runEco(std::string("--threads ") + threads + " instance " + dir.file("out/scene.h5") +
+                                       " --prototypes 3 --curve-max 4 --out " + dir.file(std::string("inst") + threads));
+        INFO(inst.output);
+        REQUIRE(inst.exitCode == 0);
+        CHECK_THAT(inst.output, Catch::Contains("prototypes: size error"));
+    }
+    const auto prototypes = test::readCsvRows(dir.file("inst1/prototypes.csv"));
+    std::map<std::string, int> perSpecies;
+    for (const auto& row : prototypes) ++perSpecies[row.at("species")];
+    REQUIRE(!perSpecies.empty());
+    for (const auto& [species, n] : perSpecies) CHECK(n <= 3);
+    CHECK(test::readCsvRows(dir.file("inst1/instances.csv")).size() == test::readCsvRows(dir.file("plants.csv")).size());
+    for (const char* name : {"instances.csv", "prototypes.csv", "instancing.md", "error_vs_k.png"}) {
+        INFO(name);
+        CHECK(readTextFile(dir.file(std::string("inst1/") + name)) == readTextFile(dir.file(std::string("inst2/") + name)));
+    }
+    const auto notScene = test::runEco("instance " + dir.file("plants.csv") + " --out " + dir.file("inst3"));
+    CHECK(notScene.exitCode == 1);
+    CHECK_THAT(notScene.output, Catch::Contains("plants.csv"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("inst3/instances.csv")));
 }
 
 TEST_CASE("eco synth refuses bad inputs with one clear line and no output", "[synth][cli]") {
