@@ -2,8 +2,12 @@
 // line with a non-zero exit for bad input, leaving no output behind.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "abiotics.h"
 #include "eco_version.h"
@@ -32,13 +36,53 @@ TEST_CASE("eco --version and --help", "[cli]") {
         CHECK_THAT(h.output, Catch::Contains(cmd));
 }
 
+namespace {
+
+/// The subcommand names listed in a help text's "Subcommands:" section.
+std::vector<std::string> subcommandsIn(const std::string& help) {
+    std::vector<std::string> names;
+    std::istringstream in(help);
+    bool on = false;
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind("Subcommands:", 0) == 0) {
+            on = true;
+            continue;
+        }
+        if (!on) continue;
+        if (line.empty()) break;
+        // "  name    description": a name starts in column 2; continuation lines are indented further.
+        if (line.size() > 2 && line[0] == ' ' && line[1] == ' ' && line[2] != ' ') names.push_back(line.substr(2, line.find(' ', 2) - 2));
+    }
+    return names;
+}
+
+}  // namespace
+
 TEST_CASE("every command has --help", "[cli]") {
-    for (const char* cmd : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate",
-                            "analyse", "inspect", "pcf", "synth", "compare", "validate", "run"}) {
-        INFO(cmd);
-        const auto r = runEco(std::string(cmd) + " --help");
+    // Every command eco lists, and the subcommands they list (terrain generate, database build, ...).
+    const auto top = runEco("--help");
+    REQUIRE(top.exitCode == 0);
+    std::vector<std::string> commands;
+    for (const std::string& c : subcommandsIn(top.output)) {
+        const auto r = runEco(c + " --help");
+        INFO(c << "\n" << r.output);
         CHECK(r.exitCode == 0);
         CHECK_THAT(r.output, Catch::Contains("Usage") || Catch::Contains("usage"));
+        commands.push_back(c);
+        for (const std::string& sub : subcommandsIn(r.output)) {
+            const auto rs = runEco(c + " " + sub + " --help");
+            INFO(c << " " << sub << "\n" << rs.output);
+            CHECK(rs.exitCode == 0);
+            CHECK_THAT(rs.output, Catch::Contains("Usage") || Catch::Contains("usage"));
+            commands.push_back(c + " " + sub);
+        }
+    }
+    // The list was read: the pipeline's commands and the newer ones are among them.
+    for (const char* expected : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate", "analyse",
+                                 "inspect", "pcf", "synth", "compare", "validate", "run", "fidelity", "ensemble", "database build",
+                                 "sensitivity", "calibrate", "instance"}) {
+        INFO(expected);
+        CHECK(std::find(commands.begin(), commands.end(), expected) != commands.end());
     }
 }
 
