@@ -41,8 +41,8 @@ void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit 
 void registerInstanceCommand(CLI::App& app);    // eco instance SCENE.h5 --prototypes K --out DIR
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
-/// is not done.
-int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun);
+/// is not done. `printPaths`: the manifest's (and database's) path on stdout at the end.
+int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun, bool printPaths = true);
 
 /// Thrown by a command that completed but must end with a particular non-zero exit status
 /// (e.g. `eco validate` when a check failed); main() prints the message and returns `code`.

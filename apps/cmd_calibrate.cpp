@@ -23,10 +23,10 @@ void runCalibrate(const CalibrateArgs& a) {
          std::to_string(spec.replicates) + " simulations; in " + spec.outDir);
     CliReporter reporter;
     // Each evaluation's simulations run as members of one ensemble (OUT/ensemble.toml, written
-    // again with every evaluation: finished members are skipped).
+    // again with every evaluation: finished members are skipped); stdout keeps the result.
     int rank = 0;
     const pipeline::CalibrationResult r =
-        pipeline::calibrate(spec, [&](const std::string& members) { rank = runEnsembleFile(members, "", false); }, reporter);
+        pipeline::calibrate(spec, [&](const std::string& members) { rank = runEnsembleFile(members, "", false, false); }, reporter);
     if (rank != 0) return;
     const pipeline::Evaluation& best = r.history[r.best];
     std::printf("best of %zu evaluations (%s): chi2 = %g\n", r.history.size(), r.stopReason.c_str(), best.chi2);

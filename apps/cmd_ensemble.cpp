@@ -199,7 +199,7 @@ void runEnsemble(const EnsembleArgs& a) {
 
 }  // namespace
 
-int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun) {
+int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool dryRun, bool printPaths) {
     installStopHandlers();
     EnsembleArgs a;
     a.spec = specPath;
@@ -269,9 +269,9 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
                           " the same command again: finished members are kept" + (spec.database ? ", and the database is built when all are done" : "");
             } else if (spec.database) {
                 const std::string db = pipeline::buildEnsembleDatabase(spec, reporter);
-                std::printf("%s\n%s\n", manifest.c_str(), db.c_str());
+                if (printPaths) std::printf("%s\n%s\n", manifest.c_str(), db.c_str());
             } else {
-                std::printf("%s\n", manifest.c_str());
+                if (printPaths) std::printf("%s\n", manifest.c_str());
             }
         } catch (const Error& e) {
             verdict = e.what();
