@@ -482,10 +482,12 @@ void writePcfCsv(const std::string& path, const PairSums& sums, const std::vecto
     {
         std::FILE* f = std::fopen(out.tempPath().c_str(), "w");
         if (!f) throw IoError(path + ": cannot write CSV");
-        std::fprintf(f, "# pair correlation, annulus estimator; window %.10g,%.10g,%.10g,%.10g (area %.10g m2); "
-                        "r in m; normalisation = n_i (n_j - [i = j]) / |W| per m2\n",
-                     sums.window.x0, sums.window.y0, sums.window.x1, sums.window.y1, sums.window.areaM2());
-        std::fprintf(f, "from,to,r_lo,r_hi,r_mid,pair_count,translate_weighted,normalisation_per_m2,g_trans,g_iso\n");
+        // One header line, so that R's read.csv and pandas read it as it is (a leading comment
+        // line broke them); the window is in every row's last columns.
+        std::fprintf(f, "from,to,r_lo,r_hi,r_mid,pair_count,translate_weighted,normalisation_per_m2,g_trans,g_iso,"
+                        "window_x0,window_y0,window_x1,window_y1\n");
+        char windowText[128];
+        std::snprintf(windowText, sizeof windowText, "%.10g,%.10g,%.10g,%.10g", sums.window.x0, sums.window.y0, sums.window.x1, sums.window.y1);
         auto block = [&](const PairSums& s, const std::vector<std::string>& names) {
             for (int i = 0; i < s.nTypes; ++i)
                 for (int j = 0; j < s.nTypes; ++j)
@@ -496,7 +498,7 @@ void writePcfCsv(const std::string& path, const PairSums& sums, const std::vecto
                                      static_cast<long long>(s.pairCount[a]), s.translateSum[a], s.normalisation(i, j),
                                      s.gTranslate(i, j, k));
                         if (!s.isotropicSum.empty()) std::fprintf(f, "%.17g", s.gIsotropic(i, j, k));
-                        std::fprintf(f, "\n");
+                        std::fprintf(f, ",%s\n", windowText);
                     }
         };
         block(sums, typeNames);

@@ -293,9 +293,9 @@ struct ClarkEvans {
 };
 ClarkEvans clarkEvans(const std::vector<double>& x, const std::vector<double>& y, const RectWindow& window);
 
-/// Write pair correlation as CSV (atomic), one row per ordered type pair and bin:
-/// from,to,r_lo,r_hi,r_mid,pair_count,translate_weighted,normalisation_per_m2,g_trans,g_iso
-/// (g_iso empty when not computed). With more than one type the unmarked pattern follows
+/// Write pair correlation as CSV (atomic), one header line and one row per ordered type pair
+/// and bin: from,to,r_lo,r_hi,r_mid,pair_count,translate_weighted,normalisation_per_m2,
+/// g_trans,g_iso,window_x0,window_y0,window_x1,window_y1 (g_iso empty when not computed). With more than one type the unmarked pattern follows
 /// as from = to = "all" unless a type is already named so.
 void writePcfCsv(const std::string& path, const PairSums& sums, const std::vector<std::string>& typeNames);
 

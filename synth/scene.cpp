@@ -524,7 +524,7 @@ SceneComparison compareScene(const std::vector<Plant>& canopy, const std::vector
 std::string comparisonTable(const SceneComparison& c, const BiomeDatabase& db) {
     std::ostringstream os;
     os << "| region | combination / cluster | area m2 | plants | density /m2 | target /m2 | rel. error | "
-          "max |share diff| | height TV | radius TV | g distance |\n"
+          "max share diff | height TV | radius TV | g distance |\n"
        << "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     char line[512];
     for (const auto& r : c.regions) {
