@@ -55,12 +55,16 @@ Rgb colormapColour(Colormap cmap, double t) {
     static const std::vector<Rgb> heat = {{0.10f, 0.10f, 0.45f}, {0.30f, 0.55f, 0.85f}, {0.95f, 0.95f, 0.75f},
                                           {0.95f, 0.55f, 0.20f}, {0.65f, 0.05f, 0.10f}};
     static const std::vector<Rgb> greys = {{0.f, 0.f, 0.f}, {1.f, 1.f, 1.f}};
+    // Pale cream to dark brown (ColorBrewer's YlOrBr, thinned): litter, bare soil.
+    static const std::vector<Rgb> browns = {{1.00f, 0.97f, 0.85f}, {0.99f, 0.85f, 0.55f}, {0.93f, 0.55f, 0.20f},
+                                            {0.70f, 0.33f, 0.07f}, {0.40f, 0.18f, 0.04f}};
     switch (cmap) {
         case Colormap::Viridis: return ramp(viridis, t);
         case Colormap::Terrain: return ramp(terrain, t);
         case Colormap::Blues: return ramp(blues, t);
         case Colormap::Heat: return ramp(heat, t);
         case Colormap::Greys: return ramp(greys, t);
+        case Colormap::Browns: return ramp(browns, t);
     }
     return ramp(greys, t);
 }

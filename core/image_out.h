@@ -14,7 +14,10 @@ namespace eco {
 
 using Rgb = std::array<float, 3>;  ///< linear 0..1 components written as 8-bit sRGB-ish values
 
-enum class Colormap { Viridis, Terrain, Blues, Heat, Greys };
+/// Viridis, Blues, Browns and Greys are sequential (one hue or lightness that grows with the
+/// value: densities, amounts); Heat diverges from blue through pale yellow to red; Terrain
+/// is for elevation.
+enum class Colormap { Viridis, Terrain, Blues, Heat, Greys, Browns };
 
 /// Colour of t in [0, 1] on a colormap.
 Rgb colormapColour(Colormap cmap, double t);

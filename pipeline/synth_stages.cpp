@@ -248,7 +248,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
                              &crop, 900);
         writeMapPng(dir + "grass.png", floor.grass, "Forest floor: grass / forb density", "density (0..1)",
                     Colormap::Viridis, 0, 1);
-        writeMapPng(dir + "litter.png", floor.litter, "Forest floor: litter density", "density (0..1)", Colormap::Heat, 0, 1);
+        writeMapPng(dir + "litter.png", floor.litter, "Forest floor: litter density", "density (0..1)", Colormap::Browns, 0, 1);
         std::vector<std::string> names;
         for (const auto& r : db.regions)
             names.push_back(std::to_string(names.size()) + ": " + db.combinationName(r.combination) + " / " +
