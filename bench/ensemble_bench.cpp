@@ -1,6 +1,6 @@
 // Benchmark of eco ensemble and eco database build (issue 27 item 3), running the eco binary.
 //
-// 1. Scaling: an ensemble of 8 small members (96 x 96 cells, a 60 m plot, 40 years; terrain
+// 1. Scaling: an ensemble of 8 members (128 x 128 cells, a 100 m plot, 60 years; terrain
 //    seeds 1..4 x simulation seeds 1..2) run three ways from scratch: one process with one
 //    thread, one process with two threads (OpenMP within each member), and two MPI ranks of
 //    one thread each (mpirun -n 2), without the database (analysed once at the end by one
@@ -100,9 +100,9 @@ int main(int argc, char** argv) {
     const std::string runDir = (work / "run").string();
     std::ofstream(spec) << "[ensemble]\nout_dir = \"" << runDir << "\"\nkmax = 2\ndatabase = false\n"
                         << "[ensemble.base.run]\nout_dir = \"set per member\"\n"
-                        << "[ensemble.base.terrain]\nwidth = 96\nheight = 96\n"
+                        << "[ensemble.base.terrain]\nwidth = 128\nheight = 128\n"
                         << "[ensemble.base.chm]\n[ensemble.base.abiotics]\nsun_step_minutes = 30\n[ensemble.base.canopy]\n"
-                        << "[ensemble.base.simulate]\nconfig = \"configs/sim-default.toml\"\nyears = 40\ncrop = [14.0, 14.0, 74.0, 74.0]\n"
+                        << "[ensemble.base.simulate]\nconfig = \"configs/sim-default.toml\"\nyears = 60\ncrop = [8.5, 8.5, 108.5, 108.5]\n"
                         << "[vary]\n\"terrain.seed\" = [1, 2, 3, 4]\n\"run.seed\" = [1, 2]\n";
     const int members = 8;
     struct Way {
@@ -118,7 +118,7 @@ int main(int argc, char** argv) {
          (work / "mpi").string(), 2},
     };
     if (scaling) {
-    report << "== scaling: " << members << " members (96 x 96 cells, 60 m plot, 40 years), each way from scratch\n";
+    report << "== scaling: " << members << " members (128 x 128 cells, 100 m plot, 60 years), each way from scratch\n";
     std::map<std::string, double> wall;
     for (const Way& w : ways) {
         const Run r = run(w.command);
