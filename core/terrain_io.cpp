@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "atomic_file.h"
+#include "eco_version.h"
 #include "error.h"
 #include "h5io.h"
 #include "geo_raster.h"
@@ -432,6 +433,11 @@ void writeTerrainH5(const std::string& path, const Grid<float>& g) {
         f.writeGrid(kTerrainDataset, g, "m");
         f.setAttr(kTerrainDataset, "description",
                   std::string("ground elevation (digital elevation model), metres"));
+        // The root attributes every file of ours carries (docs/hdf5.md); readers of a
+        // terrain take any file with /terrain/elevation, so older files stay readable.
+        f.setAttr("/", "format", std::string("eco-terrain"));
+        f.setAttr("/", "schema_version", std::int64_t{1});
+        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
     }  // closed before the rename
     out.commit();
 }

@@ -6,6 +6,7 @@
 #include <ostream>
 
 #include "atomic_file.h"
+#include "eco_version.h"
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
@@ -98,6 +99,11 @@ void writeChmH5(const std::string& path, const Grid<float>& chm, const Grid<std:
         h5::File f = h5::File::create(out.tempPath());
         f.writeGrid("/chm/height", chm, "m above ground");
         f.writeGridI32("/chm/sketch", sketch, "density level: 0 empty, 1 sparse, 2 dense");
+        // The root attributes every file of ours carries (docs/hdf5.md); readers of a CHM take
+        // any file with /chm/height, so older files stay readable.
+        f.setAttr("/", "format", std::string("eco-chm"));
+        f.setAttr("/", "schema_version", std::int64_t{1});
+        f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         f.setAttr("/chm", "generator",
                   std::string("eco procedural CHM: a stand-in for the paper's learned (conditional GAN) CHM; "
                               "sphere crowns placed by dart throwing from the density sketch"));

@@ -5,12 +5,14 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "abiotics.h"
 #include "eco_version.h"
+#include "h5io.h"
 #include "test_util.h"
 
 using eco::test::runEco;
@@ -216,6 +218,25 @@ TEST_CASE("eco run: the whole pipeline on a small scene, with --out-dir, writes 
         INFO(file);
         CHECK(std::filesystem::exists(out + "/" + file));
     }
+    // Every HDF5 file of the run carries format, schema_version and code_version at its root
+    // (docs/hdf5.md; terrain and CHM files had none), and its format names its kind.
+    const std::map<std::string, std::string> formats = {
+        {"terrain.h5", "eco-terrain"},     {"chm.h5", "eco-chm"},           {"abiotics.h5", "eco-abiotics"},
+        {"canopy.h5", "eco-canopy"},       {"simulation.h5", "eco-simulation"}, {"biome-db.h5", "eco-biome-db"},
+        {"target/terrain.h5", "eco-terrain"}, {"scene.h5", "eco-scene"}};
+    int h5files = 0;
+    for (const auto& e : std::filesystem::recursive_directory_iterator(out)) {
+        if (e.path().extension() != ".h5") continue;
+        ++h5files;
+        const std::string rel = std::filesystem::relative(e.path(), out).string();
+        INFO(rel);
+        const eco::h5::File f = eco::h5::File::openRead(e.path().string());
+        CHECK(f.hasAttr("/", "schema_version"));
+        CHECK(f.hasAttr("/", "code_version"));
+        REQUIRE(f.hasAttr("/", "format"));
+        if (formats.count(rel)) CHECK(f.attrString("/", "format") == formats.at(rel));
+    }
+    CHECK(h5files >= 9);
     std::ifstream in(out + "/report.md");
     const std::string report((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     CHECK_THAT(report, Catch::Contains("| synth |") && Catch::Contains("## Synthesized against the database") &&
