@@ -23,6 +23,7 @@ struct ValidateOptions {
     std::string configs;
     std::vector<std::string> only;
     int threads = 0;
+    int replicates = validate::kDefaultReplicates;
 };
 
 void runValidate(const ValidateOptions& o) {
@@ -30,6 +31,7 @@ void runValidate(const ValidateOptions& o) {
     validate::SuiteOptions so;
     so.mode = o.quick ? validate::Mode::Quick : validate::Mode::Full;
     so.outDir = o.out;
+    so.replicates = o.replicates;
     if (!o.configs.empty()) {
         if (!std::filesystem::is_directory(o.configs)) throw IoError(o.configs + ": --configs: not a directory");
         so.configs.directory = o.configs;
@@ -43,8 +45,8 @@ void runValidate(const ValidateOptions& o) {
             if (!name.empty()) so.only.push_back(name);
     }
     so.log = [](const std::string& line) { info(line); };
-    info("validate: " + std::string(validate::modeName(so.mode)) + " run, " + std::to_string(omp_get_max_threads()) +
-         " threads, configurations from " + so.configs.describe() + ", output " + so.outDir);
+    info("validate: " + std::string(validate::modeName(so.mode)) + " run, " + std::to_string(so.replicates) +
+         " replicate(s), " + std::to_string(omp_get_max_threads()) + " threads, configurations from " + so.configs.describe() + ", output " + so.outDir);
     const validate::SuiteResult result = validate::runSuite(so);
     const auto written = validate::writeReport(result, so.outDir);
     char line[200];
@@ -78,6 +80,10 @@ void registerValidateCommand(CLI::App& app) {
     sub->add_option("--configs", opt->configs,
                     "Directory of scenario configurations (default: configs/validation if it exists here, else the "
                     "copies embedded at build time)");
+    sub->add_option("--replicates", opt->replicates,
+                    "Seeds per scenario (default " + std::to_string(validate::kDefaultReplicates) +
+                        "): each check is judged on the 95 % interval of its mean over them; 1 judges single values")
+        ->check(CLI::Range(1, 1000));
     sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
     sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
         ->check(nonNegativeNumber());

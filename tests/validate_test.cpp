@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -17,6 +18,7 @@
 #include "deussen_circles.h"
 #include "error.h"
 #include "fit.h"
+#include "thinning.h"
 #include "rng.h"
 #include "scenario.h"
 #include "test_util.h"
@@ -459,6 +461,7 @@ TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bi
         o.mode = Mode::Quick;
         o.configs.directory = dir.file("cfg");
         o.outDir = dir.file(outName);
+        o.replicates = 1;  // thread identity of one run; replicates are combined in validate.cpp
         const SuiteResult r = runSuite(o);
         writeReport(r, o.outDir);
         return r;
@@ -498,4 +501,214 @@ TEST_CASE("The shipped configurations load and every scenario has its checks", "
     // The embedded copies are the same files.
     const SuiteConfig embedded = loadSuiteConfig(ConfigSource{}, defaultBiome());
     CHECK(embedded.scenarios.size() == suite.scenarios.size());
+}
+
+// ---------------------------------------------------------------------------------------
+// Replicates (issue 28 item 1): each check judged on the 95 % interval of its mean.
+
+namespace {
+
+CheckResult replicateOf(CheckSpec::Kind kind, double target, double tolerance, double value) {
+    CheckResult c;
+    c.scenario = "s";
+    c.spec.id = "c";
+    c.spec.kind = kind;
+    c.spec.target = target;
+    c.spec.tolerance = tolerance;
+    c.value = value;
+    c.pass = c.spec.passes(value);
+    return c;
+}
+
+std::vector<CheckResult> replicates(CheckSpec::Kind kind, double target, double tolerance, const std::vector<double>& values) {
+    std::vector<CheckResult> out;
+    for (double v : values) out.push_back(replicateOf(kind, target, tolerance, v));
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("Student's t quantiles match the tables", "[validate][replicates]") {
+    CHECK(studentT975(1) == Approx(12.706).epsilon(1e-4));
+    CHECK(studentT975(4) == Approx(2.776).epsilon(1e-4));
+    CHECK(studentT975(30) == Approx(2.042).epsilon(1e-4));
+    CHECK(studentT975(60) == Approx(2.000).epsilon(2e-3));
+    CHECK(studentT975(1000) == Approx(1.962).epsilon(2e-3));
+    CHECK_THROWS(studentT975(0));
+}
+
+TEST_CASE("Replicates: the mean and its 95 % interval decide, not any one seed", "[validate][replicates]") {
+    using K = CheckSpec::Kind;
+    // Values 1..5: mean 3, sample sd sqrt(2.5), half-width 2.776 x sqrt(2.5) / sqrt(5) = 1.963.
+    const CheckResult c = combineReplicates(replicates(K::AtLeast, 0.5, 0, {1, 2, 3, 4, 5}));
+    CHECK(c.value == Approx(3.0));
+    CHECK(c.ciLow == Approx(3.0 - 2.776 * std::sqrt(0.5)).epsilon(1e-4));
+    CHECK(c.ciHigh == Approx(3.0 + 2.776 * std::sqrt(0.5)).epsilon(1e-4));
+    CHECK(c.replicateValues == std::vector<double>{1, 2, 3, 4, 5});
+    CHECK(c.pass);  // lower end 1.04 >= 0.5
+    // Every seed passes min = 2 on its own, but the spread is too wide to tell: mean 3.6,
+    // sd sqrt(4.8), lower end 3.6 - 2.776 x 2.19 / 2.236 = 0.88.
+    const CheckResult wide = combineReplicates(replicates(K::AtLeast, 2.0, 0, {2, 2, 2, 6, 6}));
+    CHECK(wide.ciLow == Approx(3.6 - 2.776 * std::sqrt(4.8 / 5)).epsilon(1e-4));
+    CHECK_FALSE(wide.pass);
+    // max: the upper end decides.
+    CHECK(combineReplicates(replicates(K::AtMost, 5.0, 0, {1, 2, 3, 4, 5})).pass);
+    CHECK_FALSE(combineReplicates(replicates(K::AtMost, 4.9, 0, {1, 2, 3, 4, 5})).pass);
+    // approx: the whole interval inside expected +- tolerance (an equivalence test).
+    CHECK(combineReplicates(replicates(K::Approx, 3.0, 2.0, {1, 2, 3, 4, 5})).pass);
+    CHECK_FALSE(combineReplicates(replicates(K::Approx, 3.0, 1.9, {1, 2, 3, 4, 5})).pass);
+    // A mean inside the region with a spread too wide to tell fails; the same mean with a
+    // tight spread passes.
+    CHECK_FALSE(combineReplicates(replicates(K::Approx, -1.5, 0.5, {-1.0, -2.0, -1.5, -1.1, -1.9})).pass);
+    CHECK(combineReplicates(replicates(K::Approx, -1.5, 0.5, {-1.4, -1.6, -1.5, -1.45, -1.55})).pass);
+    // One replicate: its value decides.
+    const CheckResult one = combineReplicates(replicates(K::AtLeast, 1.0, 0, {1.0}));
+    CHECK(one.pass);
+    CHECK(one.ciLow == 1.0);
+    CHECK(one.ciHigh == 1.0);
+}
+
+TEST_CASE("Replicates: a seed without a value fails the check and says so", "[validate][replicates]") {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const CheckResult c = combineReplicates(replicates(CheckSpec::Kind::AtLeast, 0.0, 0, {1, 2, nan, 4, 5}));
+    CHECK_FALSE(c.pass);
+    CHECK(std::isnan(c.value));
+    CHECK(c.note.find("1 of 5 replicate(s) gave no value") != std::string::npos);
+    std::vector<CheckResult> mixed = replicates(CheckSpec::Kind::AtLeast, 0.0, 0, {1, 2});
+    mixed[1].spec.id = "other";
+    CHECK_THROWS(combineReplicates(mixed));
+}
+
+TEST_CASE("The report and results.csv carry the interval and every replicate's value", "[validate][replicates][report]") {
+    SuiteResult res = demoSuite();
+    res.replicates = 3;
+    res.scenarios[0].checks[0] =
+        combineReplicates(replicates(CheckSpec::Kind::AtLeast, 1.5, 0, {2.0, 2.5, 3.0}));
+    res.scenarios[0].checks[0].spec.id = "good";
+    TempDir dir("validate_replicates_report");
+    writeReport(res, dir.path().string());
+    const auto rows = test::readCsvRows(dir.file("results.csv"));
+    REQUIRE(rows.size() == 1);
+    CHECK(rows[0].at("replicates") == "3");
+    CHECK(rows[0].at("replicate_values") == "2 2.5 3");
+    CHECK(std::stod(rows[0].at("value")) == Approx(2.5));
+    CHECK(std::stod(rows[0].at("ci_low")) == Approx(2.5 - 4.303 * 0.5 / std::sqrt(3.0)).epsilon(1e-4));
+    CHECK(rows[0].at("result") == "fail");  // every value passes min 1.5, but 2.5 - 1.24 < 1.5
+    const std::string md = readAll(dir.file("report.md"));
+    CHECK(md.find("Replicates: **3**") != std::string::npos);
+    CHECK(md.find("Replicates: 2 2.5 3") != std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------------
+// Self-thinning measures on constructed stands, and the checks under broken models.
+
+TEST_CASE("deathSizeRank: the shortest dying give a low rank, size-blind deaths 1/2", "[validate][thinning]") {
+    std::vector<std::pair<std::uint64_t, double>> stand;
+    for (std::uint64_t i = 0; i < 100; ++i) stand.emplace_back(i + 1, 0.1 + 0.01 * static_cast<double>((i * 37) % 100));
+    // The ten shortest die: heights 0.10 .. 0.19, ranks (0.5 .. 9.5) / 100, mean 0.05.
+    std::vector<std::uint64_t> alive;
+    for (const auto& [id, h] : stand)
+        if (h >= 0.195) alive.push_back(id);
+    CHECK(deathSizeRank(stand, alive) == Approx(0.05));
+    // The ten tallest die: mean rank 0.95.
+    alive.clear();
+    for (const auto& [id, h] : stand)
+        if (h < 0.995) alive.push_back(id);
+    CHECK(deathSizeRank(stand, alive) == Approx(0.95));
+    // Every other plant by height dies: ranks 0.005, 0.025, ... mean 0.495; size-blind.
+    alive.clear();
+    for (const auto& [id, h] : stand)
+        if (std::llround((h - 0.1) * 100) % 2 == 1) alive.push_back(id);
+    CHECK(deathSizeRank(stand, alive) == Approx(0.495));
+    // Ties share their mean rank: all equal heights give 1/2 whoever dies.
+    std::vector<std::pair<std::uint64_t, double>> equal{{1, 0.5}, {2, 0.5}, {3, 0.5}, {4, 0.5}};
+    CHECK(deathSizeRank(equal, {1, 2, 3}) == Approx(0.5));
+    // Nobody died, or nobody lived: no value.
+    CHECK(std::isnan(deathSizeRank(equal, {1, 2, 3, 4})));
+    CHECK(std::isnan(deathSizeRank({}, {})));
+}
+
+TEST_CASE("thinningPhase and densityDropLog10 on a constructed census", "[validate][thinning]") {
+    // Cover 0.2 in years 1-2 (open), closed 0.9 in years 3-7, open again 0.3 in year 8; the
+    // mortality jumps above background (1 %) from year 2; density halves every year.
+    std::vector<StandYear> stats;
+    for (int y = 0; y <= 8; ++y) {
+        StandYear s;
+        s.year = y;
+        s.densityPerM2 = 64.0 / std::pow(2.0, y);
+        s.alive = s.densityPerM2 * 100;
+        s.coverFraction = y >= 3 && y <= 7 ? 0.9 : y == 8 ? 0.3 : 0.2;
+        s.mortality = y == 0 ? std::numeric_limits<double>::quiet_NaN() : y >= 2 ? 0.5 : 0.005;
+        stats.push_back(s);
+    }
+    ThinningRule rule;
+    rule.onsetCoverFraction = 0.5;
+    rule.onsetMortalityFactor = 1.0;
+    rule.backgroundMortality = 0.01;
+    rule.minPlants = 30;
+    const auto phase = thinningPhase(stats, rule);
+    CHECK(phase == std::make_pair(3, 7));
+    CHECK(densityDropLog10(stats, phase) == Approx(4 * std::log10(2.0)));
+    // Fewer than minPlants end it: 6400 / 2^y < 200 from year 6.
+    rule.minPlants = 200;
+    CHECK(thinningPhase(stats, rule) == std::make_pair(3, 5));
+    // Without the closure condition it starts with the mortality, in year 2.
+    rule.minPlants = 30;
+    rule.onsetCoverFraction = 0.0;
+    CHECK(thinningPhase(stats, rule).first == 2);
+    // No closure ever: no phase, no drop.
+    rule.onsetCoverFraction = 0.95;
+    CHECK(thinningPhase(stats, rule) == std::make_pair(-1, -1));
+    CHECK(std::isnan(densityDropLog10(stats, {-1, -1})));
+}
+
+namespace {
+
+/// The shipped self-thinning scenario on its quick stand, one replicate, with `model` lines
+/// added to its [model] table: (check id -> result).
+std::map<std::string, CheckResult> selfThinningWith(const std::string& model, const std::string& dirName) {
+    std::string text = readAll(eco::test::sourcePath("configs/validation/self_thinning.toml"));
+    const std::string anchor = "growth_rule = \"ideal\"\n";
+    const auto at = text.find(anchor);
+    REQUIRE(at != std::string::npos);
+    text.insert(at + anchor.size(), model);
+    TempDir dir(dirName);
+    std::filesystem::create_directories(dir.file("cfg"));
+    {
+        std::ofstream out(dir.file("cfg/self_thinning.toml"));
+        out << text;
+    }
+    SuiteOptions o;
+    o.mode = Mode::Quick;
+    o.replicates = 1;
+    o.configs.directory = dir.file("cfg");
+    o.outDir = dir.file("out");
+    const SuiteResult r = runSuite(o);
+    std::map<std::string, CheckResult> out;
+    for (const CheckResult& c : r.scenarios.at(0).checks) out[c.spec.id] = c;
+    return out;
+}
+
+}  // namespace
+
+// Each self-thinning check fails under a deliberately broken model (issue 28 item 1).
+TEST_CASE("Self-thinning checks fail under broken models", "[validate][thinning]") {
+    const auto shipped = selfThinningWith("", "thinning_shipped");
+    REQUIRE(shipped.size() == 5);
+    SECTION("stress never kills: no thinning phase, every check fails") {
+        const auto broken = selfThinningWith("pool_capacity_stress_months = 100000.0\n", "thinning_no_stress");
+        for (const auto& [id, c] : broken) {
+            INFO(id << " = " << c.value << "; " << c.note);
+            CHECK_FALSE(c.pass);
+        }
+        CHECK(broken.at("density_drop").note.find("no thinning phase") != std::string::npos);
+    }
+    SECTION("size-blind deaths: background mortality raised to 1 - 0.001^(1/l) a year") {
+        const auto broken = selfThinningWith("survival_at_max_age = 0.001\n", "thinning_random_deaths");
+        const CheckResult& rank = broken.at("death_size_rank");
+        INFO("shipped " << shipped.at("death_size_rank").value << ", broken " << rank.value);
+        REQUIRE(std::isfinite(rank.value));
+        CHECK(rank.value > shipped.at("death_size_rank").value + 0.02);
+        CHECK_FALSE(rank.pass);
+    }
 }

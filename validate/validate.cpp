@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <sstream>
 
 #include "atomic_file.h"
@@ -39,7 +40,59 @@ int SuiteResult::knownDeviationCount() const {
 
 int exitStatus(const SuiteResult& result) { return result.allPassed() ? 0 : kChecksFailedExit; }
 
+double studentT975(int dof) {
+    // Two-sided 95 % quantiles t(0.975, dof) for dof 1..30; beyond, the normal's 1.96 plus
+    // the first term of its expansion in 1/dof (error under 0.002 from dof 31 on).
+    static const double table[] = {12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+                                   2.201,  2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+                                   2.080,  2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042};
+    if (dof < 1) throw Error("studentT975: " + std::to_string(dof) + " degrees of freedom");
+    if (dof <= 30) return table[dof - 1];
+    return 1.959964 + 2.37 / dof;
+}
+
+CheckResult combineReplicates(const std::vector<CheckResult>& reps) {
+    if (reps.empty()) throw Error("combineReplicates: no replicate");
+    CheckResult out = reps.front();
+    out.replicateValues.clear();
+    int missing = 0;
+    for (const CheckResult& c : reps) {
+        if (c.spec.id != out.spec.id || c.scenario != out.scenario)
+            throw Error("combineReplicates: check " + c.scenario + "/" + c.spec.id + " among replicates of " + out.scenario +
+                        "/" + out.spec.id);
+        out.replicateValues.push_back(c.value);
+        missing += std::isfinite(c.value) ? 0 : 1;
+    }
+    const auto n = static_cast<int>(reps.size());
+    if (missing > 0) {
+        out.value = out.ciLow = out.ciHigh = kNaN;
+        out.pass = false;
+        const std::string why = std::to_string(missing) + " of " + std::to_string(n) + " replicate(s) gave no value";
+        out.note = out.note.empty() ? why : why + "; " + out.note;
+        return out;
+    }
+    out.value = mean(out.replicateValues);
+    if (n == 1) {
+        out.ciLow = out.ciHigh = out.value;
+    } else {
+        double ss = 0;
+        for (double v : out.replicateValues) ss += (v - out.value) * (v - out.value);
+        const double sd = std::sqrt(ss / (n - 1));
+        const double half = studentT975(n - 1) * sd / std::sqrt(static_cast<double>(n));
+        out.ciLow = out.value - half;
+        out.ciHigh = out.value + half;
+    }
+    out.pass = out.spec.intervalPasses(out.ciLow, out.ciHigh);
+    return out;
+}
+
 namespace {
+
+/// "0.512 [0.47, 0.55]": the mean and its 95 % interval ("0.512" for one replicate).
+std::string intervalText(const CheckResult& c) {
+    if (c.replicateValues.size() < 2 || std::isnan(c.value)) return num(c.value);
+    return num(c.value) + " [" + num(c.ciLow, 3) + ", " + num(c.ciHigh, 3) + "]";
+}
 
 /// One scenario: its kind's run() (scenario.h), timed.
 ScenarioResult runScenario(const ScenarioConfig& sc, ScenarioContext& context) {
@@ -81,20 +134,61 @@ SuiteResult runSuite(const SuiteOptions& options) {
     for (const auto& s : suite.scenarios)
         if (options.only.empty() || std::find(options.only.begin(), options.only.end(), s.name) != options.only.end())
             selected.push_back(&s);
+    if (options.replicates < 1)
+        throw ValidationError("--replicates: " + std::to_string(options.replicates) + " is not a count of replicates (at least 1)");
+    result.replicates = options.replicates;
     ensureDirectory(options.outDir);
-    ScenarioContext context(options, biome, suite);
-    context.planForestRuns(selected);
+    // Replicate 0 writes its figures into the output directory; the others into a scratch
+    // directory removed afterwards (the report shows replicate 0's pictures).
+    const std::string scratch = options.outDir + "/.replicates";
+    struct ScratchGuard {
+        std::string dir;
+        ~ScratchGuard() {
+            std::error_code ec;
+            std::filesystem::remove_all(dir, ec);
+        }
+    } guard{scratch};
+    // runs[i][k]: scenario i, replicate k.
+    std::vector<std::vector<ScenarioResult>> runs(selected.size());
+    for (int k = 0; k < options.replicates; ++k) {
+        std::string figureDir = options.outDir;
+        if (k > 0) {
+            figureDir = scratch + "/" + std::to_string(k);
+            ensureDirectory(figureDir);
+        }
+        ScenarioContext context(options, biome, suite, k, figureDir);
+        context.planForestRuns(selected);
+        const std::string rep = options.replicates > 1 ? "replicate " + std::to_string(k + 1) + "/" +
+                                                             std::to_string(options.replicates) + " (seeds + " +
+                                                             std::to_string(k * kReplicateSeedStep) + "), "
+                                                       : std::string();
+        for (std::size_t i = 0; i < selected.size(); ++i) {
+            const ScenarioConfig& sc = *selected[i];
+            if (options.log)
+                options.log("validate: " + rep + "[" + std::to_string(i + 1) + "/" + std::to_string(selected.size()) + "] " +
+                            sc.name + " (" + sc.path + ")");
+            ScenarioResult r = runScenario(sc, context);
+            if (options.log)
+                for (const CheckResult& c : r.checks)
+                    options.log("validate:   " + sc.name + "/" + c.spec.id + " = " + num(c.value) + " (expected " +
+                                c.spec.expectedText() + ")" + (c.note.empty() ? "" : "; " + c.note));
+            runs[i].push_back(std::move(r));
+        }
+    }
     for (std::size_t i = 0; i < selected.size(); ++i) {
-        const ScenarioConfig& sc = *selected[i];
+        ScenarioResult merged = std::move(runs[i][0]);
+        for (std::size_t k = 1; k < runs[i].size(); ++k) merged.seconds += runs[i][k].seconds;
+        for (std::size_t c = 0; c < merged.checks.size(); ++c) {
+            std::vector<CheckResult> reps;
+            reps.push_back(merged.checks[c]);
+            for (std::size_t k = 1; k < runs[i].size(); ++k) reps.push_back(runs[i][k].checks.at(c));
+            merged.checks[c] = combineReplicates(reps);
+        }
         if (options.log)
-            options.log("validate: [" + std::to_string(i + 1) + "/" + std::to_string(selected.size()) + "] " + sc.name + " (" +
-                        sc.path + ")");
-        ScenarioResult r = runScenario(sc, context);
-        if (options.log)
-            for (const CheckResult& c : r.checks)
-                options.log("validate:   " + std::string(c.pass ? "PASS " : c.knownDeviation() ? "KNOWN DEVIATION " : "FAIL ") + sc.name + "/" + c.spec.id + " = " +
-                            num(c.value) + " (expected " + c.spec.expectedText() + ")" + (c.note.empty() ? "" : "; " + c.note));
-        result.scenarios.push_back(std::move(r));
+            for (const CheckResult& c : merged.checks)
+                options.log("validate: " + std::string(c.pass ? "PASS " : c.knownDeviation() ? "KNOWN DEVIATION " : "FAIL ") +
+                            merged.name + "/" + c.spec.id + " = " + intervalText(c) + " (expected " + c.spec.expectedText() + ")");
+        result.scenarios.push_back(std::move(merged));
     }
     result.seconds = secondsSince(t0);
     return result;
@@ -121,6 +215,13 @@ std::string csvNum(double v) {
     return buf;
 }
 
+/// The replicates' values separated by spaces ("nan" for a missing one), one CSV field.
+std::string joinValues(const std::vector<double>& v) {
+    std::string out;
+    for (double x : v) out += (out.empty() ? "" : " ") + (std::isnan(x) ? std::string("nan") : csvNum(x));
+    return out;
+}
+
 }  // namespace
 
 std::vector<std::string> writeReport(const SuiteResult& res, const std::string& outDir) {
@@ -131,6 +232,14 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
        << "\n";
     md << "- Started: " << res.startedUtc << "; wall time " << fixed(res.seconds, 1) << " s on " << res.threads << " thread(s)\n";
     md << "- eco " << ECO_VERSION_STRING << ", biome " << res.biomeName << ", configurations: " << res.configSource << "\n";
+    if (res.replicates > 1)
+        md << "- Replicates: **" << res.replicates << "** per scenario: replicate k runs with every configured seed + "
+           << kReplicateSeedStep << " k. A value is the mean over the replicates with its 95 % interval (Student's t) in "
+           << "brackets; a check passes when the whole interval lies inside the accepted region. Figures and detail "
+           << "lines show replicate 1 (the seeds as configured)\n";
+    else
+        md << "- Replicates: **1** (every seed as configured): a check passes on its single value; the suite's claims "
+           << "need " << kDefaultReplicates << " (--replicates)\n";
     const int passed = res.checkCount() - res.failedCount() - res.knownDeviationCount();
     md << "- Result: **" << passed << " of " << res.checkCount() << " checks passed**";
     if (res.knownDeviationCount() > 0)
@@ -144,7 +253,7 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         for (const auto& s : res.scenarios)
             for (const auto& c : s.checks) {
                 if (rank(c) != group) continue;
-                md << "| " << s.name << " | " << c.spec.id << " | " << num(c.value) << (c.spec.units.empty() ? "" : " " + c.spec.units)
+                md << "| " << s.name << " | " << c.spec.id << " | " << intervalText(c) << (c.spec.units.empty() ? "" : " " + c.spec.units)
                    << " | " << c.spec.expectedText() << " | " << resultText(c) << " |\n";
             }
     md << "\n";
@@ -159,7 +268,11 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
             if (!c.note.empty()) measured += " (" + c.note + ")";
             if (!c.spec.why.empty()) measured += ". Bound: " + c.spec.why;
             if (!c.spec.knownDeviation.empty()) measured += ". Known deviation: " + c.spec.knownDeviation;
-            md << "| " << c.spec.id << " | " << mdCell(measured) << " | " << num(c.value)
+            if (c.replicateValues.size() > 1) {
+                measured += ". Replicates:";
+                for (double v : c.replicateValues) measured += " " + num(v, 3);
+            }
+            md << "| " << c.spec.id << " | " << mdCell(measured) << " | " << intervalText(c)
                << (c.spec.units.empty() ? "" : " " + c.spec.units) << " | " << c.spec.expectedText() << " | "
                << resultText(c) << " |\n";
         }
@@ -175,14 +288,16 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
     AtomicOutputSet outputs;
     writeTextFile(reportPath, md.str());
     std::ostringstream csv;
-    csv << "mode,scenario,check,value,comparator,target,tolerance,expected,result,units,note\n";
+    csv << "mode,scenario,check,value,comparator,target,tolerance,expected,result,units,note,replicates,ci_low,ci_high,"
+           "replicate_values\n";
     for (const auto& s : res.scenarios)
         for (const auto& c : s.checks)
             csv << modeName(res.mode) << "," << csvField(s.name) << "," << csvField(c.spec.id) << "," << csvNum(c.value) << ","
                 << c.spec.comparator() << "," << csvNum(c.spec.target) << ","
                 << (c.spec.kind == CheckSpec::Kind::Approx ? csvNum(c.spec.tolerance) : std::string()) << ","
                 << csvField(c.spec.expectedText()) << "," << c.outcome() << "," << csvField(c.spec.units) << ","
-                << csvField(c.note) << "\n";
+                << csvField(c.note) << "," << c.replicateValues.size() << "," << csvNum(c.ciLow) << "," << csvNum(c.ciHigh)
+                << "," << csvField(joinValues(c.replicateValues)) << "\n";
     writeTextFile(csvPath, csv.str());
     outputs.commit();
     return {reportPath, csvPath};

@@ -7,6 +7,7 @@
 // docs/validation.md defines every measure. The front end is `eco validate`.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -22,7 +23,11 @@ struct CheckResult {
     std::string title;     ///< what was measured, one line
     double value = 0.0;    ///< NaN when it could not be evaluated (see note)
     bool pass = false;     ///< the value meets the bound
-    std::string note;      ///< e.g. why a value is missing
+    std::string note;      ///< e.g. why a value is missing (of the first replicate)
+    /// The value of each replicate (seed), in replicate order; `value` is their mean and
+    /// [ciLow, ciHigh] its 95 % interval (Student's t; the value itself for one replicate).
+    std::vector<double> replicateValues;
+    double ciLow = 0.0, ciHigh = 0.0;
 
     /// A failing check whose configuration declares it a known deviation of the model
     /// (CheckSpec::knownDeviation): reported, but it does not fail the suite.
@@ -46,8 +51,17 @@ struct ScenarioResult {
     std::vector<std::string> details;  ///< Markdown lines: supporting numbers, definitions
 };
 
+/// Replicates (seeds) of every scenario unless told otherwise: each check is measured on
+/// each and judged on the 95 % interval of their mean (issue 28).
+constexpr int kDefaultReplicates = 5;
+/// Replicate k of a scenario runs with every seed of its configuration plus k x this.
+constexpr std::uint64_t kReplicateSeedStep = 1000;
+
 struct SuiteOptions {
     Mode mode = Mode::Full;
+    /// Replicates of every scenario (>= 1): replicate k adds k x kReplicateSeedStep to every
+    /// seed its configuration gives. Figures and detail lines are those of replicate 0.
+    int replicates = kDefaultReplicates;
     std::string outDir = "validation";
     ConfigSource configs;
     std::vector<std::string> only;  ///< scenario names to run; empty = all
@@ -57,6 +71,7 @@ struct SuiteOptions {
 
 struct SuiteResult {
     Mode mode = Mode::Full;
+    int replicates = 1;
     std::string configSource;
     std::string biomeName;
     int threads = 1;
@@ -75,6 +90,16 @@ struct SuiteResult {
 /// (Errors in the input exit with 1 through the CLI's error path, internal errors with 2.)
 constexpr int kChecksFailedExit = 3;
 int exitStatus(const SuiteResult& result);
+
+/// One check measured on several replicates (same scenario, spec and id, in replicate
+/// order), as one result: value = the mean of the replicates' values, [ciLow, ciHigh] = the
+/// 95 % Student-t interval of the mean, pass when the whole interval lies inside the accepted
+/// region (CheckSpec::intervalPasses). A replicate without a value (NaN) fails the check,
+/// with a note. Title and note are the first replicate's.
+CheckResult combineReplicates(const std::vector<CheckResult>& replicates);
+
+/// The two-sided 95 % quantile of Student's t with `dof` degrees of freedom (>= 1).
+double studentT975(int dof);
 
 /// Load the configurations (every file, so a bad file is reported before anything runs),
 /// run the selected scenarios, and write the report into options.outDir. ValidationError

@@ -28,6 +28,16 @@ bool CheckSpec::passes(double v) const {
     return false;
 }
 
+bool CheckSpec::intervalPasses(double lo, double hi) const {
+    if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi) return false;
+    switch (kind) {
+        case Kind::Approx: return lo >= target - tolerance && hi <= target + tolerance;
+        case Kind::AtLeast: return lo >= target;
+        case Kind::AtMost: return hi <= target;
+    }
+    return false;
+}
+
 static std::string shortNum(double v) {
     std::ostringstream os;
     os.precision(4);

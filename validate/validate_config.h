@@ -47,6 +47,9 @@ struct CheckSpec {
     /// (its `why` is quick_why, followed by the full run's bound).
     CheckSpec forMode(Mode m) const;
     bool passes(double value) const;
+    /// An interval of values [lo, hi] passes when it lies wholly inside the accepted region
+    /// (an equivalence test for approx, a one-sided test for min and max). NaN fails.
+    bool intervalPasses(double lo, double hi) const;
     /// "-1.5 ± 0.5", ">= 1.2", "<= 0.1".
     std::string expectedText() const;
     const char* comparator() const;  ///< "approx", "min", "max"

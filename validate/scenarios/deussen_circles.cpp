@@ -65,7 +65,7 @@ void DeussenCircles::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scenari
     const auto& size = ctx.mode() == Mode::Quick ? settings_.quick : settings_.full;
     p.plantCount = size.plantCount;
     p.fieldSideM = size.fieldSideM;
-    p.seed = size.seed;
+    p.seed = ctx.seed(size.seed);
     ctx.log("validate: Deussen circles: " + std::to_string(p.plantCount) + " plants in a " + num(p.fieldSideM) + " m field");
     const auto t0 = Clock::now();
     const CirclesResult res = runDeussenCircles(p);

@@ -275,7 +275,12 @@ Fidelity::Fidelity(const ScenarioParse& in) {
 }
 
 void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResult& r) const {
-    const FidelitySettings& st = settings_;
+    // Every seed of the configuration as this replicate uses it (ScenarioContext::seed).
+    FidelitySettings withSeeds = settings_;
+    for (std::uint64_t* s : {&withSeeds.terrainSeed, &withSeeds.seedA, &withSeeds.seedB, &withSeeds.analysisSeed, &withSeeds.synthSeed,
+                             &withSeeds.csrSeed})
+        *s = ctx.seed(*s);
+    const FidelitySettings& st = withSeeds;
     const FidelitySettings::Size& size = ctx.mode() == Mode::Quick ? st.quick : st.full;
     const Biome& biome = ctx.biome();
     const auto t0 = Clock::now();

@@ -99,7 +99,7 @@ sim::SimInputs ScenarioContext::forestInputs(const ForestSceneConfig& scene, con
     sim::DemoSceneParams dp;
     dp.cells = std::max(8, static_cast<int>(std::ceil(size.plotSizeM / scene.terrainCellSizeM)));
     dp.cellSizeM = scene.terrainCellSizeM;
-    dp.seed = size.seed;
+    dp.seed = seed(size.seed);
     dp.emptyFraction = scene.emptyFraction;
     dp.denseFraction = scene.denseFraction;
     dp.uniformAbiotics = scene.uniformAbiotics;
@@ -121,7 +121,7 @@ sim::SimInputs ScenarioContext::forestInputs(const ForestSceneConfig& scene, con
                     tallest = k;
             w[tallest] = 1.0;
         }
-        RandomStream rs(size.seed, mixStream(i, kCanopySpeciesStreamTag));
+        RandomStream rs(seed(size.seed), mixStream(i, kCanopySpeciesStreamTag));
         const int k = sim::rouletteSelect(w.data(), static_cast<int>(w.size()), rs.uniform());
         t.speciesId = ids[static_cast<std::size_t>(k)];
     }
@@ -144,14 +144,14 @@ const ForestRun& ScenarioContext::forest(const std::string& sceneFile, sim::Comp
     run->label = sceneFile + " (" + sim::competitionModeName(mode) + " competition)";
     const auto t0 = Clock::now();
     log("validate: building scene " + sceneFile + ": " + fixed(size.plotSizeM, 0) + " m plot, " +
-        std::to_string(size.years) + " years, seed " + std::to_string(size.seed));
+        std::to_string(size.years) + " years, seed " + std::to_string(seed(size.seed)));
     sim::SimInputs in = forestInputs(scene, size);
     const FactorGrids annual = annualFactors(in.abiotics);
     run->canopy = in.canopy;
     sim::SimParams params = scene.params;
     params.competition = mode;
     if (mode == sim::CompetitionMode::Deussen) params.deussenDominatedSurvival = dominatedSurvival;
-    sim::Simulation s(std::move(in), params, size.seed);
+    sim::Simulation s(std::move(in), params, seed(size.seed));
     run->area = s.area();
     run->plotSideM = run->area.x1 - run->area.x0;
     run->canopy = s.relevantCanopy();

@@ -123,17 +123,27 @@ std::vector<const sim::YearRecord*> censusWindow(const std::vector<sim::YearReco
 /// simulated once, as long as the longest of the selected scenarios needs).
 class ScenarioContext {
 public:
-    ScenarioContext(const SuiteOptions& o, Biome biome, SuiteConfig suite)
-        : opt_(o), biome_(std::move(biome)), suite_(std::move(suite)) {}
+    /// Replicate `replicate` (0-based) of the suite; its figures go to `figureDir` (the
+    /// output directory for replicate 0, a scratch directory for the others).
+    ScenarioContext(const SuiteOptions& o, Biome biome, SuiteConfig suite, int replicate = 0, std::string figureDir = "")
+        : opt_(o), biome_(std::move(biome)), suite_(std::move(suite)), replicate_(replicate),
+          figureDir_(figureDir.empty() ? o.outDir : std::move(figureDir)) {}
 
     Mode mode() const { return opt_.mode; }
+    /// Which replicate this is (0 = the seeds exactly as configured).
+    int replicate() const { return replicate_; }
+    /// The seed a configuration's `configured` seed stands for in this replicate: every seed
+    /// a scenario uses passes through here (SuiteOptions::replicates).
+    std::uint64_t seed(std::uint64_t configured) const {
+        return configured + static_cast<std::uint64_t>(replicate_) * kReplicateSeedStep;
+    }
     const Biome& biome() const { return biome_; }
     /// A progress line (stderr in the CLI).
     void log(const std::string& s) const {
         if (opt_.log) opt_.log(s);
     }
     /// Path of output file `name` (relative to the output directory, as Figure::file).
-    std::string file(const std::string& name) const { return opt_.outDir + "/" + name; }
+    std::string file(const std::string& name) const { return figureDir_ + "/" + name; }
 
     /// Before the scenarios run: every (scene, competition mode) is simulated as long as the
     /// longest of the selected scenarios that use it needs, and keeps the plants at each
@@ -160,6 +170,8 @@ private:
     SuiteOptions opt_;
     Biome biome_;
     SuiteConfig suite_;
+    int replicate_ = 0;
+    std::string figureDir_;
     std::map<std::string, std::unique_ptr<ForestRun>> cache_;
     std::map<std::string, int> runYears_;                // "scene|mode": years to simulate
     std::map<std::string, std::set<int>> keepPlantsAt_;  // "scene|mode": years whose plants are kept

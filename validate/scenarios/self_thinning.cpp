@@ -12,6 +12,7 @@
 #include "plots.h"
 #include "rng.h"
 #include "strict_toml.h"
+#include "thinning.h"
 
 namespace eco::validate {
 
@@ -38,15 +39,11 @@ struct SelfThinningSettings {
     sim::SimParams params;
 };
 
-/// The stand's census of one year.
-struct YearStats {
-    int year;
-    double alive, densityPerM2, meanMass, meanAreaM2, meanHeightM, coverFraction, deaths, mortality;
-};
-
-/// A simulated stand: its census of every year (0 = the initial stand).
+/// A simulated stand: its census of every year (0 = the initial stand) and every plant's
+/// (id, height) in every year, for the ranks of the dying.
 struct Stand {
-    std::vector<YearStats> stats;
+    std::vector<StandYear> stats;
+    std::vector<std::vector<std::pair<std::uint64_t, double>>> heights;  ///< [year]: (id, height), by id
     std::size_t plants = 0;       ///< initial plants
     Clock::time_point started{};  ///< when the simulation started
 };
@@ -57,10 +54,11 @@ Stand simulateStand(const SelfThinningSettings& st, const SelfThinningSettings::
     const Biome& biome = ctx.biome();
     const Species& sp = biome.species[static_cast<std::size_t>(species)];
     Stand out;
+    const std::uint64_t seed = ctx.seed(size.seed);
     // Flat, uniform plot without canopy: no shade but the stand's own, no seedbank.
     sim::DemoSceneParams dp;
     dp.cells = static_cast<int>(std::ceil(size.plotSizeM / dp.cellSizeM)) + 1;
-    dp.seed = size.seed;
+    dp.seed = seed;
     dp.uniformAbiotics = true;
     sim::SimInputs in = sim::makeDemoScene(dp, biome);
     in.canopy.clear();
@@ -71,7 +69,7 @@ Stand simulateStand(const SelfThinningSettings& st, const SelfThinningSettings::
     const auto n = static_cast<std::size_t>(std::llround(st.densityPerM2 * areaM2));
     std::vector<sim::UndergrowthPlant> initial(n);
     for (std::size_t i = 0; i < n; ++i) {
-        RandomStream rs(size.seed, mixStream(i, kStandStreamTag));
+        RandomStream rs(seed, mixStream(i, kStandStreamTag));
         sim::UndergrowthPlant& p = initial[i];
         p.id = i + 1;
         p.speciesId = species;
@@ -85,21 +83,34 @@ Stand simulateStand(const SelfThinningSettings& st, const SelfThinningSettings::
     out.plants = n;
     out.started = Clock::now();
     const auto t0 = out.started;
-    sim::Simulation s(std::move(in), st.params, size.seed, initial);
+    sim::Simulation s(std::move(in), st.params, seed, initial);
 
-    std::vector<YearStats>& stats = out.stats;
+    std::vector<StandYear>& stats = out.stats;
     auto record = [&](int year, double deaths, double before) {
         const auto plants = s.plants();
-        double mass = 0, area = 0, height = 0;
+        double volume = 0, area = 0, height = 0;
+        std::vector<std::pair<std::uint64_t, double>> hs;
+        hs.reserve(plants.size());
         for (const auto& p : plants) {
             const double a = M_PI * p.crownRadiusM * p.crownRadiusM;
             area += a;
-            mass += std::pow(a, 1.5);
+            volume += a * p.heightM;
             height += p.heightM;
+            hs.emplace_back(p.id, p.heightM);
         }
+        std::sort(hs.begin(), hs.end());
+        out.heights.push_back(std::move(hs));
         const double k = static_cast<double>(plants.size());
-        stats.push_back({year, k, k / areaM2, k > 0 ? mass / k : kNaN, k > 0 ? area / k : kNaN, k > 0 ? height / k : kNaN,
-                         area / areaM2, deaths, before > 0 ? deaths / before : kNaN});
+        StandYear y;
+        y.year = year;
+        y.alive = k;
+        y.densityPerM2 = k / areaM2;
+        y.meanVolumeM3 = k > 0 ? volume / k : kNaN;
+        y.meanAreaM2 = k > 0 ? area / k : kNaN;
+        y.meanHeightM = k > 0 ? height / k : kNaN;
+        y.coverFraction = area / areaM2;
+        y.mortality = before > 0 ? deaths / before : kNaN;
+        stats.push_back(y);
     };
     record(0, 0, 0);
     auto deathsSoFar = [&] {
@@ -119,38 +130,16 @@ Stand simulateStand(const SelfThinningSettings& st, const SelfThinningSettings::
     return out;
 }
 
-/// The thinning phase [first, last] (-1 when none) for crown cover `coverNeeded`;
-/// `background` is the yearly background mortality.
-/// It starts in the first year in which the crowns have closed and mortality exceeds the
-/// background by the configured factor, while enough plants remain for a meaningful mean.
-/// (Without the closure condition the phase would include the first years, in which
-/// randomly placed neighbours already kill each other while the stand is still open and mean
-/// size grows faster than the thinning line; the report gives that fit too.) It lasts while
-/// the canopy stays closed (cover at least the onset cover) and enough plants remain: Yoda's
-/// line describes fully stocked stands, and once the plants near their maximum size,
-/// background deaths open gaps that nothing refills.
-void thinningPhase(const std::vector<YearStats>& stats, const SelfThinningSettings& st, double background,
-                   double coverNeeded, int& first, int& last) {
-    first = last = -1;
-    for (const YearStats& y : stats) {
-        if (y.year == 0) continue;
-        if (first < 0 && y.coverFraction >= coverNeeded && y.mortality > st.onsetMortalityFactor * background)
-            first = y.year;
-        if (first < 0) continue;
-        if (y.alive < st.minPlantsInFit || y.coverFraction < coverNeeded) break;
-        last = y.year;
-    }
-}
-
-/// Fits log10 mean mass on log10 density over the phase [first, last]: false with a note
-/// when there is no phase, fewer than 3 years or a degenerate fit. lx, ly get the points.
-bool fitThinningPhase(const std::vector<YearStats>& stats, const SelfThinningSettings& st, double background, int first,
-                      int last, std::vector<double>& lx, std::vector<double>& ly, LineFit& fit, std::string& note) {
-    if (first >= 0)
-        for (const YearStats& y : stats)
-            if (y.year >= first && y.year <= last && y.alive > 0) {
+/// Fits log10 of `measure` (a mean per plant) on log10 density over the phase: false with a
+/// note when there is no phase, fewer than 3 years or a degenerate fit. lx, ly get the points.
+bool fitPhase(const std::vector<StandYear>& stats, const SelfThinningSettings& st, const ThinningRule& rule,
+              std::pair<int, int> phase, double StandYear::*measure, std::vector<double>& lx, std::vector<double>& ly,
+              LineFit& fit, std::string& note) {
+    if (phase.first >= 0)
+        for (const StandYear& y : stats)
+            if (y.year >= phase.first && y.year <= phase.second && y.alive > 0) {
                 lx.push_back(std::log10(y.densityPerM2));
-                ly.push_back(std::log10(y.meanMass));
+                ly.push_back(std::log10(y.*measure));
             }
     if (lx.size() >= 3) {
         try {
@@ -161,22 +150,22 @@ bool fitThinningPhase(const std::vector<YearStats>& stats, const SelfThinningSet
             return false;
         }
     }
-    note = first < 0 ? "no thinning phase: crown cover never reached " + num(st.onsetCoverFraction) +
-                           " with yearly mortality above " + num(st.onsetMortalityFactor) + " x background (" +
-                           fixed(100 * background, 2) + " %/year)"
-                     : "thinning phase has fewer than 3 years";
+    note = phase.first < 0 ? "no thinning phase: crown cover never reached " + num(st.onsetCoverFraction) +
+                                 " with yearly mortality above " + num(st.onsetMortalityFactor) + " x background (" +
+                                 fixed(100 * rule.backgroundMortality, 2) + " %/year)"
+                           : "thinning phase has fewer than 3 years";
     return false;
 }
 
 /// Log-log plot: every year, the fitted years, the fit and a -3/2 reference line.
-void plotLogLog(const std::string& path, const std::string& speciesName, const std::vector<YearStats>& stats,
+void plotLogLog(const std::string& path, const std::string& speciesName, const std::vector<StandYear>& stats,
                 const std::vector<double>& lx, const std::vector<double>& ly, bool fitted, const LineFit& fit) {
     PlotSeries all{"every year", {}, {}, {0.6f, 0.6f, 0.6f}, true, 2.5};
     PlotSeries used{"thinning phase (fitted)", {}, {}, {0.85f, 0.3f, 0.1f}, false, 4.0};
-    for (const YearStats& y : stats)
-        if (y.alive > 0 && y.meanMass > 0) {
+    for (const StandYear& y : stats)
+        if (y.alive > 0 && y.meanVolumeM3 > 0) {
             all.x.push_back(std::log10(y.densityPerM2));
-            all.y.push_back(std::log10(y.meanMass));
+            all.y.push_back(std::log10(y.meanVolumeM3));
         }
     used.x = lx;
     used.y = ly;
@@ -191,13 +180,15 @@ void plotLogLog(const std::string& path, const std::string& speciesName, const s
         series.push_back(ref);
     }
     writeXYPlotPng(path, "Self-thinning: " + speciesName, "log10 density (plants per m^2)",
-                   "log10 mean mass, (crown area)^1.5 (m^3)", series);
+                   "log10 mean plant volume, crown area x height (m^3)", series);
 }
 
 class SelfThinning final : public Scenario {
 public:
     explicit SelfThinning(const ScenarioParse& in);
-    std::vector<std::string> checkIds() const override { return {"slope", "r_squared"}; }
+    std::vector<std::string> checkIds() const override {
+        return {"slope", "r_squared", "closure_exponent", "density_drop", "death_size_rank"};
+    }
     std::vector<std::pair<std::string, std::string>> speciesNamed() const override {
         return {{"[stand] species", settings_.species}};
     }
@@ -237,22 +228,60 @@ void SelfThinning::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioR
     const int species = biome.speciesIndex(st.species);
     const Species& sp = biome.species[static_cast<std::size_t>(species)];
     const Stand stand = simulateStand(st, size, species, ctx);
-    const std::vector<YearStats>& stats = stand.stats;
+    const std::vector<StandYear>& stats = stand.stats;
     const std::size_t n = stand.plants;
     const auto t0 = stand.started;
-    const double background = 1.0 - std::pow(st.params.survivalAtMaxAge, 1.0 / sp.maxAgeYears);
-    int first, last, firstAny, lastAny;
-    thinningPhase(stats, st, background, st.onsetCoverFraction, first, last);
-    thinningPhase(stats, st, background, 0.0, firstAny, lastAny);
-    std::vector<double> lx, ly, ax, ay;
-    LineFit fit, fitAny;
-    std::string note, noteAny;
-    const bool fitted = fitThinningPhase(stats, st, background, first, last, lx, ly, fit, note);
-    const bool fittedAny = fitThinningPhase(stats, st, background, firstAny, lastAny, ax, ay, fitAny, noteAny);
+    ThinningRule rule;
+    rule.onsetCoverFraction = st.onsetCoverFraction;
+    rule.onsetMortalityFactor = st.onsetMortalityFactor;
+    rule.backgroundMortality = 1.0 - std::pow(st.params.survivalAtMaxAge, 1.0 / sp.maxAgeYears);
+    rule.minPlants = st.minPlantsInFit;
+    ThinningRule open = rule;
+    open.onsetCoverFraction = 0.0;
+    const auto phase = thinningPhase(stats, rule), phaseAny = thinningPhase(stats, open);
+    std::vector<double> lx, ly, ax, ay, cx, cy;
+    LineFit fit, fitAny, closure;
+    std::string note, noteAny, noteClosure;
+    const bool fitted = fitPhase(stats, st, rule, phase, &StandYear::meanVolumeM3, lx, ly, fit, note);
+    const bool fittedAny = fitPhase(stats, st, open, phaseAny, &StandYear::meanVolumeM3, ax, ay, fitAny, noteAny);
+    const bool closed = fitPhase(stats, st, rule, phase, &StandYear::meanAreaM2, cx, cy, closure, noteClosure);
+    const double drop = densityDropLog10(stats, phase);
+    double rank = kNaN;
+    std::string rankNote = note;
+    if (phase.first >= 0) {
+        // Year by year: who dies in year y among those alive at its start, weighted by the deaths
+        // (over the whole phase most plants die, and the dead of many years average to 1/2).
+        double sum = 0, deaths = 0;
+        for (int y = std::max(1, phase.first); y <= phase.second; ++y) {
+            const auto& before = stand.heights[static_cast<std::size_t>(y - 1)];
+            const auto& after = stand.heights[static_cast<std::size_t>(y)];
+            std::vector<std::uint64_t> alive;
+            for (const auto& [id, h] : after) alive.push_back(id);
+            const double rk = deathSizeRank(before, alive);
+            const double died = static_cast<double>(before.size()) - static_cast<double>(after.size());
+            if (!std::isnan(rk) && died > 0) {
+                sum += rk * died;
+                deaths += died;
+            }
+        }
+        rank = deaths > 0 ? sum / deaths : kNaN;
+        rankNote = deaths > 0 ? "" : "nobody died in the thinning phase";
+    }
     r.checks.push_back(makeCheck(sc, "slope",
-                                 "slope of log10 mean mass against log10 density over the thinning phase (Yoda: -3/2)",
+                                 "slope of log10 mean plant volume (crown area x height) against log10 density over the "
+                                 "thinning phase (Yoda: -3/2)",
                                  fitted ? fit.slope : kNaN, note));
     r.checks.push_back(makeCheck(sc, "r_squared", "R^2 of that fit", fitted ? fit.rSquared : kNaN, note));
+    r.checks.push_back(makeCheck(sc, "closure_exponent",
+                                 "slope of log10 mean crown area against log10 density over the phase (-1: the stand "
+                                 "stays closed as it thins)",
+                                 closed ? closure.slope : kNaN, noteClosure));
+    r.checks.push_back(makeCheck(sc, "density_drop", "log10 of the density at the phase's start over that at its end",
+                                 drop, phase.first < 0 ? note : ""));
+    r.checks.push_back(makeCheck(sc, "death_size_rank",
+                                 "mean height rank (0 = shortest, 1 = tallest), among the plants alive at the start of a "
+                                 "year of the phase, of those that die in it (1/2 when deaths ignore size)",
+                                 rank, rankNote));
 
     r.details.push_back("- Stand: " + std::to_string(n) + " " + sp.name + " (max height " + num(sp.maxHeightM) +
                         " m, max age " + num(sp.maxAgeYears) + " years, allometry " + sp.allometry.code + ") at " +
@@ -262,34 +291,43 @@ void SelfThinning::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioR
                         num(st.initialHeightMinM) + ", " + num(st.initialHeightMaxM) + "] m; growth rule " +
                         sim::growthRuleName(st.params.growthRule) + "; " + std::to_string(size.years) + " years in " +
                         fixed(secondsSince(t0), 1) + " s.");
-    r.details.push_back("- Mass proxy: m = (crown area)^(3/2) per plant (m^3), mean over the living plants; density = "
-                        "living plants per m^2. Fit: ordinary least squares (Eigen QR) of log10 mean mass on log10 density.");
+    r.details.push_back("- Mass proxy: plant volume v = crown area x height (m^3), mean over the living plants; density = "
+                        "living plants per m^2. Fits: ordinary least squares (Eigen QR) of log10 mean volume, and of log10 "
+                        "mean crown area, on log10 density. A mass made of crown area alone, e.g. (crown area)^(3/2), "
+                        "gives -3/2 by geometry in any stand that stays closed; the volume's slope also depends on how "
+                        "height scales with crown size, and the closure exponent and the death ranks test the thinning "
+                        "itself.");
+    const std::string phaseText =
+        phase.first < 0 ? std::string("none") : "years " + std::to_string(phase.first) + "-" + std::to_string(phase.second);
     r.details.push_back("- Thinning phase: from the first year in which the crown cover (sum of crown areas / plot area) "
                         "is at least " + num(st.onsetCoverFraction) + " and the mortality exceeds " + num(st.onsetMortalityFactor) +
-                        " x the background rate (1 - P_s^(1/l) = " + fixed(100 * background, 2) +
+                        " x the background rate (1 - P_s^(1/l) = " + fixed(100 * rule.backgroundMortality, 2) +
                         " %/year), for as long as the cover stays at least " + num(st.onsetCoverFraction) +
-                        " (a closed stand) and at least " + std::to_string(st.minPlantsInFit) +
-                        " plants live: " + (first < 0 ? std::string("none") : "years " + std::to_string(first) + "-" + std::to_string(last)) +
-                        (fitted ? ", " + std::to_string(fit.points) + " points, slope " + fixed(fit.slope, 3) + " ± " +
+                        " (a closed stand) and at least " + std::to_string(st.minPlantsInFit) + " plants live: " + phaseText +
+                        (fitted ? ", " + std::to_string(fit.points) + " points, volume slope " + fixed(fit.slope, 3) + " ± " +
                                       fixed(fit.slopeStdError, 3) + " (standard error), R^2 " + fixed(fit.rSquared, 3)
+                                : std::string()) +
+                        (closed ? "; crown-area slope " + fixed(closure.slope, 3) + " ± " + fixed(closure.slopeStdError, 3)
                                 : std::string()) + ".");
     r.details.push_back("- For comparison, without the crown-closure conditions (from the first year with mortality above " +
                         num(st.onsetMortalityFactor) + " x background while at least " + std::to_string(st.minPlantsInFit) +
                         " plants live: " +
-                        (firstAny < 0 ? std::string("none") : "years " + std::to_string(firstAny) + "-" + std::to_string(lastAny)) +
-                        "): " + (fittedAny ? "slope " + fixed(fitAny.slope, 3) + ", R^2 " + fixed(fitAny.rSquared, 3) : noteAny) +
+                        (phaseAny.first < 0 ? std::string("none")
+                                            : "years " + std::to_string(phaseAny.first) + "-" + std::to_string(phaseAny.second)) +
+                        "): " + (fittedAny ? "volume slope " + fixed(fitAny.slope, 3) + ", R^2 " + fixed(fitAny.rSquared, 3) : noteAny) +
                         ". Not a check; it shows how much the definition of the phase matters.");
-    std::string table = "\n| year | plants | density (1/m^2) | mean height (m) | mean crown area (m^2) | cover | mortality |\n|---|---|---|---|---|---|---|\n";
-    for (const YearStats& y : stats)
-        if (y.year % 5 == 0 || y.year == first || y.year == last)
+    std::string table = "\n| year | plants | density (1/m^2) | mean height (m) | mean crown area (m^2) | mean volume (m^3) | cover | mortality |\n|---|---|---|---|---|---|---|---|\n";
+    for (const StandYear& y : stats)
+        if (y.year % 5 == 0 || y.year == phase.first || y.year == phase.second)
             table += "| " + std::to_string(y.year) + " | " + num(y.alive, 6) + " | " + num(y.densityPerM2) + " | " +
-                     num(y.meanHeightM) + " | " + num(y.meanAreaM2) + " | " + fixed(y.coverFraction, 2) + " | " +
+                     num(y.meanHeightM) + " | " + num(y.meanAreaM2) + " | " + num(y.meanVolumeM3) + " | " +
+                     fixed(y.coverFraction, 2) + " | " +
                      (std::isnan(y.mortality) ? std::string("") : fixed(100 * y.mortality, 1) + " %") + " |\n";
     r.details.push_back(table);
 
     const std::string png = sc.name + "_loglog.png";
     plotLogLog(ctx.file(png), sp.name, stats, lx, ly, fitted, fit);
-    r.figures.push_back({png, "Log mean mass against log density, every year; the fitted thinning phase and a -3/2 reference."});
+    r.figures.push_back({png, "Log mean plant volume against log density, every year; the fitted thinning phase and a -3/2 reference."});
 }
 
 }  // namespace
