@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "atomic_file.h"
 #include "biome.h"
@@ -19,10 +20,13 @@ namespace {
 struct BuildArgs {
     pipeline::DatabaseBuildOptions options;
     bool dryRun = false;
+    CLI::Option* terrainsOpt = nullptr;
 };
 
 void buildDatabase(BuildArgs a) {
     pipeline::DatabaseBuildOptions& o = a.options;
+    // Given terrains replace the generated ones unless --terrains asks for both.
+    if (!o.terrainFiles.empty() && a.terrainsOpt->count() == 0) o.terrains = 0;
     if (o.workDir.empty()) {
         const std::filesystem::path out(o.out);
         o.workDir = (out.parent_path() / (out.stem().string() + "-ensemble")).string();
@@ -39,6 +43,27 @@ void buildDatabase(BuildArgs a) {
     std::fflush(stdout);
 }
 
+/// "MIN,MAX" (or two values) into lo, hi.
+bool parseRange(const CLI::results_t& r, double& lo, double& hi) {
+    std::vector<std::string> parts;
+    for (const std::string& item : r) {
+        std::size_t start = 0;
+        for (std::size_t comma; (comma = item.find(',', start)) != std::string::npos; start = comma + 1)
+            parts.push_back(item.substr(start, comma - start));
+        parts.push_back(item.substr(start));
+    }
+    if (parts.size() != 2) return false;
+    try {
+        std::size_t used = 0;
+        lo = std::stod(parts[0], &used);
+        if (used != parts[0].size()) return false;
+        hi = std::stod(parts[1], &used);
+        return used == parts[1].size();
+    } catch (const std::exception&) {
+        return false;
+    }
+}
+
 }  // namespace
 
 void registerDatabaseCommands(CLI::App& app) {
@@ -50,16 +75,32 @@ void registerDatabaseCommands(CLI::App& app) {
     CLI::App* sub = group->add_subcommand(
         "build",
         "A complete biome database from one command: an ensemble (eco ensemble) of one simulation per combination of the "
-        "biome's canopy sub-biomes (15 for 4) on each of several generated terrains, analysed into one database, and "
-        "a coverage table (combination x cluster: simulated area, plants, replicates) printed and stored as "
-        "DB-coverage.csv. Restartable and MPI-capable as eco ensemble (docs/ensemble.md).");
+        "biome's canopy sub-biomes (15 for 4) on each of several terrains (generated with relief and base elevation "
+        "spread over --relief and --base-elevation, or given with --terrain), analysed into one database, and "
+        "a coverage table (combination x cluster: simulated area, plants, replicates, mean sun, moisture, temperature "
+        "and slope) printed and stored as DB-coverage.csv. Restartable and MPI-capable as eco ensemble (docs/ensemble.md).");
     sub->add_option("biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)")->check(CLI::ExistingFile);
     sub->add_option("--out", o.out, "The database to write")->required();
     sub->add_option("--work-dir", o.workDir, "The ensemble's folder (default: DB's folder/<DB name>-ensemble)");
     sub->add_option("--sim-config", o.simConfig, "Simulation configuration (model constants)")
         ->capture_default_str()
         ->check(CLI::ExistingFile);
-    sub->add_option("--terrains", o.terrains, "Generated terrains (replicates) per combination, 1..100")->capture_default_str();
+    a->terrainsOpt = sub->add_option("--terrains", o.terrains,
+                                     "Generated terrains (replicates) per combination, 0..100 (default 2, or 0 when "
+                                     "--terrain is given)")
+                         ->capture_default_str();
+    sub->add_option("--terrain", o.terrainFiles,
+                    "A terrain of your own (.asc, .h5, .tif, ...; repeatable): every combination is also simulated on it, "
+                    "on a plot of --plot metres centred in it")
+        ->check(CLI::ExistingFile);
+    sub->add_option("--relief", [&o](const CLI::results_t& r) { return parseRange(r, o.reliefMinM, o.reliefMaxM); },
+                    "Relief of the generated terrains, MIN,MAX metres: terrain t of N gets MIN + (t-1)/(N-1) (MAX - MIN)")
+        ->default_str("35,140");
+    sub->add_option("--base-elevation",
+                    [&o](const CLI::results_t& r) { return parseRange(r, o.baseElevationMinM, o.baseElevationMaxM); },
+                    "Base elevation of the generated terrains, MIN,MAX metres (spread as --relief; with the lapse rate "
+                    "it spreads temperature)")
+        ->default_str("0,600");
     sub->add_option("--terrain-cells", o.terrainCells, "Terrain width and height in cells of 0.914 m, 32..4096")->capture_default_str();
     sub->add_option("--plot", o.plotM, "Side of the simulated plot in metres, centred on the terrain")->capture_default_str();
     sub->add_option("--years", o.years, "Simulated years")->capture_default_str();

@@ -107,6 +107,10 @@ void registerTerrainCommands(CLI::App& app) {
             ->check(nonNegativeNumber())->capture_default_str();
         gen->add_option("--valley-depth", a->options.params.valleyDepthM, "Depth of the valley below the lowest hills (m)")
             ->check(positiveNumber())->capture_default_str();
+        gen->add_option("--base-elevation", a->options.params.baseElevationM,
+                        "Elevation of the creek bed where it leaves the domain (m): shifts the whole terrain, and with "
+                        "it the temperature (the biome's lapse rate)")
+            ->check(CLI::Range(-500.0, 9000.0))->capture_default_str();
         a->scaleOpt = gen->add_option("--vertical-scale", a->verticalScale,
                                       "Image outputs: metres per stored unit (default: PNG a round number above "
                                       "the highest elevation, TIFF/EXR 1). Printed; give it back when reading")

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "biome.h"
@@ -18,6 +19,14 @@ struct DatabaseBuildOptions {
     std::string workDir;     ///< the ensemble's folder (its specification, members, manifest)
     std::string simConfig;   ///< simulation configuration (model constants)
     int terrains = 2;        ///< generated terrains (replicates) per combination
+    /// Terrains the user gives (any format eco terrain reads; images need their cell size in
+    /// the file): every combination is simulated on each too, on a plot centred in it.
+    std::vector<std::string> terrainFiles;
+    /// Generated terrain t of N spreads its relief and base elevation over these ranges
+    /// (first to last; one terrain takes the generator's defaults), so that the members'
+    /// slopes, moisture routing, sun on aspects and temperatures (the lapse rate) differ.
+    double reliefMinM = 35, reliefMaxM = 140;
+    double baseElevationMinM = 0, baseElevationMaxM = 600;
     int terrainCells = 160;  ///< terrain width and height in cells of 0.914 m
     double plotM = 100;      ///< side of the simulated plot, centred on the terrain
     int years = 150;
@@ -45,11 +54,15 @@ struct CoverageRow {
     double areaM2 = 0;
     double plants = 0;
     int replicates = -1;     ///< simulations with cells in the region (-1: not recorded)
+    Features centroid{};     ///< the region's mean abiotic conditions (factor units)
     std::string standIn;     ///< for a missing combination: whose statistics synthesis uses
 };
 std::vector<CoverageRow> coverage(const BiomeDatabase& db, const Biome& biome);
 /// The table as text (printed) and as CSV (stored beside the database).
 std::string coverageText(const std::vector<CoverageRow>& rows);
 std::string coverageCsv(const std::vector<CoverageRow>& rows);
+
+/// Relief and base elevation (m) of generated terrain `t` (1-based) of `n` in a build.
+std::pair<double, double> generatedTerrainShape(const DatabaseBuildOptions& options, int t, int n);
 
 }  // namespace eco::pipeline

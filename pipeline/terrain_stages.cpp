@@ -180,6 +180,8 @@ std::vector<std::string> commandLine(const TerrainGenerateOptions& a) {
     if (a.params.reliefM != defaults.reliefM) args.insert(args.end(), {"--relief", argNumber(a.params.reliefM)});
     if (a.params.valleyDepthM != defaults.valleyDepthM)
         args.insert(args.end(), {"--valley-depth", argNumber(a.params.valleyDepthM)});
+    if (a.params.baseElevationM != defaults.baseElevationM)
+        args.insert(args.end(), {"--base-elevation", argNumber(a.params.baseElevationM)});
     if (a.verticalScale) args.insert(args.end(), {"--vertical-scale", argNumber(*a.verticalScale)});
     if (a.verticalOffsetM) args.insert(args.end(), {"--vertical-offset", argNumber(*a.verticalOffsetM)});
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});

@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include "database_build.h"
+#include "generate.h"
+#include "terrain_io.h"
 #include "ensemble.h"
 #include "run.h"
 #include "stage_common.h"
@@ -221,6 +223,47 @@ TEST_CASE("database build: one member per sub-biome combination and terrain, eac
     CHECK(spec.members.front().id == "c01-t1");
     CHECK(spec.members.back().id == "c15-t2");
     CHECK(spec.databasePath == o.out);
+    // Generated terrains spread relief and base elevation from the first to the last.
+    const auto number = [&](std::size_t member, const char* key) {
+        const toml::node* v = spec.members[member].overrides.get(key);
+        REQUIRE(v != nullptr);
+        return v->is_integer() ? static_cast<double>(v->as_integer()->get()) : v->as_floating_point()->get();
+    };
+    CHECK(number(0, "terrain.relief_m") == 35);
+    CHECK(number(0, "terrain.base_elevation_m") == 0);
+    CHECK(number(1, "terrain.relief_m") == 140);
+    CHECK(number(1, "terrain.base_elevation_m") == 600);
+    CHECK(number(1, "terrain.width") == 160);
     o.plotM = 500;  // wider than the 146 m terrain
     CHECK_THROWS_WITH(eco::pipeline::writeDatabaseBuildSpec(o), Catch::Contains("--plot"));
+
+    // Terrains of the user's: every combination on each, the plot centred in it.
+    eco::Grid<float> own(120, 80, 0.5, 1000.0, 2000.0, 0.f);  // 60 m x 40 m at (1000, 2000)
+    for (int y = 0; y < own.height(); ++y)
+        for (int x = 0; x < own.width(); ++x) own(x, y) = static_cast<float>(100 + 0.2 * x + 0.1 * y);
+    eco::writeAsc(dir.file("own.asc"), own);
+    o.plotM = 30;
+    o.terrains = 1;
+    o.terrainFiles = {dir.file("own.asc")};
+    const auto mixed = eco::pipeline::loadEnsembleSpec(eco::pipeline::writeDatabaseBuildSpec(o));
+    REQUIRE(mixed.members.size() == 30);
+    CHECK(mixed.members[0].id == "c01-t1");
+    CHECK(mixed.members[1].id == "c01-f1");
+    const toml::node* path = mixed.members[1].overrides.get("terrain.path");
+    REQUIRE(path != nullptr);
+    CHECK(std::filesystem::equivalent(path->as_string()->get(), dir.file("own.asc")));
+    const toml::array* crop = mixed.members[1].overrides.get("simulate.crop")->as_array();
+    REQUIRE(crop != nullptr);
+    std::vector<double> c;
+    for (const auto& v : *crop) c.push_back(v.value<double>().value());
+    CHECK(c == std::vector<double>{1015, 2005, 1045, 2035});  // centre (1030, 2020)
+    CHECK(mixed.members[1].overrides.get("terrain.seed") == nullptr);
+    // One generated terrain takes the generator's defaults.
+    CHECK(mixed.members[0].overrides.get("terrain.relief_m")->value<double>().value() == eco::TerrainGenParams{}.reliefM);
+    // A terrain too small for the plot is refused, naming it.
+    o.plotM = 45;
+    CHECK_THROWS_WITH(eco::pipeline::writeDatabaseBuildSpec(o), Catch::Contains("own.asc") && Catch::Contains("--plot"));
+    o.terrains = 0;
+    o.terrainFiles.clear();
+    CHECK_THROWS_WITH(eco::pipeline::writeDatabaseBuildSpec(o), Catch::Contains("at least one terrain"));
 }
