@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <sstream>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "sim_config.h"
 #include "error.h"
 #include "validate.h"
 
@@ -24,6 +26,7 @@ struct ValidateOptions {
     std::vector<std::string> only;
     int threads = 0;
     int replicates = validate::kDefaultReplicates;
+    std::vector<std::string> model;  ///< KEY=VALUE
 };
 
 void runValidate(const ValidateOptions& o) {
@@ -32,6 +35,21 @@ void runValidate(const ValidateOptions& o) {
     so.mode = o.quick ? validate::Mode::Quick : validate::Mode::Full;
     so.outDir = o.out;
     so.replicates = o.replicates;
+    for (const std::string& kv : o.model) {
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos || eq == 0)
+            throw ValidationError("--model " + kv + ": expected KEY=VALUE, e.g. growth_rule=literal");
+        const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
+        char* end = nullptr;
+        std::strtod(value.c_str(), &end);
+        const bool bare = (!value.empty() && end && *end == '\0') || value == "true" || value == "false";
+        so.configs.modelOverrides.push_back(key + " = " + (bare ? value : "\"" + value + "\""));
+    }
+    if (!so.configs.modelOverrides.empty()) {  // a bad key or value is refused before anything runs
+        std::string text = "[model]\n";
+        for (const std::string& line : so.configs.modelOverrides) text += line + "\n";
+        sim::parseRunConfig(text, "--model");
+    }
     if (!o.configs.empty()) {
         if (!std::filesystem::is_directory(o.configs)) throw IoError(o.configs + ": --configs: not a directory");
         so.configs.directory = o.configs;
@@ -84,6 +102,10 @@ void registerValidateCommand(CLI::App& app) {
                     "Seeds per scenario (default " + std::to_string(validate::kDefaultReplicates) +
                         "): each check is judged on the 95 % interval of its mean over them; 1 judges single values")
         ->check(CLI::Range(1, 1000));
+    sub->add_option("--model", opt->model,
+                    "KEY=VALUE (repeatable): replace a [model] key in every scenario and scene, e.g. growth_rule=literal, "
+                    "germination_cells=every, germination_vigour=mean_vigour, canopy_limit=canopy_only "
+                    "(docs/validation.md, \"Readings of the paper\")");
     sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
     sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
         ->check(nonNegativeNumber());

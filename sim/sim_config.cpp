@@ -33,6 +33,19 @@ struct EnumName {
 constexpr EnumName<GrowthRule> kGrowthRules[] = {{GrowthRule::Ideal, "ideal"}, {GrowthRule::Literal, "literal"}};
 constexpr EnumName<CompetitionMode> kCompetitionModes[] = {{CompetitionMode::Resources, "resources"},
                                                            {CompetitionMode::Deussen, "deussen"}};
+constexpr EnumName<GerminationCells> kGerminationCells[] = {{GerminationCells::Uncovered, "uncovered"},
+                                                            {GerminationCells::Every, "every"}};
+constexpr EnumName<GerminationVigour> kGerminationVigours[] = {{GerminationVigour::MeanResources, "mean_resources"},
+                                                               {GerminationVigour::MeanVigour, "mean_vigour"}};
+constexpr EnumName<CanopyLimit> kCanopyLimits[] = {{CanopyLimit::ChmOrThreshold, "chm_or_threshold"},
+                                                   {CanopyLimit::CanopyOnly, "canopy_only"}};
+
+template <typename E, std::size_t N>
+const char* enumName(E v, const EnumName<E> (&names)[N]) {
+    for (const auto& n : names)
+        if (n.value == v) return n.name;
+    return "?";
+}
 
 template <typename E, std::size_t N>
 const EnumName<E>* findEnum(const std::string& text, const EnumName<E> (&names)[N]) {
@@ -75,6 +88,9 @@ const char* competitionModeName(CompetitionMode m) {
         if (n.value == m) return n.name;
     return "?";
 }
+const char* germinationCellsName(GerminationCells g) { return enumName(g, kGerminationCells); }
+const char* germinationVigourName(GerminationVigour g) { return enumName(g, kGerminationVigours); }
+const char* canopyLimitName(CanopyLimit c) { return enumName(c, kCanopyLimits); }
 
 const std::vector<ParamDesc<SimParams>>& simParamFields() {
     using K = ParamDesc<SimParams>::Kind;
@@ -130,6 +146,12 @@ std::pair<std::string, std::string> firstInvalid(const SimParams& p) {
         return bad("growth_rule", static_cast<double>(p.growthRule), "unknown growth rule");
     if (p.competition != CompetitionMode::Resources && p.competition != CompetitionMode::Deussen)
         return bad("competition", static_cast<double>(p.competition), "unknown competition mode");
+    if (std::string(germinationCellsName(p.germinationCells)) == "?")
+        return bad("germination_cells", static_cast<double>(p.germinationCells), "unknown germination cells");
+    if (std::string(germinationVigourName(p.germinationVigour)) == "?")
+        return bad("germination_vigour", static_cast<double>(p.germinationVigour), "unknown germination vigour");
+    if (std::string(canopyLimitName(p.canopyLimit)) == "?")
+        return bad("canopy_limit", static_cast<double>(p.canopyLimit), "unknown canopy limit");
     return {};
 }
 }  // namespace
@@ -155,6 +177,9 @@ std::string SimParams::toToml() const {
     std::string s = os.str();
     s += std::string("growth_rule = \"") + growthRuleName(growthRule) + "\"\n";
     s += std::string("competition = \"") + competitionModeName(competition) + "\"\n";
+    s += std::string("germination_cells = \"") + germinationCellsName(germinationCells) + "\"\n";
+    s += std::string("germination_vigour = \"") + germinationVigourName(germinationVigour) + "\"\n";
+    s += std::string("canopy_limit = \"") + canopyLimitName(canopyLimit) + "\"\n";
     return s;
 }
 
@@ -163,6 +188,9 @@ std::vector<std::pair<std::string, double>> SimParams::namedValues() const {
     for (const auto& f : simParamFields()) out.emplace_back(f.key, f.value(*this));
     out.emplace_back("growth_rule", static_cast<double>(growthRule));   // 0 = ideal, 1 = literal
     out.emplace_back("competition", static_cast<double>(competition));  // 0 = resources, 1 = deussen
+    out.emplace_back("germination_cells", static_cast<double>(germinationCells));    // 0 = uncovered, 1 = every
+    out.emplace_back("germination_vigour", static_cast<double>(germinationVigour));  // 0 = mean_resources, 1 = mean_vigour
+    out.emplace_back("canopy_limit", static_cast<double>(canopyLimit));              // 0 = chm_or_threshold, 1 = canopy_only
     return out;
 }
 
@@ -242,6 +270,9 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
         readParams(s, c.params, simParamFields());
         readEnum(s, "growth_rule", kGrowthRules, c.params.growthRule);
         readEnum(s, "competition", kCompetitionModes, c.params.competition);
+        readEnum(s, "germination_cells", kGerminationCells, c.params.germinationCells);
+        readEnum(s, "germination_vigour", kGerminationVigours, c.params.germinationVigour);
+        readEnum(s, "canopy_limit", kCanopyLimits, c.params.canopyLimit);
         s.finish();
         const auto [key, what] = firstInvalid(c.params);
         if (!key.empty()) s.fail(key, what);  // names the key's line when the file set it

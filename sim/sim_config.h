@@ -36,9 +36,41 @@ enum class CompetitionMode {
     Deussen,
 };
 
-/// TOML spelling of the enums ("ideal", "literal", "resources", "deussen").
+/// Which cells are tested for germination each year ([model] germination_cells; issue 28
+/// item 2: the paper's "each grid cell is tested" against our reading).
+enum class GerminationCells {
+    /// Only cells no undergrowth crown covers at germination time (our reading, default).
+    Uncovered,
+    /// Every seeded cell, covered or not (the paper's wording).
+    Every,
+};
+
+/// What "the species vigour averaged over the previous growing season based on the
+/// unexploited resources" averages ([model] germination_vigour).
+enum class GerminationVigour {
+    /// Eq. 1 on the season's mean leftover sun and water (default: one evaluation per species).
+    MeanResources,
+    /// The mean over the season's months of Eq. 1 on each month's leftovers.
+    MeanVigour,
+};
+
+/// Where undergrowth dies at the canopy ([model] canopy_limit): "we summarily kill off any
+/// undergrowth that reaches canopy height".
+enum class CanopyLimit {
+    /// The CHM at the root, or canopy_threshold_m where the CHM is lower (default: a sapling
+    /// in a gap dies at 3 m).
+    ChmOrThreshold,
+    /// Only under the canopy: the CHM where it is at least canopy_threshold_m (the paper's
+    /// forest footprint); in gaps no limit below the species' own maximum height.
+    CanopyOnly,
+};
+
+/// TOML spelling of the enums ("ideal", "literal", "resources", "deussen", ...).
 const char* growthRuleName(GrowthRule r);
 const char* competitionModeName(CompetitionMode m);
+const char* germinationCellsName(GerminationCells g);
+const char* germinationVigourName(GerminationVigour g);
+const char* canopyLimitName(CanopyLimit c);
 /// Parse those spellings; ValidationError naming `what` and the accepted values otherwise.
 GrowthRule parseGrowthRule(const std::string& text, const std::string& what);
 CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what);
@@ -80,6 +112,10 @@ struct SimParams {
     CompetitionMode competition = CompetitionMode::Resources;
     /// Deussen mode: probability that a dominated plant survives one comparison round.
     double deussenDominatedSurvival = 0.5;
+    /// Readings of the paper (see the enums): our defaults, or the paper's wording.
+    GerminationCells germinationCells = GerminationCells::Uncovered;
+    GerminationVigour germinationVigour = GerminationVigour::MeanResources;
+    CanopyLimit canopyLimit = CanopyLimit::ChmOrThreshold;
 
     /// Throws ValidationError naming `source` and the key of the first bad value.
     void validate(const std::string& source = "SimParams") const;

@@ -79,10 +79,14 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
             cand[nc++] = static_cast<int>(s);
         }
     }
+    const BatchVigourShape vig = vigourShape();
+    if (!monthDeficit.empty()) {  // germination_vigour = "mean_vigour"
+        monthlyMeanWeights(c, cc, cand, nc, w);
+        return;
+    }
     double sunG[kMaxGrowthPeriods], waterG[kMaxGrowthPeriods], tempG[kMaxGrowthPeriods];
     bool okG[kMaxGrowthPeriods];
     seasonMeans(c, ix, iy, wanted, sunG, waterG, tempG, okG);
-    const BatchVigourShape vig = vigourShape();
     std::size_t na = 0;
     for (std::size_t k = 0; k < nc; ++k) {
         const int s = cand[k];
@@ -98,6 +102,36 @@ void Simulation::Impl::weightsAt(int ix, int iy, double* w, double* arg, int* ca
         const SpeciesConst& sc = spc[static_cast<std::size_t>(cand[k])];
         const double vbar = vig.fromExp(sc.alpha, arg[k]);
         w[cand[k]] = std::max(0.0, vbar / sc.rouletteDenominator);
+    }
+}
+
+// germination_vigour = "mean_vigour": the weight of each of the nc candidates (cand) of cell c
+// (abiotic cell cc) is max(0, vbar / maxAge^beta) with vbar the mean, over the window's months
+// of the species' growth period, of Eq. 1 on that month's leftover sun and water and its
+// temperature; a species with no such month keeps weight 0.
+void Simulation::Impl::monthlyMeanWeights(std::size_t c, std::size_t cc, const int* cand, std::size_t nc, double* w) const {
+    const double transmission = canopyTrans.data()[c];
+    const int trees = canopyTrees[c];
+    const SitePlanes site = sitePlanes();
+    const BatchVigourShape vig = vigourShape();
+    double arg[12];
+    for (std::size_t k = 0; k < nc; ++k) {
+        const SpeciesConst& sc = spc[static_cast<std::size_t>(cand[k])];
+        std::size_t n = 0;
+        for (std::uint32_t months = windowMask & periodMonthMask[static_cast<std::size_t>(sc.period)]; months;
+             months &= months - 1) {
+            const int m = __builtin_ctz(months);
+            const float* d = monthDeficitAt(c, m);
+            const double sun = std::max(0.0, transmission * abio.sunHours[m].data()[cc] - d[0]);
+            const double water =
+                std::max(0.0, waterAfterCanopyMm(abio.moistureMm[m].data()[cc], trees, params.minWaterDemandMm) - d[1]);
+            arg[n++] = vig.exponent(sc.vigour, site.features(sun, water, abio.temperatureC[m].data()[cc], cc));
+        }
+        if (n == 0) continue;
+        batchExp(arg, arg, n);
+        double sum = 0;
+        for (std::size_t i = 0; i < n; ++i) sum += vig.fromExp(sc.alpha, arg[i]);
+        w[cand[k]] = std::max(0.0, sum / static_cast<double>(n) / sc.rouletteDenominator);
     }
 }
 
@@ -119,7 +153,10 @@ void Simulation::Impl::countOccupancy() {
 }
 
 void Simulation::Impl::germinate(std::uint64_t year) {
-    countOccupancy();
+    // Our reading tests only the cells no undergrowth crown covers; the paper's wording,
+    // every seeded cell ([model] germination_cells).
+    const bool uncoveredOnly = params.germinationCells == GerminationCells::Uncovered;
+    countOccupancy();  // also when every cell draws: it builds the band layout the rest relies on
     const std::size_t ns = spc.size();
     std::vector<std::vector<Candidate>> perBand(static_cast<std::size_t>(bands()));
 #pragma omp parallel if (cellCount() > kParallelCells)
@@ -138,7 +175,7 @@ void Simulation::Impl::germinate(std::uint64_t year) {
                 std::size_t free = 0;
                 for (int ix = 0; ix < W; ++ix) {
                     const std::size_t c = rowStart + static_cast<std::size_t>(ix);
-                    if (!(seedProb.data()[c] > 0) || occupants[c] > 0 || seedPkg[c] == 0) continue;
+                    if (!(seedProb.data()[c] > 0) || (uncoveredOnly && occupants[c] > 0) || seedPkg[c] == 0) continue;
                     rowCells[free] = ix;
                     rowStreams[free] = mixStream(c, kGerminationStreamTag);
                     ++free;
@@ -183,6 +220,10 @@ void Simulation::Impl::germinate(std::uint64_t year) {
     std::vector<const Candidate*> accepted;
     for (const auto& list : perBand)
         for (const Candidate& cd : list) {
+            if (!uncoveredOnly) {  // every cell draws once: no cover blocks a seedling
+                accepted.push_back(&cd);
+                continue;
+            }
             const std::size_t c = static_cast<std::size_t>(cd.iy) * W + cd.ix;
             if (occupants[c] > 0) continue;
             accepted.push_back(&cd);
@@ -218,6 +259,7 @@ void Simulation::Impl::germinate(std::uint64_t year) {
 #pragma omp parallel for schedule(dynamic, 1) if (cellCount() > kParallelCells)
     for (std::size_t k = 0; k < chunks; ++k)
         std::fill(deficit.data() + k * perChunk, deficit.data() + std::min(deficit.size(), (k + 1) * perChunk), 0.f);
+    std::fill(monthDeficit.begin(), monthDeficit.end(), 0.f);
     windowMask = 0;
 }
 

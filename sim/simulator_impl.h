@@ -186,6 +186,12 @@ struct Simulation::Impl : CellGrid {
     float* deficitAt(std::size_t c, std::size_t g) { return &deficit[(c * periods() + g) * 2]; }
     const float* deficitAt(std::size_t c, std::size_t g) const { return &deficit[(c * periods() + g) * 2]; }
     std::uint32_t windowMask = 0;      // months accumulated since the last germination
+    // [model] germination_vigour = "mean_vigour" only (empty otherwise): exploited sun and
+    // water per cell and month of the window, (cell, month, {sun, water}), for Eq. 1 on each
+    // month's leftovers.
+    std::vector<float> monthDeficit;
+    float* monthDeficitAt(std::size_t c, int m) { return &monthDeficit[(c * 12 + static_cast<std::size_t>(m)) * 2]; }
+    const float* monthDeficitAt(std::size_t c, int m) const { return &monthDeficit[(c * 12 + static_cast<std::size_t>(m)) * 2]; }
 
     // ---- plants and per-month scratch
     PlantStore pl;
@@ -362,6 +368,7 @@ struct Simulation::Impl : CellGrid {
     // ------------------------------------------------------------------ germination (simulator_germination.cpp)
     void seasonMeans(std::size_t c, int ix, int iy, std::uint32_t wanted, double* sun, double* water, double* temp, bool* ok) const;
     void weightsAt(int ix, int iy, double* w, double* arg, int* cand) const;
+    void monthlyMeanWeights(std::size_t c, std::size_t cc, const int* cand, std::size_t nc, double* w) const;
     void countOccupancy();
     void germinate(std::uint64_t year);
 

@@ -2,6 +2,8 @@
 // shade and water per cell, the seedbank around the canopy trees, and the initial plants.
 #include "simulator_impl.h"
 
+#include <limits>
+
 namespace eco::sim {
 
 void Simulation::Impl::setup(SimInputs&& in, const SimParams& p, std::uint64_t s) {
@@ -142,6 +144,7 @@ void Simulation::Impl::setupGrid(const std::optional<SimArea>& requested) {
     seedPkg.assign(n, 0);
     occupants.assign(n, 0);
     deficit.assign(n * periodMonthMask.size() * 2, 0.f);
+    if (params.germinationVigour == GerminationVigour::MeanVigour) monthDeficit.assign(n * 12 * 2, 0.f);
 }
 
 void Simulation::Impl::setupCanopy(const std::vector<Plant>& trees) {
@@ -221,7 +224,10 @@ void Simulation::Impl::setupCanopy(const std::vector<Plant>& trees) {
 
 float Simulation::Impl::canopyLimitAt(double x, double y) const {
     const int ix = std::clamp(chm.cellX(x), 0, chm.width() - 1), iy = std::clamp(chm.cellY(y), 0, chm.height() - 1);
-    return static_cast<float>(std::max(static_cast<double>(chm(ix, iy)), params.canopyThresholdM));
+    const double canopy = chm(ix, iy);
+    if (params.canopyLimit == CanopyLimit::CanopyOnly)  // gaps: no limit below the species' own
+        return canopy >= params.canopyThresholdM ? static_cast<float>(canopy) : std::numeric_limits<float>::infinity();
+    return static_cast<float>(std::max(canopy, params.canopyThresholdM));
 }
 
 void Simulation::Impl::addPlant(std::uint64_t id, int s, double x, double y, int rootIx, int rootIy, double growthAgeYears,

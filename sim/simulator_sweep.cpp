@@ -321,6 +321,15 @@ void Simulation::Impl::finishBand(std::size_t c0, int m, const BandCells& bc, co
                                   std::size_t nOcc) {
     const std::vector<int>& periods = periodsOfMonth[m];
     if (periods.empty()) return;
+    if (!monthDeficit.empty()) {  // germination_vigour = "mean_vigour": this month's own slot
+        for (std::size_t k = 0; k < nOcc; ++k) {
+            const std::size_t i = occList[k];
+            const double sunLeft = bc.base[i] * bc.transmission[i];
+            float* d = monthDeficitAt(c0 + i, m);
+            d[0] += static_cast<float>(bc.base[i] - sunLeft);
+            d[1] += static_cast<float>(bc.avail[i] - bc.rest[i]);
+        }
+    }
     // The month's periods are usually consecutive (all of them, in the default biome):
     // then a cell's deficits of these periods are one run of floats, updated by one
     // vector add (each float gets the same single addition as below).

@@ -782,6 +782,117 @@ TEST_CASE("canopy limit: undergrowth reaching the CHM (or the threshold) dies", 
     for (const auto& p : sim.plants()) CHECK(p.heightM < 3.0);
 }
 
+TEST_CASE("canopy_limit = canopy_only: in a gap undergrowth grows past the threshold, under the canopy it dies at the CHM",
+          "[sim][mortality][readings]") {
+    const Biome b = pointCrownBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 10.0, 100.0, 15.0, 5.0);
+    in.chmM = Grid<float>(10, 10, 1.0, 0, 0, 0.f);
+    in.chmM(2, 2) = 8.f;
+    SimParams params;
+    params.canopyLimit = CanopyLimit::CanopyOnly;
+    Simulation sim(in, params, 1,
+                   {plantAt(b, "Tanoak", 2.5, 2.5, 7.9999), plantAt(b, "Tanoak", 7.5, 7.5, 2.9999), plantAt(b, "Tanoak", 7.5, 2.5, 1.0)});
+    for (int m = 0; m < 24; ++m) sim.stepMonth();
+    CHECK(sim.counters().diedAtCanopy == 1);  // the one under the 8 m canopy
+    double tallest = 0;
+    for (const auto& p : sim.plants()) tallest = std::max(tallest, p.heightM);
+    CHECK(tallest > 3.0);  // the gap's sapling passed the 3 m threshold
+}
+
+TEST_CASE("germination_cells = every: covered cells germinate too, uncovered ones as before", "[sim][seeding][readings]") {
+    const Biome b = defaultBiome();
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(10, 1.0, 6.0, 100.0, 15.0, 5.0);
+    in.canopy = {Plant{b.speciesIndex("Redwood"), 5.0, 5.0, 50, 60, 1.0}};
+    // A 2.5 m Toyon (crown radius about 1.3 m) covers the cells around (5, 5).
+    const std::vector<UndergrowthPlant> shrub{plantAt(b, "Toyon", 5.05, 5.05, 2.5)};
+    const auto run = [&](GerminationCells g) {
+        SimParams params;
+        params.seedingProbability = 1.0;
+        params.seedingMonth = 0;
+        params.germinationCells = g;
+        Simulation sim(in, params, 3, shrub);
+        sim.stepMonth();
+        return sim.plants();
+    };
+    const auto uncovered = run(GerminationCells::Uncovered), every = run(GerminationCells::Every);
+    const auto under = [](const std::vector<UndergrowthPlant>& pl) {
+        int n = 0;
+        for (const auto& p : pl)
+            if (p.id != 1 && std::hypot(p.xM - 5.05, p.yM - 5.05) < 1.0) ++n;
+        return n;
+    };
+    INFO("uncovered " << uncovered.size() << " every " << every.size());
+    CHECK(under(uncovered) == 0);
+    CHECK(under(every) > 50);  // about pi x 1^2 / 0.04 = 78 cells, all with probability 1
+    CHECK(every.size() > uncovered.size());
+}
+
+TEST_CASE("germination_vigour = mean_vigour: the weight is the mean of Eq. 1 over the season's months", "[sim][roulette][readings]") {
+    // Sun, moisture and temperature that change month by month on an empty plot: the leftovers
+    // are the canopy-shaded abiotics, so the expected weights follow from Biome::vigourOf.
+    const Biome b = defaultBiome();
+    const int fir = b.speciesIndex("Douglas-Fir");
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = uniformAbiotics(20, 1.0, 6.0, 100.0, 15.0, 5.0);
+    for (int m = 0; m < 12; ++m) {
+        std::fill(in.abiotics.sunHours[m].data().begin(), in.abiotics.sunHours[m].data().end(), static_cast<float>(3.0 + m));
+        std::fill(in.abiotics.moistureMm[m].data().begin(), in.abiotics.moistureMm[m].data().end(), static_cast<float>(20.0 + 15.0 * m));
+        std::fill(in.abiotics.temperatureC[m].data().begin(), in.abiotics.temperatureC[m].data().end(), static_cast<float>(5.0 + 2.0 * m));
+    }
+    in.canopy = {Plant{fir, 10.0, 10.0, 50, 30, 1.0}};  // seeds the plot; its crown covers (10, 10) only
+    SimParams params;
+    params.seedingProbability = 1e-9;  // (0 would give no seed packages) germination at the end of December:
+    params.seedingMonth = 11;          // after 11 months the window holds January..November
+    params.germinationVigour = GerminationVigour::MeanVigour;
+    params.minWaterDemandMm = 4.0;
+    Simulation mean(in, params, 1);
+    params.germinationVigour = GerminationVigour::MeanResources;
+    Simulation resources(in, params, 1);
+    for (int m = 0; m < 11; ++m) {
+        mean.stepMonth();
+        resources.stepMonth();
+    }
+    // A cell far from the tree's crown (its seedbank covers everything within 12 r).
+    const int ix = 50, iy = 25;  // (10.1, 5.1): 4.9 m from the tree, outside its crown, inside its 12 m seedbank
+    const auto wMean = mean.germinationWeights(ix, iy), wRes = resources.germinationWeights(ix, iy);
+    const double slope = 5.0;
+    int compared = 0, differ = 0;
+    for (const Species& s : b.species) {
+        const double got = wMean[static_cast<std::size_t>(s.id)];
+        if (std::find(s.subBiomes.begin(), s.subBiomes.end(), 1) == s.subBiomes.end()) {
+            CHECK(got == 0);
+            continue;
+        }
+        double sum = 0, sunSum = 0, waterSum = 0, tempSum = 0;
+        int n = 0;
+        for (int m : s.growthMonths) {
+            if (m > 10) continue;  // outside the window
+            const double sun = 3.0 + m, water = 20.0 + 15.0 * m - 0.0, temp = 5.0 + 2.0 * m;
+            sum += b.vigourOf(s.id, {sun, water, temp, slope});
+            sunSum += sun;
+            waterSum += water;
+            tempSum += temp;
+            ++n;
+        }
+        const double expected = rouletteWeight(sum / n, s.maxAgeYears, params.rouletteAgeExponent);
+        const double ofMeans = rouletteWeight(b.vigourOf(s.id, {sunSum / n, waterSum / n, tempSum / n, slope}), s.maxAgeYears,
+                                              params.rouletteAgeExponent);
+        INFO(s.name << ": mean_vigour " << got << " expected " << expected << "; mean_resources " << wRes[s.id] << " expected "
+                    << ofMeans);
+        CHECK(got == Approx(expected).epsilon(1e-9).margin(1e-12));
+        CHECK(wRes[static_cast<std::size_t>(s.id)] == Approx(ofMeans).epsilon(1e-9).margin(1e-12));
+        ++compared;
+        differ += std::abs(expected - ofMeans) > 0.05 * ofMeans ? 1 : 0;
+    }
+    CHECK(compared >= 3);
+    CHECK(differ >= 2);  // the two readings give different weights here (Eq. 1 is not linear)
+}
+
 // --------------------------------------------------------------------------- Deussen competition
 
 namespace {
@@ -1143,6 +1254,46 @@ TEST_CASE("checkpoint: a resumed run is identical to an uninterrupted one", "[si
     CHECK_THROWS_WITH(other.loadState(f, "/state"), Catch::Contains("another run"));
 }
 
+TEST_CASE("checkpoint: the paper's readings (every cell, monthly mean vigour, canopy only) resume identically too",
+          "[sim][checkpoint][readings]") {
+    test::TempDir dir("simresume_readings");
+    SimInputs in = smallDemoScene();
+    in.area = SimArea{10, 10, 30, 30};
+    SimParams p;
+    p.germinationCells = GerminationCells::Every;
+    p.germinationVigour = GerminationVigour::MeanVigour;
+    p.canopyLimit = CanopyLimit::CanopyOnly;
+    Simulation straight(in, p, 5);
+    for (int m = 0; m < 12 * 6 + 5; ++m) straight.stepMonth();
+    Simulation first(in, p, 5);
+    for (int m = 0; m < 12 * 3 + 4; ++m) first.stepMonth();  // mid-window: the monthly leftovers are in the state
+    {
+        auto f = h5::File::create(dir.file("state.h5"));
+        first.saveState(f, "/state");
+    }
+    Simulation resumed(in, p, 5);
+    {
+        auto f = h5::File::openRead(dir.file("state.h5"));
+        resumed.loadState(f, "/state");
+    }
+    for (int m = 0; m < 12 * 3 + 1; ++m) resumed.stepMonth();
+    REQUIRE(resumed.monthsDone() == straight.monthsDone());
+    CHECK(straight.plantCount() > 50);
+    CHECK(samePlants(straight.plants(), resumed.plants()));
+    CHECK(straight.counters().germinated == resumed.counters().germinated);
+    // The same bits on one thread.
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    Simulation single(in, p, 5);
+    for (int m = 0; m < 12 * 6 + 5; ++m) single.stepMonth();
+    omp_set_num_threads(threads);
+    CHECK(samePlants(straight.plants(), single.plants()));
+    // The default readings are another run.
+    Simulation defaults(in, SimParams{}, 5);
+    auto f = h5::File::openRead(dir.file("state.h5"));
+    CHECK_THROWS_WITH(defaults.loadState(f, "/state"), Catch::Contains("another run"));
+}
+
 // --------------------------------------------------------------------------- configuration
 
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
@@ -1201,7 +1352,8 @@ TEST_CASE("model parameters: one description drives reading, the record, attribu
     const SimParams defaults;
     const std::string record = defaults.toToml();
     const auto named = defaults.namedValues();
-    REQUIRE(named.size() == simParamFields().size() + 2);  // + growth_rule, competition
+    // + growth_rule, competition, germination_cells, germination_vigour, canopy_limit
+    REQUIRE(named.size() == simParamFields().size() + 5);
     for (std::size_t i = 0; i < simParamFields().size(); ++i) {
         const auto& f = simParamFields()[i];
         INFO(f.key);

@@ -712,3 +712,13 @@ TEST_CASE("Self-thinning checks fail under broken models", "[validate][thinning]
         CHECK_FALSE(rank.pass);
     }
 }
+
+TEST_CASE("Replicates: a bound that follows each replicate's reference is judged on their mean", "[validate][replicates]") {
+    std::vector<CheckResult> reps = replicates(CheckSpec::Kind::AtMost, 0.1, 0, {0.11, 0.12, 0.11});
+    reps[1].spec.target = 0.2;
+    reps[2].spec.target = 0.15;
+    const CheckResult c = combineReplicates(reps);
+    CHECK(c.spec.target == Approx(0.15));
+    CHECK(c.pass);  // upper end 0.11333 + 4.303 x 0.00577 / 1.732 = 0.128 <= 0.15
+    CHECK(c.note.find("mean of the replicates' bounds") != std::string::npos);
+}

@@ -34,6 +34,8 @@ struct ScenarioParse {
     StrictTable& top;         ///< the root table of the file
     const std::string& text;  ///< the whole file, for model()
     const std::string& path;  ///< shown in messages
+    /// "key = value" lines replacing keys of the [model] table (ConfigSource::modelOverrides).
+    const std::vector<std::string>* modelOverrides = nullptr;
 
     /// The [model] table (optional), read by the simulator's own strict parser, with the
     /// keys, ranges, messages and line numbers of a run configuration.

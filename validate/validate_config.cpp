@@ -86,16 +86,36 @@ toml::table parseText(const std::string& text, const std::string& path) { return
 // The [model] table is read by the simulator's own strict parser (sim::parseRunConfig), so
 // that the keys, ranges and messages are exactly those of a run configuration. Every line
 // outside [model] is blanked, which keeps the line numbers of its messages right.
-sim::SimParams parseModelTable(const std::string& text, const std::string& path) {
+// `overrides` ("key = value" lines, ConfigSource::modelOverrides) replace the file's keys of
+// the same name: they are inserted after its [model] header (or in a [model] table appended
+// when it has none), and its own lines of those keys are blanked.
+sim::SimParams parseModelTable(const std::string& text, const std::string& path, const std::vector<std::string>& overrides) {
     static const std::regex header(R"(^\s*\[\s*([A-Za-z0-9_.\-"]+)\s*\]\s*(#.*)?$)");
+    static const std::regex keyLine(R"(^\s*([A-Za-z0-9_\-]+)\s*=.*$)");
+    std::set<std::string> overridden;
+    for (const std::string& o : overrides) {
+        std::smatch m;
+        if (std::regex_match(o, m, keyLine)) overridden.insert(m[1].str());
+    }
+    std::string block;
+    for (const std::string& o : overrides) block += o + "\n";
     std::istringstream in(text);
     std::string line, kept;
-    bool inModel = false;
+    bool inModel = false, sawModel = false;
     while (std::getline(in, line)) {
         std::smatch m;
-        if (std::regex_match(line, m, header)) inModel = m[1].str() == "model";
+        if (std::regex_match(line, m, header)) {
+            inModel = m[1].str() == "model";
+            if (inModel && !overrides.empty()) {
+                sawModel = true;
+                kept += line + "\n" + block;  // the overrides' lines shift the rest of [model] down
+                continue;
+            }
+        }
+        if (inModel && std::regex_match(line, m, keyLine) && overridden.count(m[1].str())) line.clear();
         kept += (inModel ? line : std::string()) + "\n";
     }
+    if (!overrides.empty() && !sawModel) kept += "[model]\n" + block;
     return sim::parseRunConfig(kept, path).params;
 }
 
@@ -171,7 +191,8 @@ std::vector<std::string> nonEmptyStrings(StrictTable& s, const std::string& key)
     return v;
 }
 
-ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path) {
+ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path,
+                                         const std::vector<std::string>& modelOverrides) {
     const toml::table root = parseText(text, path);
     StrictTable top(root, path, "");
     ForestSceneConfig c;
@@ -205,7 +226,7 @@ ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::str
     }
     top.optionalTable("model");
     top.finish();
-    c.params = parseModelTable(text, path);
+    c.params = parseModelTable(text, path, modelOverrides);
     if (c.params.competition != sim::CompetitionMode::Resources)
         throw ValidationError(path + ": [model] competition: the scene must use \"resources\"; the Deussen "
                                      "comparison selects the Deussen mode itself");
@@ -214,7 +235,7 @@ ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::str
 
 sim::SimParams ScenarioParse::model() const {
     top.optionalTable("model");
-    return parseModelTable(text, path);
+    return parseModelTable(text, path, modelOverrides ? *modelOverrides : std::vector<std::string>{});
 }
 
 void ScenarioParse::sizes(const std::function<void(Mode, StrictTable&)>& read) const {
@@ -225,7 +246,8 @@ void ScenarioParse::sizes(const std::function<void(Mode, StrictTable&)>& read) c
     }
 }
 
-ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path) {
+ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path,
+                                   const std::vector<std::string>& modelOverrides) {
     const toml::table root = parseText(text, path);
     StrictTable top(root, path, "");
     ScenarioConfig c;
@@ -260,7 +282,7 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
             s.finish();
         }
     }
-    c.scenario = kind->create(ScenarioParse{top, text, path});
+    c.scenario = kind->create(ScenarioParse{top, text, path, &modelOverrides});
     {
         StrictTable s(top.table("checks"), path, "[checks]");
         for (const std::string& id : c.scenario->checkIds()) {
@@ -308,7 +330,12 @@ std::vector<std::string> ConfigSource::scenarioFiles() const {
 }
 
 std::string ConfigSource::describe() const {
-    return directory.empty() ? std::string("configs/validation (copy embedded at build time)") : directory;
+    std::string d = directory.empty() ? std::string("configs/validation (copy embedded at build time)") : directory;
+    if (!modelOverrides.empty()) {
+        d += ", every [model] with";
+        for (std::size_t i = 0; i < modelOverrides.size(); ++i) d += (i ? ", " : " ") + modelOverrides[i];
+    }
+    return d;
 }
 
 std::string ConfigSource::displayPath(const std::string& name) const {
@@ -320,7 +347,7 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
     std::set<std::string> names;
     for (const std::string& file : source.scenarioFiles()) {
         const std::string shown = source.displayPath(file);
-        ScenarioConfig c = parseScenarioConfig(source.read(file), shown);
+        ScenarioConfig c = parseScenarioConfig(source.read(file), shown, source.modelOverrides);
         if (!names.insert(c.name).second) throw ValidationError(shown + ": [scenario] name '" + c.name + "' is used by another file");
         auto needSpecies = [&](const std::string& key, const std::string& species) {
             for (const Species& s : biome.species)
@@ -337,7 +364,7 @@ SuiteConfig loadSuiteConfig(const ConfigSource& source, const Biome& biome) {
                 } catch (const IoError& e) {
                     throw ValidationError(shown + ": [scenario] scene: " + e.what());
                 }
-                ForestSceneConfig scene = parseForestSceneConfig(text, source.displayPath(sceneFile));
+                ForestSceneConfig scene = parseForestSceneConfig(text, source.displayPath(sceneFile), source.modelOverrides);
                 for (const auto& s : scene.canopySpecies) needSpecies(source.displayPath(sceneFile) + ": [scene] canopy_species", s);
                 suite.scenes.emplace(sceneFile, std::move(scene));
             }

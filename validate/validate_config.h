@@ -110,13 +110,19 @@ struct ScenarioConfig {
 };
 
 /// Parse one scenario file from text; `path` is used in messages and to resolve the scene.
-ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path);
+/// `modelOverrides` ("key = value" TOML lines) replace keys of every [model] table.
+ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& path,
+                                   const std::vector<std::string>& modelOverrides = {});
 /// Parse a forest scene file from text.
-ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path);
+ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::string& path,
+                                         const std::vector<std::string>& modelOverrides = {});
 
 /// Where the configurations come from: a directory, or the copies embedded at build time.
 struct ConfigSource {
     std::string directory;  ///< "" = embedded
+    /// "key = value" TOML lines that replace those keys in every [model] table (the scene's,
+    /// self-thinning's, fidelity's): `eco validate --model KEY=VALUE`, e.g. growth_rule = "literal".
+    std::vector<std::string> modelOverrides;
     /// Text of file `name` (e.g. "succession.toml"); IoError naming it when missing.
     std::string read(const std::string& name) const;
     /// Scenario files (*.toml except scene_*.toml), sorted by name.
