@@ -372,7 +372,8 @@ void writeScenePng(const std::string& path, const std::vector<Plant>& canopy, co
     entries.emplace_back(scale, Rgb{1.f, 1.f, 1.f});
     const std::string heading =
         title + " (" + std::to_string(totalC) + " canopy, " + std::to_string(totalU) + " undergrowth)";
-    withLegend(picture, heading, entries).writePng(path);
+    const MapExtent world{view.x0, view.y1 - ph / pxPerM, view.x0 + pw / pxPerM, view.y1};
+    withLegend(mapFrame(picture, world).canvas, heading, entries).writePng(path);
 }
 
 // ======================================================================== comparison
