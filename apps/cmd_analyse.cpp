@@ -66,38 +66,51 @@ void runPcf(const PcfArgs& args) {
     if (!parent.empty()) ensureDirectory(parent.string());
     writePcfCsv(csv, sums, pattern.typeNames);
 
-    // Plot: the type pairs (at most 12) and the unmarked pattern.
-    std::vector<ChartSeries> series;
-    std::vector<std::pair<std::string, Rgb>> legend;
+    // Plot: one panel per type pair (every pair; g_ij = g_ji with translation correction, so
+    // each unordered pair once), each with the unmarked pattern's g for comparison.
     std::vector<double> mids;
     for (int k = 0; k < opt.bins.count; ++k) mids.push_back(opt.bins.midM(k));
-    auto add = [&](const PairSums& s, int i, int j, const std::string& name, int colour) {
-        ChartSeries se{name, mids, {}, categoryColour(colour)};
-        for (int k = 0; k < opt.bins.count; ++k) se.y.push_back(s.gTranslate(i, j, k));
-        legend.emplace_back(name, se.colour);
-        series.push_back(std::move(se));
+    const auto curve = [&](const PairSums& s, int i, int j) {
+        std::vector<double> g;
+        for (int k = 0; k < opt.bins.count; ++k) g.push_back(s.gTranslate(i, j, k));
+        return g;
     };
-    int colour = 0;
+    const Rgb black{0.f, 0.f, 0.f}, grey{0.45f, 0.45f, 0.45f};
     const int nt = sums.nTypes;
-    if (nt == 1) {
-        add(sums, 0, 0, "g(r), " + pattern.typeNames[0], colour++);
-    } else {
-        // Translation-corrected g_ij equals g_ji: each unordered pair is drawn once.
-        for (int i = 0; i < nt && colour < 12; ++i)
-            for (int j = i; j < nt && colour < 12; ++j)
-                add(sums, i, j,
-                    pattern.typeNames[static_cast<std::size_t>(i)] + (i == j ? " - " : " <-> ") +
-                        pattern.typeNames[static_cast<std::size_t>(j)],
-                    colour++);
-        add(sums.merged(), 0, 0, "all points", 7);
-    }
-    legend.emplace_back("g = 1 (Poisson)", Rgb{0.4f, 0.4f, 0.4f});
-    const Canvas picture = chartCanvas(series, 0.0, opt.bins.rMaxM, 0.0, chartTop(series, 1.5), "r (m)", "g(r)", 1.0);
-    withLegend(picture,
-               "Pair correlation, " + std::filesystem::path(args.points).filename().string() + " (" +
-                   std::to_string(pattern.size()) + " points, translation correction)",
-               legend)
-        .writePng(png);
+    const std::vector<double> pooled = nt > 1 ? curve(sums.merged(), 0, 0) : std::vector<double>{};
+    std::vector<ChartPanel> panels;
+    int colour = 0;
+    for (int i = 0; i < nt; ++i)
+        for (int j = i; j < nt; ++j) {
+            ChartPanel p;
+            p.title = pattern.typeNames[static_cast<std::size_t>(i)] + (i == j ? " - " : " <-> ") +
+                      pattern.typeNames[static_cast<std::size_t>(j)];
+            p.subtitle = std::to_string(sums.typeCount[static_cast<std::size_t>(i)]) +
+                         (i == j ? " points" : " and " + std::to_string(sums.typeCount[static_cast<std::size_t>(j)]) + " points");
+            p.series.push_back(ChartSeries{p.title, mids, curve(sums, i, j), categoryColour(colour++)});
+            if (!pooled.empty()) {
+                ChartSeries all{"all points", mids, pooled, black};
+                all.strokeOffsetsPx = {0, 1};
+                p.series.insert(p.series.begin(), std::move(all));  // under the pair's curve
+            }
+            p.xmax = opt.bins.rMaxM;
+            p.ymax = chartTop(p.series, 1.5);
+            p.reference = ChartReference{1.0, grey, true};
+            panels.push_back(std::move(p));
+        }
+    ChartPanelsLayout layout;
+    layout.title = "Pair correlation, " + std::filesystem::path(args.points).filename().string() + " (" +
+                   std::to_string(pattern.size()) + " points, " + std::to_string(nt) + " types, translation correction)";
+    layout.notes.push_back("All " + std::to_string(panels.size()) + " type pairs, one panel each, every panel on its own g scale.");
+    if (nt > 1) layout.key.push_back({"all points (types pooled)", black});
+    layout.key.push_back({"the pair of the panel (a colour each)", categoryColour(0)});
+    layout.key.push_back({"g = 1 (Poisson)", grey, true, 1});
+    layout.xlabel = "r (m)";
+    layout.ylabel = "g(r)";
+    const int n = static_cast<int>(panels.size());
+    layout.columns = n <= 3 ? n : (n <= 9 ? 3 : (n <= 24 ? 4 : 6));
+    if (n > 9) layout.plotWidthPx = 240, layout.plotHeightPx = 140;
+    chartPanels(panels, layout).writePng(png);
 
     std::cout << "points: " << pattern.size() << " in window " << num(window.x0) << "," << num(window.y0) << ","
               << num(window.x1) << "," << num(window.y1) << " (" << num(window.areaM2()) << " m2), types:";

@@ -1,9 +1,11 @@
 // Charts: the one plotting helper of the toolkit. A chart is a plot rectangle on a Canvas
 // with two axes (ticks, grid, tick labels), optional reference line, series (lines, bars,
-// markers) and free text; every picture with axes is drawn by drawChart (pair correlations
-// and height histograms of eco inspect and eco pcf, the simulator's species counts, the
-// validation plots and the comparison panels of eco compare). The style fields keep each of
-// those pictures as it was.
+// markers) and free text; every picture with axes is drawn by drawChart: single plots
+// (chartCanvas: eco pcf's and eco inspect's, calibration, instancing, validation plots),
+// small multiples (chartPanels: pair correlations per species pair, height histograms per
+// species, eco compare's regions), and the world-metre axes and scale bar round every map
+// (mapFrame: terrain, abiotics, CHM, species, cluster, canopy, scene, forest floor, the
+// simulator's plant pictures).
 #pragma once
 
 #include <functional>
@@ -82,8 +84,79 @@ struct Chart {
 /// the texts.
 void drawChart(Canvas& canvas, const Chart& chart);
 
-/// Tick positions: 1, 2 or 5 times a power of ten, about `target` of them.
+/// Tick positions: 1, 2 or 5 times a power of ten, about `target` of them, all inside
+/// [lo, hi] (ends included when they fall on a step).
 std::vector<double> niceTicks(double lo, double hi, int target = 6);
+
+/// A tick label with the decimals its step needs: 150 -> "150", 2.5 -> "2.5", 0.25 -> "0.25";
+/// never "-0".
+std::string tickLabel(double v, double step);
+
+/// Line style of a key entry drawn as a short line sample (or a filled box for bars).
+struct ChartKey {
+    std::string name;
+    Rgb colour{0.f, 0.f, 0.f};
+    bool dashed = false;
+    int widthPx = 2;
+    bool box = false;  ///< a filled square (bars, areas) instead of a line sample
+};
+
+/// One small multiple: a plot with its own ranges, title and series.
+struct ChartPanel {
+    std::string title;     ///< above the plot, bold-ish (14 px); cut with "..." to the panel width
+    std::string subtitle;  ///< second line, grey (11 px); "" = none
+    double xmin = 0, xmax = 1, ymin = 0, ymax = 1;
+    std::vector<ChartSeries> series;
+    std::optional<ChartReference> reference;
+};
+
+/// Layout of chartPanels: a title (wrapped to the picture width), notes under it, a key of
+/// line styles, then the panels row by row, each with ticks and labels on both axes.
+struct ChartPanelsLayout {
+    std::string title;
+    std::vector<std::string> notes;  ///< one line each under the title (wrapped when long)
+    std::vector<ChartKey> key;
+    std::string xlabel, ylabel;      ///< on every panel, with units ("r (m)")
+    int columns = 3;
+    int plotWidthPx = 300, plotHeightPx = 180;
+    int ticksPerAxis = 5;
+};
+
+/// Small multiples: every panel drawn by drawChart with round ticks on both axes, lines 2 px
+/// wide, values outside the y range at its edge. Returns the whole picture.
+Canvas chartPanels(const std::vector<ChartPanel>& panels, const ChartPanelsLayout& layout);
+
+/// `text` broken at spaces into lines of at most `maxChars` characters (longer words alone).
+std::vector<std::string> wrapText(const std::string& text, std::size_t maxChars);
+
+/// World rectangle of a north-up map picture, metres: x0 west edge, x1 east, y0 south, y1 north.
+struct MapExtent {
+    double x0M = 0, y0M = 0, x1M = 1, y1M = 1;
+};
+
+/// A map picture framed with world-metre axes: a box round it, tick marks and labels at
+/// round steps (niceTicks) along the bottom (x, east) and left (y, north) edges, and under
+/// them a scale bar of a round length with "x, y in m (world), north up". Tick k sits on the
+/// pixel column plotLeft + (x - x0) / (x1 - x0) * picture width (the left edge of the pixel
+/// that starts at x), rows likewise from the north edge.
+struct MapFrame {
+    Canvas canvas;
+    int plotLeft = 0, plotTop = 0;  ///< where the picture's top-left pixel is on the canvas
+};
+MapFrame mapFrame(const Canvas& picture, const MapExtent& world);
+
+/// World rectangle of a w x h picture of a grid drawn `factor` cells per pixel from its
+/// north-west corner (gridToCanvas, writeCategoryPng): the west and north edges are the
+/// grid's, the others where the last whole pixel ends.
+template <class T>
+MapExtent gridPictureExtent(const Grid<T>& g, int factor, int w, int h) {
+    const double north = g.originY() + g.extentY();
+    return {g.originX(), north - static_cast<double>(h) * factor * g.cellSizeM(),
+            g.originX() + static_cast<double>(w) * factor * g.cellSizeM(), north};
+}
+
+/// Cells per pixel so that the longer side of a w x h grid is at most maxSide pixels.
+int downsampleFactor(int w, int h, int maxSide);
 
 /// The plot of eco inspect and eco pcf: a 640 x 400 plot area with margins for tick labels,
 /// x in [xmin, xmax], y in [ymin, ymax] (values outside drawn at the edge), grey grid at the

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "chart.h"
 #include "error.h"
 
 namespace eco {
@@ -72,7 +73,7 @@ Rgb colormapColour(Colormap cmap, double t) {
 Rgb categoryColour(int i) {
     static const std::vector<Rgb> palette = {
         {0.12f, 0.47f, 0.71f}, {1.00f, 0.50f, 0.05f}, {0.17f, 0.63f, 0.17f}, {0.84f, 0.15f, 0.16f},
-        {0.58f, 0.40f, 0.74f}, {0.55f, 0.34f, 0.29f}, {0.89f, 0.47f, 0.76f}, {0.50f, 0.50f, 0.50f},
+        {0.58f, 0.40f, 0.74f}, {0.55f, 0.34f, 0.29f}, {0.89f, 0.47f, 0.76f}, {0.00f, 0.45f, 0.45f},
         {0.74f, 0.74f, 0.13f}, {0.09f, 0.75f, 0.81f}, {0.00f, 0.30f, 0.15f}, {0.65f, 0.81f, 0.89f},
         {0.99f, 0.75f, 0.44f}, {0.70f, 0.87f, 0.54f}, {0.40f, 0.00f, 0.40f}, {0.98f, 0.60f, 0.60f},
         {0.20f, 0.20f, 0.60f}, {0.60f, 0.60f, 0.20f}};
@@ -170,7 +171,7 @@ void Canvas::writePng(const std::string& path) const {
 }
 
 Canvas gridToCanvas(const Grid<float>& g, Colormap cmap, double vmin, double vmax, int maxSide) {
-    const int factor = std::max(1, static_cast<int>(std::ceil(static_cast<double>(std::max(g.width(), g.height())) / maxSide)));
+    const int factor = downsampleFactor(g.width(), g.height(), maxSide);
     const int w = std::max(1, g.width() / factor), h = std::max(1, g.height() / factor);
     Canvas c(w, h);
     const double span = vmax > vmin ? vmax - vmin : 1.0;
@@ -198,10 +199,9 @@ namespace {
 constexpr int kMargin = 12;
 constexpr int kTitleH = 34;
 constexpr int kFontPx = 14;
-constexpr int kFooterH = 18;
 
 Canvas framed(const Canvas& picture, const std::string& title, int extraRight) {
-    Canvas out(picture.width() + 2 * kMargin + extraRight, picture.height() + kTitleH + 2 * kMargin + kFooterH);
+    Canvas out(picture.width() + 2 * kMargin + extraRight, picture.height() + kTitleH + 2 * kMargin);
     out.paste(picture, kMargin, kTitleH + kMargin);
     out.text(kMargin, kTitleH - 6, title, 18, {0.f, 0.f, 0.f});
     return out;
@@ -223,9 +223,12 @@ void writeMapPng(const std::string& path, const Grid<float>& g, const std::strin
         if (!(vmin < vmax)) vmax = vmin + 1.0;
     }
     const Canvas picture = gridToCanvas(g, cmap, vmin, vmax);
+    const int factor = downsampleFactor(g.width(), g.height(), 1024);
+    const MapFrame map = mapFrame(picture, gridPictureExtent(g, factor, picture.width(), picture.height()));
     const int barW = 22, labelW = 90;
-    Canvas out = framed(picture, title, barW + labelW + kMargin);
-    const int top = kTitleH + kMargin, h = picture.height(), x0 = kMargin * 2 + picture.width();
+    Canvas out = framed(map.canvas, title, barW + labelW + kMargin);
+    // The colour bar beside the map, as tall as the picture itself.
+    const int top = kTitleH + kMargin + map.plotTop, h = picture.height(), x0 = kMargin * 2 + map.canvas.width();
     for (int y = 0; y < h; ++y) {
         const Rgb c = colormapColour(cmap, 1.0 - static_cast<double>(y) / std::max(1, h - 1));
         out.fillRect(x0, top + y, x0 + barW, top + y + 1, c);
@@ -237,11 +240,6 @@ void writeMapPng(const std::string& path, const Grid<float>& g, const std::strin
         out.text(x0 + barW + 6, y + kFontPx / 2, formatTick(v), kFontPx, {0.f, 0.f, 0.f});
     }
     out.text(x0, top - 6, units, kFontPx, {0.f, 0.f, 0.f});
-    // Scale note, so a reader can judge distances.
-    char note[128];
-    std::snprintf(note, sizeof note, "north up, 1 px = %.2f m, %.0f x %.0f m", g.extentX() / picture.width(),
-                  g.extentX(), g.extentY());
-    out.text(kMargin, top + h + kMargin + 8, note, 12, {0.2f, 0.2f, 0.2f});
     out.writePng(path);
 }
 
@@ -267,7 +265,7 @@ Canvas withLegend(const Canvas& picture, const std::string& title,
 void writeCategoryPng(const std::string& path, const Grid<std::int32_t>& g, const std::string& title,
                       const std::vector<std::string>& names, const std::string& noneLabel) {
     if (g.empty()) throw ValidationError(path + ": cannot draw an empty grid");
-    const int factor = std::max(1, static_cast<int>(std::ceil(std::max(g.width(), g.height()) / 1024.0)));
+    const int factor = downsampleFactor(g.width(), g.height(), 1024);
     const int w = std::max(1, g.width() / factor), h = std::max(1, g.height() / factor);
     Canvas picture(w, h);
     std::vector<bool> used(names.size(), false);
@@ -283,7 +281,7 @@ void writeCategoryPng(const std::string& path, const Grid<std::int32_t>& g, cons
     for (std::size_t i = 0; i < names.size(); ++i)
         if (used[i]) entries.emplace_back(names[i], categoryColour(static_cast<int>(i)));
     if (anyNone) entries.emplace_back(noneLabel, categoryColour(-1));
-    withLegend(picture, title, entries).writePng(path);
+    withLegend(mapFrame(picture, gridPictureExtent(g, factor, w, h)).canvas, title, entries).writePng(path);
 }
 
 Grid<float> hillshade(const Grid<float>& elevation) {

@@ -48,8 +48,8 @@ void writeRegionPlots(const std::string& dir, const BiomeDatabase& db, std::size
     std::snprintf(stem, sizeof stem, "/region_%04zu", ri);
     const std::string where = db.combinationName(r.combination) + ", cluster " + std::to_string(r.cluster);
 
-    // g(r) of the pairs with the most pairs counted; g_ij = g_ji (translation correction),
-    // so each unordered pair once.
+    // g(r) of the pairs with the most pairs counted, one panel each; g_ij = g_ji (translation
+    // correction), so each unordered pair once. The picture says how many are left out.
     std::vector<const DbPairStats*> pairs;
     for (const auto& p : r.pairs)
         if (p.source <= p.target && std::accumulate(p.pairCount.begin(), p.pairCount.end(), 0.0) > 0) pairs.push_back(&p);
@@ -57,40 +57,66 @@ void writeRegionPlots(const std::string& dir, const BiomeDatabase& db, std::size
         return std::accumulate(a->pairCount.begin(), a->pairCount.end(), 0.0) >
                std::accumulate(b->pairCount.begin(), b->pairCount.end(), 0.0);
     });
+    const std::size_t allPairs = pairs.size();
     if (pairs.size() > static_cast<std::size_t>(maxPairs)) pairs.resize(static_cast<std::size_t>(maxPairs));
-    std::vector<ChartSeries> series;
-    std::vector<std::pair<std::string, Rgb>> legend;
     std::vector<double> mids;
     for (int k = 0; k < db.pcfBins.count; ++k) mids.push_back(db.pcfBins.midM(k));
+    const Rgb grey{0.45f, 0.45f, 0.45f};
+    std::vector<ChartPanel> pcfPanels;
     int colour = 0;
     for (const DbPairStats* p : pairs) {
-        const std::string name =
-            db.categoryName(p->source) + (p->source == p->target ? " - " : " <-> ") + db.categoryName(p->target);
-        series.push_back(ChartSeries{name, mids, p->g, categoryColour(colour++)});
-        legend.emplace_back(name, series.back().colour);
+        ChartPanel panel;
+        panel.title = db.categoryName(p->source) + (p->source == p->target ? " - " : " <-> ") + db.categoryName(p->target);
+        panel.subtitle = fixed(std::accumulate(p->pairCount.begin(), p->pairCount.end(), 0.0), 0) + " point pairs to " +
+                         num(db.pcfBins.rMaxM) + " m";
+        panel.series.push_back(ChartSeries{panel.title, mids, p->g, categoryColour(colour++)});
+        panel.xmax = db.pcfBins.rMaxM;
+        panel.ymax = chartTop(panel.series, 1.5);
+        panel.reference = ChartReference{1.0, grey, true};
+        pcfPanels.push_back(std::move(panel));
     }
-    legend.emplace_back("g = 1 (Poisson)", Rgb{0.4f, 0.4f, 0.4f});
-    withLegend(chartCanvas(series, 0.0, db.pcfBins.rMaxM, 0.0, chartTop(series, 1.5), "r (m)", "g(r)", 1.0),
-               "Region " + std::to_string(ri) + " (" + where + "): pair correlation", legend)
-        .writePng(dir + stem + "_pcf.png");
+    ChartPanelsLayout pcfLayout;
+    pcfLayout.title = "Region " + std::to_string(ri) + " (" + where + "): pair correlation";
+    pcfLayout.notes.push_back(
+        allPairs > pairs.size()
+            ? "The " + std::to_string(pairs.size()) + " of " + std::to_string(allPairs) +
+                  " category pairs with the most point pairs, one panel each; " +
+                  std::to_string(allPairs - pairs.size()) +
+                  " pairs with fewer are left out (eco inspect --max-pairs N shows up to 64)."
+            : "All " + std::to_string(allPairs) + " category pairs with point pairs, one panel each.");
+    pcfLayout.key = {{"g(r) of the pair (a colour each)", categoryColour(0)}, {"g = 1 (Poisson)", grey, true, 1}};
+    pcfLayout.xlabel = "r (m)";
+    pcfLayout.ylabel = "g(r)";
+    pcfLayout.columns = pcfPanels.size() <= 9 ? 4 : 6;
+    pcfLayout.plotWidthPx = 240;
+    pcfLayout.plotHeightPx = 140;
+    chartPanels(pcfPanels, pcfLayout).writePng(dir + stem + "_pcf.png");
 
-    // Height histograms of the leading species (plants per bin, not renormalised).
+    // Height histograms of the leading species (plants per bin, not renormalised), one panel
+    // each on its own height range: on one shared axis the short species' bins were hidden.
     const auto lead = leadingSpecies(r, 6);
-    std::vector<ChartSeries> bars;
-    std::vector<std::pair<std::string, Rgb>> key;
-    double hMax = 0.5;
-    for (int s : lead) hMax = std::max(hMax, r.height[static_cast<std::size_t>(s)].edges.back());
-    for (std::size_t i = 0; i < lead.size(); ++i) {
-        const DbHistogram& h = r.height[static_cast<std::size_t>(lead[i])];
-        ChartSeries se{db.speciesNames[static_cast<std::size_t>(lead[i])], h.edges, h.counts, categoryColour(lead[i]), true};
-        key.emplace_back(se.name + " (" + fixed(r.speciesCount[static_cast<std::size_t>(lead[i])], 0) + ")", se.colour);
-        bars.push_back(std::move(se));
+    std::vector<ChartPanel> heightPanels;
+    for (int s : lead) {
+        const DbHistogram& h = r.height[static_cast<std::size_t>(s)];
+        if (h.edges.size() < 2) continue;
+        ChartPanel panel;
+        panel.title = db.speciesNames[static_cast<std::size_t>(s)];
+        panel.subtitle = fixed(r.speciesCount[static_cast<std::size_t>(s)], 0) + " plants" +
+                         (h.overflow > 0 ? ", " + fixed(h.overflow, 0) + " above " + num(h.edges.back()) + " m not drawn" : "");
+        panel.series.push_back(ChartSeries{panel.title, h.edges, h.counts, categoryColour(s), true});
+        panel.xmin = h.edges.front();
+        panel.xmax = h.edges.back();
+        panel.ymax = chartTop(panel.series, 1.0);
+        heightPanels.push_back(std::move(panel));
     }
-    // Tallest first so that shorter species' bars stay visible on top.
-    std::stable_sort(bars.begin(), bars.end(), [](const ChartSeries& a, const ChartSeries& b) { return a.x.back() > b.x.back(); });
-    withLegend(chartCanvas(bars, 0.0, hMax, 0.0, chartTop(bars, 1.0), "height (m)", "plants"),
-               "Region " + std::to_string(ri) + " (" + where + "): undergrowth heights", key)
-        .writePng(dir + stem + "_heights.png");
+    ChartPanelsLayout heightLayout;
+    heightLayout.title = "Region " + std::to_string(ri) + " (" + where + "): undergrowth heights";
+    heightLayout.notes.push_back("The " + std::to_string(lead.size()) +
+                                 " most common species, each on its own height and count axes.");
+    heightLayout.xlabel = "height (m)";
+    heightLayout.ylabel = "plants per bin";
+    heightLayout.columns = 3;
+    chartPanels(heightPanels, heightLayout).writePng(dir + stem + "_heights.png");
 }
 
 }  // namespace

@@ -332,6 +332,49 @@ void pictures(std::ostringstream& md, const std::filesystem::path& outDir, const
 }
 
 
+/// The simulator's plants_year_NNNN.png pictures of a folder, at most `limit`: the last
+/// simulated year always, year 0 (the start, before the first year's seeding) only when it is
+/// the only one, the rest evenly spaced between; a line says which are left out.
+void yearPictures(std::ostringstream& md, const std::filesystem::path& outDir, const std::string& relDir,
+                  std::size_t limit) {
+    const std::filesystem::path dir = outDir / relDir;
+    if (!std::filesystem::is_directory(dir) || limit == 0) return;
+    std::vector<std::pair<int, std::string>> years;  // year, file name
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        const std::string n = e.path().filename().string();
+        int year = -1;
+        char tail = 0;
+        if (e.is_regular_file() && e.path().extension() == ".png" &&
+            std::sscanf(n.c_str(), "plants_year_%d.pn%c", &year, &tail) == 2 && tail == 'g' &&
+            year >= 0)
+            years.emplace_back(year, n);
+    }
+    if (years.empty()) return;
+    std::sort(years.begin(), years.end());
+    const std::size_t total = years.size();
+    const bool dropStart = years.front().first == 0 && years.size() > 1;
+    if (dropStart) years.erase(years.begin());
+    std::vector<std::pair<int, std::string>> shown;
+    if (years.size() <= limit) {
+        shown = years;
+    } else {
+        for (std::size_t i = 0; i < limit; ++i) {  // first and last included
+            const std::size_t k = limit == 1 ? years.size() - 1
+                                             : static_cast<std::size_t>(std::lround(static_cast<double>(i) *
+                                                                                    static_cast<double>(years.size() - 1) /
+                                                                                    static_cast<double>(limit - 1)));
+            if (shown.empty() || shown.back().first != years[k].first) shown.push_back(years[k]);
+        }
+    }
+    if (shown.size() < total) {
+        md << "(" << shown.size() << " of " << total << " plant pictures in `" << relDir << "/`: years";
+        for (std::size_t i = 0; i < shown.size(); ++i) md << (i ? ", " : " ") << shown[i].first;
+        md << (dropStart ? "; year 0, the start before any undergrowth, left out" : "") << ")\n\n";
+    }
+    for (const auto& [year, name] : shown)
+        picture(md, outDir, relDir + "/" + name, "undergrowth after " + std::to_string(year) + " years");
+}
+
 /// out_dir/report.md: what ran, how long each stage took, the pictures and the comparison.
 std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds, double totalSeconds) {
     const std::filesystem::path outDir(plan.outDir);
@@ -359,7 +402,7 @@ std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds,
     if (std::filesystem::is_directory(outDir / "png/simulation")) {
         md << "## Undergrowth simulation\n\n";
         picture(md, outDir, "png/simulation/species_counts.png", "plants per species and year");
-        pictures(md, outDir, "png/simulation", 6);
+        yearPictures(md, outDir, "png/simulation", 6);
     }
     if (std::filesystem::exists(outDir / "database.txt"))
         md << "## Biome database\n\n```\n" << readTextFile((outDir / "database.txt").string()) << "```\n\n";

@@ -13,6 +13,7 @@
 
 #include "error.h"
 #include "h5io.h"
+#include "chart.h"
 #include "image_out.h"
 #include "rng.h"
 #include "strict_toml.h"
@@ -1057,7 +1058,7 @@ void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, co
     for (std::size_t i = 0; i < surface.size(); ++i) surface.data()[i] += r.surfaceM.data()[i];
     const Grid<float> shade = hillshade(surface);
     const int w = terrainM.width(), h = terrainM.height();
-    const int factor = std::max(1, static_cast<int>(std::ceil(std::max(w, h) / 1024.0)));
+    const int factor = downsampleFactor(w, h, 1024);
     const int pw = std::max(1, w / factor), ph = std::max(1, h / factor);
     Canvas picture(pw, ph);
     for (int py = 0; py < ph; ++py)
@@ -1088,7 +1089,7 @@ void writeCanopyPng(const std::string& path, const std::vector<Plant>& trees, co
                                  categoryColour(static_cast<int>(s)));
     entries.emplace_back("ground (hillshade)", Rgb{0.6f, 0.6f, 0.6f});
     const std::string heading = title + " (" + std::to_string(trees.size()) + ")";
-    withLegend(picture, heading, entries).writePng(path);
+    withLegend(mapFrame(picture, gridPictureExtent(terrainM, factor, pw, ph)).canvas, heading, entries).writePng(path);
 }
 
 }  // namespace eco::synth

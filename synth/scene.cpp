@@ -372,7 +372,8 @@ void writeScenePng(const std::string& path, const std::vector<Plant>& canopy, co
     entries.emplace_back(scale, Rgb{1.f, 1.f, 1.f});
     const std::string heading =
         title + " (" + std::to_string(totalC) + " canopy, " + std::to_string(totalU) + " undergrowth)";
-    withLegend(picture, heading, entries).writePng(path);
+    const MapExtent world{view.x0, view.y1 - ph / pxPerM, view.x0 + pw / pxPerM, view.y1};
+    withLegend(mapFrame(picture, world).canvas, heading, entries).writePng(path);
 }
 
 // ======================================================================== comparison
@@ -548,57 +549,48 @@ void writeComparisonPng(const std::string& path, const SceneComparison& c, const
     for (const auto& r : c.regions)
         if (r.cells > 0) shown.push_back(&r);
     std::stable_sort(shown.begin(), shown.end(), [](const RegionComparison* a, const RegionComparison* b) { return a->areaM2 > b->areaM2; });
-    if (shown.size() > 12) shown.resize(12);
-    const int panelW = 380, panelH = 260, cols = std::max<int>(1, std::min<int>(3, static_cast<int>(shown.size())));
-    const int rows = std::max<int>(1, (static_cast<int>(shown.size()) + cols - 1) / cols);
-    const int top = 40, bottom = 30;
-    Canvas canvas(cols * panelW, rows * panelH + top + bottom);
-    canvas.text(10, 26, "Pair correlation g(r) of all undergrowth: database (black) vs scene (red); pcf distance " +
-                            num(c.pcfDistance, 4), 18, {0.f, 0.f, 0.f});
+    const std::size_t withCells = shown.size();
+    const std::size_t maxPanels = 24;
+    if (shown.size() > maxPanels) shown.resize(maxPanels);
     const int nS = db.speciesCount();
-    const Rgb black = {0.f, 0.f, 0.f}, red = {0.85f, 0.1f, 0.1f}, grey = {0.75f, 0.75f, 0.75f};
-    for (std::size_t i = 0; i < shown.size(); ++i) {
-        const RegionComparison& rc = *shown[i];
-        const int ox = static_cast<int>(i % static_cast<std::size_t>(cols)) * panelW;
-        const int oy = top + static_cast<int>(i / static_cast<std::size_t>(cols)) * panelH;
-        const std::vector<double> gt = pooledUndergrowthG(db.regions[static_cast<std::size_t>(rc.region)], db);
-        const std::vector<double> gs = pooledUndergrowthG(c.pairs, rc.region, nS);
+    const Rgb black = {0.f, 0.f, 0.f}, red = {0.85f, 0.1f, 0.1f}, grey = {0.45f, 0.45f, 0.45f};
+    std::vector<double> mids;
+    for (int k = 0; k < db.pcfBins.count; ++k) mids.push_back(db.pcfBins.midM(k));
+    std::vector<ChartPanel> panels;
+    for (const RegionComparison* rc : shown) {
+        const std::vector<double> gt = pooledUndergrowthG(db.regions[static_cast<std::size_t>(rc->region)], db);
+        const std::vector<double> gs = pooledUndergrowthG(c.pairs, rc->region, nS);
         double gMax = 2.0;
         for (double v : gt) gMax = std::max(gMax, v);
         for (double v : gs) gMax = std::max(gMax, v);
-        gMax = std::min(gMax, 10.0);
-        const int px0 = ox + 45, px1 = ox + panelW - 15, py0 = oy + 40, py1 = oy + panelH - 35;
-        Chart ch;
-        ch.left = px0;
-        ch.top = py0;
-        ch.width = px1 - px0;
-        ch.height = py1 - py0;
-        ch.x = {0.0, db.pcfBins.rMaxM, {}, {}};
-        ch.y = {0.0, gMax, {}, {}};
-        ch.style.grid = false;
-        ch.style.tickMarkPx = 0;
-        ch.style.multiplyFirst = true;
-        ch.reference = ChartReference{1.0, grey, false};
-        std::vector<double> mids;
-        for (int k = 0; k < db.pcfBins.count; ++k) mids.push_back(db.pcfBins.midM(k));
-        for (const auto* curve : {&gt, &gs}) {
-            ChartSeries series{"", mids, *curve, curve == &gt ? black : red};
-            series.clampToAxes = true;  // g >= 0: only the top clamps
-            ch.series.push_back(std::move(series));
-        }
+        ChartPanel p;
         char title[200];
-        std::snprintf(title, sizeof title, "region %d: %.2f vs %.2f /m2", rc.region, rc.densityPerM2, rc.targetDensityPerM2);
-        ch.texts = {{ox + 10, oy + 18, title, 14, black},
-                    {ox + 10, oy + 34, rc.name.substr(0, 48), 11, {0.3f, 0.3f, 0.3f}},
-                    {px1 - 60, py1 + 18, "r, m (" + num(db.pcfBins.rMaxM, 3) + ")", 11, black},
-                    {ox + 5, py0 + 4, num(gMax, 3), 11, black},
-                    {ox + 20, static_cast<int>(ch.py(1.0) + 4), "1", 11, black}};
-        drawChart(canvas, ch);
+        std::snprintf(title, sizeof title, "region %d: %.2f vs %.2f plants/m2", rc->region, rc->densityPerM2,
+                      rc->targetDensityPerM2);
+        p.title = title;
+        p.subtitle = rc->name + ", g distance " + num(rc->pcfDistance, 3);
+        p.xmin = 0;
+        p.xmax = db.pcfBins.rMaxM;
+        p.ymin = 0;
+        p.ymax = std::min(gMax, 10.0) * 1.05;  // g above 10 drawn at the top edge
+        p.reference = ChartReference{1.0, grey, true};
+        p.series.push_back(ChartSeries{"database", mids, gt, black});
+        p.series.push_back(ChartSeries{"scene", mids, gs, red});
+        panels.push_back(std::move(p));
     }
-    canvas.text(10, top + rows * panelH + 20,
-                "g distance = RMS of g(scene) - g(database) over category pairs and bins, weighted by pairs", 12,
-                {0.2f, 0.2f, 0.2f});
-    canvas.writePng(path);
+    ChartPanelsLayout layout;
+    layout.title = "g(r) of all undergrowth per region: database vs synthesized scene";
+    layout.notes.push_back("pcf distance over all regions " + num(c.pcfDistance, 4) +
+                           "; g distance = RMS of g(scene) - g(database) over category pairs and bins, weighted by "
+                           "pairs (0 = identical). Panel titles: scene density vs database density.");
+    if (withCells > shown.size())
+        layout.notes.push_back("The " + std::to_string(shown.size()) + " largest of " + std::to_string(withCells) +
+                               " regions in the scene are shown; compare.md lists all.");
+    layout.key = {{"database", black}, {"scene", red}, {"g = 1 (no interaction)", grey, true, 1}};
+    layout.xlabel = "r (m)";
+    layout.ylabel = "g(r)";
+    layout.columns = 3;
+    chartPanels(panels, layout).writePng(path);
 }
 
 }  // namespace eco::synth

@@ -241,6 +241,9 @@ TEST_CASE("eco run: the whole pipeline on a small scene, with --out-dir, writes 
     const std::string report((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     CHECK_THAT(report, Catch::Contains("| synth |") && Catch::Contains("## Synthesized against the database") &&
                            Catch::Contains("png/synth/scene.png"));
+    // The simulation's pictures: the last simulated year (4), not the empty start (year 0).
+    CHECK_THAT(report, Catch::Contains("png/simulation/plants_year_0004.png") &&
+                           !Catch::Contains("plants_year_0000.png"));
     CHECK_THAT(r.output, Catch::Contains("report.md"));
 }
 

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "error.h"
+#include "image_out.h"
 #include "point_pattern.h"
 #include "rng.h"
 #include "test_util.h"
@@ -46,6 +47,42 @@ TEST_CASE("eco pcf writes CSV and PNG that match the library", "[pcf][cli]") {
         CHECK(row.at("window_x0") == "10");
         CHECK(row.at("window_y1") == "80");
         CHECK(!row.at("g_trans").empty());
+    }
+}
+
+TEST_CASE("eco pcf plots every type pair, beyond twelve", "[pcf][cli]") {
+    // Five types: 15 unordered pairs (the plot used to stop at the first 12 alphabetically).
+    eco::test::TempDir dir("pcfcli");
+    const std::string csv = dir.file("five.csv");
+    {
+        std::ofstream f(csv);
+        f << "x,y,species\n";
+        const char* names[] = {"alder", "birch", "cedar", "dogwood", "elm"};
+        std::uint64_t state = 12345;
+        for (int i = 0; i < 500; ++i) {
+            state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+            const double x = static_cast<double>(state >> 11) / 9007199254740992.0 * 50;
+            state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+            const double y = static_cast<double>(state >> 11) / 9007199254740992.0 * 50;
+            f << x << "," << y << "," << names[i % 5] << "\n";
+        }
+    }
+    const auto r = eco::test::runEco("pcf " + csv + " --window 0,0,50,50 --rmax 8 --bins 16 --out " + dir.file("g.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    int w = 0, h = 0;
+    const auto px = eco::test::readPngRgb(dir.file("g.png"), w, h);
+    // Each pair's curve is drawn in its own categoryColour (0..14) without blending: all 15
+    // are in the picture, and so is the pooled curve's black.
+    for (int i = 0; i < 15; ++i) {
+        const Rgb c = categoryColour(i);
+        const int cr = static_cast<int>(std::lround(c[0] * 255)), cg = static_cast<int>(std::lround(c[1] * 255)),
+                  cb = static_cast<int>(std::lround(c[2] * 255));
+        int count = 0;
+        for (std::size_t k = 0; k + 2 < px.size(); k += 3)
+            count += px[k] == cr && px[k + 1] == cg && px[k + 2] == cb;
+        INFO("pair " << i);
+        CHECK(count > 20);
     }
 }
 

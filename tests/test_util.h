@@ -13,6 +13,8 @@
 #include <fstream>
 #include <map>
 
+#include <OpenImageIO/imageio.h>
+
 // AddressSanitizer reserves terabytes of address space at start, so a process built with it
 // cannot run under `ulimit -v`; such builds pass the limit as ECO_MEMORY_LIMIT_MB instead
 // (core/memory.h), which the memory checks read the same way.
@@ -114,6 +116,18 @@ inline std::vector<std::map<std::string, std::string>> readCsvRows(const std::st
         rows.push_back(std::move(row));
     }
     return rows;
+}
+
+/// An 8-bit RGB PNG's pixels, row by row; its size in w, h. Empty when it cannot be read.
+inline std::vector<unsigned char> readPngRgb(const std::string& path, int& w, int& h) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) return {};
+    const auto& spec = in->spec();
+    w = spec.width;
+    h = spec.height;
+    std::vector<unsigned char> px(static_cast<std::size_t>(w) * h * 3);
+    if (spec.nchannels != 3 || !in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data())) return {};
+    return px;
 }
 
 }  // namespace eco::test
