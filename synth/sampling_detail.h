@@ -196,7 +196,7 @@ std::vector<double> speciesContextDensities(const BiomeDatabase& db);
 /// lowest crown above; crown radius by allometry. Fills out.plants, out.plantRegion and
 /// out.heightsLimitedByCrown in the order of `accepted`. Parallel over plants, each keyed by
 /// its own random key (Candidate::key). Every candidate's cell must lie in a region.
-/// Defined in synth/structured_sampler.cpp.
+/// Defined in synth/structured_sampler.cpp; the structured and Deussen samplers use it.
 void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
                const Grid<float>& terrainM, const SynthParams& params, bool withContext,
                const std::vector<Candidate>& accepted, UndergrowthSample& out);
@@ -208,4 +208,9 @@ namespace eco::synth {
 /// checking the inputs when params.method is Structured.
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
+/// The Deussen 1998 sampler (synth/deussen_sampler.cpp); sampleUndergrowth calls it after
+/// checking the inputs when params.method is Deussen. densityImage may be null.
+UndergrowthSample sampleDeussen(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                                const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
+                                const Grid<float>* densityImage);
 }  // namespace eco::synth
