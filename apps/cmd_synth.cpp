@@ -91,9 +91,23 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
     args->methodOpt = cmd->add_option("--method", args->method,
                     "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "
-                    "database's pair correlation; heights below the crown above, radius by allometry) or 'darts' "
-                    "(the earlier uniform darts with sizes from the histograms)")
-        ->check(oneOf({"structured", "darts"}))
+                    "database's pair correlation; heights below the crown above, radius by allometry), 'darts' "
+                    "(the earlier uniform darts with sizes from the histograms) or 'deussen' (Deussen et al. 1998: "
+                    "the density map half-toned by Floyd-Steinberg error diffusion, then Lloyd relaxation with "
+                    "minimum distances, canopy fixed; sizes as 'structured')")
+        ->check(oneOf({"structured", "darts", "deussen"}))
+        ->capture_default_str();
+    cmd->add_option("--density-image", a->densityImage,
+                    "--method deussen: a greyscale image (PNG, TIFF) of the terrain's size, value = relative density "
+                    "of the whole undergrowth (white densest, black none) multiplying the database's density map; the "
+                    "undergrowth keeps the database's total over the terrain");
+    auto deussenHelp = [](const char* key) { return paramHelp(paramField(synth::deussenParamFields(), key), "--method deussen: "); };
+    auto deussenCheck = [](const char* key) { return paramCheck(paramField(synth::deussenParamFields(), key)); };
+    cmd->add_option("--lloyd-iterations", a->params.deussen.lloydIterations, deussenHelp("deussen_lloyd_iterations"))
+        ->check(deussenCheck("deussen_lloyd_iterations"))
+        ->capture_default_str();
+    cmd->add_option("--min-distance-factor", a->params.deussen.minDistanceFactor, deussenHelp("deussen_min_distance_factor"))
+        ->check(deussenCheck("deussen_min_distance_factor"))
         ->capture_default_str();
     cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))
         ->check(synthCheck("max_passes"))

@@ -34,10 +34,13 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
     requireOutputsNotInputs({{"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--gpkg", a.gpkg}},
-                            {a.terrain, a.canopy, a.database, a.abiotics});
+                            {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage});
     synth::SynthParams params = a.params;
     params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
+    if (!a.densityImage.empty() && params.method != synth::SynthMethod::Deussen)
+        throw ValidationError("--density-image '" + a.densityImage + "' is read by --method deussen only (method is '" +
+                              synth::toString(params.method) + "')");
     synth::RefineParams refineParams;
     if (a.refineSweeps) refineParams.sweeps = *a.refineSweeps;
     if (a.refineRMaxM) refineParams.rMaxM = *a.refineRMaxM;
@@ -81,6 +84,12 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     // in it even when --terrain is a file without one.
     terrain.setCrsWkt(sharedCrs(terrain.crsWkt(), "terrain '" + a.terrain + "'", canopyFile.terrainM.crsWkt(), "canopy '" + a.canopy + "'"));
     synth::validateCanopy(canopyFile.trees, terrain, biome, a.canopy);
+    std::optional<Grid<float>> densityImage;
+    if (!a.densityImage.empty()) {
+        densityImage = synth::readDensityImage(a.densityImage, terrain);
+        reporter.info("density image: " + a.densityImage + ": relative density per cell (white densest) times the database's "
+                      "density map, scaled to the database's total over the terrain");
+    }
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
     for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
@@ -128,7 +137,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
                                  : "its cells use the statistics of '" + db.combinationName(stand) + "'"));
     }
 
-    synth::UndergrowthSample sample = synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params);
+    synth::UndergrowthSample sample =
+        synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params, densityImage ? &*densityImage : nullptr);
     reporter.info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +
          std::to_string(sample.passes) + " passes (" + std::to_string(sample.darts) + " darts, " +
          std::to_string(sample.dartsOnTrunks) + " on trunks)");
@@ -149,6 +159,18 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
                     text += "; hard core " + db.speciesNames[i / ns] + " - " + db.speciesNames[i % ns] + " " + num(st.hardCoreM[i], 3) + " m";
             reporter.info(text);
         }
+        reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+    }
+    if (params.method == synth::SynthMethod::Deussen) {
+        for (const auto& d : sample.deussen) {
+            std::string text = "deussen: " + biome.species[static_cast<std::size_t>(d.species)].name + ": half-toning cell " +
+                               num(d.halftoneCellM, 3) + " m, " + std::to_string(d.dots) + " dots, " + std::to_string(d.dropped) +
+                               " dropped (minimum distance " + num(d.minDistanceM, 3) + " m); Clark-Evans R " +
+                               num(d.clarkEvansBefore, 3) + " -> " + num(d.clarkEvansAfter, 3) + "; mean move per Lloyd step (m):";
+            for (double v : d.meanMoveM) text += " " + num(v, 3);
+            reporter.info(text);
+        }
+        for (const auto& ph : sample.phases) reporter.info("deussen: " + ph.name + " " + num(ph.wallS, 3) + " s");
         reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
     }
     std::vector<Plant> undergrowth = std::move(sample.plants);
@@ -211,6 +233,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     record.databasePath = a.database;
     record.terrainSource = a.terrain;
     record.canopySource = a.canopy;
+    record.densityImageSource = a.densityImage;
     record.abioticsSource = a.abiotics.empty() ? "computed from the terrain (default parameters)" : a.abiotics;
     // The scene file, side files and pictures are committed together (core/atomic_file.h):
     // a kill leaves the previous set, or a journal beside the scene that the next run completes.
@@ -311,6 +334,12 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});
     if (a.method) args.insert(args.end(), {"--method", *a.method});
+    if (!a.densityImage.empty()) args.insert(args.end(), {"--density-image", a.densityImage});
+    const synth::DeussenParams deussenDefaults;
+    if (a.params.deussen.lloydIterations != deussenDefaults.lloydIterations)
+        args.insert(args.end(), {"--lloyd-iterations", std::to_string(a.params.deussen.lloydIterations)});
+    if (a.params.deussen.minDistanceFactor != deussenDefaults.minDistanceFactor)
+        args.insert(args.end(), {"--min-distance-factor", argNumber(a.params.deussen.minDistanceFactor)});
     a.terrainRead.appendArgs(args);
     if (!a.zoom.empty()) args.insert(args.end(), {"--zoom", a.zoom});
     const synth::SynthParams synthDefaults;

@@ -25,6 +25,7 @@ struct SynthOptions {
     std::string zoom;          ///< crop of scene_zoom.png, "x,y,side" or "x0,y0,x1,y1"; "" = 60 m at the centre
     std::string refineWindow;  ///< refinement only inside "x0,y0,x1,y1"; "" = everywhere
     std::optional<std::string> method;  ///< undergrowth sampler by name; unset = structured
+    std::string densityImage;  ///< --method deussen: relative density image of the terrain's size; "" = the database's map
     TerrainReadFlags terrainRead;
     bool refine = false;
     synth::SynthParams params;  ///< params.method is set from `method`

@@ -176,6 +176,31 @@ inline Grid<std::uint8_t> nearTrunkCells(const Grid<float>& geometry, const std:
     return near;
 }
 
+/// A candidate plant (the samplers' compact form before sizes are drawn).
+struct Candidate {
+    std::uint64_t key;   ///< random priority: each (region, species) keeps its lowest keys; keys the size draw
+    float dx, dy;        ///< position relative to the terrain origin, m
+    std::uint32_t cell;  ///< cell index of the position
+    std::uint16_t species;
+    std::uint16_t pass;
+};
+
+/// Per (region r, species s, canopy-context bin c), flattened as (r * nSpecies + s) * nCtx + c:
+/// the database's density of s (plants per m^2) in context c of region r; nCtx is the
+/// database's number of context bins, or 1 (the region's density x the species' share) for a
+/// database without context statistics. 0 for a species the region does not hold.
+std::vector<double> speciesContextDensities(const BiomeDatabase& db);
+
+/// Sizes of the accepted plants (docs/synth.md 2a "Sizes"): height from the region's
+/// histogram of the plant's context (under a crown or in the open), truncated below the
+/// lowest crown above; crown radius by allometry. Fills out.plants, out.plantRegion and
+/// out.heightsLimitedByCrown in the order of `accepted`. Parallel over plants, each keyed by
+/// its own random key (Candidate::key). Every candidate's cell must lie in a region.
+/// Defined in synth/structured_sampler.cpp; the structured and Deussen samplers use it.
+void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
+               const Grid<float>& terrainM, const SynthParams& params, bool withContext,
+               const std::vector<Candidate>& accepted, UndergrowthSample& out);
+
 }  // namespace eco::synth::detail
 
 namespace eco::synth {
@@ -183,4 +208,9 @@ namespace eco::synth {
 /// checking the inputs when params.method is Structured.
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
+/// The Deussen 1998 sampler (synth/deussen_sampler.cpp); sampleUndergrowth calls it after
+/// checking the inputs when params.method is Deussen. densityImage may be null.
+UndergrowthSample sampleDeussen(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                                const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
+                                const Grid<float>* densityImage);
 }  // namespace eco::synth

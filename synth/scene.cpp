@@ -41,6 +41,9 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         for (const auto& [k, v] : sc.params.asParameters())
             if (k != "seed") f.setAttr("/", k, v);
         for (const auto& [k, v] : sc.floorParams.asParameters()) f.setAttr("/", k, v);
+        if (sc.params.method == SynthMethod::Deussen)
+            f.setAttr("/", "deussen_density_image", sc.densityImageSource.empty() ? std::string("none (the database's density map)")
+                                                                                   : sc.densityImageSource);
         f.setAttr("/", "refined", static_cast<std::int64_t>(sc.refined ? 1 : 0));
         if (sc.refined)
             for (const auto& [k, v] : sc.refineParams.asParameters()) f.setAttr("/", k, v);
@@ -121,6 +124,32 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
             f.writeF64("/regions/cluster_pooled_amplitude", amplitude, {n, 2});
             f.writeF64("/regions/pooled_g_fit_rms", fitRms, {n});
             f.writeF64("/regions/pooled_g_context_only_rms", contextRms, {n});
+            f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
+            f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
+        }
+
+        if (sc.params.method == SynthMethod::Deussen && !sc.sampling.deussen.empty()) {
+            // The Deussen sampler's record of each species, in placement order (docs/synth.md 2c).
+            const std::size_t m = sc.sampling.deussen.size();
+            std::vector<std::int32_t> species(m);
+            std::vector<double> cell(m), minDist(m), dots(m), dropped(m), ceBefore(m), ceAfter(m);
+            for (std::size_t i = 0; i < m; ++i) {
+                const UndergrowthSample::DeussenSpecies& d = sc.sampling.deussen[i];
+                species[i] = d.species;
+                cell[i] = d.halftoneCellM;
+                minDist[i] = d.minDistanceM;
+                dots[i] = static_cast<double>(d.dots);
+                dropped[i] = static_cast<double>(d.dropped);
+                ceBefore[i] = d.clarkEvansBefore;
+                ceAfter[i] = d.clarkEvansAfter;
+            }
+            f.writeI32("/regions/deussen_species_order", species, {m});
+            f.writeF64("/regions/deussen_halftone_cell_m", cell, {m});
+            f.writeF64("/regions/deussen_min_distance_m", minDist, {m});
+            f.writeF64("/regions/deussen_dots", dots, {m});
+            f.writeF64("/regions/deussen_dropped", dropped, {m});
+            f.writeF64("/regions/deussen_clark_evans_before", ceBefore, {m});
+            f.writeF64("/regions/deussen_clark_evans_after", ceAfter, {m});
             f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
             f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
         }

@@ -38,6 +38,8 @@ struct SceneRecord {
     RefineResult refineResult;
     std::string databasePath, terrainSource, canopySource, abioticsSource;
     std::string databaseCreatedUtc, databaseCodeVersion;
+    /// Deussen method: the density image read ("" = the database's density map).
+    std::string densityImageSource;
 };
 
 /// Write a scene file atomically. Layout (docs/synth.md):
@@ -50,8 +52,10 @@ struct SceneRecord {
 ///   /refinement                attributes (and objective per sweep) when refined
 ///   /provenance                created_utc, sampling_seconds, refinement_seconds,
 ///                              database_created_utc (core/provenance.h; not with --no-provenance)
+///   /regions attributes with the Deussen method: per species in placement order its
+///                              half-toning cell, minimum distance, dots, drops, Clark-Evans R
 ///   root attributes: format = "eco-scene", schema_version = 1, code_version,
-///   seed, every parameter by key, database_path, terrain_source, canopy_source,
+///   seed, every parameter by key (deussen_density_image with that method), database_path, terrain_source, canopy_source,
 ///   abiotics_source, biome_name, biome_toml, units.
 void writeSceneFile(const std::string& path, const SceneRecord& scene, const Biome& biome,
                     const BiomeDatabase& db);

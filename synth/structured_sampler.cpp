@@ -156,6 +156,28 @@ Fit nonNegativeFit(const std::vector<double>& y, const std::vector<double>& x0, 
 
 }  // namespace
 
+std::vector<double> detail::speciesContextDensities(const BiomeDatabase& db) {
+    const bool withContext = db.hasContext();
+    const std::size_t nR = db.regions.size(), nS = static_cast<std::size_t>(db.speciesCount());
+    const std::size_t nCtx = withContext ? static_cast<std::size_t>(db.contextBins.count()) : 1;
+    std::vector<double> rho(nR * nS * nCtx, 0.0);
+    for (std::size_t r = 0; r < nR; ++r) {
+        const DbRegion& reg = db.regions[r];
+        for (std::size_t s = 0; s < nS; ++s) {
+            if (!(reg.speciesCount[s] > 0)) continue;
+            if (withContext) {
+                const std::vector<double> d = contextDensity(db, reg, static_cast<int>(s));
+                // Context bins the region's cells never reached: the species' mean density.
+                for (std::size_t c = 0; c < nCtx; ++c)
+                    rho[(r * nS + s) * nCtx + c] = reg.contextAreaM2[c] > 0 ? d[c] : reg.speciesCount[s] / std::max(reg.areaM2, 1e-300);
+            } else {
+                rho[(r * nS + s) * nCtx] = reg.densityPerM2 * reg.speciesProportion[s];
+            }
+        }
+    }
+    return rho;
+}
+
 std::vector<double> contextPcf(const BiomeDatabase& db, int region, int species) {
     const std::size_t nb = static_cast<std::size_t>(db.pcfBins.count);
     if (!db.hasContext() || region < 0 || static_cast<std::size_t>(region) >= db.regions.size())
@@ -365,14 +387,6 @@ RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const Sy
 
 namespace {
 
-/// A candidate plant.
-struct Candidate {
-    std::uint64_t key;   ///< random priority: each (region, species) keeps its lowest keys
-    float dx, dy;        ///< position relative to the terrain origin, m
-    std::uint32_t cell;  ///< cell index of the position
-    std::uint16_t species;
-    std::uint16_t pass;
-};
 
 /// Below this many items a loop over candidates runs on one thread: the later passes handle
 /// a few per cent of the plants, and a parallel region's barriers cost more than they save
@@ -771,11 +785,10 @@ struct HardCore {
     }
 };
 
-/// Sizes of the accepted plants (docs/synth.md 2a "Sizes"): height from the region's
-/// histogram of the plant's context (under a crown or in the open), truncated below the
-/// lowest crown above; crown radius by allometry. Fills out.plants, out.plantRegion and
-/// out.heightsLimitedByCrown. Parallel over plants, each keyed by its own random key.
-void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
+}  // namespace
+
+// Sizes (declared in sampling_detail.h).
+void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
                const Grid<float>& terrainM, const SynthParams& params, bool withContext,
                const std::vector<Candidate>& accepted, UndergrowthSample& out) {
     const std::size_t nR = db.regions.size(), nS = static_cast<std::size_t>(db.speciesCount());
@@ -860,8 +873,6 @@ void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Pl
     out.heightsLimitedByCrown = limited;
 }
 
-}  // namespace
-
 UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params) {
     const auto t0 = Clock::now();
@@ -901,22 +912,12 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 
     // Per region: the fitted structure and the per-context densities rho[r][s][c].
     out.structure.resize(nR);
-    std::vector<double> rho(nR * nS * nCtx, 0.0), rhoMax(nR * nS, 0.0);
+    const std::vector<double> rho = speciesContextDensities(db);
+    std::vector<double> rhoMax(nR * nS, 0.0);
     for (std::size_t r = 0; r < nR; ++r) {
-        const DbRegion& reg = db.regions[r];
         out.structure[r] = fitRegionStructure(db, static_cast<int>(r), params);
-        for (std::size_t s = 0; s < nS; ++s) {
-            if (!(reg.speciesCount[s] > 0)) continue;
-            if (withContext) {
-                const std::vector<double> d = contextDensity(db, reg, static_cast<int>(s));
-                // Context bins the region's cells never reached: the species' mean density.
-                for (std::size_t c = 0; c < nCtx; ++c)
-                    rho[(r * nS + s) * nCtx + c] = reg.contextAreaM2[c] > 0 ? d[c] : reg.speciesCount[s] / std::max(reg.areaM2, 1e-300);
-            } else {
-                rho[(r * nS + s) * nCtx] = reg.densityPerM2 * reg.speciesProportion[s];
-            }
+        for (std::size_t s = 0; s < nS; ++s)
             for (std::size_t c = 0; c < nCtx; ++c) rhoMax[r * nS + s] = std::max(rhoMax[r * nS + s], rho[(r * nS + s) * nCtx + c]);
-        }
     }
 
     phase("model fit and canopy context");

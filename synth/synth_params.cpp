@@ -54,22 +54,68 @@ const std::vector<SynthParamField>& synthParamFields() {
 
 void SynthParams::validate() const {
     validateParams(*this, synthParamFields(), "synthesis parameter");
+    deussen.validate();
     if (!(clusterSigmaMaxM >= clusterSigmaMinM))
         throw ValidationError("synthesis parameter 'cluster_sigma_max_m' must be >= cluster_sigma_min_m (" +
                               num(clusterSigmaMinM) + "), got " + num(clusterSigmaMaxM));
 }
 
-const char* toString(SynthMethod m) { return m == SynthMethod::Darts ? "darts" : "structured"; }
+const char* toString(SynthMethod m) {
+    switch (m) {
+        case SynthMethod::Darts: return "darts";
+        case SynthMethod::Deussen: return "deussen";
+        case SynthMethod::Structured: break;
+    }
+    return "structured";
+}
 
 SynthMethod parseSynthMethod(const std::string& name) {
     if (name == "structured") return SynthMethod::Structured;
     if (name == "darts") return SynthMethod::Darts;
-    throw ValidationError("synthesis: method '" + name + "' is not known (structured or darts)");
+    if (name == "deussen") return SynthMethod::Deussen;
+    throw ValidationError("synthesis: method '" + name + "' is not known (structured, darts or deussen)");
 }
 
 std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() const {
     std::vector<std::pair<std::string, std::string>> out = {{"method", toString(method)}};
     for (const auto& f : synthParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+    // Only with the method that reads them: the other methods' records stay as they were.
+    if (method == SynthMethod::Deussen)
+        for (auto& kv : deussen.asParameters()) out.push_back(std::move(kv));
+    return out;
+}
+
+const std::vector<DeussenParamField>& deussenParamFields() {
+    using K = DeussenParamField::Kind;
+    using R = ParamRange;
+    using P = DeussenParams;
+    static const std::vector<DeussenParamField> fields = {
+        {"deussen_lloyd_iterations", "Lloyd relaxation steps (0: half-toned positions kept)",
+         K::Integer, nullptr, &P::lloydIterations, R::closed(0, 1000)},
+        {"deussen_halftone_fill",
+         "half-toning cell: terrain cell / k, k the smallest giving at most this many expected plants of the species "
+         "in a cell where it is densest",
+         K::Real, &P::halftoneFill, nullptr, R::openClosed(0, 1)},
+        {"deussen_halftone_tile_m", "error diffusion in square tiles of this side (m), each on its own (parallel)",
+         K::Real, &P::halftoneTileM, nullptr, R::closed(1, 1e6)},
+        {"deussen_min_distance_factor",
+         "plants of one species at least this x its mean crown radius apart (any pair at "
+         "least the database's hard-core distance)",
+         K::Real, &P::minDistanceFactor, nullptr, R::closed(0, 10)},
+        {"deussen_voronoi_samples", "Voronoi centroid from the centres of a samples x samples lattice per plant",
+         K::Integer, nullptr, &P::voronoiSamples, R::closed(1, 64)},
+        {"deussen_voronoi_radius_factor",
+         "... in a square of half-side this / sqrt(the species' density at the plant)", K::Real,
+         &P::voronoiRadiusFactor, nullptr, R::closed(0.25, 4)},
+    };
+    return fields;
+}
+
+void DeussenParams::validate() const { validateParams(*this, deussenParamFields(), "Deussen sampler parameter"); }
+
+std::vector<std::pair<std::string, std::string>> DeussenParams::asParameters() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& f : deussenParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
     return out;
 }
 

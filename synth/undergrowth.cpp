@@ -240,9 +240,16 @@ inline DartDraw drawDart(std::uint64_t seed, std::uint64_t cellStream, int j) {
 }  // namespace
 
 UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
-                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params) {
+                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
+                                    const Grid<float>* densityImage) {
     const auto t0 = Clock::now();
     params.validate();
+    if (densityImage != nullptr && params.method != SynthMethod::Deussen)
+        throw ValidationError(std::string("undergrowth sampling: a density image is read by the 'deussen' method only, not by '") +
+                              toString(params.method) + "'");
+    if (densityImage != nullptr && !densityImage->sameGeometry(terrainM))
+        throw ValidationError("undergrowth sampling: the density image (" + densityImage->geometryText() +
+                              ") and the terrain (" + terrainM.geometryText() + ") differ in geometry");
     if (!map.region.sameGeometry(terrainM) || !map.seedWeight.sameGeometry(terrainM) ||
         !map.combination.sameGeometry(terrainM))
         throw ValidationError("undergrowth sampling: the cluster map and the terrain (" + terrainM.geometryText() +
@@ -274,6 +281,7 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
                       "a smaller terrain, or check the database's densities with eco inspect");
     }
     if (params.method == SynthMethod::Structured) return sampleStructured(db, biome, canopy, map, terrainM, params);
+    if (params.method == SynthMethod::Deussen) return sampleDeussen(db, biome, canopy, map, terrainM, params, densityImage);
     const double cs = terrainM.cellSizeM();
     const double cellArea = cs * cs;
     const int nRegions = static_cast<int>(db.regions.size());

@@ -73,10 +73,43 @@ enum class SynthMethod {
     /// The earlier sampler: uniform darts weighted by the seeding kernel, species by the
     /// region's shares, height and radius from their histograms at one uniform.
     Darts,
+    /// Deussen et al. 1998: per species (largest first) the density map (the database's, or
+    /// a user's density image) half-toned by Floyd-Steinberg error diffusion, each dot a
+    /// plant, then Lloyd relaxation with minimum distances; canopy trees fixed obstacles;
+    /// sizes as the structured sampler draws them (synth/deussen_sampler.cpp).
+    Deussen,
 };
 const char* toString(SynthMethod m);
-/// "structured" or "darts"; ValidationError naming the value otherwise.
+/// "structured", "darts" or "deussen"; ValidationError naming the value otherwise.
 SynthMethod parseSynthMethod(const std::string& name);
+
+/// Parameters of the Deussen 1998 sampler (docs/synth.md section 2c). Recorded in scene
+/// files (keys deussen_*) only when that method runs.
+struct DeussenParams {
+    /// Lloyd relaxation steps (0: the half-toned positions as they are).
+    int lloydIterations = 8;
+    /// Half-toning grid: each terrain cell is split into k x k cells, k the smallest with at
+    /// most this many expected plants of the species in a half-toning cell where it is densest.
+    double halftoneFill = 0.5;
+    /// Error diffusion runs in square tiles of this side (m), in parallel; the error does
+    /// not cross a tile's border (the partition does not depend on the thread count).
+    double halftoneTileM = 64.0;
+    /// Two plants of one species stand at least this x the species' mean crown radius in the
+    /// database apart (and any pair at least the database's hard-core distance).
+    double minDistanceFactor = 0.5;
+    /// Voronoi centroids are estimated from the centres of a samples x samples lattice ...
+    int voronoiSamples = 8;
+    /// ... in a square of half-side this / sqrt(the species' density at the plant).
+    double voronoiRadiusFactor = 0.8;
+
+    /// ValidationError naming the field when one is out of range (deussenParamFields).
+    void validate() const;
+    /// (key, value text) of every parameter, as recorded in scene files.
+    std::vector<std::pair<std::string, std::string>> asParameters() const;
+};
+using DeussenParamField = ParamDesc<DeussenParams>;
+/// Every parameter of DeussenParams, in record order (synth/synth_params.cpp).
+const std::vector<DeussenParamField>& deussenParamFields();
 
 /// Every parameter of the sampler (recorded in the scene file; docs/synth.md).
 struct SynthParams {
@@ -106,11 +139,14 @@ struct SynthParams {
     double hardCoreG = 0.25;
     /// ... where a Poisson pattern would have had at least this many pairs per bin.
     double hardCoreMinExpectedPairs = 10;
+    /// The Deussen sampler's own parameters (used and recorded with that method only).
+    DeussenParams deussen;
 
-    /// ValidationError naming the field when one is out of range (synthParamFields).
+    /// ValidationError naming the field when one is out of range (synthParamFields,
+    /// deussenParamFields).
     void validate() const;
     /// (key, value text) of every parameter, as recorded in scene files: the method, then
-    /// synthParamFields() in order.
+    /// synthParamFields() in order, then with the Deussen method deussenParamFields().
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
 
@@ -175,7 +211,21 @@ struct UndergrowthSample {
     double seconds = 0;
     std::vector<RegionStructure> structure; ///< structured sampler: the model of each region
     std::int64_t heightsLimitedByCrown = 0; ///< structured: plants whose height draw was capped below a crown
-    std::int64_t dartsInhibited = 0;        ///< structured: candidates dropped by a hard-core distance
+    std::int64_t dartsInhibited = 0;        ///< structured: candidates dropped by a hard-core distance;
+                                            ///< Deussen: half-toned dots dropped by a minimum distance
+    /// Deussen: per species in placement order, the species index, its half-toning cell (m),
+    /// the dots half-toned, and per Lloyd iteration the mean displacement (m) and the moves
+    /// refused (minimum distance, leaving the species' area, or onto a trunk).
+    struct DeussenSpecies {
+        int species = 0;
+        double halftoneCellM = 0;
+        double minDistanceM = 0;
+        std::int64_t dots = 0, dropped = 0;
+        double clarkEvansBefore = 0, clarkEvansAfter = 0;  ///< R of the species' plants (no edge correction)
+        std::vector<double> meanMoveM;
+        std::vector<std::int64_t> refused;
+    };
+    std::vector<DeussenSpecies> deussen;
     std::vector<std::string> warnings;      ///< e.g. an old database read with its known limits
     /// structured: time of each phase (summed over the passes), in order, for the benchmark
     struct Phase {
@@ -193,10 +243,22 @@ RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const Sy
 /// or all undergrowth pooled when species < 0). 1 everywhere for a database without context.
 std::vector<double> contextPcf(const BiomeDatabase& db, int region, int species);
 
-/// Dart-throwing sampler (see the top of this file). terrainM gives each plant's ground
-/// elevation and must share the cluster map's geometry.
+/// Undergrowth by params.method (see the top of this file). terrainM gives each plant's
+/// ground elevation and must share the cluster map's geometry. `densityImage` (Deussen
+/// method only; ValidationError with another) reshapes the database's density map:
+/// relative density of the whole undergrowth per terrain cell, >= 0 (readDensityImage); the
+/// undergrowth keeps the map's total over the terrain.
 UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
-                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params);
+                                    const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
+                                    const Grid<float>* densityImage = nullptr);
+
+/// A user's density image for the Deussen sampler: a greyscale image (PNG, TIFF, ...; colour
+/// channels averaged, alpha ignored) of exactly the terrain's size in pixels, its first row
+/// the northern edge, value = relative density (black none, white densest; a float image's
+/// values as stored). Returned on `like`'s grid. IoError / ValidationError naming the file
+/// for a missing or unreadable file, another size, a negative or non-finite value
+/// (with its pixel) or an image that is 0 everywhere.
+Grid<float> readDensityImage(const std::string& path, const Grid<float>& like);
 
 /// Height and crown radius from one uniform u in [0, 1): the inverse CDFs (linear inside
 /// bins) of the two histograms at u. A histogram without counts returns -1.

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <map>
 #include <set>
@@ -22,6 +23,7 @@
 #include "forest_floor.h"
 #include "geotiff_fixture.h"
 #include <ogrsf_frmts.h>
+#include <OpenImageIO/imageio.h>
 #include "h5io.h"
 #include "scene.h"
 #include "synth_world_fixture.h"
@@ -334,4 +336,103 @@ TEST_CASE("eco synth: a database asking for more plants than fit in memory is re
     CHECK_THAT(r.output, Catch::Contains("undergrowth sampling of about") && Catch::Contains("needs about") &&
                              Catch::Contains("eco inspect"));
     CHECK_FALSE(std::filesystem::exists(dir.file("scene.h5")));
+}
+
+// ======================================================================== --method deussen
+
+namespace {
+
+/// A greyscale 8-bit PNG of the world's size: value(ix, iy) in [0, 1], row 0 = north.
+void writeGreyPng(const std::string& path, int width, int height, const std::function<double(int, int)>& value) {
+    std::vector<std::uint8_t> px(static_cast<std::size_t>(width) * static_cast<std::size_t>(height));
+    for (int row = 0; row < height; ++row)
+        for (int ix = 0; ix < width; ++ix)
+            px[static_cast<std::size_t>(row) * static_cast<std::size_t>(width) + static_cast<std::size_t>(ix)] =
+                static_cast<std::uint8_t>(std::lround(255.0 * value(ix, height - 1 - row)));
+    auto out = OIIO::ImageOutput::create(path);
+    REQUIRE(out);
+    REQUIRE(out->open(path, OIIO::ImageSpec(width, height, 1, OIIO::TypeDesc::UINT8)));
+    REQUIRE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
+    out->close();
+}
+
+}  // namespace
+
+TEST_CASE("eco synth --method deussen: a scene from a density image, and bad input refused with one clear line",
+          "[synth][cli][deussen]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_deussen");
+    const WorldFiles f = writeWorld(w, dir);
+    const std::string base = "synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                             " --abiotics " + f.abiotics + " --out " + dir.file("scene.h5");
+    // Western half dark grey (0.25), eastern half white (1).
+    const std::string image = dir.file("density.png");
+    writeGreyPng(image, kSide, kSide, [](int ix, int) { return ix < kSide / 2 ? 0.25 : 1.0; });
+
+    SECTION("a scene with every output; the image decides where, the canopy stays as given") {
+        const auto r = test::runEco(base + " --method deussen --density-image " + image + " --lloyd-iterations 4 --csv " +
+                                    dir.file("plants.csv") + " --pdb " + dir.file("plants.pdb") + " --png " + dir.file("png"));
+        INFO(r.output);
+        REQUIRE(r.exitCode == 0);
+        CHECK_THAT(r.output, Catch::Contains("deussen: ") && Catch::Contains("Clark-Evans R") &&
+                                 Catch::Contains("density image: " + image));
+        for (const char* name : {"scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/cluster_map.png"})
+            CHECK(std::filesystem::exists(dir.file(name)));
+        const synth::SceneData scene = synth::readSceneFile(dir.file("scene.h5"), w.biome);
+        REQUIRE(scene.canopy.size() == w.canopy.size());
+        for (std::size_t i = 0; i < w.canopy.size(); ++i) {
+            CHECK(scene.canopy[i].xM == w.canopy[i].xM);
+            CHECK(scene.canopy[i].yM == w.canopy[i].yM);
+            CHECK(scene.canopy[i].heightM == w.canopy[i].heightM);
+        }
+        std::size_t west = 0, east = 0;
+        for (const Plant& p : scene.undergrowth) (p.xM < kSide * kCell / 2 ? west : east) += 1;
+        INFO("west " << west << ", east " << east);
+        // Four times the relative density in the east: well over twice the plants there.
+        CHECK(east > 2 * west);
+        CHECK(west > 0);
+        h5::File file = h5::File::openRead(dir.file("scene.h5"));
+        CHECK(file.attrString("/", "method") == "deussen");
+        CHECK(file.attrString("/", "deussen_lloyd_iterations") == "4");
+        CHECK(file.attrString("/", "deussen_density_image") == image);
+    }
+    SECTION("an unknown method") {
+        const auto r = test::runEco(base + " --method halftone");
+        INFO(r.output);
+        CHECK(r.exitCode == 2);
+        CHECK_THAT(r.output, Catch::Contains("--method") && Catch::Contains("halftone") && Catch::Contains("deussen"));
+    }
+    SECTION("a missing density image") {
+        const auto r = test::runEco(base + " --method deussen --density-image " + dir.file("none.png"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("none.png") && Catch::Contains("eco: error"));
+    }
+    SECTION("a density image of another size") {
+        writeGreyPng(dir.file("small.png"), 50, 40, [](int, int) { return 1.0; });
+        const auto r = test::runEco(base + " --method deussen --density-image " + dir.file("small.png"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("small.png") && Catch::Contains("50 x 40") && Catch::Contains("200 x 200"));
+    }
+    SECTION("a black density image") {
+        writeGreyPng(dir.file("black.png"), kSide, kSide, [](int, int) { return 0.0; });
+        const auto r = test::runEco(base + " --method deussen --density-image " + dir.file("black.png"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("black.png") && Catch::Contains("0 everywhere"));
+    }
+    SECTION("a density image with another method") {
+        const auto r = test::runEco(base + " --density-image " + image);
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("--density-image") && Catch::Contains("--method deussen only"));
+    }
+    SECTION("a negative number of Lloyd iterations") {
+        const auto r = test::runEco(base + " --method deussen --lloyd-iterations -1");
+        INFO(r.output);
+        CHECK(r.exitCode == 2);
+        CHECK_THAT(r.output, Catch::Contains("--lloyd-iterations"));
+    }
+    if (!std::filesystem::exists(dir.file("plants.csv"))) CHECK_FALSE(std::filesystem::exists(dir.file("scene.h5")));
 }
