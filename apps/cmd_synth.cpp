@@ -20,11 +20,15 @@ struct SynthArgs {
     CLI::Option *methodOpt = nullptr, *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
     synth::RefineParams refine;  // the --refine-* values (defaults shown in --help)
     CLI::Option *sweepsOpt = nullptr, *rMaxOpt = nullptr, *moveOpt = nullptr, *swapOpt = nullptr;
+    CLI::Option *lloydOpt = nullptr, *minDistanceOpt = nullptr;
 };
 
 void runSynth(SynthArgs& a) {
     pipeline::SynthOptions& o = a.options;
     if (a.methodOpt->count()) o.method = a.method;
+    for (CLI::Option* deussenOnly : {a.lloydOpt, a.minDistanceOpt})
+        if (deussenOnly->count() && a.method != "deussen")
+            usageError(deussenOnly->get_name(), "read by --method deussen only (method is '" + a.method + "')");
     if (a.cellOpt->count()) o.terrainRead.cellSizeM = a.cellSizeM;
     if (a.scaleOpt->count()) o.terrainRead.verticalScale = a.verticalScale;
     if (a.offsetOpt->count()) o.terrainRead.verticalOffsetM = a.verticalOffsetM;
@@ -103,10 +107,10 @@ void registerSynthCommand(CLI::App& app) {
                     "undergrowth keeps the database's total over the terrain");
     auto deussenHelp = [](const char* key) { return paramHelp(paramField(synth::deussenParamFields(), key), "--method deussen: "); };
     auto deussenCheck = [](const char* key) { return paramCheck(paramField(synth::deussenParamFields(), key)); };
-    cmd->add_option("--lloyd-iterations", a->params.deussen.lloydIterations, deussenHelp("deussen_lloyd_iterations"))
+    args->lloydOpt = cmd->add_option("--lloyd-iterations", a->params.deussen.lloydIterations, deussenHelp("deussen_lloyd_iterations"))
         ->check(deussenCheck("deussen_lloyd_iterations"))
         ->capture_default_str();
-    cmd->add_option("--min-distance-factor", a->params.deussen.minDistanceFactor, deussenHelp("deussen_min_distance_factor"))
+    args->minDistanceOpt = cmd->add_option("--min-distance-factor", a->params.deussen.minDistanceFactor, deussenHelp("deussen_min_distance_factor"))
         ->check(deussenCheck("deussen_min_distance_factor"))
         ->capture_default_str();
     cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))
