@@ -722,3 +722,44 @@ TEST_CASE("Replicates: a bound that follows each replicate's reference is judged
     CHECK(c.pass);  // upper end 0.11333 + 4.303 x 0.00577 / 1.732 = 0.128 <= 0.15
     CHECK(c.note.find("mean of the replicates' bounds") != std::string::npos);
 }
+
+// Succession and the Deussen comparison under a deliberately broken model: the paper's
+// literal growth rule (dt x o), under which long-lived species stay centimetres tall for
+// decades (docs/simulator.md), on a 30 m quick scene. The late species never outgrows the
+// early ones, the early ones never subside, and our model's succession no longer differs from
+// Deussen's: each of those checks fails (issue 28 item 1). Several seconds in Release; left
+// out of the sanitized run (tools/sanitize.sh).
+TEST_CASE("Succession and Deussen-comparison checks fail under the literal growth rule", "[validate][broken]") {
+    TempDir dir("validate_literal");
+    std::filesystem::create_directories(dir.file("cfg"));
+    for (const char* name : {"succession.toml", "deussen_comparison.toml"})
+        std::filesystem::copy_file(eco::test::sourcePath(std::string("configs/validation/") + name), dir.file(std::string("cfg/") + name));
+    std::string scene = readAll(eco::test::sourcePath("configs/validation/scene_conifer_forest.toml"));
+    const std::string from = "[quick]\nplot_size_m = 60.0";
+    const auto at = scene.find(from);
+    REQUIRE(at != std::string::npos);
+    scene.replace(at, from.size(), "[quick]\nplot_size_m = 30.0");
+    {
+        std::ofstream out(dir.file("cfg/scene_conifer_forest.toml"));
+        out << scene;
+    }
+    SuiteOptions o;
+    o.mode = Mode::Quick;
+    o.replicates = 1;
+    o.configs.directory = dir.file("cfg");
+    o.configs.modelOverrides = {"growth_rule = \"literal\""};
+    o.outDir = dir.file("out");
+    const SuiteResult r = runSuite(o);
+    std::map<std::string, CheckResult> checks;
+    for (const auto& s : r.scenarios)
+        for (const auto& c : s.checks) checks[s.name + "/" + c.spec.id] = c;
+    for (const char* id : {"succession/late_share_gain", "succession/late_cover_overtakes", "succession/early_decline",
+                           "deussen_comparison/short_range_pcf_ratio", "deussen_comparison/late_share_change_difference"}) {
+        INFO(id << " = " << checks.at(id).value);
+        REQUIRE(std::isfinite(checks.at(id).value));
+        CHECK_FALSE(checks.at(id).pass);
+    }
+    // Laurel covers less than the ferns (the ideal rule: about 24 times more on this scene).
+    CHECK(checks.at("succession/late_cover_overtakes").value < 0.6);
+    CHECK(r.configSource.find("growth_rule = \"literal\"") != std::string::npos);
+}
