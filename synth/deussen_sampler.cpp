@@ -200,16 +200,7 @@ UndergrowthSample sampleDeussen(const BiomeDatabase& db, const Biome& biome, con
                                 const Grid<float>* densityImage) {
     const auto t0 = Clock::now();
     UndergrowthSample out;
-    auto mark = t0;
-    std::clock_t cpuMark = std::clock();
-    auto phase = [&](const char* name) {
-        const auto now = Clock::now();
-        const std::clock_t cpu = std::clock();
-        out.phases.push_back(UndergrowthSample::Phase{name, std::chrono::duration<double>(now - mark).count(),
-                                                      static_cast<double>(cpu - cpuMark) / CLOCKS_PER_SEC});
-        mark = now;
-        cpuMark = cpu;
-    };
+    detail::PhaseTimer phase(out.phases);
     const DeussenParams& dp = params.deussen;
     const int w = terrainM.width(), h = terrainM.height();
     const double cs = terrainM.cellSizeM(), cellArea = cs * cs;
@@ -661,8 +652,7 @@ UndergrowthSample sampleDeussen(const BiomeDatabase& db, const Biome& biome, con
     }
     out.phases.push_back(UndergrowthSample::Phase{"minimum distances", spacingSeconds, 0});
     out.phases.push_back(UndergrowthSample::Phase{"Lloyd relaxation", lloydSeconds, 0});
-    mark = Clock::now();
-    cpuMark = std::clock();
+    phase.restart();
 
     // ------------------------------------------------------------------ 5. sizes, report
     std::vector<Candidate> accepted(placed.size());

@@ -5,6 +5,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <chrono>
+#include <ctime>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -18,6 +20,39 @@
 #include "undergrowth.h"
 
 namespace eco::synth::detail {
+
+/// Wall and process-CPU seconds of a sampler's phases: each call closes the phase called
+/// `name` (adding to it when a pass repeats it) and starts the next.
+class PhaseTimer {
+public:
+    explicit PhaseTimer(std::vector<UndergrowthSample::Phase>& phases)
+        : phases_(phases), mark_(std::chrono::steady_clock::now()), cpuMark_(std::clock()) {}
+    void operator()(const char* name) {
+        const auto now = std::chrono::steady_clock::now();
+        const std::clock_t cpu = std::clock();
+        const double wall = std::chrono::duration<double>(now - mark_).count();
+        const double cpuS = static_cast<double>(cpu - cpuMark_) / CLOCKS_PER_SEC;
+        mark_ = now;
+        cpuMark_ = cpu;
+        for (UndergrowthSample::Phase& p : phases_)
+            if (p.name == name) {
+                p.wallS += wall;
+                p.cpuS += cpuS;
+                return;
+            }
+        phases_.push_back(UndergrowthSample::Phase{name, wall, cpuS});
+    }
+    /// Starts the next phase now, recording nothing (time already accounted otherwise).
+    void restart() {
+        mark_ = std::chrono::steady_clock::now();
+        cpuMark_ = std::clock();
+    }
+
+private:
+    std::vector<UndergrowthSample::Phase>& phases_;
+    std::chrono::steady_clock::time_point mark_;
+    std::clock_t cpuMark_;
+};
 
 /// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
 /// combination m can hold species s when mask[s] & m != 0 (the simulator's rule).

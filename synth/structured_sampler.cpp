@@ -878,23 +878,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     const auto t0 = Clock::now();
     UndergrowthSample out;
     // Wall time of each phase, summed over the passes (the benchmark's breakdown).
-    auto mark = t0;
-    std::clock_t cpuMark = std::clock();
-    auto phase = [&](const char* name) {
-        const auto now = Clock::now();
-        const std::clock_t cpu = std::clock();
-        const double wall = std::chrono::duration<double>(now - mark).count();
-        const double cpuS = static_cast<double>(cpu - cpuMark) / CLOCKS_PER_SEC;
-        mark = now;
-        cpuMark = cpu;
-        for (UndergrowthSample::Phase& p : out.phases)
-            if (p.name == name) {
-                p.wallS += wall;
-                p.cpuS += cpuS;
-                return;
-            }
-        out.phases.push_back(UndergrowthSample::Phase{name, wall, cpuS});
-    };
+    detail::PhaseTimer phase(out.phases);
     const int w = terrainM.width(), h = terrainM.height();
     const double cs = terrainM.cellSizeM(), cellArea = cs * cs;
     const std::size_t nR = db.regions.size();
