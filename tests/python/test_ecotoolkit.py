@@ -8,7 +8,9 @@ grid's own numbers, the CSV the same command writes, the counts eco prints or
 Run: PYTHONPATH=python ECO_BINARY=build/apps/eco /usr/bin/python3 -m unittest discover -s tests/python -v
 """
 
+import contextlib
 import csv
+import io
 import os
 import re
 import shutil
@@ -448,6 +450,31 @@ class TestPandas(unittest.TestCase):
         self.assertEqual(len(sun), 12 * NX * NY)
         db = eco.read_database(path("db.h5"))
         self.assertEqual(len(db.regions_to_pandas()), db.n_regions)
+
+
+class TestDocsExamples(unittest.TestCase):
+    """The ```python blocks of docs/python.md run against this scene's files, placed where
+    `eco run configs/demo.toml` writes them (out/demo/)."""
+
+    def test_docs_examples_run(self):
+        with open(os.path.join(ROOT, "docs", "python.md")) as f:
+            blocks = re.findall(r"```python\n(.*?)```", f.read(), re.S)
+        self.assertGreaterEqual(len(blocks), 4)
+        demo = path("docs/out/demo")
+        os.makedirs(demo, exist_ok=True)
+        for source, name in (("scene.h5", "scene.h5"), ("db.h5", "biome-db.h5"), ("sim.h5", "simulation.h5"),
+                             ("abiotics.h5", "abiotics.h5")):
+            if not os.path.exists(os.path.join(demo, name)):
+                os.symlink(path(source), os.path.join(demo, name))
+        cwd = os.getcwd()
+        os.chdir(path("docs"))
+        try:
+            for i, block in enumerate(blocks):
+                with self.subTest(block=i):
+                    with contextlib.redirect_stdout(io.StringIO()):
+                        exec(compile(block, f"docs/python.md block {i + 1}", "exec"), {"__name__": "docs_example"})
+        finally:
+            os.chdir(cwd)
 
 
 if __name__ == "__main__":
