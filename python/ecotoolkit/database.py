@@ -142,7 +142,7 @@ def read_database(path):
         db.canopy_subbiome_mask = f["species/canopy_subbiome_mask"][()] if "species/canopy_subbiome_mask" in f else None
         db.sub_biome_names = read_strings(f["sub_biomes/names"])
         names = read_strings(f["categories/names"])
-        width = max(1, *map(len, names))
+        width = max([1, *map(len, names)])
         db.categories = np.empty(len(names), dtype=[("name", f"U{width}"), ("layer", "i4"), ("species", "i4")])
         db.categories["name"] = names
         db.categories["layer"] = f["categories/layer"][()]

@@ -96,7 +96,7 @@ def read_plants(f, group, path):
     if has_id:
         ids = g["id"][()]
         columns.insert(0, ("id", ids.astype(np.int64)))
-    columns.append(("species", np.array([names[i] for i in species_id], dtype=f"U{max(1, *map(len, names))}")))
+    columns.append(("species", np.array([names[i] for i in species_id], dtype=f"U{max([1, *map(len, names)])}")))
     columns += [(c, g[c][()].astype(np.float64)) for c in _FLOAT_COLUMNS]
     columns += [(c, g[c][()].astype(np.float64)) for c in _STATE_COLUMNS if c in g]
     for name, values in columns:

@@ -421,6 +421,25 @@ class TestFormatChecks(unittest.TestCase):
         with self.assertRaisesRegex(eco.EcoFormatError, r"not-hdf5\.h5: cannot open as HDF5"):
             eco.open(path("not-hdf5.h5"))
 
+    def test_empty_table_and_variable_length_names_are_read(self):
+        # An empty plant group, and names stored as variable-length strings (files written
+        # before names became fixed-length, docs/hdf5.md).
+        target = path("canopy-edge.h5")
+        shutil.copyfile(path("canopy.h5"), target)
+        with h5py.File(target, "r+") as f:
+            g = f["canopy"]
+            names = [n.decode() for n in g["species_names"][()]]
+            del g["species_names"]
+            g.create_dataset("species_names", data=names, dtype=h5py.string_dtype())
+            for k in ("species_id", "x", "y", "ground_z", "height", "crown_radius"):
+                dtype = g[k].dtype
+                del g[k]
+                g.create_dataset(k, shape=(0,), dtype=dtype)
+        c = eco.read_canopy(target)
+        self.assertEqual(len(c.trees), 0)
+        self.assertEqual(c.trees.counts(), {})
+        self.assertEqual(c.trees.species_names, names)
+
     def test_terrain_written_before_files_were_marked_is_read(self):
         # eco's own readers take any file with /terrain/elevation (docs/hdf5.md).
         target = self.copy_with("terrain.h5", "old-terrain.h5", format=None, schema_version=None)
