@@ -75,8 +75,8 @@ void registerDatabaseCommands(CLI::App& app) {
     CLI::App* sub = group->add_subcommand(
         "build",
         "A complete biome database from one command: an ensemble (eco ensemble) of one simulation per combination of the "
-        "biome's canopy sub-biomes (15 for 4) on each of several terrains (generated with relief and base elevation "
-        "spread over --relief and --base-elevation, or given with --terrain), analysed into one database, and "
+        "biome's canopy sub-biomes (15 for 4) on each of several terrains (generated with valley depth and base "
+        "elevation spread over --valley-depth and --base-elevation, or given with --terrain), analysed into one database, and "
         "a coverage table (combination x cluster: simulated area, plants, replicates, mean sun, moisture, temperature "
         "and slope) printed and stored as DB-coverage.csv. Restartable and MPI-capable as eco ensemble (docs/ensemble.md).");
     sub->add_option("biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)")->check(CLI::ExistingFile);
@@ -93,9 +93,10 @@ void registerDatabaseCommands(CLI::App& app) {
                     "A terrain of your own (.asc, .h5, .tif, ...; repeatable): every combination is also simulated on it, "
                     "on a plot of --plot metres centred in it")
         ->check(CLI::ExistingFile);
-    sub->add_option("--relief", [&o](const CLI::results_t& r) { return parseRange(r, o.reliefMinM, o.reliefMaxM); },
-                    "Relief of the generated terrains, MIN,MAX metres: terrain t of N gets MIN + (t-1)/(N-1) (MAX - MIN)")
-        ->default_str("35,140");
+    sub->add_option("--valley-depth", [&o](const CLI::results_t& r) { return parseRange(r, o.valleyDepthMinM, o.valleyDepthMaxM); },
+                    "Valley depth of the generated terrains, MIN,MAX metres: terrain t of N gets MIN + (t-1)/(N-1) (MAX - MIN); "
+                    "it sets their slopes, moisture routing and sun on aspects")
+        ->default_str("8,60");
     sub->add_option("--base-elevation",
                     [&o](const CLI::results_t& r) { return parseRange(r, o.baseElevationMinM, o.baseElevationMaxM); },
                     "Base elevation of the generated terrains, MIN,MAX metres (spread as --relief; with the lapse rate "

@@ -86,10 +86,11 @@ std::vector<std::string> combinationTargets(const Biome& biome, int mask) {
 std::pair<double, double> generatedTerrainShape(const DatabaseBuildOptions& o, int t, int n) {
     if (n <= 1) {
         const TerrainGenParams defaults;
-        return {defaults.reliefM, defaults.baseElevationM};
+        return {defaults.valleyDepthM, defaults.baseElevationM};
     }
     const double f = static_cast<double>(t - 1) / static_cast<double>(n - 1);
-    return {o.reliefMinM + f * (o.reliefMaxM - o.reliefMinM), o.baseElevationMinM + f * (o.baseElevationMaxM - o.baseElevationMinM)};
+    return {o.valleyDepthMinM + f * (o.valleyDepthMaxM - o.valleyDepthMinM),
+            o.baseElevationMinM + f * (o.baseElevationMaxM - o.baseElevationMinM)};
 }
 
 std::string writeDatabaseBuildSpec(const DatabaseBuildOptions& o) {
@@ -106,12 +107,12 @@ std::string writeDatabaseBuildSpec(const DatabaseBuildOptions& o) {
     if (!(o.plotM >= 10)) throw ValidationError("--plot: must be at least 10 m, got " + formatNumber(o.plotM, 6));
     if (o.years < 1 || o.years > 100000) throw ValidationError("--years: must be in 1 .. 100000, got " + std::to_string(o.years));
     if (o.kMax < 1 || o.kMax > 64) throw ValidationError("--kmax: must be in 1 .. 64, got " + std::to_string(o.kMax));
-    if (!(o.reliefMinM >= 0 && o.reliefMaxM >= o.reliefMinM))
-        throw ValidationError("relief range " + formatNumber(o.reliefMinM, 6) + " .. " + formatNumber(o.reliefMaxM, 6) +
-                              " m: must be non-negative and ascending");
+    if (!(o.valleyDepthMinM > 0 && o.valleyDepthMaxM >= o.valleyDepthMinM))
+        throw ValidationError("--valley-depth " + formatNumber(o.valleyDepthMinM, 6) + "," + formatNumber(o.valleyDepthMaxM, 6) +
+                              ": must be positive and ascending");
     if (!(o.baseElevationMaxM >= o.baseElevationMinM))
-        throw ValidationError("base elevation range " + formatNumber(o.baseElevationMinM, 6) + " .. " +
-                              formatNumber(o.baseElevationMaxM, 6) + " m: must be ascending");
+        throw ValidationError("--base-elevation " + formatNumber(o.baseElevationMinM, 6) + "," +
+                              formatNumber(o.baseElevationMaxM, 6) + ": must be ascending");
     const Biome biome = o.biome.empty() ? defaultBiome() : loadBiome(o.biome);
     const std::vector<int> masks = allowedCombinations(biome);
     if (masks.empty()) throw ValidationError((o.biome.empty() ? "the default biome" : o.biome) + ": no sub-biome has canopy species");
@@ -143,7 +144,7 @@ std::string writeDatabaseBuildSpec(const DatabaseBuildOptions& o) {
       << "\nseed = " << o.seed << "\nmembers_at_once = " << o.membersAtOnce << "\n\n"
       << "[ensemble.base.run]\nout_dir = \"set per member\"\n";
     if (!o.biome.empty()) t << "biome = " << quoted(o.biome) << "\n";
-    // The terrain is set per member: generated (its size, seed, relief and base elevation) or
+    // The terrain is set per member: generated (its size, seed, valley depth and base elevation) or
     // a given file.
     t << "[ensemble.base.terrain]\n[ensemble.base.chm]\n[ensemble.base.abiotics]\nsun_step_minutes = 30\n"
       << "[ensemble.base.canopy]\n[ensemble.base.simulate]\nconfig = " << quoted(o.simConfig) << "\nyears = " << o.years
@@ -158,12 +159,12 @@ std::string writeDatabaseBuildSpec(const DatabaseBuildOptions& o) {
     };
     for (int mask : masks) {
         for (int terrain = 1; terrain <= o.terrains; ++terrain) {
-            const auto [relief, base] = generatedTerrainShape(o, terrain, o.terrains);
+            const auto [valley, base] = generatedTerrainShape(o, terrain, o.terrains);
             std::snprintf(name, sizeof name, "c%02d-t%d", mask, terrain);
             t << "\n[[member]]\nname = \"" << name << "\"  # " << combinationName(subBiomeNames, mask)
               << "\n\"terrain.seed\" = " << terrain << "\n\"terrain.width\" = " << o.terrainCells
               << "\n\"terrain.height\" = " << o.terrainCells << "\n\"terrain.cell_size_m\" = " << argNumber(kCellSizeM)
-              << "\n\"terrain.relief_m\" = " << argNumber(relief) << "\n\"terrain.base_elevation_m\" = " << argNumber(base)
+              << "\n\"terrain.valley_depth_m\" = " << argNumber(valley) << "\n\"terrain.base_elevation_m\" = " << argNumber(base)
               << "\n\"run.seed\" = " << terrain << "\n" << targetsLine(mask);
         }
         for (std::size_t f = 0; f < given.size(); ++f) {

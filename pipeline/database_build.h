@@ -22,10 +22,12 @@ struct DatabaseBuildOptions {
     /// Terrains the user gives (any format eco terrain reads; images need their cell size in
     /// the file): every combination is simulated on each too, on a plot centred in it.
     std::vector<std::string> terrainFiles;
-    /// Generated terrain t of N spreads its relief and base elevation over these ranges
+    /// Generated terrain t of N spreads its valley depth and base elevation over these ranges
     /// (first to last; one terrain takes the generator's defaults), so that the members'
     /// slopes, moisture routing, sun on aspects and temperatures (the lapse rate) differ.
-    double reliefMinM = 35, reliefMaxM = 140;
+    /// (The hills' relief was tried first: on terrains of a few hundred metres the valley's
+    /// walls set the slopes, and relief 35 or 140 m gave the same abiotics.)
+    double valleyDepthMinM = 8, valleyDepthMaxM = 60;
     double baseElevationMinM = 0, baseElevationMaxM = 600;
     int terrainCells = 160;  ///< terrain width and height in cells of 0.914 m
     double plotM = 100;      ///< side of the simulated plot, centred on the terrain
@@ -62,7 +64,7 @@ std::vector<CoverageRow> coverage(const BiomeDatabase& db, const Biome& biome);
 std::string coverageText(const std::vector<CoverageRow>& rows);
 std::string coverageCsv(const std::vector<CoverageRow>& rows);
 
-/// Relief and base elevation (m) of generated terrain `t` (1-based) of `n` in a build.
+/// Valley depth and base elevation (m) of generated terrain `t` (1-based) of `n` in a build.
 std::pair<double, double> generatedTerrainShape(const DatabaseBuildOptions& options, int t, int n);
 
 }  // namespace eco::pipeline

@@ -148,6 +148,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             terrainParams.cellSizeM = asOnCommandLine(t.numberInOr("cell_size_m", kMinCellSizeM, kMaxCellSizeM, 0.914));
             terrainParams.seed = seedValue(t, "seed", t.integerOr("seed", seed));
             terrainParams.reliefM = asOnCommandLine(t.numberInOr("relief_m", 0.0, 5000.0, terrainParams.reliefM));
+            terrainParams.valleyDepthM = asOnCommandLine(t.numberInOr("valley_depth_m", 0.01, 5000.0, terrainParams.valleyDepthM));
             terrainParams.baseElevationM =
                 asOnCommandLine(t.numberInOr("base_elevation_m", -500.0, 9000.0, terrainParams.baseElevationM));
             stages.push_back({"terrain", generatedTerrain("", terrainParams)});

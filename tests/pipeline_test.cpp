@@ -223,15 +223,15 @@ TEST_CASE("database build: one member per sub-biome combination and terrain, eac
     CHECK(spec.members.front().id == "c01-t1");
     CHECK(spec.members.back().id == "c15-t2");
     CHECK(spec.databasePath == o.out);
-    // Generated terrains spread relief and base elevation from the first to the last.
+    // Generated terrains spread valley depth and base elevation from the first to the last.
     const auto number = [&](std::size_t member, const char* key) {
         const toml::node* v = spec.members[member].overrides.get(key);
         REQUIRE(v != nullptr);
         return v->is_integer() ? static_cast<double>(v->as_integer()->get()) : v->as_floating_point()->get();
     };
-    CHECK(number(0, "terrain.relief_m") == 35);
+    CHECK(number(0, "terrain.valley_depth_m") == 8);
     CHECK(number(0, "terrain.base_elevation_m") == 0);
-    CHECK(number(1, "terrain.relief_m") == 140);
+    CHECK(number(1, "terrain.valley_depth_m") == 60);
     CHECK(number(1, "terrain.base_elevation_m") == 600);
     CHECK(number(1, "terrain.width") == 160);
     o.plotM = 500;  // wider than the 146 m terrain
@@ -259,7 +259,7 @@ TEST_CASE("database build: one member per sub-biome combination and terrain, eac
     CHECK(c == std::vector<double>{1015, 2005, 1045, 2035});  // centre (1030, 2020)
     CHECK(mixed.members[1].overrides.get("terrain.seed") == nullptr);
     // One generated terrain takes the generator's defaults.
-    CHECK(mixed.members[0].overrides.get("terrain.relief_m")->value<double>().value() == eco::TerrainGenParams{}.reliefM);
+    CHECK(mixed.members[0].overrides.get("terrain.valley_depth_m")->value<double>().value() == eco::TerrainGenParams{}.valleyDepthM);
     // A terrain too small for the plot is refused, naming it.
     o.plotM = 45;
     CHECK_THROWS_WITH(eco::pipeline::writeDatabaseBuildSpec(o), Catch::Contains("own.asc") && Catch::Contains("--plot"));
