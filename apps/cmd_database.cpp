@@ -99,7 +99,7 @@ void registerDatabaseCommands(CLI::App& app) {
         ->default_str("8,60");
     sub->add_option("--base-elevation",
                     [&o](const CLI::results_t& r) { return parseRange(r, o.baseElevationMinM, o.baseElevationMaxM); },
-                    "Base elevation of the generated terrains, MIN,MAX metres (spread as --relief; with the lapse rate "
+                    "Base elevation of the generated terrains, MIN,MAX metres (spread as --valley-depth; with the lapse rate "
                     "it spreads temperature)")
         ->default_str("0,600");
     sub->add_option("--terrain-cells", o.terrainCells, "Terrain width and height in cells of 0.914 m, 32..4096")->capture_default_str();
