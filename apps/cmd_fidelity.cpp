@@ -87,8 +87,8 @@ void registerFidelityCommand(CLI::App& app) {
     refine->each([args](const std::string&) { args->given.insert("--refine"); });
     opt("--refine-sweeps", a->refineSweeps, "Refinement sweeps")->capture_default_str()->check(CLI::PositiveNumber);
     opt("--synth-method", a->synthMethod,
-        "Undergrowth sampler of the synthesis: structured (default) or darts (the earlier one); outputs of darts are "
-        "named scene-darts*.h5, fidelity-darts*.md")
+        "Undergrowth sampler of the synthesis: structured (default), darts (the earlier one), deussen or xu2015 (its "
+        "exemplar is simulation A); outputs of another than structured are named scene-METHOD*.h5, fidelity-METHOD*.md")
         ->capture_default_str();
     opt("--seed-a", a->seedA, "Seed of simulation A")->capture_default_str()->check(nonNegativeNumber());
     opt("--seed-b", a->seedB, "Seed of simulation B")->capture_default_str()->check(nonNegativeNumber());

@@ -21,6 +21,7 @@ struct SynthArgs {
     synth::RefineParams refine;  // the --refine-* values (defaults shown in --help)
     CLI::Option *sweepsOpt = nullptr, *rMaxOpt = nullptr, *moveOpt = nullptr, *swapOpt = nullptr;
     CLI::Option *lloydOpt = nullptr, *minDistanceOpt = nullptr;
+    std::vector<CLI::Option*> xuOnly;  // --exemplar and the --xu-* options
 };
 
 void runSynth(SynthArgs& a) {
@@ -29,6 +30,11 @@ void runSynth(SynthArgs& a) {
     for (CLI::Option* deussenOnly : {a.lloydOpt, a.minDistanceOpt})
         if (deussenOnly->count() && a.method != "deussen")
             usageError(deussenOnly->get_name(), "read by --method deussen only (method is '" + a.method + "')");
+    for (CLI::Option* xuOnly : a.xuOnly)
+        if (xuOnly->count() && a.method != "xu2015")
+            usageError(xuOnly->get_name(), "read by --method xu2015 only (method is '" + a.method + "')");
+    if (a.method == "xu2015" && o.exemplar.empty())
+        usageError("--method", "xu2015 needs an exemplar stand: --exemplar FILE (a simulation file or a plant CSV)");
     if (a.cellOpt->count()) o.terrainRead.cellSizeM = a.cellSizeM;
     if (a.scaleOpt->count()) o.terrainRead.verticalScale = a.verticalScale;
     if (a.offsetOpt->count()) o.terrainRead.verticalOffsetM = a.verticalOffsetM;
@@ -98,8 +104,10 @@ void registerSynthCommand(CLI::App& app) {
                     "database's pair correlation; heights below the crown above, radius by allometry), 'darts' "
                     "(the earlier uniform darts with sizes from the histograms) or 'deussen' (Deussen et al. 1998: "
                     "the density map half-toned by Floyd-Steinberg error diffusion, then Lloyd relaxation with "
-                    "minimum distances, canopy fixed; sizes as 'structured')")
-        ->check(oneOf({"structured", "darts", "deussen"}))
+                    "minimum distances, canopy fixed; sizes as 'structured') or 'xu2015' (Xu et al. 2015: the pattern "
+                    "of an exemplar stand (--exemplar) grown outwards by copying the neighbourhood of the exemplar plant "
+                    "whose shells x sectors histogram matches best; sizes copied, canopy and cluster map respected)")
+        ->check(oneOf({"structured", "darts", "deussen", "xu2015"}))
         ->capture_default_str();
     cmd->add_option("--density-image", a->densityImage,
                     "--method deussen: a greyscale image (PNG, TIFF) of the terrain's size, value = relative density "
@@ -113,6 +121,34 @@ void registerSynthCommand(CLI::App& app) {
     args->minDistanceOpt = cmd->add_option("--min-distance-factor", a->params.deussen.minDistanceFactor, deussenHelp("deussen_min_distance_factor"))
         ->check(deussenCheck("deussen_min_distance_factor"))
         ->capture_default_str();
+    args->xuOnly.push_back(cmd->add_option(
+        "--exemplar", a->exemplar,
+        "--method xu2015: the exemplar stand, a simulation file of 'eco simulate' (HDF5: the undergrowth of a snapshot "
+        "in the simulated area) or a plant CSV with the columns x, y, species (names of the database's biome), height "
+        "and crown_radius (x_m, y_m, height_m, crown_radius_m also; other columns ignored; with a 'layer' column only "
+        "its 'undergrowth' rows, so eco synth's and eco simulate's CSVs are read as they are)"));
+    args->xuOnly.push_back(cmd->add_option("--exemplar-year", a->exemplarYear,
+                                           "--method xu2015: snapshot year of a simulation exemplar (default: the last)")
+                               ->check(CLI::NonNegativeNumber));
+    args->xuOnly.push_back(
+        cmd->add_option("--exemplar-window", a->exemplarWindow,
+                        "--method xu2015: the exemplar's plot x0,y0,x1,y1 in metres; plants outside are left out (default: "
+                        "a simulation's area, a CSV's bounding box)")
+            ->check(parsedBy("--exemplar-window", [](const std::string& t) { parseWindow(t, "--exemplar-window"); })));
+    auto xuHelp = [](const char* key) { return paramHelp(paramField(synth::xuParamFields(), key), "--method xu2015: "); };
+    auto xuCheck = [](const char* key) { return paramCheck(paramField(synth::xuParamFields(), key)); };
+    args->xuOnly.push_back(cmd->add_option("--xu-radius-factor", a->params.xu.radiusFactor, xuHelp("xu_radius_factor"))
+                               ->check(xuCheck("xu_radius_factor"))
+                               ->capture_default_str());
+    args->xuOnly.push_back(cmd->add_option("--xu-sigma", a->params.xu.sigma, xuHelp("xu_sigma"))
+                               ->check(xuCheck("xu_sigma"))
+                               ->capture_default_str());
+    args->xuOnly.push_back(cmd->add_option("--xu-candidates", a->params.xu.candidates, xuHelp("xu_candidates"))
+                               ->check(xuCheck("xu_candidates"))
+                               ->capture_default_str());
+    args->xuOnly.push_back(cmd->add_option("--xu-tile", a->params.xu.tileM, xuHelp("xu_tile_m"))
+                               ->check(xuCheck("xu_tile_m"))
+                               ->capture_default_str());
     cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))
         ->check(synthCheck("max_passes"))
         ->capture_default_str();

@@ -1,11 +1,15 @@
 #include "plants.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 
 #include "atomic_file.h"
 #include "error.h"
+#include "text_format.h"
 
 namespace eco {
 
@@ -198,6 +202,81 @@ void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthP
                          p.heightM, p.crownRadiusM, static_cast<unsigned long long>(p.id), p.ageYears, p.growthAgeYears,
                          p.vigour, p.pool);
     });
+}
+
+std::vector<Plant> readPlantsCsv(const std::string& path, const Biome& biome, const std::string& layer) {
+    std::ifstream in(path);
+    if (!in) throw IoError(path + ": cannot open file (missing or unreadable)");
+    std::string line;
+    std::vector<std::string> fields;
+    int lineNo = 0;
+    int cx = -1, cy = -1, cs = -1, ch = -1, cr = -1, cz = -1, cl = -1;
+    std::size_t nFields = 0;
+    bool header = false;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        const std::string t = trimmedText(line);
+        if (t.empty() || t[0] == '#') continue;
+        if (!splitCsvLine(line, fields)) throw IoError(path + ":" + std::to_string(lineNo) + ": unterminated quote in the header");
+        for (std::size_t i = 0; i < fields.size(); ++i) {
+            std::string h = fields[i];
+            std::transform(h.begin(), h.end(), h.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+            const int c = static_cast<int>(i);
+            if ((h == "x" || h == "x_m") && cx < 0) cx = c;
+            else if ((h == "y" || h == "y_m") && cy < 0) cy = c;
+            else if (h == "species" && cs < 0) cs = c;
+            else if ((h == "height" || h == "height_m") && ch < 0) ch = c;
+            else if ((h == "crown_radius" || h == "crown_radius_m") && cr < 0) cr = c;
+            else if ((h == "ground_z" || h == "ground_z_m") && cz < 0) cz = c;
+            else if (h == "layer" && cl < 0) cl = c;
+        }
+        nFields = fields.size();
+        header = true;
+        break;
+    }
+    if (!header) throw IoError(path + ": no header line (the file is empty)");
+    const std::pair<int, const char*> required[] = {
+        {cx, "x (or x_m)"}, {cy, "y (or y_m)"}, {cs, "species"}, {ch, "height (or height_m)"}, {cr, "crown_radius (or crown_radius_m)"}};
+    for (const auto& [col, name] : required)
+        if (col < 0)
+            throw IoError(path + ":" + std::to_string(lineNo) + ": the header has no column " + name +
+                          " (a plant CSV needs x, y, species, height and crown_radius)");
+    std::vector<Plant> plants;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        const std::string t = trimmedText(line);
+        if (t.empty() || t[0] == '#') continue;
+        const std::string where = path + ":" + std::to_string(lineNo) + ": ";
+        if (!splitCsvLine(line, fields)) throw IoError(where + "unterminated quote");
+        if (fields.size() != nFields)
+            throw IoError(where + "expected " + std::to_string(nFields) + " fields as in the header, found " +
+                          std::to_string(fields.size()));
+        if (cl >= 0 && !layer.empty() && fields[static_cast<std::size_t>(cl)] != layer) continue;
+        auto number = [&](int col, const char* name) {
+            const std::string& f = fields[static_cast<std::size_t>(col)];
+            char* end = nullptr;
+            const double v = std::strtod(f.c_str(), &end);
+            if (f.empty() || end != f.c_str() + f.size() || !std::isfinite(v))
+                throw IoError(where + "column " + name + ": '" + f + "' is not a finite number");
+            return v;
+        };
+        Plant p;
+        const std::string& name = fields[static_cast<std::size_t>(cs)];
+        try {
+            p.speciesId = biome.speciesIndex(name);
+        } catch (const ValidationError& e) {
+            throw IoError(where + "column species: " + e.what());
+        }
+        p.xM = number(cx, "x");
+        p.yM = number(cy, "y");
+        p.groundZM = cz >= 0 ? number(cz, "ground_z") : 0.0;
+        p.heightM = number(ch, "height");
+        p.crownRadiusM = number(cr, "crown_radius");
+        if (p.heightM < 0) throw IoError(where + "column height: " + formatNumber(p.heightM) + " is negative");
+        if (p.crownRadiusM < 0) throw IoError(where + "column crown_radius: " + formatNumber(p.crownRadiusM) + " is negative");
+        plants.push_back(p);
+    }
+    return plants;
 }
 
 }  // namespace eco

@@ -86,4 +86,16 @@ void writePlantLayersCsv(const std::string& path, const std::vector<PlantLayer>&
 /// radius to 10 um) followed by id, age_years, growth_age_years, vigour, pool. Atomic.
 void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthPlant>& plants, const Biome& biome);
 
+/// Plants from a CSV file (a field stem map, or our own CSVs: writePlantsCsv, eco simulate's
+/// undergrowth CSV, eco synth's scene CSV). The header names at least the columns x (or x_m),
+/// y (or y_m), species (a species NAME of `biome`), height (or height_m) and crown_radius (or
+/// crown_radius_m), in any order and case; other columns (species_id, ground_z_m, the
+/// simulator's state) are ignored; ground_z is read when present, else 0. With a column
+/// `layer` and a non-empty `layer` argument only the rows of that layer are read (eco synth's
+/// CSV: "undergrowth"). Blank lines and lines starting with '#' are skipped; fields may be
+/// "quoted". IoError "FILE:LINE: ..." naming the column and value for a missing file or
+/// column, a row of another length, a number that is not finite, a negative size or a species
+/// that is not in the biome.
+std::vector<Plant> readPlantsCsv(const std::string& path, const Biome& biome, const std::string& layer = "");
+
 }  // namespace eco

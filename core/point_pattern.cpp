@@ -28,12 +28,7 @@ std::string num(double v) { return formatNumber(v, 10); }
 /// so that the chunked floating-point sums, added in chunk order, are bit-identical.
 constexpr std::size_t kChunkPoints = 2048;
 
-std::string trimmed(const std::string& s) {
-    const auto b = s.find_first_not_of(" \t\r");
-    if (b == std::string::npos) return {};
-    const auto e = s.find_last_not_of(" \t\r");
-    return s.substr(b, e - b + 1);
-}
+std::string trimmed(const std::string& s) { return trimmedText(s); }
 
 }  // namespace
 
@@ -368,37 +363,7 @@ PairSums countPairs(const PointPattern& pattern, const RectWindow& window, const
 
 namespace {
 
-/// Split one CSV line; fields may be double-quoted ("" is a quote inside quotes).
-bool splitCsv(const std::string& line, std::vector<std::string>& out) {
-    out.clear();
-    std::string field;
-    bool quoted = false, wasQuoted = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-        const char c = line[i];
-        if (quoted) {
-            if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-                field += '"';
-                ++i;
-            } else if (c == '"') {
-                quoted = false;
-            } else {
-                field += c;
-            }
-        } else if (c == '"' && field.find_first_not_of(" \t") == std::string::npos) {
-            quoted = wasQuoted = true;
-            field.clear();
-        } else if (c == ',') {
-            out.push_back(wasQuoted ? field : trimmed(field));
-            field.clear();
-            wasQuoted = false;
-        } else if (c != '\r') {
-            field += c;
-        }
-    }
-    if (quoted) return false;
-    out.push_back(wasQuoted ? field : trimmed(field));
-    return true;
-}
+bool splitCsv(const std::string& line, std::vector<std::string>& out) { return splitCsvLine(line, out); }
 
 }  // namespace
 

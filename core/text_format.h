@@ -3,6 +3,7 @@
 
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace eco {
 
@@ -22,6 +23,47 @@ inline std::string csvField(const std::string& s) {
     std::string out = "\"";
     for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
     return out + "\"";
+}
+
+/// `s` without leading and trailing blanks, tabs and carriage returns.
+inline std::string trimmedText(const std::string& s) {
+    const auto b = s.find_first_not_of(" \t\r");
+    if (b == std::string::npos) return {};
+    const auto e = s.find_last_not_of(" \t\r");
+    return s.substr(b, e - b + 1);
+}
+
+/// Split one CSV line into `out`; fields may be double-quoted ("" is a quote inside quotes),
+/// unquoted fields are trimmed. False when a quote is not closed on the line.
+inline bool splitCsvLine(const std::string& line, std::vector<std::string>& out) {
+    out.clear();
+    std::string field;
+    bool quoted = false, wasQuoted = false;
+    for (std::size_t i = 0; i < line.size(); ++i) {
+        const char c = line[i];
+        if (quoted) {
+            if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+                field += '"';
+                ++i;
+            } else if (c == '"') {
+                quoted = false;
+            } else {
+                field += c;
+            }
+        } else if (c == '"' && field.find_first_not_of(" \t") == std::string::npos) {
+            quoted = wasQuoted = true;
+            field.clear();
+        } else if (c == ',') {
+            out.push_back(wasQuoted ? field : trimmedText(field));
+            field.clear();
+            wasQuoted = false;
+        } else if (c != '\r') {
+            field += c;
+        }
+    }
+    if (quoted) return false;
+    out.push_back(wasQuoted ? field : trimmedText(field));
+    return true;
 }
 
 }  // namespace eco

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <ostream>
 #include <sstream>
@@ -14,6 +15,7 @@
 #include "error.h"
 #include "geo_raster.h"
 #include "image_out.h"
+#include "sim_file.h"
 #include "terrain_io.h"
 #include "text_format.h"
 
@@ -28,16 +30,78 @@ std::string num(double v, int precision = 6) { return formatNumber(v, precision)
 
 }  // namespace
 
+synth::XuExemplar readExemplar(const std::string& path, int year, const std::string& windowText, const Biome& biome) {
+    synth::XuExemplar ex;
+    ex.source = "exemplar '" + path + "'";
+    bool hdf5 = false;
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) throw IoError(ex.source + ": cannot open file (missing or unreadable)");
+        char sig[8] = {};
+        in.read(sig, 8);
+        hdf5 = in.gcount() == 8 && std::string(sig, 8) == std::string("\x89HDF\r\n\x1a\n", 8);
+    }
+    std::optional<RectWindow> recorded;
+    if (hdf5) {
+        const SimulationFileData sim = readSimulationFile(path, year);
+        ex.source = "exemplar '" + path + "' (year " + std::to_string(sim.year) + ")";
+        for (const Plant& p : sim.undergrowth) {
+            Plant q = p;
+            const std::string& name = sim.biome.species[static_cast<std::size_t>(p.speciesId)].name;
+            try {
+                q.speciesId = biome.speciesIndex(name);
+            } catch (const ValidationError& e) {
+                throw ValidationError(ex.source + ": " + e.what());
+            }
+            ex.plants.push_back(q);
+        }
+        if (sim.area) recorded = RectWindow{(*sim.area)[0], (*sim.area)[1], (*sim.area)[2], (*sim.area)[3]};
+    } else {
+        if (year >= 0) throw ValidationError("--exemplar-year " + std::to_string(year) + ": " + ex.source + " is a CSV, not a simulation file");
+        ex.plants = readPlantsCsv(path, biome, "undergrowth");
+    }
+    if (!windowText.empty()) {  // a crop: the plants inside
+        ex.window = parseWindow(windowText, "--exemplar-window");
+        ex.source += " in " + windowText;
+        std::vector<Plant> inside;
+        for (const Plant& p : ex.plants)
+            if (ex.window.contains(p.xM, p.yM)) inside.push_back(p);
+        ex.plants = std::move(inside);
+    }
+    if (ex.plants.empty()) throw ValidationError(ex.source + ": no undergrowth plants; the Xu 2015 sampler copies an exemplar's plants");
+    if (!windowText.empty()) {
+    } else if (recorded) {
+        ex.window = *recorded;
+    } else {
+        ex.window = RectWindow{ex.plants[0].xM, ex.plants[0].yM, ex.plants[0].xM, ex.plants[0].yM};
+        for (const Plant& p : ex.plants) {
+            ex.window.x0 = std::min(ex.window.x0, p.xM);
+            ex.window.y0 = std::min(ex.window.y0, p.yM);
+            ex.window.x1 = std::max(ex.window.x1, p.xM);
+            ex.window.y1 = std::max(ex.window.y1, p.yM);
+        }
+        if (!(ex.window.x1 > ex.window.x0 && ex.window.y1 > ex.window.y0))
+            throw ValidationError(ex.source + ": its " + std::to_string(ex.plants.size()) +
+                                  " plants span no area (give --exemplar-window x0,y0,x1,y1)");
+    }
+    return ex;
+}
+
 SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     std::ostream& out = reporter.out();
     SynthResult result;
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
     requireOutputsNotInputs({{"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--gpkg", a.gpkg}},
-                            {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage});
+                            {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage, a.exemplar});
     synth::SynthParams params = a.params;
     params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
+    if (!a.exemplar.empty() && params.method != synth::SynthMethod::Xu2015)
+        throw ValidationError("--exemplar '" + a.exemplar + "' is read by --method xu2015 only (method is '" +
+                              synth::toString(params.method) + "')");
+    if (a.exemplar.empty() && params.method == synth::SynthMethod::Xu2015)
+        throw ValidationError("--method xu2015 needs an exemplar stand: --exemplar FILE (a simulation file or a plant CSV)");
     if (!a.densityImage.empty() && params.method != synth::SynthMethod::Deussen)
         throw ValidationError("--density-image '" + a.densityImage + "' is read by --method deussen only (method is '" +
                               synth::toString(params.method) + "')");
@@ -90,6 +154,14 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         reporter.info("density image: " + a.densityImage + ": relative density per cell (white densest) times the database's "
                       "density map, scaled to the database's total over the terrain");
     }
+    std::optional<synth::XuExemplar> exemplar;
+    if (!a.exemplar.empty()) {
+        exemplar = readExemplar(a.exemplar, a.exemplarYear, a.exemplarWindow, biome);
+        const RectWindow& w = exemplar->window;
+        reporter.info(exemplar->source + ": " + std::to_string(exemplar->plants.size()) + " undergrowth plants in " + num(w.x0) +
+                      "," + num(w.y0) + "," + num(w.x1) + "," + num(w.y1) + " (" +
+                      num(static_cast<double>(exemplar->plants.size()) / w.areaM2(), 4) + " per m2)");
+    }
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
     for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
@@ -138,7 +210,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     }
 
     synth::UndergrowthSample sample =
-        synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params, densityImage ? &*densityImage : nullptr);
+        synth::sampleUndergrowth(db, biome, canopy, clusters, terrain, params, densityImage ? &*densityImage : nullptr,
+                                 exemplar ? &*exemplar : nullptr);
     reporter.info("sampling: " + num(sample.seconds, 3) + " s; " + std::to_string(sample.plants.size()) + " undergrowth plants in " +
          std::to_string(sample.passes) + " passes (" + std::to_string(sample.darts) + " darts, " +
          std::to_string(sample.dartsOnTrunks) + " on trunks)");
@@ -172,6 +245,20 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         }
         for (const auto& ph : sample.phases) reporter.info("deussen: " + ph.name + " " + num(ph.wallS, 3) + " s");
         reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+    }
+    if (params.method == synth::SynthMethod::Xu2015) {
+        const synth::XuPattern& x = sample.xu;
+        reporter.info("xu2015: neighbourhood radius " + num(x.radiusM, 4) + " m (" + std::to_string(params.xu.shells) + " shells x " +
+                      std::to_string(params.xu.sectors) + " sectors), minimum distance " + num(x.minDistanceM, 4) + " m; " +
+                      std::to_string(x.interiorCandidates) + " interior exemplar plants; " + std::to_string(x.extensions) +
+                      " extensions (" + std::to_string(x.holeSeeds) + " from empty spots) in " + std::to_string(x.tiles) +
+                      " tiles; " + std::to_string(x.conflicts) + " copies refused (minimum distance), " +
+                      std::to_string(x.seamDrops) + " dropped at tile borders");
+        reporter.info("xu2015: dropped " + std::to_string(sample.xuDroppedOutsideRegion) +
+                      " where the cluster map has no region or the species cannot grow, " +
+                      std::to_string(sample.xuDroppedOnTrunk) + " on canopy trunks; " +
+                      std::to_string(sample.heightsLimitedByCrown) + " copied heights reached the crown above and were drawn below it");
+        for (const auto& ph : sample.phases) reporter.info("xu2015: " + ph.name + " " + num(ph.wallS, 3) + " s");
     }
     std::vector<Plant> undergrowth = std::move(sample.plants);
     sample.plants.clear();
@@ -234,6 +321,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     record.terrainSource = a.terrain;
     record.canopySource = a.canopy;
     record.densityImageSource = a.densityImage;
+    if (exemplar) record.exemplarSource = exemplar->source;
     record.abioticsSource = a.abiotics.empty() ? "computed from the terrain (default parameters)" : a.abiotics;
     // The scene file, side files and pictures are committed together (core/atomic_file.h):
     // a kill leaves the previous set, or a journal beside the scene that the next run completes.
@@ -340,6 +428,16 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
         args.insert(args.end(), {"--lloyd-iterations", std::to_string(a.params.deussen.lloydIterations)});
     if (a.params.deussen.minDistanceFactor != deussenDefaults.minDistanceFactor)
         args.insert(args.end(), {"--min-distance-factor", argNumber(a.params.deussen.minDistanceFactor)});
+    if (!a.exemplar.empty()) args.insert(args.end(), {"--exemplar", a.exemplar});
+    if (a.exemplarYear >= 0) args.insert(args.end(), {"--exemplar-year", std::to_string(a.exemplarYear)});
+    if (!a.exemplarWindow.empty()) args.insert(args.end(), {"--exemplar-window", a.exemplarWindow});
+    const synth::XuParams xuDefaults;
+    if (a.params.xu.radiusFactor != xuDefaults.radiusFactor)
+        args.insert(args.end(), {"--xu-radius-factor", argNumber(a.params.xu.radiusFactor)});
+    if (a.params.xu.sigma != xuDefaults.sigma) args.insert(args.end(), {"--xu-sigma", argNumber(a.params.xu.sigma)});
+    if (a.params.xu.candidates != xuDefaults.candidates)
+        args.insert(args.end(), {"--xu-candidates", std::to_string(a.params.xu.candidates)});
+    if (a.params.xu.tileM != xuDefaults.tileM) args.insert(args.end(), {"--xu-tile", argNumber(a.params.xu.tileM)});
     a.terrainRead.appendArgs(args);
     if (!a.zoom.empty()) args.insert(args.end(), {"--zoom", a.zoom});
     const synth::SynthParams synthDefaults;

@@ -26,6 +26,9 @@ struct SynthOptions {
     std::string refineWindow;  ///< refinement only inside "x0,y0,x1,y1"; "" = everywhere
     std::optional<std::string> method;  ///< undergrowth sampler by name; unset = structured
     std::string densityImage;  ///< --method deussen: relative density image of the terrain's size; "" = the database's map
+    std::string exemplar;      ///< --method xu2015: exemplar stand, a simulation file or a plant CSV (readExemplar)
+    int exemplarYear = -1;     ///< --method xu2015, simulation exemplar: snapshot year; -1 = the last
+    std::string exemplarWindow;  ///< --method xu2015: the exemplar's plot "x0,y0,x1,y1"; "" = recorded area or bounding box
     TerrainReadFlags terrainRead;
     bool refine = false;
     synth::SynthParams params;  ///< params.method is set from `method`
@@ -35,6 +38,17 @@ struct SynthOptions {
     synth::ForestFloorParams floorParams;
     bool noUndergrowthShade = false;  ///< only canopy crowns shade the forest floor
 };
+/// The exemplar stand of `eco synth --method xu2015` (docs/synth.md 2d): a simulation file
+/// from `eco simulate` (HDF5, recognised by its signature; the undergrowth of snapshot `year`,
+/// -1 = the last, in the simulated area it records) or a plant CSV (readPlantsCsv: columns x,
+/// y, species, height, crown_radius; with a layer column only its "undergrowth" rows, as in
+/// eco synth's CSV). Species are mapped by name onto `biome`. `windowText` "x0,y0,x1,y1" gives
+/// the plot and crops the plants to it; without it a simulation's recorded area, else the
+/// plants' bounding box. IoError /
+/// ValidationError naming the file for a missing or unreadable file, a missing column or
+/// snapshot, an unknown species, no plants, or a plant outside the window.
+synth::XuExemplar readExemplar(const std::string& path, int year, const std::string& windowText, const Biome& biome);
+
 struct SynthResult {
     std::size_t canopyTrees = 0, undergrowthPlants = 0;
     std::vector<std::string> written;

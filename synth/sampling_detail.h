@@ -248,4 +248,9 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 UndergrowthSample sampleDeussen(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                 const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
                                 const Grid<float>* densityImage);
+/// The Xu 2015 sampler (synth/xu2015_sampler.cpp); sampleUndergrowth calls it after checking
+/// the inputs when params.method is Xu2015.
+UndergrowthSample sampleXu2015(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
+                               const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
+                               const XuExemplar& exemplar);
 }  // namespace eco::synth

@@ -44,6 +44,7 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         if (sc.params.method == SynthMethod::Deussen)
             f.setAttr("/", "deussen_density_image", sc.densityImageSource.empty() ? std::string("none (the database's density map)")
                                                                                    : sc.densityImageSource);
+        if (sc.params.method == SynthMethod::Xu2015) f.setAttr("/", "xu_exemplar", sc.exemplarSource);
         f.setAttr("/", "refined", static_cast<std::int64_t>(sc.refined ? 1 : 0));
         if (sc.refined)
             for (const auto& [k, v] : sc.refineParams.asParameters()) f.setAttr("/", k, v);
@@ -152,6 +153,22 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
             f.writeF64("/regions/deussen_clark_evans_after", ceAfter, {m});
             f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
             f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
+        }
+
+        if (sc.params.method == SynthMethod::Xu2015) {
+            // The Xu 2015 sampler's record (docs/synth.md 2d).
+            const XuPattern& x = sc.sampling.xu;
+            f.setAttr("/regions", "xu_radius_m", x.radiusM);
+            f.setAttr("/regions", "xu_min_distance_m", x.minDistanceM);
+            f.setAttr("/regions", "xu_interior_candidates", x.interiorCandidates);
+            f.setAttr("/regions", "xu_extensions", x.extensions);
+            f.setAttr("/regions", "xu_hole_seeds", x.holeSeeds);
+            f.setAttr("/regions", "xu_conflicts", x.conflicts);
+            f.setAttr("/regions", "xu_seam_drops", x.seamDrops);
+            f.setAttr("/regions", "xu_tiles", static_cast<std::int64_t>(x.tiles));
+            f.setAttr("/regions", "xu_dropped_outside_region", sc.sampling.xuDroppedOutsideRegion);
+            f.setAttr("/regions", "xu_dropped_on_trunk", sc.sampling.xuDroppedOnTrunk);
+            f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
         }
 
         f.ensureGroup("/refinement");

@@ -40,6 +40,8 @@ struct SceneRecord {
     std::string databaseCreatedUtc, databaseCodeVersion;
     /// Deussen method: the density image read ("" = the database's density map).
     std::string densityImageSource;
+    /// Xu 2015 method: the exemplar read (file and snapshot).
+    std::string exemplarSource;
 };
 
 /// Write a scene file atomically. Layout (docs/synth.md):
@@ -55,7 +57,7 @@ struct SceneRecord {
 ///   /regions attributes with the Deussen method: per species in placement order its
 ///                              half-toning cell, minimum distance, dots, drops, Clark-Evans R
 ///   root attributes: format = "eco-scene", schema_version = 1, code_version,
-///   seed, every parameter by key (deussen_density_image with that method), database_path, terrain_source, canopy_source,
+///   seed, every parameter by key (deussen_density_image, xu_exemplar with those methods), database_path, terrain_source, canopy_source,
 ///   abiotics_source, biome_name, biome_toml, units.
 void writeSceneFile(const std::string& path, const SceneRecord& scene, const Biome& biome,
                     const BiomeDatabase& db);

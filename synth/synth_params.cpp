@@ -55,6 +55,7 @@ const std::vector<SynthParamField>& synthParamFields() {
 void SynthParams::validate() const {
     validateParams(*this, synthParamFields(), "synthesis parameter");
     deussen.validate();
+    xu.validate();
     if (!(clusterSigmaMaxM >= clusterSigmaMinM))
         throw ValidationError("synthesis parameter 'cluster_sigma_max_m' must be >= cluster_sigma_min_m (" +
                               num(clusterSigmaMinM) + "), got " + num(clusterSigmaMaxM));
@@ -64,6 +65,7 @@ const char* toString(SynthMethod m) {
     switch (m) {
         case SynthMethod::Darts: return "darts";
         case SynthMethod::Deussen: return "deussen";
+        case SynthMethod::Xu2015: return "xu2015";
         case SynthMethod::Structured: break;
     }
     return "structured";
@@ -73,7 +75,8 @@ SynthMethod parseSynthMethod(const std::string& name) {
     if (name == "structured") return SynthMethod::Structured;
     if (name == "darts") return SynthMethod::Darts;
     if (name == "deussen") return SynthMethod::Deussen;
-    throw ValidationError("synthesis: method '" + name + "' is not known (structured, darts or deussen)");
+    if (name == "xu2015") return SynthMethod::Xu2015;
+    throw ValidationError("synthesis: method '" + name + "' is not known (structured, darts, deussen or xu2015)");
 }
 
 std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() const {
@@ -82,6 +85,8 @@ std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() con
     // Only with the method that reads them: the other methods' records stay as they were.
     if (method == SynthMethod::Deussen)
         for (auto& kv : deussen.asParameters()) out.push_back(std::move(kv));
+    if (method == SynthMethod::Xu2015)
+        for (auto& kv : xu.asParameters()) out.push_back(std::move(kv));
     return out;
 }
 
@@ -109,6 +114,43 @@ const std::vector<DeussenParamField>& deussenParamFields() {
          &P::voronoiRadiusFactor, nullptr, R::closed(0.25, 4)},
     };
     return fields;
+}
+
+const std::vector<XuParamField>& xuParamFields() {
+    using K = XuParamField::Kind;
+    using R = ParamRange;
+    using P = XuParams;
+    static const std::vector<XuParamField> fields = {
+        {"xu_radius_factor", "neighbourhood radius R = this / sqrt(the exemplar's density)", K::Real, &P::radiusFactor, nullptr,
+         R::closed(0.5, 10)},
+        {"xu_shells", "rings of equal width in the neighbourhood disc", K::Integer, nullptr, &P::shells, R::closed(1, 16)},
+        {"xu_sectors", "sectors of the neighbourhood disc", K::Integer, nullptr, &P::sectors, R::closed(1, 64)},
+        {"xu_sigma", "adjacency smoothing of the histogram distance, a_ij = exp(-d(i, j) / sigma) (0 = none)", K::Real, &P::sigma, nullptr,
+         R::closed(0, 100)},
+        {"xu_candidates", "exemplar elements compared per extension, a random subset (0 = all)", K::Integer, nullptr,
+         &P::candidates, R::closed(0, 1000000)},
+        {"xu_verify_best",
+         "of the candidates, this many nearest by histogram are tried and the copy with the fewest conflicts wins (1 = "
+         "the paper's nearest alone)",
+         K::Integer, nullptr, &P::verifyBest, R::closed(1, 1000)},
+        {"xu_density_tolerance",
+         "drift of the running count from the exemplar's density allowed in that choice, in expected neighbourhoods "
+         "(0 = no density feedback)",
+         K::Real, &P::densityTolerance, nullptr, R::closed(0, 1e6)},
+        {"xu_min_distance_factor", "copies refused closer than this x the exemplar's shortest nearest-neighbour distance",
+         K::Real, &P::minDistanceFactor, nullptr, R::closed(0, 10)},
+        {"xu_tile_m", "grown in square tiles of this side (m), in parallel (0 = one tile)", K::Real, &P::tileM, nullptr,
+         R::closed(0, 1e6)},
+    };
+    return fields;
+}
+
+void XuParams::validate() const { validateParams(*this, xuParamFields(), "Xu 2015 sampler parameter"); }
+
+std::vector<std::pair<std::string, std::string>> XuParams::asParameters() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& f : xuParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+    return out;
 }
 
 void DeussenParams::validate() const { validateParams(*this, deussenParamFields(), "Deussen sampler parameter"); }

@@ -241,12 +241,17 @@ inline DartDraw drawDart(std::uint64_t seed, std::uint64_t cellStream, int j) {
 
 UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                     const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
-                                    const Grid<float>* densityImage) {
+                                    const Grid<float>* densityImage, const XuExemplar* exemplar) {
     const auto t0 = Clock::now();
     params.validate();
     if (densityImage != nullptr && params.method != SynthMethod::Deussen)
         throw ValidationError(std::string("undergrowth sampling: a density image is read by the 'deussen' method only, not by '") +
                               toString(params.method) + "'");
+    if (exemplar != nullptr && params.method != SynthMethod::Xu2015)
+        throw ValidationError(std::string("undergrowth sampling: an exemplar is read by the 'xu2015' method only, not by '") +
+                              toString(params.method) + "'");
+    if (exemplar == nullptr && params.method == SynthMethod::Xu2015)
+        throw ValidationError("undergrowth sampling: the 'xu2015' method needs an exemplar stand (--exemplar)");
     if (densityImage != nullptr && !densityImage->sameGeometry(terrainM))
         throw ValidationError("undergrowth sampling: the density image (" + densityImage->geometryText() +
                               ") and the terrain (" + terrainM.geometryText() + ") differ in geometry");
@@ -282,6 +287,7 @@ UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome,
     }
     if (params.method == SynthMethod::Structured) return sampleStructured(db, biome, canopy, map, terrainM, params);
     if (params.method == SynthMethod::Deussen) return sampleDeussen(db, biome, canopy, map, terrainM, params, densityImage);
+    if (params.method == SynthMethod::Xu2015) return sampleXu2015(db, biome, canopy, map, terrainM, params, *exemplar);
     const double cs = terrainM.cellSizeM();
     const double cellArea = cs * cs;
     const int nRegions = static_cast<int>(db.regions.size());

@@ -78,9 +78,14 @@ enum class SynthMethod {
     /// plant, then Lloyd relaxation with minimum distances; canopy trees fixed obstacles;
     /// sizes as the structured sampler draws them (synth/deussen_sampler.cpp).
     Deussen,
+    /// Xu et al. 2015: sample-based synthesis from an exemplar stand (a simulation snapshot or
+    /// a plant CSV): neighbourhood histograms over shells x sectors, the pattern grown
+    /// outwards from a seed by copying the neighbourhood of the best-matching exemplar
+    /// element; sizes copied, canopy and cluster map respected (synth/xu2015_sampler.cpp).
+    Xu2015,
 };
 const char* toString(SynthMethod m);
-/// "structured", "darts" or "deussen"; ValidationError naming the value otherwise.
+/// "structured", "darts", "deussen" or "xu2015"; ValidationError naming the value otherwise.
 SynthMethod parseSynthMethod(const std::string& name);
 
 /// Parameters of the Deussen 1998 sampler (docs/synth.md section 2c). Recorded in scene
@@ -110,6 +115,48 @@ struct DeussenParams {
 using DeussenParamField = ParamDesc<DeussenParams>;
 /// Every parameter of DeussenParams, in record order (synth/synth_params.cpp).
 const std::vector<DeussenParamField>& deussenParamFields();
+
+/// Parameters of the Xu et al. 2015 sampler (docs/synth.md section 2d). Recorded in scene
+/// files (keys xu_*) only when that method runs.
+struct XuParams {
+    /// Neighbourhood: a disc of radius R = radiusFactor / sqrt(the exemplar's density) (so
+    /// about pi radiusFactor^2 neighbours on average), split into `shells` rings of equal
+    /// width and `sectors` equal sectors (the paper: 3 x 8 = 24 grids).
+    double radiusFactor = 2.5;
+    int shells = 3;
+    int sectors = 8;
+    /// Adjacency smoothing of the histogram distance, a_ij = exp(-d(i, j) / sigma) with
+    /// d = |shell_i - shell_j| + circular |sector_i - sector_j| (the paper's sigma = 5; 0 =
+    /// no smoothing, A the identity).
+    double sigma = 5.0;
+    /// Exemplar elements compared per extension: a random subset of this many of the
+    /// exemplar's interior elements (0 = all of them).
+    int candidates = 128;
+    /// Of the candidates, this many with the smallest histogram distance are tried and the
+    /// one whose copy conflicts least (minimum distance) with the elements placed wins; 1 =
+    /// the paper's choice, the smallest distance alone.
+    int verifyBest = 8;
+    /// Density feedback in that choice: the drift |count placed so far + the copy - the
+    /// exemplar's density x the area covered| beyond this many expected neighbourhoods (the
+    /// exemplar's plants per neighbourhood disc) is added to the score, in neighbourhoods
+    /// (0 = no feedback: the density is whatever the matching gives).
+    double densityTolerance = 2.0;
+    /// A copied element is refused closer than this x the exemplar's shortest
+    /// nearest-neighbour distance to an element already placed.
+    double minDistanceFactor = 1.0;
+    /// The target is grown in square tiles of this side (m), each from its own centre with its
+    /// own random stream, in parallel; elements of a later tile that conflict with an
+    /// earlier tile's across the border are dropped. 0 = one tile (serial).
+    double tileM = 0.0;
+
+    /// ValidationError naming the field when one is out of range (xuParamFields).
+    void validate() const;
+    /// (key, value text) of every parameter, as recorded in scene files.
+    std::vector<std::pair<std::string, std::string>> asParameters() const;
+};
+using XuParamField = ParamDesc<XuParams>;
+/// Every parameter of XuParams, in record order (synth/synth_params.cpp).
+const std::vector<XuParamField>& xuParamFields();
 
 /// Every parameter of the sampler (recorded in the scene file; docs/synth.md).
 struct SynthParams {
@@ -141,12 +188,15 @@ struct SynthParams {
     double hardCoreMinExpectedPairs = 10;
     /// The Deussen sampler's own parameters (used and recorded with that method only).
     DeussenParams deussen;
+    /// The Xu 2015 sampler's own parameters (used and recorded with that method only).
+    XuParams xu;
 
     /// ValidationError naming the field when one is out of range (synthParamFields,
-    /// deussenParamFields).
+    /// deussenParamFields, xuParamFields).
     void validate() const;
     /// (key, value text) of every parameter, as recorded in scene files: the method, then
-    /// synthParamFields() in order, then with the Deussen method deussenParamFields().
+    /// synthParamFields() in order, then with the Deussen method deussenParamFields(), with
+    /// the Xu 2015 method xuParamFields().
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
 
@@ -171,6 +221,28 @@ ClusterMap computeClusterMap(const BiomeDatabase& db, const Biome& biome, const 
                              const FactorGrids& features, const SynthParams& params);
 
 // ------------------------------------------------------------------------- sampling
+
+/// An exemplar stand for the Xu 2015 sampler: its undergrowth plants (species of the target's
+/// biome, sizes in metres) and the rectangle they were observed in.
+struct XuExemplar {
+    std::vector<Plant> plants;
+    RectWindow window;
+    std::string source;  ///< file (and snapshot) it was read from, for messages
+};
+
+/// Elements of a pattern grown by synthesizeXuPattern.
+struct XuPattern {
+    std::vector<double> x, y;            ///< world metres
+    std::vector<std::uint32_t> source;   ///< exemplar element copied (type, size)
+    double radiusM = 0;                  ///< neighbourhood radius R
+    double minDistanceM = 0;             ///< conflict distance
+    std::int64_t interiorCandidates = 0; ///< exemplar elements whose R-disc lies inside its window
+    std::int64_t extensions = 0;         ///< extensions run (elements and hole seeds)
+    std::int64_t holeSeeds = 0;          ///< extensions from an empty spot (no frontier element left)
+    std::int64_t conflicts = 0;          ///< copies refused by the minimum distance
+    std::int64_t seamDrops = 0;          ///< elements dropped at tile borders
+    int tiles = 1;
+};
 
 /// Outcome of one database region on the target terrain.
 struct RegionSampling {
@@ -226,6 +298,10 @@ struct UndergrowthSample {
         std::vector<std::int64_t> refused;
     };
     std::vector<DeussenSpecies> deussen;
+    /// Xu 2015: the grown pattern's record (positions left empty) and what was dropped.
+    XuPattern xu;
+    std::int64_t xuDroppedOutsideRegion = 0;  ///< no region, or the species impossible there (cluster map)
+    std::int64_t xuDroppedOnTrunk = 0;        ///< inside a canopy trunk's exclusion disc
     std::vector<std::string> warnings;      ///< e.g. an old database read with its known limits
     /// structured: time of each phase (summed over the passes), in order, for the benchmark
     struct Phase {
@@ -243,14 +319,23 @@ RegionStructure fitRegionStructure(const BiomeDatabase& db, int region, const Sy
 /// or all undergrowth pooled when species < 0). 1 everywhere for a database without context.
 std::vector<double> contextPcf(const BiomeDatabase& db, int region, int species);
 
+/// Xu et al. 2015's vector-pattern synthesis over `target` from the marked exemplar pattern
+/// (types 0..typeNames.size()-1) observed in `exemplarWindow` (docs/synth.md 2d). Types matter
+/// through per-type histograms of equal weight. Bit-identical for a seed whatever the thread
+/// count. ValidationError naming `what` when the exemplar has fewer than 2 elements, a point
+/// outside its window, or no element whose neighbourhood disc lies inside the window.
+XuPattern synthesizeXuPattern(const PointPattern& exemplar, const RectWindow& exemplarWindow, const RectWindow& target,
+                              const XuParams& params, std::uint64_t seed, const std::string& what = "exemplar");
+
 /// Undergrowth by params.method (see the top of this file). terrainM gives each plant's
 /// ground elevation and must share the cluster map's geometry. `densityImage` (Deussen
 /// method only; ValidationError with another) reshapes the database's density map:
 /// relative density of the whole undergrowth per terrain cell, >= 0 (readDensityImage); the
-/// undergrowth keeps the map's total over the terrain.
+/// undergrowth keeps the map's total over the terrain. `exemplar` is required by the Xu 2015
+/// method and refused by the others (ValidationError).
 UndergrowthSample sampleUndergrowth(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy,
                                     const ClusterMap& map, const Grid<float>& terrainM, const SynthParams& params,
-                                    const Grid<float>* densityImage = nullptr);
+                                    const Grid<float>* densityImage = nullptr, const XuExemplar* exemplar = nullptr);
 
 /// A user's density image for the Deussen sampler: a greyscale image (PNG, TIFF, ...; colour
 /// channels averaged, alpha ignored) of exactly the terrain's size in pixels, its first row

@@ -436,3 +436,112 @@ TEST_CASE("eco synth --method deussen: a scene from a density image, and bad inp
     }
     if (!std::filesystem::exists(dir.file("plants.csv"))) CHECK_FALSE(std::filesystem::exists(dir.file("scene.h5")));
 }
+
+// ======================================================================== --method xu2015
+
+namespace {
+
+/// A plant CSV in eco synth's layout (layer first): a 14 x 14 jittered grid of Western
+/// Swordferns on 20 m x 20 m, plus one canopy row that the exemplar reader must skip.
+void writeExemplarCsv(const std::string& path) {
+    std::ofstream out(path);
+    out << "layer,species_id,species,x_m,y_m,ground_z_m,height_m,crown_radius_m\n";
+    out << "canopy,0,\"Redwood\",5,5,100,40,3\n";
+    for (int j = 0; j < 14; ++j)
+        for (int i = 0; i < 14; ++i)
+            out << "undergrowth,1,\"Western Swordfern\"," << (i + 0.5) * 20.0 / 14 + 0.2 * std::sin(i * 7.0 + j) << ","
+                << (j + 0.5) * 20.0 / 14 + 0.2 * std::cos(j * 5.0 + i) << ",100,0.6,0.4\n";
+}
+
+}  // namespace
+
+TEST_CASE("eco synth --method xu2015: a scene from an exemplar CSV, and bad exemplars refused with one clear line",
+          "[synth][cli][xu2015]") {
+    const World w = makeWorld();
+    test::TempDir dir("synth_xu2015");
+    const WorldFiles f = writeWorld(w, dir);
+    const std::string base = "synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                             " --abiotics " + f.abiotics + " --out " + dir.file("scene.h5");
+    const std::string exemplar = dir.file("stand.csv");
+    writeExemplarCsv(exemplar);
+
+    SECTION("a scene with every output; the exemplar's density over the seeded cells") {
+        const auto r = test::runEco(base + " --method xu2015 --exemplar " + exemplar + " --csv " + dir.file("plants.csv") +
+                                    " --pdb " + dir.file("plants.pdb") + " --png " + dir.file("png"));
+        INFO(r.output);
+        REQUIRE(r.exitCode == 0);
+        CHECK_THAT(r.output, Catch::Contains("exemplar '" + exemplar + "': 196 undergrowth plants") &&
+                                 Catch::Contains("xu2015: neighbourhood radius"));
+        for (const char* name : {"scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/cluster_map.png"})
+            CHECK(std::filesystem::exists(dir.file(name)));
+        const synth::SceneData scene = synth::readSceneFile(dir.file("scene.h5"), w.biome);
+        // 0.49 per m^2 on the world's 200 m x 200 m, less trunks and cells without a region.
+        INFO(scene.undergrowth.size() << " plants");
+        CHECK(scene.undergrowth.size() > 0.8 * 0.49 * 200 * 200 * 0.5);
+        CHECK(scene.undergrowth.size() < 1.1 * 0.49 * 200 * 200);
+        h5::File file = h5::File::openRead(dir.file("scene.h5"));
+        CHECK(file.attrString("/", "method") == "xu2015");
+        CHECK(file.attrString("/", "xu_sigma") == "5");
+        CHECK_THAT(file.attrString("/", "xu_exemplar"), Catch::Contains("stand.csv"));
+        // Our own CSV output is an exemplar in turn.
+        const auto again = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                                        " --abiotics " + f.abiotics + " --out " + dir.file("scene2.h5") +
+                                        " --method xu2015 --exemplar " + dir.file("plants.csv") +
+                                        " --exemplar-window 60,60,140,140");
+        INFO(again.output);
+        CHECK(again.exitCode == 0);
+    }
+    SECTION("a missing exemplar file") {
+        const auto r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("none.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("none.csv") && Catch::Contains("cannot open"));
+    }
+    SECTION("an empty exemplar: a header and no undergrowth") {
+        std::ofstream(dir.file("empty.csv")) << "x,y,species,height,crown_radius\n";
+        const auto r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("empty.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("empty.csv") && Catch::Contains("no undergrowth plants"));
+    }
+    SECTION("an exemplar without a crown radius column") {
+        std::ofstream(dir.file("nocrown.csv")) << "x,y,species,height\n1,2,Toyon,1\n";
+        const auto r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("nocrown.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("nocrown.csv:1") && Catch::Contains("crown_radius"));
+    }
+    SECTION("an exemplar with a species outside the biome, and a bad number") {
+        std::ofstream(dir.file("bad.csv")) << "x,y,species,height,crown_radius\n1,2,Toyon,1,0.5\n3,4,Baobab,1,0.5\n";
+        auto r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("bad.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("bad.csv:3") && Catch::Contains("Baobab"));
+        std::ofstream(dir.file("nan.csv")) << "x,y,species,height,crown_radius\n1,2,Toyon,tall,0.5\n";
+        r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("nan.csv"));
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("nan.csv:2") && Catch::Contains("height") && Catch::Contains("'tall'"));
+    }
+    SECTION("an exemplar too small for its neighbourhood") {
+        std::ofstream(dir.file("tiny.csv")) << "x,y,species,height,crown_radius\n1,1,Toyon,1,0.5\n2,1,Toyon,1,0.5\n1,2,Toyon,1,0.5\n";
+        const auto r = test::runEco(base + " --method xu2015 --exemplar " + dir.file("tiny.csv"));
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.output, Catch::Contains("tiny.csv") && Catch::Contains("too small"));
+    }
+    SECTION("xu2015 without an exemplar, and its options with another method: usage errors") {
+        auto r = test::runEco(base + " --method xu2015");
+        INFO(r.output);
+        CHECK(r.exitCode == 2);
+        CHECK_THAT(r.output, Catch::Contains("--exemplar"));
+        for (const std::string& opt : std::vector<std::string>{"--exemplar " + exemplar, "--xu-candidates 64", "--xu-sigma 2", "--exemplar-window 0,0,20,20"}) {
+            r = test::runEco(base + " --method structured " + opt);
+            INFO(opt << ": " << r.output);
+            CHECK(r.exitCode == 2);
+            CHECK_THAT(r.output, Catch::Contains("--method xu2015 only"));
+        }
+        r = test::runEco(base + " --exemplar " + exemplar);  // the default method
+        CHECK(r.exitCode == 2);
+    }
+    if (!std::filesystem::exists(dir.file("plants.csv"))) CHECK_FALSE(std::filesystem::exists(dir.file("scene.h5")));
+}

@@ -235,6 +235,8 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
         o.out = scene;
         o.params.seed = static_cast<std::uint64_t>(a.synthSeed);
         o.method = a.synthMethod;
+        // Xu 2015 copies an exemplar stand: the database's own source, simulation A.
+        if (a.synthMethod == "xu2015") o.exemplar = simA;
         if (a.refine) {
             o.refine = true;
             o.refineWindow = a.crop;
