@@ -242,24 +242,8 @@ std::vector<Plant> readPlantsCsv(const std::string& path, const Biome& biome, co
             throw IoError(path + ":" + std::to_string(lineNo) + ": the header has no column " + name +
                           " (a plant CSV needs x, y, species, height and crown_radius)");
     std::vector<Plant> plants;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        const std::string t = trimmedText(line);
-        if (t.empty() || t[0] == '#') continue;
-        const std::string where = path + ":" + std::to_string(lineNo) + ": ";
-        if (!splitCsvLine(line, fields)) throw IoError(where + "unterminated quote");
-        if (fields.size() != nFields)
-            throw IoError(where + "expected " + std::to_string(nFields) + " fields as in the header, found " +
-                          std::to_string(fields.size()));
-        if (cl >= 0 && !layer.empty() && fields[static_cast<std::size_t>(cl)] != layer) continue;
-        auto number = [&](int col, const char* name) {
-            const std::string& f = fields[static_cast<std::size_t>(col)];
-            char* end = nullptr;
-            const double v = std::strtod(f.c_str(), &end);
-            if (f.empty() || end != f.c_str() + f.size() || !std::isfinite(v))
-                throw IoError(where + "column " + name + ": '" + f + "' is not a finite number");
-            return v;
-        };
+    forEachCsvRow(in, path, lineNo, nFields, [&](const std::vector<std::string>& fields, const std::string& where) {
+        if (cl >= 0 && !layer.empty() && fields[static_cast<std::size_t>(cl)] != layer) return;
         Plant p;
         const std::string& name = fields[static_cast<std::size_t>(cs)];
         try {
@@ -267,15 +251,15 @@ std::vector<Plant> readPlantsCsv(const std::string& path, const Biome& biome, co
         } catch (const ValidationError& e) {
             throw IoError(where + "column species: " + e.what());
         }
-        p.xM = number(cx, "x");
-        p.yM = number(cy, "y");
-        p.groundZM = cz >= 0 ? number(cz, "ground_z") : 0.0;
-        p.heightM = number(ch, "height");
-        p.crownRadiusM = number(cr, "crown_radius");
+        p.xM = csvNumber(fields, cx, "x", where);
+        p.yM = csvNumber(fields, cy, "y", where);
+        p.groundZM = cz >= 0 ? csvNumber(fields, cz, "ground_z", where) : 0.0;
+        p.heightM = csvNumber(fields, ch, "height", where);
+        p.crownRadiusM = csvNumber(fields, cr, "crown_radius", where);
         if (p.heightM < 0) throw IoError(where + "column height: " + formatNumber(p.heightM) + " is negative");
         if (p.crownRadiusM < 0) throw IoError(where + "column crown_radius: " + formatNumber(p.crownRadiusM) + " is negative");
         plants.push_back(p);
-    }
+    });
     return plants;
 }
 

@@ -398,31 +398,15 @@ PointPattern readPointPatternCsv(const std::string& path, const RectWindow* wind
         int line;
     };
     std::vector<Row> rows;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        const std::string t = trimmed(line);
-        if (t.empty() || t[0] == '#') continue;
-        const std::string where = path + ":" + std::to_string(lineNo) + ": ";
-        if (!splitCsv(line, fields)) throw IoError(where + "unterminated quote");
-        if (fields.size() != nFields)
-            throw IoError(where + "expected " + std::to_string(nFields) + " fields as in the header, found " +
-                          std::to_string(fields.size()));
-        auto number = [&](int col, const char* name) {
-            const std::string& f = fields[static_cast<std::size_t>(col)];
-            char* end = nullptr;
-            const double v = std::strtod(f.c_str(), &end);
-            if (f.empty() || end != f.c_str() + f.size() || !std::isfinite(v))
-                throw IoError(where + "column " + name + ": '" + f + "' is not a finite number");
-            return v;
-        };
-        Row r{number(cx, "x"), number(cy, "y"), cs >= 0 ? fields[static_cast<std::size_t>(cs)] : std::string("all"),
-              lineNo};
+    forEachCsvRow(in, path, lineNo, nFields, [&](const std::vector<std::string>& row, const std::string& where) {
+        Row r{csvNumber(row, cx, "x", where), csvNumber(row, cy, "y", where),
+              cs >= 0 ? row[static_cast<std::size_t>(cs)] : std::string("all"), lineNo};
         if (cs >= 0 && r.type.empty()) throw IoError(where + "column species is empty");
         if (window && !window->contains(r.x, r.y))
             throw IoError(where + "point (" + num(r.x) + ", " + num(r.y) + ") lies outside the window " + num(window->x0) +
                           "," + num(window->y0) + "," + num(window->x1) + "," + num(window->y1));
         rows.push_back(std::move(r));
-    }
+    });
     PointPattern p;
     std::map<std::string, int> typeIndex;
     for (const Row& r : rows) typeIndex.emplace(r.type, 0);

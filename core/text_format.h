@@ -1,9 +1,14 @@
 // Numbers in messages, tables and reports: one formatting for the whole toolkit.
 #pragma once
 
+#include <cmath>
+#include <cstdlib>
+#include <istream>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include "error.h"
 
 namespace eco {
 
@@ -64,6 +69,38 @@ inline bool splitCsvLine(const std::string& line, std::vector<std::string>& out)
     if (quoted) return false;
     out.push_back(wasQuoted ? field : trimmedText(field));
     return true;
+}
+
+/// The data rows of a CSV whose header line has been read (`lineNo` its line number, counted
+/// on): blank and '#' lines are skipped, each row is split and must have `nFields` fields, and
+/// row(fields, where) is called with where = "PATH:LINE: " for its messages. IoError for an
+/// unterminated quote or a wrong field count.
+template <typename Row>
+void forEachCsvRow(std::istream& in, const std::string& path, int& lineNo, std::size_t nFields, Row&& row) {
+    std::string line;
+    std::vector<std::string> fields;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        const std::string t = trimmedText(line);
+        if (t.empty() || t[0] == '#') continue;
+        const std::string where = path + ":" + std::to_string(lineNo) + ": ";
+        if (!splitCsvLine(line, fields)) throw IoError(where + "unterminated quote");
+        if (fields.size() != nFields)
+            throw IoError(where + "expected " + std::to_string(nFields) + " fields as in the header, found " +
+                          std::to_string(fields.size()));
+        row(fields, where);
+    }
+}
+
+/// Field `col` of a CSV row as a finite number; IoError "WHERE column NAME: 'TEXT' is not a
+/// finite number" otherwise.
+inline double csvNumber(const std::vector<std::string>& fields, int col, const char* name, const std::string& where) {
+    const std::string& f = fields[static_cast<std::size_t>(col)];
+    char* end = nullptr;
+    const double v = std::strtod(f.c_str(), &end);
+    if (f.empty() || end != f.c_str() + f.size() || !std::isfinite(v))
+        throw IoError(where + "column " + name + ": '" + f + "' is not a finite number");
+    return v;
 }
 
 }  // namespace eco
