@@ -98,6 +98,9 @@ private:
         int status = 0;
         ::waitpid(pid_, &status, 0);
         reaped_ = true;
+        // The child may have exited by itself between the last poll and the signal (the
+        // signal then reaches a zombie): its exit code, as if it had not been killed.
+        exitCode_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
     }
     pid_t pid_ = -1;
