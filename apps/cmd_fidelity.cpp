@@ -11,6 +11,7 @@
 
 #include "cli_common.h"
 #include "fidelity_protocol.h"
+#include "method_comparison.h"
 
 namespace eco::cli {
 
@@ -50,8 +51,10 @@ private:
 void runFidelity(FidelityArgs& args) {
     if (!args.config.empty()) validate::readFidelityConfig(args.config, args.options, args.given);
     CliReporter reporter;
-    validate::runFidelityProtocol(args.options, reporter,
-                                  [] { return std::make_unique<StdoutToStderrReporter>(); });
+    const auto stageReporter = [] { return std::make_unique<StdoutToStderrReporter>(); };
+    const std::vector<std::string> methods = validate::parseMethodList(args.options.synthMethod);
+    if (methods.size() > 1) validate::runMethodComparison(args.options, methods, reporter, stageReporter);
+    else validate::runFidelityProtocol(args.options, reporter, stageReporter);
 }
 
 }  // namespace
@@ -88,7 +91,10 @@ void registerFidelityCommand(CLI::App& app) {
     opt("--refine-sweeps", a->refineSweeps, "Refinement sweeps")->capture_default_str()->check(CLI::PositiveNumber);
     opt("--synth-method", a->synthMethod,
         "Undergrowth sampler of the synthesis: structured (default), darts (the earlier one), deussen or xu2015 (its "
-        "exemplar is simulation A); outputs of another than structured are named scene-METHOD*.h5, fidelity-METHOD*.md")
+        "exemplar is simulation A); outputs of another than structured are named scene-METHOD*.h5, fidelity-METHOD*.md. "
+        "A comma list or 'all' compares the methods: each one's scene and report, then OUT_DIR/methods.md and "
+        "methods.csv side by side, with Xu et al.'s PCT.DEV and each sampler's time per million plants "
+        "(--out-md / --out-csv then name these)")
         ->capture_default_str();
     opt("--seed-a", a->seedA, "Seed of simulation A")->capture_default_str()->check(nonNegativeNumber());
     opt("--seed-b", a->seedB, "Seed of simulation B")->capture_default_str()->check(nonNegativeNumber());

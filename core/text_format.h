@@ -30,6 +30,12 @@ inline std::string csvField(const std::string& s) {
     return out + "\"";
 }
 
+/// Text for a Markdown table cell: each '|' escaped as "\\|", so that it does not split the cell.
+inline std::string markdownCell(std::string s) {
+    for (std::size_t p = 0; (p = s.find('|', p)) != std::string::npos; p += 2) s.replace(p, 1, "\\|");
+    return s;
+}
+
 /// `s` without leading and trailing blanks, tabs and carriage returns.
 inline std::string trimmedText(const std::string& s) {
     const auto b = s.find_first_not_of(" \t\r");

@@ -7,11 +7,13 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
 #include "biome.h"
 #include "fidelity.h"
+#include "method_comparison.h"
 #include "rng.h"
 #include "test_util.h"
 
@@ -289,3 +291,84 @@ TEST_CASE("fidelity: score ranges over seeds 1-20", "[.seeds]") {
                                 << " m, |index| max " << csrIdxMax << " m");
 }
 
+
+TEST_CASE("fidelity methods: the list of methods, and the comparison marks the closest scene", "[fidelity][methods]") {
+    CHECK(validate::parseMethodList("all") == std::vector<std::string>{"structured", "darts", "deussen", "xu2015"});
+    CHECK(validate::parseMethodList("darts,xu2015") == std::vector<std::string>{"darts", "xu2015"});
+    CHECK(validate::parseMethodList("deussen") == std::vector<std::string>{"deussen"});
+    for (const char* bad : {"structured,structured", "bogus", "", "darts,", ",darts", "darts,,deussen"}) {
+        INFO(bad);
+        CHECK_THROWS_AS(validate::parseMethodList(bad), ValidationError);
+    }
+
+    // A clustered held-out pattern B, its replicate A; one scene clustered as they are, one
+    // without structure: the clustered scene is the closer in pooled g and the marked one.
+    const validate::FidelityContext ctx = plotContext();
+    const auto B = thomasPattern(60, 20, 1.0, 60, 1, 1);
+    const auto A = thomasPattern(60, 20, 1.0, 60, 2, 1);
+    const auto clustered = thomasPattern(60, 20, 1.0, 60, 3, 1);
+    const auto uniform = uniformPattern(B.size(), 60, 4, 1);
+    validate::MethodComparison c;
+    c.exemplarWindow = validate::xuExemplarWindow(plotParams().window);
+    CHECK(c.exemplarWindow.x0 == Approx(20));
+    CHECK(c.exemplarWindow.x1 == Approx(40));
+    const RectWindow sceneWindow{0, 0, 60, 60};
+    // Xu's evaluation needs many clusters in the 20 m exemplar square: denser, smaller clusters.
+    const auto exemplar = thomasPattern(240, 10, 0.7, 60, 5, 1);
+    const auto xuScene = [](const std::string& name) {
+        return name == "clustered" ? thomasPattern(240, 10, 0.7, 60, 6, 1) : uniformPattern(2400, 60, 7, 1);
+    };
+    for (const auto& [name, scene] : {std::pair{std::string("uniform"), uniform}, std::pair{std::string("clustered"), clustered}}) {
+        validate::MethodResult m;
+        m.method = name;
+        m.fidelity = validate::evaluateFidelity(scene, A, B, ctx, plotParams());
+        m.xu = validate::evaluateXuEnlargements(exemplar, c.exemplarWindow, xuScene(name), sceneWindow, plotParams().bins, 1,
+                                                m.xuFactorsSkipped);
+        m.scenePlants = static_cast<std::int64_t>(scene.size());
+        m.samplingSeconds = 0.5;
+        c.methods.push_back(m);
+    }
+    // 3 x 3 exemplars (60 m) fit in the scene, 6 x 6 and 10 x 10 do not.
+    for (const auto& m : c.methods) {
+        CHECK(m.xuFactorsSkipped == std::vector<int>{6, 10});
+        REQUIRE(m.xu.enlargements.size() == 1);
+        CHECK(m.xu.enlargements[0].factor == 3);
+    }
+    // The clustered scene keeps the exemplar's aggregation; the uniform one loses it.
+    INFO("Ripley index: exemplar " << c.methods[0].xu.exemplar.ripleyIndexM << ", uniform "
+                                   << c.methods[0].xu.enlargements[0].mean.ripleyIndexM << ", clustered "
+                                   << c.methods[1].xu.enlargements[0].mean.ripleyIndexM);
+    CHECK(c.methods[0].xu.exemplar.ripleyIndexM > 0.2);
+    // (37 % against 101 %: the small exemplar square reads a higher index than the patches.)
+    CHECK(c.methods[1].xu.enlargements[0].pctDevRipley < 0.5 * c.methods[0].xu.enlargements[0].pctDevRipley);
+    CHECK(c.methods[0].xu.enlargements[0].pctDevRipley > 80);
+    const std::string md = validate::methodComparisonMarkdown(c, "## test");
+    const auto rowOf = [&](const std::string& figure) {
+        const auto at = md.find("| " + figure + " |");
+        REQUIRE(at != std::string::npos);
+        std::vector<std::string> cells;
+        std::string cell;
+        for (std::size_t i = at + 1; i < md.size() && md[i] != '\n'; ++i) {
+            if (md[i] == '|' && md[i - 1] != '\\') {
+                cells.push_back(cell);
+                cell.clear();
+            } else {
+                cell += md[i];
+            }
+        }
+        return cells;  // figure, replicate, CSR, uniform, clustered
+    };
+    const auto g = rowOf("g pooled undergrowth, plot rectangle (RMS)");
+    REQUIRE(g.size() == 5);
+    CHECK(g[4].find("**") != std::string::npos);
+    CHECK(g[3].find("**") == std::string::npos);
+    // A figure with '|' in its name stays one cell.
+    CHECK(rowOf("under-crown share (\\|difference\\|, weighted by species)").size() == 5);
+    CHECK(md.find("| clustered | 3 |") != std::string::npos);
+    CHECK(md.find("| uniform | 6 | patch larger than the scene |") != std::string::npos);
+    // Speed: 0.5 s for the scene's plants, per million.
+    const double perMillion = 0.5 / (static_cast<double>(clustered.size()) * 1e-6);
+    char expected[96];
+    std::snprintf(expected, sizeof expected, "| clustered | %zu | 0.500 | %.2f |", clustered.size(), perMillion);
+    CHECK(md.find(expected) != std::string::npos);
+}

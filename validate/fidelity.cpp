@@ -684,7 +684,7 @@ std::string fidelityMarkdown(const FidelityReport& r, const std::string& heading
        << "| figure | scope | scene | replicate | CSR | score |\n|---|---|---:|---:|---:|---:|\n";
     for (const auto& f : r.figures)
         if (f.scope == "overall")
-            md << "| " << f.figure << " | " << f.scope << " | " << cell(f.scene) << " | " << cell(f.replicate) << " | "
+            md << "| " << markdownCell(f.figure) << " | " << f.scope << " | " << cell(f.scene) << " | " << cell(f.replicate) << " | "
                << cell(f.csr) << " | " << (f.scored ? cell(f.score, 2) : std::string("n/a")) << " |\n";
     md << "\n### Per species (whole plot): scene, A (reference), B (held out), CSR\n\n"
        << "| quantity | species | B plants | scene | A | B | CSR |\n|---|---|---:|---:|---:|---:|---:|\n";
@@ -696,12 +696,12 @@ std::string fidelityMarkdown(const FidelityReport& r, const std::string& heading
     md << "\n### Values (whole plot): scene, A, B, CSR\n\n| quantity | scene | A | B | CSR |\n|---|---:|---:|---:|---:|\n";
     for (const auto& v : r.values)
         if (v.scope == "overall")
-            md << "| " << v.quantity << " | " << cell(v.scene) << " | " << cell(v.reference) << " | " << cell(v.replicate)
+            md << "| " << markdownCell(v.quantity) << " | " << cell(v.scene) << " | " << cell(v.reference) << " | " << cell(v.replicate)
                << " | " << cell(v.csr) << " |\n";
     md << "\n### Per region\n\n| figure | region | scene | replicate | CSR | score |\n|---|---|---:|---:|---:|---:|\n";
     for (const auto& f : r.figures)
         if (f.scope != "overall")
-            md << "| " << f.figure << " | " << f.scope << " | " << cell(f.scene) << " | " << cell(f.replicate) << " | "
+            md << "| " << markdownCell(f.figure) << " | " << f.scope << " | " << cell(f.scene) << " | " << cell(f.replicate) << " | "
                << cell(f.csr) << " | " << (f.scored ? cell(f.score, 2) : std::string("n/a")) << " |\n";
     return md.str();
 }

@@ -308,7 +308,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     writeFidelityCsv(outCsv, report);
     outputs.commit();
     reporter.info("fidelity: wrote " + outMd + " and " + outCsv);
-    return {report, md, outMd, outCsv};
+    return {report, md, outMd, outCsv, scene, simA, simB, database};
 }
 
 

@@ -43,6 +43,7 @@ struct FidelityRunResult {
     FidelityReport report;
     std::string markdown;  ///< also printed on the reporter's out()
     std::string markdownPath, csvPath;
+    std::string scenePath, referencePath, replicatePath, databasePath;  ///< the files measured (given or made; database "" when none)
 };
 
 /// Run the protocol. Messages go to `reporter`; each stage that runs gets its own reporter

@@ -210,11 +210,6 @@ SuiteResult runSuite(const SuiteOptions& options) {
 
 namespace {
 
-std::string mdCell(std::string s) {
-    for (std::size_t p = 0; (p = s.find('|', p)) != std::string::npos; p += 2) s.replace(p, 1, "\\|");
-    return s;
-}
-
 std::string resultText(const CheckResult& c) {
     if (c.pass) return c.spec.knownDeviation.empty() ? "pass" : "pass (declared a known deviation: update its configuration)";
     return c.knownDeviation() ? "known deviation" : "**FAIL**";
@@ -284,7 +279,7 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
                 measured += ". Replicates:";
                 for (double v : c.replicateValues) measured += " " + num(v, 3);
             }
-            md << "| " << c.spec.id << " | " << mdCell(measured) << " | " << intervalText(c)
+            md << "| " << c.spec.id << " | " << markdownCell(measured) << " | " << intervalText(c)
                << (c.spec.units.empty() ? "" : " " + c.spec.units) << " | " << c.spec.expectedText() << " | "
                << resultText(c) << " |\n";
         }
