@@ -64,16 +64,15 @@ std::vector<double> suitedCover(const std::vector<const Snapshot*>& snaps, const
     return cover;
 }
 
-/// The early species' peaks: the latest peak year / Y and the largest final-window mean /
-/// peak over the early species (NaN with a note when one never occurred); a detail line each.
+/// The early species' count peaks: the largest final-window mean / peak over the early species
+/// (NaN with a note when one never occurred); a detail line each.
 struct EarlyPeaks {
-    double peakTime = -1, decline = -1;
+    double decline = -1;
     std::string note;
 };
 EarlyPeaks earlyPeaks(const ForestRun& run, const std::vector<const sim::YearRecord*>& window, int Y,
                       const SuccessionSettings& cfg, const Biome& biome, ScenarioResult& r) {
     EarlyPeaks out;
-    double& peakTime = out.peakTime;
     double& decline = out.decline;
     std::string& peakNote = out.note;
     for (const std::string& name : cfg.earlySpecies) {
@@ -86,19 +85,62 @@ EarlyPeaks earlyPeaks(const ForestRun& run, const std::vector<const sim::YearRec
                 peakYear = rec.year;
             }
         if (peakYear < 0) {
-            peakTime = decline = kNaN;
+            decline = kNaN;
             peakNote = name + " never occurred";
             break;
         }
         std::vector<double> fin;
         for (const auto* rec : window) fin.push_back(rec->count[static_cast<std::size_t>(e)]);
         const double d = mean(fin) / peak;
-        peakTime = std::max(peakTime, static_cast<double>(peakYear) / Y);
         decline = std::max(decline, d);
         r.details.push_back("- " + name + ": peak of " + num(peak, 6) + " plants in year " + std::to_string(peakYear) +
                             ", mean of the last " + std::to_string(cfg.finalWindowYears) + " years " + num(mean(fin), 6) +
                             " (" + fixed(100 * d, 0) + " % of the peak).");
     }
+    return out;
+}
+
+/// The early species' crown-cover peak against the late species' rise, in the suited cells:
+/// the latest year at which an early species' cover peaks, divided by the first year at which
+/// the late species' cover reaches half its mean over the final window (NaN with a note when
+/// either never happens). Below 1 the early species peak before the late species has risen.
+struct PeakBeforeRise {
+    double ratio = kNaN;
+    std::string note;
+};
+PeakBeforeRise peakBeforeRise(const ForestRun& run, int Y, const SuccessionSettings& cfg, const Biome& biome,
+                              const Grid<float>& g, const Grid<std::uint8_t>& suited, double lateCoverEnd,
+                              ScenarioResult& r) {
+    PeakBeforeRise out;
+    const std::size_t ns = biome.species.size();
+    const auto late = static_cast<std::size_t>(biome.speciesIndex(cfg.lateSpecies));
+    int peakYear = -1, riseYear = -1;
+    std::string peakName;
+    std::vector<double> peak(cfg.earlySpecies.size(), 0.0);
+    std::vector<int> peakAt(cfg.earlySpecies.size(), -1);
+    for (const Snapshot* snap : run.window(1, Y)) {
+        const std::vector<double> cover = suitedCover({snap}, g, suited, ns);
+        for (std::size_t k = 0; k < cfg.earlySpecies.size(); ++k) {
+            const double c = cover[static_cast<std::size_t>(biome.speciesIndex(cfg.earlySpecies[k]))];
+            if (c > peak[k]) {
+                peak[k] = c;
+                peakAt[k] = snap->year;
+            }
+        }
+        if (riseYear < 0 && lateCoverEnd > 0 && cover[late] >= 0.5 * lateCoverEnd) riseYear = snap->year;
+    }
+    for (std::size_t k = 0; k < cfg.earlySpecies.size(); ++k)
+        if (peakAt[k] > peakYear) {
+            peakYear = peakAt[k];
+            peakName = cfg.earlySpecies[k];
+        }
+    if (peakYear < 0) out.note = "no early species ever covers the suited cells";
+    else if (riseYear <= 0) out.note = cfg.lateSpecies + " never covers half its final cover in the suited cells";
+    else out.ratio = static_cast<double>(peakYear) / riseYear;
+    r.details.push_back("- Crown cover in the suited cells over time: " + (peakName.empty() ? std::string("no early species") : peakName) +
+                        " peaks in year " + std::to_string(peakYear) + "; " + cfg.lateSpecies +
+                        " first reaches half its final cover (" + fixed(0.5 * lateCoverEnd, 1) + " m^2) in year " +
+                        (riseYear > 0 ? std::to_string(riseYear) : std::string("never")) + ".");
     return out;
 }
 
@@ -268,13 +310,16 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
                             "other species " + wholeName + " " + fixed(100 * wholeOther, 1) + " %.");
     }
     const EarlyPeaks peaks = earlyPeaks(run, window, Y, cfg, biome, r);
-    const double peakTime = peaks.peakTime, decline = peaks.decline;
+    const double decline = peaks.decline;
     const std::string& peakNote = peaks.note;
     std::string earlyNames;
     for (const auto& n : cfg.earlySpecies) earlyNames += (earlyNames.empty() ? "" : ", ") + n;
+    const PeakBeforeRise order = peakBeforeRise(run, Y, cfg, biome, g, suited, lateCoverEnd, r);
     r.checks.push_back(makeCheck(sc, "early_peak_time",
-                                 "early species (" + earlyNames + "): year of the peak count / run length (latest of them)",
-                                 peakTime, peakNote));
+                                 "where the site suits " + cfg.lateSpecies + ": year in which the early species' crown cover "
+                                 "peaks (latest of " + earlyNames + ") / year in which " + cfg.lateSpecies +
+                                 "'s cover first reaches half its final level",
+                                 order.ratio, order.note));
     r.checks.push_back(makeCheck(sc, "early_decline",
                                  "early species: mean count of the last " + std::to_string(cfg.finalWindowYears) +
                                      " years / peak count (largest of them)",
