@@ -27,6 +27,7 @@ struct ValidateOptions {
     int threads = 0;
     int replicates = validate::kDefaultReplicates;
     std::vector<std::string> model;  ///< KEY=VALUE
+    std::string biome;               ///< "" = the built-in biome
 };
 
 void runValidate(const ValidateOptions& o) {
@@ -35,6 +36,7 @@ void runValidate(const ValidateOptions& o) {
     so.mode = o.quick ? validate::Mode::Quick : validate::Mode::Full;
     so.outDir = o.out;
     so.replicates = o.replicates;
+    so.biomePath = o.biome;
     for (const std::string& kv : o.model) {
         const auto eq = kv.find('=');
         if (eq == std::string::npos || eq == 0)
@@ -106,6 +108,10 @@ void registerValidateCommand(CLI::App& app) {
                     "KEY=VALUE (repeatable): replace a [model] key in every scenario and scene, e.g. growth_rule=literal, "
                     "germination_cells=every, germination_vigour=mean_vigour, canopy_limit=canopy_only "
                     "(docs/validation.md, \"Readings of the paper\")");
+    sub->add_option("--biome", opt->biome,
+                    "Biome TOML whose species every scenario simulates (default: the embedded Sonoma biome): the suite "
+                    "on tuned parameters. The scenarios name species (e.g. California Laurel), which the biome must have")
+        ->check(CLI::ExistingFile);
     sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
     sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
         ->check(nonNegativeNumber());

@@ -18,6 +18,7 @@
 #include "fit.h"
 #include "rng.h"
 #include "scenario.h"
+#include "h5_compare.h"
 #include "test_util.h"
 #include "validate.h"
 #include "validate_config.h"
@@ -65,9 +66,22 @@ TEST_CASE("eco validate: bad input exits 1 with a message naming the file and ke
     CHECK(only.output.find("nosuch") != std::string::npos);
     CHECK(only.output.find("circles_small") != std::string::npos);
 
+    // --biome: a biome without a species the scenarios name is refused before anything runs.
+    std::string biome = eco::test::fileBytes(eco::test::sourcePath("biomes/sonoma.toml"));
+    const std::string laurel = "name = \"California Laurel\"";
+    REQUIRE(biome.find(laurel) != std::string::npos);
+    biome.replace(biome.find(laurel), laurel.size(), "name = \"Bay Laurel\"");
+    writeFile(dir.file("bay.toml"), biome);
+    const auto renamed = runEco("validate --quick --biome " + dir.file("bay.toml") + " --out " + dir.file("out"));
+    CHECK(renamed.exitCode == 1);
+    CHECK(renamed.output.find("California Laurel") != std::string::npos);
+    CHECK(renamed.output.find(".toml") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("out/report.md")));
+
     const auto help = runEco("validate --help");
     CHECK(help.exitCode == 0);
     CHECK(help.output.find("--quick") != std::string::npos);
+    CHECK(help.output.find("--biome") != std::string::npos);
 }
 
 TEST_CASE("eco validate: passing and failing checks give exit status 0 and 3", "[validate][cli]") {

@@ -733,9 +733,10 @@ namespace {
 
 /// The suite's `scenarios` (configs/validation/NAME.toml) on the conifer forest scene with a
 /// 30 m quick plot, one replicate, with `model` replacing [model] keys: the checks by
-/// "scenario/id".
+/// "scenario/id"; with `biomeToml`, the scenarios simulate that biome (eco validate --biome).
 std::map<std::string, CheckResult> brokenModelChecks(const std::string& dirName, const std::vector<std::string>& scenarios,
-                                                     const std::vector<std::string>& model, std::string* configSource = nullptr) {
+                                                     const std::vector<std::string>& model, std::string* configSource = nullptr,
+                                                     const std::string& biomeToml = "") {
     TempDir dir(dirName);
     std::filesystem::create_directories(dir.file("cfg"));
     for (const std::string& name : scenarios)
@@ -755,6 +756,10 @@ std::map<std::string, CheckResult> brokenModelChecks(const std::string& dirName,
     o.configs.directory = dir.file("cfg");
     o.configs.modelOverrides = model;
     o.outDir = dir.file("out");
+    if (!biomeToml.empty()) {
+        o.biomePath = dir.file("biome.toml");
+        std::ofstream(o.biomePath) << biomeToml;
+    }
     const SuiteResult r = runSuite(o);
     std::map<std::string, CheckResult> checks;
     for (const auto& s : r.scenarios)
@@ -793,4 +798,26 @@ TEST_CASE("Succession's early peak fails when germination ignores the undergrowt
     CHECK_FALSE(c.pass);
     CHECK(d.pass);
     CHECK(c.value > 2 * d.value);
+}
+
+TEST_CASE("The sun gradient fails for a biome whose species ignore the sun", "[validate][broken]") {
+    // Every species' sun response made indifferent (range 1000 h/day): the shade species no
+    // longer sit in deeper shade than the sun species. The built-in biome passes on the same plot.
+    std::string biome = readAll(eco::test::sourcePath("biomes/sonoma.toml"));
+    int replaced = 0;
+    for (std::size_t at = biome.find("\nsun = {"); at != std::string::npos; at = biome.find("\nsun = {", at + 1)) {
+        const std::size_t end = biome.find('}', at);
+        REQUIRE(end != std::string::npos);
+        biome.replace(at + 1, end - at, "sun = { c = 7, r = 1000 }");
+        ++replaced;
+    }
+    REQUIRE(replaced == 16);
+    const auto blind = brokenModelChecks("validate_sun_blind", {"abiotic_gradients"}, {}, nullptr, biome);
+    const auto sonoma = brokenModelChecks("validate_sun_sonoma", {"abiotic_gradients"}, {});
+    const CheckResult& b = blind.at("abiotic_gradients/sun_gap");
+    const CheckResult& d = sonoma.at("abiotic_gradients/sun_gap");
+    INFO("sun_gap = " << b.value << " h/day (species ignore the sun), " << d.value << " (Sonoma)");
+    REQUIRE(std::isfinite(b.value));
+    CHECK_FALSE(b.pass);
+    CHECK(d.pass);
 }

@@ -130,8 +130,8 @@ SuiteResult runSuite(const SuiteOptions& options) {
     result.configSource = options.configs.describe();
     result.threads = omp_get_max_threads();
     result.startedUtc = utcTimestamp();
-    Biome biome = defaultBiome();
-    result.biomeName = biome.name;
+    Biome biome = options.biomePath.empty() ? defaultBiome() : loadBiome(options.biomePath);
+    result.biomeName = options.biomePath.empty() ? biome.name : biome.name + " (" + options.biomePath + ")";
     SuiteConfig suite = loadSuiteConfig(options.configs, biome);
     std::vector<const ScenarioConfig*> selected;
     for (const std::string& name : options.only) {

@@ -65,6 +65,8 @@ struct SuiteOptions {
     std::string outDir = "validation";
     ConfigSource configs;
     std::vector<std::string> only;  ///< scenario names to run; empty = all
+    /// Biome TOML the scenarios simulate; "" = the built-in Sonoma biome (defaultBiome).
+    std::string biomePath;
     /// Progress and informational lines (stderr in the CLI).
     std::function<void(const std::string&)> log;
 };
