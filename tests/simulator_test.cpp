@@ -39,6 +39,7 @@ Abiotics uniformAbiotics(int cells, double cellM, double sun, double water, doub
     const Grid<float> like(cells, cells, cellM, 0, 0, 0.f);
     a.elevationM = Grid<float>::like(like, 50.f);
     a.slopeDeg = Grid<float>::like(like, static_cast<float>(slope));
+    a.windMS = Grid<float>::like(like, 5.f);  // no test species responds to wind
     for (int m = 0; m < 12; ++m) {
         a.sunHours.months.push_back(Grid<float>::like(like, static_cast<float>(sun)));
         a.moistureMm.months.push_back(Grid<float>::like(like, static_cast<float>(water)));

@@ -172,7 +172,7 @@ class TestAbiotics(unittest.TestCase, GridGeometry):
         _, rows = ASC
         np.testing.assert_allclose(a.elevation.values, rows[::-1], rtol=1e-6)
         expected_units = {"elevation": "m", "slope": "degrees", "sun": "hours/day", "moisture": "mm/month",
-                          "temperature": "degC"}
+                          "temperature": "degC", "wind": "m/s"}
         for name, units in expected_units.items():
             g = a.grids[name]
             self.assert_on_input_grid(g)
@@ -190,6 +190,8 @@ class TestAbiotics(unittest.TestCase, GridGeometry):
         self.assertTrue(np.all(a.sun.values <= day[:, None, None] + 1e-4))
         self.assertTrue(np.all(a.sun.values >= 0))
         self.assertTrue(np.all((a.slope.values >= 0) & (a.slope.values <= 90)))
+        self.assertEqual(a.schema_version, 2)
+        self.assertTrue(np.all((a.wind.values >= 0) & (a.wind.values <= a.attrs["wind_strength_m_s"] + 1e-6)))
 
 
 class TestCanopy(unittest.TestCase, GridGeometry):
@@ -300,7 +302,7 @@ class TestDatabase(unittest.TestCase):
             self.assertAlmostEqual(100 * db.regions["species_proportion"][0, i], float(pct), delta=0.051)
         self.assertEqual(len(db.region(0).pairs["source"]), int(leading[2]))
         self.assertEqual(db.region_units["density_per_m2"], "plants/m^2")
-        self.assertEqual(db.feature_units, ["hours/day", "mm", "degC", "degrees"])
+        self.assertEqual(db.feature_units, ["hours/day", "mm", "degC", "degrees", "m/s"])
 
     def test_pair_counts_against_brute_force_on_the_simulation_csv(self):
         # One region covers the whole simulated window here (eco inspect: 0 plants in no region).
@@ -401,7 +403,7 @@ class TestFormatChecks(unittest.TestCase):
         with self.assertRaises(eco.EcoFormatError):
             eco.open(target)
         target = self.copy_with("db.h5", "db-v1.h5", schema_version=np.int64(1))
-        with self.assertRaisesRegex(eco.EcoFormatError, r"schema_version 1 found, .*reads version 2, 3, 4"):
+        with self.assertRaisesRegex(eco.EcoFormatError, r"schema_version 1 found, .*reads version 2, 3, 4, 5"):
             eco.read_database(target)
 
     def test_unknown_or_missing_format_is_refused(self):
