@@ -117,7 +117,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     result.written.push_back(args.out);
     reporter.out() << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
                    << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
-                   << ", /moisture mm, /temperature degC)\n";
+                   << ", /moisture mm, /temperature degC, /wind m/s)\n";
     if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, outputs, args.geotiffDir, reporter, result.written);
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome, reporter, result.written);
     outputs.commit();
