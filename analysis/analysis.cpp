@@ -467,6 +467,12 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
     db.separationBins = params.separationBins;
     db.contextBins = params.contextBins;
     db.parameters = params.asParameters();
+    // A factor counts when a species responds to it in the biome of any input.
+    db.featureWeights = Features{};
+    for (const AnalysisInput& in : inputs) {
+        const Features w = clusteringWeights(*in.biome);
+        for (std::size_t f = 0; f < kFactorCount; ++f) db.featureWeights[f] = std::max(db.featureWeights[f], w[f]);
+    }
 
     // Pairs farther apart than half a window's shorter side are too few (and the edge
     // correction too large) for a pair correlation; far beyond it every bin would be 0.
@@ -550,9 +556,13 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
             comb.featureMean[f] = mean;
             comb.featureStd[f] = sd;
         }
+        // A factor of weight 0 (no species responds to it) is 0 in every normalised vector: it
+        // adds exactly 0 to every distance, so k-means, the silhouette and the assignment see
+        // the other factors only, bit for bit as without it (docs/database.md).
         std::vector<Features> z(raw.size());
         for (std::size_t j = 0; j < raw.size(); ++j)
-            for (std::size_t f = 0; f < kFactorCount; ++f) z[j][f] = (raw[j][f] - comb.featureMean[f]) / comb.featureStd[f];
+            for (std::size_t f = 0; f < kFactorCount; ++f)
+                z[j][f] = db.featureWeights[f] == 0 ? 0.0 : (raw[j][f] - comb.featureMean[f]) / comb.featureStd[f];
         const int kLimit = params.minClusterAreaM2 > 0
                                ? std::max(1, static_cast<int>(std::floor(comb.areaM2 / params.minClusterAreaM2)))
                                : params.kMax;

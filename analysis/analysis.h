@@ -103,6 +103,13 @@ BiomeDatabase analyse(const std::vector<AnalysisInput>& inputs, const AnalysisPa
 /// species seeds; 0 for species that cannot be canopy trees.
 std::vector<int> canopySubBiomeMasks(const Biome& biome, CanopyMembership membership);
 
+/// Weight of each factor (factors.h order) in the clustering distance and in the database's
+/// nearestRegion: 1 when at least one species of the biome responds to it, 0 when every
+/// species is indifferent (an optional factor such as wind that the biome leaves out), so
+/// that a factor no species uses changes no region. (A constant map of a factor in use keeps
+/// weight 1: analyse() gives it unit scale, so its normalised values are about 0.)
+Features clusteringWeights(const Biome& biome);
+
 /// Combination labels: seedingLabels (core/seeding.h), the same the synthesizer uses.
 
 struct KMeansResult {

@@ -109,6 +109,14 @@ const char* toString(CanopyMembership m) {
     return "?";
 }
 
+Features clusteringWeights(const Biome& biome) {
+    Features w{};
+    for (const Species& s : biome.species)
+        for (std::size_t f = 0; f < kFactorCount; ++f)
+            if (!s.responses[f].isIndifferent()) w[f] = 1.0;
+    return w;
+}
+
 std::vector<int> canopySubBiomeMasks(const Biome& biome, CanopyMembership membership) {
     if (biome.subBiomes.size() > 30)
         throw ValidationError("biome '" + biome.name + "': at most 30 sub-biomes can be analysed, found " +

@@ -33,7 +33,8 @@ void registerAbioticsCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "abiotics",
         "Monthly abiotic maps of a terrain: sunlight (hours/day, terrain shadows and sky view), soil moisture "
-        "(mm), temperature (degC), and slope (degrees); written to one HDF5 file");
+        "(mm), temperature (degC), slope (degrees) and the wind exposure of the biome's prevailing wind (m/s); "
+        "written to one HDF5 file");
     cmd->add_option("--terrain", o.terrain, "Terrain (.asc, .h5, .png, .tif, .exr), elevations in metres")
         ->required();
     cmd->add_option("--biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)");

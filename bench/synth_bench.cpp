@@ -136,7 +136,7 @@ eco::BiomeDatabase benchmarkDatabase(const eco::Biome& b) {
         c.k = 2;
         c.firstRegion = static_cast<int>(db.regions.size());
         c.featureMean = {9.0, 80.0, 20.0, 15.0};
-        c.featureStd = {2.0, 30.0, 2.0, 10.0};
+        c.featureStd = {2.0, 30.0, 2.0, 10.0, 1.0};
         for (int cluster = 0; cluster < 2; ++cluster) {
             eco::DbRegion r;
             r.combination = mask;

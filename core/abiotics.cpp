@@ -368,6 +368,52 @@ MonthlyGrids<float> temperatureC(const Grid<float>& elevationM, const Climate& c
 // ---------------------------------------------------------------------------------------
 // Sun
 
+// ---------------------------------------------------------------------------------------
+// Wind
+
+Grid<float> windOcclusionDeg(const Grid<float>& elevationM, const Wind& wind) {
+    validateParams(wind, windFields(), "wind parameter");
+    const int w = elevationM.width(), h = elevationM.height();
+    const double cell = elevationM.cellSizeM();
+    // Unit step towards where the wind comes from, in cells (x east, y north); components
+    // below 1e-12 are rounded to 0 so that a wind along an axis samples exactly one row or
+    // column (cos 270 deg is -1.8e-16, which would step off the southern row at once).
+    const double dir = wind.directionDeg * kDegToRad;
+    double ux = std::sin(dir), uy = std::cos(dir);
+    if (std::abs(ux) < 1e-12) ux = 0;
+    if (std::abs(uy) < 1e-12) uy = 0;
+    const int samples = wind.samples;
+    Grid<float> out = Grid<float>::like(elevationM, 0.f);
+#pragma omp parallel for schedule(static)
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            const double z0 = elevationM(ix, iy);
+            double best = 0;  // upwind ground lower than the cell does not occlude (EcoMod's phi := 0)
+            for (int k = 1; k <= samples; ++k) {
+                const double fx = ix + k * ux, fy = iy + k * uy;
+                if (fx < -1e-9 || fy < -1e-9 || fx > (w - 1) + 1e-9 || fy > (h - 1) + 1e-9) break;
+                const int x0 = std::clamp(static_cast<int>(std::floor(fx)), 0, w - 1);
+                const int y0 = std::clamp(static_cast<int>(std::floor(fy)), 0, h - 1);
+                const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+                const double tx = std::clamp(fx - x0, 0.0, 1.0), ty = std::clamp(fy - y0, 0.0, 1.0);
+                const double zk = (elevationM(x0, y0) * (1 - tx) + elevationM(x1, y0) * tx) * (1 - ty) +
+                                  (elevationM(x0, y1) * (1 - tx) + elevationM(x1, y1) * tx) * ty;
+                best = std::max(best, std::atan2(zk - z0, k * cell));
+            }
+            out(ix, iy) = static_cast<float>(best / kDegToRad);
+        }
+    return out;
+}
+
+Grid<float> windSpeedMS(const Grid<float>& elevationM, const Wind& wind) {
+    Grid<float> speed = windOcclusionDeg(elevationM, wind);
+    for (float& v : speed.data()) {
+        const double exposure = std::max(0.0, 1.0 - v / wind.thresholdDeg);
+        v = static_cast<float>(wind.strengthMS * exposure);
+    }
+    return speed;
+}
+
 double solarDeclinationRad(int dayOfYear) {
     // Ecliptic longitude of the sun from the mean motion (0.98565 deg/day) with the
     // equation-of-centre term (1.914 deg, eccentricity 0.0167); perihelion ~ 3 January,
@@ -885,12 +931,13 @@ MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& cli
 // All maps together
 
 FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual) {
-    static_assert(kFactorCount == 4, "a new factor: give its annual map here (docs/factors.md)");
+    static_assert(kFactorCount == 5, "a new factor: give its annual map here (docs/factors.md)");
     FactorGrids g;
     g[Factor::Sun] = sunHoursAnnual ? *sunHoursAnnual : a.sunHours.annualMean();
     g[Factor::Moisture] = a.moistureMm.annualMean();
     g[Factor::Temperature] = a.temperatureC.annualMean();
     g[Factor::Slope] = a.slopeDeg;
+    g[Factor::Wind] = a.windMS;
     return g;
 }
 
@@ -939,6 +986,7 @@ Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, cons
     validateSoil(biome.soil);
     validateSunParams(params.sun);
     validateParams(params, abioticParamFields(), "abiotics parameter");
+    validateParams(biome.wind, windFields(), "wind parameter");
     auto report = [&](const char* stage, double f) {
         if (progress) progress(stage, f);
     };
@@ -955,6 +1003,9 @@ Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, cons
     report("moisture", 0.0);
     a.moistureMm = moistureMm(elevationM, biome.climate, biome.soil, nullptr, params.moistureSpinUpYears,
                               [&](double f) { report("moisture", f); });
+    report("wind", 0.0);
+    a.windMS = windSpeedMS(elevationM, biome.wind);
+    report("wind", 1.0);
     return a;
 }
 
@@ -964,7 +1015,9 @@ Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, cons
 namespace {
 
 constexpr const char* kFormat = "eco-abiotics";
-constexpr std::int64_t kSchemaVersion = 1;
+// 2: the wind map /wind and its wind_* attributes (version 1 files have no wind and are
+// refused with a message saying so).
+constexpr std::int64_t kSchemaVersion = 2;
 
 std::vector<double> toVector(const std::array<double, 12>& a) { return std::vector<double>(a.begin(), a.end()); }
 
@@ -991,6 +1044,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
     checkStack(maps.moistureMm, "moisture");
     checkStack(maps.temperatureC, "temperature");
     if (!maps.slopeDeg.sameGeometry(e)) throw ValidationError(path + ": slope: geometry differs from the elevation grid");
+    if (!maps.windMS.sameGeometry(e)) throw ValidationError(path + ": wind: geometry differs from the elevation grid");
 
     AtomicOutput out(path);
     {
@@ -1000,6 +1054,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
         f.writeStack("/sun", maps.sunHours.months, "hours/day");
         f.writeStack("/moisture", maps.moistureMm.months, "mm/month");
         f.writeStack("/temperature", maps.temperatureC.months, "degC");
+        f.writeGrid("/wind", maps.windMS, "m/s");
         const std::string root = "/";
         f.setAttr(root, "format", std::string(kFormat));
         f.setAttr(root, "schema_version", kSchemaVersion);
@@ -1031,6 +1086,15 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
                               "capped by runoff limit and saturation), the rest runs off by multiple flow directions "
                               "(drop/distance) over the priority-flood filled surface; inside depressions down the "
                               "real terrain, overflow to the depression outlet; then evaporation"));
+        for (const auto& field : windFields()) {
+            const std::string key = std::string("wind_") + field.key;
+            if (field.kind == ParamDesc<Wind>::Kind::Real) f.setAttr(root, key, biome.wind.*(field.real));
+            else f.setAttr(root, key, static_cast<std::int64_t>(field.value(biome.wind)));
+        }
+        f.setAttr(root, "wind_model",
+                  std::string("EcoMod wind shelter (Zamuda & Brest): occlusion = largest elevation angle of "
+                              "wind_samples points upwind one cell apart (bilinear, 0 if none higher); "
+                              "wind = strength * max(0, 1 - occlusion / threshold), m/s"));
     }
     out.commit();
 }
@@ -1041,13 +1105,16 @@ Abiotics readAbiotics(const std::string& path) {
         throw IoError(path + ": not an eco-abiotics file (root attribute 'format' is missing or not '" +
                       std::string(kFormat) + "')");
     const std::int64_t version = f.attrInt("/", "schema_version");
+    if (version == 1)
+        throw IoError(path + ": eco-abiotics schema_version 1 has no wind map (/wind, schema 2); re-run eco abiotics "
+                             "with this version");
     if (version != kSchemaVersion)
         throw IoError(path + ": unsupported eco-abiotics schema_version " + std::to_string(version) + " (expected " +
                       std::to_string(kSchemaVersion) + ")");
     auto require = [&](const std::string& name) {
         if (!f.exists(name)) throw IoError(path + ": dataset " + name + " is missing");
     };
-    for (const char* name : {"/elevation", "/slope", "/sun", "/moisture", "/temperature"}) require(name);
+    for (const char* name : {"/elevation", "/slope", "/sun", "/moisture", "/temperature", "/wind"}) require(name);
 
     Abiotics a;
     // Files written before the attribute existed hold the terrain's own sun.
@@ -1082,6 +1149,10 @@ Abiotics readAbiotics(const std::string& path) {
     };
     if (!a.slopeDeg.sameGeometry(a.elevationM))
         throw IoError(path + ": dataset /slope has a different cell size or origin than /elevation");
+    checkShape("/wind", planeShape);
+    a.windMS = f.readGrid("/wind");
+    if (!a.windMS.sameGeometry(a.elevationM))
+        throw IoError(path + ": dataset /wind has a different cell size or origin than /elevation");
     a.sunHours = readMonthly("/sun");
     a.moistureMm = readMonthly("/moisture");
     a.temperatureC = readMonthly("/temperature");
@@ -1089,6 +1160,7 @@ Abiotics readAbiotics(const std::string& path) {
     // vigour, species map and database feature without a word.
     requireGridIn(a.elevationM, -1e5, 1e5, path, "/elevation");
     requireGridIn(a.slopeDeg, 0, 90, path, "/slope");
+    requireGridIn(a.windMS, 0, 100, path, "/wind");
     const std::pair<const char*, const MonthlyGrids<float>*> monthly[] = {
         {"/sun", &a.sunHours}, {"/moisture", &a.moistureMm}, {"/temperature", &a.temperatureC}};
     const double lo[] = {0, 0, -100}, hi[] = {24, 1e6, 100};

@@ -35,6 +35,21 @@ Grid<float> slopeDegrees(const Grid<float>& elevationM);
 MonthlyGrids<float> temperatureC(const Grid<float>& elevationM, const Climate& climate);
 
 // ---------------------------------------------------------------------------------------
+// Wind (Zamuda & Brest's EcoMod wind shelter; docs/abiotics.md "Wind")
+
+/// Wind occlusion angle in degrees per cell, >= 0: from the cell's centre, N_w = wind.samples
+/// points upwind (towards wind.directionDeg, where the wind comes from) one cell size apart,
+/// elevation interpolated bilinearly; the largest elevation angle atan((z_w - z) / (w K)) of
+/// those points, 0 when none is higher than the cell. Points beyond the grid are not sampled
+/// (terrain outside the grid shelters nothing).
+Grid<float> windOcclusionDeg(const Grid<float>& elevationM, const Wind& wind);
+
+/// Wind exposure in m/s: wind.strengthMS * max(0, 1 - occlusion / wind.thresholdDeg), so
+/// open ground gets the full strength and a cell whose upwind horizon reaches the threshold
+/// angle none. ValidationError for wind parameters outside windFields()' ranges.
+Grid<float> windSpeedMS(const Grid<float>& elevationM, const Wind& wind);
+
+// ---------------------------------------------------------------------------------------
 // Sun
 
 /// Parameters of the sunlight model (all written into every abiotics file; described once
@@ -154,6 +169,7 @@ struct Abiotics {
     MonthlyGrids<float> moistureMm;    ///< mm (soil water after each month)
     MonthlyGrids<float> temperatureC;  ///< degrees Celsius
     Grid<float> slopeDeg;              ///< degrees
+    Grid<float> windMS;                ///< m/s: wind exposure of the biome's prevailing wind (static)
     Grid<float> elevationM;            ///< metres
     /// Where the sun planes were shaded by a canopy ("eco abiotics --canopy FILE"): that
     /// file; empty for the terrain's own sun. The simulator and the analyser apply their
@@ -162,7 +178,7 @@ struct Abiotics {
 };
 
 /// The annual maps of the factors (factors.h): the annual means of the monthly maps (sun,
-/// moisture, temperature) and the slope, in factor order. The one place that says which
+/// moisture, temperature), the slope and the wind, in factor order. The one place that says which
 /// abiotics map feeds which factor. `sunHoursAnnual`, when given, replaces the sun's
 /// annual mean (a canopy-shaded sun, as the analyser and synthesizer use).
 FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual = nullptr);
@@ -171,13 +187,13 @@ FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual =
 void validateElevation(const Grid<float>& elevationM, const std::string& what = "elevation");
 
 /// All abiotic maps for a terrain and biome. `progress(stage, fraction)` is called from
-/// the calling thread with stage "slope", "temperature", "sun" or "moisture" and the
+/// the calling thread with stage "slope", "temperature", "sun", "moisture" or "wind" and the
 /// fraction of that stage done (each stage ends with 1.0).
 Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, const AbioticParams& params,
                          const std::function<void(const std::string& stage, double fraction)>& progress = {});
 
 /// Write an abiotics file atomically (temporary file, then rename). Layout in
-/// docs/abiotics.md: /elevation, /slope, /sun, /moisture, /temperature and root
+/// docs/abiotics.md: /elevation, /slope, /sun, /moisture, /temperature, /wind and root
 /// attributes recording the biome, the climate, the soil and every model parameter.
 void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& biome,
                    const AbioticParams& params);

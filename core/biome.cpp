@@ -68,6 +68,22 @@ const std::vector<ParamDesc<VigourShape>>& vigourFields() {
     return f;
 }
 
+const std::vector<ParamDesc<Wind>>& windFields() {
+    using K = ParamDesc<Wind>::Kind;
+    using R = ParamRange;
+    static const std::vector<ParamDesc<Wind>> f = {
+        {"direction_deg", "where the prevailing wind comes from, degrees clockwise from north (270: from the west)",
+         K::Real, &Wind::directionDeg, nullptr, R::closed(0, 360)},
+        {"strength_m_s", "yearly mean speed of the prevailing wind on exposed ground, m/s", K::Real, &Wind::strengthMS,
+         nullptr, R::closed(0, 100)},
+        {"threshold_deg", "occlusion angle at which the wind is fully sheltered (EcoMod's Theta_0), degrees", K::Real,
+         &Wind::thresholdDeg, nullptr, R::openClosed(0, 90)},
+        {"samples", "upwind samples N_w, one cell apart (EcoMod: 10)", K::Integer, nullptr, &Wind::samples,
+         R::closed(1, 10000)},
+    };
+    return f;
+}
+
 double Biome::vigourOf(int s, const Features& x) const {
     const Species& sp = species[static_cast<std::size_t>(s)];
     return sp.alpha * minResponse(vigour, sp.responses, x);
@@ -119,7 +135,10 @@ void readSpeciesField(StrictTable& t, const SpeciesField& f, Species& s, const B
             s.*(f.real) = v;
             break;
         }
-        case SpeciesField::Kind::Response: s.response(f.factor) = readResponse(t, key, file, ctx); break;
+        case SpeciesField::Kind::Response:
+            if (!kFactors[factorIndex(f.factor)].responseRequired && !t.has(key)) s.response(f.factor) = Response::indifferent();
+            else s.response(f.factor) = readResponse(t, key, file, ctx);
+            break;
         case SpeciesField::Kind::GrowthPeriod: {
             s.growthPeriod = t.string(key);
             bool found = false;
@@ -158,6 +177,7 @@ void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s)
         }
         case SpeciesField::Kind::Real: st.insert(f.key, s.*(f.real)); break;
         case SpeciesField::Kind::Response:
+            if (s.response(f.factor).isIndifferent()) break;  // an optional factor the species does not respond to
             st.insert(f.key, toml::table{{"c", s.response(f.factor).c}, {"r", s.response(f.factor).r}});
             break;
         case SpeciesField::Kind::GrowthPeriod: st.insert(f.key, s.growthPeriod); break;
@@ -211,6 +231,15 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
         StrictTable t(top.table("vigour"), file, "[vigour]");
         readRequiredParams(t, b.vigour, vigourFields());
         t.finish();
+    }
+    if (top.has("wind")) {
+        StrictTable t(top.table("wind"), file, "[wind]");
+        readParams(t, b.wind, windFields());
+        for (const auto& f : windFields())
+            if (!f.range.contains(f.value(b.wind)))
+                t.fail(f.key, "value " + StrictTable::fmt(f.value(b.wind)) + " " + f.ruleText());
+        t.finish();
+        b.windGiven = true;
     }
     {
         StrictTable t(top.table("growth_periods"), file, "[growth_periods]");
@@ -331,6 +360,14 @@ std::string biomeToToml(const Biome& b) {
     root.insert("climate", std::move(climate));
     root.insert("soil", paramTable(b.soil, soilFields()));
     root.insert("vigour", paramTable(b.vigour, vigourFields()));
+    if (b.windGiven) {
+        toml::table wind;
+        for (const auto& f : windFields()) {
+            if (f.kind == ParamDesc<Wind>::Kind::Integer) wind.insert(f.key, static_cast<std::int64_t>(b.wind.*(f.integer)));
+            else wind.insert(f.key, b.wind.*(f.real));
+        }
+        root.insert("wind", std::move(wind));
+    }
     toml::table periods;
     for (const auto& [name, months] : b.growthPeriods) {
         toml::array a;

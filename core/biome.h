@@ -32,7 +32,8 @@ struct Species {
     double maxAgeYears = 1.0;        ///< l_s
     double maxHeightM = 1.0;         ///< h'_s
     double alpha = 0.5;              ///< light absorption / vigour scale, [0, 1]
-    Responses responses;             ///< per factor (factors.h order and units): optimum c, range r
+    Responses responses = defaultResponses();  ///< per factor (factors.h order and units): optimum c, range r;
+                                               ///< indifferent for an optional factor the biome does not give
     std::string growthPeriod;        ///< name of a Biome::growthPeriods entry
     std::vector<int> growthMonths;   ///< resolved months, 0 = January
     Allometry allometry;
@@ -75,7 +76,8 @@ struct SpeciesField {
 };
 
 /// Every key of a [[species]] table, in the order files list them: the one description of a
-/// species' parameters. All keys are required.
+/// species' parameters. All keys are required but the responses to optional factors
+/// (FactorInfo::responseRequired false: wind), whose absence makes the species indifferent.
 inline const std::vector<SpeciesField>& speciesFields() {
     using K = SpeciesField::Kind;
     using R = ParamRange;
@@ -96,7 +98,10 @@ inline const std::vector<SpeciesField>& speciesFields() {
             SpeciesField r{kFactors[f].key,
                            std::string("response to ") + kFactors[f].label + " (Eq. 1): `{ c = optimum, r = range }`, " +
                                kFactors[f].unit,
-                           K::Response, "c any number, r > 0"};
+                           K::Response,
+                           kFactors[f].responseRequired
+                               ? "c any number, r > 0"
+                               : "c any number, r > 0; optional: without it the species is indifferent (no effect on vigour)"};
             r.factor = static_cast<Factor>(f);
             v.push_back(r);
         }
@@ -127,6 +132,15 @@ struct Climate {
     double lapseRateCPerKm = 9.8;
 };
 
+/// The prevailing wind of the biome ([wind], optional; these defaults without it) and the
+/// parameters of EcoMod's wind-shelter model (Zamuda & Brest; docs/abiotics.md "Wind").
+struct Wind {
+    double directionDeg = 270.0;  ///< where the wind comes from, degrees clockwise from north (270: westerly)
+    double strengthMS = 5.0;      ///< yearly mean speed of the prevailing wind on exposed ground, m/s
+    double thresholdDeg = 45.0;   ///< occlusion angle at which the wind is fully sheltered (Theta_0), degrees
+    int samples = 10;             ///< upwind samples N_w, one cell apart
+};
+
 struct Soil {
     double runoffLimitMm = 100.0;      ///< most water a cell absorbs in one month
     double slopeThresholdDeg = 5.0;    ///< below: all water infiltrates
@@ -141,6 +155,8 @@ struct Soil {
 const std::vector<ParamDesc<Climate>>& climateFields();
 const std::vector<ParamDesc<Soil>>& soilFields();
 const std::vector<ParamDesc<VigourShape>>& vigourFields();
+/// The keys of the optional [wind] table (all optional, defaults of Wind).
+const std::vector<ParamDesc<Wind>>& windFields();
 
 struct Biome {
     std::string name;
@@ -150,6 +166,9 @@ struct Biome {
     Climate climate;
     Soil soil;
     VigourShape vigour;
+    Wind wind;               ///< [wind], or the defaults of Wind
+    bool windGiven = false;  ///< the file had a [wind] table: biomeToToml prints it only then, so that
+                             ///< a biome without one keeps its record (and every output) as before
     std::vector<std::pair<std::string, std::vector<int>>> growthPeriods;
 
     /// Index of a species by exact name; ValidationError listing the names if unknown.

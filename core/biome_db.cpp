@@ -102,9 +102,12 @@ private:
     const h5::File& f_;
 };
 
-Features featuresAt(const std::vector<double>& flat, std::size_t row) {
+// Row `row` of a [rows][cols] feature table; factors beyond the file's `cols` columns (a file
+// written before the factor existed) get `missing`.
+Features featuresAt(const std::vector<double>& flat, std::size_t row, std::size_t cols, double missing) {
     Features f{};
-    for (std::size_t c = 0; c < kFactorCount; ++c) f[c] = flat[row * kFactorCount + c];
+    f.fill(missing);
+    for (std::size_t c = 0; c < cols; ++c) f[c] = flat[row * cols + c];
     return f;
 }
 
@@ -182,13 +185,15 @@ int BiomeDatabase::nearestRegion(int combination, const Features& raw) const {
 int BiomeDatabase::nearestRegionOf(std::size_t combinationIdx, const Features& raw) const {
     const DbCombination& c = combinations[combinationIdx];
     Features z{};
-    for (std::size_t f = 0; f < kFactorCount; ++f) z[f] = (raw[f] - c.featureMean[f]) / c.featureStd[f];
+    for (std::size_t f = 0; f < kFactorCount; ++f)
+        z[f] = featureWeights[f] != 0 ? (raw[f] - c.featureMean[f]) / c.featureStd[f] : 0.0;
     int best = -1;
     double bestD = std::numeric_limits<double>::infinity();
     for (int r = c.firstRegion; r < c.firstRegion + c.k; ++r) {
         const Features& cz = regions[static_cast<std::size_t>(r)].centroidNormalised;
         double d = 0;
-        for (std::size_t f = 0; f < kFactorCount; ++f) d += (z[f] - cz[f]) * (z[f] - cz[f]);
+        for (std::size_t f = 0; f < kFactorCount; ++f)
+            if (featureWeights[f] != 0) d += (z[f] - cz[f]) * (z[f] - cz[f]);  // weights are 0 or 1
         if (d < bestD) {
             bestD = d;
             best = r;
@@ -239,7 +244,7 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.setAttr("/", "biome_toml", db.biomeToml);
         f.setAttr("/", "units",
                   std::string("lengths m, areas m2, densities plants/m2, sun hours/day, moisture mm, "
-                              "temperature degC, slope degrees"));
+                              "temperature degC, slope degrees, wind m/s"));
         f.setAttr("/", "seeding_radius_factor", db.seedingRadiusFactor);
 
         f.writeStrings("/species/names", db.speciesNames);
@@ -263,6 +268,8 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         }
         f.writeStrings("/features/names", featureNames);
         f.writeStrings("/features/units", featureUnits);
+        f.writeF64("/features/weights", std::vector<double>(db.featureWeights.begin(), db.featureWeights.end()),
+                   {hs(kFactorCount)});
 
         std::vector<std::string> pNames, pValues;
         for (const auto& [k, v] : db.parameters) {
@@ -515,11 +522,31 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto masks = rd.i32("/species/canopy_subbiome_mask", {ns});
     db.canopySubBiomeMask.assign(masks.begin(), masks.end());
     db.subBiomeNames = rd.strings("/sub_biomes/names", Reader::kAny);
-    const auto featureNames = rd.strings("/features/names", kFactorCount);
-    for (std::size_t i = 0; i < kFactorCount; ++i)
+    // Files before schema 5 have the four factors before wind; their regions were found
+    // without it, so it gets weight 0 (and mean 0, std 1, centroid 0 below).
+    const auto featureNames = rd.strings("/features/names", Reader::kAny);
+    const std::size_t nf = featureNames.size();
+    std::size_t nRequired = 0;
+    while (nRequired < kFactorCount && kFactors[nRequired].responseRequired) ++nRequired;
+    if (nf < nRequired || nf > kFactorCount)
+        throw IoError(path + ": /features/names: " + std::to_string(nf) + " features, expected " +
+                      std::to_string(kFactorCount) + " (or " + std::to_string(nRequired) + " before schema 5)");
+    for (std::size_t i = 0; i < nf; ++i)
         if (featureNames[i] != kFactors[i].key)
             throw IoError(path + ": /features/names: feature " + std::to_string(i) + " is '" + featureNames[i] +
                           "', expected '" + kFactors[i].key + "'");
+    db.featureWeights.fill(0.0);
+    if (f.exists("/features/weights")) {
+        const auto w = rd.f64("/features/weights", {nf});
+        for (std::size_t i = 0; i < nf; ++i) {
+            if (w[i] != 0.0 && w[i] != 1.0)
+                throw IoError(path + ": /features/weights: entry " + std::to_string(i) + " is " + formatNumber(w[i], 6) +
+                              "; weights are 0 or 1");
+            db.featureWeights[i] = w[i];
+        }
+    } else {
+        for (std::size_t i = 0; i < nf; ++i) db.featureWeights[i] = 1.0;
+    }
     const auto pNames = rd.strings("/parameters/names", Reader::kAny);
     const auto pValues = rd.strings("/parameters/values", pNames.size());
     for (std::size_t i = 0; i < pNames.size(); ++i) db.parameters.emplace_back(pNames[i], pValues[i]);
@@ -588,8 +615,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto cFirst = rd.i32("/combinations/first_region", {nc});
     const auto cArea = rd.f64("/combinations/area_m2", {nc});
     const auto cCells = rd.f64("/combinations/cell_count", {nc});
-    const auto cMean = rd.f64("/combinations/feature_mean", {nc, kFactorCount});
-    const auto cStd = rd.f64("/combinations/feature_std", {nc, kFactorCount});
+    const auto cMean = rd.f64("/combinations/feature_mean", {nc, nf});
+    const auto cStd = rd.f64("/combinations/feature_std", {nc, nf});
     const auto silShape = f.shape("/combinations/silhouette");
     if (silShape.size() != 2 || silShape[0] != nc)
         throw IoError(path + ": /combinations/silhouette: expected shape [" + std::to_string(nc) + "][kmax]");
@@ -608,8 +635,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         c.firstRegion = cFirst[i];
         c.areaM2 = cArea[i];
         c.cellCount = static_cast<std::int64_t>(cCells[i]);
-        c.featureMean = featuresAt(cMean, i);
-        c.featureStd = featuresAt(cStd, i);
+        c.featureMean = featuresAt(cMean, i, nf, 0.0);
+        c.featureStd = featuresAt(cStd, i, nf, 1.0);
         c.silhouette = rowOf(cSil, i, kTried);
         const int maxMask = (1 << db.subBiomeNames.size()) - 1;
         if (c.mask < 1 || c.mask > maxMask || (i > 0 && c.mask <= cMask[i - 1]))
@@ -620,15 +647,16 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
             throw IoError(path + ": /combinations: combination " + std::to_string(c.mask) + " refers to regions " +
                           std::to_string(c.firstRegion) + " .. " + std::to_string(c.firstRegion + c.k - 1) + " of " +
                           std::to_string(nr));
-        for (double s : c.featureStd)
-            if (!(s > 0.0)) throw IoError(path + ": /combinations/feature_std: non-positive normalisation");
+        for (std::size_t f = 0; f < kFactorCount; ++f)  // a factor left out (weight 0) is never divided by
+            if (db.featureWeights[f] != 0 && !(c.featureStd[f] > 0.0))
+                throw IoError(path + ": /combinations/feature_std: non-positive normalisation");
         db.combinations.push_back(std::move(c));
     }
 
     const auto rComb = rd.i32("/regions/combination", {nr});
     const auto rCluster = rd.i32("/regions/cluster", {nr});
-    const auto rCz = rd.f64("/regions/centroid_normalised", {nr, kFactorCount});
-    const auto rCr = rd.f64("/regions/centroid_raw", {nr, kFactorCount});
+    const auto rCz = rd.f64("/regions/centroid_normalised", {nr, nf});
+    const auto rCr = rd.f64("/regions/centroid_raw", {nr, nf});
     const auto rArea = rd.f64("/regions/area_m2", {nr});
     const auto rCells = rd.f64("/regions/cell_count", {nr});
     const auto rUnder = rd.f64("/regions/undergrowth_count", {nr});
@@ -680,8 +708,8 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
         DbRegion r;
         r.combination = rComb[ri];
         r.cluster = rCluster[ri];
-        r.centroidNormalised = featuresAt(rCz, ri);
-        r.centroidRaw = featuresAt(rCr, ri);
+        r.centroidNormalised = featuresAt(rCz, ri, nf, 0.0);
+        r.centroidRaw = featuresAt(rCr, ri, nf, 0.0);
         r.areaM2 = rArea[ri];
         r.cellCount = static_cast<std::int64_t>(rCells[ri]);
         r.undergrowthCount = rUnder[ri];

@@ -25,15 +25,18 @@
 
 namespace eco {
 
+/// 5: a fifth feature column, wind (factors.h), and /features/weights: 1 for a factor in the
+///    clustering distance, 0 for one no species of the biome responds to (left out);
 /// 4: the creation date moved from the root attribute created_utc to /provenance
 ///    (docs/hdf5.md; left out with eco --no-provenance), so that two analyses of the same
 ///    inputs write the same bytes;
 /// 3: canopy context per region (density of each species by depth under the canopy cover,
 ///    heights under crowns, cell pairs by context for the context part of g(r));
 /// 2: region features use the canopy-shaded annual sun (1: the terrain's own sun).
-/// Version 2 and 3 files are still read (version 2 without the context statistics:
-/// hasContext() false).
-constexpr int kBiomeDbSchemaVersion = 4;
+/// Version 2, 3 and 4 files are still read (version 2 without the context statistics:
+/// hasContext() false; before 5 with four feature columns: the wind gets weight 0, mean 0,
+/// std 1, so that their regions are found as before).
+constexpr int kBiomeDbSchemaVersion = 5;
 constexpr int kBiomeDbOldestReadableVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";
 
@@ -149,6 +152,16 @@ struct BiomeDatabase {
     /// be a canopy tree). The synthesizer labels its cells with the same masks.
     std::vector<int> canopySubBiomeMask;
     double seedingRadiusFactor = 12;          ///< a tree seeds cells within factor * crown radius
+    /// Per factor (factors.h order): 1 when the factor enters the normalised distance of the
+    /// clustering and of nearestRegion, 0 when it is left out (the analyser gives 0 to a
+    /// factor no species of the biome responds to, so that such a factor changes no region;
+    /// docs/database.md). Only 0 and 1 are stored. Default (a database built in code): 1 for
+    /// the factors every biome gives (FactorInfo::responseRequired), 0 for the optional ones.
+    Features featureWeights = [] {
+        Features w{};
+        for (std::size_t f = 0; f < kFactorCount; ++f) w[f] = kFactors[f].responseRequired ? 1.0 : 0.0;
+        return w;
+    }();
     DistanceBins pcfBins;
     SeparationBins separationBins;
     /// Bins of the signed depth under the canopy cover (core/canopy_context.h); schema 3.
@@ -182,7 +195,8 @@ struct BiomeDatabase {
     /// The stored combination nearestRegion() uses for `combination`, or -1.
     int standInCombination(int combination) const;
     /// Region of the stored combination combinations[combinationIdx] whose centroid is
-    /// nearest in the combination's normalised units (the second step of nearestRegion).
+    /// nearest in the combination's normalised units, over the factors of weight 1 (the
+    /// second step of nearestRegion).
     int nearestRegionOf(std::size_t combinationIdx, const Features& x) const;
 };
 

@@ -13,10 +13,10 @@ namespace eco {
 
 /// The abiotic factors, in the one order used everywhere (feature vectors, the species'
 /// responses, database columns, k-means features).
-enum class Factor : std::size_t { Sun, Moisture, Temperature, Slope };
+enum class Factor : std::size_t { Sun, Moisture, Temperature, Slope, Wind };
 
 /// Number of factors (the length of every Features vector).
-constexpr std::size_t kFactorCount = 4;
+constexpr std::size_t kFactorCount = 5;
 
 /// Names and units of one factor. The key and unit are file formats: the biome TOML's
 /// species response tables are named by `key`, a database's /features/names and
@@ -25,6 +25,10 @@ struct FactorInfo {
     const char* key;    ///< "sun": TOML table of a species' response, database feature name
     const char* unit;   ///< "hours/day": unit of the annual value
     const char* label;  ///< "sunlight": words for messages ("the sunlight map")
+    /// true: every species of a biome gives its response (the paper's four factors); false:
+    /// the response is optional and a species without one is indifferent to the factor
+    /// (Response::indifferent(), core/vigour.h: normalised distance 0, vigour unchanged).
+    bool responseRequired = true;
 };
 
 /// The factor table, in Factor order.
@@ -33,6 +37,9 @@ inline constexpr std::array<FactorInfo, kFactorCount> kFactors = {{
     {"moisture", "mm", "moisture"},
     {"temperature", "degC", "temperature"},
     {"slope", "degrees", "slope"},
+    // Zamuda & Brest's wind shelter (EcoMod): the prevailing wind's speed left after the
+    // terrain upwind occludes it (core/abiotics.h windSpeedMS, docs/abiotics.md).
+    {"wind", "m/s", "wind exposure", false},
 }};
 
 /// Position of factor f in every factor-indexed array.

@@ -14,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 
 #include "factors.h"
 
@@ -23,12 +24,30 @@ namespace eco {
 struct Response {
     double c = 0.0;
     double r = 1.0;
+    /// No response: an infinite range, so every finite value lies at normalised distance
+    /// |x - c| / r = 0 (the batch form's 1 / r is 0) and g is g(0), the largest g can be.
+    /// The factor then never wins the min (or the max distance) of Eq. 1: a species
+    /// without a response to an optional factor (FactorInfo::responseRequired false) has
+    /// the vigour of the other factors, bit for bit (tests/factors_test.cpp).
+    static Response indifferent() { return Response{0.0, std::numeric_limits<double>::infinity()}; }
+    /// True for indifferent(): the species (or the grass) does not respond to the factor.
+    bool isIndifferent() const { return r == std::numeric_limits<double>::infinity(); }
 };
 
 /// A species' (or the grass's) responses, one per factor, in factor order.
 template <std::size_t N>
 using ResponsesOf = std::array<Response, N>;
 using Responses = ResponsesOf<kFactorCount>;
+
+/// Responses of a new species (or the grass) before any is read: {0, 1} for the factors a
+/// biome must give, indifferent() for the optional ones, so that code building a species
+/// by hand does not make it respond to a factor it never heard of.
+inline Responses defaultResponses() {
+    Responses r{};
+    for (std::size_t f = 0; f < kFactorCount; ++f)
+        if (!kFactors[f].responseRequired) r[f] = Response::indifferent();
+    return r;
+}
 
 /// Vigour response shape g(d) = (1 + a) exp((d / r)^p ln q) - a (Eq. 1).
 struct VigourShape {

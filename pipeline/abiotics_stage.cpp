@@ -43,13 +43,17 @@ void writePictures(const std::string& dir, const Abiotics& a, const Biome& biome
         tMin = std::min<double>(tMin, g.minValue());
         tMax = std::max<double>(tMax, g.maxValue());
     }
-    auto bar = reporter.progress("abiotics pictures", 2 + 3 * 12);
+    auto bar = reporter.progress("abiotics pictures", 3 + 3 * 12);
     long done = 0;
     writeMapPng(dir + "/elevation.png", a.elevationM, "Elevation", "m", Colormap::Terrain);
     bar->update(++done);
     writeMapPng(dir + "/slope.png", a.slopeDeg, "Slope", "degrees", Colormap::Viridis);
     bar->update(++done);
-    written.insert(written.end(), {dir + "/elevation.png", dir + "/slope.png"});
+    // Wind: 0 (sheltered) .. the biome's strength (open ground), so that biomes compare.
+    writeMapPng(dir + "/wind.png", a.windMS, "Wind exposure", "m/s", Colormap::Blues, 0.0,
+                std::max(biome.wind.strengthMS, 1e-3));
+    bar->update(++done);
+    written.insert(written.end(), {dir + "/elevation.png", dir + "/slope.png", dir + "/wind.png"});
     for (int m = 0; m < 12; ++m) {
         const std::string month = kMonthLong[static_cast<std::size_t>(m)];
         writeMapPng(monthlyName(dir, "sun", m), a.sunHours[m], "Sunlight, " + month, "hours/day", Colormap::Heat, 0.0,
@@ -64,7 +68,7 @@ void writePictures(const std::string& dir, const Abiotics& a, const Biome& biome
         bar->update(done);
     }
     bar->finish();
-    reporter.out() << "wrote pictures: " << dir << "/ (elevation.png, slope.png, sun_MM_mon.png, moisture_MM_mon.png, "
+    reporter.out() << "wrote pictures: " << dir << "/ (elevation.png, slope.png, wind.png, sun_MM_mon.png, moisture_MM_mon.png, "
                    << "temperature_MM_mon.png for 12 months)\n";
 }
 
@@ -113,7 +117,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     result.written.push_back(args.out);
     reporter.out() << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
                    << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
-                   << ", /moisture mm, /temperature degC)\n";
+                   << ", /moisture mm, /temperature degC, /wind m/s)\n";
     if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, outputs, args.geotiffDir, reporter, result.written);
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome, reporter, result.written);
     outputs.commit();

@@ -84,6 +84,7 @@ void setCrs(Abiotics& a, const std::string& wkt) {
     for (MonthlyGrids<float>* m : {&a.sunHours, &a.moistureMm, &a.temperatureC})
         for (Grid<float>& g : m->months) g.setCrsWkt(wkt);
     a.slopeDeg.setCrsWkt(wkt);
+    a.windMS.setCrsWkt(wkt);
     a.elevationM.setCrsWkt(wkt);
 }
 

@@ -24,6 +24,7 @@ SimInputs makeDemoScene(const DemoSceneParams& p, const Biome& biome) {
     if (p.uniformAbiotics) {
         in.abiotics.elevationM = Grid<float>::like(elevation, 100.f);
         in.abiotics.slopeDeg = Grid<float>::like(elevation, 5.f);
+        in.abiotics.windMS = Grid<float>::like(elevation, static_cast<float>(biome.wind.strengthMS));  // open ground
         for (int m = 0; m < 12; ++m) {
             // Day length at the biome's latitude; soil water following the rain, lagged.
             const double day = 12.0 + 2.4 * std::cos((m - 5.5) / 12.0 * 2.0 * M_PI);

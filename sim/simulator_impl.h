@@ -293,17 +293,19 @@ struct Simulation::Impl : CellGrid {
     // Held by value, so that the monthly update and germination keep it in locals.
     struct SitePlanes {
         const float* slope;
+        const float* wind;
         Features features(double sun, double water, double temp, std::size_t coarseCell) const {
-            static_assert(kFactorCount == 4, "a new factor: give the plant's value here (docs/factors.md)");
+            static_assert(kFactorCount == 5, "a new factor: give the plant's value here (docs/factors.md)");
             Features x{};
             x[factorIndex(Factor::Sun)] = sun;
             x[factorIndex(Factor::Moisture)] = water;
             x[factorIndex(Factor::Temperature)] = temp;
             x[factorIndex(Factor::Slope)] = slope[coarseCell];
+            x[factorIndex(Factor::Wind)] = wind[coarseCell];
             return x;
         }
     };
-    SitePlanes sitePlanes() const { return SitePlanes{abio.slopeDeg.data().data()}; }
+    SitePlanes sitePlanes() const { return SitePlanes{abio.slopeDeg.data().data(), abio.windMS.data().data()}; }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator

@@ -34,6 +34,9 @@ void Simulation::Impl::validateAbiotics() {
     check(abio.sunHours, "sun");
     check(abio.moistureMm, "moisture");
     check(abio.temperatureC, "temperature");
+    if (abio.windMS.empty()) throw ValidationError("simulation: the abiotics have no wind map");
+    if (!abio.windMS.sameGeometry(g))
+        throw ValidationError("simulation: abiotic map 'wind' does not have the geometry of the slope map");
     if (abio.elevationM.empty()) abio.elevationM = Grid<float>::like(g, 0.f);
     if (!abio.elevationM.sameGeometry(g))
         throw ValidationError("simulation: the elevation map does not have the geometry of the slope map");

@@ -53,6 +53,11 @@ std::uint64_t Simulation::Impl::computeFingerprint() const {
     for (const auto* mg : {&abio.sunHours, &abio.moistureMm, &abio.temperatureC})
         for (const auto& g : mg->months) h = hashVector(h, g.data());
     h = hashVector(h, abio.slopeDeg.data());
+    // The wind map only when a species responds to it: otherwise the run does not read it,
+    // and a checkpoint of a wind-indifferent biome keeps its fingerprint of before the factor.
+    bool windRead = false;
+    for (const Species& sp : biome.species) windRead = windRead || !sp.response(Factor::Wind).isIndifferent();
+    if (windRead) h = hashVector(h, abio.windMS.data());
     h = hashVector(h, abio.elevationM.data());
     h = hashVector(h, chm.data());
     return h;

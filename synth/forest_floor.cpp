@@ -34,13 +34,15 @@ const std::vector<ParamDesc<ForestFloorParams>>& forestFloorParamFields() {
 }
 
 void ForestFloorParams::validate() const {
-    for (std::size_t f = 0; f < kFactorCount; ++f) checkResponse(grass[f], std::string("grass_") + kFactors[f].key);
+    for (std::size_t f = 0; f < kFactorCount; ++f)
+        if (!grass[f].isIndifferent()) checkResponse(grass[f], std::string("grass_") + kFactors[f].key);
     validateParams(*this, forestFloorParamFields(), "forest floor parameter");
 }
 
 std::vector<std::pair<std::string, std::string>> ForestFloorParams::asParameters() const {
     std::vector<std::pair<std::string, std::string>> out;
     for (std::size_t f = 0; f < kFactorCount; ++f) {
+        if (grass[f].isIndifferent()) continue;
         const std::string key = std::string("grass_") + kFactors[f].key;
         out.emplace_back(key + "_c", num(grass[f].c));
         out.emplace_back(key + "_r", num(grass[f].r));

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -42,10 +43,29 @@ TEST_CASE("abiotics: the eco abiotics command writes the maps and pictures", "[a
     const Abiotics a = readAbiotics(out);
     REQUIRE(a.sunHours[0].width() == 31);
     REQUIRE(a.sunHours[0].height() == 22);
-    for (const char* name : {"elevation.png", "slope.png", "sun_01_jan.png", "sun_12_dec.png", "moisture_07_jul.png",
-                             "temperature_06_jun.png"})
+    for (const char* name : {"elevation.png", "slope.png", "wind.png", "sun_01_jan.png", "sun_12_dec.png",
+                             "moisture_07_jul.png", "temperature_06_jun.png"})
         REQUIRE(std::filesystem::exists(png + "/" + name));
     REQUIRE(h5::File::openRead(out).attrDouble("/", "sun_step_minutes") == 30.0);
+    // The biome's [wind] reaches the map: Sonoma has none (the defaults, 5 m/s from the
+    // west); a biome blowing 9 m/s from the east records it and computes its map.
+    REQUIRE(h5::File::openRead(out).attrDouble("/", "wind_direction_deg") == 270.0);
+    REQUIRE(a.windMS.maxValue() == 5.f);
+    const std::string windyBiome = dir.file("windy.toml");
+    {
+        std::ofstream b(windyBiome);
+        b << biomeToToml(defaultBiome()) << "\n[wind]\ndirection_deg = 90\nstrength_m_s = 9\n";
+    }
+    const std::string windyOut = dir.file("windy.h5");
+    const auto rw = test::runEco("--threads 2 abiotics --terrain '" + terrain + "' --out '" + windyOut + "' --biome '" +
+                                 windyBiome + "' --sun-step 60");
+    INFO(rw.output);
+    REQUIRE(rw.exitCode == 0);
+    REQUIRE(h5::File::openRead(windyOut).attrDouble("/", "wind_direction_deg") == 90.0);
+    Wind east;
+    east.directionDeg = 90;
+    east.strengthMS = 9;
+    REQUIRE(readAbiotics(windyOut).windMS.data() == windSpeedMS(a.elevationM, east).data());
 }
 
 TEST_CASE("abiotics: the eco abiotics command rejects bad input with one clear line", "[abiotics][cli]") {

@@ -473,6 +473,7 @@ TEST_CASE("abiotics are bit-identical with 1 and 2 threads", "[abiotics]") {
     REQUIRE(bitIdentical(one.temperatureC, two.temperatureC));
     REQUIRE(bitIdentical(one.sunHours, two.sunHours));
     REQUIRE(bitIdentical(one.moistureMm, two.moistureMm));
+    REQUIRE(bitIdentical(one.windMS, two.windMS));
     omp_set_num_threads(3);
     REQUIRE(bitIdentical(skyViewFactor(z, params.sun), [&] {
         omp_set_num_threads(1);
@@ -495,7 +496,7 @@ TEST_CASE("abiotics: computeAbiotics reports every stage and validates its input
         if (f < lastFraction) monotone = false;
         lastFraction = f;
     });
-    REQUIRE(stages == std::vector<std::string>{"slope", "temperature", "sun", "moisture"});
+    REQUIRE(stages == std::vector<std::string>{"slope", "temperature", "sun", "moisture", "wind"});
     REQUIRE(lastFraction == Approx(1.0));
     REQUIRE(monotone);
     REQUIRE(bitIdentical(a.elevationM, z));
@@ -551,10 +552,19 @@ TEST_CASE("abiotics HDF5 round trip", "[abiotics]") {
     REQUIRE(bitIdentical(r.sunHours, a.sunHours));
     REQUIRE(bitIdentical(r.moistureMm, a.moistureMm));
     REQUIRE(bitIdentical(r.temperatureC, a.temperatureC));
+    REQUIRE(bitIdentical(r.windMS, a.windMS));
+    REQUIRE(a.windMS.maxValue() > a.windMS.minValue());  // the rough terrain shelters some cells
 
     const h5::File f = h5::File::openRead(path);
     REQUIRE(f.attrString("/", "format") == "eco-abiotics");
-    REQUIRE(f.attrInt("/", "schema_version") == 1);
+    REQUIRE(f.attrInt("/", "schema_version") == 2);
+    for (const auto& field : windFields()) {
+        INFO(field.key);
+        const std::string key = std::string("wind_") + field.key;
+        if (field.kind == ParamDesc<Wind>::Kind::Real) CHECK(f.attrDouble("/", key) == field.value(biome.wind));
+        else CHECK(f.attrInt("/", key) == static_cast<std::int64_t>(field.value(biome.wind)));
+    }
+    REQUIRE(f.attrString("/wind", "units") == "m/s");
     REQUIRE(f.attrString("/", "biome_name") == "Test biome");
     REQUIRE(f.attrDouble("/", "latitude_deg") == 38.58);
     REQUIRE(f.attrDouble("/", "sun_step_minutes") == 20.0);
@@ -586,8 +596,10 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
     AbioticParams params;
     params.sun.stepMinutes = 60;
     const Abiotics a = computeAbiotics(z, testBiome(), params);
-    auto writePartial = [&](const std::string& path, bool withMoisture, int sunPlanes, bool withFormat) {
+    auto writePartial = [&](const std::string& path, bool withMoisture, int sunPlanes, bool withFormat,
+                            std::int64_t version = 2) {
         h5::File f = h5::File::create(path);
+        if (version >= 2) f.writeGrid("/wind", a.windMS, "m/s");
         f.writeGrid("/elevation", a.elevationM, "m");
         f.writeGrid("/slope", a.slopeDeg, "degrees");
         std::vector<Grid<float>> sun(a.sunHours.months.begin(), a.sunHours.months.begin() + sunPlanes);
@@ -596,9 +608,14 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
         f.writeStack("/temperature", a.temperatureC.months, "degC");
         if (withFormat) {
             f.setAttr("/", "format", std::string("eco-abiotics"));
-            f.setAttr("/", "schema_version", std::int64_t{1});
+            f.setAttr("/", "schema_version", version);
         }
     };
+    // A schema 1 file (before the wind map) is refused with a message that says so.
+    const std::string v1 = dir.file("v1.h5");
+    writePartial(v1, true, 12, true, 1);
+    REQUIRE_THROWS_WITH(readAbiotics(v1), Catch::Contains(v1) && Catch::Contains("schema_version 1") &&
+                                              Catch::Contains("no wind map") && Catch::Contains("re-run eco abiotics"));
     const std::string missing = dir.file("missing.h5");
     writePartial(missing, false, 12, true);
     REQUIRE_THROWS_AS(readAbiotics(missing), IoError);
@@ -614,4 +631,126 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
     writePartial(foreign, true, 12, false);
     REQUIRE_THROWS_WITH(readAbiotics(foreign), Catch::Contains("not an eco-abiotics file"));
     REQUIRE_THROWS_AS(readAbiotics(dir.file("nonexistent.h5")), IoError);
+}
+
+// ---------------------------------------------------------------------------------------
+// Wind (EcoMod's wind shelter)
+
+namespace {
+
+/// Flat ground of `w` x `h` cells of `cell` metres with a wall `wallM` high on column `wallX`.
+Grid<float> wallTerrain(int w, int h, double cell, int wallX, float wallM) {
+    Grid<float> z(w, h, cell, 0, 0, 0.f);
+    for (int iy = 0; iy < h; ++iy) z(wallX, iy) = wallM;
+    return z;
+}
+
+}  // namespace
+
+TEST_CASE("abiotics: wind: flat ground is fully exposed", "[abiotics][wind]") {
+    Wind wind;
+    wind.strengthMS = 6.5;
+    for (double dir : {0.0, 45.0, 90.0, 200.0, 270.0, 359.0}) {
+        wind.directionDeg = dir;
+        const Grid<float> speed = windSpeedMS(Grid<float>(17, 11, 2.0, 0, 0, 12.f), wind);
+        CHECK(speed.minValue() == 6.5f);
+        CHECK(speed.maxValue() == 6.5f);
+    }
+    // A tilted plane: upwind ground rising slower than the threshold shelters partly,
+    // ground falling away upwind not at all.
+    Grid<float> plane(30, 5, 1.0);
+    for (int iy = 0; iy < 5; ++iy)
+        for (int ix = 0; ix < 30; ++ix) plane(ix, iy) = static_cast<float>(0.5 * ix);  // rises to the east
+    wind.directionDeg = 270;  // from the west: upwind is lower
+    CHECK(windSpeedMS(plane, wind).minValue() == 6.5f);
+    wind.directionDeg = 90;  // from the east: upwind rises at atan(0.5) = 26.57 degrees
+    const Grid<float> occ = windOcclusionDeg(plane, wind);
+    CHECK(occ(3, 2) == Approx(std::atan(0.5) / kDeg).margin(1e-4));
+    CHECK(occ(29, 2) == 0.f);  // the eastern edge has nothing upwind
+    CHECK(windSpeedMS(plane, wind)(3, 2) == Approx(6.5 * (1 - std::atan(0.5) / kDeg / 45.0)).margin(1e-5));
+}
+
+TEST_CASE("abiotics: wind: a wall shelters the cells behind it within the expected distance", "[abiotics][wind]") {
+    // A 10 m wall on column 20 of 2 m cells, wind from the west (upwind = west): cells east
+    // of the wall see it at atan(10 / (2 d)) for d cells. With the 45 degree threshold the
+    // cells within 5 cells (10 m) are fully sheltered; beyond, the exposure is
+    // 1 - atan(5 / d) / 45 deg, until the wall is more than N_w = 10 cells upwind.
+    const double cell = 2.0;
+    const Grid<float> z = wallTerrain(40, 6, cell, 20, 10.f);
+    Wind wind;
+    wind.directionDeg = 270;
+    wind.strengthMS = 4;
+    const Grid<float> speed = windSpeedMS(z, wind);
+    const Grid<float> occ = windOcclusionDeg(z, wind);
+    for (int iy = 0; iy < 6; ++iy) {
+        for (int d = 1; d <= 10; ++d) {
+            INFO("cell " << d << " east of the wall, row " << iy);
+            const double angle = std::atan(10.0 / (cell * d)) / kDeg;
+            CHECK(occ(20 + d, iy) == Approx(angle).margin(1e-4));
+            CHECK(speed(20 + d, iy) == Approx(4.0 * std::max(0.0, 1.0 - angle / 45.0)).margin(1e-5));
+            if (d < 5) CHECK(speed(20 + d, iy) == 0.f);  // d = 5: exactly 45 degrees, up to rounding
+        }
+        for (int d = 11; 20 + d < 40; ++d) CHECK(speed(20 + d, iy) == 4.f);  // beyond N_w samples
+        for (int ix = 0; ix <= 20; ++ix) CHECK(speed(ix, iy) == 4.f);       // upwind of the wall and its top
+    }
+    // More samples reach farther: with N_w = 15 the cells 12 and 13 east are sheltered a little.
+    wind.samples = 15;
+    CHECK(windSpeedMS(z, wind)(32, 3) < 4.f);
+    CHECK(windSpeedMS(z, wind)(33, 3) > 0.f);
+    // A lower threshold angle shelters more cells fully: atan(10 / 26) = 21 deg > 20.
+    wind.thresholdDeg = 20;
+    CHECK(windSpeedMS(z, wind)(33, 3) == 0.f);
+}
+
+TEST_CASE("abiotics: wind: the direction matters", "[abiotics][wind]") {
+    const Grid<float> z = wallTerrain(40, 40, 1.0, 20, 8.f);  // a north-south wall
+    Wind wind;
+    wind.strengthMS = 5;
+    auto at = [&](double dir, int ix, int iy) {
+        wind.directionDeg = dir;
+        return windSpeedMS(z, wind)(ix, iy);
+    };
+    // From the west the lee is east of the wall; from the east, west of it.
+    CHECK(at(270, 23, 20) == 0.f);
+    CHECK(at(270, 17, 20) == 5.f);
+    CHECK(at(90, 17, 20) == 0.f);
+    CHECK(at(90, 23, 20) == 5.f);
+    // Along the wall (from the north or the south) nothing is sheltered beside it.
+    CHECK(at(0, 23, 20) == 5.f);
+    CHECK(at(180, 17, 20) == 5.f);
+    // Obliquely from the south-west: the lee is north-east of the wall, at a longer
+    // upwind distance than straight across (the path crosses the wall sqrt 2 farther).
+    wind.directionDeg = 225;
+    const Grid<float> sw = windSpeedMS(z, wind);
+    CHECK(sw(23, 23) < 5.f);
+    CHECK(sw(17, 17) == 5.f);
+    const double oblique = windOcclusionDeg(z, wind)(23, 20);
+    wind.directionDeg = 270;
+    const double across = windOcclusionDeg(z, wind)(23, 20);
+    CHECK(across == Approx(std::atan(8.0 / 3.0) / kDeg).margin(1e-4));
+    CHECK(oblique > 45.0);
+    CHECK(oblique < across - 5.0);
+    // Transposing the terrain and turning the wind by 90 degrees gives the transposed map
+    // (no x/y mix-up): a west-east wall with the wind from the south.
+    const Grid<float> zt = [&] {
+        Grid<float> t(40, 40, 1.0, 0, 0, 0.f);
+        for (int ix = 0; ix < 40; ++ix) t(ix, 20) = 8.f;
+        return t;
+    }();
+    wind.directionDeg = 180;
+    const Grid<float> south = windSpeedMS(zt, wind);
+    wind.directionDeg = 270;
+    const Grid<float> west = windSpeedMS(z, wind);
+    for (int iy = 0; iy < 40; ++iy)
+        for (int ix = 0; ix < 40; ++ix) REQUIRE(south(iy, ix) == west(ix, iy));
+}
+
+TEST_CASE("abiotics: wind: parameters outside their ranges are refused", "[abiotics][wind]") {
+    const Grid<float> z(5, 5, 1.0, 0, 0, 0.f);
+    Wind wind;
+    wind.thresholdDeg = 0;
+    CHECK_THROWS_WITH(windSpeedMS(z, wind), Catch::Contains("threshold_deg"));
+    wind = Wind{};
+    wind.samples = 0;
+    CHECK_THROWS_WITH(windSpeedMS(z, wind), Catch::Contains("samples"));
 }

@@ -457,3 +457,55 @@ TEST_CASE("readSimulation: missing datasets and wrong files are IoErrors naming 
     opt.abioticsPath = dir.file("missing-abiotics.h5");
     CHECK_THROWS_WITH(analysis::readSimulation(dir.file("good.h5"), opt), Catch::Contains("missing-abiotics.h5"));
 }
+
+// ---------------------------------------------------------------------------------------
+// A factor no species responds to (wind in the Sonoma biome)
+
+TEST_CASE("a factor no species responds to is left out of the clustering and of nearestRegion", "[analysis][kmeans][wind]") {
+    // The same input twice: once calm everywhere, once with a strong north-south split of
+    // the wind (0 vs 12 m/s, with noise), which k-means would separate if it counted.
+    const analysis::AnalysisInput calm = randomInput(4);
+    analysis::AnalysisInput windy = calm;
+    RandomStream rng(4, 10);
+    for (int iy = 0; iy < 50; ++iy)
+        for (int ix = 0; ix < 60; ++ix)
+            windy.features[Factor::Wind](ix, iy) = static_cast<float>((iy < 25 ? 0.0 : 12.0) + 0.1 * rng.normal());
+    analysis::AnalysisParams params;
+    params.minClusterAreaM2 = 100;
+    const BiomeDatabase a = analysis::analyse({calm}, params);
+    const BiomeDatabase b = analysis::analyse({windy}, params);
+    CHECK(analysis::clusteringWeights(sonoma())[factorIndex(Factor::Wind)] == 0.0);
+    CHECK(analysis::clusteringWeights(sonoma())[factorIndex(Factor::Sun)] == 1.0);
+    CHECK(b.featureWeights[factorIndex(Factor::Wind)] == 0.0);
+    REQUIRE(a.combinations.size() == b.combinations.size());
+    for (std::size_t c = 0; c < a.combinations.size(); ++c) CHECK(a.combinations[c].k == b.combinations[c].k);
+    REQUIRE(a.regions.size() == b.regions.size());
+    for (std::size_t r = 0; r < a.regions.size(); ++r) {
+        CHECK(a.regions[r].centroidNormalised == b.regions[r].centroidNormalised);  // wind: 0 in both
+        CHECK(a.regions[r].areaM2 == b.regions[r].areaM2);
+        CHECK(a.regions[r].speciesCount == b.regions[r].speciesCount);
+    }
+    // The wind's statistics are still recorded (its column in the database), ...
+    CHECK(b.combinations[0].featureMean[factorIndex(Factor::Wind)] == Approx(6.0).margin(0.1));
+    // ... and nearestRegion ignores it.
+    const int mask = b.combinations[0].mask;
+    for (double wind : {0.0, 6.0, 12.0, 1000.0}) {
+        CHECK(b.nearestRegion(mask, {10, 140, 15, 5, wind}) == a.nearestRegion(mask, {10, 140, 15, 5, 0}));
+        CHECK(b.nearestRegion(mask, {10, 45, 15, 5, wind}) == a.nearestRegion(mask, {10, 45, 15, 5, 0}));
+    }
+    // The weights survive the file.
+    test::TempDir dir("analysis_wind");
+    writeBiomeDatabase(dir.file("db.h5"), b);
+    CHECK(readBiomeDatabase(dir.file("db.h5")).featureWeights == b.featureWeights);
+
+    // Control: when one species responds to wind, the wind counts and splits the regions.
+    Biome responding = sonoma();
+    responding.species[static_cast<std::size_t>(sp("Toyon"))].response(Factor::Wind) = Response{2.0, 5.0};
+    analysis::AnalysisInput windyResponding = windy;
+    windyResponding.biome = &responding;
+    const BiomeDatabase c = analysis::analyse({windyResponding}, params);
+    CHECK(c.featureWeights[factorIndex(Factor::Wind)] == 1.0);
+    CHECK(c.combinations[0].k > b.combinations[0].k);  // wet / dry, and calm / windy
+    const int calmRegion = c.nearestRegion(mask, {10, 140, 15, 5, 0});
+    CHECK(c.nearestRegion(mask, {10, 140, 15, 5, 12}) != calmRegion);
+}

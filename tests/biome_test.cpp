@@ -165,7 +165,29 @@ TEST_CASE("one description of the species keys drives reading, printing, message
         INFO(f.key);
         CHECK(keys.insert(f.key).second);
         CHECK(docs.str().find(speciesDocRow(f)) != std::string::npos);
-        // Every key is required: without it the species is refused, naming the key.
+        if (f.kind == SpeciesField::Kind::Response && !kFactors[factorIndex(f.factor)].responseRequired) {
+            // An optional response (wind): Sonoma gives none, so the species is indifferent
+            // and the printed biome has no such key; given, it is read, printed and checked.
+            CHECK(toyon.response(f.factor).isIndifferent());
+            CHECK(biomeToToml(sonoma).find("\n" + f.key + " = ") == std::string::npos);
+            const auto nameLine = base.find("name = \"Toyon\"");
+            const auto eol = base.find('\n', nameLine);
+            auto with = [&](const std::string& value) {
+                return base.substr(0, eol) + "\n" + f.key + " = " + value + base.substr(eol);
+            };
+            const Biome given = parseBiome(with("{ c = 3.5, r = 4 }"), "given.toml");
+            const Species& t = given.species[static_cast<std::size_t>(given.speciesIndex("Toyon"))];
+            CHECK(t.response(f.factor).c == 3.5);
+            CHECK(t.response(f.factor).r == 4);
+            const Biome back = parseBiome(biomeToToml(given), "roundtrip.toml");
+            CHECK(back.species[static_cast<std::size_t>(t.id)].response(f.factor).r == 4);
+            CHECK(back.species[0].response(f.factor).isIndifferent());
+            CHECK_THROWS_WITH(parseBiome(with("{ c = 3.5, r = -1 }"), "mutated.toml"),
+                              Catch::Contains("mutated.toml") && Catch::Contains("species 'Toyon'") &&
+                                  Catch::Contains(f.key));
+            continue;
+        }
+        // Every other key is required: without it the species is refused, naming the key.
         const auto at = base.find("\n" + f.key + " = ", base.find("name = \"Toyon\"") - 1);
         REQUIRE(at != std::string::npos);
         const auto eol = base.find('\n', at + 1);
@@ -235,6 +257,38 @@ TEST_CASE("the biome's [climate], [soil] and [vigour] keys: one table drives rea
     eco::test::checkParamTable(
         eco::vigourFields(), "docs/biome.md",
         [&](const eco::VigourShape& v) { roundTrip([&](eco::Biome& b) { b.vigour = v; }); }, none, 0);
+    eco::test::checkParamTable(
+        eco::windFields(), "docs/biome.md",
+        [&](const eco::Wind& w) {
+            roundTrip([&](eco::Biome& b) {
+                b.wind = w;
+                b.windGiven = true;
+            });
+        },
+        none, 0);
+    // [wind] is optional: without it the defaults and no table in the record; with it, read
+    // and printed back.
+    {
+        const eco::Biome sonoma = eco::defaultBiome();
+        CHECK_FALSE(sonoma.windGiven);
+        CHECK(sonoma.wind.samples == eco::Wind{}.samples);
+        CHECK(eco::biomeToToml(sonoma).find("[wind]") == std::string::npos);
+        const eco::Biome windy = eco::parseBiome(
+            sonomaText() + "\n[wind]\ndirection_deg = 180\nstrength_m_s = 7.5\nsamples = 12\n", "windy.toml");
+        CHECK(windy.windGiven);
+        CHECK(windy.wind.directionDeg == 180);
+        CHECK(windy.wind.strengthMS == 7.5);
+        CHECK(windy.wind.samples == 12);
+        CHECK(windy.wind.thresholdDeg == eco::Wind{}.thresholdDeg);
+        const eco::Biome back = eco::parseBiome(eco::biomeToToml(windy), "b.toml");
+        CHECK(back.windGiven);
+        CHECK(back.wind.samples == 12);
+        CHECK(back.wind.strengthMS == 7.5);
+        CHECK_THROWS_WITH(eco::parseBiome(sonomaText() + "\n[wind]\nthreshold_deg = 0\n", "w.toml"),
+                          Catch::Contains("w.toml") && Catch::Contains("threshold_deg"));
+        CHECK_THROWS_WITH(eco::parseBiome(sonomaText() + "\n[wind]\ngust = 3\n", "w.toml"),
+                          Catch::Contains("gust") && Catch::Contains("unknown key"));
+    }
     // The defaults of the structs are the Sonoma biome's, and a round trip keeps every value.
     const eco::Biome sonoma = eco::defaultBiome();
     for (const auto& f : eco::soilFields()) CHECK(sonoma.soil.*(f.real) == eco::Soil{}.*(f.real));

@@ -1,7 +1,7 @@
-// The factor axis (core/factors.h) and the vigour kernel (core/vigour.h), including a
-// test-only fifth factor: wind exposure, as in Zamuda & Brest's afforestation model. The
-// kernel is templated on the number of factors, so a five-factor table needs no change to
-// it; docs/factors.md lists what a real fifth factor would touch.
+// The factor axis (core/factors.h) and the vigour kernel (core/vigour.h), including the
+// fifth factor, wind exposure (Zamuda & Brest's EcoMod): a species without a wind response
+// is indifferent and keeps the vigour of the paper's four factors bit for bit (both
+// kernels, against the kernels instantiated on four factors); docs/factors.md.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -16,22 +16,23 @@ using namespace eco;
 
 namespace {
 
-constexpr std::size_t kFive = 5;
-constexpr std::size_t kWind = 4;  // the test-only factor, after slope
+constexpr std::size_t kFour = 4;  // the paper's four factors, before wind
 
-/// A species' four responses from the biome, and a wind response (optimum 2 m/s, range 6).
-ResponsesOf<kFive> withWind(const Species& s) {
-    ResponsesOf<kFive> r{};
-    for (std::size_t f = 0; f < kFactorCount; ++f) r[f] = s.responses[f];
-    r[kWind] = Response{2.0, 6.0};
+/// The first four of a species' responses (the paper's Eq. 1 without wind).
+ResponsesOf<kFour> paperFour(const Responses& r5) {
+    ResponsesOf<kFour> r{};
+    for (std::size_t f = 0; f < kFour; ++f) r[f] = r5[f];
     return r;
 }
 
-FeaturesOf<kFive> withWind(const Features& x, double windMPerS) {
-    FeaturesOf<kFive> y{};
-    for (std::size_t f = 0; f < kFactorCount; ++f) y[f] = x[f];
-    y[kWind] = windMPerS;
+FeaturesOf<kFour> paperFour(const Features& x5) {
+    FeaturesOf<kFour> y{};
+    for (std::size_t f = 0; f < kFour; ++f) y[f] = x5[f];
     return y;
+}
+
+Features randomFeatures(RandomStream& rng) {
+    return {rng.uniform(0, 16), rng.uniform(0, 250), rng.uniform(-5, 40), rng.uniform(0, 80), rng.uniform(0, 20)};
 }
 
 }  // namespace
@@ -42,6 +43,10 @@ TEST_CASE("the factor table names the biome's response tables and the database's
     CHECK(std::string(kFactors[factorIndex(Factor::Moisture)].key) == "moisture");
     CHECK(std::string(kFactors[factorIndex(Factor::Temperature)].key) == "temperature");
     CHECK(std::string(kFactors[factorIndex(Factor::Slope)].key) == "slope");
+    CHECK(std::string(kFactors[factorIndex(Factor::Wind)].key) == "wind");
+    CHECK(std::string(kFactors[factorIndex(Factor::Wind)].unit) == "m/s");
+    for (std::size_t f = 0; f < kFour; ++f) CHECK(kFactors[f].responseRequired);
+    CHECK_FALSE(kFactors[factorIndex(Factor::Wind)].responseRequired);
     const Biome b = defaultBiome();
     const Species& rw = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
     CHECK(rw.response(Factor::Sun).c == 9.5);  // Table 3: sun 9.5 / 11, moisture 100 / 160
@@ -64,7 +69,7 @@ TEST_CASE("scalar and batch vigour kernels agree, and min over g is g at the lar
     const BatchVigourShape batch = BatchVigourShape::from(b.vigour);
     RandomStream rng(23, 2);
     for (int k = 0; k < 500; ++k) {
-        const Features x = {rng.uniform(0, 16), rng.uniform(0, 250), rng.uniform(-5, 40), rng.uniform(0, 80)};
+        const Features x = randomFeatures(rng);
         for (const Species& s : b.species) {
             const double scalar = b.vigourOf(s.id, x);
             const double atMax = vigourAtDistance(s.alpha, maxNormalisedDistance(s.responses, x), b.vigour.a, b.vigour.p,
@@ -77,33 +82,61 @@ TEST_CASE("scalar and batch vigour kernels agree, and min over g is g at the lar
     }
 }
 
-TEST_CASE("a test-only fifth factor (wind) needs no change to the vigour kernel", "[factors][vigour]") {
+TEST_CASE("a species indifferent to wind has its four-factor vigour bit for bit, in both kernels", "[factors][vigour]") {
+    const Biome b = defaultBiome();  // Sonoma: no species gives a wind response
+    const VigourShape& g = b.vigour;
+    const BatchVigourShape batch = BatchVigourShape::from(g);
+    const double lnQ = std::log(g.q);
+    RandomStream rng(23, 5);
+    for (const Species& s : b.species) REQUIRE(s.response(Factor::Wind).isIndifferent());
+    for (int k = 0; k < 300; ++k) {
+        Features x = randomFeatures(rng);
+        if (k % 7 == 0) x[factorIndex(Factor::Wind)] = 0;  // calm and
+        if (k % 11 == 0) x[factorIndex(Factor::Wind)] = 1e6;  // absurd winds too
+        for (const Species& s : b.species) {
+            const ResponsesOf<kFour> r4 = paperFour(s.responses);
+            const FeaturesOf<kFour> x4 = paperFour(x);
+            // Scalar: the min over g and the max-distance form, against the same kernels
+            // instantiated on the four factors alone.
+            REQUIRE(minResponse(g, s.responses, x) == minResponse(g, r4, x4));
+            REQUIRE(maxNormalisedDistance(s.responses, x) == maxNormalisedDistance(r4, x4));
+            REQUIRE(b.vigourOf(s.id, x) == s.alpha * minResponse(g, r4, x4));
+            REQUIRE(vigourAtDistance(s.alpha, maxNormalisedDistance(s.responses, x), g.a, g.p, lnQ) ==
+                    vigourAtDistance(s.alpha, maxNormalisedDistance(r4, x4), g.a, g.p, lnQ));
+            // Batch: the exponent (hence every exp and vigour) is the four-factor one.
+            const VigourCoeffs k5 = VigourCoeffs::from(s.alpha, s.responses);
+            const VigourCoeffsOf<kFour> k4 = VigourCoeffsOf<kFour>::from(s.alpha, r4);
+            REQUIRE(k5.invR[factorIndex(Factor::Wind)] == 0.0);
+            REQUIRE(batch.exponent(k5, x) == batch.exponent(k4, x4));
+        }
+    }
+}
+
+TEST_CASE("a wind response enters the min of Eq. 1 when it is the lowest", "[factors][vigour]") {
     const Biome b = defaultBiome();
     const VigourShape& g = b.vigour;
     const BatchVigourShape batch = BatchVigourShape::from(g);
-    RandomStream rng(23, 5);
+    RandomStream rng(23, 6);
     for (int k = 0; k < 300; ++k) {
-        const Features x = {rng.uniform(0, 16), rng.uniform(0, 250), rng.uniform(-5, 40), rng.uniform(0, 80)};
-        for (const Species& s : b.species) {
-            const ResponsesOf<kFive> r5 = withWind(s);
-            // Wind at its optimum: the five-factor vigour is the four-factor one, bit for bit
-            // (g(0) = 1 is the largest response, so the fifth factor never wins the min).
-            const double four = b.vigourOf(s.id, x);
-            REQUIRE(s.alpha * minResponse(g, r5, withWind(x, 2.0)) == four);
-            // Wind off its optimum: the min takes the wind's response when it is the lowest.
-            const double wind = rng.uniform(0, 20);
-            const double five = s.alpha * minResponse(g, r5, withWind(x, wind));
+        const Features x = randomFeatures(rng);
+        const double wind = x[factorIndex(Factor::Wind)];
+        for (Species s : b.species) {
+            const double four = s.alpha * minResponse(g, paperFour(s.responses), paperFour(x));
+            s.response(Factor::Wind) = Response{2.0, 6.0};
+            const double five = s.alpha * minResponse(g, s.responses, x);
             REQUIRE(five == std::min(four, s.alpha * g.g(wind - 2.0, 6.0)));
             REQUIRE(five <= four);
-            // The batch form of the same five factors.
-            const VigourCoeffsOf<kFive> k5 = VigourCoeffsOf<kFive>::from(s.alpha, r5);
-            REQUIRE(batch.fromExp(s.alpha, std::exp(batch.exponent(k5, withWind(x, wind)))) == Approx(five).margin(1e-12));
+            const VigourCoeffs k5 = VigourCoeffs::from(s.alpha, s.responses);
+            REQUIRE(batch.fromExp(s.alpha, std::exp(batch.exponent(k5, x))) == Approx(five).margin(1e-12));
         }
     }
-    // A wind far outside the range kills every species: vigour -a alpha < 0.
-    const Species& rw = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
+    // A wind far outside the range kills the species: vigour -a alpha < 0.
+    Species rw = b.species[static_cast<std::size_t>(b.speciesIndex("Redwood"))];
+    rw.response(Factor::Wind) = Response{2.0, 6.0};
     Features opt{};
     for (std::size_t f = 0; f < kFactorCount; ++f) opt[f] = rw.responses[f].c;
-    CHECK(rw.alpha * minResponse(g, withWind(rw), withWind(opt, 40.0)) == Approx(-g.a * rw.alpha));
-    CHECK(rw.alpha * minResponse(g, withWind(rw), withWind(opt, 2.0)) == Approx(rw.alpha));
+    opt[factorIndex(Factor::Wind)] = 40.0;
+    CHECK(rw.alpha * minResponse(g, rw.responses, opt) == Approx(-g.a * rw.alpha));
+    opt[factorIndex(Factor::Wind)] = 2.0;
+    CHECK(rw.alpha * minResponse(g, rw.responses, opt) == Approx(rw.alpha));
 }

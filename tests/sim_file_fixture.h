@@ -33,6 +33,7 @@ inline void writeFakeSimulation(const std::string& simPath, const std::string& a
     const int w = 50, h = 40;
     ab.elevationM = Grid<float>(w, h, 1.0, 1000, 2000, 100.f);
     ab.slopeDeg = Grid<float>(w, h, 1.0, 1000, 2000, 3.f);
+    ab.windMS = Grid<float>(w, h, 1.0, 1000, 2000, 4.f);
     for (int m = 0; m < 12; ++m) {
         Grid<float> sun(w, h, 1.0, 1000, 2000, static_cast<float>(8 + m % 3));
         Grid<float> moist(w, h, 1.0, 1000, 2000, 0.f);

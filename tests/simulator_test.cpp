@@ -39,6 +39,7 @@ Abiotics uniformAbiotics(int cells, double cellM, double sun, double water, doub
     const Grid<float> like(cells, cells, cellM, 0, 0, 0.f);
     a.elevationM = Grid<float>::like(like, 50.f);
     a.slopeDeg = Grid<float>::like(like, static_cast<float>(slope));
+    a.windMS = Grid<float>::like(like, 5.f);  // no test species responds to wind
     for (int m = 0; m < 12; ++m) {
         a.sunHours.months.push_back(Grid<float>::like(like, static_cast<float>(sun)));
         a.moistureMm.months.push_back(Grid<float>::like(like, static_cast<float>(water)));
@@ -1370,4 +1371,36 @@ TEST_CASE("model parameters: one description drives reading, the record, attribu
         cfg << "[model]\n" << f.key << " = " << (f.kind == ParamDesc<SimParams>::Kind::Integer ? std::to_string(static_cast<int>(outside)) : formatNumber(outside, 17) + (outside == std::floor(outside) ? ".0" : "")) << "\n";
         CHECK_THROWS_WITH(parseRunConfig(cfg.str(), "bad.toml"), Catch::Contains("bad.toml:2") && Catch::Contains(f.key));
     }
+}
+
+// --------------------------------------------------------------------------- wind
+
+TEST_CASE("wind: the simulator reads the wind map only through the species that respond to it", "[sim][wind]") {
+    auto run = [](const Biome& b, float windMS, std::uint64_t* fingerprint) {
+        SimInputs in;
+        in.biome = b;
+        in.abiotics = uniformAbiotics(10, 1.0, 10.0, 100.0, 15.0, 5.0);
+        in.abiotics.windMS.fill(windMS);
+        Simulation sim(in, SimParams{}, 1, {plantAt(b, "Toyon", 5.1, 5.1, 1.0)});
+        *fingerprint = sim.fingerprint();
+        sim.stepMonth();
+        return sim.plants();
+    };
+    // No species responds (as in Sonoma): the wind changes neither the plants nor the
+    // checkpoint fingerprint.
+    Biome b = pointCrownBiome();
+    std::uint64_t calmPrint = 0, windyPrint = 0;
+    const auto calm = run(b, 0.f, &calmPrint), windy = run(b, 9.f, &windyPrint);
+    REQUIRE(calm.size() == 1);
+    REQUIRE(windy.size() == 1);
+    CHECK(calm[0].vigour == windy[0].vigour);
+    CHECK(calm[0].heightM == windy[0].heightM);
+    CHECK(calmPrint == windyPrint);
+    // Toyon needs shelter (optimum 0 m/s, range 3): at 9 m/s it is far outside its range.
+    b.species[static_cast<std::size_t>(b.speciesIndex("Toyon"))].response(Factor::Wind) = Response{0.0, 3.0};
+    std::uint64_t shelteredPrint = 0, exposedPrint = 0;
+    const auto sheltered = run(b, 0.f, &shelteredPrint), exposed = run(b, 9.f, &exposedPrint);
+    CHECK(sheltered[0].vigour == calm[0].vigour);  // at its optimum the wind takes nothing
+    CHECK(exposed[0].vigour < 0);                  // beyond the range: g < 0
+    CHECK(shelteredPrint != exposedPrint);         // a checkpoint does not resume into another wind
 }

@@ -297,3 +297,166 @@ TEST_CASE("a mask image must have the CHM's pixel size", "[species_map]") {
     CHECK_THROWS_WITH(synth::readMaskImage(dir.file("small.png"), chm),
                       Catch::Contains("small.png") && Catch::Contains("never resampled"));
 }
+
+// ---------------------------------------------------------------------------------------
+// Wind (issue 30 item 1): validation on a ridge-and-valley terrain
+
+namespace {
+
+/// Two canopy species that differ in temperature optimum (14 / 16 degC) and, with
+/// `withWind`, in their response to wind: "Windbreak" tolerates exposure (optimum 5 m/s, the
+/// full strength), "Hollow" needs shelter (optimum 0). The other factors have ranges wide
+/// enough not to matter. Prevailing wind from the west at 5 m/s, threshold 45 degrees, 10
+/// samples: EcoMod's defaults.
+Biome windBiome(bool withWind) {
+    const std::string windyResponse = withWind ? "wind = { c = 5.0, r = 4.0 }\n" : "";
+    const std::string shelteredResponse = withWind ? "wind = { c = 0.0, r = 4.0 }\n" : "";
+    std::string text = R"([biome]
+name = "Ridge and valley"
+[climate]
+latitude_deg = 38.58
+lapse_rate_c_per_km = 9.8
+temperature_c = [10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10]
+rainfall_mm = [50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50]
+sky_clarity = [0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7]
+[soil]
+runoff_limit_mm = 100
+slope_threshold_deg = 5
+slope_max_deg = 55
+evaporation_fraction = 0.25
+saturation_mm = 180
+[vigour]
+a = 0.2
+q = 0.01
+p = 4.5
+[wind]
+direction_deg = 270
+strength_m_s = 5
+threshold_deg = 45
+samples = 10
+[growth_periods]
+all = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]
+[allometry.A]
+a = -0.5
+b = 0.8
+[[sub_biome]]
+number = 1
+name = "Forest"
+canopy = ["Windbreak", "Hollow"]
+[[species]]
+name = "Windbreak"
+sub_biomes = [1]
+max_age_years = 200
+max_height_m = 30
+alpha = 0.5
+sun = { c = 10, r = 1000 }
+moisture = { c = 100, r = 10000 }
+temperature = { c = 14, r = 4 }
+slope = { c = 0, r = 1000 }
+)" + windyResponse + R"(growth_period = "all"
+allometry = "A"
+canopy = true
+[[species]]
+name = "Hollow"
+sub_biomes = [1]
+max_age_years = 200
+max_height_m = 30
+alpha = 0.5
+sun = { c = 10, r = 1000 }
+moisture = { c = 100, r = 10000 }
+temperature = { c = 16, r = 4 }
+slope = { c = 0, r = 1000 }
+)" + shelteredResponse + R"(growth_period = "all"
+allometry = "A"
+canopy = true
+)";
+    return parseBiome(text, withWind ? "ridge-valley-wind.toml" : "ridge-valley.toml");
+}
+
+}  // namespace
+
+TEST_CASE("wind: on ridges and valleys the wind-tolerant species gains the exposed ridges and loses the shelter",
+          "[species_map][wind]") {
+    // Ridges running north-south, z = 30 cos(2 pi x / 200 m), 5 m cells, three wavelengths:
+    // crests at x = 0, 200, 400 m, valleys between. With the wind from the west the lee
+    // (east) slopes are sheltered by the crest upwind; crests and windward slopes are open.
+    const double cellM = 5.0, wavelengthM = 200.0, amplitudeM = 30.0;
+    const int w = 120, h = 40;
+    Grid<float> terrain(w, h, cellM, 0, 0, 0.f);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix)
+            terrain(ix, iy) = static_cast<float>(amplitudeM * std::cos(2 * M_PI * terrain.cellCentreX(ix) / wavelengthM));
+    // The classes come from the terrain's geometry, not from the wind map: a crest band
+    // (within 20 m of a crest line) and lee mid-slopes (25..75 m east of a crest). The
+    // westernmost wavelength is left out: its lee has no terrain upwind inside the grid.
+    auto phaseM = [&](int ix) { return std::fmod(terrain.cellCentreX(ix), wavelengthM); };
+    auto isRidge = [&](int ix) { return ix * cellM >= wavelengthM - 20 && (phaseM(ix) <= 20 || phaseM(ix) >= wavelengthM - 20); };
+    auto isLee = [&](int ix) { return ix * cellM >= wavelengthM && phaseM(ix) >= 25 && phaseM(ix) <= 75; };
+
+    // Annual factors: the wind from the model under test; a temperature of 14..16 degC
+    // drawn per cell (independent of the terrain), which alone decides between the species
+    // when wind does not count; the other factors constant.
+    const Biome windy = windBiome(true), calm = windBiome(false);
+    synth::SpeciesMapInputs in;
+    in.chmM = Grid<float>::like(terrain, 12.f);
+    in.features = FactorGrids::uniform(terrain, {10, 100, 15, 0, 0});
+    in.features[Factor::Wind] = windSpeedMS(terrain, windy.wind);
+    for (int iy = 0; iy < h; ++iy)
+        for (int ix = 0; ix < w; ++ix) {
+            RandomStream noise(30, static_cast<std::uint64_t>(iy * w + ix));
+            in.features[Factor::Temperature](ix, iy) = static_cast<float>(noise.uniform(14.0, 16.0));
+        }
+
+    struct Shares {
+        double ridge = 0, lee = 0, ridgeWind = 0, leeWind = 0;
+    };
+    auto sharesOf = [&](const Biome& b) {
+        const Grid<std::int32_t> map = synth::computeSpeciesMap(b, in);
+        const int windbreak = b.speciesIndex("Windbreak");
+        double nRidge = 0, nLee = 0;
+        Shares s;
+        for (int iy = 0; iy < h; ++iy)
+            for (int ix = 0; ix < w; ++ix) {
+                REQUIRE(map(ix, iy) >= 0);
+                const double isWindbreak = map(ix, iy) == windbreak ? 1.0 : 0.0;
+                if (isRidge(ix)) {
+                    s.ridge += isWindbreak;
+                    s.ridgeWind += in.features[Factor::Wind](ix, iy);
+                    ++nRidge;
+                }
+                if (isLee(ix)) {
+                    s.lee += isWindbreak;
+                    s.leeWind += in.features[Factor::Wind](ix, iy);
+                    ++nLee;
+                }
+            }
+        REQUIRE(nRidge >= 400);
+        REQUIRE(nLee >= 400);
+        s.ridge /= nRidge;
+        s.lee /= nLee;
+        s.ridgeWind /= nRidge;
+        s.leeWind /= nLee;
+        return s;
+    };
+    const Shares without = sharesOf(calm), with = sharesOf(windy);
+    INFO("Windbreak's share on ridges " << without.ridge << " -> " << with.ridge << ", in the lee " << without.lee
+                                        << " -> " << with.lee << "; mean wind ridges " << with.ridgeWind
+                                        << " m/s, lee " << with.leeWind << " m/s");
+    // The map really is exposed on the crests and sheltered in the lee.
+    CHECK(with.ridgeWind > 4.0);
+    CHECK(with.leeWind < 1.5);
+    // Without wind responses the temperature draw decides: about half each, wherever.
+    CHECK(without.ridge == Approx(0.5).margin(0.1));
+    CHECK(without.lee == Approx(0.5).margin(0.1));
+    // The stated margin: the tolerant species gains at least 0.3 of the exposed ridges and
+    // loses at least 0.3 of the sheltered lee slopes.
+    CHECK(with.ridge - without.ridge >= 0.3);
+    CHECK(without.lee - with.lee >= 0.3);
+    // Vigour says the same at the extremes: on the windiest crest cell the tolerant
+    // species, in the calmest lee cell the one that needs shelter.
+    const int crest = static_cast<int>(wavelengthM / cellM), lee = static_cast<int>((wavelengthM + 50) / cellM);
+    const Features xc = in.features.at(crest, h / 2), xl = in.features.at(lee, h / 2);
+    const int wb = windy.speciesIndex("Windbreak"), ho = windy.speciesIndex("Hollow");
+    CHECK(windy.vigourOf(wb, xc) - windy.vigourOf(ho, xc) > 0.2);
+    CHECK(windy.vigourOf(ho, xl) - windy.vigourOf(wb, xl) > 0.2);
+}

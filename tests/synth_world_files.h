@@ -35,6 +35,7 @@ inline WorldFiles writeWorld(const World& w, const TempDir& dir) {
         ab.temperatureC.months.push_back(w.features[Factor::Temperature]);
     }
     ab.slopeDeg = w.features[Factor::Slope];
+    ab.windMS = w.features[Factor::Wind];
     ab.elevationM = w.terrain;
     writeAbiotics(f.abiotics, ab, w.biome, AbioticParams{});
     writeBiomeDatabase(f.db, w.db);

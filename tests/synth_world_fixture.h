@@ -128,13 +128,13 @@ inline World makeWorld(double hardCoreM = 0.8) {
     c1.k = 2;
     c1.firstRegion = 0;
     c1.featureMean = {9.0, 100.0, 15.0, 0.0};
-    c1.featureStd = {2.0, 1.0, 1.0, 1.0};
+    c1.featureStd = {2.0, 1.0, 1.0, 1.0, 1.0};
     DbCombination c2;
     c2.mask = 2;
     c2.k = 1;
     c2.firstRegion = 2;
     c2.featureMean = {9.0, 100.0, 15.0, 0.0};
-    c2.featureStd = {2.0, 1.0, 1.0, 1.0};
+    c2.featureStd = {2.0, 1.0, 1.0, 1.0, 1.0};
     db.combinations = {c1, c2};
     db.regions.push_back(makeRegion(b, 1, 0, 1.2, {7.0, 100, 15, 0},
                                     {{"Western Swordfern", 0.4}, {"Redwood Sorrel", 0.3}, {"Tanoak", 0.2}, {"Toyon", 0.1}},

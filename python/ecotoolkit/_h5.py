@@ -13,10 +13,10 @@ import numpy as np
 FORMATS = {
     "eco-terrain": {"versions": (1,), "written_by": "eco terrain generate / eco terrain convert"},
     "eco-chm": {"versions": (1,), "written_by": "eco chm generate"},
-    "eco-abiotics": {"versions": (1,), "written_by": "eco abiotics"},
+    "eco-abiotics": {"versions": (1, 2), "written_by": "eco abiotics"},
     "eco-canopy": {"versions": (1, 2), "written_by": "eco canopy"},
     "eco-simulation": {"versions": (1,), "written_by": "eco simulate"},
-    "eco-biome-db": {"versions": (2, 3, 4), "written_by": "eco analyse"},
+    "eco-biome-db": {"versions": (2, 3, 4, 5), "written_by": "eco analyse"},
     "eco-scene": {"versions": (1,), "written_by": "eco synth"},
 }
 

@@ -76,9 +76,9 @@ def read_chm(path):
 # ------------------------------------------------------------------------------- abiotics
 
 class Abiotics(EcoFile):
-    """``elevation`` (m) and ``slope`` (degrees): 2-D Grids; ``sun`` (hours/day),
-    ``moisture`` (mm/month), ``temperature`` (degC): monthly Grids ``[12][y][x]`` with
-    ``months`` 1..12. ``grids``: all five by name. Climate and model parameters are in
+    """``elevation`` (m), ``slope`` (degrees) and ``wind`` (m/s, schema 2; None in a
+    schema 1 file): 2-D Grids; ``sun`` (hours/day), ``moisture`` (mm/month), ``temperature``
+    (degC): monthly Grids ``[12][y][x]`` with ``months`` 1..12. ``grids``: all by name. Climate and model parameters are in
     ``attrs`` (e.g. ``attrs["climate_rainfall_mm"]``, 12 values)."""
 
 
@@ -92,6 +92,9 @@ def read_abiotics(path):
                               ("temperature", True)):
             a.grids[name] = read_grid(f, "/" + name, path, monthly=monthly)
             setattr(a, name, a.grids[name])
+        a.wind = None
+        if version >= 2:
+            a.grids["wind"] = a.wind = read_grid(f, "/wind", path, monthly=False)
     return a
 
 

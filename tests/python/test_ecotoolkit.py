@@ -172,7 +172,7 @@ class TestAbiotics(unittest.TestCase, GridGeometry):
         _, rows = ASC
         np.testing.assert_allclose(a.elevation.values, rows[::-1], rtol=1e-6)
         expected_units = {"elevation": "m", "slope": "degrees", "sun": "hours/day", "moisture": "mm/month",
-                          "temperature": "degC"}
+                          "temperature": "degC", "wind": "m/s"}
         for name, units in expected_units.items():
             g = a.grids[name]
             self.assert_on_input_grid(g)
@@ -190,6 +190,8 @@ class TestAbiotics(unittest.TestCase, GridGeometry):
         self.assertTrue(np.all(a.sun.values <= day[:, None, None] + 1e-4))
         self.assertTrue(np.all(a.sun.values >= 0))
         self.assertTrue(np.all((a.slope.values >= 0) & (a.slope.values <= 90)))
+        self.assertEqual(a.schema_version, 2)
+        self.assertTrue(np.all((a.wind.values >= 0) & (a.wind.values <= a.attrs["wind_strength_m_s"] + 1e-6)))
 
 
 class TestCanopy(unittest.TestCase, GridGeometry):
@@ -300,7 +302,7 @@ class TestDatabase(unittest.TestCase):
             self.assertAlmostEqual(100 * db.regions["species_proportion"][0, i], float(pct), delta=0.051)
         self.assertEqual(len(db.region(0).pairs["source"]), int(leading[2]))
         self.assertEqual(db.region_units["density_per_m2"], "plants/m^2")
-        self.assertEqual(db.feature_units, ["hours/day", "mm", "degC", "degrees"])
+        self.assertEqual(db.feature_units, ["hours/day", "mm", "degC", "degrees", "m/s"])
 
     def test_pair_counts_against_brute_force_on_the_simulation_csv(self):
         # One region covers the whole simulated window here (eco inspect: 0 plants in no region).
@@ -377,6 +379,34 @@ class TestFormatChecks(unittest.TestCase):
                     f.attrs[k] = v
         return target
 
+    def test_a_database_before_the_wind_column_is_still_read_by_eco(self):
+        # Schema 4 had four feature columns and no /features/weights: made here from the
+        # schema 5 database, eco must read it with the wind left out (weight 0) and find the
+        # same regions, so the same scene comes out of it (docs/database.md, "Versions").
+        target = self.copy_with("db.h5", "db-v4.h5", schema_version=np.int64(4))
+        with h5py.File(target, "r+") as f:
+            last = f["features/names"][()][-1]
+            self.assertEqual(last.decode() if isinstance(last, bytes) else last, "wind")
+            del f["features/weights"]
+            for name in ("features/names", "features/units", "combinations/feature_mean", "combinations/feature_std",
+                         "regions/centroid_normalised", "regions/centroid_raw"):
+                old = f[name]
+                data, dtype, attrs = old[()], old.dtype, dict(old.attrs)
+                del f[name]
+                new = f.create_dataset(name, data=data[..., :4], dtype=dtype)
+                for k, v in attrs.items():
+                    new.attrs[k] = v
+        listing = run_eco("inspect-v4", "inspect", "db-v4.h5")
+        self.assertIn("schema 4", listing)
+        strip = lambda text: [re.sub(r", wind [-0-9.e+]+ m/s", "", line) for line in text.splitlines()
+                              if "centroid" in line]
+        self.assertTrue(strip(LOG["inspect"]))
+        self.assertEqual(strip(listing), strip(LOG["inspect"]))
+        run_eco("synth-v4", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db-v4.h5",
+                "--abiotics", "abiotics.h5", "--out", "scene-v4.h5", "--csv", "scene-v4.csv")
+        with open(path("scene.csv")) as a, open(path("scene-v4.csv")) as b:
+            self.assertEqual(a.read(), b.read())
+
     def test_every_output_opens_by_its_format(self):
         kinds = {"terrain.h5": eco.Terrain, "chm.h5": eco.Chm, "abiotics.h5": eco.Abiotics, "canopy.h5": eco.Canopy,
                  "sim.h5": eco.Simulation, "db.h5": eco.Database, "scene.h5": eco.Scene}
@@ -401,7 +431,7 @@ class TestFormatChecks(unittest.TestCase):
         with self.assertRaises(eco.EcoFormatError):
             eco.open(target)
         target = self.copy_with("db.h5", "db-v1.h5", schema_version=np.int64(1))
-        with self.assertRaisesRegex(eco.EcoFormatError, r"schema_version 1 found, .*reads version 2, 3, 4"):
+        with self.assertRaisesRegex(eco.EcoFormatError, r"schema_version 1 found, .*reads version 2, 3, 4, 5"):
             eco.read_database(target)
 
     def test_unknown_or_missing_format_is_refused(self):
