@@ -1,5 +1,6 @@
 // eco synth and eco compare: parsing only; the stages are in pipeline/synth_stages (the
 // science in synth/undergrowth, synth/forest_floor and synth/scene, docs/synth.md).
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -179,7 +180,18 @@ void registerCompareCommand(CLI::App& app) {
         "proportions, size-histogram and pair-correlation distances (Markdown table on stdout)");
     cmd->add_option("scene", a->scene, "Scene file from 'eco synth'")->required();
     cmd->add_option("database", a->database, "Biome database")->required();
-    cmd->add_option("--png", a->png, "Also write a picture of the pair correlations, scene against database");
+    cmd->add_option("--png", a->pngDir,
+                    "Also write compare.png (the pair correlations, scene against database) into this directory")
+        ->check(CLI::Validator(
+            [](std::string& dir) -> std::string {
+                // Until issue 31 --png was the picture's file; say so rather than make a folder "x.png".
+                const std::string ext = std::filesystem::path(dir).extension().string();
+                if (ext == ".png" || ext == ".PNG")
+                    return "is a directory now (eco compare writes DIR/compare.png, as every command's --png DIR); "
+                           "got the file name '" + dir + "'";
+                return "";
+            },
+            "DIR"));
     cmd->add_option("--window", a->window, "Compare only inside x0,y0,x1,y1 (metres)")
         ->check(parsedBy("--window", [](const std::string& t) { parseWindow(t, "--window"); }));
     cmd->add_option("--out", a->out, "Also write the Markdown table to this file");

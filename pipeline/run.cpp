@@ -286,7 +286,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         CompareOptions compare;
         compare.scene = scene;
         compare.database = database;
-        compare.png = at("png/synth/compare.png");
+        compare.pngDir = at("png/synth");
         compare.out = at("compare.md");
         stages.push_back({"compare", compare});
         t.finish();

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <ostream>
@@ -378,14 +379,15 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
 CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     std::ostream& out = reporter.out();
     CompareResult result;
-    requireOutputsNotInputs({{"--out", a.out}, {"--png", a.png}}, {a.scene, a.database});
+    const std::string png = a.pngDir.empty() ? std::string() : (std::filesystem::path(a.pngDir) / "compare.png").string();
+    requireOutputsNotInputs({{"--out", a.out}, {"--png", png}}, {a.scene, a.database});
     const BiomeDatabase db = readBiomeDatabase(a.database);
     const Biome biome = synth::databaseBiome(db);
     const synth::SceneData scene = synth::readSceneFile(a.scene, biome);
     RectWindow window{};
     if (!a.window.empty()) window = parseWindow(a.window, "--window", false);
     if (!a.out.empty()) cleanUpAfterDeadWriters(a.out);  // what killed runs left
-    if (!a.png.empty()) prepareOutput(a.png);
+    if (!a.pngDir.empty()) prepareOutputDirectory(a.pngDir);
     const auto t = Clock::now();
     result.comparison = synth::compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
                                            a.window.empty() ? nullptr : &window, a.pcfSources);
@@ -403,9 +405,9 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
         writeTextFile(a.out, text.str());
         out << "wrote table: " << a.out << "\n";
     }
-    if (!a.png.empty()) {
-        synth::writeComparisonPng(a.png, c, db);
-        out << "wrote picture: " << a.png << "\n";
+    if (!png.empty()) {
+        synth::writeComparisonPng(png, c, db);
+        out << "wrote picture: " << png << "\n";
     }
     outputs.commit();
     return result;
@@ -463,7 +465,7 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
 
 std::vector<std::string> commandLine(const CompareOptions& a) {
     std::vector<std::string> args = {"compare", a.scene, a.database};
-    if (!a.png.empty()) args.insert(args.end(), {"--png", a.png});
+    if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.out.empty()) args.insert(args.end(), {"--out", a.out});
     if (!a.window.empty()) args.insert(args.end(), {"--window", a.window});
     if (a.pcfSources != 20000) args.insert(args.end(), {"--pcf-sources", std::to_string(a.pcfSources)});

@@ -58,7 +58,7 @@ std::vector<std::string> commandLine(const SynthOptions& options);
 
 struct CompareOptions {
     std::string scene, database;
-    std::string png;     ///< "" = no picture
+    std::string pngDir;  ///< "" = no picture; else pngDir/compare.png
     std::string window;  ///< "x0,y0,x1,y1"; "" = the whole scene
     std::string out;     ///< "" = table on the reporter only; else also this Markdown file
     std::size_t pcfSources = 20000;  ///< sources per region for the pair correlation; 0 = all

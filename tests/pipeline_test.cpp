@@ -80,7 +80,7 @@ TEST_CASE("pipeline: the demo configuration plans the stages and command lines e
         {"synth", "eco synth --terrain O/target/terrain.h5 --canopy O/target/canopy.h5 --database O/biome-db.h5 "
                   "--abiotics O/target/abiotics.h5 --out O/scene.h5 --png O/png/synth --csv O/scene.csv --pdb "
                   "O/scene.pdb --seed 2 --refine"},
-        {"compare", "eco compare O/scene.h5 O/biome-db.h5 --png O/png/synth/compare.png --out O/compare.md"},
+        {"compare", "eco compare O/scene.h5 O/biome-db.h5 --png O/png/synth --out O/compare.md"},
     };
     REQUIRE(plan.stages.size() == expected.size());
     for (std::size_t i = 0; i < expected.size(); ++i) {

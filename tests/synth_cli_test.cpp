@@ -65,11 +65,17 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
     for (const char* name : {"out/scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/scene_zoom.png",
                              "png/grass.png", "png/litter.png", "png/cluster_map.png"})
         CHECK(std::filesystem::exists(dir.file(name)));
-    const auto c = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("compare.png"));
+    const auto c = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("cmp"));
     INFO(c.output);
     REQUIRE(c.exitCode == 0);
     CHECK_THAT(c.output, Catch::Contains("| region |") && Catch::Contains("pair-correlation distance"));
-    CHECK(std::filesystem::exists(dir.file("compare.png")));
+    CHECK(std::filesystem::exists(dir.file("cmp/compare.png")));
+    // --png is a directory in every command: the old form (a file name) is a usage error that says so.
+    const auto old = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("old.png"));
+    INFO(old.output);
+    CHECK(old.exitCode == 2);
+    CHECK_THAT(old.output, Catch::Contains("--png") && Catch::Contains("is a directory now") && Catch::Contains("old.png"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("old.png")));
 
     // Approximate instancing of the scene: every plant an instance, at most K prototypes per
     // species, the same bytes with 1 and 2 threads.
