@@ -95,6 +95,10 @@ void registerSynthCommand(CLI::App& app) {
         ->check(parsedBy("--zoom", [](const std::string& t) { parseWindow(t, "--zoom", true); }));
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
+    cmd->add_option("--pdb-canopy", a->pdbCanopy,
+                    "Also write the canopy trees alone as a PDB plant list (EcoLearn's viewer reads canopy and undergrowth "
+                    "as two files)");
+    cmd->add_option("--pdb-undergrowth", a->pdbUndergrowth, "Also write the undergrowth alone as a PDB plant list");
     cmd->add_option("--gpkg", a->gpkg, "Also write all plants as a GeoPackage point layer, in the terrain's CRS (QGIS, ArcGIS)");
     cmd->add_option("--geotiff", a->geotiffDir,
                     "Also write the scene's grids (grass, litter, cluster and combination maps, terrain) as GeoTIFFs into "

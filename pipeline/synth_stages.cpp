@@ -93,8 +93,11 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     SynthResult result;
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
-    requireOutputsNotInputs({{"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--gpkg", a.gpkg}},
-                            {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage, a.exemplar});
+    const std::vector<std::pair<std::string, std::string>> outputFiles = {
+        {"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--pdb-canopy", a.pdbCanopy}, {"--pdb-undergrowth", a.pdbUndergrowth},
+        {"--gpkg", a.gpkg}};
+    requireOutputsNotInputs(outputFiles, {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage, a.exemplar});
+    requireDistinctOutputs(outputFiles);
     synth::SynthParams params = a.params;
     params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
@@ -165,8 +168,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     }
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
-    for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
-        if (!out->empty()) prepareOutput(*out);
+    for (const auto& [flag, path] : outputFiles)
+        if (!path.empty()) prepareOutput(path);
     if (!a.pngDir.empty()) prepareOutputDirectory(a.pngDir);
     if (!a.geotiffDir.empty()) prepareOutputDirectory(a.geotiffDir);
 
@@ -351,6 +354,16 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         result.written.push_back(a.pdb);
         out << "wrote PDB plant list: " << a.pdb << "\n";
     }
+    if (!a.pdbCanopy.empty()) {
+        synth::writePdb(a.pdbCanopy, record.canopy, {});
+        result.written.push_back(a.pdbCanopy);
+        out << "wrote PDB plant list (canopy): " << a.pdbCanopy << "\n";
+    }
+    if (!a.pdbUndergrowth.empty()) {
+        synth::writePdb(a.pdbUndergrowth, {}, record.undergrowth);
+        result.written.push_back(a.pdbUndergrowth);
+        out << "wrote PDB plant list (undergrowth): " << a.pdbUndergrowth << "\n";
+    }
     if (!a.pngDir.empty()) {
         const std::string dir = a.pngDir + "/";
         synth::writeScenePng(dir + "scene.png", record.canopy, record.undergrowth, terrain, &floor, biome, "Synthesized scene");
@@ -420,6 +433,8 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.pdb.empty()) args.insert(args.end(), {"--pdb", a.pdb});
+    if (!a.pdbCanopy.empty()) args.insert(args.end(), {"--pdb-canopy", a.pdbCanopy});
+    if (!a.pdbUndergrowth.empty()) args.insert(args.end(), {"--pdb-undergrowth", a.pdbUndergrowth});
     if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
     if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});

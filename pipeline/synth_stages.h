@@ -19,7 +19,8 @@ struct SynthOptions {
     std::string terrain, canopy, database;
     std::string out;       ///< scene HDF5 (atomic)
     std::string abiotics;  ///< abiotics of the terrain; "" = computed with default parameters
-    std::string pngDir, csv, pdb;  ///< optional outputs ("" = none)
+    std::string pngDir, csv, pdb;  ///< optional outputs ("" = none); pdb: both layers in one list
+    std::string pdbCanopy, pdbUndergrowth;  ///< optional: one layer's PDB plant list each (EcoLearn's viewer reads two)
     std::string gpkg;              ///< optional: all plants as a GeoPackage in the terrain's CRS
     std::string geotiffDir;        ///< optional: the scene's grids (forest floor, cluster maps, terrain) as GeoTIFFs
     std::string zoom;          ///< crop of scene_zoom.png, "x,y,side" or "x0,y0,x1,y1"; "" = 60 m at the centre

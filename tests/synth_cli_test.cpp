@@ -58,9 +58,34 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
     const auto r = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
                                 " --abiotics " + f.abiotics + " --out " + dir.file("out/scene.h5") + " --png " +
                                 dir.file("png") + " --csv " + dir.file("plants.csv") + " --pdb " + dir.file("plants.pdb") +
+                                " --pdb-canopy " + dir.file("canopy.pdb") + " --pdb-undergrowth " + dir.file("undergrowth.pdb") +
                                 " --refine --refine-sweeps 1 --refine-window 80,80,120,120");
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
+    {
+        // The split lists (EcoLearn's viewer reads canopy and undergrowth as two files) hold
+        // one layer each and together every plant of the joint list.
+        const auto count = [](const std::vector<synth::PdbSpecies>& list) {
+            std::size_t n = 0;
+            for (const auto& s : list) n += s.plants.size();
+            return n;
+        };
+        const std::size_t all = count(synth::readPdb(dir.file("plants.pdb")));
+        const std::size_t canopyTrees = count(synth::readPdb(dir.file("canopy.pdb")));
+        const std::size_t undergrowth = count(synth::readPdb(dir.file("undergrowth.pdb")));
+        CHECK(canopyTrees == w.canopy.size());
+        CHECK(undergrowth > 0);
+        CHECK(canopyTrees + undergrowth == all);
+        // One path for both: refused before any work, naming both flags.
+        const auto same = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                                       " --out " + dir.file("same/scene.h5") + " --pdb-canopy " + dir.file("same/p.pdb") +
+                                       " --pdb-undergrowth " + dir.file("same/p.pdb"));
+        INFO(same.output);
+        CHECK(same.exitCode == 1);
+        CHECK_THAT(same.output, Catch::Contains("--pdb-canopy") && Catch::Contains("--pdb-undergrowth") &&
+                                    Catch::Contains("are the same file"));
+        CHECK_FALSE(std::filesystem::exists(dir.file("same/scene.h5")));
+    }
     CHECK_THAT(r.output, Catch::Contains("refinement: pair-correlation distance"));
     for (const char* name : {"out/scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/scene_zoom.png",
                              "png/grass.png", "png/litter.png", "png/cluster_map.png"})
