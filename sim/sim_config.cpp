@@ -214,18 +214,22 @@ void RunConfig::validate() const {
         if (y < 0) throw ValidationError(src + ": [run] snapshot_years: year " + std::to_string(y) + " is negative");
 }
 
-RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName) {
+RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath) {
     const toml::table root = parseTomlText(tomlText, sourceName);
+    // A path the file sets is relative to the file's directory; defaults stay as they are.
+    const auto pathOr = [&](StrictTable& s, const char* key, const std::string& fallback) {
+        return s.has(key) ? pathRelativeToConfig(filePath, s.possiblyEmptyStringOr(key, fallback)) : fallback;
+    };
     RunConfig c;
     c.sourcePath = sourceName;
     StrictTable top(root, sourceName, "");
     if (const toml::table* t = top.optionalTable("inputs")) {
         StrictTable s(*t, sourceName, "[inputs]");
-        c.terrainPath = s.possiblyEmptyStringOr("terrain", c.terrainPath);
-        c.abioticsPath = s.possiblyEmptyStringOr("abiotics", c.abioticsPath);
-        c.canopyPath = s.possiblyEmptyStringOr("canopy", c.canopyPath);
-        c.biomePath = s.possiblyEmptyStringOr("biome", c.biomePath);
-        c.initialPath = s.possiblyEmptyStringOr("initial", c.initialPath);
+        c.terrainPath = pathOr(s, "terrain", c.terrainPath);
+        c.abioticsPath = pathOr(s, "abiotics", c.abioticsPath);
+        c.canopyPath = pathOr(s, "canopy", c.canopyPath);
+        c.biomePath = pathOr(s, "biome", c.biomePath);
+        c.initialPath = pathOr(s, "initial", c.initialPath);
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("run")) {
@@ -259,10 +263,10 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("outputs")) {
         StrictTable s(*t, sourceName, "[outputs]");
-        c.outputPath = s.possiblyEmptyStringOr("hdf5", c.outputPath);
-        c.csvPath = s.possiblyEmptyStringOr("csv", c.csvPath);
-        c.pngDir = s.possiblyEmptyStringOr("png_dir", c.pngDir);
-        c.checkpointPath = s.possiblyEmptyStringOr("checkpoint", c.checkpointPath);
+        c.outputPath = pathOr(s, "hdf5", c.outputPath);
+        c.csvPath = pathOr(s, "csv", c.csvPath);
+        c.pngDir = pathOr(s, "png_dir", c.pngDir);
+        c.checkpointPath = pathOr(s, "checkpoint", c.checkpointPath);
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("model")) {
@@ -282,12 +286,19 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     return c;
 }
 
+const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {
+    static const std::vector<std::pair<std::string, std::string>> keys = {
+        {"inputs", "terrain"}, {"inputs", "abiotics"}, {"inputs", "canopy"}, {"inputs", "biome"}, {"inputs", "initial"},
+        {"outputs", "hdf5"},   {"outputs", "csv"},     {"outputs", "png_dir"}, {"outputs", "checkpoint"}};
+    return keys;
+}
+
 RunConfig loadRunConfig(const std::string& path) {
     std::ifstream in(path);
     if (!in) throw IoError(path + ": cannot open run configuration");
     std::stringstream ss;
     ss << in.rdbuf();
-    return parseRunConfig(ss.str(), path);
+    return parseRunConfig(ss.str(), path, path);
 }
 
 namespace {

@@ -345,3 +345,75 @@ TEST_CASE("values that were accepted with exit 0 are refused (issue 26)", "[cli]
     CHECK(sources.exitCode == 2);
     CHECK_THAT(sources.output, Catch::Contains("--pcf-sources: must lie in [0, 1000000000], got -1"));
 }
+
+// ======================================================================== CLI conventions (issue 31 item 5)
+
+namespace {
+
+/// eco run in working directory `cwd` (stdout and stderr together, and ECO_TEST_BINARY, as runEco).
+eco::test::CommandResult runEcoIn(const std::string& cwd, const std::string& args) {
+    const char* other = std::getenv("ECO_TEST_BINARY");
+    const std::string binary = other != nullptr && *other != '\0' ? other : ECO_BINARY;
+    const std::string cmd = "cd '" + cwd + "' && " + binary + " " + args + " 2>&1";
+    eco::test::CommandResult r;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    char buf[4096];
+    std::size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
+    const int status = ::pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+}  // namespace
+
+TEST_CASE("eco run: paths in a configuration are relative to the configuration's directory", "[cli][run]") {
+    // A tiny pipeline (terrain, CHM, abiotics) whose configuration names its output folder
+    // relatively, run from another working directory with the configuration given by a
+    // relative path: the outputs land beside the configuration, nothing where eco ran.
+    eco::test::TempDir dir("run_cwd");
+    std::filesystem::create_directories(dir.file("cfg"));
+    std::filesystem::create_directories(dir.file("elsewhere"));
+    std::ofstream(dir.file("cfg/pipeline.toml")) << "[run]\nout_dir = \"result\"\nseed = 3\n"
+                                                 << "[terrain]\nwidth = 16\nheight = 16\n"
+                                                 << "[chm]\n[abiotics]\nsun_step_minutes = 120\n";
+    const auto r = runEcoIn(dir.file("elsewhere"), "run ../cfg/pipeline.toml");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    for (const char* file : {"cfg/result/terrain.h5", "cfg/result/abiotics.h5", "cfg/result/report.md"}) {
+        INFO(file);
+        CHECK(std::filesystem::exists(dir.file(file)));
+    }
+    CHECK(std::filesystem::is_empty(dir.file("elsewhere")));
+    // A configuration it names (the canopy placer's) is found beside it; had the path been read
+    // relative to the working directory, it would not be, and a missing one is named resolved.
+    std::ofstream(dir.file("cfg/placer.toml")) << "[canopy]\nmax_iterations = 2\n";
+    std::ofstream(dir.file("cfg/canopy.toml")) << "[run]\nout_dir = \"../plan\"\n[terrain]\nwidth = 16\nheight = 16\n"
+                                               << "[chm]\n[abiotics]\n[canopy]\nconfig = \"placer.toml\"\n";
+    const auto plan = runEcoIn(dir.file("elsewhere"), "run ../cfg/canopy.toml --dry-run");
+    INFO(plan.output);
+    CHECK(plan.exitCode == 0);
+    CHECK_THAT(plan.output, Catch::Contains("--config ../cfg/placer.toml"));
+    std::filesystem::remove(dir.file("cfg/placer.toml"));
+    const auto missing = runEcoIn(dir.file("elsewhere"), "run ../cfg/canopy.toml --dry-run");
+    INFO(missing.output);
+    CHECK(missing.exitCode == 1);
+    CHECK_THAT(missing.output, Catch::Contains("../cfg/placer.toml"));
+}
+
+TEST_CASE("eco run: the shipped demo configuration plans the same stages from any directory", "[cli][run]") {
+    // configs/demo.toml names configs/sim-default.toml as "sim-default.toml" (beside it); from
+    // the repository root the outputs stay in out/demo, from elsewhere --out-dir decides.
+    eco::test::TempDir dir("run_demo_cwd");
+    const auto fromElsewhere =
+        runEcoIn(dir.path().string(), "run " + eco::test::sourcePath("configs/demo.toml") + " --dry-run --out-dir plan");
+    INFO(fromElsewhere.output);
+    REQUIRE(fromElsewhere.exitCode == 0);
+    CHECK_THAT(fromElsewhere.output, Catch::Contains("--config " + eco::test::sourcePath("configs/sim-default.toml")));
+    CHECK_THAT(fromElsewhere.output, Catch::Contains("--out plan/simulation.h5"));
+    const auto fromRoot = runEcoIn(eco::test::sourcePath(""), "run configs/demo.toml --dry-run --out-dir " + dir.file("plan2"));
+    INFO(fromRoot.output);
+    REQUIRE(fromRoot.exitCode == 0);
+    CHECK_THAT(fromRoot.output, Catch::Contains("--config configs/sim-default.toml "));
+}

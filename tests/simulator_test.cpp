@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -1295,6 +1296,27 @@ TEST_CASE("checkpoint: the paper's readings (every cell, monthly mean vigour, ca
 }
 
 // --------------------------------------------------------------------------- configuration
+
+TEST_CASE("run config: paths are relative to the configuration file's directory", "[sim][config]") {
+    test::TempDir dir("sim_config_paths");
+    std::filesystem::create_directories(dir.file("cfg"));
+    std::ofstream(dir.file("cfg/run.toml")) << "[inputs]\nabiotics = \"../in/a.h5\"\ncanopy = \"c.h5\"\nterrain = \"/abs/t.h5\"\n"
+                                            << "biome = \"\"\ninitial = \"i.h5:/group\"\n"
+                                            << "[outputs]\nhdf5 = \"out/sim.h5\"\ncsv = \"\"\npng_dir = \"png\"\n";
+    const RunConfig c = loadRunConfig(dir.file("cfg/run.toml"));
+    CHECK(c.abioticsPath == dir.file("in/a.h5"));
+    CHECK(c.canopyPath == dir.file("cfg/c.h5"));
+    CHECK(c.terrainPath == "/abs/t.h5");  // absolute: as written
+    CHECK(c.biomePath.empty());           // "": the embedded biome, still
+    CHECK(c.initialPath == dir.file("cfg/i.h5:/group"));
+    CHECK(c.outputPath == dir.file("cfg/out/sim.h5"));
+    CHECK(c.csvPath.empty());
+    CHECK(c.pngDir == dir.file("cfg/png"));
+    // Text without a file (tests, --model) keeps its paths; a default is not the file's.
+    CHECK(parseRunConfig("[inputs]\nabiotics = \"a.h5\"\n", "text").abioticsPath == "a.h5");
+    std::ofstream(dir.file("cfg/bare.toml")) << "[inputs]\nabiotics = \"a.h5\"\n";
+    CHECK(loadRunConfig(dir.file("cfg/bare.toml")).outputPath == RunConfig{}.outputPath);
+}
 
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
     const RunConfig def = loadRunConfig(test::sourcePath("configs/sim-default.toml"));
