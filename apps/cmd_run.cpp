@@ -25,7 +25,7 @@ void runPipeline(const RunArgs& args) {
         return;
     }
     pipeline::runPlan(plan, reporter);
-    std::printf("outputs in %s/ ; report: %s/report.md\n", plan.outDir.c_str(), plan.outDir.c_str());
+    printResult("outputs in %s/ ; report: %s/report.md\n", plan.outDir.c_str(), plan.outDir.c_str());
 }
 
 }  // namespace

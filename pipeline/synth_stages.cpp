@@ -237,6 +237,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
             reporter.info(text);
         }
         reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+        for (const auto& ph : sample.phases)
+            reporter.detail("structured: " + ph.name + " " + num(ph.wallS, 3) + " s (" + num(ph.cpuS, 3) + " s CPU)");
     }
     if (params.method == synth::SynthMethod::Deussen) {
         for (const auto& d : sample.deussen) {

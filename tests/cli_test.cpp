@@ -378,7 +378,7 @@ TEST_CASE("eco run: paths in a configuration are relative to the configuration's
     std::ofstream(dir.file("cfg/pipeline.toml")) << "[run]\nout_dir = \"result\"\nseed = 3\n"
                                                  << "[terrain]\nwidth = 16\nheight = 16\n"
                                                  << "[chm]\n[abiotics]\nsun_step_minutes = 120\n";
-    const auto r = runEcoIn(dir.file("elsewhere"), "run ../cfg/pipeline.toml");
+    const auto r = runEcoIn(dir.file("elsewhere"), "--quiet run ../cfg/pipeline.toml");
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
     for (const char* file : {"cfg/result/terrain.h5", "cfg/result/abiotics.h5", "cfg/result/report.md"}) {
@@ -416,4 +416,25 @@ TEST_CASE("eco run: the shipped demo configuration plans the same stages from an
     INFO(fromRoot.output);
     REQUIRE(fromRoot.exitCode == 0);
     CHECK_THAT(fromRoot.output, Catch::Contains("--config configs/sim-default.toml "));
+}
+
+TEST_CASE("eco --quiet prints nothing on success and still prints errors; --verbose adds detail", "[cli]") {
+    eco::test::TempDir dir("quiet");
+    const auto quiet = runEco("--quiet terrain generate --width 16 --height 16 --out " + dir.file("t.h5") + " --png " + dir.file("png"));
+    CHECK(quiet.exitCode == 0);
+    CHECK(quiet.output.empty());
+    CHECK(std::filesystem::exists(dir.file("t.h5")));
+    const auto verbose = runEco("--verbose terrain generate --width 16 --height 16 --out " + dir.file("t2.h5"));
+    CHECK(verbose.exitCode == 0);
+    CHECK_THAT(verbose.output, Catch::Contains("t2.h5"));  // the test can fail: without --quiet there is output
+    const auto error = runEco("--quiet terrain convert " + dir.file("no-such.asc") + " " + dir.file("o.h5"));
+    CHECK(error.exitCode == 1);
+    CHECK_THAT(error.output, Catch::Contains("eco: error:") && Catch::Contains("no-such.asc"));
+    const auto usage = runEco("--quiet terrain generate --width abc --out " + dir.file("x.h5"));
+    CHECK(usage.exitCode == 2);
+    CHECK_THAT(usage.output, Catch::Contains("--width"));
+    const auto both = runEco("--quiet --verbose terrain generate --out " + dir.file("y.h5"));
+    INFO(both.output);
+    CHECK(both.exitCode == 2);
+    CHECK_THAT(both.output, Catch::Contains("--quiet") && Catch::Contains("--verbose"));
 }
