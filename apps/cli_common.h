@@ -39,6 +39,7 @@ void registerDatabaseCommands(CLI::App& app);  // eco database build BIOME.toml 
 void registerSensitivityCommand(CLI::App& app); // eco sensitivity SPEC.toml (Morris screening)
 void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit parameters to observations)
 void registerInstanceCommand(CLI::App& app);    // eco instance SCENE.h5 --prototypes K --out DIR
+void registerConfigCommands(CLI::App& app);     // eco biome show [BIOME.toml], eco config defaults [COMMAND]
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
 /// is not done. `printPaths`: the manifest's (and database's) path on stdout at the end.

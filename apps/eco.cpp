@@ -61,6 +61,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerSensitivityCommand(*app);
     registerCalibrateCommand(*app);
     registerInstanceCommand(*app);
+    registerConfigCommands(*app);
     return app;
 }
 

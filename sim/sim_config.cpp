@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "error.h"
 #include "strict_toml.h"
@@ -284,6 +285,30 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     top.finish();
     c.params.validate(sourceName);
     return c;
+}
+
+namespace detail {
+extern const char* const kSimDefaultToml;
+}
+
+const char* embeddedDefaultRunConfigToml() { return detail::kSimDefaultToml; }
+
+std::string defaultRunConfigToml() {
+    std::string text = detail::kSimDefaultToml;
+    // The file's [model] table (and the comment block just above it) is replaced by the one
+    // description of the model constants, so that a key added to SimParams shows here even
+    // when configs/sim-default.toml does not list it.
+    std::size_t cut = text.find("\n[model]");
+    if (cut == std::string::npos) throw std::logic_error("configs/sim-default.toml as built in has no [model] table");
+    while (cut > 0) {  // back over the comment lines right above [model]
+        const std::size_t lineStart = text.rfind('\n', cut - 1);
+        const std::size_t begin = lineStart == std::string::npos ? 0 : lineStart + 1;
+        if (text.compare(begin, 1, "#") != 0) break;
+        cut = begin == 0 ? 0 : begin - 1;
+    }
+    text.resize(cut);
+    return text + "\n# Model constants (paper §6.1 and SPEC §5), every one at its default (docs/simulator.md).\n" +
+           SimParams{}.toToml();
 }
 
 const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {

@@ -174,6 +174,14 @@ RunConfig loadRunConfig(const std::string& path);
 /// from, whose directory relative paths are resolved against ("" = left as written).
 RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath = "");
 
+/// configs/sim-default.toml as built into this eco (the demo's simulation configuration).
+const char* embeddedDefaultRunConfigToml();
+/// Every key of a run configuration with its default, as TOML that loadRunConfig reads: the
+/// built-in configs/sim-default.toml ([inputs], [run], [outputs] and their comments) with its
+/// [model] table replaced by SimParams{}.toToml() (every model constant, from
+/// simParamFields, and the enum choices). `eco config defaults simulate`.
+std::string defaultRunConfigToml();
+
 /// The path-valued keys of a run configuration file ({table, key}), for absolutizeConfigPaths.
 const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys();
 

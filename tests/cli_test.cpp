@@ -82,7 +82,7 @@ TEST_CASE("every command has --help", "[cli]") {
     // The list was read: the pipeline's commands and the newer ones are among them.
     for (const char* expected : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate", "analyse",
                                  "inspect", "pcf", "synth", "compare", "validate", "run", "fidelity", "ensemble", "database build",
-                                 "sensitivity", "calibrate", "instance"}) {
+                                 "sensitivity", "calibrate", "instance", "biome show", "config defaults"}) {
         INFO(expected);
         CHECK(std::find(commands.begin(), commands.end(), expected) != commands.end());
     }
@@ -366,6 +366,9 @@ eco::test::CommandResult runEcoIn(const std::string& cwd, const std::string& arg
     return r;
 }
 
+/// The text after the first line (eco biome show's header comment names the source).
+std::string withoutFirstLine(const std::string& s) { return s.substr(std::min(s.size(), s.find('\n') + 1)); }
+
 }  // namespace
 
 TEST_CASE("eco run: paths in a configuration are relative to the configuration's directory", "[cli][run]") {
@@ -437,4 +440,51 @@ TEST_CASE("eco --quiet prints nothing on success and still prints errors; --verb
     INFO(both.output);
     CHECK(both.exitCode == 2);
     CHECK_THAT(both.output, Catch::Contains("--quiet") && Catch::Contains("--verbose"));
+}
+
+TEST_CASE("eco biome show prints a biome that eco reads back identically", "[cli]") {
+    eco::test::TempDir dir("biome_show");
+    const auto embedded = runEco("--quiet biome show");  // the result prints with --quiet too
+    REQUIRE(embedded.exitCode == 0);
+    CHECK_THAT(embedded.output, Catch::Contains("[[species]]") && Catch::Contains("Redwood"));
+    std::ofstream(dir.file("a.toml")) << embedded.output;
+    const auto again = runEco("biome show " + dir.file("a.toml"));
+    REQUIRE(again.exitCode == 0);
+    CHECK(withoutFirstLine(again.output) == withoutFirstLine(embedded.output));
+    // The shipped file reads to the same biome as the embedded copy.
+    const auto shipped = runEco("biome show " + eco::test::sourcePath("biomes/sonoma.toml"));
+    REQUIRE(shipped.exitCode == 0);
+    CHECK(withoutFirstLine(shipped.output) == withoutFirstLine(embedded.output));
+    // Errors: a missing file is a usage error, a bad value names file and field.
+    CHECK(runEco("biome show " + dir.file("none.toml")).exitCode == 2);
+    std::string text = withoutFirstLine(embedded.output);
+    const std::size_t at = text.find("max_height_m = ");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, std::string("max_height_m = ").size(), "max_height_m = -");
+    std::ofstream(dir.file("bad.toml")) << text;
+    const auto bad = runEco("biome show " + dir.file("bad.toml"));
+    INFO(bad.output);
+    CHECK(bad.exitCode == 1);
+    CHECK_THAT(bad.output, Catch::Contains("bad.toml") && Catch::Contains("max_height_m"));
+}
+
+TEST_CASE("eco config defaults prints configurations that eco reads", "[cli]") {
+    eco::test::TempDir dir("config_defaults");
+    const auto sim = runEco("--quiet config defaults simulate");  // simulate is the default; printed with --quiet
+    REQUIRE(sim.exitCode == 0);
+    CHECK_THAT(sim.output, Catch::Contains("[inputs]") && Catch::Contains("[model]") && Catch::Contains("canopy_limit = "));
+    std::ofstream(dir.file("sim.toml")) << sim.output;
+    const auto canopy = runEco("config defaults canopy");
+    REQUIRE(canopy.exitCode == 0);
+    CHECK_THAT(canopy.output, Catch::Contains("[canopy]"));
+    std::ofstream(dir.file("placer.toml")) << canopy.output;
+    // eco run checks both files when it plans (strict: an unknown key or a bad value fails).
+    std::ofstream(dir.file("run.toml")) << "[run]\nout_dir = \"out\"\n[terrain]\n[chm]\n[abiotics]\n"
+                                        << "[canopy]\nconfig = \"placer.toml\"\n[simulate]\nconfig = \"sim.toml\"\n";
+    const auto plan = runEco("run " + dir.file("run.toml") + " --dry-run");
+    INFO(plan.output);
+    CHECK(plan.exitCode == 0);
+    const auto wrong = runEco("config defaults synthesis");
+    CHECK(wrong.exitCode == 2);
+    CHECK_THAT(wrong.output, Catch::Contains("synthesis"));
 }

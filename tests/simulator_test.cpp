@@ -1318,6 +1318,32 @@ TEST_CASE("run config: paths are relative to the configuration file's directory"
     CHECK(loadRunConfig(dir.file("cfg/bare.toml")).outputPath == RunConfig{}.outputPath);
 }
 
+TEST_CASE("run config: the built-in defaults hold every key and read back", "[sim][config]") {
+    // configs/sim-default.toml as built in equals the file, and its [model] is the defaults.
+    const RunConfig file = loadRunConfig(test::sourcePath("configs/sim-default.toml"));
+    const RunConfig embedded = parseRunConfig(embeddedDefaultRunConfigToml(), "embedded", test::sourcePath("configs/sim-default.toml"));
+    CHECK(embedded.abioticsPath == file.abioticsPath);
+    CHECK(embedded.years == file.years);
+    CHECK(embedded.snapshotYears == file.snapshotYears);
+    CHECK(embedded.params.toToml() == file.params.toToml());
+    CHECK(file.params.toToml() == SimParams{}.toToml());
+    // eco config defaults simulate: every model key (from simParamFields and the choices) once.
+    const std::string text = defaultRunConfigToml();
+    const RunConfig back = parseRunConfig(text, "defaults");
+    CHECK(back.params.toToml() == SimParams{}.toToml());
+    CHECK(back.years == file.years);
+    CHECK(back.checkpointEveryYears == file.checkpointEveryYears);
+    for (const auto& f : simParamFields()) {
+        INFO(f.key);
+        CHECK(text.find(std::string("\n") + f.key + " = ") != std::string::npos);
+    }
+    for (const char* key : {"growth_rule", "competition", "germination_cells", "germination_vigour", "canopy_limit"}) {
+        INFO(key);
+        CHECK(text.find(std::string("\n") + key + " = ") != std::string::npos);
+    }
+    CHECK(text.find("[model]") == text.rfind("[model]"));
+}
+
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
     const RunConfig def = loadRunConfig(test::sourcePath("configs/sim-default.toml"));
     CHECK(def.params.cellSizeM == 0.2);
