@@ -421,7 +421,7 @@ TEST_CASE("eco run: the shipped demo configuration plans the same stages from an
     CHECK_THAT(fromRoot.output, Catch::Contains("--config configs/sim-default.toml "));
 }
 
-TEST_CASE("eco --quiet prints nothing on success and still prints errors; --verbose adds detail", "[cli]") {
+TEST_CASE("eco --quiet prints nothing on success and still prints errors, --verbose adds detail", "[cli]") {
     eco::test::TempDir dir("quiet");
     const auto quiet = runEco("--quiet terrain generate --width 16 --height 16 --out " + dir.file("t.h5") + " --png " + dir.file("png"));
     CHECK(quiet.exitCode == 0);
