@@ -215,22 +215,39 @@ void RunConfig::validate() const {
         if (y < 0) throw ValidationError(src + ": [run] snapshot_years: year " + std::to_string(y) + " is negative");
 }
 
+namespace {
+/// The path-valued keys of a run configuration and the members they set: read by
+/// parseRunConfig (relative to the file) and listed by runConfigPathKeys (one list).
+struct PathKey {
+    const char* table;
+    const char* key;
+    std::string RunConfig::*member;
+};
+const std::vector<PathKey>& pathKeys() {
+    static const std::vector<PathKey> keys = {
+        {"inputs", "terrain", &RunConfig::terrainPath},   {"inputs", "abiotics", &RunConfig::abioticsPath},
+        {"inputs", "canopy", &RunConfig::canopyPath},     {"inputs", "biome", &RunConfig::biomePath},
+        {"inputs", "initial", &RunConfig::initialPath},   {"outputs", "hdf5", &RunConfig::outputPath},
+        {"outputs", "csv", &RunConfig::csvPath},          {"outputs", "png_dir", &RunConfig::pngDir},
+        {"outputs", "checkpoint", &RunConfig::checkpointPath}};
+    return keys;
+}
+}  // namespace
+
 RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath) {
     const toml::table root = parseTomlText(tomlText, sourceName);
     // A path the file sets is relative to the file's directory; defaults stay as they are.
-    const auto pathOr = [&](StrictTable& s, const char* key, const std::string& fallback) {
-        return s.has(key) ? pathRelativeToConfig(filePath, s.possiblyEmptyStringOr(key, fallback)) : fallback;
-    };
     RunConfig c;
+    const auto readPaths = [&](StrictTable& s, const std::string& table) {
+        for (const PathKey& p : pathKeys())
+            if (table == p.table && s.has(p.key))
+                c.*(p.member) = pathRelativeToConfig(filePath, s.possiblyEmptyStringOr(p.key, c.*(p.member)));
+    };
     c.sourcePath = sourceName;
     StrictTable top(root, sourceName, "");
     if (const toml::table* t = top.optionalTable("inputs")) {
         StrictTable s(*t, sourceName, "[inputs]");
-        c.terrainPath = pathOr(s, "terrain", c.terrainPath);
-        c.abioticsPath = pathOr(s, "abiotics", c.abioticsPath);
-        c.canopyPath = pathOr(s, "canopy", c.canopyPath);
-        c.biomePath = pathOr(s, "biome", c.biomePath);
-        c.initialPath = pathOr(s, "initial", c.initialPath);
+        readPaths(s, "inputs");
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("run")) {
@@ -264,10 +281,7 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("outputs")) {
         StrictTable s(*t, sourceName, "[outputs]");
-        c.outputPath = pathOr(s, "hdf5", c.outputPath);
-        c.csvPath = pathOr(s, "csv", c.csvPath);
-        c.pngDir = pathOr(s, "png_dir", c.pngDir);
-        c.checkpointPath = pathOr(s, "checkpoint", c.checkpointPath);
+        readPaths(s, "outputs");
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("model")) {
@@ -312,9 +326,11 @@ std::string defaultRunConfigToml() {
 }
 
 const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {
-    static const std::vector<std::pair<std::string, std::string>> keys = {
-        {"inputs", "terrain"}, {"inputs", "abiotics"}, {"inputs", "canopy"}, {"inputs", "biome"}, {"inputs", "initial"},
-        {"outputs", "hdf5"},   {"outputs", "csv"},     {"outputs", "png_dir"}, {"outputs", "checkpoint"}};
+    static const std::vector<std::pair<std::string, std::string>> keys = [] {
+        std::vector<std::pair<std::string, std::string>> out;
+        for (const PathKey& p : pathKeys()) out.emplace_back(p.table, p.key);
+        return out;
+    }();
     return keys;
 }
 
