@@ -9,10 +9,12 @@
 #include <atomic>
 #include <cerrno>
 #include <csignal>
+#include <cstdarg>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <streambuf>
 
 namespace eco::cli {
 
@@ -49,7 +51,46 @@ void Progress::finish() {
     std::fprintf(stderr, "%s: done in %.2fs\n", label_.c_str(), elapsed);
 }
 
-void info(const std::string& line) { std::cerr << line << "\n"; }
+namespace {
+Verbosity gVerbosity = Verbosity::Normal;
+
+class NullBuffer : public std::streambuf {
+protected:
+    int overflow(int c) override { return traits_type::not_eof(c); }
+    std::streamsize xsputn(const char*, std::streamsize n) override { return n; }
+};
+
+class NullBar : public pipeline::ProgressBar {
+public:
+    void update(long) override {}
+    void finish() override {}
+};
+}  // namespace
+
+void setVerbosity(Verbosity v) { gVerbosity = v; }
+Verbosity verbosity() { return gVerbosity; }
+
+void info(const std::string& line) {
+    if (gVerbosity != Verbosity::Quiet) std::cerr << line << "\n";
+}
+
+void detail(const std::string& line) {
+    if (gVerbosity == Verbosity::Verbose) std::cerr << line << "\n";
+}
+
+std::ostream& resultStream() {
+    static NullBuffer nullBuffer;
+    static std::ostream sink(&nullBuffer);
+    return gVerbosity == Verbosity::Quiet ? sink : std::cout;
+}
+
+void printResult(const char* format, ...) {
+    if (gVerbosity == Verbosity::Quiet) return;
+    std::va_list args;
+    va_start(args, format);
+    std::vfprintf(stdout, format, args);
+    va_end(args);
+}
 
 namespace {
 CLI::Validator numberCheck(bool zeroAllowed) {
@@ -133,7 +174,10 @@ extern "C" void onStopSignal(int) { gStop = true; }
 // SIGINT / SIGTERM handlers while it lives (a stop request ends the run after the year).
 class SimProgress : public pipeline::SimulationProgress {
 public:
-    explicit SimProgress(int totalYears) : total_(totalYears), tty_(::isatty(STDERR_FILENO) != 0) {
+    explicit SimProgress(int totalYears)
+        : total_(totalYears), tty_(::isatty(STDERR_FILENO) != 0), print_(verbosity() != Verbosity::Quiet),
+          everyYear_(verbosity() == Verbosity::Verbose) {
+        // The stop request works with --quiet too: only the printing is switched off.
         gStop = false;
         previousInt_ = std::signal(SIGINT, onStopSignal);
         previousTerm_ = std::signal(SIGTERM, onStopSignal);
@@ -145,6 +189,7 @@ public:
     SimProgress(const SimProgress&) = delete;
     SimProgress& operator=(const SimProgress&) = delete;
     void update(const sim::Simulation& s) override {
+        if (!print_) return;
         const auto now = std::chrono::steady_clock::now();
         if (!started_) {
             started_ = true;
@@ -164,7 +209,7 @@ public:
                       year, total_, s.plantCount(), rate / 1e6, left);
         if (tty_) {
             std::fprintf(stderr, "\r\033[K%s", line);
-        } else if (year == total_ || elapsed - lastPrint_ >= 5.0 || year == startYear_) {
+        } else if (everyYear_ || year == total_ || elapsed - lastPrint_ >= 5.0 || year == startYear_) {
             std::fprintf(stderr, "%s\n", line);
             lastPrint_ = elapsed;
         }
@@ -177,6 +222,8 @@ public:
 private:
     int total_;
     bool tty_;
+    bool print_;      // false with --quiet
+    bool everyYear_;  // --verbose: a line every year, not every 5 s (logs)
     bool started_ = false;
     std::chrono::steady_clock::time_point start_;
     int startYear_ = 0;
@@ -194,9 +241,11 @@ bool gThreadsFlagGiven = false;
 bool threadsFlagGiven() { return gThreadsFlagGiven; }
 void setThreadsFlagGiven(bool given) { gThreadsFlagGiven = given; }
 
-std::ostream& CliReporter::out() { return std::cout; }
+std::ostream& CliReporter::out() { return resultStream(); }
 void CliReporter::info(const std::string& line) { cli::info(line); }
+void CliReporter::detail(const std::string& line) { cli::detail(line); }
 std::unique_ptr<pipeline::ProgressBar> CliReporter::progress(const std::string& label, long total) {
+    if (verbosity() == Verbosity::Quiet) return std::make_unique<NullBar>();
     return std::make_unique<Progress>(label, total);
 }
 std::unique_ptr<pipeline::SimulationProgress> CliReporter::simulationProgress(int totalYears) {

@@ -39,6 +39,7 @@ void registerDatabaseCommands(CLI::App& app);  // eco database build BIOME.toml 
 void registerSensitivityCommand(CLI::App& app); // eco sensitivity SPEC.toml (Morris screening)
 void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit parameters to observations)
 void registerInstanceCommand(CLI::App& app);    // eco instance SCENE.h5 --prototypes K --out DIR
+void registerConfigCommands(CLI::App& app);     // eco biome show [BIOME.toml], eco config defaults [COMMAND]
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
 /// is not done. `printPaths`: the manifest's (and database's) path on stdout at the end.
@@ -125,8 +126,27 @@ std::string paramHelp(const ParamDesc<S>& f, const std::string& prefix = "") {
     return prefix + doc;
 }
 
-/// Print one informational line to stderr (stdout is kept for results).
+/// How much the command line prints: eco --quiet (errors only: no progress, no information,
+/// no summaries or "wrote ..." lines on stdout) or --verbose (also the extra detail stages
+/// offer, e.g. phase timings and a simulation line every year), before the command.
+/// Commands whose result is the text they print (eco biome show, eco config defaults) print
+/// it whatever the verbosity. One switch for every output path below.
+enum class Verbosity { Quiet, Normal, Verbose };
+void setVerbosity(Verbosity v);
+Verbosity verbosity();
+
+/// Print one informational line to stderr (stdout is kept for results); nothing with --quiet.
 void info(const std::string& line);
+/// One line of extra detail to stderr, with --verbose only.
+void detail(const std::string& line);
+/// Where results and summaries go: stdout, or a sink with --quiet.
+std::ostream& resultStream();
+/// printf to resultStream().
+void printResult(const char* format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
 /// True when the command line gave --threads (eco ensemble then leaves the threads alone).
 bool threadsFlagGiven();
 void setThreadsFlagGiven(bool given);
@@ -137,6 +157,7 @@ class CliReporter : public pipeline::Reporter {
 public:
     std::ostream& out() override;
     void info(const std::string& line) override;
+    void detail(const std::string& line) override;
     std::unique_ptr<pipeline::ProgressBar> progress(const std::string& label, long total) override;
     std::unique_ptr<pipeline::SimulationProgress> simulationProgress(int totalYears) override;
     bool stopRequested() override;

@@ -112,15 +112,15 @@ void runPcf(const PcfArgs& args) {
     if (n > 9) layout.plotWidthPx = 240, layout.plotHeightPx = 140;
     chartPanels(panels, layout).writePng(png);
 
-    std::cout << "points: " << pattern.size() << " in window " << num(window.x0) << "," << num(window.y0) << ","
+    resultStream() << "points: " << pattern.size() << " in window " << num(window.x0) << "," << num(window.y0) << ","
               << num(window.x1) << "," << num(window.y1) << " (" << num(window.areaM2()) << " m2), types:";
     for (std::size_t t = 0; t < pattern.typeNames.size(); ++t)
-        std::cout << (t ? ", " : " ") << pattern.typeNames[t] << " (" << sums.typeCount[t] << ")";
+        resultStream() << (t ? ", " : " ") << pattern.typeNames[t] << " (" << sums.typeCount[t] << ")";
     const ClarkEvans ce = clarkEvans(pattern.x, pattern.y, window);
-    std::cout << "\nClark-Evans index (Donnelly edge correction): " << num(ce.index) << " (mean nearest neighbour "
+    resultStream() << "\nClark-Evans index (Donnelly edge correction): " << num(ce.index) << " (mean nearest neighbour "
               << num(ce.meanNearestM) << " m, " << num(ce.expectedM)
               << " m expected under CSR; < 1 clustered, > 1 regular)";
-    std::cout << "\nwrote pair correlation: " << csv << " (" << opt.bins.count << " bins of " << num(opt.bins.widthM())
+    resultStream() << "\nwrote pair correlation: " << csv << " (" << opt.bins.count << " bins of " << num(opt.bins.widthM())
               << " m to " << num(opt.bins.rMaxM) << " m)\nwrote plot: " << png << "\n";
 }
 

@@ -29,13 +29,13 @@ void runCalibrate(const CalibrateArgs& a) {
         pipeline::calibrate(spec, [&](const std::string& members) { rank = runEnsembleFile(members, "", false, false); }, reporter);
     if (rank != 0) return;
     const pipeline::Evaluation& best = r.history[r.best];
-    std::printf("best of %zu evaluations (%s): chi2 = %g\n", r.history.size(), r.stopReason.c_str(), best.chi2);
+    printResult("best of %zu evaluations (%s): chi2 = %g\n", r.history.size(), r.stopReason.c_str(), best.chi2);
     for (std::size_t i = 0; i < spec.parameters.size(); ++i)
-        std::printf("  %s = %g%s\n", spec.parameters[i].key.c_str(), best.values[i],
+        printResult("  %s = %g%s\n", spec.parameters[i].key.c_str(), best.values[i],
                     std::isfinite(r.parameterSd[i]) ? (" +- " + formatNumber(r.parameterSd[i], 3)).c_str() : "");
-    std::printf("%s\n%s\n", r.reportPath.c_str(), r.historyPath.c_str());
-    if (!r.bestBiome.empty()) std::printf("%s\n", r.bestBiome.c_str());
-    if (!r.bestSimulation.empty()) std::printf("%s\n", r.bestSimulation.c_str());
+    printResult("%s\n%s\n", r.reportPath.c_str(), r.historyPath.c_str());
+    if (!r.bestBiome.empty()) printResult("%s\n", r.bestBiome.c_str());
+    if (!r.bestSimulation.empty()) printResult("%s\n", r.bestSimulation.c_str());
     std::fflush(stdout);
 }
 

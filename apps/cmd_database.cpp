@@ -39,7 +39,7 @@ void buildDatabase(BuildArgs a) {
     const auto rows = pipeline::coverage(db, biome);
     const std::string csv = (std::filesystem::path(o.out).parent_path() / (std::filesystem::path(o.out).stem().string() + "-coverage.csv")).string();
     writeTextFile(csv, pipeline::coverageCsv(rows));
-    std::printf("coverage of %s (combination x cluster):\n%s%s\n", o.out.c_str(), pipeline::coverageText(rows).c_str(), csv.c_str());
+    printResult("coverage of %s (combination x cluster):\n%s%s\n", o.out.c_str(), pipeline::coverageText(rows).c_str(), csv.c_str());
     std::fflush(stdout);
 }
 

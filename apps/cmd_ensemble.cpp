@@ -184,7 +184,7 @@ void runOneMember(const EnsembleArgs& a) {
 void printMembers(const pipeline::EnsembleSpec& spec) {
     for (std::size_t i = 0; i < spec.members.size(); ++i) {
         const pipeline::MemberStatus s = pipeline::memberStatus(spec, i);
-        std::printf("%s\t%s\t%s\n", s.id.c_str(), s.state.c_str(), pipeline::overridesText(spec.members[i]).c_str());
+        printResult("%s\t%s\t%s\n", s.id.c_str(), s.state.c_str(), pipeline::overridesText(spec.members[i]).c_str());
     }
 }
 
@@ -269,9 +269,9 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
                           " the same command again: finished members are kept" + (spec.database ? ", and the database is built when all are done" : "");
             } else if (spec.database) {
                 const std::string db = pipeline::buildEnsembleDatabase(spec, reporter);
-                if (printPaths) std::printf("%s\n%s\n", manifest.c_str(), db.c_str());
+                if (printPaths) printResult("%s\n%s\n", manifest.c_str(), db.c_str());
             } else {
-                if (printPaths) std::printf("%s\n", manifest.c_str());
+                if (printPaths) printResult("%s\n", manifest.c_str());
             }
         } catch (const Error& e) {
             verdict = e.what();

@@ -33,10 +33,10 @@ void registerInstanceCommand(CLI::App& app) {
     sub->callback([a, weight] {
         a->params.weightByCrownArea = *weight == "area";
         const synth::InstancingSummary s = synth::runInstancing(*a);
-        std::printf("%zu plants as %zu prototypes: size error unscaled mean %s %%, max %s %%; scaled to height mean %s %%, max %s %%\n%s",
+        printResult("%zu plants as %zu prototypes: size error unscaled mean %s %%, max %s %%; scaled to height mean %s %%, max %s %%\n%s",
                     s.plants, s.prototypes, formatNumber(100 * s.error.meanUnscaled, 3).c_str(), formatNumber(100 * s.error.maxUnscaled, 3).c_str(),
                     formatNumber(100 * s.error.meanScaled, 3).c_str(), formatNumber(100 * s.error.maxScaled, 3).c_str(), s.text.c_str());
-        for (const std::string& f : s.files) std::printf("%s\n", f.c_str());
+        for (const std::string& f : s.files) printResult("%s\n", f.c_str());
         std::fflush(stdout);
     });
 }

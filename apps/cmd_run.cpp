@@ -25,7 +25,7 @@ void runPipeline(const RunArgs& args) {
         return;
     }
     pipeline::runPlan(plan, reporter);
-    std::printf("outputs in %s/ ; report: %s/report.md\n", plan.outDir.c_str(), plan.outDir.c_str());
+    printResult("outputs in %s/ ; report: %s/report.md\n", plan.outDir.c_str(), plan.outDir.c_str());
 }
 
 }  // namespace
@@ -34,9 +34,11 @@ void registerRunCommand(CLI::App& app) {
     auto a = std::make_shared<RunArgs>();
     CLI::App* sub = app.add_subcommand(
         "run", "Run the whole pipeline from one configuration (configs/demo.toml: the embedded default data).\n"
-               "Each stage is an ordinary eco command; its command line is printed so it can be rerun alone.");
+               "Each stage is an ordinary eco command; its command line is printed so it can be rerun alone.\n"
+               "Relative paths inside CONFIG (and inside the configuration files it names) are relative to the "
+               "directory of the file that contains them, so the run works from any working directory.");
     sub->add_option("config", a->config, "Pipeline configuration (TOML)")->required();
-    sub->add_option("--out-dir", a->outDir, "Override [run] out_dir");
+    sub->add_option("--out-dir", a->outDir, "Override [run] out_dir (relative to the working directory)");
     sub->add_flag("--dry-run", a->dryRun, "Print the stages without running them");
     sub->callback([a] { runPipeline(*a); });
 }

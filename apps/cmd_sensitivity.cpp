@@ -28,7 +28,7 @@ void runSensitivity(const SensitivityArgs& a) {
          members);
     if (runEnsembleFile(members, "", a.dryRun) != 0 || a.dryRun) return;
     const pipeline::SensitivityReport r = pipeline::writeSensitivityReport(spec, design);
-    std::printf("mu* by output (largest first):\n%s%s\n%s\n", r.summary.c_str(), r.markdownPath.c_str(), r.csvPath.c_str());
+    printResult("mu* by output (largest first):\n%s%s\n%s\n", r.summary.c_str(), r.markdownPath.c_str(), r.csvPath.c_str());
     std::fflush(stdout);
 }
 

@@ -1,5 +1,6 @@
 // eco synth and eco compare: parsing only; the stages are in pipeline/synth_stages (the
 // science in synth/undergrowth, synth/forest_floor and synth/scene, docs/synth.md).
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -94,6 +95,10 @@ void registerSynthCommand(CLI::App& app) {
         ->check(parsedBy("--zoom", [](const std::string& t) { parseWindow(t, "--zoom", true); }));
     cmd->add_option("--csv", a->csv, "Also write all plants as CSV (layer, species, x, y, z, height, crown radius)");
     cmd->add_option("--pdb", a->pdb, "Also write all plants as a PDB plant list (the paper's authors' viewers)");
+    cmd->add_option("--pdb-canopy", a->pdbCanopy,
+                    "Also write the canopy trees alone as a PDB plant list (EcoLearn's viewer reads canopy and undergrowth "
+                    "as two files)");
+    cmd->add_option("--pdb-undergrowth", a->pdbUndergrowth, "Also write the undergrowth alone as a PDB plant list");
     cmd->add_option("--gpkg", a->gpkg, "Also write all plants as a GeoPackage point layer, in the terrain's CRS (QGIS, ArcGIS)");
     cmd->add_option("--geotiff", a->geotiffDir,
                     "Also write the scene's grids (grass, litter, cluster and combination maps, terrain) as GeoTIFFs into "
@@ -179,7 +184,18 @@ void registerCompareCommand(CLI::App& app) {
         "proportions, size-histogram and pair-correlation distances (Markdown table on stdout)");
     cmd->add_option("scene", a->scene, "Scene file from 'eco synth'")->required();
     cmd->add_option("database", a->database, "Biome database")->required();
-    cmd->add_option("--png", a->png, "Also write a picture of the pair correlations, scene against database");
+    cmd->add_option("--png", a->pngDir,
+                    "Also write compare.png (the pair correlations, scene against database) into this directory")
+        ->check(CLI::Validator(
+            [](std::string& dir) -> std::string {
+                // Until issue 31 --png was the picture's file; say so rather than make a folder "x.png".
+                const std::string ext = std::filesystem::path(dir).extension().string();
+                if (ext == ".png" || ext == ".PNG")
+                    return "is a directory now (eco compare writes DIR/compare.png, as every command's --png DIR); "
+                           "got the file name '" + dir + "'";
+                return "";
+            },
+            "DIR"));
     cmd->add_option("--window", a->window, "Compare only inside x0,y0,x1,y1 (metres)")
         ->check(parsedBy("--window", [](const std::string& t) { parseWindow(t, "--window"); }));
     cmd->add_option("--out", a->out, "Also write the Markdown table to this file");

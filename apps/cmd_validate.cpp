@@ -78,7 +78,7 @@ void runValidate(const ValidateOptions& o) {
             if (c.knownDeviation()) info("validate: known deviation (reported, not failing) " + s.name + "/" + c.spec.id);
             else if (!c.pass) info("validate: FAILED " + s.name + "/" + c.spec.id);
         }
-    for (const auto& f : written) std::printf("%s\n", f.c_str());
+    for (const auto& f : written) printResult("%s\n", f.c_str());
     std::fflush(stdout);
     const int status = validate::exitStatus(result);
     if (status != 0) throw ExitStatus(status, std::to_string(result.failedCount()) + " validation check(s) failed; see " + written.front());

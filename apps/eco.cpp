@@ -29,7 +29,16 @@ std::unique_ptr<CLI::App> makeApp() {
     app->add_flag("--no-provenance", *noProvenance,
                   "Leave the /provenance group (wall times, thread counts, dates) out of every HDF5 output, so that "
                   "two runs of the same inputs and seed write byte-identical files, whatever --threads");
-    app->parse_complete_callback([threads, noProvenance] {
+    auto quiet = std::make_shared<bool>(false);
+    auto verbose = std::make_shared<bool>(false);
+    CLI::Option* quietFlag = app->add_flag("--quiet", *quiet,
+                                           "Errors only: no progress, no information and no summaries (results go to "
+                                           "the output files; eco biome show and eco config defaults still print)");
+    CLI::Option* verboseFlag =
+        app->add_flag("--verbose", *verbose, "Extra detail where a command has any (phase timings, a simulation line every year)");
+    quietFlag->excludes(verboseFlag);
+    app->parse_complete_callback([threads, noProvenance, quiet, verbose] {
+        setVerbosity(*quiet ? Verbosity::Quiet : *verbose ? Verbosity::Verbose : Verbosity::Normal);
         if (*threads > 0) omp_set_num_threads(*threads);
         setThreadsFlagGiven(*threads > 0);
         setProvenanceRecorded(!*noProvenance);
@@ -52,6 +61,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerSensitivityCommand(*app);
     registerCalibrateCommand(*app);
     registerInstanceCommand(*app);
+    registerConfigCommands(*app);
     return app;
 }
 

@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
                         << "[ensemble.base.run]\nout_dir = \"set per member\"\n"
                         << "[ensemble.base.terrain]\nwidth = 128\nheight = 128\n"
                         << "[ensemble.base.chm]\n[ensemble.base.abiotics]\nsun_step_minutes = 30\n[ensemble.base.canopy]\n"
-                        << "[ensemble.base.simulate]\nconfig = \"configs/sim-default.toml\"\nyears = 60\ncrop = [8.5, 8.5, 108.5, 108.5]\n"
+                        << "[ensemble.base.simulate]\nconfig = \"" << fs::absolute("configs/sim-default.toml").string() << "\"\nyears = 60\ncrop = [8.5, 8.5, 108.5, 108.5]\n"
                         << "[vary]\n\"terrain.seed\" = [1, 2, 3, 4]\n\"run.seed\" = [1, 2]\n";
     const int members = 8;
     struct Way {

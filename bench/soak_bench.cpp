@@ -175,7 +175,7 @@ int main(int argc, char** argv) {
         const std::string dir = work + "/it";
         fs::remove_all(dir);
         fs::create_directories(dir + "/bad");
-        writeText(dir + "/run.toml", runConfig(dir + "/out", simConfig));
+        writeText(dir + "/run.toml", runConfig(fs::absolute(dir + "/out").string(), simConfig));  // paths in a config: relative to it
         eco::pipeline::SilentReporter reporter;
         const eco::pipeline::RunPlan plan = eco::pipeline::planRun(dir + "/run.toml");
         eco::pipeline::runPlan(plan, reporter);

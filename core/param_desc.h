@@ -11,6 +11,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -159,6 +161,31 @@ const ParamDesc<S>& paramField(const std::vector<ParamDesc<S>>& fields, const st
     for (const auto& f : fields)
         if (key == f.key) return f;
     throw std::logic_error("no parameter '" + key + "' in its table");
+}
+
+/// A real as TOML text that reads back to the same double: the shortest of %.6g .. %.17g
+/// that round-trips, with ".0" added to a whole number (TOML would read it as an integer).
+inline std::string tomlReal(double v) {
+    char buf[64];
+    for (int precision = 6; precision <= 17; ++precision) {
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::strtod(buf, nullptr) == v) break;
+    }
+    std::string s = buf;
+    if (std::isfinite(v) && s.find_first_of(".eE") == std::string::npos) s += ".0";
+    return s;
+}
+
+/// The fields of p as TOML lines "key = value  # doc" in table order (integers and seeds as
+/// TOML integers, reals with tomlReal): `eco config defaults` prints tables with it.
+template <typename S>
+std::string paramTomlLines(const S& p, const std::vector<ParamDesc<S>>& fields) {
+    std::string out;
+    for (const auto& f : fields) {
+        const std::string value = f.kind == ParamDesc<S>::Kind::Real ? tomlReal(p.*(f.real)) : paramText(f, p, 17);
+        out += std::string(f.key) + " = " + value + "  # " + f.doc + "\n";
+    }
+    return out;
 }
 
 /// The documentation row of a field: "| `key` | default | doc |" (default from S{}).

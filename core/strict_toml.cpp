@@ -1,8 +1,28 @@
 #include "strict_toml.h"
 
+#include <filesystem>
 #include <fstream>
 
 namespace eco {
+
+std::string pathRelativeToConfig(const std::string& configPath, const std::string& value) {
+    namespace fs = std::filesystem;
+    if (value.empty() || fs::path(value).is_absolute()) return value;
+    const fs::path dir = fs::path(configPath).parent_path();
+    if (dir.empty()) return value;
+    return (dir / value).lexically_normal().string();
+}
+
+void absolutizeConfigPaths(toml::table& config, const std::string& configPath,
+                           const std::vector<std::pair<std::string, std::string>>& pathKeys) {
+    for (const auto& [table, key] : pathKeys) {
+        toml::table* t = table.empty() ? &config : config[table].as_table();
+        if (!t) continue;
+        toml::value<std::string>* v = t->get_as<std::string>(key);
+        if (!v || v->get().empty()) continue;
+        v->get() = std::filesystem::absolute(pathRelativeToConfig(configPath, v->get())).lexically_normal().string();
+    }
+}
 
 toml::table parseTomlText(const std::string& text, const std::string& sourceName) {
     try {

@@ -198,6 +198,20 @@ void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
     }
 }
 
+/// A path written in the configuration file `configPath`, as the program opens it: relative
+/// paths are relative to the directory of that file (so a configuration works from any
+/// working directory); absolute paths and "" are returned unchanged. The result is lexically
+/// normalised ("configs/../out/demo" -> "out/demo"). `configPath` without a directory (a file
+/// in the working directory) leaves `value` as it is.
+std::string pathRelativeToConfig(const std::string& configPath, const std::string& value);
+
+/// Rewrites the path-valued keys `pathKeys` ({table, key}; table "" = the root) of a
+/// configuration read from `configPath` as absolute paths (relative ones resolved as
+/// pathRelativeToConfig does, then made absolute): for a configuration that is copied into
+/// another directory (an ensemble member's member.toml), where its own directory is lost.
+void absolutizeConfigPaths(toml::table& config, const std::string& configPath,
+                           const std::vector<std::pair<std::string, std::string>>& pathKeys);
+
 /// Parse TOML text; IoError "<source>:<line>: invalid TOML: ..." on a syntax error.
 toml::table parseTomlText(const std::string& text, const std::string& sourceName);
 /// Read and parse a TOML file; IoError naming the file when missing or invalid.

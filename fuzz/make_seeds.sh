@@ -20,7 +20,7 @@ done
 cp "$root/biomes/sonoma.toml" "$out/biome_toml/"
 cp "$root/configs/demo.toml" "$out/run_config/"
 
-# The pipeline runs from the repository root: the configuration names configs/ from there.
+# The pipeline runs from the repository root (tiny.toml names configs/ relative to itself).
 # The same bytes on every run (no provenance; its folder named relative to the root, as the
 # files record it), so that the fuzz runs of tools/sanitize.sh, whose libFuzzer seed is
 # fixed, start from the same seeds.

@@ -67,7 +67,7 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     CalibrationSpec spec;
     spec.path = path;
     StrictTable c(top.table("calibrate"), path, "[calibrate]");
-    spec.outDir = outOverride.empty() ? c.string("out_dir") : outOverride;
+    spec.outDir = outOverride.empty() ? pathRelativeToConfig(path, c.string("out_dir")) : outOverride;
     if (!outOverride.empty() && c.has("out_dir")) c.string("out_dir");
     spec.algorithm = c.stringOr("algorithm", spec.algorithm);
     try {
@@ -109,7 +109,7 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     }
     if (spec.parameters.empty()) c.fail("parameters", "no parameter to fit");
     if (spec.parameters.size() > 50) c.fail("parameters", "more than 50 parameters");
-    spec.base = studyBase(c.node("base"), path + ": [calibrate] base");
+    spec.base = studyBase(c.node("base"), path, path + ": [calibrate] base");
     if (const toml::table* truth = c.optionalTable("truth")) {
         StrictTable t(*truth, path, "[calibrate.truth]");
         for (std::size_t i = 0; i < spec.parameters.size(); ++i) {

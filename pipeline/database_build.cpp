@@ -137,17 +137,22 @@ std::string writeDatabaseBuildSpec(const DatabaseBuildOptions& o) {
     std::vector<std::string> subBiomeNames;
     for (const auto& sb : biome.subBiomes) subBiomeNames.push_back(sb.name);
     const double x0 = (side - o.plotM) / 2;
+    // The paths came from the command line (relative to the working directory); the file lies
+    // in the work folder and its paths are read relative to it: write them absolute.
+    const auto absolute = [](const std::string& path) {
+        return path.empty() ? path : fs::absolute(path).lexically_normal().string();
+    };
     std::ostringstream t;
     t << "# Written by eco database build: one member per combination of " << biome.name
       << "'s sub-biomes and terrain.\n# Rerun with eco database build (or eco ensemble on this file) to resume.\n\n"
-      << "[ensemble]\nout_dir = " << quoted(o.workDir) << "\ndatabase_path = " << quoted(o.out) << "\nkmax = " << o.kMax
+      << "[ensemble]\nout_dir = " << quoted(absolute(o.workDir)) << "\ndatabase_path = " << quoted(absolute(o.out)) << "\nkmax = " << o.kMax
       << "\nseed = " << o.seed << "\nmembers_at_once = " << o.membersAtOnce << "\n\n"
       << "[ensemble.base.run]\nout_dir = \"set per member\"\n";
-    if (!o.biome.empty()) t << "biome = " << quoted(o.biome) << "\n";
+    if (!o.biome.empty()) t << "biome = " << quoted(absolute(o.biome)) << "\n";
     // The terrain is set per member: generated (its size, seed, valley depth and base elevation) or
     // a given file.
     t << "[ensemble.base.terrain]\n[ensemble.base.chm]\n[ensemble.base.abiotics]\nsun_step_minutes = 30\n"
-      << "[ensemble.base.canopy]\n[ensemble.base.simulate]\nconfig = " << quoted(o.simConfig) << "\nyears = " << o.years
+      << "[ensemble.base.canopy]\n[ensemble.base.simulate]\nconfig = " << quoted(absolute(o.simConfig)) << "\nyears = " << o.years
       << "\ncrop = [" << argNumber(x0) << ", " << argNumber(x0) << ", " << argNumber(x0 + o.plotM) << ", "
       << argNumber(x0 + o.plotM) << "]\n";
     char name[64];

@@ -16,6 +16,8 @@
 #include "biome.h"
 #include "eco_version.h"
 #include "error.h"
+#include "run.h"
+#include "sim_config.h"
 #include "sim_file.h"
 #include "stage_runner.h"
 #include "strict_toml.h"
@@ -127,7 +129,9 @@ struct MemberFiles {
 
 MemberFiles composeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
     const EnsembleMember& m = spec.members[index];
-    const std::string dir = memberDir(spec, index);
+    // Absolute: member.toml lies in this folder, and a relative path in it would be read
+    // relative to the folder (pipeline configurations resolve paths against their own directory).
+    const std::string dir = fs::absolute(memberDir(spec, index)).lexically_normal().string();
     toml::table run = spec.base;
     toml::table sim, biome;
     bool simChanged = false, biomeChanged = false;
@@ -141,6 +145,8 @@ MemberFiles composeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
                 const auto* cfg = run["simulate"]["config"].as_string();
                 if (!cfg) throw ValidationError(where + ": the base configuration's [simulate] has no config file to override");
                 sim = parseTomlFile(cfg->get());
+                // simulate.toml goes into the member's folder: its paths must not depend on where it was.
+                absolutizeConfigPaths(sim, cfg->get(), sim::runConfigPathKeys());
                 simChanged = true;
             }
             // model.KEY is short for simulation.model.KEY.
@@ -156,6 +162,8 @@ MemberFiles composeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
             setPath(run, parts, 0, v, where);
         }
     }
+    // Paths an override sets are relative to the ensemble file, as its base table's are.
+    absolutizeConfigPaths(run, spec.path, pipelineConfigPathKeys());
     const auto at = [&](const std::string& name) { return (fs::path(dir) / name).string(); };
     MemberFiles files;
     // The files a member reads by path (its simulation configuration, its biome) count too.
@@ -298,12 +306,13 @@ EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOve
     spec.path = path;
     {
         StrictTable e(top.table("ensemble"), path, "[ensemble]");
-        spec.outDir = outOverride.empty() ? e.string("out_dir") : outOverride;
+        spec.outDir = outOverride.empty() ? pathRelativeToConfig(path, e.string("out_dir")) : outOverride;
         if (!outOverride.empty() && e.has("out_dir")) e.string("out_dir");
         spec.membersAtOnce = static_cast<int>(e.integerOr("members_at_once", 1));
         if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) e.fail("members_at_once", "must be in 1 .. 256");
         spec.database = e.booleanOr("database", true);
-        spec.databasePath = e.has("database_path") ? e.string("database_path") : (fs::path(spec.outDir) / "biome-db.h5").string();
+        spec.databasePath = e.has("database_path") ? pathRelativeToConfig(path, e.string("database_path"))
+                                                   : (fs::path(spec.outDir) / "biome-db.h5").string();
         const std::int64_t kmax = e.integerOr("kmax", 6);
         if (kmax < 1 || kmax > 64) e.fail("kmax", "value " + std::to_string(kmax) + " must be in 1 .. 64");
         spec.kMax = static_cast<int>(kmax);
@@ -312,10 +321,13 @@ EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOve
         // The members' configuration: a file, or the table [ensemble.base] itself.
         if (!e.has("base")) e.fail("base", "missing: an eco run configuration file, or a table [ensemble.base]");
         if (const toml::node& b = e.node("base"); const auto* file = b.as_string()) {
-            spec.base = parseTomlFile(file->get());
+            // The base file's paths are relative to the base file; the member's copy lives elsewhere.
+            spec.base = parseTomlFile(pathRelativeToConfig(path, file->get()));
+            absolutizeConfigPaths(spec.base, pathRelativeToConfig(path, file->get()), pipelineConfigPathKeys());
             spec.baseSource = file->get();
         } else if (const toml::table* t = b.as_table()) {
             spec.base = *t;
+            absolutizeConfigPaths(spec.base, path, pipelineConfigPathKeys());
             spec.baseSource = path + " [ensemble.base]";
         } else {
             e.fail("base", "expected a file name or a table");

@@ -9,6 +9,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "h5io.h"
+#include "run.h"
 #include "sim_file.h"
 #include "strict_toml.h"
 #include "text_format.h"
@@ -149,7 +150,8 @@ std::string writeStudyEnsemble(const std::string& outDir, const toml::table& bas
                                const std::vector<StudyParameter>& parameters, const std::vector<StudyMember>& members,
                                const std::string& comment) {
     toml::table ensemble;
-    ensemble.insert("out_dir", (fs::path(outDir) / "ensemble").string());
+    // Absolute: this file lies in outDir, and its paths are read relative to it.
+    ensemble.insert("out_dir", (fs::absolute(outDir) / "ensemble").lexically_normal().string());
     ensemble.insert("database", false);
     ensemble.insert("members_at_once", static_cast<std::int64_t>(membersAtOnce));
     ensemble.insert("base", base);
@@ -176,9 +178,19 @@ std::string studySimulation(const std::string& outDir, const std::string& member
     return (fs::path(outDir) / "ensemble" / "members" / member / "simulation.h5").string();
 }
 
-toml::table studyBase(const toml::node& node, const std::string& where) {
-    if (const auto* file = node.as_string()) return parseTomlFile(file->get());
-    if (const auto* t = node.as_table()) return *t;
+toml::table studyBase(const toml::node& node, const std::string& specPath, const std::string& where) {
+    // The base's paths are made absolute: the study runs it from an ensemble file in its out_dir.
+    if (const auto* file = node.as_string()) {
+        const std::string basePath = pathRelativeToConfig(specPath, file->get());
+        toml::table t = parseTomlFile(basePath);
+        absolutizeConfigPaths(t, basePath, pipelineConfigPathKeys());
+        return t;
+    }
+    if (const auto* t = node.as_table()) {
+        toml::table copy = *t;
+        absolutizeConfigPaths(copy, specPath, pipelineConfigPathKeys());
+        return copy;
+    }
     throw ValidationError(where + ": expected an eco run configuration file name or a table");
 }
 

@@ -59,6 +59,6 @@ std::string writeStudyEnsemble(const std::string& outDir, const toml::table& bas
 std::string studySimulation(const std::string& outDir, const std::string& member);
 
 /// [X.base]: an eco run configuration as a table, or the name of its file.
-toml::table studyBase(const toml::node& node, const std::string& where);
+toml::table studyBase(const toml::node& node, const std::string& specPath, const std::string& where);
 
 }  // namespace eco::pipeline

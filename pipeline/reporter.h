@@ -40,6 +40,9 @@ public:
     virtual std::ostream& out() = 0;
     /// One informational line, without its newline (stderr on the command line).
     virtual void info(const std::string& line) = 0;
+    /// A line of extra detail (phase timings and the like): shown only when asked for
+    /// (eco --verbose); dropped by default.
+    virtual void detail(const std::string& line) {}
     /// A progress bar labelled `label` over `total` units.
     virtual std::unique_ptr<ProgressBar> progress(const std::string& label, long total) = 0;
     /// Progress of a simulation of `totalYears` years; nullptr: none.

@@ -60,17 +60,27 @@ void runStage(const StageOptions& options, Reporter& reporter) {
                options);
 }
 
+const std::vector<std::pair<std::string, std::string>>& pipelineConfigPathKeys() {
+    static const std::vector<std::pair<std::string, std::string>> keys = {
+        {"run", "out_dir"},   {"run", "biome"},        {"terrain", "path"},   {"chm", "path"}, {"chm", "sketch"},
+        {"canopy", "config"}, {"simulate", "config"}, {"synth", "terrain"}, {"synth", "chm"}};
+    return keys;
+}
+
 RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     const toml::table root = parseTomlFile(configPath);
     StrictTable top(root, configPath, "");
     std::vector<PlannedStage> stages;
 
     StrictTable run(top.table("run"), configPath, "[run]");
-    const std::string configuredOut = run.string("out_dir");
+    // Every path the file sets is relative to the file's directory (docs: eco run), so that a
+    // configuration runs from any working directory; --out-dir is relative to the working one.
+    const auto relative = [&](const std::string& value) { return pathRelativeToConfig(configPath, value); };
+    const std::string configuredOut = relative(run.string("out_dir"));
     const std::string out = outOverride.empty() ? configuredOut : outOverride;
     const std::int64_t seed = run.integerOr("seed", 1);
     if (seed < 0) run.fail("seed", "must not be negative");
-    const std::string biome = run.stringOr("biome", "");
+    const std::string biome = relative(run.stringOr("biome", ""));
     // GIS outputs: every grid of abiotics, canopy and scene as GeoTIFF and the plants as
     // GeoPackage, in gis/ (and target/gis/), in the inputs' CRS.
     const bool gis = run.booleanOr("gis", false);
@@ -139,7 +149,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     {
         StrictTable t(top.table("terrain"), configPath, "[terrain]");
         if (t.has("path")) {
-            terrain = t.string("path");
+            terrain = relative(t.string("path"));
             if (t.has("cell_size_m")) terrainRead.cellSizeM = asOnCommandLine(t.numberIn("cell_size_m", kMinCellSizeM, kMaxCellSizeM));
             if (t.has("vertical_scale")) terrainRead.verticalScale = asOnCommandLine(t.positive("vertical_scale"));
         } else {
@@ -160,10 +170,10 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     {
         StrictTable t(top.table("chm"), configPath, "[chm]");
         if (t.has("path")) {
-            chm = t.string("path");
+            chm = relative(t.string("path"));
         } else {
             ChmGenerateOptions o = generatedChm("", terrain, terrainRead, seedValue(t, "seed", t.integerOr("seed", seed)));
-            if (t.has("sketch")) o.sketchImage = t.string("sketch");
+            if (t.has("sketch")) o.sketchImage = relative(t.string("sketch"));
             stages.push_back({"chm", o});
         }
         t.finish();
@@ -184,7 +194,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
     const bool placesCanopy = top.has("canopy");
     if (const toml::table* tt = top.optionalTable("canopy")) {
         StrictTable t(*tt, configPath, "[canopy]");
-        if (t.has("config")) canopyConfig = t.string("config");
+        if (t.has("config")) canopyConfig = relative(t.string("config"));
         if (t.has("targets")) canopyTargets = t.strings("targets");
         CanopyOptions o = canopyOf("", terrain, chm, terrainRead, static_cast<std::uint64_t>(seed));
         o.csv = at("canopy.csv");
@@ -198,7 +208,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         StrictTable t(*tt, configPath, "[simulate]");
         if (!placesCanopy) t.fail("config", "the simulation needs a [canopy] stage for its canopy trees");
         SimulateOptions o;
-        o.config = t.string("config");
+        o.config = relative(t.string("config"));
         o.terrain = terrain;
         o.abiotics = abiotics;
         o.canopy = canopy;
@@ -246,7 +256,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         TerrainReadFlags targetRead;
         ensureDirectory(at("target"));
         if (t.has("terrain")) {
-            targetTerrain = t.string("terrain");
+            targetTerrain = relative(t.string("terrain"));
             if (t.has("cell_size_m")) targetRead.cellSizeM = asOnCommandLine(t.numberIn("cell_size_m", kMinCellSizeM, kMaxCellSizeM));
         } else {
             TerrainGenParams p;
@@ -257,7 +267,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             stages.push_back({"target terrain", generatedTerrain("target/", p)});
         }
         std::string targetChm = at("target/chm.h5");
-        if (t.has("chm")) targetChm = t.string("chm");
+        if (t.has("chm")) targetChm = relative(t.string("chm"));
         else stages.push_back({"target chm", generatedChm("target/", targetTerrain, targetRead, ts)});
         const std::string targetAbiotics = at("target/abiotics.h5");
         stages.push_back({"target abiotics", abioticsOf("target/", targetTerrain, targetRead)});
@@ -286,7 +296,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
         CompareOptions compare;
         compare.scene = scene;
         compare.database = database;
-        compare.png = at("png/synth/compare.png");
+        compare.pngDir = at("png/synth");
         compare.out = at("compare.md");
         stages.push_back({"compare", compare});
         t.finish();

@@ -41,6 +41,10 @@ struct RunPlan {
 /// not empty. Creates the output folders. ValidationError naming the file and key.
 RunPlan planRun(const std::string& configPath, const std::string& outDirOverride = "");
 
+/// The path-valued keys of a pipeline configuration ({table, key}), which planRun resolves
+/// relative to the configuration's directory; for absolutizeConfigPaths (ensemble members).
+const std::vector<std::pair<std::string, std::string>>& pipelineConfigPathKeys();
+
 struct RunResult {
     std::vector<double> stageSeconds;
     double totalSeconds = 0;

@@ -34,7 +34,7 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
     SensitivitySpec spec;
     spec.path = path;
     StrictTable s(top.table("sensitivity"), path, "[sensitivity]");
-    spec.outDir = outOverride.empty() ? s.string("out_dir") : outOverride;
+    spec.outDir = outOverride.empty() ? pathRelativeToConfig(path, s.string("out_dir")) : outOverride;
     if (!outOverride.empty() && s.has("out_dir")) s.string("out_dir");
     const std::string method = s.stringOr("method", "morris");
     if (method != "morris") s.fail("method", "'" + method + "' is not supported (morris)");
@@ -70,7 +70,7 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
     }
     for (const std::string& o : s.strings("outputs")) spec.outputs.push_back(parseSimulationOutput(o, path + ": [sensitivity] outputs"));
     if (spec.outputs.empty()) s.fail("outputs", "no output to measure");
-    spec.base = studyBase(s.node("base"), path + ": [sensitivity] base");
+    spec.base = studyBase(s.node("base"), path, path + ": [sensitivity] base");
     s.finish();
     top.finish();
     const std::size_t members = static_cast<std::size_t>(spec.trajectories) * (spec.parameters.size() + 1) *

@@ -62,6 +62,20 @@ void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::strin
     }
 }
 
+void requireDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& outputs) {
+    for (std::size_t i = 0; i < outputs.size(); ++i)
+        for (std::size_t j = i + 1; j < outputs.size(); ++j) {
+            const auto& [flagA, a] = outputs[i];
+            const auto& [flagB, b] = outputs[j];
+            if (a.empty() || b.empty()) continue;
+            std::error_code ea, eb;
+            const auto ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
+            if (ea || eb ? a == b : ca == cb)
+                throw ValidationError(flagA + " '" + a + "' and " + flagB + " '" + b +
+                                      "' are the same file: one output would replace the other; give two paths");
+        }
+}
+
 void prepareOutputDirectory(const std::string& dir) {
     ensureDirectory(dir);
     cleanUpDirectoryAfterDeadWriters(dir);

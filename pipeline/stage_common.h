@@ -49,6 +49,10 @@ void prepareOutputDirectory(const std::string& dir);
 void requireOutputsNotInputs(const std::vector<std::pair<std::string, std::string>>& outputs,
                              const std::vector<std::string>& inputs);
 
+/// ValidationError when two output files of one stage (`outputs`: {flag, path}, "" = not
+/// written) are the same file: the second would silently replace the first.
+void requireDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& outputs);
+
 /// --geotiff DIR of a stage: every grid of the stage's HDF5 output as a GeoTIFF in `dir`
 /// (named <output stem>_<dataset>.tif, with the grid's geotransform and CRS; see
 /// core/geo_raster.h exportGridsAsGeoTiff), one line to the user, the files added to `written`.

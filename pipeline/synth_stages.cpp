@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <ostream>
@@ -92,8 +93,11 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     SynthResult result;
     const auto tStart = Clock::now();
     // Everything cheap is checked before any heavy work.
-    requireOutputsNotInputs({{"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--gpkg", a.gpkg}},
-                            {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage, a.exemplar});
+    const std::vector<std::pair<std::string, std::string>> outputFiles = {
+        {"--out", a.out}, {"--csv", a.csv}, {"--pdb", a.pdb}, {"--pdb-canopy", a.pdbCanopy}, {"--pdb-undergrowth", a.pdbUndergrowth},
+        {"--gpkg", a.gpkg}};
+    requireOutputsNotInputs(outputFiles, {a.terrain, a.canopy, a.database, a.abiotics, a.densityImage, a.exemplar});
+    requireDistinctOutputs(outputFiles);
     synth::SynthParams params = a.params;
     params.method = synth::parseSynthMethod(a.method ? *a.method : std::string("structured"));
     params.validate();
@@ -164,8 +168,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
     }
     const std::vector<Plant>& canopy = canopyFile.trees;
     reporter.info("canopy: " + a.canopy + ": " + std::to_string(canopy.size()) + " trees");
-    for (const std::string* out : {&a.out, &a.csv, &a.pdb, &a.gpkg})
-        if (!out->empty()) prepareOutput(*out);
+    for (const auto& [flag, path] : outputFiles)
+        if (!path.empty()) prepareOutput(path);
     if (!a.pngDir.empty()) prepareOutputDirectory(a.pngDir);
     if (!a.geotiffDir.empty()) prepareOutputDirectory(a.geotiffDir);
 
@@ -233,6 +237,8 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
             reporter.info(text);
         }
         reporter.info("heights: " + std::to_string(sample.heightsLimitedByCrown) + " plants drawn below the lowest crown above them");
+        for (const auto& ph : sample.phases)
+            reporter.detail("structured: " + ph.name + " " + num(ph.wallS, 3) + " s (" + num(ph.cpuS, 3) + " s CPU)");
     }
     if (params.method == synth::SynthMethod::Deussen) {
         for (const auto& d : sample.deussen) {
@@ -350,6 +356,16 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         result.written.push_back(a.pdb);
         out << "wrote PDB plant list: " << a.pdb << "\n";
     }
+    if (!a.pdbCanopy.empty()) {
+        synth::writePdb(a.pdbCanopy, record.canopy, {});
+        result.written.push_back(a.pdbCanopy);
+        out << "wrote PDB plant list (canopy): " << a.pdbCanopy << "\n";
+    }
+    if (!a.pdbUndergrowth.empty()) {
+        synth::writePdb(a.pdbUndergrowth, {}, record.undergrowth);
+        result.written.push_back(a.pdbUndergrowth);
+        out << "wrote PDB plant list (undergrowth): " << a.pdbUndergrowth << "\n";
+    }
     if (!a.pngDir.empty()) {
         const std::string dir = a.pngDir + "/";
         synth::writeScenePng(dir + "scene.png", record.canopy, record.undergrowth, terrain, &floor, biome, "Synthesized scene");
@@ -378,14 +394,15 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
 CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     std::ostream& out = reporter.out();
     CompareResult result;
-    requireOutputsNotInputs({{"--out", a.out}, {"--png", a.png}}, {a.scene, a.database});
+    const std::string png = a.pngDir.empty() ? std::string() : (std::filesystem::path(a.pngDir) / "compare.png").string();
+    requireOutputsNotInputs({{"--out", a.out}, {"--png", png}}, {a.scene, a.database});
     const BiomeDatabase db = readBiomeDatabase(a.database);
     const Biome biome = synth::databaseBiome(db);
     const synth::SceneData scene = synth::readSceneFile(a.scene, biome);
     RectWindow window{};
     if (!a.window.empty()) window = parseWindow(a.window, "--window", false);
     if (!a.out.empty()) cleanUpAfterDeadWriters(a.out);  // what killed runs left
-    if (!a.png.empty()) prepareOutput(a.png);
+    if (!a.pngDir.empty()) prepareOutputDirectory(a.pngDir);
     const auto t = Clock::now();
     result.comparison = synth::compareScene(scene.canopy, scene.undergrowth, scene.clusterMap, db,
                                            a.window.empty() ? nullptr : &window, a.pcfSources);
@@ -403,9 +420,9 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
         writeTextFile(a.out, text.str());
         out << "wrote table: " << a.out << "\n";
     }
-    if (!a.png.empty()) {
-        synth::writeComparisonPng(a.png, c, db);
-        out << "wrote picture: " << a.png << "\n";
+    if (!png.empty()) {
+        synth::writeComparisonPng(png, c, db);
+        out << "wrote picture: " << png << "\n";
     }
     outputs.commit();
     return result;
@@ -418,6 +435,8 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.pdb.empty()) args.insert(args.end(), {"--pdb", a.pdb});
+    if (!a.pdbCanopy.empty()) args.insert(args.end(), {"--pdb-canopy", a.pdbCanopy});
+    if (!a.pdbUndergrowth.empty()) args.insert(args.end(), {"--pdb-undergrowth", a.pdbUndergrowth});
     if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
     if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
     args.insert(args.end(), {"--seed", std::to_string(a.params.seed)});
@@ -463,7 +482,7 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
 
 std::vector<std::string> commandLine(const CompareOptions& a) {
     std::vector<std::string> args = {"compare", a.scene, a.database};
-    if (!a.png.empty()) args.insert(args.end(), {"--png", a.png});
+    if (!a.pngDir.empty()) args.insert(args.end(), {"--png", a.pngDir});
     if (!a.out.empty()) args.insert(args.end(), {"--out", a.out});
     if (!a.window.empty()) args.insert(args.end(), {"--window", a.window});
     if (a.pcfSources != 20000) args.insert(args.end(), {"--pcf-sources", std::to_string(a.pcfSources)});

@@ -19,7 +19,8 @@ struct SynthOptions {
     std::string terrain, canopy, database;
     std::string out;       ///< scene HDF5 (atomic)
     std::string abiotics;  ///< abiotics of the terrain; "" = computed with default parameters
-    std::string pngDir, csv, pdb;  ///< optional outputs ("" = none)
+    std::string pngDir, csv, pdb;  ///< optional outputs ("" = none); pdb: both layers in one list
+    std::string pdbCanopy, pdbUndergrowth;  ///< optional: one layer's PDB plant list each (EcoLearn's viewer reads two)
     std::string gpkg;              ///< optional: all plants as a GeoPackage in the terrain's CRS
     std::string geotiffDir;        ///< optional: the scene's grids (forest floor, cluster maps, terrain) as GeoTIFFs
     std::string zoom;          ///< crop of scene_zoom.png, "x,y,side" or "x0,y0,x1,y1"; "" = 60 m at the centre
@@ -58,7 +59,7 @@ std::vector<std::string> commandLine(const SynthOptions& options);
 
 struct CompareOptions {
     std::string scene, database;
-    std::string png;     ///< "" = no picture
+    std::string pngDir;  ///< "" = no picture; else pngDir/compare.png
     std::string window;  ///< "x0,y0,x1,y1"; "" = the whole scene
     std::string out;     ///< "" = table on the reporter only; else also this Markdown file
     std::size_t pcfSources = 20000;  ///< sources per region for the pair correlation; 0 = all

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "error.h"
 #include "strict_toml.h"
@@ -214,18 +215,39 @@ void RunConfig::validate() const {
         if (y < 0) throw ValidationError(src + ": [run] snapshot_years: year " + std::to_string(y) + " is negative");
 }
 
-RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName) {
+namespace {
+/// The path-valued keys of a run configuration and the members they set: read by
+/// parseRunConfig (relative to the file) and listed by runConfigPathKeys (one list).
+struct PathKey {
+    const char* table;
+    const char* key;
+    std::string RunConfig::*member;
+};
+const std::vector<PathKey>& pathKeys() {
+    static const std::vector<PathKey> keys = {
+        {"inputs", "terrain", &RunConfig::terrainPath},   {"inputs", "abiotics", &RunConfig::abioticsPath},
+        {"inputs", "canopy", &RunConfig::canopyPath},     {"inputs", "biome", &RunConfig::biomePath},
+        {"inputs", "initial", &RunConfig::initialPath},   {"outputs", "hdf5", &RunConfig::outputPath},
+        {"outputs", "csv", &RunConfig::csvPath},          {"outputs", "png_dir", &RunConfig::pngDir},
+        {"outputs", "checkpoint", &RunConfig::checkpointPath}};
+    return keys;
+}
+}  // namespace
+
+RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath) {
     const toml::table root = parseTomlText(tomlText, sourceName);
+    // A path the file sets is relative to the file's directory; defaults stay as they are.
     RunConfig c;
+    const auto readPaths = [&](StrictTable& s, const std::string& table) {
+        for (const PathKey& p : pathKeys())
+            if (table == p.table && s.has(p.key))
+                c.*(p.member) = pathRelativeToConfig(filePath, s.possiblyEmptyStringOr(p.key, c.*(p.member)));
+    };
     c.sourcePath = sourceName;
     StrictTable top(root, sourceName, "");
     if (const toml::table* t = top.optionalTable("inputs")) {
         StrictTable s(*t, sourceName, "[inputs]");
-        c.terrainPath = s.possiblyEmptyStringOr("terrain", c.terrainPath);
-        c.abioticsPath = s.possiblyEmptyStringOr("abiotics", c.abioticsPath);
-        c.canopyPath = s.possiblyEmptyStringOr("canopy", c.canopyPath);
-        c.biomePath = s.possiblyEmptyStringOr("biome", c.biomePath);
-        c.initialPath = s.possiblyEmptyStringOr("initial", c.initialPath);
+        readPaths(s, "inputs");
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("run")) {
@@ -259,10 +281,7 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("outputs")) {
         StrictTable s(*t, sourceName, "[outputs]");
-        c.outputPath = s.possiblyEmptyStringOr("hdf5", c.outputPath);
-        c.csvPath = s.possiblyEmptyStringOr("csv", c.csvPath);
-        c.pngDir = s.possiblyEmptyStringOr("png_dir", c.pngDir);
-        c.checkpointPath = s.possiblyEmptyStringOr("checkpoint", c.checkpointPath);
+        readPaths(s, "outputs");
         s.finish();
     }
     if (const toml::table* t = top.optionalTable("model")) {
@@ -282,12 +301,45 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     return c;
 }
 
+namespace detail {
+extern const char* const kSimDefaultToml;
+}
+
+const char* embeddedDefaultRunConfigToml() { return detail::kSimDefaultToml; }
+
+std::string defaultRunConfigToml() {
+    std::string text = detail::kSimDefaultToml;
+    // The file's [model] table (and the comment block just above it) is replaced by the one
+    // description of the model constants, so that a key added to SimParams shows here even
+    // when configs/sim-default.toml does not list it.
+    std::size_t cut = text.find("\n[model]");
+    if (cut == std::string::npos) throw std::logic_error("configs/sim-default.toml as built in has no [model] table");
+    while (cut > 0) {  // back over the comment lines right above [model]
+        const std::size_t lineStart = text.rfind('\n', cut - 1);
+        const std::size_t begin = lineStart == std::string::npos ? 0 : lineStart + 1;
+        if (text.compare(begin, 1, "#") != 0) break;
+        cut = begin == 0 ? 0 : begin - 1;
+    }
+    text.resize(cut);
+    return text + "\n# Model constants (paper §6.1 and SPEC §5), every one at its default (docs/simulator.md).\n" +
+           SimParams{}.toToml();
+}
+
+const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {
+    static const std::vector<std::pair<std::string, std::string>> keys = [] {
+        std::vector<std::pair<std::string, std::string>> out;
+        for (const PathKey& p : pathKeys()) out.emplace_back(p.table, p.key);
+        return out;
+    }();
+    return keys;
+}
+
 RunConfig loadRunConfig(const std::string& path) {
     std::ifstream in(path);
     if (!in) throw IoError(path + ": cannot open run configuration");
     std::stringstream ss;
     ss << in.rdbuf();
-    return parseRunConfig(ss.str(), path);
+    return parseRunConfig(ss.str(), path, path);
 }
 
 namespace {

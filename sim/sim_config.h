@@ -167,9 +167,23 @@ struct RunConfig {
 
 /// Read a run configuration (strict). IoError when unreadable or not TOML; ValidationError
 /// naming the file, the line and the key for an unknown key, a wrong type or a bad value.
+/// The paths of [inputs] and [outputs] are relative to the directory of `path`
+/// (pathRelativeToConfig; docs/simulator.md).
 RunConfig loadRunConfig(const std::string& path);
-/// Same from TOML text; `sourceName` is used in messages.
-RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName);
+/// Same from TOML text; `sourceName` is used in messages. `filePath`: the file the text came
+/// from, whose directory relative paths are resolved against ("" = left as written).
+RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath = "");
+
+/// configs/sim-default.toml as built into this eco (the demo's simulation configuration).
+const char* embeddedDefaultRunConfigToml();
+/// Every key of a run configuration with its default, as TOML that loadRunConfig reads: the
+/// built-in configs/sim-default.toml ([inputs], [run], [outputs] and their comments) with its
+/// [model] table replaced by SimParams{}.toToml() (every model constant, from
+/// simParamFields, and the enum choices). `eco config defaults simulate`.
+std::string defaultRunConfigToml();
+
+/// The path-valued keys of a run configuration file ({table, key}), for absolutizeConfigPaths.
+const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys();
 
 /// Parse "x0,y0,x1,y1" (metres); ValidationError naming `what` otherwise.
 SimArea parseArea(const std::string& text, const std::string& what);

@@ -224,6 +224,22 @@ void writeScenePlantsCsv(const std::string& path, const std::vector<Plant>& cano
 
 // ======================================================================== PDB
 
+namespace {
+/// A length in metres as fixed-point text with at least 4 decimals and at least 4 significant
+/// digits: "33.2550", "0.2500", "0.01234", "0.0000002294". Values from 0.1 m up print as the
+/// earlier "%.4f"; a seedling of 0.2 micrometres no longer prints as 0.0000. Always
+/// fixed-point (no exponent, one token), so readers that scan "%f" tokens read it unchanged.
+std::string pdbLength(double metres) {
+    int decimals = 4;
+    if (metres != 0 && std::isfinite(metres))
+        decimals = std::max(4, 3 - static_cast<int>(std::floor(std::log10(std::fabs(metres)))));
+    decimals = std::min(decimals, 12);
+    char text[64];
+    std::snprintf(text, sizeof text, "%.*f", decimals, metres);
+    return text;
+}
+}  // namespace
+
 void writePdb(const std::string& path, const std::vector<Plant>& canopy, const std::vector<Plant>& undergrowth) {
     std::map<int, PdbSpecies> bySpecies;
     for (const auto* list : {&canopy, &undergrowth})
@@ -248,10 +264,11 @@ void writePdb(const std::string& path, const std::vector<Plant>& canopy, const s
                     ++nRatio;
                 }
             }
-            std::fprintf(f, "%d %.4f %.4f %.6f\n%zu\n", id, lo, hi, nRatio ? ratio / static_cast<double>(nRatio) : 0.0,
-                         s.plants.size());
+            std::fprintf(f, "%d %s %s %.6f\n%zu\n", id, pdbLength(lo).c_str(), pdbLength(hi).c_str(),
+                         nRatio ? ratio / static_cast<double>(nRatio) : 0.0, s.plants.size());
             for (const Plant& p : s.plants)
-                std::fprintf(f, "%.4f %.4f %.4f %.4f %.4f\n", p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM);
+                std::fprintf(f, "%.4f %.4f %.4f %s %s\n", p.xM, p.yM, p.groundZM, pdbLength(p.heightM).c_str(),
+                             pdbLength(p.crownRadiusM).c_str());
         }
         if (std::fclose(f) != 0) throw IoError(path + ": error while writing the PDB plant list");
     }

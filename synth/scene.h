@@ -96,7 +96,9 @@ struct PdbSpecies {
 /// Write the plants in the PDB plant-list text format (SPEC §7b), atomically: the number of
 /// species, then per species present (ascending biome index) a line `id min_height
 /// max_height mean_radius_to_height_ratio`, a line with the count n and n lines `x y z
-/// height crown_radius` (metres, world coordinates, z = ground elevation).
+/// height crown_radius` (metres, world coordinates, z = ground elevation). x, y, z with 4
+/// decimals; heights and radii fixed-point with at least 4 decimals and 4 significant digits
+/// (seedlings of a fraction of a millimetre stay nonzero). One layer alone: pass {} for the other.
 void writePdb(const std::string& path, const std::vector<Plant>& canopy, const std::vector<Plant>& undergrowth);
 
 /// Read a PDB plant list. IoError "FILE:LINE: ..." for a malformed or truncated file.

@@ -82,7 +82,7 @@ TEST_CASE("every command has --help", "[cli]") {
     // The list was read: the pipeline's commands and the newer ones are among them.
     for (const char* expected : {"terrain generate", "terrain convert", "chm generate", "abiotics", "canopy", "simulate", "analyse",
                                  "inspect", "pcf", "synth", "compare", "validate", "run", "fidelity", "ensemble", "database build",
-                                 "sensitivity", "calibrate", "instance"}) {
+                                 "sensitivity", "calibrate", "instance", "biome show", "config defaults"}) {
         INFO(expected);
         CHECK(std::find(commands.begin(), commands.end(), expected) != commands.end());
     }
@@ -344,4 +344,147 @@ TEST_CASE("values that were accepted with exit 0 are refused (issue 26)", "[cli]
     const auto sources = runEco("compare scene.h5 db.h5 --pcf-sources -1");
     CHECK(sources.exitCode == 2);
     CHECK_THAT(sources.output, Catch::Contains("--pcf-sources: must lie in [0, 1000000000], got -1"));
+}
+
+// ======================================================================== CLI conventions (issue 31 item 5)
+
+namespace {
+
+/// eco run in working directory `cwd` (stdout and stderr together, and ECO_TEST_BINARY, as runEco).
+eco::test::CommandResult runEcoIn(const std::string& cwd, const std::string& args) {
+    const char* other = std::getenv("ECO_TEST_BINARY");
+    const std::string binary = other != nullptr && *other != '\0' ? other : ECO_BINARY;
+    const std::string cmd = "cd '" + cwd + "' && " + binary + " " + args + " 2>&1";
+    eco::test::CommandResult r;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    char buf[4096];
+    std::size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
+    const int status = ::pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+/// The text after the first line (eco biome show's header comment names the source).
+std::string withoutFirstLine(const std::string& s) { return s.substr(std::min(s.size(), s.find('\n') + 1)); }
+
+}  // namespace
+
+TEST_CASE("eco run: paths in a configuration are relative to the configuration's directory", "[cli][run]") {
+    // A tiny pipeline (terrain, CHM, abiotics) whose configuration names its output folder
+    // relatively, run from another working directory with the configuration given by a
+    // relative path: the outputs land beside the configuration, nothing where eco ran.
+    eco::test::TempDir dir("run_cwd");
+    std::filesystem::create_directories(dir.file("cfg"));
+    std::filesystem::create_directories(dir.file("elsewhere"));
+    std::ofstream(dir.file("cfg/pipeline.toml")) << "[run]\nout_dir = \"result\"\nseed = 3\n"
+                                                 << "[terrain]\nwidth = 16\nheight = 16\n"
+                                                 << "[chm]\n[abiotics]\nsun_step_minutes = 120\n";
+    const auto r = runEcoIn(dir.file("elsewhere"), "--quiet run ../cfg/pipeline.toml");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    for (const char* file : {"cfg/result/terrain.h5", "cfg/result/abiotics.h5", "cfg/result/report.md"}) {
+        INFO(file);
+        CHECK(std::filesystem::exists(dir.file(file)));
+    }
+    CHECK(std::filesystem::is_empty(dir.file("elsewhere")));
+    // A configuration it names (the canopy placer's) is found beside it; had the path been read
+    // relative to the working directory, it would not be, and a missing one is named resolved.
+    std::ofstream(dir.file("cfg/placer.toml")) << "[canopy]\nmax_iterations = 2\n";
+    std::ofstream(dir.file("cfg/canopy.toml")) << "[run]\nout_dir = \"../plan\"\n[terrain]\nwidth = 16\nheight = 16\n"
+                                               << "[chm]\n[abiotics]\n[canopy]\nconfig = \"placer.toml\"\n";
+    const auto plan = runEcoIn(dir.file("elsewhere"), "run ../cfg/canopy.toml --dry-run");
+    INFO(plan.output);
+    CHECK(plan.exitCode == 0);
+    CHECK_THAT(plan.output, Catch::Contains("--config ../cfg/placer.toml"));
+    std::filesystem::remove(dir.file("cfg/placer.toml"));
+    const auto missing = runEcoIn(dir.file("elsewhere"), "run ../cfg/canopy.toml --dry-run");
+    INFO(missing.output);
+    CHECK(missing.exitCode == 1);
+    CHECK_THAT(missing.output, Catch::Contains("../cfg/placer.toml"));
+}
+
+TEST_CASE("eco run: the shipped demo configuration plans the same stages from any directory", "[cli][run]") {
+    // configs/demo.toml names configs/sim-default.toml as "sim-default.toml" (beside it); from
+    // the repository root the outputs stay in out/demo, from elsewhere --out-dir decides.
+    eco::test::TempDir dir("run_demo_cwd");
+    const auto fromElsewhere =
+        runEcoIn(dir.path().string(), "run " + eco::test::sourcePath("configs/demo.toml") + " --dry-run --out-dir plan");
+    INFO(fromElsewhere.output);
+    REQUIRE(fromElsewhere.exitCode == 0);
+    CHECK_THAT(fromElsewhere.output, Catch::Contains("--config " + eco::test::sourcePath("configs/sim-default.toml")));
+    CHECK_THAT(fromElsewhere.output, Catch::Contains("--out plan/simulation.h5"));
+    const auto fromRoot = runEcoIn(eco::test::sourcePath(""), "run configs/demo.toml --dry-run --out-dir " + dir.file("plan2"));
+    INFO(fromRoot.output);
+    REQUIRE(fromRoot.exitCode == 0);
+    CHECK_THAT(fromRoot.output, Catch::Contains("--config configs/sim-default.toml "));
+}
+
+TEST_CASE("eco --quiet prints nothing on success and still prints errors, --verbose adds detail", "[cli]") {
+    eco::test::TempDir dir("quiet");
+    const auto quiet = runEco("--quiet terrain generate --width 16 --height 16 --out " + dir.file("t.h5") + " --png " + dir.file("png"));
+    CHECK(quiet.exitCode == 0);
+    CHECK(quiet.output.empty());
+    CHECK(std::filesystem::exists(dir.file("t.h5")));
+    const auto verbose = runEco("--verbose terrain generate --width 16 --height 16 --out " + dir.file("t2.h5"));
+    CHECK(verbose.exitCode == 0);
+    CHECK_THAT(verbose.output, Catch::Contains("t2.h5"));  // the test can fail: without --quiet there is output
+    const auto error = runEco("--quiet terrain convert " + dir.file("no-such.asc") + " " + dir.file("o.h5"));
+    CHECK(error.exitCode == 1);
+    CHECK_THAT(error.output, Catch::Contains("eco: error:") && Catch::Contains("no-such.asc"));
+    const auto usage = runEco("--quiet terrain generate --width abc --out " + dir.file("x.h5"));
+    CHECK(usage.exitCode == 2);
+    CHECK_THAT(usage.output, Catch::Contains("--width"));
+    const auto both = runEco("--quiet --verbose terrain generate --out " + dir.file("y.h5"));
+    INFO(both.output);
+    CHECK(both.exitCode == 2);
+    CHECK_THAT(both.output, Catch::Contains("--quiet") && Catch::Contains("--verbose"));
+}
+
+TEST_CASE("eco biome show prints a biome that eco reads back identically", "[cli]") {
+    eco::test::TempDir dir("biome_show");
+    const auto embedded = runEco("--quiet biome show");  // the result prints with --quiet too
+    REQUIRE(embedded.exitCode == 0);
+    CHECK_THAT(embedded.output, Catch::Contains("[[species]]") && Catch::Contains("Redwood"));
+    std::ofstream(dir.file("a.toml")) << embedded.output;
+    const auto again = runEco("biome show " + dir.file("a.toml"));
+    REQUIRE(again.exitCode == 0);
+    CHECK(withoutFirstLine(again.output) == withoutFirstLine(embedded.output));
+    // The shipped file reads to the same biome as the embedded copy.
+    const auto shipped = runEco("biome show " + eco::test::sourcePath("biomes/sonoma.toml"));
+    REQUIRE(shipped.exitCode == 0);
+    CHECK(withoutFirstLine(shipped.output) == withoutFirstLine(embedded.output));
+    // Errors: a missing file is a usage error, a bad value names file and field.
+    CHECK(runEco("biome show " + dir.file("none.toml")).exitCode == 2);
+    std::string text = withoutFirstLine(embedded.output);
+    const std::size_t at = text.find("max_height_m = ");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, std::string("max_height_m = ").size(), "max_height_m = -");
+    std::ofstream(dir.file("bad.toml")) << text;
+    const auto bad = runEco("biome show " + dir.file("bad.toml"));
+    INFO(bad.output);
+    CHECK(bad.exitCode == 1);
+    CHECK_THAT(bad.output, Catch::Contains("bad.toml") && Catch::Contains("max_height_m"));
+}
+
+TEST_CASE("eco config defaults prints configurations that eco reads", "[cli]") {
+    eco::test::TempDir dir("config_defaults");
+    const auto sim = runEco("--quiet config defaults simulate");  // simulate is the default; printed with --quiet
+    REQUIRE(sim.exitCode == 0);
+    CHECK_THAT(sim.output, Catch::Contains("[inputs]") && Catch::Contains("[model]") && Catch::Contains("canopy_limit = "));
+    std::ofstream(dir.file("sim.toml")) << sim.output;
+    const auto canopy = runEco("config defaults canopy");
+    REQUIRE(canopy.exitCode == 0);
+    CHECK_THAT(canopy.output, Catch::Contains("[canopy]"));
+    std::ofstream(dir.file("placer.toml")) << canopy.output;
+    // eco run checks both files when it plans (strict: an unknown key or a bad value fails).
+    std::ofstream(dir.file("run.toml")) << "[run]\nout_dir = \"out\"\n[terrain]\n[chm]\n[abiotics]\n"
+                                        << "[canopy]\nconfig = \"placer.toml\"\n[simulate]\nconfig = \"sim.toml\"\n";
+    const auto plan = runEco("run " + dir.file("run.toml") + " --dry-run");
+    INFO(plan.output);
+    CHECK(plan.exitCode == 0);
+    const auto wrong = runEco("config defaults synthesis");
+    CHECK(wrong.exitCode == 2);
+    CHECK_THAT(wrong.output, Catch::Contains("synthesis"));
 }

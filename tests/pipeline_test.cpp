@@ -34,8 +34,9 @@ private:
     std::string info_;
 };
 
-/// Runs a scope from another working directory: configurations name their files relative to
-/// the repository root (configs/demo.toml says so), and planning now reads them.
+/// Runs a scope from another working directory (the repository root: command-line paths such
+/// as configs/demo.toml are relative to it; paths inside a configuration are relative to the
+/// configuration's own directory).
 class InDirectory {
 public:
     explicit InDirectory(const std::string& dir) : previous_(std::filesystem::current_path()) {
@@ -56,7 +57,7 @@ TEST_CASE("pipeline: the demo configuration plans the stages and command lines e
     const InDirectory root(eco::test::sourcePath(""));
     const std::string o = dir.file("demo");
     const eco::pipeline::RunPlan plan =
-        eco::pipeline::planRun(eco::test::sourcePath("configs/demo.toml"), o);
+        eco::pipeline::planRun("configs/demo.toml", o);
     CHECK(plan.outDir == o);
     const std::vector<std::pair<std::string, std::string>> expected = {
         {"terrain", "eco terrain generate --out O/terrain.h5 --width 512 --height 512 --cell-size 0.914 --seed 1 --png O/png"},
@@ -80,7 +81,7 @@ TEST_CASE("pipeline: the demo configuration plans the stages and command lines e
         {"synth", "eco synth --terrain O/target/terrain.h5 --canopy O/target/canopy.h5 --database O/biome-db.h5 "
                   "--abiotics O/target/abiotics.h5 --out O/scene.h5 --png O/png/synth --csv O/scene.csv --pdb "
                   "O/scene.pdb --seed 2 --refine"},
-        {"compare", "eco compare O/scene.h5 O/biome-db.h5 --png O/png/synth/compare.png --out O/compare.md"},
+        {"compare", "eco compare O/scene.h5 O/biome-db.h5 --png O/png/synth --out O/compare.md"},
     };
     REQUIRE(plan.stages.size() == expected.size());
     for (std::size_t i = 0; i < expected.size(); ++i) {
@@ -156,7 +157,7 @@ TEST_CASE("pipeline: [run] gis = true asks every grid stage for GeoTIFFs and the
     {
         std::ofstream f(config);
         f << "[run]\nout_dir = \"x\"\ngis = true\n[terrain]\n[chm]\n[abiotics]\n[canopy]\n"
-             "[simulate]\nconfig = \"configs/sim-default.toml\"\n[analyse]\n[synth]\n";
+             "[simulate]\nconfig = \"" << eco::test::sourcePath("configs/sim-default.toml") << "\"\n[analyse]\n[synth]\n";
     }
     const eco::pipeline::RunPlan plan = eco::pipeline::planRun(config, o);
     std::map<std::string, std::string> lines;

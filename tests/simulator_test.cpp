@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -1296,6 +1297,53 @@ TEST_CASE("checkpoint: the paper's readings (every cell, monthly mean vigour, ca
 }
 
 // --------------------------------------------------------------------------- configuration
+
+TEST_CASE("run config: paths are relative to the configuration file's directory", "[sim][config]") {
+    test::TempDir dir("sim_config_paths");
+    std::filesystem::create_directories(dir.file("cfg"));
+    std::ofstream(dir.file("cfg/run.toml")) << "[inputs]\nabiotics = \"../in/a.h5\"\ncanopy = \"c.h5\"\nterrain = \"/abs/t.h5\"\n"
+                                            << "biome = \"\"\ninitial = \"i.h5:/group\"\n"
+                                            << "[outputs]\nhdf5 = \"out/sim.h5\"\ncsv = \"\"\npng_dir = \"png\"\n";
+    const RunConfig c = loadRunConfig(dir.file("cfg/run.toml"));
+    CHECK(c.abioticsPath == dir.file("in/a.h5"));
+    CHECK(c.canopyPath == dir.file("cfg/c.h5"));
+    CHECK(c.terrainPath == "/abs/t.h5");  // absolute: as written
+    CHECK(c.biomePath.empty());           // "": the embedded biome, still
+    CHECK(c.initialPath == dir.file("cfg/i.h5:/group"));
+    CHECK(c.outputPath == dir.file("cfg/out/sim.h5"));
+    CHECK(c.csvPath.empty());
+    CHECK(c.pngDir == dir.file("cfg/png"));
+    // Text without a file (tests, --model) keeps its paths; a default is not the file's.
+    CHECK(parseRunConfig("[inputs]\nabiotics = \"a.h5\"\n", "text").abioticsPath == "a.h5");
+    std::ofstream(dir.file("cfg/bare.toml")) << "[inputs]\nabiotics = \"a.h5\"\n";
+    CHECK(loadRunConfig(dir.file("cfg/bare.toml")).outputPath == RunConfig{}.outputPath);
+}
+
+TEST_CASE("run config: the built-in defaults hold every key and read back", "[sim][config]") {
+    // configs/sim-default.toml as built in equals the file, and its [model] is the defaults.
+    const RunConfig file = loadRunConfig(test::sourcePath("configs/sim-default.toml"));
+    const RunConfig embedded = parseRunConfig(embeddedDefaultRunConfigToml(), "embedded", test::sourcePath("configs/sim-default.toml"));
+    CHECK(embedded.abioticsPath == file.abioticsPath);
+    CHECK(embedded.years == file.years);
+    CHECK(embedded.snapshotYears == file.snapshotYears);
+    CHECK(embedded.params.toToml() == file.params.toToml());
+    CHECK(file.params.toToml() == SimParams{}.toToml());
+    // eco config defaults simulate: every model key (from simParamFields and the choices) once.
+    const std::string text = defaultRunConfigToml();
+    const RunConfig back = parseRunConfig(text, "defaults");
+    CHECK(back.params.toToml() == SimParams{}.toToml());
+    CHECK(back.years == file.years);
+    CHECK(back.checkpointEveryYears == file.checkpointEveryYears);
+    for (const auto& f : simParamFields()) {
+        INFO(f.key);
+        CHECK(text.find(std::string("\n") + f.key + " = ") != std::string::npos);
+    }
+    for (const char* key : {"growth_rule", "competition", "germination_cells", "germination_vigour", "canopy_limit"}) {
+        INFO(key);
+        CHECK(text.find(std::string("\n") + key + " = ") != std::string::npos);
+    }
+    CHECK(text.find("[model]") == text.rfind("[model]"));
+}
 
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
     const RunConfig def = loadRunConfig(test::sourcePath("configs/sim-default.toml"));

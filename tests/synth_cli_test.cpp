@@ -58,18 +58,49 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
     const auto r = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
                                 " --abiotics " + f.abiotics + " --out " + dir.file("out/scene.h5") + " --png " +
                                 dir.file("png") + " --csv " + dir.file("plants.csv") + " --pdb " + dir.file("plants.pdb") +
+                                " --pdb-canopy " + dir.file("canopy.pdb") + " --pdb-undergrowth " + dir.file("undergrowth.pdb") +
                                 " --refine --refine-sweeps 1 --refine-window 80,80,120,120");
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
+    {
+        // The split lists (EcoLearn's viewer reads canopy and undergrowth as two files) hold
+        // one layer each and together every plant of the joint list.
+        const auto count = [](const std::vector<synth::PdbSpecies>& list) {
+            std::size_t n = 0;
+            for (const auto& s : list) n += s.plants.size();
+            return n;
+        };
+        const std::size_t all = count(synth::readPdb(dir.file("plants.pdb")));
+        const std::size_t canopyTrees = count(synth::readPdb(dir.file("canopy.pdb")));
+        const std::size_t undergrowth = count(synth::readPdb(dir.file("undergrowth.pdb")));
+        CHECK(canopyTrees == w.canopy.size());
+        CHECK(undergrowth > 0);
+        CHECK(canopyTrees + undergrowth == all);
+        // One path for both: refused before any work, naming both flags.
+        const auto same = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
+                                       " --out " + dir.file("same/scene.h5") + " --pdb-canopy " + dir.file("same/p.pdb") +
+                                       " --pdb-undergrowth " + dir.file("same/p.pdb"));
+        INFO(same.output);
+        CHECK(same.exitCode == 1);
+        CHECK_THAT(same.output, Catch::Contains("--pdb-canopy") && Catch::Contains("--pdb-undergrowth") &&
+                                    Catch::Contains("are the same file"));
+        CHECK_FALSE(std::filesystem::exists(dir.file("same/scene.h5")));
+    }
     CHECK_THAT(r.output, Catch::Contains("refinement: pair-correlation distance"));
     for (const char* name : {"out/scene.h5", "plants.csv", "plants.pdb", "png/scene.png", "png/scene_zoom.png",
                              "png/grass.png", "png/litter.png", "png/cluster_map.png"})
         CHECK(std::filesystem::exists(dir.file(name)));
-    const auto c = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("compare.png"));
+    const auto c = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("cmp"));
     INFO(c.output);
     REQUIRE(c.exitCode == 0);
     CHECK_THAT(c.output, Catch::Contains("| region |") && Catch::Contains("pair-correlation distance"));
-    CHECK(std::filesystem::exists(dir.file("compare.png")));
+    CHECK(std::filesystem::exists(dir.file("cmp/compare.png")));
+    // --png is a directory in every command: the old form (a file name) is a usage error that says so.
+    const auto old = test::runEco("compare " + dir.file("out/scene.h5") + " " + f.db + " --png " + dir.file("old.png"));
+    INFO(old.output);
+    CHECK(old.exitCode == 2);
+    CHECK_THAT(old.output, Catch::Contains("--png") && Catch::Contains("is a directory now") && Catch::Contains("old.png"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("old.png")));
 
     // Approximate instancing of the scene: every plant an instance, at most K prototypes per
     // species, the same bytes with 1 and 2 threads.

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <map>
 #include <set>
 
@@ -423,6 +424,30 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
         std::ofstream(dir.file("count.pdb")) << "1\n3 0.1 2.0 0.5\n99999999999999\n1 2 3 4 5\n";
         CHECK_THROWS_AS(synth::readPdb(dir.file("count.pdb")), IoError);
         CHECK_THROWS_WITH(synth::readPdb(dir.file("count.pdb")), Catch::Contains("count.pdb:4") && Catch::Contains("file ends"));
+    }
+
+    // Seedlings far below a millimetre keep a nonzero height and crown radius (4 decimals
+    // printed 168 of the demo's seedlings as 0.0000); lengths from 0.1 m up keep the earlier
+    // "%.4f" text, and every value stays one fixed-point token.
+    {
+        const std::vector<Plant> tiny = {{2, 1.5, 2.5, 10.0, 2.293766e-7, 7.408e-7}, {2, 3.0, 4.0, 11.0, 0.01234567, 0.003},
+                                         {2, 5.0, 6.0, 12.0, 33.25501, 4.748}};
+        synth::writePdb(dir.file("tiny.pdb"), {}, tiny);
+        const auto back = synth::readPdb(dir.file("tiny.pdb"));
+        REQUIRE(back.size() == 1);
+        REQUIRE(back[0].plants.size() == 3);
+        for (std::size_t i = 0; i < tiny.size(); ++i) {
+            CHECK(back[0].plants[i].heightM == Approx(tiny[i].heightM).epsilon(1e-3));
+            CHECK(back[0].plants[i].crownRadiusM == Approx(tiny[i].crownRadiusM).epsilon(1e-3));
+        }
+        CHECK(back[0].minHeightM == Approx(2.293766e-7).epsilon(1e-3));
+        std::ostringstream textStream;
+        textStream << std::ifstream(dir.file("tiny.pdb")).rdbuf();
+        const std::string text = textStream.str();
+        CHECK_THAT(text, Catch::Contains("1.5000 2.5000 10.0000 0.0000002294 0.0000007408\n"));
+        CHECK_THAT(text, Catch::Contains("3.0000 4.0000 11.0000 0.01235 0.003000\n"));
+        CHECK_THAT(text, Catch::Contains("5.0000 6.0000 12.0000 33.2550 4.7480\n"));
+        CHECK(text.find('e') == std::string::npos);
     }
 
     synth::writeScenePlantsCsv(dir.file("plants.csv"), rec.canopy, rec.undergrowth, w.biome);

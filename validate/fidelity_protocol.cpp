@@ -59,9 +59,10 @@ void readFidelityConfig(const std::string& path, FidelityRunOptions& a, const st
     const toml::table root = parseTomlFile(path);
     StrictTable top(root, path, "");
     StrictTable t(top.table("fidelity"), path, "[fidelity]");
+    // Every string key is a path: relative to this file's directory (flags: to the working one).
     const auto str = [&](const char* key, const char* option, std::string& v) {
         if (!t.has(key)) return;
-        const std::string x = t.string(key);
+        const std::string x = pathRelativeToConfig(path, t.string(key));
         if (!set(option)) v = x;
     };
     const auto integer = [&](const char* key, const char* option, std::int64_t& v, std::int64_t lo) {
