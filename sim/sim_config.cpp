@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "error.h"
+#include "param_desc.h"
 #include "strict_toml.h"
 
 namespace eco::sim {
@@ -15,16 +16,7 @@ namespace eco::sim {
 namespace {
 
 // Shortest text that reads back as the same double (and always looks like a float in TOML).
-std::string fmt(double v) {
-    char buf[64];
-    for (int precision = 6; precision <= 17; ++precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::strtod(buf, nullptr) == v) break;
-    }
-    std::string s = buf;
-    if (std::isfinite(v) && s.find_first_of(".eE") == std::string::npos) s += ".0";
-    return s;
-}
+std::string fmt(double v) { return tomlReal(v); }
 
 template <typename E>
 struct EnumName {
