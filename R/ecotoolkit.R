@@ -14,7 +14,7 @@ suppressPackageStartupMessages({
 #: Formats and the schema versions read (python/ecotoolkit/_h5.py FORMATS holds the same).
 eco_formats <- list(
   "eco-terrain" = 1, "eco-chm" = 1, "eco-abiotics" = c(1, 2), "eco-canopy" = c(1, 2),
-  "eco-simulation" = 1, "eco-biome-db" = c(2, 3, 4, 5), "eco-scene" = 1
+  "eco-simulation" = c(1, 2), "eco-biome-db" = c(2, 3, 4, 5), "eco-scene" = 1
 )
 
 #' Open an eco HDF5 file read-only and check its root format and schema_version; stops

@@ -75,6 +75,7 @@ constexpr int kExitInternal = 4;  // 3 is eco validate's "a check failed" (cmd_v
 }  // namespace
 
 int main(int argc, char** argv) {
+    eco::setCommandLine(argc, argv);  // recorded in every output's /provenance
     auto app = eco::cli::makeApp();
     try {
         app->parse(argc, argv);

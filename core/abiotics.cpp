@@ -15,6 +15,7 @@
 
 #include "atomic_file.h"
 #include "eco_version.h"
+#include "provenance.h"
 #include "geo_raster.h"
 #include "error.h"
 #include "h5io.h"
@@ -1060,6 +1061,7 @@ void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& b
         f.setAttr(root, "schema_version", kSchemaVersion);
         f.setAttr(root, "canopy_shade", maps.canopyShadeSource.empty() ? std::string("none") : maps.canopyShadeSource);
         f.setAttr(root, "code_version", std::string(ECO_VERSION_STRING));
+        writeProvenance(f, {});  // what identifies the run: nothing measured
         f.setAttr(root, "biome_name", biome.name);
         f.setAttr(root, "months", std::string("plane 0 = January .. plane 11 = December"));
         f.setAttr(root, "latitude_deg", biome.climate.latitudeDeg);

@@ -10,6 +10,7 @@
 
 #include "error.h"
 #include "strict_toml.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -329,6 +330,7 @@ Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {
 Biome loadBiome(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(path + ": cannot open biome file (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::ostringstream ss;
     ss << in.rdbuf();
     if (in.bad()) throw IoError(path + ": error while reading biome file");

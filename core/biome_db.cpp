@@ -16,6 +16,12 @@
 namespace eco {
 
 namespace {
+/// The units of a dataset with one column per abiotic feature (their units differ): CF has no
+/// unit per column, so the attribute points to the list.
+const std::string kPerFeatureUnits = "per column: /features/units";
+}  // namespace
+
+namespace {
 
 int popcount(unsigned v) {
     int n = 0;
@@ -249,7 +255,7 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
 
         f.writeStrings("/species/names", db.speciesNames);
         f.writeI32("/species/canopy_subbiome_mask",
-                   std::vector<std::int32_t>(db.canopySubBiomeMask.begin(), db.canopySubBiomeMask.end()), {hs(ns)});
+                   std::vector<std::int32_t>(db.canopySubBiomeMask.begin(), db.canopySubBiomeMask.end()), {hs(ns)}, "1");
         f.writeStrings("/sub_biomes/names", db.subBiomeNames);
         std::vector<std::string> catNames;
         std::vector<std::int32_t> catLayer, catSpecies;
@@ -259,8 +265,8 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
             catSpecies.push_back(static_cast<std::int32_t>(static_cast<std::size_t>(c) % std::max<std::size_t>(ns, 1)));
         }
         f.writeStrings("/categories/names", catNames);
-        f.writeI32("/categories/layer", catLayer, {hs(catLayer.size())});
-        f.writeI32("/categories/species", catSpecies, {hs(catSpecies.size())});
+        f.writeI32("/categories/layer", catLayer, {hs(catLayer.size())}, "1");
+        f.writeI32("/categories/species", catSpecies, {hs(catSpecies.size())}, "1");
         std::vector<std::string> featureNames, featureUnits;
         for (const FactorInfo& fi : kFactors) {
             featureNames.emplace_back(fi.key);
@@ -269,7 +275,7 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.writeStrings("/features/names", featureNames);
         f.writeStrings("/features/units", featureUnits);
         f.writeF64("/features/weights", std::vector<double>(db.featureWeights.begin(), db.featureWeights.end()),
-                   {hs(kFactorCount)});
+                   {hs(kFactorCount)}, "1");
 
         std::vector<std::string> pNames, pValues;
         for (const auto& [k, v] : db.parameters) {
@@ -286,15 +292,15 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.setAttr("/bins", "separation_min_m", db.separationBins.minM);
         f.setAttr("/bins", "separation_max_m", db.separationBins.maxM);
         f.setAttr("/bins", "separation_bins", static_cast<std::int64_t>(db.separationBins.count));
-        f.writeF64("/bins/pcf_edges_m", db.pcfBins.edgesM(), {hs(nb + 1)});
+        f.writeF64("/bins/pcf_edges_m", db.pcfBins.edgesM(), {hs(nb + 1)}, "m");
         std::vector<double> annulus(nb);
         for (std::size_t k = 0; k < nb; ++k) annulus[k] = db.pcfBins.annulusAreaM2(static_cast<int>(k));
-        f.writeF64("/bins/pcf_annulus_area_m2", annulus, {hs(nb)});
-        f.writeF64("/bins/separation_edges_m", db.separationBins.edgesM(), {hs(nsep + 1)});
+        f.writeF64("/bins/pcf_annulus_area_m2", annulus, {hs(nb)}, "m2");
+        f.writeF64("/bins/separation_edges_m", db.separationBins.edgesM(), {hs(nsep + 1)}, "m");
         const std::size_t nctx = static_cast<std::size_t>(db.contextBins.count());
         if (withContext) {
             db.contextBins.validate(path + ": canopy context bins");
-            f.writeF64("/bins/context_edges_m", db.contextBins.edgesM, {hs(nctx - 1)});
+            f.writeF64("/bins/context_edges_m", db.contextBins.edgesM, {hs(nctx - 1)}, "m");
         }
 
         f.ensureGroup("/inputs");
@@ -330,20 +336,20 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
             cCells.push_back(static_cast<double>(c.cellCount));
         }
         f.ensureGroup("/combinations");
-        f.writeI32("/combinations/mask", cMask, {hs(nc)});
-        f.writeI32("/combinations/k", cK, {hs(nc)});
-        f.writeI32("/combinations/first_region", cFirst, {hs(nc)});
-        f.writeF64("/combinations/area_m2", cArea, {hs(nc)});
-        f.writeF64("/combinations/cell_count", cCells, {hs(nc)});
+        f.writeI32("/combinations/mask", cMask, {hs(nc)}, "1");
+        f.writeI32("/combinations/k", cK, {hs(nc)}, "1");
+        f.writeI32("/combinations/first_region", cFirst, {hs(nc)}, "1");
+        f.writeF64("/combinations/area_m2", cArea, {hs(nc)}, "m2");
+        f.writeF64("/combinations/cell_count", cCells, {hs(nc)}, "1");
         f.writeF64("/combinations/feature_mean",
                    flatten(db.combinations, kFactorCount, [](const DbCombination& c) { return featuresRow(c.featureMean); }),
-                   {hs(nc), kFactorCount});
+                   {hs(nc), kFactorCount}, kPerFeatureUnits);
         f.writeF64("/combinations/feature_std",
                    flatten(db.combinations, kFactorCount, [](const DbCombination& c) { return featuresRow(c.featureStd); }),
-                   {hs(nc), kFactorCount});
+                   {hs(nc), kFactorCount}, kPerFeatureUnits);
         f.writeF64("/combinations/silhouette",
                    flatten(db.combinations, kMaxTried, [](const DbCombination& c) -> const std::vector<double>& { return c.silhouette; }),
-                   {hs(nc), hs(kMaxTried)});
+                   {hs(nc), hs(kMaxTried)}, "1");
 
         const std::size_t nr = db.regions.size();
         std::vector<std::int32_t> rComb, rCluster;
@@ -359,33 +365,33 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         }
         f.ensureGroup("/regions");
         f.setAttr("/regions", "count", static_cast<std::int64_t>(nr));
-        f.writeI32("/regions/combination", rComb, {hs(nr)});
-        f.writeI32("/regions/cluster", rCluster, {hs(nr)});
+        f.writeI32("/regions/combination", rComb, {hs(nr)}, "1");
+        f.writeI32("/regions/cluster", rCluster, {hs(nr)}, "1");
         f.writeF64("/regions/centroid_normalised",
                    flatten(db.regions, kFactorCount, [](const DbRegion& r) { return featuresRow(r.centroidNormalised); }),
-                   {hs(nr), kFactorCount});
+                   {hs(nr), kFactorCount}, "1");
         f.writeF64("/regions/centroid_raw",
                    flatten(db.regions, kFactorCount, [](const DbRegion& r) { return featuresRow(r.centroidRaw); }),
-                   {hs(nr), kFactorCount});
-        f.writeF64("/regions/area_m2", rArea, {hs(nr)});
-        f.writeF64("/regions/cell_count", rCells, {hs(nr)});
-        f.writeF64("/regions/undergrowth_count", rUnder, {hs(nr)});
-        f.writeF64("/regions/canopy_count", rCanopy, {hs(nr)});
-        f.writeF64("/regions/density_per_m2", rDensity, {hs(nr)});
+                   {hs(nr), kFactorCount}, kPerFeatureUnits);
+        f.writeF64("/regions/area_m2", rArea, {hs(nr)}, "m2");
+        f.writeF64("/regions/cell_count", rCells, {hs(nr)}, "1");
+        f.writeF64("/regions/undergrowth_count", rUnder, {hs(nr)}, "1");
+        f.writeF64("/regions/canopy_count", rCanopy, {hs(nr)}, "1");
+        f.writeF64("/regions/density_per_m2", rDensity, {hs(nr)}, "m-2");
         const std::size_t ni = db.inputs.size();
         if (ni > 0 && std::all_of(db.regions.begin(), db.regions.end(), [&](const DbRegion& r) { return r.inputAreaM2.size() == ni; }))
             f.writeF64("/regions/input_area_m2",
                        flatten(db.regions, ni, [](const DbRegion& r) -> const std::vector<double>& { return r.inputAreaM2; }),
-                       {hs(nr), hs(ni)});
+                       {hs(nr), hs(ni)}, "m2");
         f.writeF64("/regions/species_count",
                    flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.speciesCount; }),
-                   {hs(nr), hs(ns)});
+                   {hs(nr), hs(ns)}, "1");
         f.writeF64("/regions/species_proportion",
                    flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.speciesProportion; }),
-                   {hs(nr), hs(ns)});
+                   {hs(nr), hs(ns)}, "1");
         f.writeF64("/regions/canopy_species_count",
                    flatten(db.regions, ns, [](const DbRegion& r) -> const std::vector<double>& { return r.canopySpeciesCount; }),
-                   {hs(nr), hs(ns)});
+                   {hs(nr), hs(ns)}, "1");
 
         for (std::size_t ri = 0; ri < nr; ++ri) {
             const DbRegion& r = db.regions[ri];
@@ -405,16 +411,16 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
                         throw ValidationError(path + ": region " + std::to_string(ri) +
                                               ": size histograms must all have the same number of bins");
                 f.writeF64(stem + "_edges_m", flatten(hists, bins + 1, [](const DbHistogram& h) -> const std::vector<double>& { return h.edges; }),
-                           {hs(ns), hs(bins + 1)});
+                           {hs(ns), hs(bins + 1)}, "m");
                 f.writeF64(stem + "_counts", flatten(hists, bins, [](const DbHistogram& h) -> const std::vector<double>& { return h.counts; }),
-                           {hs(ns), hs(bins)});
+                           {hs(ns), hs(bins)}, "1");
                 std::vector<double> over;
                 for (const auto& h : hists) over.push_back(h.overflow);
-                f.writeF64(stem + "_overflow", over, {hs(ns)});
+                f.writeF64(stem + "_overflow", over, {hs(ns)}, "1");
             }
             if (withContext) {
-            f.writeF64(g + "/context_area_m2", r.contextAreaM2, {hs(nctx)});
-            f.writeF64(g + "/context_species_count", r.contextSpeciesCount, {hs(ns), hs(nctx)});
+            f.writeF64(g + "/context_area_m2", r.contextAreaM2, {hs(nctx)}, "m2");
+            f.writeF64(g + "/context_species_count", r.contextSpeciesCount, {hs(ns), hs(nctx)}, "1");
             {
                 const std::size_t bins = ns ? r.height[0].counts.size() : 0;
                 for (std::size_t s = 0; s < ns; ++s)
@@ -423,12 +429,12 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
                                               ": heights under crowns must have the bins of the heights");
                 f.writeF64(g + "/height_covered_counts",
                            flatten(r.heightCovered, bins, [](const DbHistogram& h) -> const std::vector<double>& { return h.counts; }),
-                           {hs(ns), hs(bins)});
+                           {hs(ns), hs(bins)}, "1");
                 std::vector<double> over;
                 for (const auto& h : r.heightCovered) over.push_back(h.overflow);
-                f.writeF64(g + "/height_covered_overflow", over, {hs(ns)});
+                f.writeF64(g + "/height_covered_overflow", over, {hs(ns)}, "1");
             }
-            f.writeF64(g + "/context_cell_pairs", r.contextCellPairs, {hs(nctx), hs(nctx), hs(nb)});
+            f.writeF64(g + "/context_cell_pairs", r.contextCellPairs, {hs(nctx), hs(nctx), hs(nb)}, "1");
             }
             const std::size_t np = r.pairs.size();
             std::vector<std::int32_t> src, tgt;
@@ -446,23 +452,25 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
             }
             const std::string pg = g + "/pairs";
             f.ensureGroup(pg);
-            f.writeI32(pg + "/source", src, {hs(np)});
-            f.writeI32(pg + "/target", tgt, {hs(np)});
+            f.writeI32(pg + "/source", src, {hs(np)}, "1");
+            f.writeI32(pg + "/target", tgt, {hs(np)}, "1");
             f.writeF64(pg + "/pair_count", flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.pairCount; }),
-                       {hs(np), hs(nb)});
+                       {hs(np), hs(nb)}, "1");
             f.writeF64(pg + "/translate_weighted",
                        flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.translateWeighted; }),
-                       {hs(np), hs(nb)});
-            f.writeF64(pg + "/normalisation_per_m2", norm, {hs(np)});
+                       {hs(np), hs(nb)}, "1");
+            f.writeF64(pg + "/normalisation_per_m2", norm, {hs(np)}, "m-2");
             f.writeF64(pg + "/g", flatten(r.pairs, nb, [](const DbPairStats& p) -> const std::vector<double>& { return p.g; }),
-                       {hs(np), hs(nb)});
+                       {hs(np), hs(nb)}, "1");
             f.writeF64(pg + "/separation_count",
                        flatten(r.pairs, nsep, [](const DbPairStats& p) -> const std::vector<double>& { return p.separationCount; }),
-                       {hs(np), hs(nsep)});
-            f.writeF64(pg + "/separation_underflow", under, {hs(np)});
-            f.writeF64(pg + "/separation_sources", sources, {hs(np)});
+                       {hs(np), hs(nsep)}, "1");
+            f.writeF64(pg + "/separation_underflow", under, {hs(np)}, "1");
+            f.writeF64(pg + "/separation_sources", sources, {hs(np)}, "1");
         }
-        if (!db.createdUtc.empty()) writeProvenance(f, {{"created_utc", db.createdUtc}});
+        std::vector<ProvenanceEntry> measured;
+        if (!db.createdUtc.empty()) measured.push_back({"created_utc", db.createdUtc});
+        writeProvenance(f, measured);
     }
     out.commit();
 }

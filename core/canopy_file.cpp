@@ -29,12 +29,12 @@ void writeIterations(h5::File& f, const CanopyFileContents& c) {
         rmse[i] = its[i].rmseM;
     }
     f.ensureGroup("/iterations");
-    f.writeI32("/iterations/iteration", iteration, {n});
-    f.writeI32("/iterations/trees", trees, {n});
-    f.writeI32("/iterations/removed", removed, {n});
-    f.writeI32("/iterations/added", added, {n});
-    f.writeF64("/iterations/coverage", coverage, {n});
-    f.writeF64("/iterations/rmse_m", rmse, {n});
+    f.writeI32("/iterations/iteration", iteration, {n}, "1");
+    f.writeI32("/iterations/trees", trees, {n}, "1");
+    f.writeI32("/iterations/removed", removed, {n}, "1");
+    f.writeI32("/iterations/added", added, {n}, "1");
+    f.writeF64("/iterations/coverage", coverage, {n}, "1");
+    f.writeF64("/iterations/rmse_m", rmse, {n}, "m");
     f.setAttr("/iterations", "stop_reason", c.stopReason);
     f.setAttr("/iterations", "initial_seeds", c.initialSeeds);
     f.setAttr("/iterations", "duplicates_removed", c.duplicatesRemoved);
@@ -61,18 +61,21 @@ void writeTargets(h5::File& f, const CanopyFileContents& c) {
     }
     if (m > 0) {
         f.writeStrings("/targets/species", species);
-        f.writeF64("/targets/requested", requested, {m});
-        f.writeF64("/targets/achieved", achieved, {m});
-        f.writeF64("/targets/reachable", reachable, {m});
-        f.writeF64("/targets/weight", weight, {m});
-        f.writeF64("/targets/alpha", alpha, {m});
-        f.writeI32("/targets/feasible", feasible, {m});
-        f.writeI32("/targets/iterations", iterations, {m});
+        f.writeF64("/targets/requested", requested, {m}, "1");
+        f.writeF64("/targets/achieved", achieved, {m}, "1");
+        f.writeF64("/targets/reachable", reachable, {m}, "1");
+        f.writeF64("/targets/weight", weight, {m}, "1");
+        f.writeF64("/targets/alpha", alpha, {m}, "1");
+        f.writeI32("/targets/feasible", feasible, {m}, "1");
+        f.writeI32("/targets/iterations", iterations, {m}, "1");
     }
     f.setAttr("/targets", "count", static_cast<std::int64_t>(m));
     f.setAttr("/targets", "note", std::string("fractions of the forested area (CHM >= canopy_threshold_m), inside "
                                               "/targets/mask when present"));
-    if (c.targetMask) f.writeGridI32("/targets/mask", *c.targetMask, "1 inside the brush, 0 outside");
+    if (c.targetMask) {
+        f.writeGridI32("/targets/mask", *c.targetMask, "1");
+        f.setAttr("/targets/mask", "long_name", std::string("1 inside the brush, 0 outside"));
+    }
 }
 
 }  // namespace
@@ -83,7 +86,8 @@ void writeCanopyFile(const std::string& path, const CanopyFileContents& c, const
         h5::File f = h5::File::create(out.tempPath());
         writePlants(f, "/canopy", c.trees, biome);
         f.setAttr("/canopy", "layer", std::string("canopy"));
-        f.writeGridI32("/species_map", c.speciesMap, "species id, -1 none");
+        f.writeGridI32("/species_map", c.speciesMap, "1");
+        f.setAttr("/species_map", "long_name", std::string("species id (index into /canopy/species_names), -1 none"));
         f.setAttr("/species_map", "names", std::string("/canopy/species_names"));
         f.ensureGroup("/chm");
         f.writeGrid("/chm/height", c.chmM, "m");

@@ -173,8 +173,11 @@ std::vector<std::string> exportGridsAsGeoTiff(const std::string& h5Path, const s
         const std::size_t rank = f.shape(name).size();
         if (f.isIntegerDataset(name)) {
             if (rank != 2) throw ValidationError(h5Path + ": " + name + ": integer grids must be 2-D");
-            // "-1 none" in the units (species and cluster maps): -1 is declared nodata.
-            const std::optional<int> nodata = units.find("-1 none") != std::string::npos ? std::optional<int>(-1) : std::nullopt;
+            // "-1 none" in the long_name (species and cluster maps; in the units of files
+            // written before CF units): -1 is declared nodata.
+            const std::string longName = f.hasAttr(name, "long_name") ? f.attrString(name, "long_name") : "";
+            const bool minusOneIsNone = (units + " " + longName).find("-1 none") != std::string::npos;
+            const std::optional<int> nodata = minusOneIsNone ? std::optional<int>(-1) : std::nullopt;
             writeGeoTiff(out, f.readGridI32(name), units, nodata);
         } else if (rank == 3) {
             const std::vector<Grid<float>> planes = f.readStack(name);

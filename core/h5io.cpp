@@ -1,12 +1,17 @@
 #include "h5io.h"
 #include "text_format.h"
 
+#include <hdf5_hl.h>
+
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <numeric>
 #include <sstream>
+#include <type_traits>
 
 #include "memory.h"
+#include "provenance.h"
 
 namespace eco::h5 {
 
@@ -99,6 +104,7 @@ File File::openRead(const std::string& path) {
     if (H5Fis_hdf5(path.c_str()) <= 0) throw IoError(path + ": not an HDF5 file (or corrupt)");
     const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     if (id < 0) throw IoError(path + ": cannot open HDF5 file");
+    noteInputFile(path);
     return File(path, id);
 }
 
@@ -157,7 +163,7 @@ void setSmallLayout(hid_t plist, std::size_t bytes, std::size_t elementBytes = 0
 
 template <typename T>
 void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
-                const std::vector<hsize_t>& dims, hid_t memType, hid_t fileType) {
+                const std::vector<hsize_t>& dims, hid_t memType, hid_t fileType, const std::string& units) {
     if (product(dims) != n)
         throw ValidationError(f.path() + ": " + name + ": data size does not match its shape");
     f.ensureGroup(parentOf(name));
@@ -183,6 +189,8 @@ void writeTyped(File& f, const std::string& name, const T* data, std::size_t n,
     if (!ds.valid()) throw IoError(f.path() + ": " + name + ": cannot create dataset");
     if (n > 0 && H5Dwrite(ds.id(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
         throw IoError(f.path() + ": " + name + ": cannot write dataset");
+    ds = Handle();
+    f.setAttr(name, "units", units);
 }
 
 template <typename T>
@@ -207,14 +215,21 @@ std::vector<T> readTyped(const File& f, const std::string& name, std::vector<hsi
 
 }  // namespace
 
-void File::writeF32(const std::string& name, const std::vector<float>& v, const std::vector<hsize_t>& dims) {
-    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE);
+void File::writeF32(const std::string& name, const std::vector<float>& v, const std::vector<hsize_t>& dims,
+                    const std::string& units) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE, units);
 }
-void File::writeF64(const std::string& name, const std::vector<double>& v, const std::vector<hsize_t>& dims) {
-    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE);
+void File::writeF64(const std::string& name, const std::vector<double>& v, const std::vector<hsize_t>& dims,
+                    const std::string& units) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, units);
 }
-void File::writeI32(const std::string& name, const std::vector<std::int32_t>& v, const std::vector<hsize_t>& dims) {
-    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_INT32, H5T_STD_I32LE);
+void File::writeI32(const std::string& name, const std::vector<std::int32_t>& v, const std::vector<hsize_t>& dims,
+                    const std::string& units) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_INT32, H5T_STD_I32LE, units);
+}
+void File::writeI64(const std::string& name, const std::vector<std::int64_t>& v, const std::vector<hsize_t>& dims,
+                    const std::string& units) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_INT64, H5T_STD_I64LE, units);
 }
 
 std::vector<float> File::readF32(const std::string& name, std::vector<hsize_t>* dims) const {
@@ -225,6 +240,9 @@ std::vector<double> File::readF64(const std::string& name, std::vector<hsize_t>*
 }
 std::vector<std::int32_t> File::readI32(const std::string& name, std::vector<hsize_t>* dims) const {
     return readTyped<std::int32_t>(*this, name, dims, H5T_NATIVE_INT32, H5T_INTEGER);
+}
+std::vector<std::int64_t> File::readI64(const std::string& name, std::vector<hsize_t>* dims) const {
+    return readTyped<std::int64_t>(*this, name, dims, H5T_NATIVE_INT64, H5T_INTEGER);
 }
 
 std::vector<hsize_t> File::shape(const std::string& name) const {
@@ -338,7 +356,8 @@ void writeAttr(const File& f, const std::string& object, const std::string& attr
     Handle o = openObject(f, object);
     if (H5Aexists(o.id(), attr.c_str()) > 0) H5Adelete(o.id(), attr.c_str());
     Handle a(H5Acreate2(o.id(), attr.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT));
-    if (!a.valid() || H5Awrite(a.id(), type, data) < 0)
+    const bool empty = H5Sget_simple_extent_type(space) == H5S_NULL;  // nothing to write
+    if (!a.valid() || (!empty && H5Awrite(a.id(), type, data) < 0))
         throw IoError(f.path() + ": " + object + ": cannot write attribute " + attr);
 }
 
@@ -375,10 +394,69 @@ void File::setAttr(const std::string& object, const std::string& attr, const std
     writeAttr(*this, object, attr, H5T_NATIVE_DOUBLE, space.id(), value.data());
 }
 
+void File::setAttr(const std::string& object, const std::string& attr, const std::vector<std::string>& value) {
+    std::size_t width = 1;
+    for (const auto& v : value) width = std::max(width, v.size());
+    std::vector<char> bytes(value.size() * width, '\0');
+    for (std::size_t i = 0; i < value.size(); ++i)
+        std::copy(value[i].begin(), value[i].end(), bytes.begin() + static_cast<std::ptrdiff_t>(i * width));
+    Handle type(H5Tcopy(H5T_C_S1));
+    H5Tset_size(type.id(), width);
+    H5Tset_strpad(type.id(), H5T_STR_NULLPAD);
+    H5Tset_cset(type.id(), H5T_CSET_UTF8);
+    const hsize_t n = value.size();
+    // An empty list: HDF5's null dataspace (an attribute cannot have a dimension of size 0).
+    Handle space(n > 0 ? H5Screate_simple(1, &n, nullptr) : H5Screate(H5S_NULL));
+    writeAttr(*this, object, attr, type.id(), space.id(), bytes.data());
+}
+
+void File::setAttrBool(const std::string& object, const std::string& attr, bool value) {
+    // h5py's boolean: an enum on int8 with members FALSE and TRUE (numpy bool on reading).
+    Handle type(H5Tenum_create(H5T_NATIVE_INT8));
+    const std::int8_t no = 0, yes = 1;
+    H5Tenum_insert(type.id(), "FALSE", &no);
+    H5Tenum_insert(type.id(), "TRUE", &yes);
+    const std::int8_t v = value ? yes : no;
+    Handle space(H5Screate(H5S_SCALAR));
+    writeAttr(*this, object, attr, type.id(), space.id(), &v);
+}
+
+void File::setAttrEnum(const std::string& object, const std::string& attr, int value, const std::vector<std::string>& names) {
+    if (value < 0 || static_cast<std::size_t>(value) >= names.size())
+        throw ValidationError(where(object) + ": attribute " + attr + ": value " + std::to_string(value) + " is not one of " +
+                              std::to_string(names.size()) + " choices");
+    Handle type(H5Tenum_create(H5T_NATIVE_INT32));
+    for (std::size_t i = 0; i < names.size(); ++i) {
+        const std::int32_t member = static_cast<std::int32_t>(i);
+        H5Tenum_insert(type.id(), names[i].c_str(), &member);
+    }
+    const std::int32_t v = value;
+    Handle space(H5Screate(H5S_SCALAR));
+    writeAttr(*this, object, attr, type.id(), space.id(), &v);
+}
+
+void File::setAttr(const std::string& object, const NamedAttr& a) {
+    std::visit(
+        [&](const auto& v) {
+            using V = std::decay_t<decltype(v)>;
+            if constexpr (std::is_same_v<V, bool>) setAttrBool(object, a.name, v);
+            else if constexpr (std::is_same_v<V, EnumChoice>) setAttrEnum(object, a.name, v.value, v.names);
+            else setAttr(object, a.name, v);
+        },
+        a.value);
+}
+
 bool File::hasAttr(const std::string& object, const std::string& attr) const {
     if (!exists(object)) return false;
     Handle o(H5Oopen(id(), object.c_str(), H5P_DEFAULT));
     return o.valid() && H5Aexists(o.id(), attr.c_str()) > 0;
+}
+
+bool File::attrIsString(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    return H5Tget_class(type.id()) == H5T_STRING;
 }
 
 std::string File::attrString(const std::string& object, const std::string& attr) const {
@@ -404,20 +482,74 @@ std::string File::attrString(const std::string& object, const std::string& attr)
     return s;
 }
 
+namespace {
+
+/// The value of a scalar enum attribute as an integer (its member's value).
+std::int64_t enumValue(hid_t a, hid_t fileType, const std::string& what) {
+    Handle mem(H5Tget_native_type(fileType, H5T_DIR_ASCEND));
+    Handle base(H5Tget_super(mem.id()));
+    unsigned char raw[8] = {0};  // room for the widest base (and for int64 after conversion)
+    if (!base.valid() || H5Tget_size(mem.id()) > sizeof raw || H5Aread(a, mem.id(), raw) < 0)
+        throw IoError(what + ": cannot read enum attribute");
+    // Widen from the enum's base integer type to int64.
+    if (H5Tconvert(base.id(), H5T_NATIVE_INT64, 1, raw, nullptr, H5P_DEFAULT) < 0)
+        throw IoError(what + ": cannot convert enum attribute");
+    std::int64_t v = 0;
+    std::memcpy(&v, raw, sizeof v);
+    return v;
+}
+
+}  // namespace
+
 double File::attrDouble(const std::string& object, const std::string& attr) const {
     Handle obj;
     Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    if (H5Tget_class(type.id()) == H5T_ENUM)
+        return static_cast<double>(enumValue(a.id(), type.id(), where(object) + ": attribute " + attr));
     double v = 0;
     if (H5Aread(a.id(), H5T_NATIVE_DOUBLE, &v) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
     return v;
 }
 
+
 std::int64_t File::attrInt(const std::string& object, const std::string& attr) const {
     Handle obj;
     Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    if (H5Tget_class(type.id()) == H5T_ENUM) return enumValue(a.id(), type.id(), where(object) + ": attribute " + attr);
     std::int64_t v = 0;
     if (H5Aread(a.id(), H5T_NATIVE_INT64, &v) < 0) throw IoError(where(object) + ": cannot read attribute " + attr);
     return v;
+}
+
+bool File::attrBool(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    if (H5Tget_class(type.id()) == H5T_STRING) {
+        const std::string text = attrString(object, attr);
+        if (text == "true" || text == "1") return true;
+        if (text == "false" || text == "0") return false;
+        throw IoError(where(object) + ": attribute " + attr + " = '" + text + "' is not true or false");
+    }
+    return attrInt(object, attr) != 0;
+}
+
+std::string File::attrEnumName(const std::string& object, const std::string& attr) const {
+    Handle obj;
+    Handle a = openAttr(*this, object, attr, obj);
+    Handle type(H5Aget_type(a.id()));
+    if (H5Tget_class(type.id()) == H5T_STRING) return attrString(object, attr);
+    if (H5Tget_class(type.id()) != H5T_ENUM) throw IoError(where(object) + ": attribute '" + attr + "' is not an enum");
+    Handle mem(H5Tget_native_type(type.id(), H5T_DIR_ASCEND));
+    unsigned char raw[8] = {0};
+    if (H5Tget_size(type.id()) > sizeof raw || H5Aread(a.id(), mem.id(), raw) < 0)
+        throw IoError(where(object) + ": cannot read attribute " + attr);
+    char name[256] = {0};
+    if (H5Tenum_nameof(mem.id(), raw, name, sizeof name) < 0)
+        throw IoError(where(object) + ": attribute " + attr + ": value is not a member of its enum");
+    return name;
 }
 
 std::vector<double> File::attrDoubles(const std::string& object, const std::string& attr) const {
@@ -450,8 +582,53 @@ std::vector<std::string> File::list(const std::string& group) const {
 
 namespace {
 
+/// A coordinate variable beside the grid `gridName`: a 1-D dataset that is an HDF5 dimension
+/// scale named `base` (x_m, y_m, month, plane) with its units and long_name. One of that name
+/// with the same values (another grid of the same geometry in the group) is shared; otherwise
+/// the grid gets its own, named <grid>_<base>. Returns the dataset's path.
 template <typename T>
-void writeGeometry(File& f, const std::string& name, const Grid<T>& g, const std::string& units) {
+std::string coordinateScale(File& f, const std::string& gridName, const std::string& base, const std::vector<T>& values,
+                            const std::string& units, const std::string& longName) {
+    const std::string parent = parentOf(gridName);
+    const std::string prefix = parent == "/" ? "/" : parent + "/";
+    const std::string leaf = gridName.substr(gridName.find_last_of('/') + 1);
+    for (const std::string& name : {prefix + base, prefix + leaf + "_" + base}) {
+        if (!f.exists(name)) {
+            if constexpr (std::is_same_v<T, double>) f.writeF64(name, values, {values.size()}, units);
+            else f.writeI32(name, values, {values.size()}, units);
+            f.setAttr(name, "long_name", longName);
+            Handle ds(H5Dopen2(f.id(), name.c_str(), H5P_DEFAULT));
+            if (!ds.valid() || H5DSset_scale(ds.id(), base.c_str()) < 0)
+                throw IoError(f.path() + ": " + name + ": cannot make it a dimension scale");
+            return name;
+        }
+        if (f.isGroup(name)) continue;
+        Handle ds(H5Dopen2(f.id(), name.c_str(), H5P_DEFAULT));
+        if (!ds.valid() || H5DSis_scale(ds.id()) <= 0) continue;
+        std::vector<T> existing;
+        if constexpr (std::is_same_v<T, double>) {
+            if (!f.isIntegerDataset(name)) existing = f.readF64(name);
+        } else if (f.isIntegerDataset(name)) {
+            existing = f.readI32(name);
+        }
+        if (existing == values) return name;
+    }
+    throw IoError(f.path() + ": " + gridName + ": no free name for its coordinate " + base);
+}
+
+void attachScale(File& f, const std::string& gridName, const std::string& scaleName, unsigned dim, const char* label) {
+    Handle grid(H5Dopen2(f.id(), gridName.c_str(), H5P_DEFAULT));
+    Handle scale(H5Dopen2(f.id(), scaleName.c_str(), H5P_DEFAULT));
+    if (!grid.valid() || !scale.valid() || H5DSattach_scale(grid.id(), scale.id(), dim) < 0 ||
+        H5DSset_label(grid.id(), dim, label) < 0)
+        throw IoError(f.path() + ": " + gridName + ": cannot attach the dimension scale " + scaleName);
+}
+
+/// The geometry attributes of a grid and its coordinate variables as dimension scales: x_m
+/// (last axis) and y_m (the one before) at the cell centres in world metres and, for a stack
+/// of `planes` > 0, month 1..12 (12 planes) or plane 0..n-1 on the first axis.
+template <typename T>
+void writeGeometry(File& f, const std::string& name, const Grid<T>& g, std::size_t planes = 0) {
     const int w = g.width(), h = g.height();
     const double cell = g.cellSizeM(), ox = g.originX(), oy = g.originY();
     f.setAttr(name, "cell_size_m", cell);
@@ -459,9 +636,25 @@ void writeGeometry(File& f, const std::string& name, const Grid<T>& g, const std
     f.setAttr(name, "origin_y_m", oy);
     f.setAttr(name, "width", static_cast<std::int64_t>(w));
     f.setAttr(name, "height", static_cast<std::int64_t>(h));
-    f.setAttr(name, "units", units);
     f.setAttr(name, "row_order", std::string("south_to_north"));
     if (!g.crsWkt().empty()) f.setAttr(name, "crs_wkt", g.crsWkt());
+    std::vector<double> xs(static_cast<std::size_t>(w)), ys(static_cast<std::size_t>(h));
+    for (int ix = 0; ix < w; ++ix) xs[static_cast<std::size_t>(ix)] = ox + (ix + 0.5) * cell;
+    for (int iy = 0; iy < h; ++iy) ys[static_cast<std::size_t>(iy)] = oy + (iy + 0.5) * cell;
+    const unsigned rank = planes > 0 ? 3 : 2;
+    attachScale(f, name, coordinateScale(f, name, "x_m", xs, "m", "x of the cell centres (east), world coordinates"),
+                rank - 1, "x");
+    attachScale(f, name, coordinateScale(f, name, "y_m", ys, "m", "y of the cell centres (north), world coordinates"),
+                rank - 2, "y");
+    if (planes == 12) {
+        std::vector<std::int32_t> months(12);
+        for (int m = 0; m < 12; ++m) months[static_cast<std::size_t>(m)] = m + 1;
+        attachScale(f, name, coordinateScale(f, name, "month", months, "1", "month of the year (1 = January)"), 0, "month");
+    } else if (planes > 0) {
+        std::vector<std::int32_t> index(planes);
+        for (std::size_t p = 0; p < planes; ++p) index[p] = static_cast<std::int32_t>(p);
+        attachScale(f, name, coordinateScale(f, name, "plane", index, "1", "plane index"), 0, "plane");
+    }
 }
 
 struct Geometry {
@@ -483,8 +676,8 @@ Geometry readGeometry(const File& f, const std::string& name) {
 }  // namespace
 
 void File::writeGrid(const std::string& name, const Grid<float>& g, const std::string& units) {
-    writeF32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
-    writeGeometry(*this, name, g, units);
+    writeF32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())}, units);
+    writeGeometry(*this, name, g);
 }
 
 Grid<float> File::readGrid(const std::string& name) const {
@@ -499,8 +692,8 @@ Grid<float> File::readGrid(const std::string& name) const {
 }
 
 void File::writeGridI32(const std::string& name, const Grid<std::int32_t>& g, const std::string& units) {
-    writeI32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())});
-    writeGeometry(*this, name, g, units);
+    writeI32(name, g.data(), {static_cast<hsize_t>(g.height()), static_cast<hsize_t>(g.width())}, units);
+    writeGeometry(*this, name, g);
 }
 
 Grid<std::int32_t> File::readGridI32(const std::string& name) const {
@@ -525,8 +718,8 @@ void File::writeStack(const std::string& name, const std::vector<Grid<float>>& p
         all.insert(all.end(), p.data().begin(), p.data().end());
     }
     writeF32(name, all, {static_cast<hsize_t>(planes.size()), static_cast<hsize_t>(g0.height()),
-                         static_cast<hsize_t>(g0.width())});
-    writeGeometry(*this, name, g0, units);
+                         static_cast<hsize_t>(g0.width())}, units);
+    writeGeometry(*this, name, g0, planes.size());
 }
 
 std::vector<Grid<float>> File::readStack(const std::string& name) const {

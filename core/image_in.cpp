@@ -9,6 +9,7 @@
 #include <cstdio>
 
 #include "error.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -65,6 +66,7 @@ ImagePixels readImagePixels(const std::string& path, const std::string& what, in
                             const std::function<void(int, int, int)>& checkHeader) {
     if (std::FILE* f = std::fopen(path.c_str(), "rb")) std::fclose(f);
     else throw IoError(path + ": cannot open " + what + " (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     ImagePixels px;
     std::string failure;
     {

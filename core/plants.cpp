@@ -10,33 +10,35 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "text_format.h"
+#include "provenance.h"
 
 namespace eco {
 
 namespace {
 
-// A float64 column of a plant table: its dataset name and the field it stores.
+// A float64 column of a plant table: its dataset name, the field it stores and its units.
 template <typename P>
 struct PlantColumn {
     const char* name;
     double P::*field;
+    const char* units;
 };
 
 // The position and size columns every plant table has, in file order (after species_id).
 template <typename P>
-constexpr PlantColumn<P> kPlantColumns[] = {{"x", &P::xM},
-                                            {"y", &P::yM},
-                                            {"ground_z", &P::groundZM},
-                                            {"height", &P::heightM},
-                                            {"crown_radius", &P::crownRadiusM}};
+constexpr PlantColumn<P> kPlantColumns[] = {{"x", &P::xM, "m"},
+                                            {"y", &P::yM, "m"},
+                                            {"ground_z", &P::groundZM, "m"},
+                                            {"height", &P::heightM, "m"},
+                                            {"crown_radius", &P::crownRadiusM, "m"}};
 
 // The state columns of an undergrowth table, in file order (after the id column).
-constexpr PlantColumn<UndergrowthPlant> kStateColumns[] = {{"age", &UndergrowthPlant::ageYears},
-                                                          {"growth_age", &UndergrowthPlant::growthAgeYears},
-                                                          {"vigour", &UndergrowthPlant::vigour},
-                                                          {"pool", &UndergrowthPlant::pool},
-                                                          {"sun_share", &UndergrowthPlant::sunShare},
-                                                          {"water_share", &UndergrowthPlant::waterShare}};
+constexpr PlantColumn<UndergrowthPlant> kStateColumns[] = {{"age", &UndergrowthPlant::ageYears, "years"},
+                                                          {"growth_age", &UndergrowthPlant::growthAgeYears, "years"},
+                                                          {"vigour", &UndergrowthPlant::vigour, "1"},
+                                                          {"pool", &UndergrowthPlant::pool, "1"},
+                                                          {"sun_share", &UndergrowthPlant::sunShare, "hours/day"},
+                                                          {"water_share", &UndergrowthPlant::waterShare, "mm/month"}};
 
 template <typename P, std::size_t N>
 void writeColumns(h5::File& file, const std::string& group, const std::vector<P>& plants, const PlantColumn<P> (&columns)[N]) {
@@ -44,7 +46,7 @@ void writeColumns(h5::File& file, const std::string& group, const std::vector<P>
     std::vector<double> v(n);
     for (const PlantColumn<P>& c : columns) {
         for (std::size_t i = 0; i < plants.size(); ++i) v[i] = plants[i].*c.field;
-        file.writeF64(group + "/" + c.name, v, {n});
+        file.writeF64(group + "/" + c.name, v, {n}, c.units);
     }
 }
 
@@ -56,7 +58,7 @@ void writePlantTable(h5::File& file, const std::string& group, const std::vector
     std::vector<std::int32_t> sp(n);
     for (std::size_t i = 0; i < plants.size(); ++i) sp[i] = plants[i].speciesId;
     file.ensureGroup(group);
-    file.writeI32(group + "/species_id", sp, {n});
+    file.writeI32(group + "/species_id", sp, {n}, "1");
     writeColumns(file, group, plants, kPlantColumns<P>);
     std::vector<std::string> names;
     for (const auto& s : biome.species) names.push_back(s.name);
@@ -76,9 +78,9 @@ void writeUndergrowthPlants(h5::File& file, const std::string& group, const std:
                             const Biome& biome) {
     writePlantTable(file, group, plants, biome);
     const hsize_t n = plants.size();
-    std::vector<double> id(n);
-    for (std::size_t i = 0; i < n; ++i) id[i] = static_cast<double>(plants[i].id);  // exact below 2^53
-    file.writeF64(group + "/id", id, {n});
+    std::vector<std::int64_t> id(n);
+    for (std::size_t i = 0; i < n; ++i) id[i] = static_cast<std::int64_t>(plants[i].id);
+    file.writeI64(group + "/id", id, {n}, "1");
     writeColumns(file, group, plants, kStateColumns);
 }
 
@@ -139,8 +141,15 @@ std::vector<UndergrowthPlant> readUndergrowthPlants(const h5::File& file, const 
         }
         return v;
     };
-    const auto id = optional("id");
-    for (std::size_t i = 0; i < id.size(); ++i) out[i].id = static_cast<std::uint64_t>(id[i]);
+    // Ids: int64 since typed HDF5 (issue 31), float64 (exact below 2^53) before.
+    if (file.exists(group + "/id") && file.isIntegerDataset(group + "/id")) {
+        const auto id = file.readI64(group + "/id");
+        if (id.size() != basic.size()) throw IoError(file.path() + ": " + group + "/id: length differs from species_id");
+        for (std::size_t i = 0; i < id.size(); ++i) out[i].id = static_cast<std::uint64_t>(id[i]);
+    } else {
+        const auto id = optional("id");
+        for (std::size_t i = 0; i < id.size(); ++i) out[i].id = static_cast<std::uint64_t>(id[i]);
+    }
     for (const PlantColumn<UndergrowthPlant>& c : kStateColumns) {
         const auto v = optional(c.name);
         for (std::size_t i = 0; i < v.size(); ++i) out[i].*c.field = v[i];
@@ -207,6 +216,7 @@ void writeUndergrowthCsv(const std::string& path, const std::vector<UndergrowthP
 std::vector<Plant> readPlantsCsv(const std::string& path, const Biome& biome, const std::string& layer) {
     std::ifstream in(path);
     if (!in) throw IoError(path + ": cannot open file (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::string line;
     std::vector<std::string> fields;
     int lineNo = 0;

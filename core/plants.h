@@ -11,7 +11,8 @@
 //   G/crown_radius float64 [n]  metres
 //   G/species_names string [nspecies]  the biome's species names, in biome order
 // Attributes of G: count, units = "m".
-// An undergrowth table adds the state columns (float64 [n]): id (exact below 2^53), age and
+// An undergrowth table adds the state columns: id (int64 [n]; float64 in files written before
+// issue 31, exact below 2^53) and (float64 [n]) age and
 // growth_age (years), vigour, pool, sun_share (hours/day), water_share (mm/month); a reader
 // of plain plants ignores them, and they are optional to the undergrowth reader.
 #pragma once

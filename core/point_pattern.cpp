@@ -15,6 +15,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "text_format.h"
+#include "provenance.h"
 
 namespace eco {
 
@@ -370,6 +371,7 @@ bool splitCsv(const std::string& line, std::vector<std::string>& out) { return s
 PointPattern readPointPatternCsv(const std::string& path, const RectWindow* window) {
     std::ifstream in(path);
     if (!in) throw IoError(path + ": cannot open file (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::string line;
     std::vector<std::string> fields;
     int lineNo = 0;

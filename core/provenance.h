@@ -35,7 +35,30 @@ struct ProvenanceEntry {
 
 /// Write /provenance with `entries` and a note saying what the group is, when provenance is
 /// recorded; write nothing otherwise. Call on the writing thread, after the other objects.
+/// Every group also gets what identifies the run (docs/hdf5.md "Provenance"): code_version,
+/// git_commit, command_line (and stage_command inside eco run), and the input files the
+/// command read with their FNV-1a 64-bit hashes (input_files, input_fnv1a64).
 void writeProvenance(h5::File& file, const std::vector<ProvenanceEntry>& entries);
+
+/// The command line of this process (argv joined with spaces, arguments with spaces or
+/// quotes quoted as a shell would need), recorded in /provenance. Set once in main().
+void setCommandLine(int argc, const char* const* argv);
+std::string processCommandLine();
+
+/// Inside eco run: the command of the stage being run (empty outside a stage). Recorded as
+/// /provenance `stage_command`; starting a stage also forgets the input files noted so far,
+/// so that each stage's files list what that stage read.
+void beginStage(const std::string& stageCommand);
+
+/// Note that the command read the file at `path` (an input of whatever it writes next):
+/// its path and the FNV-1a 64-bit hash of its bytes are recorded in /provenance. Each path
+/// once, in the order first read; nothing is hashed when provenance is off.
+void noteInputFile(const std::string& path);
+/// The input files noted so far, with their hashes as 16 hex digits.
+std::vector<std::pair<std::string, std::string>> inputFiles();
+
+/// FNV-1a 64-bit hash of a file's bytes as 16 hex digits; "unreadable" when it cannot be read.
+std::string fnv1a64OfFile(const std::string& path);
 
 /// A number from /provenance, or from the root attribute `legacyRootAttr` of a file written
 /// before the group existed (when non-empty); nullopt when neither is there.

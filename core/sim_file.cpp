@@ -70,11 +70,11 @@ void writeTimeseries(h5::File& f, const std::string& group, const std::vector<Ye
         }
     }
     f.ensureGroup(group);
-    f.writeI32(group + "/year", year, {ny});
-    f.writeI32(group + "/count", count, {ny, ns});
-    f.writeF64(group + "/mean_height", h, {ny, ns});
-    f.writeF64(group + "/mean_vigour", v, {ny, ns});
-    f.writeF64(group + "/crown_area", a, {ny, ns});
+    f.writeI32(group + "/year", year, {ny}, "years");
+    f.writeI32(group + "/count", count, {ny, ns}, "1");
+    f.writeF64(group + "/mean_height", h, {ny, ns}, "m");
+    f.writeF64(group + "/mean_vigour", v, {ny, ns}, "1");
+    f.writeF64(group + "/crown_area", a, {ny, ns}, "m2");
     f.writeStrings(group + "/species_names", speciesNames(biome));
     f.setAttr(group, "units", std::string("year: complete years simulated (0 = initial state); count: plants; "
                                           "mean_height: m; mean_vigour: dimensionless; crown_area: m^2 (sum of pi r^2)"));
@@ -124,7 +124,7 @@ void writeSimulationFile(const std::string& path, const SimulationFileInfo& info
         f.setAttr("/", "x1", info.x1);
         f.setAttr("/", "y1", info.y1);
         f.setAttr("/", "area_units", std::string("m, world coordinates (x east, y north)"));
-        for (const auto& [key, value] : info.parameters) f.setAttr("/", key, value);
+        for (const h5::NamedAttr& a : info.parameters) f.setAttr("/", a);
         f.setAttr("/", "model_toml", info.modelToml);
         f.setAttr("/", "biome_name", biome.name);
         f.setAttr("/", "biome_toml", biomeToToml(biome));
@@ -166,8 +166,8 @@ SimulationFileData readSimulationFile(const std::string& path, int wantedYear) {
         throw IoError(path + ": not a simulation file (format '" + format + "', expected '" + kSimulationFormat + "')");
     if (f.hasAttr("/", "schema_version")) {
         const std::int64_t v = f.attrInt("/", "schema_version");
-        if (v != kSimulationSchemaVersion)
-            throw IoError(path + ": simulation schema_version " + std::to_string(v) + " found, version " +
+        if (v < 1 || v > kSimulationSchemaVersion)
+            throw IoError(path + ": simulation schema_version " + std::to_string(v) + " found, versions 1 to " +
                           std::to_string(kSimulationSchemaVersion) + " expected");
     }
     if (!f.hasAttr("/", "biome_toml")) throw IoError(path + ": root attribute 'biome_toml' (the biome) is missing");

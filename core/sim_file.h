@@ -32,7 +32,9 @@
 namespace eco {
 
 inline constexpr const char* kSimulationFormat = "eco-simulation";
-inline constexpr std::int64_t kSimulationSchemaVersion = 1;
+/// 2 since issue 31: plant ids int64 (1: float64, still read), the model's choices as HDF5
+/// enums, units and dimension scales (docs/hdf5.md).
+inline constexpr std::int64_t kSimulationSchemaVersion = 2;
 
 /// Per-species figures of one year (index = species id): one row of /timeseries.
 struct YearRecord {
@@ -54,7 +56,7 @@ struct SimulationFileInfo {
     int threads = 0;                 ///< provenance: OpenMP threads of the last process
     int resumedFromYear = -1;        ///< provenance: -1 when not resumed
     double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< simulated area, world metres
-    std::vector<std::pair<std::string, double>> parameters;  ///< model parameters by key
+    std::vector<h5::NamedAttr> parameters;  ///< model parameters by key, typed (choices as enums)
     std::string modelToml;
     std::string terrainPath, abioticsPath, canopyPath, biomePath, initialPath, configPath;
     std::int64_t germinated = 0, diedBackgroundOrStress = 0, diedAtCanopy = 0, diedDominated = 0;

@@ -1,4 +1,5 @@
 #include "strict_toml.h"
+#include "provenance.h"
 
 #include <filesystem>
 #include <fstream>
@@ -36,6 +37,7 @@ toml::table parseTomlText(const std::string& text, const std::string& sourceName
 toml::table parseTomlFile(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(path + ": cannot open file (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::ostringstream ss;
     ss << in.rdbuf();
     if (in.bad()) throw IoError(path + ": error while reading");

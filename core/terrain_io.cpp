@@ -16,6 +16,7 @@
 
 #include "atomic_file.h"
 #include "eco_version.h"
+#include "provenance.h"
 #include "error.h"
 #include "h5io.h"
 #include "geo_raster.h"
@@ -114,6 +115,7 @@ void checkWriteOptions(const std::string& path, const TerrainWriteOptions& o) {
 std::string readWholeFile(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(path + ": cannot open file (missing or unreadable)");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::ostringstream ss;
     ss << in.rdbuf();
     if (in.bad()) throw IoError(path + ": read error");
@@ -438,6 +440,7 @@ void writeTerrainH5(const std::string& path, const Grid<float>& g) {
         f.setAttr("/", "format", std::string("eco-terrain"));
         f.setAttr("/", "schema_version", std::int64_t{1});
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
+        writeProvenance(f, {});  // what identifies the run: nothing measured
     }  // closed before the rename
     out.commit();
 }
@@ -445,6 +448,7 @@ void writeTerrainH5(const std::string& path, const Grid<float>& g) {
 // ---------------------------------------------------------------------------- dispatch
 
 Grid<float> readTerrain(const std::string& path, const TerrainReadOptions& options) {
+    noteInputFile(path);  // any format (GeoTIFF through GDAL too): recorded in /provenance with its hash
     const std::string ext = fileExtension(path);
     const bool known = ext == ".asc" || ext == ".h5" || ext == ".hdf5" || isTerrainImageExtension(ext) || isGdalOnlyExtension(ext);
     if (!known)

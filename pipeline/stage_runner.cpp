@@ -9,6 +9,7 @@
 #include "biome_db.h"
 #include "eco_version.h"
 #include "error.h"
+#include "provenance.h"
 #include "stage_common.h"
 #include "text_format.h"
 
@@ -32,7 +33,10 @@ bool StageRunner::run(const std::string& name, const std::string& output, const 
     {
         const std::unique_ptr<Reporter> stageReporter = stageReporter_();
         try {
+            // The stage's files record its command line and the inputs it read.
+            beginStage(quotedCommand(commandLine(options)));
             runStage(options, *stageReporter);
+            beginStage("");
         } catch (const Error& e) {
             throw Error(label_ + " stage '" + name + "' failed: " + e.what());
         }

@@ -7,6 +7,7 @@
 
 #include "atomic_file.h"
 #include "eco_version.h"
+#include "provenance.h"
 #include "error.h"
 #include "h5io.h"
 #include "image_out.h"
@@ -97,13 +98,16 @@ void writeChmH5(const std::string& path, const Grid<float>& chm, const Grid<std:
     AtomicOutput out(path);
     {
         h5::File f = h5::File::create(out.tempPath());
-        f.writeGrid("/chm/height", chm, "m above ground");
-        f.writeGridI32("/chm/sketch", sketch, "density level: 0 empty, 1 sparse, 2 dense");
+        f.writeGrid("/chm/height", chm, "m");
+        f.setAttr("/chm/height", "long_name", std::string("canopy height above ground"));
+        f.writeGridI32("/chm/sketch", sketch, "1");
+        f.setAttr("/chm/sketch", "long_name", std::string("density level: 0 empty, 1 sparse, 2 dense"));
         // The root attributes every file of ours carries (docs/hdf5.md); readers of a CHM take
         // any file with /chm/height, so older files stay readable.
         f.setAttr("/", "format", std::string("eco-chm"));
         f.setAttr("/", "schema_version", std::int64_t{1});
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
+        writeProvenance(f, {});  // what identifies the run: nothing measured
         f.setAttr("/chm", "generator",
                   std::string("eco procedural CHM: a stand-in for the paper's learned (conditional GAN) CHM; "
                               "sphere crowns placed by dart throwing from the density sketch"));
@@ -137,10 +141,10 @@ void writeChmH5(const std::string& path, const Grid<float>& chm, const Grid<std:
             r.push_back(t.crownRadiusM);
         }
         const std::vector<hsize_t> dims{static_cast<hsize_t>(trees.size())};
-        f.writeF64("/chm/trees/x_m", x, dims);
-        f.writeF64("/chm/trees/y_m", y, dims);
-        f.writeF64("/chm/trees/height_m", hgt, dims);
-        f.writeF64("/chm/trees/crown_radius_m", r, dims);
+        f.writeF64("/chm/trees/x_m", x, dims, "m");
+        f.writeF64("/chm/trees/y_m", y, dims, "m");
+        f.writeF64("/chm/trees/height_m", hgt, dims, "m");
+        f.writeF64("/chm/trees/crown_radius_m", r, dims, "m");
         f.setAttr("/chm/trees", "description",
                   std::string("trees the CHM was rasterised from (world metres; height above ground)"));
     }

@@ -187,6 +187,32 @@ std::vector<std::pair<std::string, double>> SimParams::namedValues() const {
     return out;
 }
 
+namespace {
+// An enum's value and its names indexed by value (the EnumName tables list every value 0..N-1).
+template <typename E, std::size_t N>
+h5::EnumChoice choice(E value, const EnumName<E> (&names)[N]) {
+    h5::EnumChoice c;
+    c.value = static_cast<int>(value);
+    c.names.resize(N);
+    for (const auto& n : names) c.names.at(static_cast<std::size_t>(n.value)) = n.name;
+    return c;
+}
+}  // namespace
+
+std::vector<h5::NamedAttr> SimParams::typedValues() const {
+    std::vector<h5::NamedAttr> out;
+    for (const auto& f : simParamFields()) {
+        if (f.kind == ParamDesc<SimParams>::Kind::Integer) out.push_back({f.key, static_cast<std::int64_t>(this->*(f.integer))});
+        else out.push_back({f.key, f.value(*this)});
+    }
+    out.push_back({"growth_rule", choice(growthRule, kGrowthRules)});
+    out.push_back({"competition", choice(competition, kCompetitionModes)});
+    out.push_back({"germination_cells", choice(germinationCells, kGerminationCells)});
+    out.push_back({"germination_vigour", choice(germinationVigour, kGerminationVigours)});
+    out.push_back({"canopy_limit", choice(canopyLimit, kCanopyLimits)});
+    return out;
+}
+
 std::string RunConfig::effectiveCheckpointPath() const {
     return checkpointPath.empty() ? outputPath + ".checkpoint.h5" : checkpointPath;
 }

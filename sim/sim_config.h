@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "h5io.h"
 #include "param_desc.h"
 
 namespace eco::sim {
@@ -123,6 +124,9 @@ struct SimParams {
     std::string toToml() const;
     /// (key, value) pairs in the order of toToml(), values as doubles (for HDF5 attributes).
     std::vector<std::pair<std::string, double>> namedValues() const;
+    /// The same parameters typed for HDF5 attributes: reals as double, integer fields as
+    /// int64, the choices (growth_rule, competition, ...) as enums of their names.
+    std::vector<h5::NamedAttr> typedValues() const;
 };
 
 /// The one description of SimParams' numeric [model] keys (core/param_desc.h), in the order

@@ -88,6 +88,7 @@ std::vector<std::string> splitCsvLine(const std::string& line) {
 std::vector<UndergrowthPlant> readInitialCsv(const std::string& path, const Biome& biome) {
     std::ifstream in(path);
     if (!in) throw IoError(path + ": cannot open initial plant CSV");
+    noteInputFile(path);  // recorded in /provenance with its hash
     std::string line;
     if (!std::getline(in, line)) throw IoError(path + ": empty CSV (a header is required)");
     const auto header = splitCsvLine(line);
@@ -189,7 +190,7 @@ void writeSimulationH5(const std::string& path, const Simulation& sim, const Run
     info.y0 = a.y0;
     info.x1 = a.x1;
     info.y1 = a.y1;
-    info.parameters = sim.params().namedValues();
+    info.parameters = sim.params().typedValues();
     info.modelToml = sim.params().toToml();
     info.terrainPath = config.terrainPath;
     info.abioticsPath = config.abioticsPath;

@@ -79,7 +79,7 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     f.ensureGroup(group);
     f.setAttr(group, "fingerprint", hex64(fingerprint()));
     f.setAttr(group, "months_done", static_cast<std::int64_t>(s.month));
-    f.setAttr(group, "next_id", hex64(s.nextId));
+    f.setAttr(group, "next_id", static_cast<std::int64_t>(s.nextId));  // the uint64's bits
     f.setAttr(group, "window_mask", static_cast<std::int64_t>(s.windowMask));
     f.setAttr(group, "plant_months", static_cast<std::int64_t>(s.counters.plantMonths));
     f.setAttr(group, "plant_cell_months", static_cast<std::int64_t>(s.counters.plantCellMonths));
@@ -94,25 +94,25 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
         idLo[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(pl.id[p]));
         idHi[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(pl.id[p] >> 32));
     }
-    f.writeI32(group + "/id_lo", idLo, {n});
-    f.writeI32(group + "/id_hi", idHi, {n});
-    f.writeI32(group + "/species", pl.species, {n});
-    f.writeF64(group + "/x", pl.x, {n});
-    f.writeF64(group + "/y", pl.y, {n});
-    f.writeF64(group + "/growth_age", pl.growthAge, {n});
-    f.writeF64(group + "/pool", pl.pool, {n});
+    f.writeI32(group + "/id_lo", idLo, {n}, "1");
+    f.writeI32(group + "/id_hi", idHi, {n}, "1");
+    f.writeI32(group + "/species", pl.species, {n}, "1");
+    f.writeF64(group + "/x", pl.x, {n}, "m");
+    f.writeF64(group + "/y", pl.y, {n}, "m");
+    f.writeF64(group + "/growth_age", pl.growthAge, {n}, "years");
+    f.writeF64(group + "/pool", pl.pool, {n}, "1");
     std::vector<std::int32_t> ageMonths(n);
     for (std::size_t p = 0; p < n; ++p) ageMonths[p] = static_cast<std::int32_t>(s.month - pl.birthMonth[p]);
-    f.writeI32(group + "/age_months", ageMonths, {n});
-    f.writeI32(group + "/root_ix", pl.rootIx, {n});
-    f.writeI32(group + "/root_iy", pl.rootIy, {n});
-    f.writeF32(group + "/vigour", pl.vigour, {n});
-    f.writeF32(group + "/sun", pl.sun, {n});
-    f.writeF32(group + "/water", pl.water, {n});
+    f.writeI32(group + "/age_months", ageMonths, {n}, "months");
+    f.writeI32(group + "/root_ix", pl.rootIx, {n}, "1");
+    f.writeI32(group + "/root_iy", pl.rootIy, {n}, "1");
+    f.writeF32(group + "/vigour", pl.vigour, {n}, "1");
+    f.writeF32(group + "/sun", pl.sun, {n}, "hours/day");
+    f.writeF32(group + "/water", pl.water, {n}, "mm/month");
     // Height and radius are kept bit-exactly (they follow growth age, but only in growth
     // months, so they cannot be recomputed from it for every plant).
-    f.writeF64(group + "/height", pl.height, {n});
-    f.writeF64(group + "/radius", pl.radius, {n});
+    f.writeF64(group + "/height", pl.height, {n}, "m");
+    f.writeF64(group + "/radius", pl.radius, {n}, "m");
     for (std::size_t g = 0; g < s.periods(); ++g) {
         const hsize_t dims[2] = {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W)};
         std::vector<float> sun(s.cellCount()), water(s.cellCount());
@@ -120,12 +120,12 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
             sun[c] = s.deficitAt(c, g)[0];
             water[c] = s.deficitAt(c, g)[1];
         }
-        f.writeF32(group + "/deficit_sun_" + std::to_string(g), sun, {dims[0], dims[1]});
-        f.writeF32(group + "/deficit_water_" + std::to_string(g), water, {dims[0], dims[1]});
+        f.writeF32(group + "/deficit_sun_" + std::to_string(g), sun, {dims[0], dims[1]}, "hours/day");
+        f.writeF32(group + "/deficit_water_" + std::to_string(g), water, {dims[0], dims[1]}, "mm/month");
     }
     if (!s.monthDeficit.empty())  // germination_vigour = "mean_vigour": (row, column, month, {sun, water})
         f.writeF32(group + "/month_deficit", s.monthDeficit,
-                   {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W), 12, 2});
+                   {static_cast<hsize_t>(s.H), static_cast<hsize_t>(s.W), 12, 2}, "1");
 }
 
 void Simulation::loadState(const h5::File& f, const std::string& group) {
@@ -192,7 +192,9 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     s.layoutReusable = false;
     s.month = f.attrInt(group, "months_done");
     for (std::int32_t& b : s.pl.birthMonth) b = static_cast<std::int32_t>(s.month - b);
-    s.nextId = std::stoull(f.attrString(group, "next_id"), nullptr, 16);
+    // int64 (the uint64's bits) since typed attributes; 16 hex digits in checkpoints before.
+    s.nextId = f.attrIsString(group, "next_id") ? std::stoull(f.attrString(group, "next_id"), nullptr, 16)
+                                                : static_cast<std::uint64_t>(f.attrInt(group, "next_id"));
     s.windowMask = static_cast<std::uint32_t>(f.attrInt(group, "window_mask"));
     s.counters.plantMonths = f.attrInt(group, "plant_months");
     s.counters.plantCellMonths = f.hasAttr(group, "plant_cell_months") ? f.attrInt(group, "plant_cell_months") : 0;

@@ -52,6 +52,18 @@ std::vector<std::pair<std::string, std::string>> ForestFloorParams::asParameters
     return out;
 }
 
+std::vector<h5::NamedAttr> ForestFloorParams::asAttributes() const {
+    std::vector<h5::NamedAttr> out;
+    for (std::size_t f = 0; f < kFactorCount; ++f) {
+        const std::string key = std::string("grass_") + kFactors[f].key;
+        out.push_back({key + "_c", grass[f].c});
+        out.push_back({key + "_r", grass[f].r});
+    }
+    out.push_back({"undergrowth_shades", undergrowthShades});
+    for (const auto& f : forestFloorParamFields()) out.push_back(paramAttr(f, *this));
+    return out;
+}
+
 ForestFloor computeForestFloor(const FactorGrids& features, const std::vector<Plant>& canopy,
                                const std::vector<Plant>& undergrowth, const Biome& biome,
                                const ForestFloorParams& params) {

@@ -42,6 +42,8 @@ struct ForestFloorParams {
     /// (key, value text) as recorded in scene files: grass_<factor>_c / _r per factor,
     /// undergrowth_shades, then forestFloorParamFields() in order.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
+    /// The same, typed for the scene file's attributes (undergrowth_shades a boolean).
+    std::vector<h5::NamedAttr> asAttributes() const;
 };
 
 /// The numeric fields of ForestFloorParams (core/param_desc.h), keyed as scene files and

@@ -38,16 +38,16 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.setAttr("/", "code_version", std::string(ECO_VERSION_STRING));
         // The seed's 64 bits, as an int64 attribute (as the database stores seeds).
         f.setAttr("/", "seed", static_cast<std::int64_t>(sc.params.seed));
-        for (const auto& [k, v] : sc.params.asParameters())
-            if (k != "seed") f.setAttr("/", k, v);
-        for (const auto& [k, v] : sc.floorParams.asParameters()) f.setAttr("/", k, v);
+        for (const h5::NamedAttr& a : sc.params.asAttributes())
+            if (a.name != "seed") f.setAttr("/", a);
+        for (const h5::NamedAttr& a : sc.floorParams.asAttributes()) f.setAttr("/", a);
         if (sc.params.method == SynthMethod::Deussen)
             f.setAttr("/", "deussen_density_image", sc.densityImageSource.empty() ? std::string("none (the database's density map)")
                                                                                    : sc.densityImageSource);
         if (sc.params.method == SynthMethod::Xu2015) f.setAttr("/", "xu_exemplar", sc.exemplarSource);
-        f.setAttr("/", "refined", static_cast<std::int64_t>(sc.refined ? 1 : 0));
+        f.setAttrBool("/", "refined", sc.refined);
         if (sc.refined)
-            for (const auto& [k, v] : sc.refineParams.asParameters()) f.setAttr("/", k, v);
+            for (const h5::NamedAttr& a : sc.refineParams.asAttributes()) f.setAttr("/", a);
         f.setAttr("/", "database_path", sc.databasePath);
         f.setAttr("/", "database_code_version", sc.databaseCodeVersion.empty() ? db.codeVersion : sc.databaseCodeVersion);
         f.setAttr("/", "database_seeding_radius_factor", db.seedingRadiusFactor);
@@ -65,10 +65,14 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.setAttr("/undergrowth", "layer", std::string("undergrowth"));
 
         f.ensureGroup("/forest_floor");
-        f.writeGrid("/forest_floor/grass", sc.floor.grass, "density, 0..1");
-        f.writeGrid("/forest_floor/litter", sc.floor.litter, "density, 0..1");
-        f.writeGridI32("/cluster_map", sc.clusterMap.region, "database region index, -1 none");
-        f.writeGridI32("/combination_map", sc.clusterMap.combination, "sub-biome bitmask (bit b-1 = sub-biome b), 0 none");
+        f.writeGrid("/forest_floor/grass", sc.floor.grass, "1");
+        f.setAttr("/forest_floor/grass", "long_name", std::string("grass density, 0..1"));
+        f.writeGrid("/forest_floor/litter", sc.floor.litter, "1");
+        f.setAttr("/forest_floor/litter", "long_name", std::string("litter density, 0..1"));
+        f.writeGridI32("/cluster_map", sc.clusterMap.region, "1");
+        f.setAttr("/cluster_map", "long_name", std::string("database region index, -1 none"));
+        f.writeGridI32("/combination_map", sc.clusterMap.combination, "1");
+        f.setAttr("/combination_map", "long_name", std::string("sub-biome bitmask (bit b-1 = sub-biome b), 0 none"));
         f.ensureGroup("/terrain");
         f.writeGrid("/terrain/elevation", sc.terrainM, "m");
 
@@ -94,15 +98,15 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         f.setAttr("/regions", "passes", static_cast<std::int64_t>(sc.sampling.passes));
         f.setAttr("/regions", "darts", static_cast<std::int64_t>(sc.sampling.darts));
         f.setAttr("/regions", "darts_on_trunks", static_cast<std::int64_t>(sc.sampling.dartsOnTrunks));
-        f.writeI32("/regions/region", region, {n});
-        f.writeI32("/regions/combination", combination, {n});
-        f.writeI32("/regions/cluster", cluster, {n});
-        f.writeF64("/regions/cells", cells, {n});
-        f.writeF64("/regions/area_m2", area, {n});
-        f.writeF64("/regions/target_density_per_m2", targetDensity, {n});
-        f.writeF64("/regions/target_count", targetCount, {n});
-        f.writeF64("/regions/placed", placed, {n});
-        f.writeF64("/regions/density_per_m2", density, {n});
+        f.writeI32("/regions/region", region, {n}, "1");
+        f.writeI32("/regions/combination", combination, {n}, "1");
+        f.writeI32("/regions/cluster", cluster, {n}, "1");
+        f.writeF64("/regions/cells", cells, {n}, "1");
+        f.writeF64("/regions/area_m2", area, {n}, "m2");
+        f.writeF64("/regions/target_density_per_m2", targetDensity, {n}, "m-2");
+        f.writeF64("/regions/target_count", targetCount, {n}, "1");
+        f.writeF64("/regions/placed", placed, {n}, "1");
+        f.writeF64("/regions/density_per_m2", density, {n}, "m-2");
         f.setAttr("/regions", "method", std::string(toString(sc.params.method)));
         if (sc.sampling.structure.size() == regs.size()) {
             // The structured sampler's fitted model of each region (docs/synth.md 2a).
@@ -119,12 +123,12 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
                 fitRms[i] = st.pooledFitRms;
                 contextRms[i] = st.pooledContextRms;
             }
-            f.writeI32("/regions/cluster_fields", scales, {n});
-            f.writeF64("/regions/cluster_sigma_m", sigma, {n, 2});
-            f.writeF64("/regions/cluster_parents_per_m2", kappa, {n, 2});
-            f.writeF64("/regions/cluster_pooled_amplitude", amplitude, {n, 2});
-            f.writeF64("/regions/pooled_g_fit_rms", fitRms, {n});
-            f.writeF64("/regions/pooled_g_context_only_rms", contextRms, {n});
+            f.writeI32("/regions/cluster_fields", scales, {n}, "1");
+            f.writeF64("/regions/cluster_sigma_m", sigma, {n, 2}, "m");
+            f.writeF64("/regions/cluster_parents_per_m2", kappa, {n, 2}, "m-2");
+            f.writeF64("/regions/cluster_pooled_amplitude", amplitude, {n, 2}, "1");
+            f.writeF64("/regions/pooled_g_fit_rms", fitRms, {n}, "1");
+            f.writeF64("/regions/pooled_g_context_only_rms", contextRms, {n}, "1");
             f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
             f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
         }
@@ -144,13 +148,13 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
                 ceBefore[i] = d.clarkEvansBefore;
                 ceAfter[i] = d.clarkEvansAfter;
             }
-            f.writeI32("/regions/deussen_species_order", species, {m});
-            f.writeF64("/regions/deussen_halftone_cell_m", cell, {m});
-            f.writeF64("/regions/deussen_min_distance_m", minDist, {m});
-            f.writeF64("/regions/deussen_dots", dots, {m});
-            f.writeF64("/regions/deussen_dropped", dropped, {m});
-            f.writeF64("/regions/deussen_clark_evans_before", ceBefore, {m});
-            f.writeF64("/regions/deussen_clark_evans_after", ceAfter, {m});
+            f.writeI32("/regions/deussen_species_order", species, {m}, "1");
+            f.writeF64("/regions/deussen_halftone_cell_m", cell, {m}, "m");
+            f.writeF64("/regions/deussen_min_distance_m", minDist, {m}, "m");
+            f.writeF64("/regions/deussen_dots", dots, {m}, "1");
+            f.writeF64("/regions/deussen_dropped", dropped, {m}, "1");
+            f.writeF64("/regions/deussen_clark_evans_before", ceBefore, {m}, "1");
+            f.writeF64("/regions/deussen_clark_evans_after", ceAfter, {m}, "1");
             f.setAttr("/regions", "heights_limited_by_crown", static_cast<std::int64_t>(sc.sampling.heightsLimitedByCrown));
             f.setAttr("/regions", "darts_inhibited", static_cast<std::int64_t>(sc.sampling.dartsInhibited));
         }
@@ -172,7 +176,7 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
         }
 
         f.ensureGroup("/refinement");
-        f.setAttr("/refinement", "applied", static_cast<std::int64_t>(sc.refined ? 1 : 0));
+        f.setAttrBool("/refinement", "applied", sc.refined);
         if (sc.refined) {
             const RefineResult& rr = sc.refineResult;
             f.setAttr("/refinement", "pcf_distance_before", rr.distanceBefore);
@@ -180,7 +184,7 @@ void writeSceneFile(const std::string& path, const SceneRecord& sc, const Biome&
             f.setAttr("/refinement", "proposals", static_cast<std::int64_t>(rr.proposals));
             f.setAttr("/refinement", "accepted", static_cast<std::int64_t>(rr.accepted));
             f.setAttr("/refinement", "rmax_m", rr.rMaxM);
-            f.writeF64("/refinement/objective_per_sweep", rr.objectivePerSweep, {rr.objectivePerSweep.size()});
+            f.writeF64("/refinement/objective_per_sweep", rr.objectivePerSweep, {rr.objectivePerSweep.size()}, "1");
         }
 
         // Dates and wall times: measured, not computed (docs/hdf5.md), so kept apart.

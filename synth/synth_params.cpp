@@ -90,6 +90,16 @@ std::vector<std::pair<std::string, std::string>> SynthParams::asParameters() con
     return out;
 }
 
+std::vector<h5::NamedAttr> SynthParams::asAttributes() const {
+    std::vector<h5::NamedAttr> out = {{"method", std::string(toString(method))}};
+    for (const auto& f : synthParamFields()) out.push_back(paramAttr(f, *this));
+    if (method == SynthMethod::Deussen)
+        for (auto& a : deussen.asAttributes()) out.push_back(std::move(a));
+    if (method == SynthMethod::Xu2015)
+        for (auto& a : xu.asAttributes()) out.push_back(std::move(a));
+    return out;
+}
+
 const std::vector<DeussenParamField>& deussenParamFields() {
     using K = DeussenParamField::Kind;
     using R = ParamRange;
@@ -153,11 +163,23 @@ std::vector<std::pair<std::string, std::string>> XuParams::asParameters() const 
     return out;
 }
 
+std::vector<h5::NamedAttr> XuParams::asAttributes() const {
+    std::vector<h5::NamedAttr> out;
+    for (const auto& f : xuParamFields()) out.push_back(paramAttr(f, *this));
+    return out;
+}
+
 void DeussenParams::validate() const { validateParams(*this, deussenParamFields(), "Deussen sampler parameter"); }
 
 std::vector<std::pair<std::string, std::string>> DeussenParams::asParameters() const {
     std::vector<std::pair<std::string, std::string>> out;
     for (const auto& f : deussenParamFields()) out.emplace_back(f.key, paramText(f, *this, kRecordDigits));
+    return out;
+}
+
+std::vector<h5::NamedAttr> DeussenParams::asAttributes() const {
+    std::vector<h5::NamedAttr> out;
+    for (const auto& f : deussenParamFields()) out.push_back(paramAttr(f, *this));
     return out;
 }
 
@@ -193,6 +215,17 @@ std::vector<std::pair<std::string, std::string>> RefineParams::asParameters() co
                                                 : std::string("none"));
     out.emplace_back("refine_distance_sources", std::to_string(distanceSources));
     out.emplace_back("refine_seed", std::to_string(seed));  // the synthesis seed (pipeline/synth_stages.cpp)
+    return out;
+}
+
+std::vector<h5::NamedAttr> RefineParams::asAttributes() const {
+    std::vector<h5::NamedAttr> out;
+    for (const auto& f : refineParamFields()) out.push_back(paramAttr(f, *this));
+    // The window as [x0, y0, x1, y1] metres, or the text "none" when refinement covers the scene.
+    if (useWindow) out.push_back({"refine_window", std::vector<double>{window.x0, window.y0, window.x1, window.y1}});
+    else out.push_back({"refine_window", std::string("none")});
+    out.push_back({"refine_distance_sources", static_cast<std::int64_t>(distanceSources)});
+    out.push_back({"refine_seed", static_cast<std::int64_t>(seed)});  // the synthesis seed (pipeline/synth_stages.cpp)
     return out;
 }
 

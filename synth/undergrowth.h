@@ -46,6 +46,18 @@
 
 namespace eco::synth {
 
+/// A parameter of a ParamDesc table as a typed HDF5 attribute (docs/hdf5.md): a real as
+/// double, an integer as int64, a seed as int64 (the uint64's bits).
+template <typename S>
+h5::NamedAttr paramAttr(const ParamDesc<S>& f, const S& p) {
+    switch (f.kind) {
+        case ParamDesc<S>::Kind::Real: return {f.key, p.*(f.real)};
+        case ParamDesc<S>::Kind::Integer: return {f.key, static_cast<std::int64_t>(p.*(f.integer))};
+        case ParamDesc<S>::Kind::Seed: return {f.key, static_cast<std::int64_t>(p.*(f.seed))};
+    }
+    return {f.key, std::string()};
+}
+
 // ------------------------------------------------------------------------- inputs
 
 // The annual abiotic maps of the target terrain are a FactorGrids (core/factors.h), made by
@@ -111,6 +123,8 @@ struct DeussenParams {
     void validate() const;
     /// (key, value text) of every parameter, as recorded in scene files.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
+    /// The same, typed for the scene file's attributes (paramAttr).
+    std::vector<h5::NamedAttr> asAttributes() const;
 };
 using DeussenParamField = ParamDesc<DeussenParams>;
 /// Every parameter of DeussenParams, in record order (synth/synth_params.cpp).
@@ -153,6 +167,8 @@ struct XuParams {
     void validate() const;
     /// (key, value text) of every parameter, as recorded in scene files.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
+    /// The same, typed for the scene file's attributes (paramAttr).
+    std::vector<h5::NamedAttr> asAttributes() const;
 };
 using XuParamField = ParamDesc<XuParams>;
 /// Every parameter of XuParams, in record order (synth/synth_params.cpp).
@@ -198,6 +214,8 @@ struct SynthParams {
     /// synthParamFields() in order, then with the Deussen method deussenParamFields(), with
     /// the Xu 2015 method xuParamFields().
     std::vector<std::pair<std::string, std::string>> asParameters() const;
+    /// The same, typed for the scene file's attributes (paramAttr).
+    std::vector<h5::NamedAttr> asAttributes() const;
 };
 
 /// One parameter of SynthParams (core/param_desc.h): its key in scene files and
@@ -417,6 +435,8 @@ struct RefineParams {
     /// (key, value text) of every parameter, as recorded in scene files: refineParamFields()
     /// in order, then refine_window, refine_distance_sources and refine_seed.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
+    /// The same, typed for the scene file's attributes (paramAttr).
+    std::vector<h5::NamedAttr> asAttributes() const;
 };
 
 /// One parameter of RefineParams, keyed as scene files record it (refine_sweeps ...).

@@ -1,5 +1,6 @@
 // Round trips through the HDF5 layer and its error messages.
 #include <catch2/catch.hpp>
+#include <hdf5_hl.h>
 
 #include <chrono>
 #include <fstream>
@@ -15,6 +16,7 @@
 
 using eco::Grid;
 using eco::h5::File;
+using eco::h5::Handle;
 
 namespace {
 
@@ -54,7 +56,51 @@ TEST_CASE("h5io: float grid round trip keeps values and geometry", "[h5io]") {
     CHECK(f.attrInt("/a/b/grid", "width") == 9);
     CHECK(f.attrInt("/a/b/grid", "height") == 5);
     CHECK(f.shape("/a/b/grid") == std::vector<hsize_t>{5, 9});
-    CHECK(f.list("/a/b") == std::vector<std::string>{"grid"});
+    // The grid and its coordinate variables: x and y of the cell centres, world metres,
+    // attached to the grid's axes as HDF5 dimension scales (docs/hdf5.md).
+    CHECK(f.list("/a/b") == std::vector<std::string>{"grid", "x_m", "y_m"});
+    const std::vector<double> xs = f.readF64("/a/b/x_m"), ys = f.readF64("/a/b/y_m");
+    REQUIRE(xs.size() == 9);
+    REQUIRE(ys.size() == 5);
+    CHECK(xs[0] == Approx(g.originX() + 0.5 * g.cellSizeM()));
+    CHECK(xs[8] == Approx(g.originX() + 8.5 * g.cellSizeM()));
+    CHECK(ys[4] == Approx(g.originY() + 4.5 * g.cellSizeM()));
+    CHECK(f.attrString("/a/b/x_m", "units") == "m");
+    Handle grid(H5Dopen2(f.id(), "/a/b/grid", H5P_DEFAULT));
+    CHECK(H5DSget_num_scales(grid.id(), 0) == 1);
+    CHECK(H5DSget_num_scales(grid.id(), 1) == 1);
+}
+
+TEST_CASE("h5io: booleans and choices are HDF5 enums, integers int64, and text of older files still reads", "[h5io]") {
+    eco::test::TempDir dir("h5_typed");
+    const std::string path = dir.file("typed.h5");
+    {
+        File f = File::create(path);
+        f.setAttrBool("/", "yes", true);
+        f.setAttrBool("/", "no", false);
+        f.setAttrEnum("/", "rule", 1, {"ideal", "literal"});
+        f.setAttr("/", "old_bool", std::string("true"));
+        f.setAttr("/", "count", std::int64_t{16});
+        f.writeI64("/ids", {1, 2, (std::int64_t{1} << 40) + 3}, {3}, "1");
+    }
+    const File f = File::openRead(path);
+    CHECK(f.attrBool("/", "yes"));
+    CHECK_FALSE(f.attrBool("/", "no"));
+    CHECK(f.attrBool("/", "old_bool"));
+    CHECK(f.attrInt("/", "rule") == 1);
+    CHECK(f.attrDouble("/", "rule") == 1.0);
+    CHECK(f.attrEnumName("/", "rule") == "literal");
+    CHECK(f.attrEnumName("/", "yes") == "TRUE");
+    CHECK(f.attrInt("/", "count") == 16);
+    CHECK_FALSE(f.attrIsString("/", "count"));
+    CHECK(f.readI64("/ids") == std::vector<std::int64_t>{1, 2, (std::int64_t{1} << 40) + 3});
+    CHECK(f.attrString("/ids", "units") == "1");
+    // h5py's boolean: an enum of int8 with the members FALSE = 0 and TRUE = 1.
+    Handle a(H5Aopen(f.id(), "yes", H5P_DEFAULT));
+    Handle type(H5Aget_type(a.id()));
+    REQUIRE(H5Tget_class(type.id()) == H5T_ENUM);
+    CHECK(H5Tget_size(type.id()) == 1);
+    CHECK(H5Tget_nmembers(type.id()) == 2);
 }
 
 TEST_CASE("h5io: large grids (compressed, chunked) round trip", "[h5io]") {
@@ -113,14 +159,14 @@ TEST_CASE("h5io: 1-D arrays, strings and attributes round trip", "[h5io]") {
     {
         File f = File::create(path);
         f.writeStrings("/species/names", names);
-        f.writeF64("/species/values", d, {4});
-        f.writeI32("/species/ints", ints, {3});
-        f.writeF32("/species/matrix", {1, 2, 3, 4, 5, 6}, {2, 3});
+        f.writeF64("/species/values", d, {4}, "1");
+        f.writeI32("/species/ints", ints, {3}, "1");
+        f.writeF32("/species/matrix", {1, 2, 3, 4, 5, 6}, {2, 3}, "1");
         f.setAttr("/", "schema_version", static_cast<std::int64_t>(3));
         f.setAttr("/", "biome", std::string("sonoma"));
         f.setAttr("/species", "lapse_rate_c_per_km", 9.8);
         f.setAttr("/species/values", "bin_edges", std::vector<double>{0, 0.5, 1.0});
-        CHECK_THROWS_AS(f.writeF64("/bad", d, {5}), eco::ValidationError);
+        CHECK_THROWS_AS(f.writeF64("/bad", d, {5}, "1"), eco::ValidationError);
     }
     const File f = File::openRead(path);
     CHECK(f.readStrings("/species/names") == names);
@@ -145,7 +191,7 @@ TEST_CASE("h5io: a missing dataset or attribute is named in the error", "[h5io]"
     const std::string path = dir.file("m.h5");
     {
         File f = File::create(path);
-        f.writeF64("/present", {1.0}, {1});
+        f.writeF64("/present", {1.0}, {1}, "1");
     }
     const File f = File::openRead(path);
     CHECK_THROWS_WITH(f.readF64("/absent/values"),
@@ -176,7 +222,7 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
         File f = File::create(path);
         f.writeGrid("/big", g, "m");
         f.setAttr("/big", "note", std::string("some text"));
-        f.writeF64("/plants/height", small, {small.size()});
+        f.writeF64("/plants/height", small, {small.size()}, "1");
         f.writeStrings("/plants/species_names", names);
     }
     std::string bytes;
@@ -185,6 +231,12 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
         bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     }
     REQUIRE(bytes.size() > 1000);
+    std::vector<double> xs, ys;
+    {
+        const File f = File::openRead(path);
+        xs = f.readF64("/x_m");
+        ys = f.readF64("/y_m");
+    }
     const std::string damaged = dir.file("damaged.h5");
     int refused = 0, same = 0;
     for (std::size_t at = 0; at < bytes.size(); at += 37) {
@@ -206,6 +258,12 @@ TEST_CASE("h5io: a damaged byte anywhere in a file is an error, never a changed 
             const std::vector<std::string> species = f.readStrings("/plants/species_names");
             REQUIRE(height == small);
             REQUIRE(species == names);
+            // The grid's coordinate variables (dimension scales) too. (The scales' references,
+            // DIMENSION_LIST and REFERENCE_LIST, live in the global heap, which has no
+            // checksum; eco's readers never read them.)
+            const std::vector<double> xr = f.readF64("/x_m"), yr = f.readF64("/y_m");  // outside REQUIRE: may throw
+            REQUIRE(xr == xs);
+            REQUIRE(yr == ys);
             ++same;
         } catch (const eco::Error&) {
             ++refused;

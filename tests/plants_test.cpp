@@ -42,7 +42,7 @@ TEST_CASE("plant files with problems are refused with the dataset named", "[plan
     {
         auto f = h5::File::create(path);
         writePlants(f, "/canopy", {{0, 1, 1, 0, 1, 1}}, biome);
-        f.writeF64("/canopy/x", {1.0, 2.0}, {2});  // lengths now disagree
+        f.writeF64("/canopy/x", {1.0, 2.0}, {2}, "m");  // lengths now disagree
         writePlants(f, "/other", {{0, 1, 1, 0, 1, 1}}, biome);
         f.writeStrings("/other/species_names", {"Unknown Tree"});
     }

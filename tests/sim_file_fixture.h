@@ -70,7 +70,7 @@ inline void writeFakeSimulation(const std::string& simPath, const std::string& a
         writePlants(f, "/snapshots/year_0010", late, biome);
         if (omit == "x") {  // a snapshot whose /x dataset is missing
             f.ensureGroup("/snapshots/year_0020");
-            f.writeI32("/snapshots/year_0020/species_id", {0}, {1});
+            f.writeI32("/snapshots/year_0020/species_id", {0}, {1}, "1");
         }
     }
     if (omit != "/canopy") writePlants(f, "/canopy", canopy, biome);

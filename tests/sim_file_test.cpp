@@ -73,9 +73,9 @@ TEST_CASE("simulation file: another format or schema version is refused by name"
     CHECK_THROWS_WITH(readSimulationFile(dir.file("other.h5")),
                       Catch::Contains("other.h5") && Catch::Contains("not a simulation file"));
     {
-        auto f = h5::File::create(dir.file("v2.h5"));
+        auto f = h5::File::create(dir.file("v3.h5"));
         f.setAttr("/", "format", std::string(kSimulationFormat));
-        f.setAttr("/", "schema_version", std::int64_t{2});
+        f.setAttr("/", "schema_version", kSimulationSchemaVersion + 1);
     }
-    CHECK_THROWS_WITH(readSimulationFile(dir.file("v2.h5")), Catch::Contains("v2.h5") && Catch::Contains("schema_version 2"));
+    CHECK_THROWS_WITH(readSimulationFile(dir.file("v3.h5")), Catch::Contains("v3.h5") && Catch::Contains("schema_version 3"));
 }

@@ -24,6 +24,7 @@
 #include "processes.h"
 #include "sim_config.h"
 #include "sim_run.h"
+#include "sim_file.h"
 #include "sim_scene_fixture.h"
 #include "simulator.h"
 #include "test_util.h"
@@ -138,7 +139,7 @@ TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one"
 
     auto f = h5::File::openRead(dir.file("full.h5"));
     CHECK(f.attrString("/", "format") == "eco-simulation");
-    CHECK(f.attrInt("/", "schema_version") == 1);
+    CHECK(f.attrInt("/", "schema_version") == kSimulationSchemaVersion);  // 2 since issue 31
     CHECK(f.attrDouble("/", "seeding_probability") == 0.003);
     CHECK(f.hasAttr("/", "biome_toml"));
     CHECK(f.exists("/snapshots/year_0004"));

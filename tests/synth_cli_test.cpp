@@ -424,7 +424,7 @@ TEST_CASE("eco synth --method deussen: a scene from a density image, and bad inp
         CHECK(west > 0);
         h5::File file = h5::File::openRead(dir.file("scene.h5"));
         CHECK(file.attrString("/", "method") == "deussen");
-        CHECK(file.attrString("/", "deussen_lloyd_iterations") == "4");
+        CHECK(file.attrInt("/", "deussen_lloyd_iterations") == 4);  // an integer attribute, not text
         CHECK(file.attrString("/", "deussen_density_image") == image);
     }
     SECTION("an unknown method") {

@@ -391,7 +391,9 @@ TEST_CASE("scene files, CSV and PDB plant lists round-trip", "[synth]") {
         h5::File f = h5::File::openRead(dir.file("scene.h5"));
         CHECK(f.attrString("/", "format") == "eco-scene");
         CHECK(f.attrInt("/", "schema_version") == 1);
-        CHECK(f.attrString("/", "seed_inner_radius_factor") == "4");
+        // Typed attributes (docs/hdf5.md): a real as a double, not the text "4".
+        CHECK_FALSE(f.attrIsString("/", "seed_inner_radius_factor"));
+        CHECK(f.attrDouble("/", "seed_inner_radius_factor") == 4.0);
         CHECK(f.attrString("/undergrowth", "layer") == "undergrowth");
         CHECK(f.readF64("/regions/placed").size() == w.db.regions.size());
     }

@@ -15,7 +15,7 @@ FORMATS = {
     "eco-chm": {"versions": (1,), "written_by": "eco chm generate"},
     "eco-abiotics": {"versions": (1, 2), "written_by": "eco abiotics"},
     "eco-canopy": {"versions": (1, 2), "written_by": "eco canopy"},
-    "eco-simulation": {"versions": (1,), "written_by": "eco simulate"},
+    "eco-simulation": {"versions": (1, 2), "written_by": "eco simulate"},
     "eco-biome-db": {"versions": (2, 3, 4, 5), "written_by": "eco analyse"},
     "eco-scene": {"versions": (1,), "written_by": "eco synth"},
 }
@@ -45,9 +45,21 @@ def decode(value):
     return value
 
 
+#: Attributes of HDF5's dimension scales (the library's bookkeeping: references between a
+#: grid and its coordinate datasets x_m, y_m, month), left out of ``attrs_of``.
+DIMENSION_SCALE_ATTRS = frozenset({"DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME", "DIMENSION_LABELS"})
+
+
 def attrs_of(obj):
-    """All attributes of an HDF5 object as a dict of plain Python values."""
-    return {key: decode(obj.attrs[key]) for key in obj.attrs.keys()}
+    """All attributes of an HDF5 object as a dict of plain Python values (without the
+    dimension-scale bookkeeping, ``DIMENSION_SCALE_ATTRS``)."""
+    return {key: decode(obj.attrs[key]) for key in obj.attrs.keys() if key not in DIMENSION_SCALE_ATTRS}
+
+
+def is_dimension_scale(dataset):
+    """True for a coordinate dataset (x_m, y_m, month, ...) that files since issue 31 keep
+    beside their grids as an HDF5 dimension scale: not a column of a table."""
+    return decode(dataset.attrs.get("CLASS", b"")) == "DIMENSION_SCALE"
 
 
 def read_strings(dataset):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ._h5 import EcoFormatError, attrs_of, open_checked, read_strings, unit_of
+from ._h5 import EcoFormatError, attrs_of, is_dimension_scale, open_checked, read_strings, unit_of
 from .files import EcoFile, _parse_number
 
 #: Units of the database's datasets as docs/database.md gives them (the files of schema
@@ -32,7 +32,7 @@ DB_UNITS = {
 def _datasets(group):
     out, units = {}, {}
     for name, ds in group.items():
-        if hasattr(ds, "shape"):
+        if hasattr(ds, "shape") and not is_dimension_scale(ds):
             out[name] = read_strings(ds) if ds.dtype.kind in ("S", "O") else ds[()]
             units[name] = unit_of(ds, DB_UNITS.get(name, ""))
     return out, units

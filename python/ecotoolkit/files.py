@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from ._h5 import EcoFormatError, attrs_of, decode, open_checked, read_strings, sniff_format, unit_of
+from ._h5 import (EcoFormatError, attrs_of, decode, is_dimension_scale, open_checked, read_strings, sniff_format,
+                  unit_of)
 from .grid import read_grid
 from .plants import read_plants
 
@@ -31,7 +32,7 @@ def _columns(f, group, path, documented_units):
         raise EcoFormatError(f"{path}: group {group} is missing")
     out, units = {}, {}
     for name, ds in f[group].items():
-        if not hasattr(ds, "shape"):
+        if not hasattr(ds, "shape") or is_dimension_scale(ds):
             continue
         out[name] = read_strings(ds) if ds.dtype.kind in ("S", "O") else ds[()]
         units[name] = unit_of(ds, documented_units.get(name, ""))

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ._h5 import EcoFormatError, decode
+from ._h5 import EcoFormatError, attrs_of, decode
 
 MONTH_NAMES = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
 
@@ -113,7 +113,7 @@ def read_grid(f, name, path, monthly=None):
     if name not in f:
         raise EcoFormatError(f"{path}: dataset {name} is missing")
     ds = f[name]
-    attrs = {k: decode(ds.attrs[k]) for k in ds.attrs.keys()}
+    attrs = attrs_of(ds)
     for key in ("cell_size_m", "origin_x_m", "origin_y_m"):
         if key not in attrs:
             raise EcoFormatError(f"{path}: {name}: grid attribute '{key}' is missing")

@@ -149,7 +149,9 @@ class TestChm(unittest.TestCase, GridGeometry):
         self.assertEqual(c.format, "eco-chm")
         self.assert_on_input_grid(c.height)
         self.assert_on_input_grid(c.sketch)
-        self.assertEqual(c.height.units, "m above ground")
+        # CF units since issue 31 (docs/hdf5.md); what the value is, in long_name.
+        self.assertEqual(c.height.units, "m")
+        self.assertEqual(c.height.attrs["long_name"], "canopy height above ground")
         # "wrote CHM: chm.h5 (...; 60 x 45 cells of 0.8 m, 0 .. 39.6953 m above ground, 31 trees)"
         m = re.search(r"(\d+) x (\d+) cells of ([\d.]+) m, ([\d.]+) \.\. ([\d.]+) m above ground, (\d+) trees", LOG["chm"])
         self.assertIsNotNone(m, LOG["chm"])
@@ -250,7 +252,7 @@ class TestSimulation(unittest.TestCase):
         c = s.census
         np.testing.assert_array_equal(c.years, np.arange(0, YEARS + 1))
         self.assertEqual(c.count.shape, (YEARS + 1, len(c.species_names)))
-        self.assertEqual((c.units["count"], c.units["mean_height"], c.units["crown_area"]), ("plants", "m", "m^2"))
+        self.assertEqual((c.units["count"], c.units["mean_height"], c.units["crown_area"]), ("1", "m", "m2"))
         # The final year's census against the CSV of the final plants.
         for i, name in enumerate(c.species_names):
             heights = [float(r["height_m"]) for r in rows if r["species"] == name]
@@ -301,7 +303,7 @@ class TestDatabase(unittest.TestCase):
             i = db.species_names.index(name.strip())
             self.assertAlmostEqual(100 * db.regions["species_proportion"][0, i], float(pct), delta=0.051)
         self.assertEqual(len(db.region(0).pairs["source"]), int(leading[2]))
-        self.assertEqual(db.region_units["density_per_m2"], "plants/m^2")
+        self.assertEqual(db.region_units["density_per_m2"], "m-2")  # UDUNITS (plants per m^2)
         self.assertEqual(db.feature_units, ["hours/day", "mm", "degC", "degrees", "m/s"])
 
     def test_pair_counts_against_brute_force_on_the_simulation_csv(self):
@@ -358,7 +360,8 @@ class TestScene(unittest.TestCase, GridGeometry):
         _, asc_rows = ASC
         np.testing.assert_allclose(s.terrain.values, asc_rows[::-1], rtol=1e-6)
         for g in (s.grass, s.litter):
-            self.assertEqual(g.units, "density, 0..1")
+            self.assertEqual(g.units, "1")  # dimensionless (CF); "density, 0..1" in long_name
+            self.assertIn("density, 0..1", g.attrs["long_name"])
             self.assertTrue(np.all((g.values >= 0) & (g.values <= 1)))
         self.assertEqual(int(s.regions_attrs["count"]), len(s.regions["region"]))
         self.assertEqual(int(round(s.regions["placed"].sum())), len(s.undergrowth))
