@@ -512,7 +512,7 @@ TEST_CASE("eco synth --method xu2015: a scene from an exemplar CSV, and bad exem
         CHECK(scene.undergrowth.size() < 1.1 * 0.49 * 200 * 200);
         h5::File file = h5::File::openRead(dir.file("scene.h5"));
         CHECK(file.attrString("/", "method") == "xu2015");
-        CHECK(file.attrString("/", "xu_sigma") == "5");
+        CHECK(file.attrDouble("/", "xu_sigma") == 5.0);  // a typed attribute (docs/hdf5.md)
         CHECK_THAT(file.attrString("/", "xu_exemplar"), Catch::Contains("stand.csv"));
         // Our own CSV output is an exemplar in turn.
         const auto again = test::runEco("synth --terrain " + f.terrain + " --canopy " + f.canopy + " --database " + f.db +
