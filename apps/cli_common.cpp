@@ -130,7 +130,7 @@ CLI::Validator oneOf(const std::vector<std::string>& choices) {
                 if (text == c) return "";
             return "'" + text + "' is not one of " + list;
         },
-        "one of " + list);
+        "one of " + list, kOneOfValidatorName);
 }
 
 CLI::Validator parsedBy(const std::string& flag, const std::function<void(const std::string&)>& parse) {

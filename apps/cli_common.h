@@ -40,6 +40,11 @@ void registerSensitivityCommand(CLI::App& app); // eco sensitivity SPEC.toml (Mo
 void registerCalibrateCommand(CLI::App& app);   // eco calibrate SPEC.toml (fit parameters to observations)
 void registerInstanceCommand(CLI::App& app);    // eco instance SCENE.h5 --prototypes K --out DIR
 void registerConfigCommands(CLI::App& app);     // eco biome show [BIOME.toml], eco config defaults [COMMAND]
+void registerDocsCommands(CLI::App& app);       // eco completion bash, eco manpage (hidden)
+/// The bash completion script and the man page (roff) of every visible command and option of
+/// `root` (apps/cmd_docs.cpp).
+std::string bashCompletion(const CLI::App& root);
+std::string manPage(const CLI::App& root);
 /// Runs an ensemble specification as eco ensemble does (this process, its child processes or
 /// the ranks of an MPI job); returns this process' rank (0 alone). ExitStatus when a member
 /// is not done. `printPaths`: the manifest's (and database's) path on stdout at the end.
@@ -106,6 +111,8 @@ CLI::Validator paramCheck(const ParamDesc<S>& f) {
 
 /// One of `choices` ("--growth-rule: 'slow' is not one of ideal, literal").
 CLI::Validator oneOf(const std::vector<std::string>& choices);
+/// oneOf's validator name; its description is "one of a, b, c" (the completion reads both).
+inline const std::string kOneOfValidatorName = "oneOf";
 
 /// A text flag checked by `parse` (which throws eco::Error with its reason) at parse time,
 /// so that a malformed window, crop or list is a usage error (exit 2) naming the flag.

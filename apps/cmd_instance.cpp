@@ -26,7 +26,7 @@ void registerInstanceCommand(CLI::App& app) {
         ->check(CLI::Range(1, 100000));
     sub->add_option("--weight", *weight, "Importance weight of a plant in the clustering: area (its crown area) or none")
         ->capture_default_str()
-        ->check(CLI::IsMember({"area", "none"}));
+        ->check(oneOf({"area", "none"}));
     sub->add_option("--seed", a->params.seed, "Seed of the k-means starts and the rotations")->capture_default_str();
     sub->add_option("--biome", a->biome, "Biome TOML (default: the one recorded in the scene)")->check(CLI::ExistingFile);
     sub->add_option("--curve-max", a->curveMaxK, "Error curve for K = 1 .. this (default 2 K, at most 32)")->check(CLI::Range(1, 256));

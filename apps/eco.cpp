@@ -62,6 +62,7 @@ std::unique_ptr<CLI::App> makeApp() {
     registerCalibrateCommand(*app);
     registerInstanceCommand(*app);
     registerConfigCommands(*app);
+    registerDocsCommands(*app);
     return app;
 }
 

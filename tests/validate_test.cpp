@@ -826,3 +826,14 @@ TEST_CASE("The sun gradient fails for a biome whose species ignore the sun", "[v
     const auto [b, d] = failsWhereDefaultPasses(blind, sonoma, "abiotic_gradients/sun_gap");
     CHECK(b.value < 0);  // measured: -1.76 h/day against 2.38
 }
+
+TEST_CASE("Gap dynamics fail when undergrowth is limited only under the canopy", "[validate][broken]") {
+    // canopy_limit = "canopy_only": undergrowth in the gaps grows to its species' height
+    // instead of dying at 3 m, so the gaps and their edges fill with tall saplings that shade
+    // out recruitment there; the density at edges falls below that under deep canopy (the
+    // readings table of docs/validation.md: 0.40 against 1.99 on the quick plot).
+    const auto broken = brokenModelChecks("validate_gap_canopy_only", {"gap_dynamics"}, {"canopy_limit = \"canopy_only\""});
+    const auto reading = brokenModelChecks("validate_gap_default", {"gap_dynamics"}, {});
+    const auto [c, d] = failsWhereDefaultPasses(broken, reading, "gap_dynamics/edge_vs_deep");
+    CHECK(c.value < d.value);
+}
