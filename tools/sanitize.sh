@@ -124,14 +124,16 @@ inside_hdf5() {
 findings="$build/fuzz-findings"
 rm -rf "$findings"
 mkdir -p "$findings"
-status=0
-for target in asc image biome_toml run_config csv biome_db sim_file canopy_file scene; do
-  corpus="$build/fuzz-corpus/$target"  # new inputs found by this run; the seeds stay as they are
+# One target's run; its exit status in $build/fuzz-$target.status. Two run at a time (one per
+# core of the CI machine), each for the same bounded time.
+fuzz_one() {
+  local target=$1
+  local corpus="$build/fuzz-corpus/$target"  # new inputs found by this run; the seeds stay as they are
   rm -rf "$corpus"
   mkdir -p "$corpus"
-  options=()
-  asan="$ASAN_OPTIONS"
-  lsan="$LSAN_OPTIONS"
+  local options=()
+  local asan="$ASAN_OPTIONS"
+  local lsan="$LSAN_OPTIONS"
   case $target in
     # Full unwinding, for the OpenImageIO suppression to match (as the PNG test above).
     image) asan="$ASAN_OPTIONS:fast_unwind_on_malloc=0" ;;
@@ -145,9 +147,26 @@ for target in asc image biome_toml run_config csv biome_db sim_file canopy_file 
   esac
   # -seed: the same mutations on every run, so that CI is not a lottery over the third-party
   # crashes of HDF5 below; a long run (docs/robustness.md) draws its own seed.
-  if LSAN_OPTIONS="$lsan" ASAN_OPTIONS="$asan" "$build/fuzz/fuzz_$target" -seed="$fuzz_seed" -max_total_time="$fuzz_seconds" -rss_limit_mb=2048 -timeout=20 \
-       -print_final_stats=1 -artifact_prefix="$findings/$target-" "${options[@]}" "$corpus" "$seeds/$target" \
-       > "$build/fuzz-$target.log" 2>&1; then
+  local status=0
+  LSAN_OPTIONS="$lsan" ASAN_OPTIONS="$asan" "$build/fuzz/fuzz_$target" -seed="$fuzz_seed" -max_total_time="$fuzz_seconds" -rss_limit_mb=2048 -timeout=20 \
+    -print_final_stats=1 -artifact_prefix="$findings/$target-" "${options[@]}" "$corpus" "$seeds/$target" \
+    > "$build/fuzz-$target.log" 2>&1 || status=$?
+  echo "$status" > "$build/fuzz-$target.status"
+}
+targets=(asc image biome_toml run_config csv biome_db sim_file canopy_file scene)
+running=0
+for target in "${targets[@]}"; do
+  if [ "$running" -ge 2 ]; then
+    wait -n
+    running=$((running - 1))
+  fi
+  fuzz_one "$target" &
+  running=$((running + 1))
+done
+wait
+status=0
+for target in "${targets[@]}"; do
+  if [ "$(cat "$build/fuzz-$target.status")" = 0 ]; then
     echo "sanitize: fuzz_$target: $(grep -E '^stat::number_of_executed_units' "$build/fuzz-$target.log" | awk '{print $2}') runs," \
       "$(grep -oE 'cov: [0-9]+' "$build/fuzz-$target.log" | tail -1), no finding"
   elif inside_hdf5 "$build/fuzz-$target.log"; then
