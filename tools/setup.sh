@@ -9,7 +9,10 @@ install_missing setup \
   cmake g++ make pkg-config \
   libeigen3-dev libhdf5-dev libopenimageio-dev openimageio-tools libflann-dev liblz4-dev \
   libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools libgdal-dev \
-  libopenmpi-dev openmpi-bin libnlopt-dev python3-numpy python3-h5py
+  libopenmpi-dev openmpi-bin libnlopt-dev python3-numpy python3-h5py \
+  chromium
+# chromium: the tests of the HTML reports load them in headless Chromium (ctest -L browser;
+# docs/report.md). Not needed to build or run eco.
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"
