@@ -22,6 +22,9 @@ void writeFloatExr(const std::string& path, const Grid<float>& g, const std::str
         OIIO::ImageSpec spec(g.width(), g.height(), 1, OIIO::TypeDesc::FLOAT);
         spec.channelnames = {"Y"};
         spec.attribute("compression", "none");
+        // OIIO stamps the current time as capDate unless DateTime is given: an empty one
+        // keeps the same inputs giving the same bytes.
+        spec.attribute("DateTime", "");
         const auto text = [](double v) {
             char buf[40];
             std::snprintf(buf, sizeof buf, "%.17g", v);

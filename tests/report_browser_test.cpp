@@ -18,6 +18,7 @@
 #include "html_report.h"
 #include "image_out.h"
 #include "test_util.h"
+#include "validate.h"
 
 namespace {
 
@@ -264,4 +265,48 @@ TEST_CASE("eco run: report.html loads in Chromium without errors and shows the p
     INFO("plants drawn " << scene.drawn << ", pixels of plants " << plantPixels);
     CHECK(plantPixels >= scene.drawn / 2);
     CHECK(colouredIn(shot, scene) > 0);
+}
+
+TEST_CASE("eco validate: report.html with a figure plot and a picture loads without errors", "[browser][report][validate]") {
+    using namespace eco::validate;
+    TempDir dir("validate_html");
+    // A suite result as the scenarios make it: a failing check, a figure with its interactive
+    // plot (plants per species per year) and one picture only.
+    SuiteResult res;
+    res.mode = Mode::Quick;
+    ScenarioResult s;
+    s.name = "demo";
+    s.title = "Demo";
+    s.description = "A *demo* scenario with `code`.";
+    CheckResult c;
+    c.scenario = "demo";
+    c.spec.id = "grows";
+    c.spec.kind = CheckSpec::Kind::AtLeast;
+    c.spec.target = 1;
+    c.value = 0.5;
+    c.pass = c.spec.passes(c.value);
+    s.checks.push_back(c);
+    eco::Canvas picture(40, 30, {0.2f, 0.6f, 0.3f});
+    picture.writePng(dir.file("demo.png"));
+    eco::html::LinePlot plot;
+    plot.title = "plants per species";
+    plot.xLabel = "year";
+    plot.yLabel = "plants";
+    plot.logYToggle = true;
+    eco::html::Series a{"Toyon", {0, 1, 2, 3}, {10, 40, 35, 30}, "", false}, b{"Tanoak", {0, 1, 2, 3}, {0, 5, 9, 12}, "", false};
+    plot.groups.push_back({"plants per species", {a, b}});
+    s.figures.push_back({"demo.png", "with a plot", plot});
+    s.figures.push_back({"demo.png", "a picture only"});
+    res.scenarios.push_back(s);
+    writeReport(res, dir.path().string());
+    const std::string page = dir.file("report.html");
+    const std::string html = readAll(page);
+    CHECK(html.find("<td><strong>FAIL</strong></td>") != std::string::npos);
+    CHECK(html.find("<p>A <em>demo</em> scenario with <code>code</code>.</p>") != std::string::npos);
+    const std::vector<Drawn> canvases = loadCleanly(page, dir.path().string());
+    REQUIRE(canvases.size() == 1);
+    CHECK(canvases[0].drawn == 8);  // the two lines' points
+    REQUIRE(canvases[0].y + canvases[0].h <= kWindowH);
+    const Screenshot shot = screenshot(page, dir.path().string());
+    CHECK(colouredIn(shot, canvases[0]) > 100);
 }
