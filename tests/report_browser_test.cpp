@@ -47,7 +47,8 @@ constexpr int kWindowW = 1280, kWindowH = 3000;
 /// the DOM (stdout) is returned, stderr goes to `log`.
 std::string runChromium(const std::string& page, const std::string& mode, const std::string& log) {
     const std::string browser = chromium();
-    REQUIRE_FALSE(browser.empty());  // tools/setup.sh installs Debian's chromium
+    if (browser.empty())
+        FAIL("no chromium on PATH: install Debian's chromium (tools/setup.sh does) or name a binary in ECO_CHROMIUM");
     const std::string out = log + ".out";
     // --no-sandbox: CI runs as root, where Chromium's sandbox refuses to start; the page is
     // our own file. A fixed window and scale factor give the dump and the screenshot one layout.
