@@ -5,7 +5,8 @@
 
 (or open this file in Blender's Scripting workspace, set DIRECTORY below and press Run).
 
-What it builds (Blender 3.0 or later; 4.x checked against its API, not run in CI):
+What it builds (Blender 3.2 or later, for the Named Attribute node; written against the 3.x and
+4.x Python API, not run in CI: Blender is not a dependency):
 * a hidden collection "eco prototypes" with one placeholder object per row of
   prototypes.csv: a cone of the prototype's height and crown radius, standing on its base,
   in its species' colour. Replace them by real plant models (keep the names, which keep
