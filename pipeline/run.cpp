@@ -405,7 +405,7 @@ std::pair<std::string, std::string> writeReport(const RunPlan& plan, const std::
         std::snprintf(secs, sizeof secs, "%.1f", seconds[i]);
         const std::string command = quotedCommand(commandLine(plan.stages[i].options));
         md << "| " << plan.stages[i].name << " | " << secs << " | `" << command << "` |\n";
-        stageRows.push_back({plan.stages[i].name, secs, "eco " + command});
+        stageRows.push_back({plan.stages[i].name, secs, command});  // "eco ..." already
     }
     const std::size_t afterStages = md.str().size();
     md << "\n## Source terrain, canopy height model and abiotics\n\n";

@@ -242,6 +242,10 @@ TEST_CASE("eco run: report.html loads in Chromium without errors and shows the p
     CHECK(html.find("<img src=\"data:image/png;base64,") != std::string::npos);
     CHECK(html.find("src=\"http") == std::string::npos);
     CHECK(html.find("src=\"png/") == std::string::npos);
+    // The stage table: each stage with its command line, as report.md has it.
+    CHECK(html.find("<td>terrain</td><td class=\"num\">") != std::string::npos);
+    CHECK(html.find("<td>eco terrain generate --out ") != std::string::npos);
+    CHECK(html.find("eco eco") == std::string::npos);
 
     const std::vector<Drawn> canvases = loadCleanly(page, dir.path().string());
     // The population plot, the g(r) plot and the scene.
