@@ -17,8 +17,11 @@ void registerInstanceCommand(CLI::App& app) {
         "instance",
         "Approximate instancing (Deussen et al. 1998): replace a scene's plants by instances of a few prototypes per "
         "species (weighted k-means in log height x log crown radius), so that a renderer keeps one model per prototype. "
-        "Writes OUT/prototypes.csv, OUT/instances.csv (prototype, position, rotation, scale), OUT/instancing.md with "
-        "the mean and max relative size error, and OUT/error_vs_k.png (error against K).");
+        "Writes OUT/prototypes.csv, OUT/instances.csv (prototype, position, rotation, scale, id, species, size), "
+        "OUT/instancing.md with the mean and max relative size error, OUT/error_vs_k.png (error against K), and for 3D "
+        "packages OUT/instances.ply (the plants as a binary PLY point cloud with the same columns), "
+        "OUT/grass.exr, OUT/litter.exr (forest floor densities) and OUT/terrain.exr (elevation) as float OpenEXR, "
+        "grass and litter also as GeoTIFF. tools/blender_import_eco.py builds the scene in Blender (docs/export.md).");
     sub->add_option("scene", a->scene, "Scene file (eco synth)")->required()->check(CLI::ExistingFile);
     sub->add_option("--out", a->outDir, "Output folder")->required();
     sub->add_option("--prototypes", a->params.prototypesPerSpecies, "K: prototypes per species")

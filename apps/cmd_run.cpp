@@ -25,7 +25,8 @@ void runPipeline(const RunArgs& args) {
         return;
     }
     pipeline::runPlan(plan, reporter);
-    printResult("outputs in %s/ ; report: %s/report.md\n", plan.outDir.c_str(), plan.outDir.c_str());
+    printResult("outputs in %s/ ; report: %s/report.md and %s/report.html (self-contained, interactive)\n",
+                plan.outDir.c_str(), plan.outDir.c_str(), plan.outDir.c_str());
 }
 
 }  // namespace
@@ -36,7 +37,10 @@ void registerRunCommand(CLI::App& app) {
         "run", "Run the whole pipeline from one configuration (configs/demo.toml: the embedded default data).\n"
                "Each stage is an ordinary eco command; its command line is printed so it can be rerun alone.\n"
                "Relative paths inside CONFIG (and inside the configuration files it names) are relative to the "
-               "directory of the file that contains them, so the run works from any working directory.");
+               "directory of the file that contains them, so the run works from any working directory.\n"
+               "Writes OUT/report.md and OUT/report.html: the same report as one self-contained page (pictures "
+               "embedded, works offline) with interactive plots of the population and g(r) and a pan-and-zoom view "
+               "of the synthesized scene (docs/report.md).");
     sub->add_option("config", a->config, "Pipeline configuration (TOML)")->required();
     sub->add_option("--out-dir", a->outDir, "Override [run] out_dir (relative to the working directory)");
     sub->add_flag("--dry-run", a->dryRun, "Print the stages without running them");

@@ -92,11 +92,11 @@ void registerValidateCommand(CLI::App& app) {
         "validate",
         "Ecological regression suite (paper §7.2, Figs. 13-15 and 20; Deussen et al. 1998): self-thinning, succession, "
         "dynamic equilibrium, gap dynamics, abiotic gradients, the Deussen comparison and Deussen's circle test. Writes "
-        "DIR/report.md and DIR/results.csv. Exit status: 0 all checks passed (a check its configuration declares a known "
+        "DIR/report.md, its self-contained twin DIR/report.html (pictures embedded, interactive plots) and DIR/results.csv. Exit status: 0 all checks passed (a check its configuration declares a known "
         "deviation of the model is reported but does not fail), 3 a check failed, 1 bad input or error "
         "(docs/validation.md).");
     sub->add_flag("--quick", opt->quick, "Small plots and short spans (CI: a few minutes on 2 cores)");
-    sub->add_option("--out", opt->out, "Output directory for report.md, results.csv and the PNGs (default: validation)");
+    sub->add_option("--out", opt->out, "Output directory for report.md, report.html, results.csv and the PNGs (default: validation)");
     sub->add_option("--configs", opt->configs,
                     "Directory of scenario configurations (default: configs/validation if it exists here, else the "
                     "copies embedded at build time)");

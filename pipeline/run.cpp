@@ -8,6 +8,7 @@
 #include <fstream>
 #include <ostream>
 #include <sstream>
+#include <tuple>
 
 #include "abiotics.h"
 #include "atomic_file.h"
@@ -15,6 +16,7 @@
 #include "eco_version.h"
 #include "error.h"
 #include "provenance.h"
+#include "run_html.h"
 #include "strict_toml.h"
 #include "text_format.h"
 
@@ -386,20 +388,26 @@ void yearPictures(std::ostringstream& md, const std::filesystem::path& outDir, c
         picture(md, outDir, relDir + "/" + name, "undergrowth after " + std::to_string(year) + " years");
 }
 
-/// out_dir/report.md: what ran, how long each stage took, the pictures and the comparison.
-std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds, double totalSeconds) {
+/// out_dir/report.md: what ran, how long each stage took, the pictures and the comparison;
+/// and out_dir/report.html, the same self-contained (pictures embedded) with the interactive
+/// views (run_html.h) after the stage table. Both written together, atomically.
+std::pair<std::string, std::string> writeReport(const RunPlan& plan, const std::vector<double>& seconds,
+                                                double totalSeconds) {
     const std::filesystem::path outDir(plan.outDir);
     std::ostringstream md;
-    md << "# eco run report\n\n"
-       << "Configuration `" << plan.configPath << "`, eco " << ECO_VERSION_STRING << ", finished " << utcTimestamp()
-       << ", " << fmtNumber(std::round(totalSeconds * 10) / 10) << " s in all.\n\n"
+    const std::string summary = "Configuration `" + plan.configPath + "`, eco " + ECO_VERSION_STRING + ", finished " +
+                                utcTimestamp() + ", " + fmtNumber(std::round(totalSeconds * 10) / 10) + " s in all.";
+    md << "# eco run report\n\n" << summary << "\n\n"
        << "| stage | seconds | command |\n|---|---:|---|\n";
+    std::vector<std::vector<std::string>> stageRows;
     for (std::size_t i = 0; i < plan.stages.size(); ++i) {
         char secs[32];
         std::snprintf(secs, sizeof secs, "%.1f", seconds[i]);
-        md << "| " << plan.stages[i].name << " | " << secs << " | `"
-           << quotedCommand(commandLine(plan.stages[i].options)) << "` |\n";
+        const std::string command = quotedCommand(commandLine(plan.stages[i].options));
+        md << "| " << plan.stages[i].name << " | " << secs << " | `" << command << "` |\n";
+        stageRows.push_back({plan.stages[i].name, secs, command});  // "eco ..." already
     }
+    const std::size_t afterStages = md.str().size();
     md << "\n## Source terrain, canopy height model and abiotics\n\n";
     picture(md, outDir, "png/terrain_hillshade.png", "terrain");
     picture(md, outDir, "png/sketch.png", "density sketch");
@@ -426,9 +434,18 @@ std::string writeReport(const RunPlan& plan, const std::vector<double>& seconds,
     }
     if (std::filesystem::exists(outDir / "compare.md"))
         md << "## Synthesized against the database\n\n" << readTextFile((outDir / "compare.md").string()) << "\n";
-    const std::string path = (outDir / "report.md").string();
+    const std::string path = (outDir / "report.md").string(), htmlPath = (outDir / "report.html").string();
+    html::Document page("eco run report: " + plan.configPath);
+    page.heading(1, "eco run report");
+    page.markdown(summary + " The Markdown version of this report is `report.md` beside it.");
+    page.table({"stage", "seconds", "command"}, stageRows, {false, true, false});
+    addRunViews(page, plan);
+    page.markdown(md.str().substr(afterStages), plan.outDir);
+    AtomicOutputSet outputs;  // the two reports together
     writeTextFile(path, md.str());
-    return path;
+    html::writeDocument(htmlPath, page);
+    outputs.commit();
+    return {path, htmlPath};
 }
 
 std::string stageHeading(const RunPlan& plan, std::size_t i) {
@@ -461,7 +478,7 @@ RunResult runPlan(const RunPlan& plan, Reporter& reporter) {
         reporter.info(line);
     }
     result.totalSeconds = std::chrono::duration<double>(Clock::now() - start).count();
-    result.reportPath = writeReport(plan, result.stageSeconds, result.totalSeconds);
+    std::tie(result.reportPath, result.htmlReportPath) = writeReport(plan, result.stageSeconds, result.totalSeconds);
     char line[100];
     std::snprintf(line, sizeof line, "\npipeline finished in %.1f s", result.totalSeconds);
     reporter.info(line);

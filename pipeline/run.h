@@ -1,5 +1,5 @@
 // eco run CONFIG: the whole pipeline of one configuration as a plan of typed stages, run in
-// order, with out_dir/report.md. Each stage also has its equivalent eco command line, which
+// order, with out_dir/report.md and its self-contained HTML twin report.html. Each stage also has its equivalent eco command line, which
 // the run prints and the report shows, so that a stage can be rerun alone by hand.
 #pragma once
 
@@ -48,10 +48,11 @@ const std::vector<std::pair<std::string, std::string>>& pipelineConfigPathKeys()
 struct RunResult {
     std::vector<double> stageSeconds;
     double totalSeconds = 0;
-    std::string reportPath;  ///< out_dir/report.md
+    std::string reportPath;      ///< out_dir/report.md
+    std::string htmlReportPath;  ///< out_dir/report.html (docs/report.md)
 };
 /// Run the stages in order ("== stage i/n" lines and timings through the reporter; a failing
-/// stage's Error is rethrown naming it), then write out_dir/report.md.
+/// stage's Error is rethrown naming it), then write out_dir/report.md and report.html.
 RunResult runPlan(const RunPlan& plan, Reporter& reporter);
 /// Print the stages without running them.
 void printPlan(const RunPlan& plan, Reporter& reporter);

@@ -203,14 +203,73 @@ InstancingResult quantisePlants(const std::vector<Plant>& plants, std::size_t sp
 #include <filesystem>
 #include <sstream>
 
+#include <cstring>
+#include <fstream>
+
 #include "atomic_file.h"
 #include "chart.h"
+#include "float_image.h"
+#include "geo_raster.h"
 #include "h5io.h"
 #include "image_out.h"
 #include "scene.h"
 #include "text_format.h"
 
 namespace eco::synth {
+
+namespace {
+
+template <class T>
+void putLittleEndian(std::string& out, T value) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, &value, sizeof(T));
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    std::reverse(bytes, bytes + sizeof(T));
+#endif
+    out.append(reinterpret_cast<const char*>(bytes), sizeof(T));
+}
+
+/// OUT/instances.ply: one vertex per plant (binary little-endian PLY 1.0; the layout is in
+/// its header and in docs/export.md), rows in the order of instances.csv.
+void writeInstancesPly(const std::string& path, const std::string& scenePath, const std::vector<Plant>& plants,
+                       std::size_t canopyCount, const InstancingResult& r, const Biome& biome) {
+    std::ostringstream header;
+    header << "ply\nformat binary_little_endian 1.0\n"
+           << "comment eco instances of " << scenePath << " (docs/export.md)\n"
+           << "comment world metres: x east, y north, z up = ground elevation at the plant; float32\n"
+           << "comment id = row of instances.csv; layer 1 canopy, 0 undergrowth; species = species_id of the biome\n"
+           << "comment prototype = row of prototypes.csv; rotation_deg about the vertical; scale = height / prototype height\n";
+    for (std::size_t s = 0; s < biome.species.size(); ++s)
+        header << "comment species " << s << " " << biome.species[s].name << "\n";
+    header << "element vertex " << plants.size() << "\n"
+           << "property float x\nproperty float y\nproperty float z\n"
+           << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+           << "property int id\nproperty uchar layer\nproperty ushort species\nproperty int prototype\n"
+           << "property float rotation_deg\nproperty float scale\nproperty float height\nproperty float crown_radius\n"
+           << "end_header\n";
+    std::string body = header.str();
+    body.reserve(body.size() + plants.size() * 42);
+    for (std::size_t i = 0; i < plants.size(); ++i) {
+        const Plant& p = plants[i];
+        const Instance& in = r.instances[i];
+        putLittleEndian<float>(body, static_cast<float>(p.xM));
+        putLittleEndian<float>(body, static_cast<float>(p.yM));
+        putLittleEndian<float>(body, static_cast<float>(p.groundZM));
+        const Rgb c = categoryColour(p.speciesId);
+        for (float v : c) body += static_cast<char>(static_cast<unsigned char>(std::lround(std::clamp(v, 0.f, 1.f) * 255.f)));
+        putLittleEndian<std::int32_t>(body, static_cast<std::int32_t>(i));
+        body += static_cast<char>(i < canopyCount ? 1 : 0);
+        putLittleEndian<std::uint16_t>(body, static_cast<std::uint16_t>(p.speciesId));
+        putLittleEndian<std::int32_t>(body, in.prototype);
+        putLittleEndian<float>(body, static_cast<float>(in.rotationDeg));
+        putLittleEndian<float>(body, static_cast<float>(in.scale));
+        putLittleEndian<float>(body, static_cast<float>(p.heightM));
+        putLittleEndian<float>(body, static_cast<float>(p.crownRadiusM));
+    }
+    writeTextFile(path, body);
+}
+
+}  // namespace
 
 InstancingSummary runInstancing(const InstancingRun& run) {
     namespace fs = std::filesystem;
@@ -290,15 +349,30 @@ InstancingSummary runInstancing(const InstancingRun& run) {
     }
     {
         std::ostringstream csv;
-        csv << "layer,prototype,species_id,x_m,y_m,ground_z_m,rotation_deg,scale\n";
+        // id, species, height_m and crown_radius_m were added at the end (issue 31 item 6), so
+        // that readers of the earlier columns by position still work.
+        csv << "layer,prototype,species_id,x_m,y_m,ground_z_m,rotation_deg,scale,id,species,height_m,crown_radius_m\n";
         for (std::size_t i = 0; i < r.instances.size(); ++i) {
             const Instance& in = r.instances[i];
             csv << (i < scene.canopy.size() ? "canopy" : "undergrowth") << "," << in.prototype << "," << plants[i].speciesId << ","
                 << formatNumber(in.xM, 10) << "," << formatNumber(in.yM, 10) << "," << formatNumber(in.groundZM, 8) << ","
-                << formatNumber(in.rotationDeg, 6) << "," << formatNumber(in.scale, 8) << "\n";
+                << formatNumber(in.rotationDeg, 6) << "," << formatNumber(in.scale, 8) << "," << i << ","
+                << csvField(biome.species[static_cast<std::size_t>(plants[i].speciesId)].name) << ","
+                << formatNumber(plants[i].heightM, 8) << "," << formatNumber(plants[i].crownRadiusM, 8) << "\n";
         }
         writeTextFile(at("instances.csv"), csv.str());
     }
+    // For 3D packages (docs/export.md): the plants as a PLY point cloud, the forest floor as
+    // float images (OpenEXR) and GeoTIFFs.
+    writeInstancesPly(at("instances.ply"), run.scene, plants, scene.canopy.size(), r, biome);
+    const std::vector<std::pair<std::string, const Grid<float>*>> floors = {{"grass", &scene.grass}, {"litter", &scene.litter}};
+    for (const auto& [name, grid] : floors) {
+        if (grid->width() < 1 || grid->height() < 1) continue;
+        writeFloatExr(at(name + ".exr"), *grid, "1", name + " density, 0..1 (eco synth forest floor)");
+        writeGeoTiff(at(name + ".tif"), *grid, "1");
+    }
+    if (scene.terrainM.width() >= 1 && scene.terrainM.height() >= 1)
+        writeFloatExr(at("terrain.exr"), scene.terrainM, "m", "ground elevation, m (the scene's terrain)");
     // The mean errors on a log axis: they fall over decades with K (the max only shown in the table).
     (void)maxU;
     (void)top;
@@ -343,10 +417,14 @@ InstancingSummary runInstancing(const InstancingRun& run) {
     }
     md << "\n## Error against K\n\n" << curve.str() << "\n![error against K](error_vs_k.png)\n\n"
        << "Files: `prototypes.csv` (prototype, species, height, crown radius, instances), `instances.csv` (layer, prototype, species, "
-       << "position, rotation about the vertical, uniform scale), in the order of the scene's plants, canopy first.\n";
+       << "position, rotation about the vertical, uniform scale, id, species name, height, crown radius), in the order of the "
+       << "scene's plants, canopy first; `instances.ply` (the same plants as a binary PLY point cloud); `grass.exr`, "
+       << "`litter.exr`, `grass.tif`, `litter.tif` (forest floor densities), `terrain.exr` (elevation). docs/export.md has a Blender recipe.\n";
     writeTextFile(at("instancing.md"), md.str());
     outputs.commit();
-    summary.files = {at("instancing.md"), at("prototypes.csv"), at("instances.csv"), at("error_vs_k.png")};
+    summary.files = {at("instancing.md"), at("prototypes.csv"), at("instances.csv"), at("instances.ply"), at("error_vs_k.png")};
+    for (const char* name : {"grass.exr", "litter.exr", "terrain.exr", "grass.tif", "litter.tif"})
+        if (fs::exists(at(name))) summary.files.push_back(at(name));
     summary.text = curve.str();
     return summary;
 }

@@ -21,6 +21,7 @@
 #include "error.h"
 #include "factors.h"
 #include "forest_floor.h"
+#include "geo_raster.h"
 #include "geotiff_fixture.h"
 #include <ogrsf_frmts.h>
 #include <OpenImageIO/imageio.h>
@@ -117,9 +118,29 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
     REQUIRE(!perSpecies.empty());
     for (const auto& [species, n] : perSpecies) CHECK(n <= 3);
     CHECK(test::readCsvRows(dir.file("inst1/instances.csv")).size() == test::readCsvRows(dir.file("plants.csv")).size());
-    for (const char* name : {"instances.csv", "prototypes.csv", "instancing.md", "error_vs_k.png"}) {
+    for (const char* name : {"instances.csv", "prototypes.csv", "instancing.md", "error_vs_k.png", "instances.ply", "grass.exr",
+                             "litter.exr", "terrain.exr", "grass.tif", "litter.tif"}) {
         INFO(name);
+        CHECK(!readTextFile(dir.file(std::string("inst1/") + name)).empty());
         CHECK(readTextFile(dir.file(std::string("inst1/") + name)) == readTextFile(dir.file(std::string("inst2/") + name)));
+    }
+    // The forest floor as GeoTIFF for GIS (docs/export.md): the scene's grids, in place.
+    // (tests/python reads the PLY and the EXR images back with the Blender recipe's readers.)
+    {
+        const synth::SceneData scene = synth::readSceneFile(dir.file("out/scene.h5"), defaultBiome());
+        for (const auto& [name, grid] : {std::pair<std::string, const Grid<float>*>{"grass", &scene.grass}, {"litter", &scene.litter}}) {
+            INFO(name);
+            const GeoRaster tif = readGeoRaster(dir.file("inst1/" + name + ".tif"));
+            REQUIRE(tif.grid.width() == grid->width());
+            REQUIRE(tif.grid.height() == grid->height());
+            CHECK(tif.grid.originX() == Approx(grid->originX()));
+            CHECK(tif.grid.originY() == Approx(grid->originY()));
+            CHECK(tif.grid.cellSizeM() == Approx(grid->cellSizeM()));
+            double maxDiff = 0;
+            for (int iy = 0; iy < grid->height(); ++iy)
+                for (int ix = 0; ix < grid->width(); ++ix) maxDiff = std::max(maxDiff, std::abs(double(tif.grid(ix, iy)) - (*grid)(ix, iy)));
+            CHECK(maxDiff == 0.0);
+        }
     }
     const auto notScene = test::runEco("instance " + dir.file("plants.csv") + " --out " + dir.file("inst3"));
     CHECK(notScene.exitCode == 1);

@@ -177,8 +177,12 @@ TEST_CASE("A failing check gives a non-zero exit status and a FAIL row in the re
 
     TempDir dir("validate_report");
     const auto written = writeReport(res, dir.path().string());
-    REQUIRE(written.size() == 2);
+    REQUIRE(written.size() == 3);  // report.md, results.csv, report.html
+    CHECK(written[2] == dir.file("report.html"));
     const std::string md = readAll(dir.file("report.md"));
+    // The HTML twin: the same summary as a table, the failing check in it.
+    const std::string page = readAll(dir.file("report.html"));
+    CHECK(page.find("<td>demo</td><td>bad</td><td>0.5</td><td>&gt;= 1</td><td><strong>FAIL</strong></td>") != std::string::npos);
     CHECK(md.find("| demo | bad | 0.5 | >= 1 | **FAIL** |") != std::string::npos);
     CHECK(md.find("1 of 2 checks passed") != std::string::npos);
     const auto rows = readResults(dir.file("results.csv"));

@@ -90,8 +90,9 @@ slow_tests='^(hdf5 schema: every file eco run writes follows docs/hdf5.md.*|Succ
 # error paths of damaged files, so it runs with the HDF5 fuzz targets' suppressions.
 hdf5_damage_tests='^h5io: a damaged byte anywhere in a file is an error, never a changed value$'
 # Labels python and r: the readers' tests in Python and R run eco's commands that the other
-# tests run sanitized; the Release stage runs them.
-ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -LE '^(validation|python|r)$' -E "$png_error_tests|$hdf5_damage_tests|$slow_tests" --timeout 900
+# tests run sanitized; the Release stage runs them. Label browser: the HTML reports in headless
+# Chromium (the pages' writers run sanitized in the html unit tests and eco run's tests).
+ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -LE '^(validation|python|r|browser)$' -E "$png_error_tests|$hdf5_damage_tests|$slow_tests" --timeout 900
 ASAN_OPTIONS="$ASAN_OPTIONS:fast_unwind_on_malloc=0" ctest --test-dir "$build" --output-on-failure --no-tests=error -R "$png_error_tests"
 LSAN_OPTIONS="suppressions=$root/tools/sanitize/lsan-hdf5-fuzz.supp:print_suppressions=0" \
   ctest --test-dir "$build" --output-on-failure --no-tests=error -R "$hdf5_damage_tests"

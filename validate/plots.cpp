@@ -1,6 +1,7 @@
 #include "plots.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -64,6 +65,46 @@ void writeXYPlotPng(const std::string& path, const std::string& title, const std
         if (!s.name.empty()) legend.emplace_back(s.name, s.colour);
     if (legend.empty()) c.writePng(path);
     else withLegend(c, "", legend).writePng(path);
+}
+
+html::LinePlot toLinePlot(const std::string& title, const std::string& xLabel, const std::string& yLabel,
+                          const std::vector<PlotSeries>& series) {
+    html::LinePlot plot;
+    plot.title = title;
+    plot.xLabel = xLabel;
+    plot.yLabel = yLabel;
+    html::SeriesGroup group{title, {}};
+    for (std::size_t i = 0; i < series.size(); ++i) {
+        const PlotSeries& s = series[i];
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "#%02x%02x%02x", static_cast<int>(std::lround(s.colour[0] * 255)),
+                      static_cast<int>(std::lround(s.colour[1] * 255)), static_cast<int>(std::lround(s.colour[2] * 255)));
+        group.series.push_back({s.name.empty() ? "series " + std::to_string(i + 1) : s.name, s.x, s.y, hex, false});
+    }
+    plot.groups.push_back(group);
+    return plot;
+}
+
+html::LinePlot populationLinePlot(const std::vector<YearRecord>& census, const Biome& biome, const std::string& title) {
+    html::LinePlot plot;
+    plot.title = title;
+    plot.xLabel = "year";
+    plot.yLabel = "plants";
+    plot.logYToggle = true;
+    html::SeriesGroup group{"plants per species", {}};
+    for (std::size_t s = 0; s < biome.species.size(); ++s) {
+        html::Series line{biome.species[s].name, {}, {}, html::categoryHex(static_cast<int>(s)), false};
+        bool any = false;
+        for (const YearRecord& r : census) {
+            const double c = s < r.count.size() ? r.count[s] : 0;
+            any = any || c > 0;
+            line.x.push_back(r.year);
+            line.y.push_back(c);
+        }
+        if (any) group.series.push_back(line);
+    }
+    plot.groups.push_back(group);
+    return plot;
 }
 
 }  // namespace eco::validate

@@ -5,7 +5,10 @@
 #include <string>
 #include <vector>
 
+#include "html_report.h"
 #include "image_out.h"
+#include "plants.h"
+#include "sim_file.h"
 
 namespace eco::validate {
 
@@ -20,5 +23,12 @@ struct PlotSeries {
 /// Axes with ticks and labels, the series, and a legend; ranges from the data. Atomic PNG.
 void writeXYPlotPng(const std::string& path, const std::string& title, const std::string& xLabel,
                     const std::string& yLabel, const std::vector<PlotSeries>& series);
+
+/// The same series as an interactive plot for report.html (line or points as drawn here).
+html::LinePlot toLinePlot(const std::string& title, const std::string& xLabel, const std::string& yLabel,
+                          const std::vector<PlotSeries>& series);
+
+/// Plants per species (those that ever had one) and year of a census, for report.html.
+html::LinePlot populationLinePlot(const std::vector<YearRecord>& census, const Biome& biome, const std::string& title);
 
 }  // namespace eco::validate

@@ -264,7 +264,12 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
                    << " | " << c.spec.expectedText() << " | " << resultText(c) << " |\n";
             }
     md << "\n";
+    html::Document page("Ecological validation report");
+    page.markdown(md.str() + "\nThe Markdown version of this report is `report.md` beside it; every check is also in "
+                             "`results.csv`.\n",
+                  outDir);
     for (const auto& s : res.scenarios) {
+        const std::size_t sectionStart = md.str().size();
         md << "## " << s.title << " (`" << s.name << "`)\n\n";
         md << s.description << "\n\n";
         md << "Configuration `" << s.configPath << "`, kind `" << s.kind << "`, " << fixed(s.seconds, 1) << " s"
@@ -286,9 +291,20 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         md << "\n";
         for (const auto& d : s.details) md << d << "\n";
         md << "\n";
-        for (const auto& f : s.figures) md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
+        page.markdown(md.str().substr(sectionStart), outDir);
+        for (const auto& f : s.figures) {
+            md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
+            if (f.plot.groups.empty()) {
+                page.picture(outDir + "/" + f.file, f.caption);
+            } else {  // the interactive plot, its picture folded away below it
+                page.linePlot(f.plot);
+                page.raw("<details><summary>" + html::escape(f.caption) + " (picture)</summary>\n");
+                page.picture(outDir + "/" + f.file, f.caption);
+                page.raw("</details>\n");
+            }
+        }
     }
-    const std::string reportPath = outDir + "/report.md", csvPath = outDir + "/results.csv";
+    const std::string reportPath = outDir + "/report.md", csvPath = outDir + "/results.csv", htmlPath = outDir + "/report.html";
     // The report and the table appear together or not at all (a kill between them would
     // leave a new report beside the old table). The figures were each written whole as their
     // scenario finished.
@@ -306,8 +322,9 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
                 << csvField(c.note) << "," << c.replicateValues.size() << "," << csvNum(c.ciLow) << "," << csvNum(c.ciHigh)
                 << "," << csvField(joinValues(c.replicateValues)) << "\n";
     writeTextFile(csvPath, csv.str());
+    html::writeDocument(htmlPath, page);
     outputs.commit();
-    return {reportPath, csvPath};
+    return {reportPath, csvPath, htmlPath};
 }
 
 }  // namespace eco::validate

@@ -10,8 +10,10 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "html_report.h"
 #include "validate_config.h"
 
 namespace eco::validate {
@@ -38,8 +40,13 @@ struct CheckResult {
 
 /// A picture of a scenario, written into the output directory.
 struct Figure {
+    Figure() = default;
+    Figure(std::string file_, std::string caption_, html::LinePlot plot_ = {})
+        : file(std::move(file_)), caption(std::move(caption_)), plot(std::move(plot_)) {}
     std::string file;     ///< relative to the output directory
     std::string caption;
+    /// The picture's data as an interactive plot for report.html (no groups: none).
+    html::LinePlot plot;
 };
 
 struct ScenarioResult {
@@ -108,8 +115,10 @@ double studentT975(int dof);
 /// for a bad configuration or an unknown --only name.
 SuiteResult runSuite(const SuiteOptions& options);
 
-/// DIR/report.md (summary table, per-scenario sections with the figures) and
-/// DIR/results.csv (one row per check), both atomic. Returns the paths written.
+/// DIR/report.md (summary table, per-scenario sections with the figures), its
+/// self-contained twin DIR/report.html (pictures embedded, interactive plots where a figure
+/// carries one; docs/report.md) and DIR/results.csv (one row per check), all three written
+/// together, atomically. Returns the paths written.
 std::vector<std::string> writeReport(const SuiteResult& result, const std::string& outDir);
 
 }  // namespace eco::validate

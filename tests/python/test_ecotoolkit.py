@@ -504,6 +504,77 @@ class TestPandas(unittest.TestCase):
         self.assertEqual(len(db.regions_to_pandas()), db.n_regions)
 
 
+def load_blender_recipe():
+    """tools/blender_import_eco.py as a module (its readers need only numpy; bpy is imported
+    inside build() alone)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("blender_import_eco", os.path.join(ROOT, "tools", "blender_import_eco.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class TestExportFor3D(unittest.TestCase):
+    """eco instance's files for 3D packages (docs/export.md) read back with the Blender
+    recipe's own readers, against the scene read through the package."""
+
+    @classmethod
+    def setUpClass(cls):
+        run_eco("instance", "instance", "scene.h5", "--prototypes", "3", "--curve-max", "3", "--seed", "7", "--out", "inst")
+        cls.recipe = load_blender_recipe()
+        cls.scene = eco.read_scene(path("scene.h5"))
+
+    def test_ply_holds_every_plant_with_its_csv_row(self):
+        v, comments = self.recipe.read_ply(path("inst/instances.ply"))
+        rows = self.recipe.read_csv(path("inst/instances.csv"))
+        plants = self.scene.plants()  # canopy first, as the export
+        self.assertEqual(len(v), len(plants))
+        self.assertEqual(len(rows), len(plants))
+        np.testing.assert_array_equal(v["id"], np.arange(len(v)))
+        np.testing.assert_array_equal(v["layer"], (plants["layer"] == "canopy").astype(np.uint8))
+        np.testing.assert_array_equal(v["species"], plants["species_id"])
+        for field, column in (("x", "x"), ("y", "y"), ("z", "ground_z"), ("height", "height"),
+                              ("crown_radius", "crown_radius")):
+            np.testing.assert_allclose(v[field], plants[column], rtol=1e-6, atol=1e-4, err_msg=field)
+        # The same rows as the CSV (floats to float32 precision).
+        self.assertEqual([int(r["id"]) for r in rows], list(range(len(rows))))
+        np.testing.assert_array_equal(v["prototype"], [int(r["prototype"]) for r in rows])
+        # The CSV has 6 significant digits of the rotation (a half unit: 5e-6 relative), 8 of the scale.
+        np.testing.assert_allclose(v["rotation_deg"], [float(r["rotation_deg"]) for r in rows], rtol=6e-6, atol=1e-6)
+        np.testing.assert_allclose(v["scale"], [float(r["scale"]) for r in rows], rtol=1e-6)
+        self.assertEqual([r["species"] for r in rows], list(plants["species"]))
+        self.assertTrue(np.all((v["rotation_deg"] >= 0) & (v["rotation_deg"] < 360)))
+        # The species' names in the header's comments; one colour per species.
+        names = self.scene.canopy.species_names
+        for sid in np.unique(v["species"]):
+            self.assertIn(f"species {sid} {names[sid]}", comments)
+            rgb = np.stack([v["red"], v["green"], v["blue"]], axis=1)[v["species"] == sid]
+            self.assertEqual(len(np.unique(rgb, axis=0)), 1)
+
+    def test_prototype_height_times_scale_is_the_plant_height(self):
+        v, _ = self.recipe.read_ply(path("inst/instances.ply"))
+        protos = self.recipe.read_csv(path("inst/prototypes.csv"))
+        self.assertEqual([int(p["prototype"]) for p in protos], list(range(len(protos))))
+        height = np.array([float(p["height_m"]) for p in protos])
+        species = np.array([int(p["species_id"]) for p in protos])
+        np.testing.assert_allclose(height[v["prototype"]] * v["scale"], v["height"], rtol=1e-5)
+        np.testing.assert_array_equal(species[v["prototype"]], v["species"])
+        self.assertLessEqual(np.bincount(species).max(), 3)  # --prototypes 3
+
+    def test_exr_maps_are_the_scene_grids_north_up_with_their_geometry(self):
+        for name, grid, units in (("grass", self.scene.grass, "1"), ("litter", self.scene.litter, "1"),
+                                  ("terrain", self.scene.terrain, "m")):
+            with self.subTest(name=name):
+                image, attrs = self.recipe.read_exr(path(f"inst/{name}.exr"))
+                self.assertEqual(image.shape, grid.values.shape)
+                np.testing.assert_array_equal(image, grid.north_up().astype(np.float32))
+                self.assertAlmostEqual(float(attrs["eco:cell_size_m"]), grid.cell_size_m)
+                self.assertAlmostEqual(float(attrs["eco:origin_x_m"]), grid.origin_x_m)
+                self.assertAlmostEqual(float(attrs["eco:origin_y_m"]), grid.origin_y_m)
+                self.assertEqual(attrs["eco:units"], units)
+                self.assertEqual(attrs["channels"][0][0], "Y")
+
+
 class TestDocsExamples(unittest.TestCase):
     """The ```python blocks of docs/python.md run against this scene's files, placed where
     `eco run configs/demo.toml` writes them (out/demo/)."""

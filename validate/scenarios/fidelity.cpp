@@ -454,14 +454,20 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
     std::vector<double> mids;
     for (int k = 0; k < fp.bins.count; ++k) mids.push_back(fp.bins.midM(k));
     const std::string png = sc.name + "_pooled_g.png";
-    writeXYPlotPng(ctx.file(png), "Pooled undergrowth g(r) in the plot", "r (m)", "g(r)",
-                   {PlotSeries{"simulation B (held out)", mids, rs.gB, {0.1f, 0.1f, 0.1f}, true, 0},
-                    PlotSeries{"simulation A (replicate)", mids, rs.gA, {0.5f, 0.5f, 0.5f}, true, 0},
-                    PlotSeries{"structured sampler", mids, rs.gScene, {0.1f, 0.4f, 0.85f}, true, 0},
-                    PlotSeries{"dart sampler (control)", mids, rd.gScene, {0.85f, 0.3f, 0.1f}, true, 0},
-                    PlotSeries{"CSR", mids, rs.gCsr, {0.2f, 0.65f, 0.2f}, true, 0}});
-    r.figures.push_back({png, "Pooled undergrowth g(r) in the plot rectangle: held-out simulation B, replicate A, the "
-                              "structured and the dart sampler's scenes, and CSR."});
+    const std::vector<PlotSeries> pooled = {PlotSeries{"simulation B (held out)", mids, rs.gB, {0.1f, 0.1f, 0.1f}, true, 0},
+                                            PlotSeries{"simulation A (replicate)", mids, rs.gA, {0.5f, 0.5f, 0.5f}, true, 0},
+                                            PlotSeries{"structured sampler", mids, rs.gScene, {0.1f, 0.4f, 0.85f}, true, 0},
+                                            PlotSeries{"dart sampler (control)", mids, rd.gScene, {0.85f, 0.3f, 0.1f}, true, 0},
+                                            PlotSeries{"CSR", mids, rs.gCsr, {0.2f, 0.65f, 0.2f}, true, 0}};
+    writeXYPlotPng(ctx.file(png), "Pooled undergrowth g(r) in the plot", "r (m)", "g(r)", pooled);
+    html::LinePlot interactive = toLinePlot("Pooled undergrowth g(r) in the plot", "r (m)", "g(r)", pooled);
+    interactive.hasReferenceY = true;
+    interactive.referenceY = 1;
+    interactive.referenceLabel = "g = 1: no interaction";
+    r.figures.push_back({png,
+                         "Pooled undergrowth g(r) in the plot rectangle: held-out simulation B, replicate A, the "
+                         "structured and the dart sampler's scenes, and CSR.",
+                         interactive});
     ctx.log("validate:   fidelity: done in " + fixed(secondsSince(t0), 1) + " s");
 }
 

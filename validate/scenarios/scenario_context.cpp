@@ -1,5 +1,7 @@
 #include "scenario_context.h"
 
+#include "plots.h"
+
 #include <algorithm>
 
 #include "demo_scene.h"
@@ -214,8 +216,10 @@ void ScenarioContext::describeRun(const ForestRun& run, int year, ScenarioResult
 void ScenarioContext::forestFigures(const ForestRun& run, int lastYear, const std::string& stem, const std::string& what,
                                     ScenarioResult& r, bool renders) const {
     const std::string counts = stem + "_population.png";
-    sim::plotSpeciesCountsPng(file(counts), run.censusUpTo(lastYear), biome_, what + ": plants per species");
-    r.figures.push_back({counts, what + ": plants per species per year (as the paper's Fig. 15)."});
+    const std::vector<sim::YearRecord> census = run.censusUpTo(lastYear);
+    sim::plotSpeciesCountsPng(file(counts), census, biome_, what + ": plants per species");
+    r.figures.push_back({counts, what + ": plants per species per year (as the paper's Fig. 15).",
+                         populationLinePlot(census, biome_, what + ": plants per species per year")});
     if (!renders) return;
     std::vector<int> years;
     for (int y = 25; y < lastYear; y += 50) years.push_back(y);
