@@ -17,12 +17,11 @@
 #include "rng.h"
 #include "text_format.h"
 #include "simulator.h"
+#include "simulator_impl.h"  // kParallelPlants (setParallelThresholds)
 
 namespace eco::sim {
-
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // Stream tags of the model's random draws (mixed with seed-independent identifiers).
@@ -31,6 +30,27 @@ constexpr std::uint64_t kStreamDeathAge = 0x65636F2D64656174ull;  // per plant i
 constexpr std::uint64_t kStreamDominated = 0x65636F2D646F6D69ull;  // per (year, plant id)
 
 std::string num(double v) { return formatNumber(v, 6); }
+
+// A uniform double in [0, 1) for (seed, stream, counter): SplitMix64's finaliser over the
+// three, a counter-based draw as Philox but a few times cheaper, for the per-tree draws of
+// the yearly step (its cost is a large share of a tree-year).
+inline double unitDraw(std::uint64_t seed, std::uint64_t stream, std::uint64_t counter) {
+    return static_cast<double>(mixStream(mixStream(seed, stream), counter) >> 11) * 0x1.0p-53;
+}
+
+// Sequential draws of one (seed, stream) by unitDraw.
+class CounterDraws {
+public:
+    CounterDraws(std::uint64_t seed, std::uint64_t stream) : key_(mixStream(seed, stream)) {}
+    double uniform() { return static_cast<double>(mixStream(key_, counter_++) >> 11) * 0x1.0p-53; }
+    double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+    std::uint32_t below(std::uint32_t n) {
+        return static_cast<std::uint32_t>((static_cast<std::uint64_t>(mixStream(key_, counter_++) >> 32) * n) >> 32);
+    }
+
+private:
+    std::uint64_t key_, counter_ = 0;
+};
 
 double given(double v, double fallback) { return std::isnan(v) ? fallback : v; }
 
@@ -167,10 +187,9 @@ struct EcoModel::Impl {
         return h > 0 ? biome.species[static_cast<std::size_t>(s)].allometry.crownRadiusM(h) : 0.0;
     }
     double drawDeathAge(int s, std::uint64_t plantId, double minAge) const {
-        RandomStream r(seed, mixStream(kStreamDeathAge, plantId));
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
         const double lo = std::max(p.fullGrownAgeYears, minAge), hi = std::max(p.maxAgeYears, lo);
-        return r.uniform(lo, hi);
+        return lo + (hi - lo) * unitDraw(seed, kStreamDeathAge, plantId);
     }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
         id.push_back(pid);
@@ -228,16 +247,17 @@ void EcoModel::Impl::seedYear() {
     };
     std::vector<std::vector<Seedling>> born(static_cast<std::size_t>(ns));
     std::vector<std::int64_t> attempts(static_cast<std::size_t>(ns), 0);
-#pragma omp parallel for schedule(dynamic, 1) if (size() > 5000)
+    // Parents: mature trees of each species (the store's order), then its canopy trees.
+    std::vector<std::vector<std::pair<double, double>>> parentsOf(static_cast<std::size_t>(ns));
+    for (std::size_t t = 0; t < size(); ++t)
+        if (age[t] >= sp[static_cast<std::size_t>(species[t])].maturityAgeYears)
+            parentsOf[static_cast<std::size_t>(species[t])].emplace_back(x[t], y[t]);
+    for (const Plant& c : canopy) parentsOf[static_cast<std::size_t>(c.speciesId)].emplace_back(c.xM, c.yM);
+#pragma omp parallel for schedule(dynamic, 1) if (size() > kParallelPlants)
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
-        // Parents: mature trees of the species (the store's order), then its canopy trees.
-        std::vector<std::pair<double, double>> parents;
-        for (std::size_t t = 0; t < size(); ++t)
-            if (species[t] == s && age[t] >= p.maturityAgeYears) parents.emplace_back(x[t], y[t]);
-        for (const Plant& c : canopy)
-            if (c.speciesId == s) parents.emplace_back(c.xM, c.yM);
-        RandomStream r(seed, mixStream(mixStream(kStreamSeeding, static_cast<std::uint64_t>(year)), static_cast<std::uint64_t>(s)));
+        const std::vector<std::pair<double, double>>& parents = parentsOf[static_cast<std::size_t>(s)];
+        CounterDraws r(seed, mixStream(mixStream(kStreamSeeding, static_cast<std::uint64_t>(year)), static_cast<std::uint64_t>(s)));
         auto stochasticRound = [&r](double expected) {
             const double whole = std::floor(expected);
             return static_cast<std::int64_t>(whole) + (r.uniform() < expected - whole ? 1 : 0);
@@ -275,93 +295,139 @@ void EcoModel::Impl::seedYear() {
     fate.assign(size(), 0);
 }
 
-// Growth with domination (Algorithm 3 on a bucket grid) and the deaths of the year.
+// Growth with domination (Algorithm 3) and the deaths of the year. The neighbour search is a
+// hierarchy of bucket grids by crown radius: level L holds the trees (and canopy trees) of
+// radius at most kLevel0M x 2^L in buckets of that size, so that a tree meets every
+// possible dominator of level L in the 3 x 3 (or a few more) buckets round it, and the many
+// small trees are never scanned against the reach of the largest crown.
 void EcoModel::Impl::growYear() {
-    const std::size_t n = size();
+    constexpr double kLevel0M = 1.0;
+    constexpr int kMaxLevels = 16;
+    const std::size_t n = size(), nc = canopy.size(), total = n + nc;
     counters.plantMonths += 12 * static_cast<std::int64_t>(n);
-    ability.resize(n);
-    double rMax = 0;
+    ability.resize(total);
+    std::vector<double> ex(total), ey(total), er(total);
     for (std::size_t p = 0; p < n; ++p) {
         ability[p] = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
-        rMax = std::max(rMax, radius[p]);
+        ex[p] = x[p], ey[p] = y[p], er[p] = radius[p];
     }
-    const std::size_t nc = canopy.size();
-    std::vector<double> canopyAbility(nc);
     for (std::size_t c = 0; c < nc; ++c) {
-        canopyAbility[c] = canopy[c].heightM / hRef * sp[static_cast<std::size_t>(canopy[c].speciesId)].persistence * canopyV[c];
-        rMax = std::max(rMax, canopy[c].crownRadiusM);
+        const Plant& t = canopy[c];
+        ability[n + c] = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
+        ex[n + c] = t.xM, ey[n + c] = t.yM, er[n + c] = t.crownRadiusM;
     }
-    // Buckets: entries 0..n-1 are trees, n.. canopy trees; counting sort by bucket (stable).
-    const double bucketM = std::max(1.0, rMax);
-    const int bw = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / bucketM)));
-    const int bh = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / bucketM)));
-    auto bucketOf = [&](double px, double py) {
-        const int bx = std::clamp(static_cast<int>(std::floor((px - area.x0) / bucketM)), 0, bw - 1);
-        const int by = std::clamp(static_cast<int>(std::floor((py - area.y0) / bucketM)), 0, bh - 1);
-        return static_cast<std::size_t>(by) * bw + bx;
+    struct Level {
+        double bucketM = 1, inverseM = 1;
+        double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
+        int bw = 1, bh = 1;
+        std::size_t first = 0;  // its first bucket in `start`
     };
-    const std::size_t nb = static_cast<std::size_t>(bw) * bh, total = n + nc;
-    std::vector<std::uint32_t> start(nb + 1, 0), entries(total);
-    std::vector<std::uint32_t> bucket(total);
+    std::vector<Level> levels;
+    std::vector<std::uint8_t> levelOf(total);
+    int maxLevel = 0;
     for (std::size_t e = 0; e < total; ++e) {
-        bucket[e] = static_cast<std::uint32_t>(e < n ? bucketOf(x[e], y[e]) : bucketOf(canopy[e - n].xM, canopy[e - n].yM));
+        int L = 0;
+        while (L < kMaxLevels - 1 && er[e] > kLevel0M * static_cast<double>(1 << L)) ++L;
+        levelOf[e] = static_cast<std::uint8_t>(L);
+        maxLevel = std::max(maxLevel, L);
+    }
+    std::size_t buckets = 0;
+    for (int L = 0; L <= maxLevel; ++L) {
+        Level lv;
+        lv.bucketM = kLevel0M * static_cast<double>(1 << L);
+        lv.inverseM = 1.0 / lv.bucketM;
+        lv.bw = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / lv.bucketM)));
+        lv.bh = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / lv.bucketM)));
+        lv.first = buckets;
+        buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
+        levels.push_back(lv);
+    }
+    for (std::size_t e = 0; e < total; ++e) {
+        Level& lv = levels[levelOf[e]];
+        lv.maxAbility = std::max(lv.maxAbility, ability[e]);
+    }
+    auto cellIndex = [&](const Level& lv, double px, double py) {
+        const int bx = std::clamp(static_cast<int>((px - area.x0) * lv.inverseM), 0, lv.bw - 1);
+        const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
+        return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
+    };
+    std::vector<std::uint32_t> start(buckets + 1, 0), bucket(total), entries(total);
+    for (std::size_t e = 0; e < total; ++e) {
+        bucket[e] = static_cast<std::uint32_t>(cellIndex(levels[levelOf[e]], ex[e], ey[e]));
         ++start[bucket[e] + 1];
     }
-    for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
+    for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
     {
         std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
         for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
     }
+    // Entries as (x, y, r, a) in bucket order, so that a scan reads memory in sequence.
+    struct Entry {
+        double x, y, r, a;
+    };
+    std::vector<Entry> packed(total);
+    for (std::size_t k = 0; k < total; ++k) {
+        const std::uint32_t e = entries[k];
+        packed[k] = {ex[e], ey[e], er[e], ability[e]};
+    }
     std::vector<std::uint8_t> dominated(n, 0);
-#pragma omp parallel for schedule(dynamic, 256) if (n > 5000)
-    for (std::int64_t pi = 0; pi < static_cast<std::int64_t>(n); ++pi) {
-        const std::size_t p = static_cast<std::size_t>(pi);
-        const double reach = radius[p] + rMax;
-        const int bx0 = std::clamp(static_cast<int>(std::floor((x[p] - reach - area.x0) / bucketM)), 0, bw - 1);
-        const int bx1 = std::clamp(static_cast<int>(std::floor((x[p] + reach - area.x0) / bucketM)), 0, bw - 1);
-        const int by0 = std::clamp(static_cast<int>(std::floor((y[p] - reach - area.y0) / bucketM)), 0, bh - 1);
-        const int by1 = std::clamp(static_cast<int>(std::floor((y[p] + reach - area.y0) / bucketM)), 0, bh - 1);
+    // Visited in bucket order (neighbours after each other: the buckets they scan stay in
+    // cache); each writes only its own flag, so the order changes nothing.
+#pragma omp parallel for schedule(dynamic, 1024) if (n > kParallelPlants)
+    for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(total); ++ki) {
+        const std::size_t p = entries[static_cast<std::size_t>(ki)];
+        if (p >= n) continue;  // a canopy tree: static, never dominated
+        const double px = packed[static_cast<std::size_t>(ki)].x, py = packed[static_cast<std::size_t>(ki)].y;
+        const double pr = packed[static_cast<std::size_t>(ki)].r, pa = packed[static_cast<std::size_t>(ki)].a;
         bool dom = false;
-        for (int by = by0; by <= by1 && !dom; ++by)
-            for (int bx = bx0; bx <= bx1 && !dom; ++bx) {
-                const std::size_t b = static_cast<std::size_t>(by) * bw + bx;
-                for (std::uint32_t k = start[b]; k < start[b + 1]; ++k) {
-                    const std::size_t q = entries[k];
-                    if (q == p) continue;
-                    double qx, qy, qr, qa;
-                    if (q < n) {
-                        qx = x[q], qy = y[q], qr = radius[q], qa = ability[q];
-                    } else {
-                        const Plant& c = canopy[q - n];
-                        qx = c.xM, qy = c.yM, qr = c.crownRadiusM, qa = canopyAbility[q - n];
-                    }
-                    if (!(ability[p] < qa)) continue;
-                    const double dx = x[p] - qx, dy = y[p] - qy, rr = radius[p] + qr;
+        // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
+        // clamps to bucket 0 as its floor would.
+        const double ox = px - area.x0, oy = py - area.y0;
+        for (int L = 0; L <= maxLevel && !dom; ++L) {
+            const Level& lv = levels[static_cast<std::size_t>(L)];
+            if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
+            const double reach = pr + lv.bucketM;  // every tree of level L has r <= bucketM
+            const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
+            const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
+            const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
+            const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+            for (int by = by0; by <= by1 && !dom; ++by) {
+                const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
+                const std::uint32_t end = start[row + bx1 + 1];
+                for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+                    const Entry& q = packed[k];
+                    if (!(pa < q.a)) continue;  // only the more able dominate (p itself never)
+                    const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
                     if (dx * dx + dy * dy < rr * rr) {  // Eq. 8: the neighbourhoods intersect
                         dom = true;
                         break;
                     }
                 }
             }
+        }
         dominated[p] = dom ? 1 : 0;
     }
-#pragma omp parallel for schedule(static) if (n > 5000)
+#pragma omp parallel for schedule(static) if (n > kParallelPlants)
     for (std::int64_t pi = 0; pi < static_cast<std::int64_t>(n); ++pi) {
         const std::size_t p = static_cast<std::size_t>(pi);
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
         std::uint8_t f = 0;
+        const double before = growthAge[p];
         if (dominated[p]) {
             growthAge[p] += sps.dominatedGrowth;
-            RandomStream r(seed, mixStream(mixStream(kStreamDominated, static_cast<std::uint64_t>(year)), id[p]));
-            if (r.uniform() >= sps.dominatedSurvival) f = 2;
+            if (unitDraw(seed, kStreamDominated ^ static_cast<std::uint64_t>(year), id[p]) >= sps.dominatedSurvival) f = 2;
         } else {
             growthAge[p] += 1.0;
         }
         age[p] += 1;
         if (f == 0 && age[p] >= deathAge[p]) f = 1;
-        height[p] = ecomodPolylineHeightM(sps, growthAge[p]);
-        radius[p] = crown(s, height[p]);
+        // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
+        // both): the allometry's exp and log are the costliest part of the step.
+        if (f == 0 && growthAge[p] != before && before < sps.fullGrownAgeYears) {
+            height[p] = ecomodPolylineHeightM(sps, growthAge[p]);
+            radius[p] = crown(s, height[p]);
+        }
         fate[p] = f;
     }
     for (std::size_t p = 0; p < n; ++p) {
