@@ -99,7 +99,7 @@ void plotComparison(const std::string& path, const Biome& biome, const Run& mont
     std::vector<bool> used(biome.species.size(), false);
     for (const auto* run : {&monthly, &eco}) {
         ChartPanel p;
-        p.title = run == &monthly ? "monthly model (paper §6.1)" : "EcoMod (Zamuda & Brest)";
+        p.title = run == &monthly ? "monthly model (Kapp et al. 2020, section 6.1)" : "EcoMod (Zamuda & Brest)";
         double ymax = 1;
         for (std::size_t s = 0; s < biome.species.size(); ++s) {
             ChartSeries line{biome.species[s].name, {}, {}, categoryColour(static_cast<int>(s))};
