@@ -650,6 +650,20 @@ double EcoModel::suitability(int s, double xM, double yM) const {
     return impl_->suitAt(s, xM, yM);
 }
 std::uint64_t EcoModel::fingerprint() const { return impl_->fingerprintValue; }
+std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
+    Impl& m = *impl_;
+    if (dead.size() != m.size())
+        throw ValidationError("removeTrees: " + std::to_string(dead.size()) + " flags for " + std::to_string(m.size()) + " trees");
+    std::size_t removed = 0;
+    m.fate.assign(m.size(), 0);
+    for (std::size_t p = 0; p < dead.size(); ++p)
+        if (dead[p]) {
+            m.fate[p] = 1;
+            ++removed;
+        }
+    m.compact();
+    return removed;
+}
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
            /* step scratch: ability, fate, dominated, bucket entry and index */ sizeof(double) + 2 + 2 * sizeof(std::uint32_t);

@@ -95,6 +95,10 @@ public:
     const std::vector<EcoModSpeciesParams>& speciesParams() const;
     /// Suitability v of species s at world point (x, y) (0 outside the area).
     double suitability(int s, double xM, double yM) const;
+    /// Disturbance hook (fire, windthrow; issue 30 item 3): removes the trees whose entry in
+    /// `dead` (indexed as plants(), same length) is non-zero, keeping the others' order; returns
+    /// how many were removed. ValidationError when the length differs.
+    std::size_t removeTrees(const std::vector<std::uint8_t>& dead);
     std::uint64_t fingerprint() const;
     void saveState(h5::File& file, const std::string& group) const;
     void loadState(const h5::File& file, const std::string& group);

@@ -121,6 +121,7 @@ public:
 
     /// The EcoMod engine, or nullptr for the monthly model.
     const EcoModel* ecomod() const { return eco_.get(); }
+    EcoModel* ecomod() { return eco_.get(); }
 
     /// Seedbank (monthly model only): yearly germination probability per cell (sum of the kernels, at most 1).
     const Grid<float>& seedProbability() const;

@@ -306,6 +306,22 @@ TEST_CASE("ecomod: the same bytes for any thread count and after a checkpoint an
     CHECK_THROWS_WITH(monthly.loadState(f, "/state"), Catch::Contains("ecomod"));
 }
 
+TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
+    Biome b = quietBiome();
+    const int s = b.speciesIndex("Toyon");
+    Simulation sim(flatScene(b, 30), ecomodParams(), 1,
+                   {tree(s, 5, 5, 1), tree(s, 15, 5, 1), tree(s, 25, 5, 1), tree(s, 5, 25, 1)});
+    const auto before = sim.plants();
+    REQUIRE(sim.ecomod() != nullptr);
+    EcoModel& eco = *sim.ecomod();
+    CHECK(eco.removeTrees({0, 1, 0, 1}) == 2);
+    const auto after = sim.plants();
+    REQUIRE(after.size() == 2);
+    CHECK(after[0].id == before[0].id);
+    CHECK(after[1].id == before[2].id);
+    CHECK_THROWS_AS(eco.removeTrees({1}), ValidationError);
+}
+
 TEST_CASE("ecomod: bad values are refused naming the file, the key and the value", "[sim][ecomod][config]") {
     CHECK_THROWS_WITH(parseRunConfig("[model]\nkind = \"ecomood\"\n", "run.toml"),
                       Catch::Contains("run.toml") && Catch::Contains("kind") && Catch::Contains("ecomood") &&
