@@ -37,6 +37,10 @@ void registerSimulateCommand(CLI::App& app) {
         ->check(parsedBy("--growth-rule", [](const std::string& t) { sim::parseGrowthRule(t, "--growth-rule"); }));
     sub->add_option("--competition", opt->competition, "Competition model: resources (default) or deussen ([model] competition)")
         ->check(parsedBy("--competition", [](const std::string& t) { sim::parseCompetitionMode(t, "--competition"); }));
+    sub->add_option("--model", opt->model,
+                    "Simulator model: monthly (default, the paper's) or ecomod (Zamuda & Brest's yearly afforestation "
+                    "model, docs/ecomod.md) ([model] kind)")
+        ->check(parsedBy("--model", [](const std::string& t) { sim::parseModelKind(t, "--model"); }));
     sub->callback([opt] {
         CliReporter reporter;
         pipeline::simulateStage(*opt, reporter);

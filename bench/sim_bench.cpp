@@ -233,6 +233,8 @@ int main(int argc, char** argv) {
     int km2Years = 0;      // 0 = 10 (3 with --quick)
     int repeat = 0;        // 0 = 3 (1 with --quick)
     bool km2Only = false;
+    bool models = false;  // --models: the monthly model against EcoMod on the hectare
+    int ecomodYears = 0;  // 0 = 150 (50 with --quick)
     SimParams params;
     int cells = 256;
     double cellSize = 0.914;
@@ -258,10 +260,16 @@ int main(int argc, char** argv) {
                 "  --repeat N: the 1 ha runs N times each, 1 and 2 threads alternating (default 3, 1 with\n"
                 "  --quick); the least and the median wall time are reported, and every run's.\n"
                 "  --parallel-thresholds P,C: loops over fewer than P plants or C cells run on one thread\n"
-                "  (the simulator's defaults otherwise; results never depend on them).\n");
+                "  (the simulator's defaults otherwise; results never depend on them).\n"
+                "bench_sim --models [--years N] [--ecomod-years N] [--quick] [--out FILE]\n"
+                "  The two simulator models on the same hectare, one thread each, alternating: the monthly\n"
+                "  model's seconds per plant-month (--years, default 150) against EcoMod's seconds per\n"
+                "  tree-year (--ecomod-years, default 150), and their ratio (issue 30: at least 10).\n");
             return 0;
         }
         if (a == "--quick") quick = true;
+        else if (a == "--models") models = true;
+        else if (a == "--ecomod-years") ecomodYears = static_cast<int>(positiveInteger(a, next()));
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
         else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));
@@ -313,6 +321,54 @@ int main(int argc, char** argv) {
         const Biome biome = defaultBiome();
         char line[512];
         double t0 = now();
+        if (models) {
+            DemoSceneParams sp;
+            sp.cells = 128;
+            sp.seed = 3;
+            const SimInputs hectare = makeDemoScene(sp, biome);
+            const SimArea ha{5, 5, 105, 105};
+            const int mYears = hectareYears > 0 ? hectareYears : quick ? 30 : 150;
+            const int eYears = ecomodYears > 0 ? ecomodYears : quick ? 50 : 150;
+            SimParams eco = params;
+            eco.kind = ModelKind::EcoMod;
+            const int reps = repeat > 0 ? repeat : quick ? 1 : 3;
+            std::vector<double> perMonth, perYear;
+            std::ostringstream m;
+            m << "# bench_sim --models: the monthly model and EcoMod on the 1 ha scene (" << hectare.canopy.size()
+              << " canopy trees), 1 thread each, alternating, " << reps << " repeats\n";
+            for (int r = 0; r < reps; ++r) {
+                const Timing a = runScene(hectare, ha, mYears, 1, params);
+                const Timing b = runScene(hectare, ha, eYears, 1, eco);
+                perMonth.push_back(a.seconds / static_cast<double>(a.plantMonths));
+                perYear.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
+                std::snprintf(line, sizeof line,
+                              "run %d: monthly %d years %.2f s, %lld plant-months, %.3f us/plant-month (%zu plants at the end); "
+                              "ecomod %d years %.2f s, %lld tree-years, %.3f us/tree-year (%zu trees at the end, peak %zu)\n",
+                              r + 1, mYears, a.seconds, static_cast<long long>(a.plantMonths), 1e6 * perMonth.back(), a.plants,
+                              eYears, b.seconds, static_cast<long long>(b.plantMonths / 12), 1e6 * perYear.back(), b.plants,
+                              b.peakPlants);
+                m << line;
+                std::fputs(line, stderr);
+            }
+            std::sort(perMonth.begin(), perMonth.end());
+            std::sort(perYear.begin(), perYear.end());
+            const double med1 = perMonth[perMonth.size() / 2], med2 = perYear[perYear.size() / 2];
+            std::snprintf(line, sizeof line,
+                          "median: monthly %.3f us per plant-month, ecomod %.3f us per tree-year: EcoMod %.1f x faster per step "
+                          "(issue 30 asks at least 10 x)\n",
+                          1e6 * med1, 1e6 * med2, med1 / med2);
+            m << line;
+            std::fputs(m.str().c_str(), stdout);
+            if (outGiven) {
+                AtomicOutput out(outPath);
+                {
+                    std::ofstream f(out.tempPath());
+                    f << m.str();
+                }
+                out.commit();
+            }
+            return 0;
+        }
         if (!km2Only) {
             // 1 ha scene: 100 m x 100 m of a 128 x 128 terrain at 0.914 m (117 m).
             DemoSceneParams sp;

@@ -69,6 +69,44 @@ const std::vector<ParamDesc<VigourShape>>& vigourFields() {
     return f;
 }
 
+const std::vector<ParamDesc<EcoModSpecies>>& ecomodSpeciesFields() {
+    using K = ParamDesc<EcoModSpecies>::Kind;
+    using R = ParamRange;
+    using E = EcoModSpecies;
+    static const std::vector<ParamDesc<EcoModSpecies>> f = {
+        {"maturity_age_years", "t_m: age at maturity, years", K::Real, &E::maturityAgeYears, nullptr, R::openClosed(0, 10000)},
+        {"full_grown_age_years", "t_a: age when fully grown, years", K::Real, &E::fullGrownAgeYears, nullptr, R::openClosed(0, 10000)},
+        {"max_age_years", "t_f: maximum potential age, years", K::Real, &E::maxAgeYears, nullptr, R::openClosed(0, 10000)},
+        {"mature_height_m", "h_m: height at maturity, m", K::Real, &E::matureHeightM, nullptr, R::openClosed(0, 200)},
+        {"full_height_m", "height when fully grown, m", K::Real, &E::fullHeightM, nullptr, R::openClosed(0, 200)},
+        {"persistence", "p_persist: persistent clinging to life", K::Real, &E::persistence, nullptr, R::closed(0, 1)},
+        {"seeds_per_year", "seeds per mature tree and year", K::Real, &E::seedsPerYear, nullptr, R::closed(0, 1e6)},
+        {"germination", "share of last year's seeds that try to establish", K::Real, &E::germination, nullptr, R::closed(0, 1)},
+        {"near_probability", "p_s: share of new trees placed near a parent", K::Real, &E::nearProbability, nullptr, R::closed(0, 1)},
+        {"dispersal_radius_m", "near seeds land within this distance of the parent, m", K::Real, &E::dispersalRadiusM, nullptr,
+         R::openClosed(0, 10000)},
+        {"immigrants_per_ha_year", "new trees from outside per hectare and year", K::Real, &E::immigrantsPerHaYear, nullptr,
+         R::closed(0, 1e6)},
+        {"dominated_survival", "probability of surviving a year of domination", K::Real, &E::dominatedSurvival, nullptr,
+         R::closed(0, 1)},
+        {"dominated_growth", "growth age gained in a dominated year, years", K::Real, &E::dominatedGrowth, nullptr, R::closed(0, 1)},
+        {"elevation_opt", "y_o: optimal normalised elevation", K::Real, &E::elevationOpt, nullptr, R::closed(0, 1)},
+        {"elevation_tol", "Delta y_o: tolerated deviation of normalised elevation", K::Real, &E::elevationTol, nullptr, R::atLeast(0)},
+        {"elevation_harm", "f_y: harmfulness beyond the tolerance", K::Real, &E::elevationHarm, nullptr, R::atLeast(0)},
+        {"moisture_opt", "m_o: optimal moisture, mm", K::Real, &E::moistureOpt, nullptr, R::any()},
+        {"moisture_tol", "Delta m_o: tolerated deviation, mm", K::Real, &E::moistureTol, nullptr, R::atLeast(0)},
+        {"moisture_harm", "f_m: harmfulness, 1/mm", K::Real, &E::moistureHarm, nullptr, R::atLeast(0)},
+        {"sun_opt", "l_o: optimal sunlight, hours/day", K::Real, &E::sunOpt, nullptr, R::any()},
+        {"sun_tol", "Delta l_o: tolerated deviation, hours/day", K::Real, &E::sunTol, nullptr, R::atLeast(0)},
+        {"sun_harm", "f_l: harmfulness, day/hour", K::Real, &E::sunHarm, nullptr, R::atLeast(0)},
+        {"wind_opt", "w_o: optimal wind exposure, m/s", K::Real, &E::windOpt, nullptr, R::any()},
+        {"wind_tol", "Delta w_o: tolerated deviation, m/s", K::Real, &E::windTol, nullptr, R::atLeast(0)},
+        {"wind_harm", "f_w: harmfulness, s/m", K::Real, &E::windHarm, nullptr, R::atLeast(0)},
+        {"slope_harm", "f_s: slope harmfulness, s = 1 - (f_s (1 - cos slope))^2", K::Real, &E::slopeHarm, nullptr, R::atLeast(0)},
+    };
+    return f;
+}
+
 const std::vector<ParamDesc<Wind>>& windFields() {
     using K = ParamDesc<Wind>::Kind;
     using R = ParamRange;
@@ -163,6 +201,18 @@ void readSpeciesField(StrictTable& t, const SpeciesField& f, Species& s, const B
             break;
         }
         case SpeciesField::Kind::Flag: s.*(f.flag) = t.boolean(key); break;
+        case SpeciesField::Kind::EcoMod: {
+            if (!t.has(key)) break;
+            StrictTable e(t.table(key), file, ctx + ": " + key);
+            for (const auto& pf : ecomodSpeciesFields()) {
+                if (!e.has(pf.key)) continue;
+                const double v = e.number(pf.key);
+                if (!pf.range.contains(v)) e.fail(pf.key, "value " + StrictTable::fmt(v) + " " + pf.ruleText());
+                s.ecomod.*(pf.real) = v;
+            }
+            e.finish();
+            break;
+        }
     }
 }
 
@@ -184,6 +234,13 @@ void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s)
         case SpeciesField::Kind::GrowthPeriod: st.insert(f.key, s.growthPeriod); break;
         case SpeciesField::Kind::Allometry: st.insert(f.key, s.allometry.code); break;
         case SpeciesField::Kind::Flag: st.insert(f.key, s.*(f.flag)); break;
+        case SpeciesField::Kind::EcoMod: {
+            toml::table e;  // only the keys the file gave: a species without them prints as before
+            for (const auto& pf : ecomodSpeciesFields())
+                if (!std::isnan(s.ecomod.*(pf.real))) e.insert(pf.key, s.ecomod.*(pf.real));
+            if (!e.empty()) st.insert(f.key, std::move(e));
+            break;
+        }
     }
 }
 

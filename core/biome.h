@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,37 @@ struct Allometry {
     double heightForCrownRadiusM(double crownRadiusM) const;
 };
 
+/// A species' parameters of the EcoMod model (Zamuda & Brest; sim/ecomod.h, docs/ecomod.md),
+/// from the optional `ecomod = { ... }` table of a [[species]]. A field the table does not give
+/// is NaN and gets its documented default, derived from the species' other parameters, when
+/// the EcoMod simulator resolves it (sim::resolveEcoModSpecies).
+struct EcoModSpecies {
+    static constexpr double kUnset = std::numeric_limits<double>::quiet_NaN();
+    double maturityAgeYears = kUnset;     ///< t_m: average age at maturity (first seeds), years
+    double fullGrownAgeYears = kUnset;    ///< t_a: average age when fully grown, years
+    double maxAgeYears = kUnset;          ///< t_f: maximum potential age, years
+    double matureHeightM = kUnset;        ///< h_m: height at maturity, m
+    double fullHeightM = kUnset;          ///< height when fully grown, m
+    double persistence = kUnset;          ///< p_persist: persistent clinging to life, [0, 1]
+    double seedsPerYear = kUnset;         ///< seeds a mature tree sheds per year
+    double germination = kUnset;          ///< share of last year's seeds that try to establish
+    double nearProbability = kUnset;      ///< p_s: share of new trees placed near a parent (under-dispersion)
+    double dispersalRadiusM = kUnset;     ///< a near seed lands within this distance of its parent, m
+    double immigrantsPerHaYear = kUnset;  ///< new trees arriving from outside per hectare and year
+    double dominatedSurvival = kUnset;    ///< probability that a dominated tree survives one year
+    double dominatedGrowth = kUnset;      ///< years of growth age a dominated tree gains per year
+    double elevationOpt = kUnset;         ///< y_o: optimal normalised elevation, [0, 1]
+    double elevationTol = kUnset;         ///< Delta y_o: tolerated deviation
+    double elevationHarm = kUnset;        ///< f_y: harmfulness per unit of deviation
+    double moistureOpt = kUnset, moistureTol = kUnset, moistureHarm = kUnset;  ///< m_o, Delta m_o (mm), f_m (1/mm)
+    double sunOpt = kUnset, sunTol = kUnset, sunHarm = kUnset;                 ///< l_o, Delta l_o (hours/day), f_l (day/hour)
+    double windOpt = kUnset, windTol = kUnset, windHarm = kUnset;              ///< w_o, Delta w_o (m/s), f_w (s/m)
+    double slopeHarm = kUnset;            ///< f_s: s = 1 - (f_s (1 - cos slope))^2
+};
+
+/// The keys of a species' `ecomod` table (all optional), with their allowed values.
+const std::vector<ParamDesc<EcoModSpecies>>& ecomodSpeciesFields();
+
 struct Species {
     std::string name;
     int id = 0;                      ///< index in Biome::species
@@ -39,6 +71,7 @@ struct Species {
     Allometry allometry;
     std::vector<int> subBiomes;      ///< 1-based sub-biome numbers (as in the paper)
     bool canopy = false;             ///< can be a canopy tree
+    EcoModSpecies ecomod;            ///< the optional `ecomod` table (EcoMod model; unset fields NaN)
     /// The response to factor f.
     const Response& response(Factor f) const { return responses[factorIndex(f)]; }
     Response& response(Factor f) { return responses[factorIndex(f)]; }
@@ -58,6 +91,7 @@ struct SpeciesField {
         GrowthPeriod,  ///< a name from [growth_periods] (also sets growthMonths)
         Allometry,     ///< a code from [allometry]
         Flag,          ///< true or false, in member `flag`
+        EcoMod,        ///< the optional `ecomod = { ... }` table (ecomodSpeciesFields)
     };
     std::string key;   ///< the TOML key
     std::string doc;   ///< meaning and units: docs/biome.md's row
@@ -110,6 +144,10 @@ inline const std::vector<SpeciesField>& speciesFields() {
         v.push_back({"allometry", "crown radius from height", K::Allometry, "a code from `[allometry]`"});
         v.push_back({"canopy", "the species can be a canopy tree", K::Flag, "true or false", nullptr, {}, nullptr,
                      &Species::canopy});
+        v.push_back({"ecomod",
+                     "optional: the species' parameters of the EcoMod model (`[model] kind = \"ecomod\"`; docs/ecomod.md), "
+                     "`{ maturity_age_years = ..., ... }`; a key not given gets its documented default",
+                     K::EcoMod, "a table of the keys in docs/ecomod.md"});
         return v;
     }();
     return fields;

@@ -27,6 +27,7 @@ sim::RunConfig simulateConfig(const SimulateOptions& o) {
     if (o.checkpointEvery >= 0) cfg.checkpointEveryYears = o.checkpointEvery;
     if (!o.growthRule.empty()) cfg.params.growthRule = sim::parseGrowthRule(o.growthRule, "--growth-rule");
     if (!o.competition.empty()) cfg.params.competition = sim::parseCompetitionMode(o.competition, "--competition");
+    if (!o.model.empty()) cfg.params.kind = sim::parseModelKind(o.model, "--model");
     cfg.validate();
     return cfg;
 }
@@ -37,9 +38,12 @@ SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
                             {o.config, cfg.abioticsPath, cfg.canopyPath, cfg.terrainPath, cfg.biomePath, cfg.initialPath});
 
     reporter.info("simulate: " + std::to_string(cfg.years) + " years, seed " + std::to_string(cfg.seed) + ", " +
-                  std::to_string(omp_get_max_threads()) + " threads, growth rule " +
-                  sim::growthRuleName(cfg.params.growthRule) + ", competition " +
-                  sim::competitionModeName(cfg.params.competition) + ", output " + cfg.outputPath);
+                  std::to_string(omp_get_max_threads()) + " threads, " +
+                  (cfg.params.kind == sim::ModelKind::EcoMod
+                       ? std::string("model ecomod (yearly; docs/ecomod.md)")
+                       : std::string("growth rule ") + sim::growthRuleName(cfg.params.growthRule) + ", competition " +
+                             sim::competitionModeName(cfg.params.competition)) +
+                  ", output " + cfg.outputPath);
     std::unique_ptr<SimulationProgress> progress = reporter.simulationProgress(cfg.years);
     sim::RunHooks hooks;
     hooks.log = [&](const std::string& s) { reporter.info("simulate: " + s); };
@@ -93,6 +97,7 @@ std::vector<std::string> commandLine(const SimulateOptions& o) {
     str("--initial", o.initial);
     str("--growth-rule", o.growthRule);
     str("--competition", o.competition);
+    str("--model", o.model);
     if (o.resume) args.push_back("--resume");
     str("--biome", o.biome);
     return args;

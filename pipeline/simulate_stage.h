@@ -17,6 +17,7 @@ struct SimulateOptions {
     std::string snapshotYears;  ///< "25,50,75"
     std::string out, csv, png;
     std::string growthRule, competition;  ///< model choices by name
+    std::string model;          ///< "monthly" or "ecomod" ([model] kind); "" = the configuration's
     int years = -1;
     long long seed = -1;
     int checkpointEvery = -1;  ///< years between checkpoints (0 = never)

@@ -23,6 +23,7 @@ struct EnumName {
     E value;
     const char* name;
 };
+constexpr EnumName<ModelKind> kModelKinds[] = {{ModelKind::Monthly, "monthly"}, {ModelKind::EcoMod, "ecomod"}};
 constexpr EnumName<GrowthRule> kGrowthRules[] = {{GrowthRule::Ideal, "ideal"}, {GrowthRule::Literal, "literal"}};
 constexpr EnumName<CompetitionMode> kCompetitionModes[] = {{CompetitionMode::Resources, "resources"},
                                                            {CompetitionMode::Deussen, "deussen"}};
@@ -81,6 +82,7 @@ const char* competitionModeName(CompetitionMode m) {
         if (n.value == m) return n.name;
     return "?";
 }
+const char* modelKindName(ModelKind k) { return enumName(k, kModelKinds); }
 const char* germinationCellsName(GerminationCells g) { return enumName(g, kGerminationCells); }
 const char* germinationVigourName(GerminationVigour g) { return enumName(g, kGerminationVigours); }
 const char* canopyLimitName(CanopyLimit c) { return enumName(c, kCanopyLimits); }
@@ -143,6 +145,7 @@ std::pair<std::string, std::string> firstInvalid(const SimParams& p) {
         return bad("germination_cells", static_cast<double>(p.germinationCells), "unknown germination cells");
     if (std::string(germinationVigourName(p.germinationVigour)) == "?")
         return bad("germination_vigour", static_cast<double>(p.germinationVigour), "unknown germination vigour");
+    if (std::string(modelKindName(p.kind)) == "?") return bad("kind", static_cast<double>(p.kind), "unknown model kind");
     if (std::string(canopyLimitName(p.canopyLimit)) == "?")
         return bad("canopy_limit", static_cast<double>(p.canopyLimit), "unknown canopy limit");
     return {};
@@ -155,6 +158,7 @@ GrowthRule parseGrowthRule(const std::string& text, const std::string& what) {
 CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what) {
     return parseEnum(text, kCompetitionModes, what);
 }
+ModelKind parseModelKind(const std::string& text, const std::string& what) { return parseEnum(text, kModelKinds, what); }
 
 void SimParams::validate(const std::string& source) const {
     const auto [key, what] = firstInvalid(*this);
@@ -173,6 +177,7 @@ std::string SimParams::toToml() const {
     s += std::string("germination_cells = \"") + germinationCellsName(germinationCells) + "\"\n";
     s += std::string("germination_vigour = \"") + germinationVigourName(germinationVigour) + "\"\n";
     s += std::string("canopy_limit = \"") + canopyLimitName(canopyLimit) + "\"\n";
+    if (kind != ModelKind::Monthly) s += std::string("kind = \"") + modelKindName(kind) + "\"\n";
     return s;
 }
 
@@ -184,6 +189,7 @@ std::vector<std::pair<std::string, double>> SimParams::namedValues() const {
     out.emplace_back("germination_cells", static_cast<double>(germinationCells));    // 0 = uncovered, 1 = every
     out.emplace_back("germination_vigour", static_cast<double>(germinationVigour));  // 0 = mean_resources, 1 = mean_vigour
     out.emplace_back("canopy_limit", static_cast<double>(canopyLimit));              // 0 = chm_or_threshold, 1 = canopy_only
+    if (kind != ModelKind::Monthly) out.emplace_back("kind", static_cast<double>(kind));  // 1 = ecomod
     return out;
 }
 
@@ -210,6 +216,7 @@ std::vector<h5::NamedAttr> SimParams::typedValues() const {
     out.push_back({"germination_cells", choice(germinationCells, kGerminationCells)});
     out.push_back({"germination_vigour", choice(germinationVigour, kGerminationVigours)});
     out.push_back({"canopy_limit", choice(canopyLimit, kCanopyLimits)});
+    if (kind != ModelKind::Monthly) out.push_back({"kind", choice(kind, kModelKinds)});
     return out;
 }
 
@@ -225,7 +232,8 @@ void RunConfig::validate() const {
     if (checkpointEveryYears < 0)
         throw ValidationError(src + ": [run] checkpoint_every_years must not be negative");
     if (abioticsPath.empty()) throw ValidationError(src + ": [inputs] abiotics: no abiotics file given");
-    if (canopyPath.empty()) throw ValidationError(src + ": [inputs] canopy: no canopy file given");
+    if (canopyPath.empty() && params.kind != ModelKind::EcoMod)  // EcoMod may start from empty ground
+        throw ValidationError(src + ": [inputs] canopy: no canopy file given");
     if (outputPath.empty()) throw ValidationError(src + ": [outputs] hdf5: no output file given");
     if (crop && !(crop->x1 > crop->x0 && crop->y1 > crop->y0))
         throw ValidationError(src + ": [run] crop: need x0 < x1 and y0 < y1");
@@ -310,6 +318,7 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
         readEnum(s, "germination_cells", kGerminationCells, c.params.germinationCells);
         readEnum(s, "germination_vigour", kGerminationVigours, c.params.germinationVigour);
         readEnum(s, "canopy_limit", kCanopyLimits, c.params.canopyLimit);
+        readEnum(s, "kind", kModelKinds, c.params.kind);
         s.finish();
         const auto [key, what] = firstInvalid(c.params);
         if (!key.empty()) s.fail(key, what);  // names the key's line when the file set it
@@ -340,7 +349,9 @@ std::string defaultRunConfigToml() {
     }
     text.resize(cut);
     return text + "\n# Model constants (paper §6.1 and SPEC §5), every one at its default (docs/simulator.md).\n" +
-           SimParams{}.toToml();
+           SimParams{}.toToml() +
+           "# The model: \"monthly\" (the paper's, above) or \"ecomod\" (Zamuda & Brest, yearly; docs/ecomod.md)\n"
+           "kind = \"monthly\"\n";
 }
 
 const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {

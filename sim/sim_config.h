@@ -19,6 +19,15 @@
 
 namespace eco::sim {
 
+/// Which simulator model runs ([model] kind).
+enum class ModelKind {
+    /// The monthly undergrowth model of the paper (§6.1; this file's other parameters).
+    Monthly,
+    /// Zamuda & Brest's EcoMod: yearly agents, competitive ability, under-dispersion seeding,
+    /// polyline growth, domination (sim/ecomod.h, docs/ecomod.md; species parameters in the biome).
+    EcoMod,
+};
+
 /// How carbon-pool overflow becomes growth age ([model] growth_rule).
 enum class GrowthRule {
     /// Overflow normalised so that a plant at its species' maximum vigour through the whole
@@ -67,6 +76,7 @@ enum class CanopyLimit {
 };
 
 /// TOML spelling of the enums ("ideal", "literal", "resources", "deussen", ...).
+const char* modelKindName(ModelKind k);
 const char* growthRuleName(GrowthRule r);
 const char* competitionModeName(CompetitionMode m);
 const char* germinationCellsName(GerminationCells g);
@@ -75,9 +85,13 @@ const char* canopyLimitName(CanopyLimit c);
 /// Parse those spellings; ValidationError naming `what` and the accepted values otherwise.
 GrowthRule parseGrowthRule(const std::string& text, const std::string& what);
 CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what);
+ModelKind parseModelKind(const std::string& text, const std::string& what);
 
 /// Model constants of the simulation (units in the names). Defaults are the paper's values.
 struct SimParams {
+    /// The model (see ModelKind). Written into outputs and fingerprints only when not the
+    /// default, so that monthly runs keep their bytes.
+    ModelKind kind = ModelKind::Monthly;
     /// Edge of a square simulation cell, metres (paper: 20 cm).
     double cellSizeM = 0.2;
     /// Water each occupant (canopy tree first, then undergrowth by height) takes from a cell

@@ -41,7 +41,7 @@ SimInputs loadSimInputs(const RunConfig& config, Biome biome) {
     SimInputs in;
     in.biome = std::move(biome);
     requireFile(config.abioticsPath, "abiotics");
-    requireFile(config.canopyPath, "canopy");
+    if (!(config.canopyPath.empty() && config.params.kind == ModelKind::EcoMod)) requireFile(config.canopyPath, "canopy");
     in.abiotics = readAbiotics(config.abioticsPath);
     if (!in.abiotics.canopyShadeSource.empty())
         throw ValidationError(config.abioticsPath + ": its sun is already shaded by the canopy of " +
@@ -56,9 +56,11 @@ SimInputs loadSimInputs(const RunConfig& config, Biome biome) {
                                   " m) differs from the abiotics in " + config.abioticsPath);
         in.abiotics.elevationM = std::move(terrain);
     }
-    CanopyFileData canopy = readCanopyFile(config.canopyPath, in.biome, CanopyFileParts::TreesAndChm);
-    in.canopy = std::move(canopy.trees);
-    in.chmM = std::move(canopy.chmM);
+    if (!config.canopyPath.empty()) {  // none: EcoMod on empty ground
+        CanopyFileData canopy = readCanopyFile(config.canopyPath, in.biome, CanopyFileParts::TreesAndChm);
+        in.canopy = std::move(canopy.trees);
+        in.chmM = std::move(canopy.chmM);
+    }
     in.area = config.crop;
     return in;
 }

@@ -4,6 +4,8 @@
 // sweep ("Parallel sweep without races").
 #include "simulator_impl.h"
 
+#include "ecomod.h"
+
 namespace eco::sim {
 
 // The monthly step of Algorithm 2: the layout (simulator_layout.cpp), the band sweep
@@ -87,24 +89,38 @@ void setParallelThresholds(std::size_t plants, std::size_t cells) {
 
 Simulation::Simulation(SimInputs inputs, SimParams params, std::uint64_t seed,
                        const std::vector<UndergrowthPlant>& initial)
-    : impl_(std::make_unique<Impl>()) {
+{
+    if (params.kind == ModelKind::EcoMod) {
+        eco_ = std::make_unique<EcoModel>(std::move(inputs), params, seed, initial);
+        return;
+    }
+    impl_ = std::make_unique<Impl>();
     impl_->setup(std::move(inputs), params, seed);
     impl_->addInitial(initial);
 }
 
+void Simulation::requireMonthly(const char* what) const {
+    if (eco_) throw ValidationError(std::string("simulation: ") + what + " belongs to the monthly model, not to ecomod");
+}
+
 Simulation::~Simulation() = default;
 
-void Simulation::stepMonth() { impl_->stepMonth(); }
+void Simulation::stepMonth() {
+    requireMonthly("a monthly step");
+    impl_->stepMonth();
+}
 void Simulation::stepYear() {
+    if (eco_) return eco_->stepYear();
     for (int i = 0; i < 12; ++i) impl_->stepMonth();
 }
-std::int64_t Simulation::monthsDone() const { return impl_->month; }
+std::int64_t Simulation::monthsDone() const { return eco_ ? 12 * static_cast<std::int64_t>(eco_->yearsDone()) : impl_->month; }
 // The observers below see the living plants only: those that take the store's order settle
 // the dead first (settleDead: the state the monthly step would reach anyway), which changes
 // nothing observable. Like the rest of the class, not for concurrent use.
-std::size_t Simulation::plantCount() const { return impl_->pl.size() - impl_->deadPending; }
+std::size_t Simulation::plantCount() const { return eco_ ? eco_->plantCount() : impl_->pl.size() - impl_->deadPending; }
 
 std::vector<UndergrowthPlant> Simulation::plants() const {
+    if (eco_) return eco_->plants();
     impl_->settleDead();
     std::vector<UndergrowthPlant> out(impl_->pl.size());
     for (std::size_t p = 0; p < out.size(); ++p) out[p] = impl_->plantAt(p);
@@ -112,6 +128,7 @@ std::vector<UndergrowthPlant> Simulation::plants() const {
 }
 
 YearRecord Simulation::census() const {
+    if (eco_) return eco_->census();
     impl_->settleDead();
     const Impl& s = *impl_;
     const std::size_t ns = s.spc.size();
@@ -136,25 +153,36 @@ YearRecord Simulation::census() const {
     return r;
 }
 
-const SimCounters& Simulation::counters() const { return impl_->counters; }
-const SimPhaseSeconds& Simulation::phaseSeconds() const { return impl_->phaseSeconds; }
-std::size_t Simulation::droppedInitialPlants() const { return impl_->droppedInitial; }
-const SimParams& Simulation::params() const { return impl_->params; }
-const Biome& Simulation::biome() const { return impl_->biome; }
-std::uint64_t Simulation::seed() const { return impl_->seed; }
-SimArea Simulation::area() const { return impl_->area; }
-const Grid<float>& Simulation::gridGeometry() const { return impl_->seedProb; }
-const std::vector<Plant>& Simulation::relevantCanopy() const { return impl_->canopy; }
-const Grid<float>& Simulation::seedProbability() const { return impl_->seedProb; }
-const Grid<float>& Simulation::canopyTransmission() const { return impl_->canopyTrans; }
+const SimCounters& Simulation::counters() const { return eco_ ? eco_->counters() : impl_->counters; }
+const SimPhaseSeconds& Simulation::phaseSeconds() const {
+    static const SimPhaseSeconds none{};
+    return eco_ ? none : impl_->phaseSeconds;
+}
+std::size_t Simulation::droppedInitialPlants() const { return eco_ ? eco_->droppedInitialPlants() : impl_->droppedInitial; }
+const SimParams& Simulation::params() const { return eco_ ? eco_->params() : impl_->params; }
+const Biome& Simulation::biome() const { return eco_ ? eco_->biome() : impl_->biome; }
+std::uint64_t Simulation::seed() const { return eco_ ? eco_->seed() : impl_->seed; }
+SimArea Simulation::area() const { return eco_ ? eco_->area() : impl_->area; }
+const Grid<float>& Simulation::gridGeometry() const { return eco_ ? eco_->gridGeometry() : impl_->seedProb; }
+const std::vector<Plant>& Simulation::relevantCanopy() const { return eco_ ? eco_->relevantCanopy() : impl_->canopy; }
+const Grid<float>& Simulation::seedProbability() const {
+    requireMonthly("the seedbank");
+    return impl_->seedProb;
+}
+const Grid<float>& Simulation::canopyTransmission() const {
+    requireMonthly("the canopy transmission");
+    return impl_->canopyTrans;
+}
 
 Grid<std::int32_t> Simulation::seedPackages() const {
+    requireMonthly("the seedbank");
     Grid<std::int32_t> g(impl_->W, impl_->H, impl_->cell, impl_->ox, impl_->oy, 0);
     for (std::size_t i = 0; i < g.size(); ++i) g.data()[i] = impl_->seedPkg[i];
     return g;
 }
 
 bool Simulation::leftoverMeans(int ix, int iy, int period, double& sunHours, double& waterMm) const {
+    requireMonthly("leftover resources");
     const Impl& s = *impl_;
     if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H || period < 0 ||
         static_cast<std::size_t>(period) >= s.periodMonthMask.size())
@@ -168,6 +196,7 @@ bool Simulation::leftoverMeans(int ix, int iy, int period, double& sunHours, dou
 }
 
 std::vector<double> Simulation::germinationWeights(int ix, int iy) const {
+    requireMonthly("the germination roulette");
     const Impl& s = *impl_;
     if (ix < 0 || iy < 0 || ix >= s.W || iy >= s.H) throw ValidationError("germinationWeights: cell out of range");
     std::vector<double> w(s.spc.size()), arg(s.spc.size());
@@ -177,6 +206,7 @@ std::vector<double> Simulation::germinationWeights(int ix, int iy) const {
 }
 
 std::size_t Simulation::bytesPerCell() const {
+    if (eco_) return eco_->speciesParams().size() * sizeof(float) + 2 * sizeof(float);  // suitability per species, sun, moisture
     return sizeof(float) /*canopy transmission*/ + sizeof(std::uint8_t) /*canopy trees*/ + sizeof(std::uint16_t) /*occupants*/ +
            sizeof(float) /*seed probability*/ + sizeof(std::uint16_t) /*package*/ + impl_->periods() * 2 * sizeof(float);
 }
@@ -187,6 +217,7 @@ std::size_t Simulation::bytesPerPlant() const {
     // (live and dead spans; a repack briefly holds a second, live-only copy), order and
     // radix scratch, fate and the slots' dead marks. Per living plant: the dead still in the
     // store (at most an eighth of it, compactIfDue) are counted in.
+    if (eco_) return eco_->bytesPerPlant();
     const Impl& s = *impl_;
     const std::size_t n = s.pl.size(), alive = n - s.deadPending;
     if (alive == 0) return 0;

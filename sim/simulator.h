@@ -27,6 +27,8 @@
 
 namespace eco::sim {
 
+class EcoModel;
+
 /// Everything the simulation reads; no files needed (the CLI fills it from files).
 struct SimInputs {
     Biome biome;
@@ -76,6 +78,10 @@ void setParallelThresholds(std::size_t plants, std::size_t cells);
 /// The defaults of setParallelThresholds (measured on the benchmark hectare, docs/simulator.md).
 inline constexpr std::size_t kDefaultParallelPlants = 5000, kDefaultParallelCells = 50000;
 
+/// The simulator: the monthly model of the paper (this class's own engine), or, when
+/// params.kind is ModelKind::EcoMod, Zamuda & Brest's yearly EcoMod model (ecomod.h), to which
+/// every member below delegates. The members marked "monthly model only" throw
+/// ValidationError for an EcoMod simulation.
 class Simulation {
 public:
     /// Prepares the grids (canopy shade and water, seedbank) and places `initial` plants
@@ -89,7 +95,7 @@ public:
     Simulation& operator=(const Simulation&) = delete;
 
     /// One month of Algorithm 2: resource sweep, vigour, pool, growth, mortality; after the
-    /// seeding month also germination.
+    /// seeding month also germination. Monthly model only.
     void stepMonth();
     /// Twelve months.
     void stepYear();
@@ -113,7 +119,11 @@ public:
     /// Canopy trees that influence the area (crown or 12 r seeding disc reaches it).
     const std::vector<Plant>& relevantCanopy() const;
 
-    /// Seedbank: yearly germination probability per cell (sum of the kernels, at most 1).
+    /// The EcoMod engine, or nullptr for the monthly model.
+    const EcoModel* ecomod() const { return eco_.get(); }
+    EcoModel* ecomod() { return eco_.get(); }
+
+    /// Seedbank (monthly model only): yearly germination probability per cell (sum of the kernels, at most 1).
     const Grid<float>& seedProbability() const;
     /// Seedbank: bit b set when sub-biome b + 1 seeds the cell.
     Grid<std::int32_t> seedPackages() const;
@@ -141,6 +151,8 @@ public:
 private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
+    std::unique_ptr<EcoModel> eco_;
+    void requireMonthly(const char* what) const;
 };
 
 }  // namespace eco::sim

@@ -2,6 +2,8 @@
 // checkpoint group.
 #include "simulator_impl.h"
 
+#include "ecomod.h"
+
 namespace eco::sim {
 
 namespace {
@@ -64,6 +66,7 @@ std::uint64_t Simulation::Impl::computeFingerprint() const {
 }
 
 std::uint64_t Simulation::fingerprint() const {
+    if (eco_) return eco_->fingerprint();
     if (!impl_->fingerprintReady) {
         impl_->fingerprintCache = impl_->computeFingerprint();
         impl_->fingerprintReady = true;
@@ -72,6 +75,7 @@ std::uint64_t Simulation::fingerprint() const {
 }
 
 void Simulation::saveState(h5::File& f, const std::string& group) const {
+    if (eco_) return eco_->saveState(f, group);
     impl_->settleDead();
     const Impl& s = *impl_;
     const PlantStore& pl = s.pl;
@@ -129,6 +133,10 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
 }
 
 void Simulation::loadState(const h5::File& f, const std::string& group) {
+    if (eco_) return eco_->loadState(f, group);
+    if (f.exists(group) && f.hasAttr(group, "model"))
+        throw IoError(f.path() + ": " + group + ": the checkpoint is of an " + f.attrString(group, "model") +
+                      " run, not of the monthly model");
     Impl& s = *impl_;
     const std::string where = f.path() + ": " + group;
     if (!f.exists(group)) throw IoError(where + ": no simulation state");

@@ -165,6 +165,32 @@ TEST_CASE("one description of the species keys drives reading, printing, message
         INFO(f.key);
         CHECK(keys.insert(f.key).second);
         CHECK(docs.str().find(speciesDocRow(f)) != std::string::npos);
+        if (f.kind == SpeciesField::Kind::EcoMod) {
+            // Optional: Sonoma gives none (printed without it); given, read, printed only with
+            // the keys given, and a bad value refused naming the file, species, key and value.
+            CHECK(std::isnan(toyon.ecomod.maturityAgeYears));
+            CHECK(biomeToToml(sonoma).find("ecomod") == std::string::npos);
+            const auto nameLine = base.find("name = \"Toyon\"");
+            const auto eol = base.find('\n', nameLine);
+            auto with = [&](const std::string& value) {
+                return base.substr(0, eol) + "\necomod = " + value + base.substr(eol);
+            };
+            const Biome given = parseBiome(with("{ maturity_age_years = 12.0, persistence = 0.25 }"), "given.toml");
+            const Species& t = given.species[static_cast<std::size_t>(given.speciesIndex("Toyon"))];
+            CHECK(t.ecomod.maturityAgeYears == 12.0);
+            CHECK(t.ecomod.persistence == 0.25);
+            CHECK(std::isnan(t.ecomod.fullGrownAgeYears));
+            const Biome back = parseBiome(biomeToToml(given), "roundtrip.toml");
+            CHECK(back.species[static_cast<std::size_t>(t.id)].ecomod.persistence == 0.25);
+            CHECK(std::isnan(back.species[static_cast<std::size_t>(t.id)].ecomod.maxAgeYears));
+            CHECK(std::isnan(back.species[0].ecomod.persistence));
+            CHECK_THROWS_WITH(parseBiome(with("{ persistence = 1.5 }"), "mutated.toml"),
+                              Catch::Contains("mutated.toml") && Catch::Contains("species 'Toyon'") &&
+                                  Catch::Contains("persistence") && Catch::Contains("1.5"));
+            CHECK_THROWS_WITH(parseBiome(with("{ persistance = 0.5 }"), "mutated.toml"),
+                              Catch::Contains("mutated.toml") && Catch::Contains("persistance"));
+            continue;
+        }
         if (f.kind == SpeciesField::Kind::Response && !kFactors[factorIndex(f.factor)].responseRequired) {
             // An optional response (wind): Sonoma gives none, so the species is indifferent
             // and the printed biome has no such key; given, it is read, printed and checked.

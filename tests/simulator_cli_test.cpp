@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "canopy_file.h"
+#include "h5_compare.h"
 #include "atomic_file.h"
 #include "demo_scene.h"
 #include "batch_math.h"
@@ -158,4 +159,54 @@ TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one"
     in.area = SimArea{10, 10, 26, 26};
     Simulation again(in, SimParams{}, 1, readInitialPlants(dir.file("full.h5"), defaultBiome()));
     CHECK(again.plantCount() == snap.size());
+}
+
+TEST_CASE("eco simulate --model ecomod: outputs the analyser reads, resume and thread count change no byte",
+          "[sim][cli][checkpoint][ecomod]") {
+    test::TempDir dir("simecomod");
+    writeSceneFiles(dir);
+    const std::string common = "--no-provenance simulate --model ecomod --abiotics " + dir.file("abiotics.h5") + " --canopy " +
+                               dir.file("canopy.h5") + " --seed 4 ";
+    auto r = test::runEco(common + "--years 30 --snapshot-years 10,20 --out " + dir.file("full.h5") + " --csv " + dir.file("full.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("model ecomod"));
+    // 20 years with checkpoints (a run killed after its checkpoint of year 20, in effect), then
+    // resumed to 30: the same snapshots, so the same file, byte for byte.
+    r = test::runEco(common + "--years 20 --snapshot-years 10,20 --checkpoint-every 5 --out " + dir.file("part.h5"));
+    REQUIRE(r.exitCode == 0);
+    r = test::runEco(common + "--years 30 --snapshot-years 10,20 --checkpoint-every 5 --resume --out " + dir.file("part.h5") +
+                     " --csv " + dir.file("resumed.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("resumed"));
+    const std::string a = readAll(dir.file("full.csv"));
+    CHECK(a.size() > 2000);
+    CHECK(readAll(dir.file("resumed.csv")) == a);
+    {
+        const auto diffs = test::outputFileDifferences(dir.file("full.h5"), dir.file("part.h5"));
+        for (const auto& d : diffs) UNSCOPED_INFO(d);
+        CHECK(diffs.empty());  // the simulation files too (no provenance: the same bytes)
+    }
+    r = test::runEco("--threads 1 " + common + "--years 30 --snapshot-years 10,20 --out " + dir.file("one.h5") + " --csv " +
+                     dir.file("one.csv"));
+    REQUIRE(r.exitCode == 0);
+    CHECK(readAll(dir.file("one.csv")) == a);
+    CHECK(test::outputFileDifferences(dir.file("full.h5"), dir.file("one.h5")).empty());
+    {
+        auto f = h5::File::openRead(dir.file("full.h5"));
+        CHECK(f.exists("/snapshots"));
+    }
+    // The simulation file is an ordinary one: the analyser reads it.
+    r = test::runEco("analyse " + dir.file("full.h5") + " --out " + dir.file("db.h5"));
+    INFO(r.output);
+    CHECK(r.exitCode == 0);
+    // The monthly model's checkpoint is refused by an ecomod run and the reverse.
+    r = test::runEco("simulate --abiotics " + dir.file("abiotics.h5") + " --canopy " + dir.file("canopy.h5") +
+                     " --seed 4 --crop 10,10,20,20 --years 20 --resume --out " + dir.file("part.h5"));
+    CHECK(r.exitCode != 0);
+    // A misspelt model.
+    r = test::runEco(common + "--years 1 --model ecomodd --out " + dir.file("o.h5"));
+    CHECK(r.exitCode != 0);
+    CHECK_THAT(r.output, Catch::Contains("--model") && Catch::Contains("ecomodd") && Catch::Contains("\"ecomod\""));
 }

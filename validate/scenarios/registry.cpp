@@ -14,6 +14,7 @@ std::unique_ptr<Scenario> createAbioticGradients(const ScenarioParse& in);
 std::unique_ptr<Scenario> createDeussenComparison(const ScenarioParse& in);
 std::unique_ptr<Scenario> createDeussenCircles(const ScenarioParse& in);
 std::unique_ptr<Scenario> createFidelity(const ScenarioParse& in);
+std::unique_ptr<Scenario> createEcoMod(const ScenarioParse& in);
 
 const std::vector<ScenarioKind>& scenarioKinds() {
     static const std::vector<ScenarioKind> kinds{
@@ -26,6 +27,7 @@ const std::vector<ScenarioKind>& scenarioKinds() {
         {"deussen_comparison", true,         &createDeussenComparison},
         {"deussen_circles",    false,        &createDeussenCircles},
         {"fidelity",           false,        &createFidelity},
+        {"ecomod",             false,        &createEcoMod},
     };
     return kinds;
 }

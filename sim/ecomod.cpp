@@ -1,0 +1,745 @@
+// The EcoMod model (Zamuda & Brest): species parameters with their defaults, the suitability
+// maps, and the yearly step (seeding, growth with domination, elimination). See ecomod.h and
+// docs/ecomod.md.
+#include "ecomod.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+
+#include "abiotics.h"
+#include "error.h"
+#include "factors.h"
+#include "rng.h"
+#include "text_format.h"
+#include "simulator.h"
+#include "simulator_impl.h"  // kParallelPlants (setParallelThresholds)
+
+namespace eco::sim {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// Stream tags of the model's random draws (mixed with seed-independent identifiers).
+constexpr std::uint64_t kStreamSeeding = 0x65636F2D73656564ull;   // per (year, species)
+constexpr std::uint64_t kStreamDeathAge = 0x65636F2D64656174ull;  // per plant id
+constexpr std::uint64_t kStreamDominated = 0x65636F2D646F6D69ull;  // per (year, plant id)
+
+std::string num(double v) { return formatNumber(v, 6); }
+
+// A uniform double in [0, 1) for (seed, stream, counter): SplitMix64's finaliser over the
+// three, a counter-based draw as Philox but a few times cheaper, for the per-tree draws of
+// the yearly step (its cost is a large share of a tree-year).
+inline double unitDraw(std::uint64_t seed, std::uint64_t stream, std::uint64_t counter) {
+    return static_cast<double>(mixStream(mixStream(seed, stream), counter) >> 11) * 0x1.0p-53;
+}
+
+// Sequential draws of one (seed, stream) by unitDraw.
+class CounterDraws {
+public:
+    CounterDraws(std::uint64_t seed, std::uint64_t stream) : key_(mixStream(seed, stream)) {}
+    double uniform() { return static_cast<double>(mixStream(key_, counter_++) >> 11) * 0x1.0p-53; }
+    double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+    std::uint32_t below(std::uint32_t n) {
+        return static_cast<std::uint32_t>((static_cast<std::uint64_t>(mixStream(key_, counter_++) >> 32) * n) >> 32);
+    }
+
+private:
+    std::uint64_t key_, counter_ = 0;
+};
+
+double given(double v, double fallback) { return std::isnan(v) ? fallback : v; }
+
+}  // namespace
+
+EcoModSpeciesParams resolveEcoModSpecies(const Species& s, const std::string& source) {
+    const EcoModSpecies& e = s.ecomod;
+    EcoModSpeciesParams p;
+    p.maxAgeYears = given(e.maxAgeYears, s.maxAgeYears);
+    p.maturityAgeYears = given(e.maturityAgeYears, 0.1 * p.maxAgeYears);
+    p.fullGrownAgeYears = given(e.fullGrownAgeYears, 0.5 * p.maxAgeYears);
+    p.fullHeightM = given(e.fullHeightM, s.maxHeightM);
+    p.matureHeightM = given(e.matureHeightM, 0.6 * p.fullHeightM);
+    p.persistence = given(e.persistence, p.maxAgeYears / (p.maxAgeYears + 50.0));
+    p.seedsPerYear = given(e.seedsPerYear, 2.0);
+    p.germination = given(e.germination, 0.5);
+    p.nearProbability = given(e.nearProbability, 0.9);
+    p.dispersalRadiusM = given(e.dispersalRadiusM, std::max(1.0, 2.0 * s.allometry.crownRadiusM(p.fullHeightM)));
+    p.immigrantsPerHaYear = given(e.immigrantsPerHaYear, 1.0);
+    p.dominatedSurvival = given(e.dominatedSurvival, p.persistence);
+    p.dominatedGrowth = given(e.dominatedGrowth, 0.0);
+    p.elevationOpt = given(e.elevationOpt, 0.5);
+    p.elevationTol = given(e.elevationTol, 0.5);
+    p.elevationHarm = given(e.elevationHarm, 1.0);
+    // From the species' responses of Eq. 1: optimum c, full suitability within r / 4, none from r on.
+    auto fromResponse = [&](Factor f, double eOpt, double eTol, double eHarm, double& opt, double& tol, double& harm) {
+        const Response& r = s.response(f);
+        if (r.isIndifferent()) {  // an optional factor the species does not respond to
+            opt = given(eOpt, 0.0);
+            tol = given(eTol, kInfinity);
+            harm = given(eHarm, 0.0);
+            return;
+        }
+        opt = given(eOpt, r.c);
+        tol = given(eTol, r.r / 4.0);
+        harm = given(eHarm, 1.0 / r.r);
+    };
+    fromResponse(Factor::Moisture, e.moistureOpt, e.moistureTol, e.moistureHarm, p.moistureOpt, p.moistureTol, p.moistureHarm);
+    fromResponse(Factor::Sun, e.sunOpt, e.sunTol, e.sunHarm, p.sunOpt, p.sunTol, p.sunHarm);
+    fromResponse(Factor::Wind, e.windOpt, e.windTol, e.windHarm, p.windOpt, p.windTol, p.windHarm);
+    {
+        // Zero suitability at the steepest slope the species' response tolerates (c + r, at most 90 degrees).
+        const Response& r = s.response(Factor::Slope);
+        double limitDeg = r.isIndifferent() ? 90.0 : std::min(90.0, r.c + r.r);
+        if (!(limitDeg > 0)) limitDeg = 90.0;
+        p.slopeHarm = given(e.slopeHarm, 1.0 / (1.0 - std::cos(limitDeg * kPi / 180.0)));
+    }
+    const std::string where = source + ": species '" + s.name + "': ecomod: ";
+    if (!(p.maturityAgeYears < p.fullGrownAgeYears))
+        throw ValidationError(where + "maturity_age_years " + num(p.maturityAgeYears) + " must be less than full_grown_age_years " +
+                              num(p.fullGrownAgeYears));
+    if (!(p.fullGrownAgeYears <= p.maxAgeYears))
+        throw ValidationError(where + "full_grown_age_years " + num(p.fullGrownAgeYears) + " must not exceed max_age_years " +
+                              num(p.maxAgeYears));
+    if (!(p.matureHeightM <= p.fullHeightM))
+        throw ValidationError(where + "mature_height_m " + num(p.matureHeightM) + " must not exceed full_height_m " +
+                              num(p.fullHeightM));
+    return p;
+}
+
+double ecomodPolylineHeightM(const EcoModSpeciesParams& p, double ageYears) {
+    if (ageYears <= 0) return 0.0;
+    if (ageYears < p.maturityAgeYears) return p.matureHeightM * ageYears / p.maturityAgeYears;
+    if (ageYears < p.fullGrownAgeYears)
+        return p.matureHeightM + (p.fullHeightM - p.matureHeightM) * (ageYears - p.maturityAgeYears) /
+                                     (p.fullGrownAgeYears - p.maturityAgeYears);
+    return p.fullHeightM;
+}
+
+double ecomodPolylineAgeYears(const EcoModSpeciesParams& p, double heightM) {
+    if (heightM <= 0) return 0.0;
+    if (heightM >= p.fullHeightM) return p.fullGrownAgeYears;
+    if (heightM < p.matureHeightM) return p.maturityAgeYears * heightM / p.matureHeightM;
+    if (p.fullHeightM <= p.matureHeightM) return p.maturityAgeYears;
+    return p.maturityAgeYears +
+           (p.fullGrownAgeYears - p.maturityAgeYears) * (heightM - p.matureHeightM) / (p.fullHeightM - p.matureHeightM);
+}
+
+double ecomodDeviationSuitability(double x, double opt, double tol, double harm) {
+    const double d = std::fabs(x - opt);
+    if (d <= tol) return 1.0;
+    return 1.0 - std::min(1.0, d * harm);
+}
+
+double ecomodSlopeSuitability(double slopeDeg, double harm) {
+    const double s = harm * (1.0 - std::cos(slopeDeg * kPi / 180.0));
+    return std::max(0.0, 1.0 - s * s);
+}
+
+// ====================================================================== the engine
+
+struct EcoModel::Impl {
+    SimParams params;
+    std::uint64_t seed = 0;
+    Biome biome;
+    std::vector<EcoModSpeciesParams> sp;
+    SimArea area;
+    Grid<float> geom;              // abiotics cells covering the area (values unused)
+    std::vector<float> suit;       // [species][cell of geom]: v
+    std::vector<float> cellSun, cellMoisture;  // annual, per cell of geom (plants' sunShare, waterShare)
+    Grid<float> elevation;         // whole abiotics elevation (ground z)
+    std::vector<Plant> canopy;     // relevant static canopy trees
+    std::vector<float> canopyV;    // their suitability
+    double hRef = 1.0;             // tallest full height of the biome: h / hRef in [0, 1]
+    double areaHa = 0;
+    std::uint64_t fingerprintValue = 0;
+
+    // The trees (structure of arrays; creation order).
+    std::vector<std::uint64_t> id;
+    std::vector<std::int32_t> species;
+    std::vector<double> x, y, groundZ, height, radius, growthAge, deathAge;
+    std::vector<std::int32_t> age;
+    std::vector<float> v;
+
+    int year = 0;
+    std::uint64_t nextId = 1;
+    SimCounters counters;
+    std::size_t droppedInitial = 0;
+
+    // Scratch of the step.
+    std::vector<double> ability;
+    std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 2 dominated death
+
+    std::size_t cellOf(double px, double py) const {
+        const int ix = std::clamp(geom.cellX(px), 0, geom.width() - 1);
+        const int iy = std::clamp(geom.cellY(py), 0, geom.height() - 1);
+        return geom.index(ix, iy);
+    }
+    float suitAt(int s, double px, double py) const {
+        return suit[static_cast<std::size_t>(s) * geom.size() + cellOf(px, py)];
+    }
+    bool inArea(double px, double py) const { return px >= area.x0 && px < area.x1 && py >= area.y0 && py < area.y1; }
+    double crown(int s, double h) const {
+        return h > 0 ? biome.species[static_cast<std::size_t>(s)].allometry.crownRadiusM(h) : 0.0;
+    }
+    double drawDeathAge(int s, std::uint64_t plantId, double minAge) const {
+        const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
+        const double lo = std::max(p.fullGrownAgeYears, minAge), hi = std::max(p.maxAgeYears, lo);
+        return lo + (hi - lo) * unitDraw(seed, kStreamDeathAge, plantId);
+    }
+    void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
+        id.push_back(pid);
+        species.push_back(s);
+        x.push_back(px);
+        y.push_back(py);
+        groundZ.push_back(elevation.sampleBilinear(px, py));
+        height.push_back(h);
+        radius.push_back(crown(s, h));
+        growthAge.push_back(gAge);
+        age.push_back(ageYears);
+        deathAge.push_back(dAge);
+        v.push_back(suitAt(s, px, py));
+    }
+    std::size_t size() const { return id.size(); }
+    void compact();
+    void seedYear();
+    void growYear();
+    std::uint64_t computeFingerprint() const;
+};
+
+void EcoModel::Impl::compact() {
+    std::size_t w = 0;
+    for (std::size_t p = 0; p < size(); ++p) {
+        if (fate[p] != 0) continue;
+        if (w != p) {
+            id[w] = id[p];
+            species[w] = species[p];
+            x[w] = x[p];
+            y[w] = y[p];
+            groundZ[w] = groundZ[p];
+            height[w] = height[p];
+            radius[w] = radius[p];
+            growthAge[w] = growthAge[p];
+            age[w] = age[p];
+            deathAge[w] = deathAge[p];
+            v[w] = v[p];
+        }
+        ++w;
+    }
+    for (auto* a : {&x, &y, &groundZ, &height, &radius, &growthAge, &deathAge}) a->resize(w);
+    id.resize(w);
+    species.resize(w);
+    age.resize(w);
+    v.resize(w);
+    fate.assign(w, 0);
+}
+
+// Algorithm 2: new trees of every species (species in parallel, each from its own stream;
+// appended in species order, so ids do not depend on the schedule).
+void EcoModel::Impl::seedYear() {
+    const int ns = static_cast<int>(sp.size());
+    struct Seedling {
+        double x, y;
+    };
+    std::vector<std::vector<Seedling>> born(static_cast<std::size_t>(ns));
+    std::vector<std::int64_t> attempts(static_cast<std::size_t>(ns), 0);
+    // Parents: mature trees of each species (the store's order), then its canopy trees.
+    std::vector<std::vector<std::pair<double, double>>> parentsOf(static_cast<std::size_t>(ns));
+    for (std::size_t t = 0; t < size(); ++t)
+        if (age[t] >= sp[static_cast<std::size_t>(species[t])].maturityAgeYears)
+            parentsOf[static_cast<std::size_t>(species[t])].emplace_back(x[t], y[t]);
+    for (const Plant& c : canopy) parentsOf[static_cast<std::size_t>(c.speciesId)].emplace_back(c.xM, c.yM);
+#pragma omp parallel for schedule(dynamic, 1) if (size() > kParallelPlants)
+    for (int s = 0; s < ns; ++s) {
+        const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
+        const std::vector<std::pair<double, double>>& parents = parentsOf[static_cast<std::size_t>(s)];
+        CounterDraws r(seed, mixStream(mixStream(kStreamSeeding, static_cast<std::uint64_t>(year)), static_cast<std::uint64_t>(s)));
+        auto stochasticRound = [&r](double expected) {
+            const double whole = std::floor(expected);
+            return static_cast<std::int64_t>(whole) + (r.uniform() < expected - whole ? 1 : 0);
+        };
+        const std::int64_t seeds = stochasticRound(static_cast<double>(parents.size()) * p.seedsPerYear * p.germination);
+        const std::int64_t immigrants = stochasticRound(p.immigrantsPerHaYear * areaHa);
+        std::vector<Seedling>& out = born[static_cast<std::size_t>(s)];
+        auto establish = [&](double px, double py) {
+            if (!inArea(px, py)) return;  // the seed left the area
+            if (r.uniform() < suitAt(s, px, py)) out.push_back({px, py});  // germinates only where suitable
+        };
+        auto anywhere = [&] {
+            const double px = r.uniform(area.x0, area.x1), py = r.uniform(area.y0, area.y1);
+            establish(px, py);
+        };
+        for (std::int64_t n = 0; n < seeds; ++n) {
+            if (r.uniform() < p.nearProbability) {  // under-dispersion: near a parent of the species
+                const auto& parent = parents[r.below(static_cast<std::uint32_t>(parents.size()))];
+                const double dist = p.dispersalRadiusM * std::sqrt(r.uniform()), angle = 2 * kPi * r.uniform();
+                establish(parent.first + dist * std::cos(angle), parent.second + dist * std::sin(angle));
+            } else {
+                anywhere();
+            }
+        }
+        for (std::int64_t n = 0; n < immigrants; ++n) anywhere();
+        attempts[static_cast<std::size_t>(s)] = seeds + immigrants;
+    }
+    for (int s = 0; s < ns; ++s) {
+        for (const Seedling& b : born[static_cast<std::size_t>(s)]) {
+            const std::uint64_t pid = nextId++;
+            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0));
+        }
+        counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
+    }
+    fate.assign(size(), 0);
+}
+
+// Growth with domination (Algorithm 3) and the deaths of the year. The neighbour search is a
+// hierarchy of bucket grids by crown radius: level L holds the trees (and canopy trees) of
+// radius at most kLevel0M x 2^L in buckets of that size, so that a tree meets every
+// possible dominator of level L in the 3 x 3 (or a few more) buckets round it, and the many
+// small trees are never scanned against the reach of the largest crown.
+void EcoModel::Impl::growYear() {
+    constexpr double kLevel0M = 1.0;
+    constexpr int kMaxLevels = 16;
+    const std::size_t n = size(), nc = canopy.size(), total = n + nc;
+    counters.plantMonths += 12 * static_cast<std::int64_t>(n);
+    ability.resize(total);
+    std::vector<double> ex(total), ey(total), er(total);
+    for (std::size_t p = 0; p < n; ++p) {
+        ability[p] = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
+        ex[p] = x[p], ey[p] = y[p], er[p] = radius[p];
+    }
+    for (std::size_t c = 0; c < nc; ++c) {
+        const Plant& t = canopy[c];
+        ability[n + c] = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
+        ex[n + c] = t.xM, ey[n + c] = t.yM, er[n + c] = t.crownRadiusM;
+    }
+    struct Level {
+        double bucketM = 1, inverseM = 1;
+        double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
+        int bw = 1, bh = 1;
+        std::size_t first = 0;  // its first bucket in `start`
+    };
+    std::vector<Level> levels;
+    std::vector<std::uint8_t> levelOf(total);
+    int maxLevel = 0;
+    for (std::size_t e = 0; e < total; ++e) {
+        int L = 0;
+        while (L < kMaxLevels - 1 && er[e] > kLevel0M * static_cast<double>(1 << L)) ++L;
+        levelOf[e] = static_cast<std::uint8_t>(L);
+        maxLevel = std::max(maxLevel, L);
+    }
+    std::size_t buckets = 0;
+    for (int L = 0; L <= maxLevel; ++L) {
+        Level lv;
+        lv.bucketM = kLevel0M * static_cast<double>(1 << L);
+        lv.inverseM = 1.0 / lv.bucketM;
+        lv.bw = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / lv.bucketM)));
+        lv.bh = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / lv.bucketM)));
+        lv.first = buckets;
+        buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
+        levels.push_back(lv);
+    }
+    for (std::size_t e = 0; e < total; ++e) {
+        Level& lv = levels[levelOf[e]];
+        lv.maxAbility = std::max(lv.maxAbility, ability[e]);
+    }
+    auto cellIndex = [&](const Level& lv, double px, double py) {
+        const int bx = std::clamp(static_cast<int>((px - area.x0) * lv.inverseM), 0, lv.bw - 1);
+        const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
+        return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
+    };
+    std::vector<std::uint32_t> start(buckets + 1, 0), bucket(total), entries(total);
+    for (std::size_t e = 0; e < total; ++e) {
+        bucket[e] = static_cast<std::uint32_t>(cellIndex(levels[levelOf[e]], ex[e], ey[e]));
+        ++start[bucket[e] + 1];
+    }
+    for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
+    {
+        std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+        for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
+    }
+    // Entries as (x, y, r, a) in bucket order, so that a scan reads memory in sequence.
+    struct Entry {
+        double x, y, r, a;
+    };
+    std::vector<Entry> packed(total);
+    for (std::size_t k = 0; k < total; ++k) {
+        const std::uint32_t e = entries[k];
+        packed[k] = {ex[e], ey[e], er[e], ability[e]};
+    }
+    std::vector<std::uint8_t> dominated(n, 0);
+    // Visited in bucket order (neighbours after each other: the buckets they scan stay in
+    // cache); each writes only its own flag, so the order changes nothing.
+#pragma omp parallel for schedule(dynamic, 1024) if (n > kParallelPlants)
+    for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(total); ++ki) {
+        const std::size_t p = entries[static_cast<std::size_t>(ki)];
+        if (p >= n) continue;  // a canopy tree: static, never dominated
+        const double px = packed[static_cast<std::size_t>(ki)].x, py = packed[static_cast<std::size_t>(ki)].y;
+        const double pr = packed[static_cast<std::size_t>(ki)].r, pa = packed[static_cast<std::size_t>(ki)].a;
+        bool dom = false;
+        // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
+        // clamps to bucket 0 as its floor would.
+        const double ox = px - area.x0, oy = py - area.y0;
+        for (int L = 0; L <= maxLevel && !dom; ++L) {
+            const Level& lv = levels[static_cast<std::size_t>(L)];
+            if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
+            const double reach = pr + lv.bucketM;  // every tree of level L has r <= bucketM
+            const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
+            const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
+            const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
+            const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+            for (int by = by0; by <= by1 && !dom; ++by) {
+                const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
+                const std::uint32_t end = start[row + bx1 + 1];
+                for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+                    const Entry& q = packed[k];
+                    if (!(pa < q.a)) continue;  // only the more able dominate (p itself never)
+                    const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
+                    if (dx * dx + dy * dy < rr * rr) {  // Eq. 8: the neighbourhoods intersect
+                        dom = true;
+                        break;
+                    }
+                }
+            }
+        }
+        dominated[p] = dom ? 1 : 0;
+    }
+#pragma omp parallel for schedule(static) if (n > kParallelPlants)
+    for (std::int64_t pi = 0; pi < static_cast<std::int64_t>(n); ++pi) {
+        const std::size_t p = static_cast<std::size_t>(pi);
+        const int s = species[p];
+        const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
+        std::uint8_t f = 0;
+        const double before = growthAge[p];
+        if (dominated[p]) {
+            growthAge[p] += sps.dominatedGrowth;
+            if (unitDraw(seed, kStreamDominated ^ static_cast<std::uint64_t>(year), id[p]) >= sps.dominatedSurvival) f = 2;
+        } else {
+            growthAge[p] += 1.0;
+        }
+        age[p] += 1;
+        if (f == 0 && age[p] >= deathAge[p]) f = 1;
+        // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
+        // both): the allometry's exp and log are the costliest part of the step.
+        if (f == 0 && growthAge[p] != before && before < sps.fullGrownAgeYears) {
+            height[p] = ecomodPolylineHeightM(sps, growthAge[p]);
+            radius[p] = crown(s, height[p]);
+        }
+        fate[p] = f;
+    }
+    for (std::size_t p = 0; p < n; ++p) {
+        if (fate[p] == 1) ++counters.diedBackgroundOrStress;
+        if (fate[p] == 2) ++counters.diedDominated;
+    }
+    compact();
+}
+
+namespace {
+std::uint64_t hashBytes(std::uint64_t h, const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        std::uint64_t w;
+        std::memcpy(&w, p + i, 8);
+        h = mixStream(h, w);
+    }
+    std::uint64_t tail = n;
+    for (; i < n; ++i) tail = (tail << 8) ^ p[i];
+    return mixStream(h, tail);
+}
+std::string hex64(std::uint64_t v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+    return buf;
+}
+}  // namespace
+
+std::uint64_t EcoModel::Impl::computeFingerprint() const {
+    std::uint64_t h = 0x65636F6D6F643031ull;
+    for (const auto& [k, val] : params.namedValues()) {
+        h = hashBytes(h, k.data(), k.size());
+        h = hashBytes(h, &val, sizeof val);
+    }
+    h = mixStream(h, seed);
+    const std::string toml = biomeToToml(biome);
+    h = hashBytes(h, toml.data(), toml.size());
+    const double a[4] = {area.x0, area.y0, area.x1, area.y1};
+    h = hashBytes(h, a, sizeof a);
+    for (const Plant& t : canopy) {
+        const double vals[5] = {t.xM, t.yM, t.groundZM, t.heightM, t.crownRadiusM};
+        h = mixStream(h, static_cast<std::uint64_t>(t.speciesId));
+        h = hashBytes(h, vals, sizeof vals);
+    }
+    h = hashBytes(h, suit.data(), suit.size() * sizeof(float));
+    h = hashBytes(h, elevation.data().data(), elevation.size() * sizeof(float));
+    return h;
+}
+
+// ---------------------------------------------------------------------- construction
+
+EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, const std::vector<UndergrowthPlant>& initial)
+    : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.params = params;
+    m.params.validate("simulation parameters");
+    m.seed = seed;
+    m.biome = std::move(in.biome);
+    if (m.biome.species.empty()) throw ValidationError("simulation: the biome has no species");
+    const std::string source = m.biome.sourcePath.empty() ? std::string("biome '") + m.biome.name + "'" : m.biome.sourcePath;
+    for (const Species& s : m.biome.species) m.sp.push_back(resolveEcoModSpecies(s, source));
+    m.hRef = 0;
+    for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
+
+    Abiotics& abio = in.abiotics;
+    const Grid<float>& g = abio.slopeDeg;
+    if (g.empty()) throw ValidationError("simulation: the abiotics have no slope map");
+    if (abio.windMS.empty() || !abio.windMS.sameGeometry(g))
+        throw ValidationError("simulation: the abiotics have no wind map of the slope map's geometry (run eco abiotics again)");
+    for (const auto* mg : {&abio.sunHours, &abio.moistureMm})
+        if (mg->months.size() != 12 || !mg->months[0].sameGeometry(g))
+            throw ValidationError("simulation: the abiotics' sun and moisture need 12 monthly planes of the slope map's geometry");
+    if (abio.elevationM.empty()) abio.elevationM = Grid<float>::like(g, 0.f);
+    if (!abio.elevationM.sameGeometry(g))
+        throw ValidationError("simulation: the elevation map does not have the geometry of the slope map");
+
+    const double ex0 = g.originX(), ey0 = g.originY(), ex1 = ex0 + g.extentX(), ey1 = ey0 + g.extentY();
+    m.area = in.area ? *in.area : SimArea{ex0, ey0, ex1, ey1};
+    const double tol = 1e-6 * std::max(1.0, std::max(std::abs(ex1), std::abs(ey1)));
+    if (m.area.x0 < ex0 - tol || m.area.y0 < ey0 - tol || m.area.x1 > ex1 + tol || m.area.y1 > ey1 + tol ||
+        !(m.area.x1 > m.area.x0 && m.area.y1 > m.area.y0))
+        throw ValidationError("simulation: area [" + num(m.area.x0) + ", " + num(m.area.y0) + ", " + num(m.area.x1) + ", " +
+                              num(m.area.y1) + "] (x0, y0, x1, y1 in metres) is not inside the abiotics extent [" + num(ex0) +
+                              ", " + num(ey0) + ", " + num(ex1) + ", " + num(ey1) + "]");
+    m.areaHa = (m.area.x1 - m.area.x0) * (m.area.y1 - m.area.y0) / 10000.0;
+    const double c = g.cellSizeM();
+    const int ix0 = std::clamp(static_cast<int>(std::floor((m.area.x0 - ex0) / c + 1e-9)), 0, g.width() - 1);
+    const int iy0 = std::clamp(static_cast<int>(std::floor((m.area.y0 - ey0) / c + 1e-9)), 0, g.height() - 1);
+    const int ix1 = std::clamp(static_cast<int>(std::ceil((m.area.x1 - ex0) / c - 1e-9)), ix0 + 1, g.width());
+    const int iy1 = std::clamp(static_cast<int>(std::ceil((m.area.y1 - ey0) / c - 1e-9)), iy0 + 1, g.height());
+    m.geom = Grid<float>(ix1 - ix0, iy1 - iy0, c, ex0 + ix0 * c, ey0 + iy0 * c, 0.f);
+
+    // Suitability per species and cell (Eq. 2) from the annual maps; elevation normalised
+    // over the whole terrain (Eq. 11).
+    const FactorGrids annual = annualFactors(abio);
+    const float eMin = abio.elevationM.minValue(), eMax = abio.elevationM.maxValue();
+    const std::size_t cells = m.geom.size(), ns = m.sp.size();
+    m.suit.assign(ns * cells, 0.f);
+    m.cellSun.assign(cells, 0.f);
+    m.cellMoisture.assign(cells, 0.f);
+    for (int iy = 0; iy < m.geom.height(); ++iy)
+        for (int ix = 0; ix < m.geom.width(); ++ix) {
+            const std::size_t cell = m.geom.index(ix, iy);
+            const std::size_t src = g.index(ix0 + ix, iy0 + iy);
+            const double sun = annual[Factor::Sun].data()[src], moist = annual[Factor::Moisture].data()[src];
+            const double wind = annual[Factor::Wind].data()[src], slope = annual[Factor::Slope].data()[src];
+            const double yNorm = eMax > eMin ? (abio.elevationM.data()[src] - eMin) / (eMax - eMin) : 0.0;
+            m.cellSun[cell] = static_cast<float>(sun);
+            m.cellMoisture[cell] = static_cast<float>(moist);
+            for (std::size_t s = 0; s < ns; ++s) {
+                const EcoModSpeciesParams& p = m.sp[s];
+                const double vv = ecomodDeviationSuitability(yNorm, p.elevationOpt, p.elevationTol, p.elevationHarm) *
+                                  ecomodDeviationSuitability(moist, p.moistureOpt, p.moistureTol, p.moistureHarm) *
+                                  ecomodDeviationSuitability(sun, p.sunOpt, p.sunTol, p.sunHarm) *
+                                  ecomodDeviationSuitability(wind, p.windOpt, p.windTol, p.windHarm) *
+                                  ecomodSlopeSuitability(slope, p.slopeHarm);
+                m.suit[s * cells + cell] = static_cast<float>(vv);
+            }
+        }
+    m.elevation = std::move(abio.elevationM);
+
+    // Static canopy trees that reach the area with their crown or their seeds.
+    for (const Plant& t : in.canopy) {
+        if (t.speciesId < 0 || static_cast<std::size_t>(t.speciesId) >= ns)
+            throw ValidationError("simulation: a canopy tree has species id " + std::to_string(t.speciesId) + " outside the biome");
+        const double reach = std::max(t.crownRadiusM, m.sp[static_cast<std::size_t>(t.speciesId)].dispersalRadiusM);
+        if (t.xM + reach < m.area.x0 || t.xM - reach >= m.area.x1 || t.yM + reach < m.area.y0 || t.yM - reach >= m.area.y1)
+            continue;
+        m.canopy.push_back(t);
+        m.canopyV.push_back(m.suitAt(t.speciesId, t.xM, t.yM));
+    }
+
+    for (const UndergrowthPlant& u : initial) {
+        if (u.speciesId < 0 || static_cast<std::size_t>(u.speciesId) >= ns)
+            throw ValidationError("simulation: an initial plant has species id " + std::to_string(u.speciesId) + " outside the biome");
+        if (!m.inArea(u.xM, u.yM)) {
+            ++m.droppedInitial;
+            continue;
+        }
+        const EcoModSpeciesParams& p = m.sp[static_cast<std::size_t>(u.speciesId)];
+        const double gAge = u.growthAgeYears > 0 ? u.growthAgeYears : ecomodPolylineAgeYears(p, u.heightM);
+        const int ageYears = static_cast<int>(std::lround(u.ageYears > 0 ? u.ageYears : gAge));
+        const std::uint64_t pid = m.nextId++;
+        m.push(pid, u.speciesId, u.xM, u.yM, u.heightM, gAge, ageYears, m.drawDeathAge(u.speciesId, pid, ageYears + 1.0));
+    }
+    m.fate.assign(m.size(), 0);
+    m.fingerprintValue = m.computeFingerprint();
+}
+
+EcoModel::~EcoModel() = default;
+
+void EcoModel::stepYear() {
+    impl_->seedYear();
+    impl_->growYear();
+    ++impl_->year;
+}
+
+int EcoModel::yearsDone() const { return impl_->year; }
+std::size_t EcoModel::plantCount() const { return impl_->size(); }
+
+std::vector<UndergrowthPlant> EcoModel::plants() const {
+    const Impl& m = *impl_;
+    std::vector<UndergrowthPlant> out(m.size());
+    for (std::size_t p = 0; p < out.size(); ++p) {
+        UndergrowthPlant& u = out[p];
+        u.id = m.id[p];
+        u.speciesId = m.species[p];
+        u.xM = m.x[p];
+        u.yM = m.y[p];
+        u.groundZM = m.groundZ[p];
+        u.heightM = m.height[p];
+        u.crownRadiusM = m.radius[p];
+        u.ageYears = m.age[p];
+        u.growthAgeYears = m.growthAge[p];
+        u.vigour = m.v[p];
+        u.pool = m.height[p] / m.hRef * m.sp[static_cast<std::size_t>(m.species[p])].persistence * m.v[p];
+        const std::size_t cell = m.cellOf(m.x[p], m.y[p]);
+        u.sunShare = m.cellSun[cell];
+        u.waterShare = m.cellMoisture[cell];
+    }
+    return out;
+}
+
+YearRecord EcoModel::census() const {
+    const Impl& m = *impl_;
+    const std::size_t ns = m.sp.size();
+    YearRecord r;
+    r.year = m.year;
+    r.count.assign(ns, 0);
+    r.meanHeightM.assign(ns, 0);
+    r.meanVigour.assign(ns, 0);
+    r.crownAreaM2.assign(ns, 0);
+    for (std::size_t p = 0; p < m.size(); ++p) {
+        const std::size_t s = static_cast<std::size_t>(m.species[p]);
+        ++r.count[s];
+        r.meanHeightM[s] += m.height[p];
+        r.meanVigour[s] += m.v[p];
+        r.crownAreaM2[s] += kPi * m.radius[p] * m.radius[p];
+    }
+    for (std::size_t s = 0; s < ns; ++s)
+        if (r.count[s] > 0) {
+            r.meanHeightM[s] /= r.count[s];
+            r.meanVigour[s] /= r.count[s];
+        }
+    return r;
+}
+
+const SimCounters& EcoModel::counters() const { return impl_->counters; }
+std::size_t EcoModel::droppedInitialPlants() const { return impl_->droppedInitial; }
+const SimParams& EcoModel::params() const { return impl_->params; }
+const Biome& EcoModel::biome() const { return impl_->biome; }
+std::uint64_t EcoModel::seed() const { return impl_->seed; }
+SimArea EcoModel::area() const { return impl_->area; }
+const Grid<float>& EcoModel::gridGeometry() const { return impl_->geom; }
+const std::vector<Plant>& EcoModel::relevantCanopy() const { return impl_->canopy; }
+const std::vector<EcoModSpeciesParams>& EcoModel::speciesParams() const { return impl_->sp; }
+double EcoModel::suitability(int s, double xM, double yM) const {
+    if (s < 0 || static_cast<std::size_t>(s) >= impl_->sp.size() || !impl_->inArea(xM, yM)) return 0.0;
+    return impl_->suitAt(s, xM, yM);
+}
+std::uint64_t EcoModel::fingerprint() const { return impl_->fingerprintValue; }
+std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
+    Impl& m = *impl_;
+    if (dead.size() != m.size())
+        throw ValidationError("removeTrees: " + std::to_string(dead.size()) + " flags for " + std::to_string(m.size()) + " trees");
+    std::size_t removed = 0;
+    m.fate.assign(m.size(), 0);
+    for (std::size_t p = 0; p < dead.size(); ++p)
+        if (dead[p]) {
+            m.fate[p] = 1;
+            ++removed;
+        }
+    m.compact();
+    return removed;
+}
+std::size_t EcoModel::bytesPerPlant() const {
+    return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
+           /* step scratch: ability, fate, dominated, bucket entry and index */ sizeof(double) + 2 + 2 * sizeof(std::uint32_t);
+}
+
+void EcoModel::saveState(h5::File& f, const std::string& group) const {
+    const Impl& m = *impl_;
+    const hsize_t n = m.size();
+    f.ensureGroup(group);
+    f.setAttr(group, "model", std::string("ecomod"));
+    f.setAttr(group, "fingerprint", hex64(fingerprint()));
+    f.setAttr(group, "years_done", static_cast<std::int64_t>(m.year));
+    f.setAttr(group, "next_id", static_cast<std::int64_t>(m.nextId));
+    f.setAttr(group, "plant_months", static_cast<std::int64_t>(m.counters.plantMonths));
+    f.setAttr(group, "germinated", static_cast<std::int64_t>(m.counters.germinated));
+    f.setAttr(group, "died_at_max_age", static_cast<std::int64_t>(m.counters.diedBackgroundOrStress));
+    f.setAttr(group, "died_dominated", static_cast<std::int64_t>(m.counters.diedDominated));
+    f.setAttr(group, "dropped_initial", static_cast<std::int64_t>(m.droppedInitial));
+    std::vector<std::int32_t> idLo(n), idHi(n);
+    for (std::size_t p = 0; p < n; ++p) {
+        idLo[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(m.id[p]));
+        idHi[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(m.id[p] >> 32));
+    }
+    f.writeI32(group + "/id_lo", idLo, {n}, "1");
+    f.writeI32(group + "/id_hi", idHi, {n}, "1");
+    f.writeI32(group + "/species", m.species, {n}, "1");
+    f.writeF64(group + "/x", m.x, {n}, "m");
+    f.writeF64(group + "/y", m.y, {n}, "m");
+    f.writeF64(group + "/height", m.height, {n}, "m");
+    f.writeF64(group + "/growth_age", m.growthAge, {n}, "years");
+    f.writeF64(group + "/death_age", m.deathAge, {n}, "years");
+    f.writeI32(group + "/age", m.age, {n}, "years");
+}
+
+void EcoModel::loadState(const h5::File& f, const std::string& group) {
+    Impl& m = *impl_;
+    const std::string where = f.path() + ": " + group;
+    if (!f.exists(group)) throw IoError(where + ": no simulation state");
+    if (!f.hasAttr(group, "model") || f.attrString(group, "model") != "ecomod")
+        throw IoError(where + ": the checkpoint is not of an ecomod run");
+    const std::string fp = f.attrString(group, "fingerprint");
+    if (fp != hex64(fingerprint()))
+        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed or model "
+                              "parameters; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
+    const auto idLo = f.readI32(group + "/id_lo");
+    const auto idHi = f.readI32(group + "/id_hi");
+    const auto sps = f.readI32(group + "/species");
+    const auto xs = f.readF64(group + "/x");
+    const auto ys = f.readF64(group + "/y");
+    const auto hs = f.readF64(group + "/height");
+    const auto gs = f.readF64(group + "/growth_age");
+    const auto ds = f.readF64(group + "/death_age");
+    const auto as = f.readI32(group + "/age");
+    const std::size_t n = sps.size();
+    for (std::size_t len : {idLo.size(), idHi.size(), xs.size(), ys.size(), hs.size(), gs.size(), ds.size(), as.size()})
+        if (len != n) throw IoError(where + ": plant arrays differ in length");
+    m.id.clear();
+    m.species.clear();
+    for (auto* a : {&m.x, &m.y, &m.groundZ, &m.height, &m.radius, &m.growthAge, &m.deathAge}) a->clear();
+    m.age.clear();
+    m.v.clear();
+    for (std::size_t p = 0; p < n; ++p) {
+        if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
+        const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |
+                                  static_cast<std::uint32_t>(idLo[p]);
+        m.push(pid, sps[p], xs[p], ys[p], hs[p], gs[p], as[p], ds[p]);
+    }
+    m.fate.assign(n, 0);
+    m.year = static_cast<int>(f.attrInt(group, "years_done"));
+    m.nextId = static_cast<std::uint64_t>(f.attrInt(group, "next_id"));
+    m.counters = SimCounters{};
+    m.counters.plantMonths = f.attrInt(group, "plant_months");
+    m.counters.germinated = f.attrInt(group, "germinated");
+    m.counters.diedBackgroundOrStress = f.attrInt(group, "died_at_max_age");
+    m.counters.diedDominated = f.attrInt(group, "died_dominated");
+    m.droppedInitial = static_cast<std::size_t>(f.attrInt(group, "dropped_initial"));
+}
+
+}  // namespace eco::sim

@@ -1,0 +1,112 @@
+// The EcoMod model of Zamuda & Brest (afforestation by yearly agents; docs/ecomod.md), the
+// second simulator model, selected by `[model] kind = "ecomod"` in a run configuration.
+//
+// Every year: new trees per species (last year's seeds of mature trees times a germination
+// share, plus immigrants from outside), placed near a parent of their species with
+// probability p_s (under-dispersion) or anywhere, and established with probability v, the
+// suitability of their place; growth of every tree along its species' height polyline
+// through (0, 0), (t_m, h_m), (t_a, h_full), (t_f, h_full), unless a neighbour whose
+// ecological neighbourhood (crown circle) overlaps its own has a higher competitive ability
+// a = (h / h_max of the biome) x p_persist x v (Eq. 1); then it is dominated: it gains
+// dominated_growth years of growth age and dies with probability 1 - dominated_survival;
+// deaths at an age drawn uniformly in [t_a, t_f] at birth. v = k_y m l w s (Eq. 2): the
+// suitabilities of normalised elevation, moisture, sun, wind (Eqs. 4-7) and slope (Eq. 3),
+// from the annual maps of the abiotics file.
+//
+// The plant state is a structure of arrays of positions, heights, species and ages; the
+// Simulation front (simulator.h) delegates to EcoModel when the model kind is "ecomod", so
+// the run loop, outputs, checkpoints and resume are those of the monthly model. Results are
+// bit-identical for any thread count: every random draw comes from a stream keyed by (seed,
+// year, species or plant id), and parallel loops only write per-plant results.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "biome.h"
+#include "h5io.h"
+#include "sim_config.h"
+#include "sim_file.h"
+
+namespace eco::sim {
+
+struct SimInputs;
+struct SimCounters;
+
+/// A species' EcoMod parameters with every default resolved (units in docs/ecomod.md).
+struct EcoModSpeciesParams {
+    double maturityAgeYears = 0, fullGrownAgeYears = 0, maxAgeYears = 0;
+    double matureHeightM = 0, fullHeightM = 0;
+    double persistence = 0, seedsPerYear = 0, germination = 0, nearProbability = 0, dispersalRadiusM = 0;
+    double immigrantsPerHaYear = 0, dominatedSurvival = 0, dominatedGrowth = 0;
+    double elevationOpt = 0, elevationTol = 0, elevationHarm = 0;
+    double moistureOpt = 0, moistureTol = 0, moistureHarm = 0;
+    double sunOpt = 0, sunTol = 0, sunHarm = 0;
+    double windOpt = 0, windTol = 0, windHarm = 0;
+    double slopeHarm = 0;
+};
+
+/// The species' `ecomod` table with the documented defaults for the keys it does not give
+/// (docs/ecomod.md "Species parameters"). ValidationError naming `source`, the species, the
+/// key and the value when the polyline is not increasing in age (t_m < t_a <= t_f) or in
+/// height (h_m <= h_full).
+EcoModSpeciesParams resolveEcoModSpecies(const Species& s, const std::string& source);
+
+/// The height polyline (Fig. 1): metres at growth age `ageYears` >= 0, linear between
+/// (0, 0), (t_m, h_m), (t_a, h_full) and constant h_full from t_a on.
+double ecomodPolylineHeightM(const EcoModSpeciesParams& p, double ageYears);
+/// Its inverse on [0, t_a]: the growth age at which the polyline reaches `heightM`
+/// (t_a for heights at or above h_full). Initial plants get their growth age from it.
+double ecomodPolylineAgeYears(const EcoModSpeciesParams& p, double heightM);
+/// Eqs. 4-7: 1 within the tolerated deviation `tol` of the optimum `opt`, else
+/// 1 - min(1, |x - opt| harm) (the paper prints max, which would make it <= 0 everywhere).
+double ecomodDeviationSuitability(double x, double opt, double tol, double harm);
+/// Eq. 3 with the paper's slope 1 - n_y = 1 - cos(slope): 1 - (harm (1 - cos slope))^2, >= 0.
+double ecomodSlopeSuitability(double slopeDeg, double harm);
+
+/// The EcoMod engine behind Simulation (see the file comment). Coordinates in world metres;
+/// ages in years; heights and radii in metres.
+class EcoModel {
+public:
+    /// ValidationError for bad parameters, an area outside the abiotics, a species id
+    /// outside the biome. `initial` plants outside the area are dropped (counted).
+    EcoModel(SimInputs inputs, const SimParams& params, std::uint64_t seed, const std::vector<UndergrowthPlant>& initial);
+    ~EcoModel();
+    EcoModel(const EcoModel&) = delete;
+    EcoModel& operator=(const EcoModel&) = delete;
+
+    /// One year: seeding, growth with domination, elimination (Algorithm 1).
+    void stepYear();
+    int yearsDone() const;
+    std::size_t plantCount() const;
+    /// The living trees, in creation order. vigour = suitability v, pool = competitive ability a.
+    std::vector<UndergrowthPlant> plants() const;
+    YearRecord census() const;
+    const SimCounters& counters() const;
+    std::size_t droppedInitialPlants() const;
+    const SimParams& params() const;
+    const Biome& biome() const;
+    std::uint64_t seed() const;
+    SimArea area() const;
+    const Grid<float>& gridGeometry() const;
+    const std::vector<Plant>& relevantCanopy() const;
+    const std::vector<EcoModSpeciesParams>& speciesParams() const;
+    /// Suitability v of species s at world point (x, y) (0 outside the area).
+    double suitability(int s, double xM, double yM) const;
+    /// Disturbance hook (fire, windthrow; issue 30 item 3): removes the trees whose entry in
+    /// `dead` (indexed as plants(), same length) is non-zero, keeping the others' order; returns
+    /// how many were removed. ValidationError when the length differs.
+    std::size_t removeTrees(const std::vector<std::uint8_t>& dead);
+    std::uint64_t fingerprint() const;
+    void saveState(h5::File& file, const std::string& group) const;
+    void loadState(const h5::File& file, const std::string& group);
+    std::size_t bytesPerPlant() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace eco::sim

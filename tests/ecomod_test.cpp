@@ -1,0 +1,352 @@
+// The EcoMod model (sim/ecomod.h): the height polyline, the suitabilities, domination between
+// two constructed trees, under-dispersion seeding statistics, determinism across thread
+// counts and checkpoint / resume, and the refusal of bad parameters.
+#include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "ecomod.h"
+#include "error.h"
+#include "sim_config.h"
+#include "sim_run.h"
+#include "sim_scene_fixture.h"
+#include "simulator.h"
+#include "test_util.h"
+
+using namespace eco;
+using namespace eco::sim;
+
+namespace {
+
+// A flat, uniform scene of `sizeM` metres in 1 m cells (the suitability is the same everywhere).
+Abiotics flatAbiotics(int sizeM) {
+    Abiotics a;
+    const Grid<float> like(sizeM, sizeM, 1.0, 0, 0, 0.f);
+    a.elevationM = Grid<float>::like(like, 50.f);
+    a.slopeDeg = Grid<float>::like(like, 0.f);
+    a.windMS = Grid<float>::like(like, 3.f);
+    for (int m = 0; m < 12; ++m) {
+        a.sunHours.months.push_back(Grid<float>::like(like, 8.f));
+        a.moistureMm.months.push_back(Grid<float>::like(like, 60.f));
+        a.temperatureC.months.push_back(Grid<float>::like(like, 15.f));
+    }
+    return a;
+}
+
+// The Sonoma biome with every species made indifferent to the site (v = 1 everywhere), no
+// seeds and no immigrants: only what a test sets happens.
+Biome quietBiome() {
+    Biome b = defaultBiome();
+    for (Species& s : b.species) {
+        EcoModSpecies& e = s.ecomod;
+        e.elevationTol = e.moistureTol = e.sunTol = e.windTol = 1e9;
+        e.slopeHarm = 0;
+        e.seedsPerYear = 0;
+        e.immigrantsPerHaYear = 0;
+    }
+    return b;
+}
+
+SimParams ecomodParams() {
+    SimParams p;
+    p.kind = ModelKind::EcoMod;
+    return p;
+}
+
+SimInputs flatScene(const Biome& b, int sizeM) {
+    SimInputs in;
+    in.biome = b;
+    in.abiotics = flatAbiotics(sizeM);
+    return in;
+}
+
+UndergrowthPlant tree(int species, double x, double y, double h, double ageYears = 0) {
+    UndergrowthPlant p;
+    p.speciesId = species;
+    p.xM = x;
+    p.yM = y;
+    p.heightM = h;
+    p.ageYears = ageYears;
+    return p;
+}
+
+bool samePlants(const std::vector<UndergrowthPlant>& a, const std::vector<UndergrowthPlant>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        const auto& p = a[i];
+        const auto& q = b[i];
+        if (p.id != q.id || p.speciesId != q.speciesId || std::memcmp(&p.xM, &q.xM, sizeof(double)) != 0 ||
+            std::memcmp(&p.yM, &q.yM, sizeof(double)) != 0 || std::memcmp(&p.heightM, &q.heightM, sizeof(double)) != 0 ||
+            std::memcmp(&p.growthAgeYears, &q.growthAgeYears, sizeof(double)) != 0 || p.ageYears != q.ageYears)
+            return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+TEST_CASE("ecomod: the height polyline passes through its control points", "[sim][ecomod]") {
+    EcoModSpeciesParams p;
+    p.maturityAgeYears = 10;
+    p.fullGrownAgeYears = 40;
+    p.maxAgeYears = 100;
+    p.matureHeightM = 6;
+    p.fullHeightM = 10;
+    CHECK(ecomodPolylineHeightM(p, 0) == 0);
+    CHECK(ecomodPolylineHeightM(p, 5) == Approx(3));
+    CHECK(ecomodPolylineHeightM(p, 10) == Approx(6));
+    CHECK(ecomodPolylineHeightM(p, 25) == Approx(8));
+    CHECK(ecomodPolylineHeightM(p, 40) == Approx(10));
+    CHECK(ecomodPolylineHeightM(p, 90) == Approx(10));
+    // Young trees grow faster (0.6 m/year) than old ones (0.133 m/year).
+    CHECK(ecomodPolylineHeightM(p, 2) - ecomodPolylineHeightM(p, 1) > ecomodPolylineHeightM(p, 21) - ecomodPolylineHeightM(p, 20));
+    CHECK(ecomodPolylineAgeYears(p, 3) == Approx(5));
+    CHECK(ecomodPolylineAgeYears(p, 8) == Approx(25));
+    CHECK(ecomodPolylineAgeYears(p, 12) == Approx(40));
+}
+
+TEST_CASE("ecomod: suitabilities of Eqs. 3-7", "[sim][ecomod]") {
+    CHECK(ecomodDeviationSuitability(52, 50, 3, 0.1) == 1.0);          // within the tolerance
+    CHECK(ecomodDeviationSuitability(55, 50, 3, 0.1) == Approx(0.5));  // 1 - 5 x 0.1
+    CHECK(ecomodDeviationSuitability(80, 50, 3, 0.1) == 0.0);          // clamped at 0
+    CHECK(ecomodSlopeSuitability(0, 2) == 1.0);
+    CHECK(ecomodSlopeSuitability(60, 1) == Approx(0.75));  // 1 - (1 - cos 60)^2
+    CHECK(ecomodSlopeSuitability(90, 2) == 0.0);
+}
+
+TEST_CASE("ecomod: a lone tree follows its polyline and dies between full-grown and maximum age", "[sim][ecomod]") {
+    Biome b = quietBiome();
+    const int s = b.speciesIndex("Toyon");
+    Species& sp = b.species[static_cast<std::size_t>(s)];
+    sp.ecomod.maturityAgeYears = 10;
+    sp.ecomod.fullGrownAgeYears = 20;
+    sp.ecomod.maxAgeYears = 30;
+    sp.ecomod.matureHeightM = 4;
+    sp.ecomod.fullHeightM = 6;
+    Simulation sim(flatScene(b, 20), ecomodParams(), 3, {tree(s, 10, 10, 0.4)});  // growth age 1 from its height
+    for (int y = 1; y <= 15; ++y) {
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 1);
+        const UndergrowthPlant p = sim.plants()[0];
+        CHECK(p.growthAgeYears == Approx(1 + y));
+        CHECK(p.heightM == Approx(y + 1 <= 10 ? 0.4 * (y + 1) : 4 + 0.2 * (y + 1 - 10)));
+        CHECK(p.crownRadiusM == Approx(sp.allometry.crownRadiusM(p.heightM)));
+    }
+    int diedAt = -1;
+    for (int y = 16; y <= 31 && diedAt < 0; ++y) {
+        sim.stepYear();
+        if (sim.plantCount() == 0) diedAt = y;
+    }
+    // The initial tree is aged by its growth age (1 year), so it dies at an age in [20, 30].
+    CHECK(diedAt >= 19);
+    CHECK(diedAt <= 30);
+    CHECK(sim.counters().diedBackgroundOrStress == 1);
+}
+
+TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", "[sim][ecomod]") {
+    Biome b = quietBiome();
+    const int tall = b.speciesIndex("Coast Live Oak"), small = b.speciesIndex("Toyon");
+    for (int s : {tall, small}) {
+        EcoModSpecies& e = b.species[static_cast<std::size_t>(s)].ecomod;
+        e.persistence = 0.8;
+        e.dominatedGrowth = 0;
+    }
+    SECTION("dominated trees do not grow; the dominant one does") {
+        for (int s : {tall, small}) b.species[static_cast<std::size_t>(s)].ecomod.dominatedSurvival = 1;
+        // 8 m and 3 m apart by 2 m: crowns (about 1.7 m and 1.3 m) overlap; a = h / h_max x 0.8 x 1.
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 10, 10, 8), tree(small, 12, 10, 3)});
+        for (int y = 0; y < 5; ++y) sim.stepYear();
+        const auto plants = sim.plants();
+        REQUIRE(plants.size() == 2);
+        CHECK(plants[0].heightM > 8);           // undominated: grew
+        CHECK(plants[1].heightM == Approx(3));  // dominated: growth obstructed
+        CHECK(plants[1].growthAgeYears == Approx(ecomodPolylineAgeYears(sim.ecomod()->speciesParams()[small], 3)));
+    }
+    SECTION("a dominated tree without persistence dies in the first year; the victor lives") {
+        b.species[static_cast<std::size_t>(small)].ecomod.dominatedSurvival = 0;
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 10, 10, 8), tree(small, 12, 10, 3)});
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 1);
+        CHECK(sim.plants()[0].speciesId == tall);
+        CHECK(sim.counters().diedDominated == 1);
+    }
+    SECTION("persistence decides between trees of equal height") {
+        b.species[static_cast<std::size_t>(small)].ecomod.fullHeightM = 25;  // Toyon may grow as tall here
+        b.species[static_cast<std::size_t>(small)].ecomod.persistence = 0.9;  // a = h / h_max x 0.9 > 0.8
+        b.species[static_cast<std::size_t>(tall)].ecomod.dominatedSurvival = 0;
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 10, 10, 5), tree(small, 11, 10, 5)});
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 1);
+        CHECK(sim.plants()[0].speciesId == small);
+    }
+    SECTION("trees whose neighbourhoods do not intersect both grow") {
+        for (int s : {tall, small}) b.species[static_cast<std::size_t>(s)].ecomod.dominatedSurvival = 0;
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 5, 10, 8), tree(small, 15, 10, 3)});
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 2);
+        CHECK(sim.plants()[1].heightM > 3);
+    }
+}
+
+TEST_CASE("ecomod: under-dispersion puts the share p_s of new trees near their parent, uniformly in its disc",
+          "[sim][ecomod]") {
+    // One mature parent in the centre of 100 m x 100 m, 2000 seeds establishing everywhere
+    // (v = 1), p_s = 0.7, dispersal radius 10 m. A far seed lands within 10 m of the parent
+    // with probability pi 10^2 / 100^2, so the count within 10 m is binomial with
+    // p = 0.7 + 0.3 x 0.0314; it must lie within 4 standard deviations (significance 6e-5).
+    Biome b = quietBiome();
+    const int s = b.speciesIndex("Toyon");
+    EcoModSpecies& e = b.species[static_cast<std::size_t>(s)].ecomod;
+    e.maturityAgeYears = 5;
+    e.fullGrownAgeYears = 100;
+    e.maxAgeYears = 200;
+    e.seedsPerYear = 2000;
+    e.germination = 1;
+    e.nearProbability = 0.7;
+    e.dispersalRadiusM = 10;
+    e.dominatedSurvival = 1;  // the seedlings under the parent survive the year
+    const double cx = 50, cy = 50;
+    Simulation sim(flatScene(b, 100), ecomodParams(), 7, {tree(s, cx, cy, 5, 50)});
+    sim.stepYear();
+    const auto plants = sim.plants();
+    REQUIRE(plants.size() == 2001);
+    int near = 0;
+    int rings[4] = {0, 0, 0, 0};  // equal-area rings of the 10 m disc
+    for (std::size_t i = 1; i < plants.size(); ++i) {
+        const double d2 = (plants[i].xM - cx) * (plants[i].xM - cx) + (plants[i].yM - cy) * (plants[i].yM - cy);
+        if (d2 < 100) {
+            ++near;
+            ++rings[std::min(3, static_cast<int>(d2 / 25))];
+        }
+    }
+    const double p = 0.7 + 0.3 * 3.14159265358979 * 100 / 10000;
+    const double mean = 2000 * p, sd = std::sqrt(2000 * p * (1 - p));
+    CHECK(std::fabs(near - mean) < 4 * sd);
+    // Uniform in the disc: chi-square over the four equal-area rings, 3 degrees of freedom,
+    // critical value 16.27 at significance 0.001.
+    double chi2 = 0;
+    for (int r : rings) chi2 += (r - near / 4.0) * (r - near / 4.0) / (near / 4.0);
+    CHECK(chi2 < 16.27);
+    // Without under-dispersion the same count falls to the far seeds' share.
+    e.nearProbability = 0;
+    Simulation uniform(flatScene(b, 100), ecomodParams(), 7, {tree(s, cx, cy, 5, 50)});
+    uniform.stepYear();
+    int nearUniform = 0;
+    for (const auto& q : uniform.plants())
+        if ((q.xM - cx) * (q.xM - cx) + (q.yM - cy) * (q.yM - cy) < 100) ++nearUniform;
+    const double p0 = 3.14159265358979 * 100 / 10000;
+    CHECK(std::fabs((nearUniform - 1) - 2000 * p0) < 4 * std::sqrt(2000 * p0 * (1 - p0)));
+}
+
+TEST_CASE("ecomod: seedlings establish only where the site suits them", "[sim][ecomod]") {
+    // Immigrants over a scene whose left half is too dry for the species: none establish there.
+    Biome b = quietBiome();
+    const int s = b.speciesIndex("Toyon");
+    EcoModSpecies& e = b.species[static_cast<std::size_t>(s)].ecomod;
+    e.moistureOpt = 60;
+    e.moistureTol = 5;
+    e.moistureHarm = 0.1;
+    e.immigrantsPerHaYear = 4000;
+    SimInputs in = flatScene(b, 50);
+    for (auto& g : in.abiotics.moistureMm.months)
+        for (int iy = 0; iy < 50; ++iy)
+            for (int ix = 0; ix < 25; ++ix) g(ix, iy) = 10.f;
+    Simulation sim(std::move(in), ecomodParams(), 2);
+    sim.stepYear();
+    int left = 0, right = 0;
+    for (const auto& p : sim.plants()) (p.xM < 25 ? left : right)++;
+    CHECK(left == 0);
+    CHECK(right > 300);  // 1000 arrivals, about half on the right
+}
+
+TEST_CASE("ecomod: the same bytes for any thread count and after a checkpoint and resume", "[sim][ecomod][checkpoint]") {
+    test::TempDir dir("ecomodresume");
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    setParallelThresholds(0, 0);  // the parallel paths even on this small scene
+    const int threadsBefore = omp_get_max_threads();
+    omp_set_num_threads(1);
+    Simulation one(in, params, 5);
+    for (int y = 0; y < 25; ++y) one.stepYear();
+    omp_set_num_threads(std::max(2, threadsBefore));
+    Simulation two(in, params, 5);
+    for (int y = 0; y < 25; ++y) two.stepYear();
+    CHECK(one.plantCount() > 100);
+    CHECK(samePlants(one.plants(), two.plants()));
+
+    Simulation first(in, params, 5);
+    for (int y = 0; y < 11; ++y) first.stepYear();
+    {
+        auto f = h5::File::create(dir.file("state.h5"));
+        first.saveState(f, "/state");
+    }
+    Simulation resumed(in, params, 5);
+    {
+        auto f = h5::File::openRead(dir.file("state.h5"));
+        resumed.loadState(f, "/state");
+    }
+    CHECK(resumed.yearsDone() == 11);
+    for (int y = 11; y < 25; ++y) resumed.stepYear();
+    CHECK(samePlants(two.plants(), resumed.plants()));
+    CHECK(two.counters().germinated == resumed.counters().germinated);
+    CHECK(two.counters().diedDominated == resumed.counters().diedDominated);
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
+    omp_set_num_threads(threadsBefore);
+
+    // Another seed is another run, and a monthly run refuses an ecomod checkpoint.
+    Simulation other(in, params, 6);
+    auto f = h5::File::openRead(dir.file("state.h5"));
+    CHECK_THROWS_WITH(other.loadState(f, "/state"), Catch::Contains("another run"));
+    SimInputs small = test::smallDemoScene();
+    small.area = SimArea{10, 10, 20, 20};
+    Simulation monthly(small, SimParams{}, 5);
+    CHECK_THROWS_WITH(monthly.loadState(f, "/state"), Catch::Contains("ecomod"));
+}
+
+TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
+    Biome b = quietBiome();
+    const int s = b.speciesIndex("Toyon");
+    Simulation sim(flatScene(b, 30), ecomodParams(), 1,
+                   {tree(s, 5, 5, 1), tree(s, 15, 5, 1), tree(s, 25, 5, 1), tree(s, 5, 25, 1)});
+    const auto before = sim.plants();
+    REQUIRE(sim.ecomod() != nullptr);
+    EcoModel& eco = *sim.ecomod();
+    CHECK(eco.removeTrees({0, 1, 0, 1}) == 2);
+    const auto after = sim.plants();
+    REQUIRE(after.size() == 2);
+    CHECK(after[0].id == before[0].id);
+    CHECK(after[1].id == before[2].id);
+    CHECK_THROWS_AS(eco.removeTrees({1}), ValidationError);
+}
+
+TEST_CASE("ecomod: bad values are refused naming the file, the key and the value", "[sim][ecomod][config]") {
+    CHECK_THROWS_WITH(parseRunConfig("[model]\nkind = \"ecomood\"\n", "run.toml"),
+                      Catch::Contains("run.toml") && Catch::Contains("kind") && Catch::Contains("ecomood") &&
+                          Catch::Contains("\"ecomod\""));
+    CHECK(parseRunConfig("[model]\nkind = \"ecomod\"\n", "run.toml").params.kind == ModelKind::EcoMod);
+    CHECK(parseRunConfig("", "run.toml").params.kind == ModelKind::Monthly);
+    // The default kind writes nothing new into the records (monthly outputs keep their bytes).
+    CHECK(SimParams{}.toToml().find("kind") == std::string::npos);
+    CHECK(ecomodParams().toToml().find("kind = \"ecomod\"") != std::string::npos);
+
+    Biome b = defaultBiome();
+    b.sourcePath = "my-biome.toml";
+    Species& toyon = b.species[static_cast<std::size_t>(b.speciesIndex("Toyon"))];
+    toyon.ecomod.maturityAgeYears = 80;
+    toyon.ecomod.fullGrownAgeYears = 60;
+    SimInputs in = flatScene(b, 20);
+    CHECK_THROWS_WITH(Simulation(in, ecomodParams(), 1),
+                      Catch::Contains("my-biome.toml") && Catch::Contains("Toyon") &&
+                          Catch::Contains("maturity_age_years 80") && Catch::Contains("full_grown_age_years 60"));
+    toyon.ecomod.maturityAgeYears = 10;
+    toyon.ecomod.matureHeightM = 12;  // above the default full height, Toyon's max_height_m of 9 m
+    in = flatScene(b, 20);
+    CHECK_THROWS_WITH(Simulation(in, ecomodParams(), 1),
+                      Catch::Contains("my-biome.toml") && Catch::Contains("mature_height_m 12"));
+    // The monthly model's inspectors say which model they belong to.
+    Simulation eco(flatScene(quietBiome(), 20), ecomodParams(), 1);
+    CHECK_THROWS_WITH(eco.stepMonth(), Catch::Contains("monthly model"));
+}
