@@ -163,6 +163,13 @@ void readSpeciesField(StrictTable& t, const SpeciesField& f, Species& s, const B
             break;
         }
         case SpeciesField::Kind::Flag: s.*(f.flag) = t.boolean(key); break;
+        case SpeciesField::Kind::OptionalReal: {
+            if (!t.has(key)) break;  // stays NaN: not given
+            const double v = t.number(key);
+            if (!f.range.contains(v)) t.fail(key, "value " + StrictTable::fmt(v) + " " + f.ruleText());
+            s.*(f.real) = v;
+            break;
+        }
     }
 }
 
@@ -184,6 +191,9 @@ void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s)
         case SpeciesField::Kind::GrowthPeriod: st.insert(f.key, s.growthPeriod); break;
         case SpeciesField::Kind::Allometry: st.insert(f.key, s.allometry.code); break;
         case SpeciesField::Kind::Flag: st.insert(f.key, s.*(f.flag)); break;
+        case SpeciesField::Kind::OptionalReal:
+            if (!std::isnan(s.*(f.real))) st.insert(f.key, s.*(f.real));
+            break;
     }
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,9 @@ struct Species {
     Allometry allometry;
     std::vector<int> subBiomes;      ///< 1-based sub-biome numbers (as in the paper)
     bool canopy = false;             ///< can be a canopy tree
+    /// Fire tolerance in [0, 1] (optional key fire_tolerance; NaN = not given: the run's
+    /// [disturbance.fire] default_tolerance applies). docs/disturbance.md.
+    double fireTolerance = std::numeric_limits<double>::quiet_NaN();
     /// The response to factor f.
     const Response& response(Factor f) const { return responses[factorIndex(f)]; }
     Response& response(Factor f) { return responses[factorIndex(f)]; }
@@ -58,6 +62,7 @@ struct SpeciesField {
         GrowthPeriod,  ///< a name from [growth_periods] (also sets growthMonths)
         Allometry,     ///< a code from [allometry]
         Flag,          ///< true or false, in member `flag`
+        OptionalReal,  ///< like Real, but may be absent (NaN in `real` then, and not printed)
     };
     std::string key;   ///< the TOML key
     std::string doc;   ///< meaning and units: docs/biome.md's row
@@ -70,7 +75,10 @@ struct SpeciesField {
     Factor factor = Factor::Sun;
 
     /// The allowed values as docs/biome.md states them.
-    std::string allowedText() const { return kind == Kind::Real ? range.valuesText() : allowed; }
+    std::string allowedText() const {
+        if (kind == Kind::OptionalReal) return range.valuesText() + "; optional";
+        return kind == Kind::Real ? range.valuesText() : allowed;
+    }
     /// The message text of a Real value outside its range ("must be positive").
     std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
 };
@@ -110,6 +118,10 @@ inline const std::vector<SpeciesField>& speciesFields() {
         v.push_back({"allometry", "crown radius from height", K::Allometry, "a code from `[allometry]`"});
         v.push_back({"canopy", "the species can be a canopy tree", K::Flag, "true or false", nullptr, {}, nullptr,
                      &Species::canopy});
+        v.push_back({"fire_tolerance",
+                     "share of the fire kill probability the species resists (docs/disturbance.md); absent: the run's "
+                     "`default_tolerance`",
+                     K::OptionalReal, "", &Species::fireTolerance, R::closed(0, 1)});
         return v;
     }();
     return fields;
