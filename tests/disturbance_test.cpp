@@ -339,3 +339,61 @@ TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are re
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nmonth = 12\n", "t.toml"), Catch::Contains("month"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nseverity = 1.5\n", "t.toml"), Catch::Contains("severity"));
 }
+
+TEST_CASE("disturbance validation: after a stand-clearing fire the early species peak again and the late ones recover",
+          "[disturbance][sim][succession]") {
+    // A small plot of the demo scene: without fire the early species (Redwood Sorrel and
+    // Western Swordfern, docs/simulator.md "Succession check") peak in the first years and
+    // subside under the growing shrubs and saplings. A fire clearing every plant in year F
+    // restarts the sequence from the seedbank. Compared with the same run without fire.
+    SimInputs in = test::smallDemoScene();
+    in.area = SimArea{4, 4, 40, 40};
+    const Biome& b = in.biome;
+    const std::size_t e0 = static_cast<std::size_t>(b.speciesIndex("Redwood Sorrel")),
+                      e1 = static_cast<std::size_t>(b.speciesIndex("Western Swordfern"));
+    auto earlyCount = [&](const YearRecord& r) { return r.count[e0] + r.count[e1]; };
+    auto lateArea = [&](const YearRecord& r) {
+        double a = 0;
+        for (std::size_t s = 0; s < r.count.size(); ++s)
+            if (s != e0 && s != e1) a += r.crownAreaM2[s];
+        return a;
+    };
+    const int fireYear = 50, years = 90;
+    auto run = [&](bool fire) {
+        Simulation sim(in, SimParams{}, 4);
+        if (fire) sim.setDisturbance(standClearingFire(fireYear));
+        std::vector<YearRecord> ts{sim.census()};
+        for (int y = 0; y < years; ++y) {
+            sim.stepYear();
+            ts.push_back(sim.census());
+        }
+        if (fire) CHECK(sim.disturbances().size() == 1);
+        return ts;
+    };
+    const auto burnt = run(true), control = run(false);
+    auto at = [](const std::vector<YearRecord>& ts, int y) { return ts[static_cast<std::size_t>(y)]; };
+    int peakBefore = 0, peakAfter = 0, peakAfterYear = 0;
+    for (int y = 0; y <= fireYear; ++y) peakBefore = std::max(peakBefore, earlyCount(at(burnt, y)));
+    for (int y = fireYear + 1; y <= years; ++y)
+        if (earlyCount(at(burnt, y)) > peakAfter) {
+            peakAfter = earlyCount(at(burnt, y));
+            peakAfterYear = y;
+        }
+    const int atFire = earlyCount(at(burnt, fireYear)), atEnd = earlyCount(at(burnt, years));
+    const int controlAtPeak = earlyCount(at(control, peakAfterYear)), controlEnd = earlyCount(at(control, years));
+    const double lateAtFire = lateArea(at(burnt, fireYear)), lateAfter = lateArea(at(burnt, fireYear + 1));
+    const double lateEnd = lateArea(at(burnt, years)), lateControlEnd = lateArea(at(control, years));
+    WARN("early: peak before " << peakBefore << ", at the fire " << atFire << ", peak after " << peakAfter << " in year "
+                               << peakAfterYear << " (control " << controlAtPeak << "), end " << atEnd << " (control "
+                               << controlEnd << "); late crown area: at the fire " << lateAtFire << ", after " << lateAfter
+                               << ", end " << lateEnd << " (control " << lateControlEnd << ")");
+    // The early species had subsided before the fire ...
+    CHECK(atFire < 0.8 * peakBefore);
+    // ... peak again within 10 years of it, well above the unburnt plot ...
+    CHECK(peakAfterYear <= fireYear + 10);
+    CHECK(peakAfter > 1.3 * controlAtPeak);
+    // ... and subside again as the late species, cleared by the fire, recover.
+    CHECK(atEnd < 0.85 * peakAfter);
+    CHECK(lateAfter < 0.05 * lateAtFire);
+    CHECK(lateEnd > 0.5 * lateControlEnd);
+}
