@@ -213,6 +213,13 @@ void readSpeciesField(StrictTable& t, const SpeciesField& f, Species& s, const B
             e.finish();
             break;
         }
+        case SpeciesField::Kind::OptionalReal: {
+            if (!t.has(key)) break;  // stays NaN: not given
+            const double v = t.number(key);
+            if (!f.range.contains(v)) t.fail(key, "value " + StrictTable::fmt(v) + " " + f.ruleText());
+            s.*(f.real) = v;
+            break;
+        }
     }
 }
 
@@ -241,6 +248,9 @@ void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s)
             if (!e.empty()) st.insert(f.key, std::move(e));
             break;
         }
+        case SpeciesField::Kind::OptionalReal:
+            if (!std::isnan(s.*(f.real))) st.insert(f.key, s.*(f.real));
+            break;
     }
 }
 

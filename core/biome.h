@@ -72,6 +72,9 @@ struct Species {
     std::vector<int> subBiomes;      ///< 1-based sub-biome numbers (as in the paper)
     bool canopy = false;             ///< can be a canopy tree
     EcoModSpecies ecomod;            ///< the optional `ecomod` table (EcoMod model; unset fields NaN)
+    /// Fire tolerance in [0, 1] (optional key fire_tolerance; NaN = not given: the run's
+    /// [disturbance.fire] default_tolerance applies). docs/disturbance.md.
+    double fireTolerance = std::numeric_limits<double>::quiet_NaN();
     /// The response to factor f.
     const Response& response(Factor f) const { return responses[factorIndex(f)]; }
     Response& response(Factor f) { return responses[factorIndex(f)]; }
@@ -92,6 +95,7 @@ struct SpeciesField {
         Allometry,     ///< a code from [allometry]
         Flag,          ///< true or false, in member `flag`
         EcoMod,        ///< the optional `ecomod = { ... }` table (ecomodSpeciesFields)
+        OptionalReal,  ///< like Real, but may be absent (NaN in `real` then, and not printed)
     };
     std::string key;   ///< the TOML key
     std::string doc;   ///< meaning and units: docs/biome.md's row
@@ -104,7 +108,10 @@ struct SpeciesField {
     Factor factor = Factor::Sun;
 
     /// The allowed values as docs/biome.md states them.
-    std::string allowedText() const { return kind == Kind::Real ? range.valuesText() : allowed; }
+    std::string allowedText() const {
+        if (kind == Kind::OptionalReal) return range.valuesText() + "; optional";
+        return kind == Kind::Real ? range.valuesText() : allowed;
+    }
     /// The message text of a Real value outside its range ("must be positive").
     std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
 };
@@ -148,6 +155,10 @@ inline const std::vector<SpeciesField>& speciesFields() {
                      "optional: the species' parameters of the EcoMod model (`[model] kind = \"ecomod\"`; docs/ecomod.md), "
                      "`{ maturity_age_years = ..., ... }`; a key not given gets its documented default",
                      K::EcoMod, "a table of the keys in docs/ecomod.md"});
+        v.push_back({"fire_tolerance",
+                     "share of the fire kill probability the species resists (docs/disturbance.md); absent: the run's "
+                     "`default_tolerance`",
+                     K::OptionalReal, "", &Species::fireTolerance, R::closed(0, 1)});
         return v;
     }();
     return fields;

@@ -104,6 +104,68 @@ std::vector<YearRecord> readTimeseries(const h5::File& f, const std::string& gro
     return ts;
 }
 
+// ------------------------------------------------------------------ disturbance events
+
+void writeDisturbanceTable(h5::File& f, const std::string& group, const std::vector<DisturbanceRecord>& ev,
+                           const Biome& biome) {
+    const hsize_t ne = ev.size(), ns = biome.species.size();
+    std::vector<std::int32_t> year(ne), month(ne), killed(ne * ns, 0), total(ne, 0);
+    std::vector<double> area(ne), x(ne), y(ne);
+    std::vector<std::string> kind(ne);
+    for (std::size_t e = 0; e < ne; ++e) {
+        year[e] = ev[e].year;
+        month[e] = ev[e].month;
+        kind[e] = ev[e].kind;
+        area[e] = ev[e].areaM2;
+        x[e] = ev[e].xM;
+        y[e] = ev[e].yM;
+        for (std::size_t s = 0; s < ns && s < ev[e].killed.size(); ++s) {
+            killed[e * ns + s] = ev[e].killed[s];
+            total[e] += ev[e].killed[s];
+        }
+    }
+    f.ensureGroup(group);
+    f.setAttr(group, "events", static_cast<std::int64_t>(ne));
+    f.writeI32(group + "/year", year, {ne}, "years");
+    f.writeI32(group + "/month", month, {ne}, "1");
+    f.writeStrings(group + "/kind", kind);
+    f.writeF64(group + "/area", area, {ne}, "m2");
+    f.writeF64(group + "/x", x, {ne}, "m");
+    f.writeF64(group + "/y", y, {ne}, "m");
+    f.writeI32(group + "/killed", killed, {ne, ns}, "1");
+    f.writeI32(group + "/killed_total", total, {ne}, "1");
+    f.writeStrings(group + "/species_names", speciesNames(biome));
+    f.setAttr(group, "layout", std::string("one row per event in the order they struck; killed: [event][species], species in "
+                                           "the order of species_names"));
+}
+
+std::vector<DisturbanceRecord> readDisturbanceTable(const h5::File& f, const std::string& group, std::size_t ns) {
+    std::vector<hsize_t> dims;
+    const auto year = f.readI32(group + "/year");
+    const auto month = f.readI32(group + "/month");
+    const auto kind = year.empty() ? std::vector<std::string>{} : f.readStrings(group + "/kind");
+    const auto area = f.readF64(group + "/area");
+    const auto x = f.readF64(group + "/x");
+    const auto y = f.readF64(group + "/y");
+    const auto killed = f.readI32(group + "/killed", &dims);
+    const std::size_t ne = year.size();
+    if (month.size() != ne || kind.size() != ne || area.size() != ne || x.size() != ne || y.size() != ne ||
+        killed.size() != ne * ns)
+        throw IoError(f.path() + ": " + group + ": disturbance arrays have inconsistent shapes");
+    std::vector<DisturbanceRecord> out(ne);
+    for (std::size_t e = 0; e < ne; ++e) {
+        out[e].year = year[e];
+        out[e].month = month[e];
+        out[e].kind = kind[e];
+        out[e].areaM2 = area[e];
+        out[e].xM = x[e];
+        out[e].yM = y[e];
+        out[e].killed.assign(killed.begin() + static_cast<std::ptrdiff_t>(e * ns),
+                             killed.begin() + static_cast<std::ptrdiff_t>((e + 1) * ns));
+    }
+    return out;
+}
+
 // ------------------------------------------------------------------ the file
 
 void writeSimulationFile(const std::string& path, const SimulationFileInfo& info, const Biome& biome,
@@ -140,10 +202,15 @@ void writeSimulationFile(const std::string& path, const SimulationFileInfo& info
         f.setAttr("/", "died_dominated", info.diedDominated);
         f.setAttr("/", "plant_months", info.plantMonths);
         f.setAttr("/", "plant_cell_months", info.plantCellMonths);
+        if (!info.disturbanceToml.empty()) {
+            f.setAttr("/", "died_disturbance", info.diedDisturbance);
+            f.setAttr("/", "disturbance_toml", info.disturbanceToml);
+        }
         f.setAttr("/", "units", std::string("metres, years, hours of sun per day, mm of water per month, degrees C"));
         f.ensureGroup("/snapshots");
         for (const auto& [year, plants] : snapshots) writeSnapshot(f, snapshotGroup("/snapshots", year), year, plants, biome);
         writeTimeseries(f, "/timeseries", timeseries, biome);
+        if (!info.disturbanceToml.empty()) writeDisturbanceTable(f, "/disturbance", info.disturbances, biome);
         writePlants(f, "/canopy", canopy, biome);
         f.setAttr("/canopy", "selection", std::string("canopy trees whose crown or seeding disc (outer factor x r) reaches the area"));
         f.writeStrings("/species_names", speciesNames(biome));

@@ -45,6 +45,22 @@ struct YearRecord {
     std::vector<double> crownAreaM2;     ///< sum of pi r^2
 };
 
+/// A disturbance event of a run (sim/disturbance.h, docs/disturbance.md): one row of the
+/// /disturbance table.
+struct DisturbanceRecord {
+    int year = 0;                        ///< simulated year in which it struck (0 = the first)
+    int month = 0;                       ///< 0 = January; at the end of this month
+    std::string kind;                    ///< "fire" or "storm"
+    double areaM2 = 0;                   ///< burnt (fire) or damaged (storm) area, m^2
+    double xM = 0, yM = 0;               ///< fire: ignition point, world metres; storm: the area's centre
+    std::vector<std::int32_t> killed;    ///< plants killed per species (index = species id)
+};
+
+/// Write / read the disturbance table (layout in docs/simulator.md) under `group`.
+void writeDisturbanceTable(h5::File& file, const std::string& group, const std::vector<DisturbanceRecord>& events,
+                           const Biome& biome);
+std::vector<DisturbanceRecord> readDisturbanceTable(const h5::File& file, const std::string& group, std::size_t speciesCount);
+
 /// Undergrowth snapshots of a run: (year, plants), in the order taken.
 using SnapshotList = std::vector<std::pair<int, std::vector<UndergrowthPlant>>>;
 
@@ -61,6 +77,11 @@ struct SimulationFileInfo {
     std::string terrainPath, abioticsPath, canopyPath, biomePath, initialPath, configPath;
     std::int64_t germinated = 0, diedBackgroundOrStress = 0, diedAtCanopy = 0, diedDominated = 0;
     std::int64_t plantMonths = 0, plantCellMonths = 0;
+    /// Disturbance (sim/disturbance.h): written only when configured ("" = off), so that a
+    /// run without it writes the bytes it wrote before the feature.
+    std::string disturbanceToml;
+    std::int64_t diedDisturbance = 0;
+    std::vector<DisturbanceRecord> disturbances;
 };
 
 /// Snapshot group name of a year: parent + "/year_NNNN".

@@ -44,6 +44,17 @@ SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
                        : std::string("growth rule ") + sim::growthRuleName(cfg.params.growthRule) + ", competition " +
                              sim::competitionModeName(cfg.params.competition)) +
                   ", output " + cfg.outputPath);
+    if (cfg.disturbance.enabled()) {
+        auto timing = [](const sim::EventTiming& t) {
+            std::string s = "probability " + std::to_string(t.probabilityPerYear).substr(0, 6) + "/year";
+            for (std::size_t i = 0; i < t.forcedYears.size(); ++i) s += (i ? ", " : ", forced in years ") + std::to_string(t.forcedYears[i]);
+            return s;
+        };
+        std::string d;
+        if (cfg.disturbance.fire.enabled) d += "fire (" + timing(cfg.disturbance.fire.timing) + ")";
+        if (cfg.disturbance.storm.enabled) d += std::string(d.empty() ? "" : ", ") + "storms (" + timing(cfg.disturbance.storm.timing) + ")";
+        reporter.info("simulate: disturbance: " + d + "; each event is logged and recorded in /disturbance");
+    }
     std::unique_ptr<SimulationProgress> progress = reporter.simulationProgress(cfg.years);
     sim::RunHooks hooks;
     hooks.log = [&](const std::string& s) { reporter.info("simulate: " + s); };

@@ -227,6 +227,13 @@ std::string RunConfig::effectiveCheckpointPath() const {
 void RunConfig::validate() const {
     const std::string src = sourcePath.empty() ? std::string("run configuration") : sourcePath;
     params.validate(src);
+    disturbance.validate(src);
+    // The disturbance unit (sim/disturbance.h) acts on the monthly model's plants; the EcoMod
+    // model has the hook (EcoModel::removeTrees) but does not call it yet: refuse rather than
+    // run without the events the file asks for.
+    if (disturbance.enabled() && params.kind == ModelKind::EcoMod)
+        throw ValidationError(src + ": [disturbance]: fire and storms are not available with [model] kind = \"ecomod\" yet "
+                              "(docs/disturbance.md); remove the [disturbance] tables or use the monthly model");
     if (years < 1 || years > 100000)
         throw ValidationError(src + ": [run] years = " + std::to_string(years) + ": must lie in 1..100000");
     if (checkpointEveryYears < 0)
@@ -323,8 +330,57 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
         const auto [key, what] = firstInvalid(c.params);
         if (!key.empty()) s.fail(key, what);  // names the key's line when the file set it
     }
+    if (const toml::table* t = top.optionalTable("disturbance")) {
+        StrictTable d(*t, sourceName, "[disturbance]");
+        // probability_per_year or return_interval_years (one of them), years, month.
+        auto readTiming = [](StrictTable& s, EventTiming& timing) {
+            if (s.has("probability_per_year") && s.has("return_interval_years"))
+                s.fail("return_interval_years", "give probability_per_year or return_interval_years, not both");
+            if (s.has("probability_per_year")) timing.probabilityPerYear = s.numberIn("probability_per_year", 0, 1);
+            if (s.has("return_interval_years")) {
+                const double t = s.number("return_interval_years");
+                if (!(t >= 1)) s.fail("return_interval_years", "value " + fmt(t) + ": must be at least 1 (years)");
+                timing.probabilityPerYear = 1.0 / t;
+            }
+            if (s.has("years"))
+                for (const std::int64_t y : s.integers("years")) {
+                    if (y < 0 || y > 2147483647) s.fail("years", "years must be non-negative integers");
+                    timing.forcedYears.push_back(static_cast<int>(y));
+                }
+            const std::int64_t m = s.integerOr("month", timing.month);
+            if (m < 0 || m > 11) s.fail("month", "value " + std::to_string(m) + ": must lie in 0..11 (0 = January)");
+            timing.month = static_cast<int>(m);
+        };
+        if (const toml::table* ft = d.optionalTable("fire")) {
+            StrictTable s(*ft, sourceName, "[disturbance.fire]");
+            FireSettings& f = c.disturbance.fire;
+            f.enabled = s.booleanOr("enabled", true);
+            readTiming(s, f.timing);
+            f.spreadProbability = s.numberInOr("spread_probability", 0, 1, f.spreadProbability);
+            f.slopeFactor = s.numberInOr("slope_factor", 0, 100, f.slopeFactor);
+            f.windFactor = s.numberInOr("wind_factor", 0, 100, f.windFactor);
+            f.extinctionMoistureMm = s.numberInOr("extinction_moisture_mm", 1e-9, 1e9, f.extinctionMoistureMm);
+            f.severity = s.numberInOr("severity", 0, 1, f.severity);
+            f.scorchHeightM = s.numberInOr("scorch_height_m", 1e-9, 1e9, f.scorchHeightM);
+            f.defaultTolerance = s.numberInOr("default_tolerance", 0, 1, f.defaultTolerance);
+            s.finish();
+        }
+        if (const toml::table* st = d.optionalTable("storm")) {
+            StrictTable s(*st, sourceName, "[disturbance.storm]");
+            StormSettings& w = c.disturbance.storm;
+            w.enabled = s.booleanOr("enabled", true);
+            readTiming(s, w.timing);
+            w.severity = s.numberInOr("severity", 0, 1, w.severity);
+            w.referenceHeightM = s.numberInOr("reference_height_m", 1e-9, 1e9, w.referenceHeightM);
+            w.heightExponent = s.numberInOr("height_exponent", 0, 100, w.heightExponent);
+            w.referenceWindMS = s.numberInOr("reference_wind_ms", 0, 1000, w.referenceWindMS);
+            s.finish();
+        }
+        d.finish();
+    }
     top.finish();
     c.params.validate(sourceName);
+    c.disturbance.validate(sourceName);
     return c;
 }
 

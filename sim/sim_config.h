@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "disturbance.h"
 #include "h5io.h"
 #include "param_desc.h"
 
@@ -176,6 +177,8 @@ struct RunConfig {
     std::string checkpointPath; ///< "" = outputPath + ".checkpoint.h5"
     // [model]
     SimParams params;
+    // [disturbance.fire], [disturbance.storm] (docs/disturbance.md; off without them)
+    DisturbanceSettings disturbance;
 
     /// Checkpoint file actually used.
     std::string effectiveCheckpointPath() const;

@@ -207,6 +207,11 @@ void writeSimulationH5(const std::string& path, const Simulation& sim, const Run
     info.diedDominated = c.diedDominated;
     info.plantMonths = c.plantMonths;
     info.plantCellMonths = c.plantCellMonths;
+    if (sim.disturbance().enabled()) {
+        info.disturbanceToml = sim.disturbance().toToml();
+        info.diedDisturbance = c.diedDisturbance;
+        info.disturbances = sim.disturbances();
+    }
     writeSimulationFile(path, info, sim.biome(), record.snapshots, record.timeseries, sim.relevantCanopy());
 }
 
@@ -254,6 +259,21 @@ void readCheckpoint(const std::string& path, Simulation& sim, RunRecord& record)
 
 // ------------------------------------------------------------------ the run
 
+std::string describeDisturbance(const DisturbanceRecord& e) {
+    static const char* const kMonths[12] = {"Jan", "Feb", "Mar", "Apr", "May", "Jun",
+                                            "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"};
+    std::int64_t killed = 0;
+    for (std::int32_t k : e.killed) killed += k;
+    char buf[256];
+    if (e.kind == "fire")
+        std::snprintf(buf, sizeof buf, "year %d %s: fire from (%.1f, %.1f) burnt %.0f m2, killed %lld plants", e.year,
+                      kMonths[e.month % 12], e.xM, e.yM, e.areaM2, static_cast<long long>(killed));
+    else
+        std::snprintf(buf, sizeof buf, "year %d %s: %s damaged %.0f m2, killed %lld plants", e.year, kMonths[e.month % 12],
+                      e.kind.c_str(), e.areaM2, static_cast<long long>(killed));
+    return buf;
+}
+
 RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& hooks) {
     config.validate();
     auto log = [&](const std::string& s) {
@@ -274,6 +294,7 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
     std::vector<UndergrowthPlant> initial;
     if (!config.initialPath.empty()) initial = readInitialPlants(config.initialPath, biome);
     Simulation sim(std::move(inputs), config.params, config.seed, initial);
+    if (config.disturbance.enabled()) sim.setDisturbance(config.disturbance);
     if (sim.droppedInitialPlants() > 0)
         log("initial plants outside the area dropped: " + std::to_string(sim.droppedInitialPlants()));
 
@@ -311,9 +332,11 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
     const std::int64_t plantMonthsBefore = sim.counters().plantMonths;
     RunSummary summary;
     if (hooks.onYear) hooks.onYear(sim, record);
+    std::size_t eventsLogged = sim.disturbances().size();
     while (sim.yearsDone() < config.years) {
         sim.stepYear();
         const int year = sim.yearsDone();
+        for (; eventsLogged < sim.disturbances().size(); ++eventsLogged) log(describeDisturbance(sim.disturbances()[eventsLogged]));
         record.timeseries.push_back(sim.census());
         if (snapshotYears.count(year)) takeSnapshot(year);
         if (hooks.onYear) hooks.onYear(sim, record);

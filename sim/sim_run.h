@@ -44,6 +44,10 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
 /// IoError when the file is not a checkpoint of this run.
 void readCheckpoint(const std::string& path, Simulation& sim, RunRecord& record);
 
+/// One line of progress for a disturbance event ("year 40 Aug: fire from (x, y) burnt A m2,
+/// killed K plants").
+std::string describeDisturbance(const DisturbanceRecord& event);
+
 /// Callbacks of runSimulation (called on the calling thread).
 struct RunHooks {
     /// After every simulated year (also after the restored year of a resumed run).

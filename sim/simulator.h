@@ -19,6 +19,7 @@
 
 #include "abiotics.h"
 #include "biome.h"
+#include "disturbance.h"
 #include "grid.h"
 #include "h5io.h"
 #include "plants.h"
@@ -57,6 +58,7 @@ struct SimCounters {
     std::int64_t diedBackgroundOrStress = 0;
     std::int64_t diedAtCanopy = 0;
     std::int64_t diedDominated = 0;  ///< Deussen competition mode: dominated plants that died
+    std::int64_t diedDisturbance = 0;  ///< killed by fire or windthrow (setDisturbance)
 };
 
 /// Wall-clock seconds spent in each phase of the monthly step since construction (for
@@ -93,6 +95,14 @@ public:
     ~Simulation();
     Simulation(const Simulation&) = delete;
     Simulation& operator=(const Simulation&) = delete;
+
+    /// Fire and windthrow events (sim/disturbance.h, docs/disturbance.md); off by default.
+    /// Call before the first step (part of the fingerprint when enabled). ValidationError for
+    /// bad settings.
+    void setDisturbance(const DisturbanceSettings& settings);
+    const DisturbanceSettings& disturbance() const;
+    /// The events so far, in the order they struck (saved in checkpoints).
+    const std::vector<DisturbanceRecord>& disturbances() const;
 
     /// One month of Algorithm 2: resource sweep, vigour, pool, growth, mortality; after the
     /// seeding month also germination. Monthly model only.

@@ -271,6 +271,12 @@ struct Simulation::Impl : CellGrid {
     std::vector<std::uint64_t> bandOrder;
     std::vector<BandScratch> bandScratch;  // per thread (sweepBand)
 
+    // ---- disturbance (sim/disturbance.h): settings, the events so far, per species tolerance
+    DisturbanceSettings disturbance;
+    bool disturbanceOn = false;
+    std::vector<DisturbanceRecord> disturbanceEvents;
+    void disturb(int m);  // simulator.cpp: the events of this month, after the plants' update
+
     std::int64_t month = 0;
     std::uint64_t nextId = 1;
     SimCounters counters;

@@ -43,6 +43,10 @@ std::uint64_t Simulation::Impl::computeFingerprint() const {
         h = hashBytes(h, &v, sizeof v);
     }
     h = mixStream(h, seed);
+    if (disturbanceOn) {  // only when on: checkpoints of runs without it keep their fingerprint
+        const std::string d = disturbance.toToml();
+        h = hashBytes(h, d.data(), d.size());
+    }
     const std::string toml = biomeToToml(biome);
     h = hashBytes(h, toml.data(), toml.size());
     const double a[4] = {area.x0, area.y0, area.x1, area.y1};
@@ -92,6 +96,10 @@ void Simulation::saveState(h5::File& f, const std::string& group) const {
     f.setAttr(group, "died_at_canopy", static_cast<std::int64_t>(s.counters.diedAtCanopy));
     f.setAttr(group, "died_dominated", static_cast<std::int64_t>(s.counters.diedDominated));
     f.setAttr(group, "dropped_initial", static_cast<std::int64_t>(s.droppedInitial));
+    if (s.disturbanceOn) {  // the events so far (the draws are keyed by seed and event: no generator state)
+        f.setAttr(group, "died_disturbance", static_cast<std::int64_t>(s.counters.diedDisturbance));
+        writeDisturbanceTable(f, group + "/disturbance", s.disturbanceEvents, s.biome);
+    }
     // Ids split in two exact 32-bit halves.
     std::vector<std::int32_t> idLo(n), idHi(n);
     for (std::size_t p = 0; p < n; ++p) {
@@ -211,6 +219,10 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     s.counters.diedAtCanopy = f.attrInt(group, "died_at_canopy");
     s.counters.diedDominated = f.hasAttr(group, "died_dominated") ? f.attrInt(group, "died_dominated") : 0;
     s.droppedInitial = static_cast<std::size_t>(f.attrInt(group, "dropped_initial"));
+    s.counters.diedDisturbance = f.hasAttr(group, "died_disturbance") ? f.attrInt(group, "died_disturbance") : 0;
+    s.disturbanceEvents.clear();
+    if (s.disturbanceOn && f.exists(group + "/disturbance"))
+        s.disturbanceEvents = readDisturbanceTable(f, group + "/disturbance", s.spc.size());
 }
 
 }  // namespace eco::sim

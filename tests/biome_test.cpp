@@ -1,6 +1,7 @@
 // Biome parsing and strict validation (core/biome.h).
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -211,6 +212,23 @@ TEST_CASE("one description of the species keys drives reading, printing, message
             CHECK_THROWS_WITH(parseBiome(with("{ c = 3.5, r = -1 }"), "mutated.toml"),
                               Catch::Contains("mutated.toml") && Catch::Contains("species 'Toyon'") &&
                                   Catch::Contains(f.key));
+            continue;
+        }
+        if (f.kind == SpeciesField::Kind::OptionalReal) {
+            // An optional number (fire_tolerance): Sonoma gives none (NaN, not printed); given,
+            // it is read, printed back and checked against its range.
+            CHECK(std::isnan(toyon.*(f.real)));
+            CHECK(biomeToToml(sonoma).find("\n" + f.key + " = ") == std::string::npos);
+            const auto eol = base.find('\n', base.find("name = \"Toyon\""));
+            auto with = [&](const std::string& value) { return base.substr(0, eol) + "\n" + f.key + " = " + value + base.substr(eol); };
+            const Biome given = parseBiome(with("0.25"), "given.toml");
+            const Species& t = given.species[static_cast<std::size_t>(given.speciesIndex("Toyon"))];
+            CHECK(t.*(f.real) == 0.25);
+            const Biome back = parseBiome(biomeToToml(given), "roundtrip.toml");
+            CHECK(back.species[static_cast<std::size_t>(t.id)].*(f.real) == 0.25);
+            CHECK(std::isnan(back.species[0].*(f.real)));
+            CHECK_THROWS_WITH(parseBiome(with("1.5"), "mutated.toml"),
+                              Catch::Contains("mutated.toml") && Catch::Contains(f.key));
             continue;
         }
         // Every other key is required: without it the species is refused, naming the key.

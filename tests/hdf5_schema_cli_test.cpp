@@ -260,12 +260,20 @@ TEST_CASE("hdf5 schema: every file eco run writes follows docs/hdf5.md (units, d
           "[hdf5][schema][cli]") {
     eco::test::TempDir dir("schema");
     const std::string cfg = dir.file("pipeline.toml"), out = dir.file("out");
+    // The simulation with disturbance on, so that its event table is walked too
+    // (docs/disturbance.md): the default simulation configuration plus a forced fire and storm.
+    const std::string simCfg = dir.file("sim.toml");
+    {
+        std::ifstream in(eco::test::sourcePath("configs/sim-default.toml"));
+        std::ofstream f(simCfg);
+        f << in.rdbuf() << "\n[disturbance.fire]\nyears = [1]\n[disturbance.storm]\nyears = [0]\n";
+    }
     {
         std::ofstream f(cfg);
         f << "[run]\nout_dir = \"" << out << "\"\nseed = 4\n"
           << "[terrain]\nwidth = 48\nheight = 40\ncell_size_m = 0.914\n"
           << "[chm]\n[abiotics]\nsun_step_minutes = 120\n[canopy]\n"
-          << "[simulate]\nconfig = \"" << eco::test::sourcePath("configs/sim-default.toml") << "\"\nyears = 2\n"
+          << "[simulate]\nconfig = \"" << simCfg << "\"\nyears = 2\n"
           << "crop = [4.0, 4.0, 36.0, 32.0]\n"
           << "[analyse]\nkmax = 2\n"
           << "[synth]\ntarget_seed = 9\nwidth = 40\nheight = 40\n";

@@ -1,0 +1,248 @@
+// Disturbance events: fire spread and kills, windthrow (sim/disturbance.h,
+// docs/disturbance.md).
+#include "disturbance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "error.h"
+#include "rng.h"
+#include "param_desc.h"
+
+namespace eco::sim {
+
+namespace {
+
+// Streams of the disturbance draws, derived from the run seed like every stream of the
+// simulator (core/rng.h): "disturb" in ASCII, then the kind / the event / the entity.
+constexpr std::uint64_t kDisturbanceStream = 0x6469737475726221ull;
+constexpr std::uint64_t kIgnitionSalt = 0x69676E6974696F6Eull;
+constexpr std::uint64_t kPlantSalt = 0x706C616E74736B6Cull;
+constexpr double kPi = 3.14159265358979323846;
+
+double unit32(std::uint32_t w) { return static_cast<double>(w) * 0x1.0p-32; }
+
+const EventTiming& timingOf(const DisturbanceSettings& s, DisturbanceKind k) {
+    return k == DisturbanceKind::Fire ? s.fire.timing : s.storm.timing;
+}
+
+std::string fmt(double v) { return tomlReal(v); }
+
+void timingToml(std::ostringstream& os, const EventTiming& t) {
+    os << "probability_per_year = " << fmt(t.probabilityPerYear) << "\n";
+    os << "years = [";
+    for (std::size_t i = 0; i < t.forcedYears.size(); ++i) os << (i ? ", " : "") << t.forcedYears[i];
+    os << "]\nmonth = " << t.month << "\n";
+}
+
+void checkTiming(const EventTiming& t, const std::string& where) {
+    if (!(t.probabilityPerYear >= 0 && t.probabilityPerYear <= 1))
+        throw ValidationError(where + " probability_per_year = " + fmt(t.probabilityPerYear) + ": must lie in [0, 1]");
+    if (t.month < 0 || t.month > 11) throw ValidationError(where + " month = " + std::to_string(t.month) + ": must lie in 0..11 (0 = January)");
+    for (int y : t.forcedYears)
+        if (y < 0) throw ValidationError(where + " years: year " + std::to_string(y) + " is negative");
+}
+
+void checkRange(double v, double lo, double hi, const std::string& where, const char* key) {
+    if (!(v >= lo && v <= hi))
+        throw ValidationError(where + " " + key + " = " + fmt(v) + ": must lie in [" + fmt(lo) + ", " + fmt(hi) + "]");
+}
+void checkPositive(double v, const std::string& where, const char* key) {
+    if (!(v > 0) || !std::isfinite(v)) throw ValidationError(where + " " + key + " = " + fmt(v) + ": must be positive");
+}
+
+}  // namespace
+
+const char* disturbanceKindName(DisturbanceKind k) { return k == DisturbanceKind::Fire ? "fire" : "storm"; }
+
+void DisturbanceSettings::validate(const std::string& source) const {
+    if (fire.enabled) {
+        const std::string w = source + ": [disturbance.fire]";
+        checkTiming(fire.timing, w);
+        checkRange(fire.spreadProbability, 0, 1, w, "spread_probability");
+        checkRange(fire.slopeFactor, 0, 100, w, "slope_factor");
+        checkRange(fire.windFactor, 0, 100, w, "wind_factor");
+        checkPositive(fire.extinctionMoistureMm, w, "extinction_moisture_mm");
+        checkRange(fire.severity, 0, 1, w, "severity");
+        checkPositive(fire.scorchHeightM, w, "scorch_height_m");
+        checkRange(fire.defaultTolerance, 0, 1, w, "default_tolerance");
+    }
+    if (storm.enabled) {
+        const std::string w = source + ": [disturbance.storm]";
+        checkTiming(storm.timing, w);
+        checkRange(storm.severity, 0, 1, w, "severity");
+        checkPositive(storm.referenceHeightM, w, "reference_height_m");
+        checkRange(storm.heightExponent, 0, 100, w, "height_exponent");
+        checkRange(storm.referenceWindMS, 0, 1000, w, "reference_wind_ms");
+    }
+}
+
+std::string DisturbanceSettings::toToml() const {
+    std::ostringstream os;
+    if (fire.enabled) {
+        os << "[disturbance.fire]\n";
+        timingToml(os, fire.timing);
+        os << "spread_probability = " << fmt(fire.spreadProbability) << "\n"
+           << "slope_factor = " << fmt(fire.slopeFactor) << "\n"
+           << "wind_factor = " << fmt(fire.windFactor) << "\n"
+           << "extinction_moisture_mm = " << fmt(fire.extinctionMoistureMm) << "\n"
+           << "severity = " << fmt(fire.severity) << "\n"
+           << "scorch_height_m = " << fmt(fire.scorchHeightM) << "\n"
+           << "default_tolerance = " << fmt(fire.defaultTolerance) << "\n";
+    }
+    if (storm.enabled) {
+        os << "[disturbance.storm]\n";
+        timingToml(os, storm.timing);
+        os << "severity = " << fmt(storm.severity) << "\n"
+           << "reference_height_m = " << fmt(storm.referenceHeightM) << "\n"
+           << "height_exponent = " << fmt(storm.heightExponent) << "\n"
+           << "reference_wind_ms = " << fmt(storm.referenceWindMS) << "\n";
+    }
+    return os.str();
+}
+
+std::vector<PlannedEvent> eventsOfYear(const DisturbanceSettings& s, std::uint64_t seed, int year) {
+    std::vector<PlannedEvent> out;
+    for (DisturbanceKind k : {DisturbanceKind::Fire, DisturbanceKind::Storm}) {
+        if (!(k == DisturbanceKind::Fire ? s.fire.enabled : s.storm.enabled)) continue;
+        const EventTiming& t = timingOf(s, k);
+        bool strikes = std::find(t.forcedYears.begin(), t.forcedYears.end(), year) != t.forcedYears.end();
+        if (!strikes && t.probabilityPerYear > 0) {
+            const auto w = randomBits(seed, mixStream(kDisturbanceStream, static_cast<std::uint64_t>(k)),
+                                      static_cast<std::uint64_t>(year));
+            strikes = bitsToUnit(w[0], w[1]) < t.probabilityPerYear;
+        }
+        if (!strikes) continue;
+        PlannedEvent e;
+        e.kind = k;
+        e.year = year;
+        e.month = t.month;
+        e.key = mixStream(mixStream(kDisturbanceStream + 1, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(year));
+        out.push_back(e);
+    }
+    std::stable_sort(out.begin(), out.end(), [](const PlannedEvent& a, const PlannedEvent& b) { return a.month < b.month; });
+    return out;
+}
+
+double fireStepProbability(const DisturbanceSite& site, const FireSettings& f, int ax, int ay, int dx, int dy) {
+    const Grid<float>& z = site.elevationM;
+    const int bx = ax + dx, by = ay + dy;
+    const double moist = site.moistureMm(bx, by);
+    if (!(moist < f.extinctionMoistureMm)) return 0.0;
+    const double dry = 1.0 - std::max(0.0, moist) / f.extinctionMoistureMm;
+    const double len = std::hypot(static_cast<double>(dx), static_cast<double>(dy));
+    const double rise = (static_cast<double>(z(bx, by)) - z(ax, ay)) / (len * z.cellSizeM());
+    // Downwind unit vector (x east, y north): the wind comes FROM windFromDeg (clockwise from north).
+    const double th = site.windFromDeg * kPi / 180.0;
+    const double cosPhi = (dx * -std::sin(th) + dy * -std::cos(th)) / len;
+    const double u = site.windMS(ax, ay);
+    const double p = f.spreadProbability * std::exp(f.slopeFactor * rise + f.windFactor * u * cosPhi) * dry;
+    return std::min(1.0, p);
+}
+
+std::vector<std::uint8_t> spreadFire(const DisturbanceSite& site, const FireSettings& f, int ix, int iy,
+                                     std::uint64_t seed, std::uint64_t eventKey) {
+    const Grid<float>& g = site.elevationM;
+    const int w = g.width(), h = g.height();
+    std::vector<std::uint8_t> burnt(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), 0);
+    if (!g.inside(ix, iy) || !(site.moistureMm(ix, iy) < f.extinctionMoistureMm)) return burnt;
+    static constexpr int kDx[8] = {1, 1, 0, -1, -1, -1, 0, 1}, kDy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+    std::vector<std::size_t> queue{g.index(ix, iy)};
+    burnt[queue[0]] = 1;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+        const std::size_t a = queue[head];
+        const int ax = static_cast<int>(a % static_cast<std::size_t>(w)), ay = static_cast<int>(a / static_cast<std::size_t>(w));
+        // One draw per direction of cell a: eight 32-bit words of two blocks of its stream.
+        const std::uint64_t stream = mixStream(eventKey, a);
+        const auto w0 = randomBits(seed, stream, 0), w1 = randomBits(seed, stream, 1);
+        const std::uint32_t words[8] = {w0[0], w0[1], w0[2], w0[3], w1[0], w1[1], w1[2], w1[3]};
+        for (int k = 0; k < 8; ++k) {
+            const int bx = ax + kDx[k], by = ay + kDy[k];
+            if (bx < 0 || by < 0 || bx >= w || by >= h) continue;
+            const std::size_t b = g.index(bx, by);
+            if (burnt[b]) continue;
+            if (unit32(words[k]) < fireStepProbability(site, f, ax, ay, kDx[k], kDy[k])) {
+                burnt[b] = 1;
+                queue.push_back(b);
+            }
+        }
+    }
+    return burnt;
+}
+
+double fireKillProbability(const FireSettings& f, double heightM, double tolerance) {
+    const double scorch = heightM <= f.scorchHeightM ? 1.0 : f.scorchHeightM / heightM;
+    return f.severity * (1.0 - std::clamp(tolerance, 0.0, 1.0)) * scorch;
+}
+
+double stormKillProbability(const StormSettings& s, double heightM, double exposureMS, double referenceWindMS) {
+    const double exposure = referenceWindMS > 0 ? std::clamp(exposureMS / referenceWindMS, 0.0, 1.0) : 0.0;
+    const double tall = std::min(1.0, std::pow(std::max(0.0, heightM) / s.referenceHeightM, s.heightExponent));
+    return s.severity * exposure * tall;
+}
+
+namespace {
+// The area of cell c of grid g inside the site's area, m^2.
+double clippedCellArea(const DisturbanceSite& site, const Grid<float>& g, int cx, int cy) {
+    const double cs = g.cellSizeM();
+    const double x0 = g.originX() + cx * cs, y0 = g.originY() + cy * cs;
+    const double wx = std::min(x0 + cs, site.x1) - std::max(x0, site.x0);
+    const double wy = std::min(y0 + cs, site.y1) - std::max(y0, site.y0);
+    return wx > 0 && wy > 0 ? wx * wy : 0.0;
+}
+}  // namespace
+
+DisturbanceOutcome runDisturbance(const PlannedEvent& e, const DisturbanceSettings& s, const DisturbanceSite& site,
+                                  const PlantArrays& plants, const std::vector<double>& tolerance,
+                                  std::size_t speciesCount, std::uint64_t seed) {
+    const Grid<float>& g = site.elevationM;
+    DisturbanceOutcome out;
+    DisturbanceRecord& r = out.record;
+    r.year = e.year;
+    r.month = e.month;
+    r.kind = disturbanceKindName(e.kind);
+    r.killed.assign(speciesCount, 0);
+    out.killed.assign(plants.n, 0);
+    auto plantUniform = [&](std::size_t p) {
+        const auto w = randomBits(seed, mixStream(e.key ^ kPlantSalt, plants.id[p]), 0);
+        return bitsToUnit(w[0], w[1]);
+    };
+    std::vector<std::uint8_t> damaged(g.size(), 0);
+    if (e.kind == DisturbanceKind::Fire) {
+        RandomStream rs(seed, mixStream(e.key, kIgnitionSalt));
+        r.xM = site.x0 + (site.x1 - site.x0) * rs.uniform();
+        r.yM = site.y0 + (site.y1 - site.y0) * rs.uniform();
+        const int ix = std::clamp(g.cellX(r.xM), 0, g.width() - 1), iy = std::clamp(g.cellY(r.yM), 0, g.height() - 1);
+        out.burnt = spreadFire(site, s.fire, ix, iy, seed, e.key);
+        damaged = out.burnt;
+    } else {
+        r.xM = 0.5 * (site.x0 + site.x1);
+        r.yM = 0.5 * (site.y0 + site.y1);
+    }
+    const double refWind = s.storm.referenceWindMS > 0 ? s.storm.referenceWindMS : site.windStrengthMS;
+    for (std::size_t p = 0; p < plants.n; ++p) {
+        const int cx = g.cellX(plants.x[p]), cy = g.cellY(plants.y[p]);
+        if (!g.inside(cx, cy)) continue;
+        const std::size_t c = g.index(cx, cy);
+        const std::size_t sp = static_cast<std::size_t>(plants.species[p]);
+        double prob;
+        if (e.kind == DisturbanceKind::Fire) {
+            if (!out.burnt[c]) continue;
+            prob = fireKillProbability(s.fire, plants.height[p], sp < tolerance.size() ? tolerance[sp] : s.fire.defaultTolerance);
+        } else {
+            prob = stormKillProbability(s.storm, plants.height[p], site.windMS(cx, cy), refWind);
+        }
+        if (prob > 0 && plantUniform(p) < prob) {
+            out.killed[p] = 1;
+            if (sp < r.killed.size()) ++r.killed[sp];
+            damaged[c] = 1;
+        }
+    }
+    for (int cy = 0; cy < g.height(); ++cy)
+        for (int cx = 0; cx < g.width(); ++cx)
+            if (damaged[g.index(cx, cy)]) r.areaM2 += clippedCellArea(site, g, cx, cy);
+    return out;
+}
+
+}  // namespace eco::sim

@@ -1,0 +1,149 @@
+// Disturbance events: fire and windthrow storms (issue 30 item 3; docs/disturbance.md).
+//
+// A unit of its own, acting on plain inputs only: grids of elevation, moisture and wind
+// exposure (one geometry), and plants given as parallel arrays (id, species, position,
+// height). The monthly simulator calls it from its step (sim/simulator.cpp); a yearly model
+// can call the same functions with its own plant arrays.
+//
+// Every random draw is a pure function of (run seed, a stream derived from the event, an
+// entity: cell or plant id), core/rng.h: an event's outcome depends neither on the thread
+// count nor on the order of evaluation, and there is no generator state to checkpoint.
+//
+// Units: metres, m/s, mm of water per month, years; probabilities in [0, 1].
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "grid.h"
+#include "sim_file.h"
+
+namespace eco::sim {
+
+enum class DisturbanceKind : std::uint8_t { Fire = 0, Storm = 1 };
+/// "fire", "storm" (the `kind` column of the output table).
+const char* disturbanceKindName(DisturbanceKind k);
+
+/// When events of one kind happen: a yearly probability (a return interval T is 1 / T) and
+/// forced years, in a fixed month.
+struct EventTiming {
+    double probabilityPerYear = 0;  ///< chance of an event in a year; 0 = only forced years
+    std::vector<int> forcedYears;   ///< an event in each of these years (0 = the first simulated year)
+    int month = 0;                  ///< 0 = January; the event strikes at the end of this month
+};
+
+/// `[disturbance.fire]` of a run configuration (defaults documented in docs/disturbance.md).
+struct FireSettings {
+    bool enabled = false;           ///< the table is present
+    EventTiming timing{0, {}, 7};   ///< August: the end of the dry season in Sonoma
+    /// Probability that fire passes from a burning cell to a neighbour (8 neighbours) on
+    /// flat, calm, dry ground. The 8-neighbour bond-percolation threshold is about 0.25:
+    /// well below it fires stay small, well above they run through the area.
+    double spreadProbability = 0.35;
+    /// Slope bias: the probability is multiplied by exp(slope_factor x rise / run) of the
+    /// step (upslope faster, downslope slower).
+    double slopeFactor = 2.0;
+    /// Wind bias per m/s of the burning cell's exposure: x exp(wind_factor x U x cos phi), phi
+    /// the angle between the step and the downwind direction.
+    double windFactor = 0.2;
+    /// Moisture (mm/month, the month's abiotics) at and above which a cell does not burn;
+    /// below it the probability into the cell is multiplied by 1 - moisture / this.
+    double extinctionMoistureMm = 150.0;
+    /// Probability that a plant of tolerance 0 below the scorch height in a burnt cell dies.
+    double severity = 0.9;
+    /// Plants up to this height are scorched whole; a taller plant's kill probability is
+    /// scaled by scorch_height / height.
+    double scorchHeightM = 2.0;
+    /// Tolerance of species whose biome entry has no fire_tolerance: the kill probability is
+    /// multiplied by 1 - tolerance.
+    double defaultTolerance = 0.0;
+};
+
+/// `[disturbance.storm]` of a run configuration.
+struct StormSettings {
+    bool enabled = false;
+    EventTiming timing{0, {}, 11};  ///< December: winter storms
+    /// Probability that a plant of reference height on fully exposed ground is thrown.
+    double severity = 0.5;
+    /// Height scale: the probability is multiplied by min(1, (height / this)^height_exponent).
+    double referenceHeightM = 3.0;
+    double heightExponent = 2.0;
+    /// Wind exposure (m/s, the abiotics' wind map) counted as fully exposed; 0 = the biome's
+    /// prevailing wind strength. The probability is multiplied by min(1, exposure / this).
+    double referenceWindMS = 0.0;
+};
+
+struct DisturbanceSettings {
+    FireSettings fire;
+    StormSettings storm;
+    bool enabled() const { return fire.enabled || storm.enabled; }
+    /// ValidationError naming `source` and the key of the first bad value.
+    void validate(const std::string& source) const;
+    /// TOML text of the [disturbance.*] tables present (records, fingerprints; "" when off).
+    std::string toToml() const;
+};
+
+/// An event planned for a year: its kind, its month and the key of its random streams.
+struct PlannedEvent {
+    DisturbanceKind kind = DisturbanceKind::Fire;
+    int year = 0;
+    int month = 0;
+    std::uint64_t key = 0;  ///< derives every draw of the event
+};
+
+/// The events of `year` (at most one per kind, in month order, fire before a storm of the
+/// same month): a forced year, or a draw u < probability on the stream of the kind keyed by
+/// the year.
+std::vector<PlannedEvent> eventsOfYear(const DisturbanceSettings& s, std::uint64_t seed, int year);
+
+/// The ground an event acts on: three grids of one geometry (any; the simulator uses the
+/// abiotics cells covering its area) and the area (world metres) inside them that counts.
+struct DisturbanceSite {
+    Grid<float> elevationM;
+    Grid<float> moistureMm;  ///< the event month's moisture
+    Grid<float> windMS;      ///< wind exposure (abiotics /wind); all zero when unknown
+    double windFromDeg = 270.0;  ///< where the prevailing wind comes from, clockwise from north
+    double windStrengthMS = 5.0; ///< the biome's prevailing strength (storm reference)
+    double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< area (ignitions fall inside; areas are clipped to it)
+};
+
+/// Plants as parallel arrays (the simulator's own store, or any other model's).
+struct PlantArrays {
+    std::size_t n = 0;
+    const std::uint64_t* id = nullptr;
+    const std::int32_t* species = nullptr;
+    const double* x = nullptr;
+    const double* y = nullptr;
+    const double* height = nullptr;
+};
+
+/// The spread rule: the probability that fire passes from cell a to its neighbour b (dx, dy
+/// in -1..1, not both 0) of the site. 0 when b is at or above the extinction moisture.
+double fireStepProbability(const DisturbanceSite& site, const FireSettings& f, int ax, int ay, int dx, int dy);
+
+/// Cells burnt by a fire ignited in cell (ix, iy): 1 per burnt cell (site grid order).
+/// Each directed step a -> b is open with fireStepProbability, drawn once per (event, cell
+/// a, direction); the burnt cells are those reachable from the ignition through open steps
+/// (the same set whatever the visiting order). Nothing burns when the ignition cell is wet.
+std::vector<std::uint8_t> spreadFire(const DisturbanceSite& site, const FireSettings& f, int ix, int iy,
+                                     std::uint64_t seed, std::uint64_t eventKey);
+
+/// Kill probabilities (documented in docs/disturbance.md).
+double fireKillProbability(const FireSettings& f, double heightM, double tolerance);
+double stormKillProbability(const StormSettings& s, double heightM, double exposureMS, double referenceWindMS);
+
+/// What an event did: its record (killed per species, area) and which plants it killed.
+struct DisturbanceOutcome {
+    DisturbanceRecord record;
+    std::vector<std::uint8_t> killed;  ///< per plant of the arrays: 1 = killed
+    std::vector<std::uint8_t> burnt;   ///< fire: per site cell (spreadFire); empty for storms
+};
+
+/// Runs one planned event on the site and the plants. `tolerance`: per species fire
+/// tolerance in [0, 1] (fire only). Plants outside the site's grids are untouched.
+DisturbanceOutcome runDisturbance(const PlannedEvent& e, const DisturbanceSettings& s, const DisturbanceSite& site,
+                                  const PlantArrays& plants, const std::vector<double>& tolerance,
+                                  std::size_t speciesCount, std::uint64_t seed);
+
+}  // namespace eco::sim

@@ -1,0 +1,399 @@
+// Disturbance events (sim/disturbance.h, docs/disturbance.md): the fire spread rule on
+// constructed grids, the kill rules, the yearly schedule, and the events inside the monthly
+// simulator (stand clearing, thread count, checkpoints, configuration).
+#include <catch2/catch.hpp>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <cstring>
+
+#include "disturbance.h"
+#include "error.h"
+#include "h5io.h"
+#include "sim_config.h"
+#include "sim_scene_fixture.h"
+#include "simulator.h"
+#include "test_util.h"
+
+using namespace eco;
+using namespace eco::sim;
+
+namespace {
+
+// A square site of n x n cells of 1 m: elevation = slope x (x east), constant moisture and
+// wind exposure; the area is the whole grid.
+DisturbanceSite flatSite(int n, double slopeEast = 0, float moisture = 10, float wind = 0, double windFromDeg = 270) {
+    DisturbanceSite s;
+    s.elevationM = Grid<float>(n, n, 1.0, 0, 0, 0.f);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) s.elevationM(x, y) = static_cast<float>(slopeEast * (x + 0.5));
+    s.moistureMm = Grid<float>(n, n, 1.0, 0, 0, moisture);
+    s.windMS = Grid<float>(n, n, 1.0, 0, 0, wind);
+    s.windFromDeg = windFromDeg;
+    s.x1 = n;
+    s.y1 = n;
+    return s;
+}
+
+// Burnt cells east and west of column cx, summed over `events` fires ignited at (cx, cy).
+std::pair<long, long> eastWest(const DisturbanceSite& s, const FireSettings& f, int cx, int cy, int events) {
+    long east = 0, west = 0;
+    const int n = s.elevationM.width();
+    for (int e = 0; e < events; ++e) {
+        const auto burnt = spreadFire(s, f, cx, cy, 7, static_cast<std::uint64_t>(e) + 1);
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x)
+                if (burnt[s.elevationM.index(x, y)]) {
+                    if (x > cx) ++east;
+                    else if (x < cx) ++west;
+                }
+    }
+    return {east, west};
+}
+
+FireSettings fireOn() {
+    FireSettings f;
+    f.enabled = true;
+    return f;
+}
+
+}  // namespace
+
+TEST_CASE("fire spread: the step probability follows slope, wind and moisture as documented", "[disturbance][fire]") {
+    FireSettings f = fireOn();
+    f.spreadProbability = 0.2;
+    f.slopeFactor = 2.0;
+    f.windFactor = 0.2;
+    f.extinctionMoistureMm = 80;
+    // Flat, calm, moisture 20 of 80: p0 x (1 - 20 / 80).
+    CHECK(fireStepProbability(flatSite(5, 0, 20), f, 2, 2, 1, 0) == Approx(0.2 * 0.75));
+    // Rise 0.3 m per 1 m step east: x exp(2 x 0.3) upslope, exp(-0.6) downslope.
+    const DisturbanceSite sloped = flatSite(5, 0.3, 0);
+    CHECK(fireStepProbability(sloped, f, 2, 2, 1, 0) == Approx(0.2 * std::exp(0.6)));
+    CHECK(fireStepProbability(sloped, f, 2, 2, -1, 0) == Approx(0.2 * std::exp(-0.6)));
+    CHECK(fireStepProbability(sloped, f, 2, 2, 0, 1) == Approx(0.2));
+    // Diagonal step: rise 0.3 over sqrt(2) m.
+    CHECK(fireStepProbability(sloped, f, 2, 2, 1, 1) == Approx(0.2 * std::exp(2 * 0.3 / std::sqrt(2.0))));
+    // Westerly wind of 5 m/s blows east: x exp(0.2 x 5 x cos phi).
+    const DisturbanceSite windy = flatSite(5, 0, 0, 5.f, 270);
+    CHECK(fireStepProbability(windy, f, 2, 2, 1, 0) == Approx(0.2 * std::exp(1.0)));
+    CHECK(fireStepProbability(windy, f, 2, 2, -1, 0) == Approx(0.2 * std::exp(-1.0)));
+    CHECK(fireStepProbability(windy, f, 2, 2, 0, -1) == Approx(0.2).margin(1e-12));
+    // A northerly wind (from 0 degrees) blows south.
+    const DisturbanceSite northerly = flatSite(5, 0, 0, 5.f, 0);
+    CHECK(fireStepProbability(northerly, f, 2, 2, 0, -1) == Approx(0.2 * std::exp(1.0)));
+    // At or above the extinction moisture nothing passes; capped at 1.
+    CHECK(fireStepProbability(flatSite(5, 0, 80), f, 2, 2, 1, 0) == 0.0);
+    f.spreadProbability = 0.9;
+    CHECK(fireStepProbability(flatSite(5, 3.0, 0), f, 2, 2, 1, 0) == 1.0);
+}
+
+TEST_CASE("fire spread: upslope and downwind burn further than downslope and upwind", "[disturbance][fire]") {
+    FireSettings f = fireOn();
+    f.spreadProbability = 0.3;  // near the percolation threshold: fires of tens of cells
+    const int n = 41, c = 20, events = 60;
+    SECTION("slope: elevation rises to the east") {
+        const auto [east, west] = eastWest(flatSite(n, 0.25), f, c, c, events);
+        INFO("east " << east << " west " << west);
+        CHECK(east > 2 * west);
+    }
+    SECTION("wind: a westerly wind drives the fire east") {
+        const auto [east, west] = eastWest(flatSite(n, 0, 0, 5.f, 270), f, c, c, events);
+        INFO("east " << east << " west " << west);
+        CHECK(east > 2 * west);
+    }
+    SECTION("flat and calm: no side is favoured (within 30 %)") {
+        const auto [east, west] = eastWest(flatSite(n), f, c, c, events);
+        INFO("east " << east << " west " << west);
+        CHECK(std::abs(east - west) < 0.3 * (east + west) / 2);
+    }
+}
+
+TEST_CASE("fire spread: wet cells stop the fire, a wet ignition burns nothing", "[disturbance][fire]") {
+    FireSettings f = fireOn();
+    f.spreadProbability = 1.0;  // every dry neighbour burns: the burnt set is the dry region reachable
+    const int n = 30;
+    DisturbanceSite s = flatSite(n, 0, 10);
+    for (int y = 0; y < n; ++y) s.moistureMm(12, y) = 200.f;  // a wet creek along column 12
+    const auto burnt = spreadFire(s, f, 5, 5, 3, 99);
+    long left = 0, right = 0, wet = 0;
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            if (!burnt[s.elevationM.index(x, y)]) continue;
+            if (x < 12) ++left;
+            else if (x > 12) ++right;
+            else ++wet;
+        }
+    CHECK(left == 12L * n);  // everything west of the creek
+    CHECK(wet == 0);
+    CHECK(right == 0);
+    // Ignited in the creek: nothing burns.
+    const auto none = spreadFire(s, f, 12, 7, 3, 99);
+    CHECK(std::count(none.begin(), none.end(), std::uint8_t{1}) == 0);
+}
+
+TEST_CASE("fire spread: the same seed and event give the same cells, another seed other cells", "[disturbance][fire][determinism]") {
+    FireSettings f = fireOn();
+    f.spreadProbability = 0.3;
+    const DisturbanceSite s = flatSite(41, 0.1, 5, 3.f, 200);
+    const auto a = spreadFire(s, f, 20, 20, 42, 7);
+    const auto b = spreadFire(s, f, 20, 20, 42, 7);
+    CHECK(a == b);
+    int differ = 0;
+    for (std::uint64_t seed = 43; seed < 48; ++seed) differ += spreadFire(s, f, 20, 20, seed, 7) != a;
+    CHECK(differ >= 4);
+}
+
+TEST_CASE("disturbance kills: fire by height and tolerance, storms by exposure and height", "[disturbance]") {
+    FireSettings f = fireOn();
+    f.severity = 0.8;
+    f.scorchHeightM = 2.0;
+    CHECK(fireKillProbability(f, 0.5, 0.0) == Approx(0.8));
+    CHECK(fireKillProbability(f, 4.0, 0.0) == Approx(0.4));  // twice the scorch height: half
+    CHECK(fireKillProbability(f, 0.5, 0.75) == Approx(0.2));
+    CHECK(fireKillProbability(f, 0.5, 1.0) == 0.0);
+    StormSettings s;
+    s.severity = 0.6;
+    s.referenceHeightM = 3.0;
+    s.heightExponent = 2.0;
+    CHECK(stormKillProbability(s, 3.0, 5.0, 5.0) == Approx(0.6));
+    CHECK(stormKillProbability(s, 1.5, 5.0, 5.0) == Approx(0.6 * 0.25));
+    CHECK(stormKillProbability(s, 6.0, 2.5, 5.0) == Approx(0.3));  // half exposed, capped height term
+    CHECK(stormKillProbability(s, 6.0, 0.0, 5.0) == 0.0);           // sheltered
+
+    // The draws: 2000 plants of 4 m (fire kill probability 0.4) in a fully burnt site.
+    DisturbanceSettings ds;
+    ds.fire = f;
+    ds.fire.spreadProbability = 1.0;
+    const DisturbanceSite site = flatSite(20);
+    const std::size_t n = 2000;
+    std::vector<std::uint64_t> id(n);
+    std::vector<std::int32_t> sp(n, 0);
+    std::vector<double> x(n), y(n), h(n, 4.0);
+    for (std::size_t p = 0; p < n; ++p) {
+        id[p] = p + 1;
+        x[p] = 0.5 + static_cast<double>(p % 19);
+        y[p] = 0.5 + static_cast<double>(p / 19 % 19);
+    }
+    PlannedEvent e{DisturbanceKind::Fire, 3, 7, 12345};
+    const auto out = runDisturbance(e, ds, site, PlantArrays{n, id.data(), sp.data(), x.data(), y.data(), h.data()}, {0.0}, 2, 5);
+    CHECK(out.record.areaM2 == Approx(400.0));
+    const double killed = out.record.killed[0];
+    // Binomial(2000, 0.4): sd 21.9; 4 sd.
+    CHECK(std::abs(killed - 800.0) < 88.0);
+    CHECK(out.record.killed[1] == 0);
+    CHECK(out.record.kind == "fire");
+}
+
+TEST_CASE("disturbance schedule: forced years always, a yearly probability at its rate", "[disturbance]") {
+    DisturbanceSettings s;
+    s.fire.enabled = true;
+    s.fire.timing.forcedYears = {3, 9};
+    for (int y = 0; y < 12; ++y) CHECK(eventsOfYear(s, 1, y).size() == (y == 3 || y == 9 ? 1u : 0u));
+    s.fire.timing.forcedYears.clear();
+    s.fire.timing.probabilityPerYear = 0.05;  // a 20-year return interval
+    s.storm.enabled = true;
+    s.storm.timing.probabilityPerYear = 0.1;
+    int fires = 0, storms = 0;
+    const int years = 20000;
+    for (int y = 0; y < years; ++y)
+        for (const PlannedEvent& e : eventsOfYear(s, 8, y)) (e.kind == DisturbanceKind::Fire ? fires : storms)++;
+    // Binomial: 1000 +- 31 and 2000 +- 42; 4 sd.
+    CHECK(std::abs(fires - 1000) < 124);
+    CHECK(std::abs(storms - 2000) < 170);
+    // The same seed gives the same years.
+    CHECK(eventsOfYear(s, 8, 17).size() == eventsOfYear(s, 8, 17).size());
+}
+
+// ------------------------------------------------------------------ inside the simulator
+
+namespace {
+
+DisturbanceSettings standClearingFire(int year) {
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.fire.timing.forcedYears = {year};
+    d.fire.timing.month = 6;  // July: before the August germination
+    d.fire.spreadProbability = 1.0;
+    d.fire.extinctionMoistureMm = 1e6;
+    d.fire.severity = 1.0;
+    d.fire.scorchHeightM = 100.0;
+    return d;
+}
+
+bool sameState(const std::vector<UndergrowthPlant>& a, const std::vector<UndergrowthPlant>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if (a[i].id != b[i].id || std::memcmp(&a[i].heightM, &b[i].heightM, sizeof(double)) != 0 ||
+            std::memcmp(&a[i].pool, &b[i].pool, sizeof(double)) != 0)
+            return false;
+    return true;
+}
+
+}  // namespace
+
+TEST_CASE("disturbance in the simulator: a stand-clearing fire kills every plant and is recorded", "[disturbance][sim]") {
+    SimInputs in = test::smallDemoScene();
+    in.area = SimArea{10, 10, 30, 30};
+    Simulation sim(in, SimParams{}, 3);
+    sim.setDisturbance(standClearingFire(2));
+    for (int m = 0; m < 12 * 2 + 6; ++m) sim.stepMonth();  // up to June of year 2
+    const std::size_t before = sim.plantCount();
+    REQUIRE(before > 100);
+    const SimCounters c0 = sim.counters();
+    sim.stepMonth();  // July: the month's own mortality, then the fire
+    const std::int64_t diedInJuly = sim.counters().diedBackgroundOrStress - c0.diedBackgroundOrStress +
+                                    sim.counters().diedAtCanopy - c0.diedAtCanopy;
+    CHECK(sim.plantCount() == 0);
+    REQUIRE(sim.disturbances().size() == 1);
+    const DisturbanceRecord& e = sim.disturbances()[0];
+    CHECK(e.year == 2);
+    CHECK(e.month == 6);
+    CHECK(e.kind == "fire");
+    CHECK(e.areaM2 == Approx(400.0));  // the whole 20 m x 20 m area
+    std::int64_t killed = 0;
+    for (auto k : e.killed) killed += k;
+    CHECK(killed == static_cast<std::int64_t>(before) - diedInJuly);
+    CHECK(sim.counters().diedDisturbance == killed);
+    sim.stepMonth();  // August: germination on the cleared ground
+    CHECK(sim.plantCount() > 0);
+}
+
+TEST_CASE("disturbance in the simulator: same plants and events with 1 and 2 threads, and after a resume",
+          "[disturbance][sim][determinism][checkpoint]") {
+    test::TempDir dir("disturbresume");
+    SimInputs in = test::smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.fire.timing.probabilityPerYear = 0.5;
+    d.fire.spreadProbability = 0.4;
+    d.storm.enabled = true;
+    d.storm.timing.probabilityPerYear = 0.5;
+    d.storm.severity = 1.0;
+    d.storm.referenceHeightM = 0.3;
+    const int threads = omp_get_max_threads();
+    setParallelThresholds(0, 0);
+    auto run = [&](int t, int months) {
+        omp_set_num_threads(t);
+        auto s = std::make_unique<Simulation>(in, SimParams{}, 9);
+        s->setDisturbance(d);
+        for (int m = 0; m < months; ++m) s->stepMonth();
+        return s;
+    };
+    const auto one = run(1, 12 * 8);
+    const auto two = run(2, 12 * 8);
+    CHECK(one->disturbances().size() >= 4);
+    CHECK(sameState(one->plants(), two->plants()));
+    REQUIRE(one->disturbances().size() == two->disturbances().size());
+    // Resume from a checkpoint taken mid-run (after some events).
+    const auto first = run(2, 12 * 3 + 5);
+    {
+        auto f = h5::File::create(dir.file("state.h5"));
+        first->saveState(f, "/state");
+    }
+    Simulation resumed(in, SimParams{}, 9);
+    resumed.setDisturbance(d);
+    {
+        auto f = h5::File::openRead(dir.file("state.h5"));
+        resumed.loadState(f, "/state");
+    }
+    for (int m = 0; m < 12 * 5 - 5; ++m) resumed.stepMonth();
+    CHECK(sameState(one->plants(), resumed.plants()));
+    REQUIRE(resumed.disturbances().size() == one->disturbances().size());
+    for (std::size_t i = 0; i < resumed.disturbances().size(); ++i) {
+        CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
+        CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
+        CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+    }
+    CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
+    // A run without disturbance refuses the checkpoint (another fingerprint).
+    Simulation plain(in, SimParams{}, 9);
+    auto f = h5::File::openRead(dir.file("state.h5"));
+    CHECK_THROWS_WITH(plain.loadState(f, "/state"), Catch::Contains("another run"));
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
+    omp_set_num_threads(threads);
+}
+
+TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are read strictly", "[disturbance][config]") {
+    const std::string base = "[inputs]\nabiotics = \"a.h5\"\ncanopy = \"c.h5\"\n";
+    const RunConfig off = parseRunConfig(base, "t.toml");
+    CHECK_FALSE(off.disturbance.enabled());
+    const RunConfig c = parseRunConfig(base +
+                                           "[disturbance.fire]\nreturn_interval_years = 50\nyears = [40]\nseverity = 1.0\n"
+                                           "[disturbance.storm]\nprobability_per_year = 0.1\nmonth = 0\n",
+                                       "t.toml");
+    CHECK(c.disturbance.fire.enabled);
+    CHECK(c.disturbance.fire.timing.probabilityPerYear == Approx(0.02));
+    CHECK(c.disturbance.fire.timing.forcedYears == std::vector<int>{40});
+    CHECK(c.disturbance.fire.timing.month == 7);
+    CHECK(c.disturbance.fire.severity == 1.0);
+    CHECK(c.disturbance.storm.enabled);
+    CHECK(c.disturbance.storm.timing.month == 0);
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nsevrity = 1.0\n", "t.toml"),
+                      Catch::Contains("t.toml") && Catch::Contains("sevrity") && Catch::Contains("unknown key"));
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nprobability_per_year = 0.1\nreturn_interval_years = 10\n", "t.toml"),
+                      Catch::Contains("not both"));
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nmonth = 12\n", "t.toml"), Catch::Contains("month"));
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nseverity = 1.5\n", "t.toml"), Catch::Contains("severity"));
+}
+
+TEST_CASE("disturbance validation: after a stand-clearing fire the early species peak again and the late ones recover",
+          "[disturbance][sim][succession]") {
+    // A small plot of the demo scene: without fire the early species (Redwood Sorrel and
+    // Western Swordfern, docs/simulator.md "Succession check") peak in the first years and
+    // subside under the growing shrubs and saplings. A fire clearing every plant in year F
+    // restarts the sequence from the seedbank. Compared with the same run without fire.
+    SimInputs in = test::smallDemoScene();
+    in.area = SimArea{4, 4, 40, 40};
+    const Biome& b = in.biome;
+    const std::size_t e0 = static_cast<std::size_t>(b.speciesIndex("Redwood Sorrel")),
+                      e1 = static_cast<std::size_t>(b.speciesIndex("Western Swordfern"));
+    auto earlyCount = [&](const YearRecord& r) { return r.count[e0] + r.count[e1]; };
+    auto lateArea = [&](const YearRecord& r) {
+        double a = 0;
+        for (std::size_t s = 0; s < r.count.size(); ++s)
+            if (s != e0 && s != e1) a += r.crownAreaM2[s];
+        return a;
+    };
+    const int fireYear = 50, years = 90;
+    auto run = [&](bool fire) {
+        Simulation sim(in, SimParams{}, 4);
+        if (fire) sim.setDisturbance(standClearingFire(fireYear));
+        std::vector<YearRecord> ts{sim.census()};
+        for (int y = 0; y < years; ++y) {
+            sim.stepYear();
+            ts.push_back(sim.census());
+        }
+        if (fire) CHECK(sim.disturbances().size() == 1);
+        return ts;
+    };
+    const auto burnt = run(true), control = run(false);
+    auto at = [](const std::vector<YearRecord>& ts, int y) { return ts[static_cast<std::size_t>(y)]; };
+    int peakBefore = 0, peakAfter = 0, peakAfterYear = 0;
+    for (int y = 0; y <= fireYear; ++y) peakBefore = std::max(peakBefore, earlyCount(at(burnt, y)));
+    for (int y = fireYear + 1; y <= years; ++y)
+        if (earlyCount(at(burnt, y)) > peakAfter) {
+            peakAfter = earlyCount(at(burnt, y));
+            peakAfterYear = y;
+        }
+    const int atFire = earlyCount(at(burnt, fireYear)), atEnd = earlyCount(at(burnt, years));
+    const int controlAtPeak = earlyCount(at(control, peakAfterYear)), controlEnd = earlyCount(at(control, years));
+    const double lateAtFire = lateArea(at(burnt, fireYear)), lateAfter = lateArea(at(burnt, fireYear + 1));
+    const double lateEnd = lateArea(at(burnt, years)), lateControlEnd = lateArea(at(control, years));
+    WARN("early: peak before " << peakBefore << ", at the fire " << atFire << ", peak after " << peakAfter << " in year "
+                               << peakAfterYear << " (control " << controlAtPeak << "), end " << atEnd << " (control "
+                               << controlEnd << "); late crown area: at the fire " << lateAtFire << ", after " << lateAfter
+                               << ", end " << lateEnd << " (control " << lateControlEnd << ")");
+    // The early species had subsided before the fire ...
+    CHECK(atFire < 0.8 * peakBefore);
+    // ... peak again within 10 years of it, well above the unburnt plot ...
+    CHECK(peakAfterYear <= fireYear + 10);
+    CHECK(peakAfter > 1.3 * controlAtPeak);
+    // ... and subside again as the late species, cleared by the fire, recover.
+    CHECK(atEnd < 0.85 * peakAfter);
+    CHECK(lateAfter < 0.05 * lateAtFire);
+    CHECK(lateEnd > 0.5 * lateControlEnd);
+}
