@@ -338,6 +338,11 @@ TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are re
                       Catch::Contains("not both"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nmonth = 12\n", "t.toml"), Catch::Contains("month"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nseverity = 1.5\n", "t.toml"), Catch::Contains("severity"));
+    // Not yet with the EcoMod model: refused, not silently ignored.
+    const RunConfig eco = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n[disturbance.fire]\nyears = [10]\n", "t.toml");
+    CHECK_THROWS_WITH(eco.validate(), Catch::Contains("t.toml") && Catch::Contains("ecomod") && Catch::Contains("[disturbance]"));
+    const RunConfig ecoOff = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n", "t.toml");
+    CHECK_NOTHROW(ecoOff.validate());
 }
 
 TEST_CASE("disturbance validation: after a stand-clearing fire the early species peak again and the late ones recover",
