@@ -536,7 +536,7 @@ void writeSobolPng(const std::string& path, const SensitivitySpec& spec, const S
                    const SobolNoise& noise) {
     Chart c;
     c.left = 90;
-    c.top = 60;
+    c.top = 80;
     c.width = std::max(360, 110 * static_cast<int>(res.indices.size()));
     c.height = 420;
     double ymax = 1, ymin = 0;
@@ -549,36 +549,9 @@ void writeSobolPng(const std::string& path, const SensitivitySpec& spec, const S
     const double kCount = static_cast<double>(res.indices.size());
     c.x = {0, kCount, {}, {}};
     c.y = {ymin, ymax, niceTicks(ymin, ymax, 6), [](double v) { return formatNumber(v, 3); }};
-    const Rgb light{0.62f, 0.79f, 0.88f}, dark{0.12f, 0.35f, 0.62f};
-    for (std::size_t i = 0; i < res.indices.size(); ++i) {
-        const double x0 = static_cast<double>(i);
-        const SobolIndex& s = res.indices[i];
-        for (int which = 0; which < 2; ++which) {
-            const double left = x0 + (which == 0 ? 0.15 : 0.5), right = left + 0.35;
-            const double v = which == 0 ? s.first : s.total;
-            ChartSeries bar;
-            bar.bars = true;
-            bar.colour = which == 0 ? light : dark;
-            bar.x = {left, right};
-            bar.y = {v};
-            bar.clampToAxes = true;
-            c.series.push_back(bar);
-            ChartSeries whisker;
-            whisker.colour = {0, 0, 0};
-            whisker.strokeOffsetsPx = {0, 1};
-            const double mid = 0.5 * (left + right);
-            whisker.x = {mid, mid};
-            whisker.y = {which == 0 ? s.firstLow : s.totalLow, which == 0 ? s.firstHigh : s.totalHigh};
-            c.series.push_back(whisker);
-            for (const double yEnd : whisker.y) {
-                ChartSeries cap = whisker;
-                cap.x = {mid - 0.06, mid + 0.06};
-                cap.y = {yEnd, yEnd};
-                c.series.push_back(cap);
-            }
-        }
-    }
-    if (std::isfinite(noise.varianceShare) && noise.varianceShare > 0 && noise.varianceShare < ymax) {
+    c.reference = ChartReference{0.0, {0.3f, 0.3f, 0.3f}, false};
+    const bool noiseShown = std::isfinite(noise.varianceShare) && noise.varianceShare > 0 && 2 * noise.varianceShare < ymax;
+    if (noiseShown) {
         for (int k = 0; k < 40; ++k) {
             ChartSeries dash;
             dash.colour = {0.84f, 0.15f, 0.16f};
@@ -587,21 +560,38 @@ void writeSobolPng(const std::string& path, const SensitivitySpec& spec, const S
             c.series.push_back(dash);
         }
     }
-    c.texts.push_back({c.left, 28, "Sobol indices of " + out.text + " (" + out.units() + ")", 17, {0, 0, 0}});
-    std::string sub = "N = " + std::to_string(spec.samples) + ", " + std::to_string(spec.replicates) + " replicates; light: first-order S, dark: total ST, whiskers: 95 % bootstrap";
-    if (std::isfinite(noise.varianceShare)) sub += "; red dashed: twice the ST of seed noise alone";
-    c.texts.push_back({c.left, 48, sub, 13, {0.3f, 0.3f, 0.3f}});
+    c.texts.push_back({c.left, 26, "Sobol indices of " + out.text + " (" + out.units() + ")", 17, {0, 0, 0}});
+    c.texts.push_back({c.left, 46, "N = " + std::to_string(spec.samples) + ", " + std::to_string(spec.replicates) +
+                                       " replicates; light: first-order S, dark: total ST (from 0)", 13, {0.3f, 0.3f, 0.3f}});
+    c.texts.push_back({c.left, 64, std::string("whiskers: 95 % bootstrap intervals") + (noiseShown ? "; red dashed: twice the seed-noise share (ST of noise alone)" : ""),
+                       13, {0.3f, 0.3f, 0.3f}});
     c.texts.push_back({8, c.top - 10, "index", 14, {0, 0, 0}});
     for (std::size_t i = 0; i < res.indices.size(); ++i)
-        c.texts.push_back({static_cast<int>(c.px(static_cast<double>(i) + 0.45)), c.top + c.height + 22, std::to_string(i + 1), 14, {0, 0, 0}});
+        c.texts.push_back({static_cast<int>(c.px(static_cast<double>(i) + 0.5)) - 4, c.top + c.height + 22, std::to_string(i + 1), 14, {0, 0, 0}});
     const int keyX = c.left + c.width + 30;
     int keyWidth = 0;
     for (std::size_t i = 0; i < spec.parameters.size(); ++i) {
         c.texts.push_back({keyX, c.top + 16 + static_cast<int>(i) * 20, std::to_string(i + 1) + "  " + spec.parameters[i].key, 13, {0, 0, 0}});
         keyWidth = std::max(keyWidth, static_cast<int>(spec.parameters[i].key.size()) * 8 + 40);
     }
-    Canvas canvas(keyX + keyWidth + 20, std::max(c.top + c.height + 50, c.top + 40 + static_cast<int>(spec.parameters.size()) * 20));
+    Canvas canvas(std::max(keyX + keyWidth + 20, c.left + 620), std::max(c.top + c.height + 50, c.top + 40 + static_cast<int>(spec.parameters.size()) * 20));
     drawChart(canvas, c);
+    // The bars from 0 (up or down) and their whiskers, over the chart.
+    const auto py = [&](double v) { return c.py(std::clamp(v, ymin, ymax)); };
+    const Rgb light{0.62f, 0.79f, 0.88f}, dark{0.12f, 0.35f, 0.62f}, black{0, 0, 0};
+    for (std::size_t i = 0; i < res.indices.size(); ++i) {
+        const SobolIndex& s = res.indices[i];
+        for (int which = 0; which < 2; ++which) {
+            const double left = static_cast<double>(i) + (which == 0 ? 0.15 : 0.5), right = left + 0.35;
+            const double v = which == 0 ? s.first : s.total;
+            const double lo = which == 0 ? s.firstLow : s.totalLow, hi = which == 0 ? s.firstHigh : s.totalHigh;
+            const int y0 = static_cast<int>(std::min(py(v), py(0))), y1 = static_cast<int>(std::max(py(v), py(0)));
+            canvas.fillRect(static_cast<int>(c.px(left)) + 1, y0, static_cast<int>(c.px(right)) - 1, std::max(y1, y0 + 1), which == 0 ? light : dark);
+            const double mid = c.px(0.5 * (left + right));
+            for (int o : {0, 1}) canvas.drawLine(mid + o, py(lo), mid + o, py(hi), black);
+            for (const double e : {lo, hi}) canvas.drawLine(mid - 7, py(e), mid + 8, py(e), black);
+        }
+    }
     canvas.writePng(path);
 }
 

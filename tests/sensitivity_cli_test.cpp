@@ -110,14 +110,15 @@ TEST_CASE("eco sensitivity: Sobol indices through the ensemble, log-scaled range
     std::string spec = writeSpec(dir, "[\"density@3\", \"height_q90@3\"]");
     {
         std::string text = readTextFile(spec);
-        text.replace(text.find("trajectories = 2\nlevels = 4\n"), 28, "method = \"sobol\"\nsamples = 4\nbootstrap = 100\n");
+        // One replicate (16 simulations; the seed noise is then not measured).
+        text.replace(text.find("trajectories = 2\nlevels = 4\nreplicates = 2\n"), 43, "method = \"sobol\"\nsamples = 4\nbootstrap = 100\nreplicates = 1\n");
         text.replace(text.find("[0.0005, 0.003]"), 15, "{ low = 0.0003, high = 0.003, scale = \"log\" }");
         std::ofstream(spec) << text;
     }
     const auto r = test::runEco("sensitivity " + spec);
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
-    CHECK(r.output.find("32 of 32 done") != std::string::npos);  // N (k + 2) R = 4 x 4 x 2
+    CHECK(r.output.find("16 of 16 done") != std::string::npos);  // N (k + 2) R = 4 x 4 x 1
     for (const char* f : {"sensitivity.md", "sensitivity.csv", "design.csv", "png/sobol_1.png", "png/sobol_2.png"})
         CHECK(fs::exists(dir.file(std::string("out/") + f)));
     const auto rows = readCsv(dir.file("out/sensitivity.csv"));
@@ -135,6 +136,8 @@ TEST_CASE("eco sensitivity: Sobol indices through the ensemble, log-scaled range
     CHECK(std::stod(seeding.at("total")) > 0.5);  // the only parameter that acts
     CHECK(std::stod(seeding.at("total_low")) <= std::stod(seeding.at("total")));
     CHECK(seeding.at("rank") == "1");
+    CHECK(seeding.at("seed_noise_share").empty());
+    CHECK(seeding.at("above_noise") == "unknown");
     // The design's seeding probabilities lie in the range and spread over its decade.
     double lo = 1, hi = 0;
     for (auto& row : test::readCsvRows(dir.file("out/design.csv"))) {
