@@ -323,7 +323,10 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     if (!opt) throw ValidationError("calibrate: NLopt could not create its optimiser");
     Objective data{&cal, &spec, opt, nullptr};
     std::vector<double> lower(k, 0.0), upper(k, 1.0), u(k);
-    for (std::size_t i = 0; i < k; ++i) u[i] = std::clamp(spec.parameters[i].unitOf(spec.start[i]), 0.0, 1.0);
+    for (std::size_t i = 0; i < k; ++i) {
+        const StudyParameter& p = spec.parameters[i];
+        u[i] = p.logScale || p.integer ? std::clamp(p.unitOf(spec.start[i]), 0.0, 1.0) : (spec.start[i] - p.low) / (p.high - p.low);
+    }
     nlopt_set_lower_bounds(opt, lower.data());
     nlopt_set_upper_bounds(opt, upper.data());
     nlopt_set_min_objective(opt, objective, &data);
@@ -348,10 +351,15 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
             const StudyParameter& p = spec.parameters[i];
             // A tenth of the range in the search's unit interval (of the log with a log scale);
             // an integer at least one whole step.
-            const double u0 = p.unitOf(v[i]);
-            const double moved = p.at(u0 + 0.1 <= 1 ? u0 + 0.1 : u0 - 0.1);
-            if (p.integer && moved == v[i]) v[i] = v[i] + 1 <= p.high ? v[i] + 1 : v[i] - 1;
-            else v[i] = moved;
+            if (!p.logScale && !p.integer) {
+                const double h = 0.1 * (p.high - p.low);
+                v[i] = v[i] + h <= p.high ? v[i] + h : v[i] - h;
+            } else {
+                const double u0 = p.unitOf(v[i]);
+                const double moved = p.at(u0 + 0.1 <= 1 ? u0 + 0.1 : u0 - 0.1);
+                if (p.integer && moved == v[i]) v[i] = v[i] + 1 <= p.high ? v[i] + 1 : v[i] - 1;
+                else v[i] = moved;
+            }
             const Evaluation e = cal.evaluate(v, "uncertainty");
             for (std::size_t t = 0; t < spec.targets.size(); ++t)
                 jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (v[i] - bestSearch.values[i]);
