@@ -45,8 +45,9 @@ void registerCalibrateCommand(CLI::App& app) {
     auto a = std::make_shared<CalibrateArgs>();
     CLI::App* sub = app.add_subcommand(
         "calibrate",
-        "Fit species parameters and model constants within bounds to observations (species shares, density, mean "
-        "heights, cover at a year; cv of the plant count), each with its sd: a derivative-free search (NLopt) of "
+        "Fit species parameters and model constants within bounds (linear, log-scaled or integer) to observations "
+        "(species shares, density, mean heights, cover, height quantiles at a year; cv of the plant count; a field "
+        "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt) of "
         "chi2 over simulations averaged over replicate seeds, run as an eco ensemble (parallel; a killed calibration "
         "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
         "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");

@@ -25,12 +25,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double numberNode(const toml::node& n, const std::string& where) {
-    if (const auto* f = n.as_floating_point()) return f->get();
-    if (const auto* i = n.as_integer()) return static_cast<double>(i->get());
-    throw ValidationError(where + ": expected a number");
-}
-
 nlopt_algorithm algorithmOf(const std::string& name) {
     if (name == "sbplx") return NLOPT_LN_SBPLX;
     if (name == "neldermead") return NLOPT_LN_NELDERMEAD;
@@ -85,26 +79,11 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     spec.membersAtOnce = static_cast<int>(c.integerOr("members_at_once", 1));
     if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) c.fail("members_at_once", "must be in 1 .. 256");
     for (const auto& [k, v] : c.table("parameters")) {
-        const std::string key(k.str());
-        const std::string where = path + ": [calibrate.parameters] '" + key + "'";
-        // [LOW, HIGH] (start in the middle) or { low = , high = , start = }.
-        double low = 0, high = 0, start = std::nan("");
-        if (const auto* a = v.as_array(); a && a->size() == 2) {
-            low = numberNode(*a->get(0), where);
-            high = numberNode(*a->get(1), where);
-        } else if (const auto* t = v.as_table()) {
-            StrictTable p(*t, path, "[calibrate.parameters] '" + key + "'");
-            low = p.number("low");
-            high = p.number("high");
-            start = p.numberOr("start", std::nan(""));
-            p.finish();
-        } else {
-            throw ValidationError(where + ": expected [LOW, HIGH] or { low = LOW, high = HIGH, start = START }");
-        }
-        spec.parameters.push_back(makeStudyParameter(key, low, high, where));
-        if (std::isnan(start)) start = 0.5 * (low + high);
-        if (!(start >= low && start <= high))
-            throw ValidationError(where + ": start " + formatNumber(start, 10) + " lies outside [" + formatNumber(low, 10) + ", " + formatNumber(high, 10) + "]");
+        double start = 0;
+        const StudyParameter p = parseStudyParameter(std::string(k.str()), v, path, "[calibrate.parameters]", &start);
+        spec.parameters.push_back(p);
+        // Default: the middle of the range (of its log with a log scale).
+        if (std::isnan(start)) start = p.logScale || p.integer ? p.at(0.5) : 0.5 * (p.low + p.high);
         spec.start.push_back(start);
     }
     if (spec.parameters.empty()) c.fail("parameters", "no parameter to fit");
@@ -117,6 +96,7 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
             const double v = t.number(p.key);
             if (!(v >= p.low && v <= p.high))
                 t.fail(p.key, "the true value " + formatNumber(v, 10) + " lies outside its range [" + formatNumber(p.low, 10) + ", " + formatNumber(p.high, 10) + "]");
+            if (p.integer && v != std::floor(v)) t.fail(p.key, "the true value " + formatNumber(v, 10) + " of an integer parameter is not a whole number");
             spec.truth.push_back(v);
         }
         t.finish();
@@ -131,8 +111,45 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         StrictTable tt(*t, path, ctx);
         CalibrationTarget target;
         target.output = parseSimulationOutput(tt.string("output"), path + ": " + ctx);
-        // Without a value only when the truth gives it.
-        target.value = spec.truth.empty() ? tt.number("value") : tt.numberOr("value", std::nan(""));
+        if (target.output.measure == SimulationOutput::Measure::PairCorrelation) {
+            // A stem map's g(r): the output is the rms difference of the simulated g(r) from
+            // it, so the observed value is 0 and sd is the rms difference worth one unit of chi2.
+            if (tt.has("value")) tt.fail("value", "a pcf target's observation is its stem_map (the value fitted is 0: no difference)");
+            const std::string map = pathRelativeToConfig(path, tt.string("stem_map"));
+            const toml::node& w = tt.node("window");
+            const auto* wa = w.as_array();
+            std::vector<double> win;
+            if (wa)
+                for (const auto& e : *wa) {
+                    if (const auto* f = e.as_floating_point()) win.push_back(f->get());
+                    else if (const auto* in = e.as_integer()) win.push_back(static_cast<double>(in->get()));
+                }
+            if (!wa || win.size() != 4 || wa->size() != 4 || !(win[0] < win[2] && win[1] < win[3]))
+                tt.fail("window", "expected [X0, Y0, X1, Y1] with X0 < X1 and Y0 < Y1 (metres, the stem map's window)");
+            const RectWindow window{win[0], win[1], win[2], win[3]};
+            const double rMax = tt.positive("r_max");
+            const int bins = static_cast<int>(tt.integerOr("bins", 20));
+            if (bins < 1 || bins > 1000) tt.fail("bins", "must be in 1 .. 1000");
+            const double rMin = tt.numberInOr("r_min", 0.0, rMax, 0.0);
+            if (rMin >= rMax) tt.fail("r_min", "must be below r_max");
+            const double minHeight = tt.numberInOr("min_height", 0.0, 1e4, 0.0);
+            if (rMax > 0.5 * std::min(window.widthM(), window.heightM()) + 1e-9)
+                tt.fail("r_max", "exceeds half the window's shorter side (" + formatNumber(0.5 * std::min(window.widthM(), window.heightM()), 6) + " m)");
+            try {
+                target.output.pcf = std::make_shared<const PairCorrelationReference>(
+                    pairCorrelationReference(map, window, target.output.species, rMax, bins, rMin, minHeight));
+            } catch (const ValidationError& e) {
+                throw ValidationError(path + ": " + ctx + ": " + e.what());
+            } catch (const IoError& e) {
+                throw ValidationError(path + ": " + ctx + ": " + e.what());
+            }
+            target.value = 0;
+        } else {
+            for (const char* key : {"stem_map", "window", "r_max", "r_min", "bins", "min_height"})
+                if (tt.has(key)) tt.fail(key, "is a key of pcf targets (output = \"pcf[:SPECIES]@YEAR\")");
+            // Without a value only when the truth gives it.
+            target.value = spec.truth.empty() ? tt.number("value") : tt.numberOr("value", std::nan(""));
+        }
         target.sd = tt.positive("sd");
         tt.finish();
         spec.targets.push_back(target);
@@ -290,6 +307,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         run(writeStudyEnsemble(spec.outDir, spec.base, spec.membersAtOnce, spec.parameters, truthMembers,
                                "# The simulations of eco calibrate " + spec.path + " (written by eco calibrate).\n"));
         for (CalibrationTarget& t : spec.targets) {
+            if (t.output.pcf) continue;  // fitted to its stem map
             double sum = 0;
             for (const StudyMember& m : truthMembers) sum += measureOutput(studySimulation(spec.outDir, m.name), t.output);
             t.value = sum / static_cast<double>(truthMembers.size());
@@ -305,7 +323,10 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     if (!opt) throw ValidationError("calibrate: NLopt could not create its optimiser");
     Objective data{&cal, &spec, opt, nullptr};
     std::vector<double> lower(k, 0.0), upper(k, 1.0), u(k);
-    for (std::size_t i = 0; i < k; ++i) u[i] = (spec.start[i] - spec.parameters[i].low) / (spec.parameters[i].high - spec.parameters[i].low);
+    for (std::size_t i = 0; i < k; ++i) {
+        const StudyParameter& p = spec.parameters[i];
+        u[i] = p.logScale || p.integer ? std::clamp(p.unitOf(spec.start[i]), 0.0, 1.0) : (spec.start[i] - p.low) / (p.high - p.low);
+    }
     nlopt_set_lower_bounds(opt, lower.data());
     nlopt_set_upper_bounds(opt, upper.data());
     nlopt_set_min_objective(opt, objective, &data);
@@ -328,8 +349,17 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         for (std::size_t i = 0; i < k; ++i) {
             std::vector<double> v = bestSearch.values;
             const StudyParameter& p = spec.parameters[i];
-            const double h = 0.1 * (p.high - p.low);
-            v[i] = v[i] + h <= p.high ? v[i] + h : v[i] - h;
+            // A tenth of the range in the search's unit interval (of the log with a log scale);
+            // an integer at least one whole step.
+            if (!p.logScale && !p.integer) {
+                const double h = 0.1 * (p.high - p.low);
+                v[i] = v[i] + h <= p.high ? v[i] + h : v[i] - h;
+            } else {
+                const double u0 = p.unitOf(v[i]);
+                const double moved = p.at(u0 + 0.1 <= 1 ? u0 + 0.1 : u0 - 0.1);
+                if (p.integer && moved == v[i]) v[i] = v[i] + 1 <= p.high ? v[i] + 1 : v[i] - 1;
+                else v[i] = moved;
+            }
             const Evaluation e = cal.evaluate(v, "uncertainty");
             for (std::size_t t = 0; t < spec.targets.size(); ++t)
                 jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (v[i] - bestSearch.values[i]);
@@ -379,8 +409,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << "## Parameters\n\n| parameter | range | start | best | ± sd (linearised) |" << (spec.truth.empty() ? "" : " truth | best - truth |")
        << "\n|---|---|---:|---:|---:|" << (spec.truth.empty() ? "" : "---:|---:|") << "\n";
     for (std::size_t i = 0; i < k; ++i)
-        md << "| `" << spec.parameters[i].key << "` | " << formatNumber(spec.parameters[i].low, 6) << " .. " << formatNumber(spec.parameters[i].high, 6)
-           << " | " << formatNumber(spec.start[i], 6) << " | " << formatNumber(best.values[i], 6) << " | "
+        md << "| `" << spec.parameters[i].key << "` | " << spec.parameters[i].describe() << " | " << formatNumber(spec.start[i], 6) << " | " << formatNumber(best.values[i], 6) << " | "
            << (std::isfinite(result.parameterSd[i]) ? formatNumber(result.parameterSd[i], 3) : std::string(spec.uncertainty ? "not identifiable" : "-")) << " |"
            << (spec.truth.empty() ? std::string() : " " + formatNumber(spec.truth[i], 6) + " | " + formatNumber(best.values[i] - spec.truth[i], 3) + " |") << "\n";
     md << "\nThe sd comes from the Jacobian of the residuals at the best point (forward differences of a tenth of each range, "

@@ -4,8 +4,14 @@
 
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
 
+#include "biome.h"
 #include "calibrate.h"
+#include "rng.h"
+#include "sim_file.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -74,4 +80,134 @@ TEST_CASE("calibrate: a bad specification is refused with its file and key", "[c
     const auto truth = loadCalibrationSpec(write("", params + "[calibrate.truth]\n\"model.seeding_probability\" = 0.002\n" +
                                                          "[[target]]\noutput = \"density@3\"\nsd = 0.1\n"));
     CHECK(truth.truth == std::vector<double>{0.002});
+}
+
+TEST_CASE("calibrate: a stem map's pair correlation as a target, measured against a snapshot's plants", "[calibrate]") {
+    test::TempDir dir("calibrate_pcf");
+    const Biome biome = defaultBiome();
+    const int toyon = biome.speciesIndex("Toyon"), fern = biome.speciesIndex("Western Swordfern");
+    // The stem map: Toyons on a 2 m grid in a 20 m x 20 m window (no two closer than 2 m: g = 0
+    // below 2 m), and ferns at random (another species: left out by the target's species).
+    std::vector<UndergrowthPlant> grid, ferns;
+    std::ostringstream csv;
+    csv << "x,y,species\n";
+    for (int i = 0; i < 10; ++i)
+        for (int j = 0; j < 10; ++j) {
+            UndergrowthPlant p;
+            p.id = static_cast<std::uint64_t>(grid.size() + 1);
+            p.speciesId = toyon;
+            p.xM = 1 + 2 * i;
+            p.yM = 1 + 2 * j;
+            p.heightM = 3;
+            p.crownRadiusM = 0.5;
+            grid.push_back(p);
+            csv << p.xM << "," << p.yM << ",Toyon\n";
+        }
+    RandomStream rs(3, 0);
+    for (int i = 0; i < 60; ++i) {
+        UndergrowthPlant p;
+        p.id = 1000 + static_cast<std::uint64_t>(i);
+        p.speciesId = fern;
+        p.xM = rs.uniform(0, 20);
+        p.yM = rs.uniform(0, 20);
+        p.heightM = 0.5;
+        p.crownRadiusM = 0.2;
+        ferns.push_back(p);
+        csv << p.xM << "," << p.yM << ",Western Swordfern\n";
+    }
+    std::ofstream(dir.file("stems.csv")) << csv.str();
+    const RectWindow window{0, 0, 20, 20};
+    const PairCorrelationReference ref = pairCorrelationReference(dir.file("stems.csv"), window, "Toyon", 4.0, 8, 0.0, 1.0);
+    CHECK(ref.points == 100);
+    for (int k = 0; k < 4; ++k) CHECK(ref.observed[static_cast<std::size_t>(k)] == 0);  // r < 2 m
+    CHECK(ref.observed[4] > 1);  // the grid's 2 m neighbours
+    CHECK_THROWS_WITH(pairCorrelationReference(dir.file("stems.csv"), window, "Tanoak", 4.0, 8, 0.0, 0.0), Catch::Contains("no species 'Tanoak'"));
+    CHECK_THROWS_WITH(pairCorrelationReference(dir.file("stems.csv"), window, "Toyon", 12.0, 8, 0.0, 0.0), Catch::Contains("half"));
+
+    // Simulations over the same window: snapshot of year 5.
+    SimulationOutput out = parseSimulationOutput("pcf:Toyon@5", "t");
+    out.pcf = std::make_shared<const PairCorrelationReference>(ref);
+    const auto simulate = [&](const std::string& name, std::vector<UndergrowthPlant> plants) {
+        SimulationFileInfo info;
+        info.years = 5;
+        info.x0 = info.y0 = 0;
+        info.x1 = info.y1 = 20;
+        std::vector<YearRecord> series;
+        for (int year = 0; year <= 5; ++year) {
+            YearRecord r;
+            r.year = year;
+            r.count.assign(biome.species.size(), 0);
+            r.meanHeightM.assign(biome.species.size(), 0);
+            r.meanVigour.assign(biome.species.size(), 0);
+            r.crownAreaM2.assign(biome.species.size(), 0);
+            series.push_back(r);
+        }
+        const std::string path = dir.file(name);
+        writeSimulationFile(path, info, biome, {{5, plants}}, series, {});
+        return measureOutput(path, out);
+    };
+    // The same Toyons with the ferns and with Toyon seedlings below min_height (1 m): no difference.
+    std::vector<UndergrowthPlant> same = grid;
+    same.insert(same.end(), ferns.begin(), ferns.end());
+    for (int i = 0; i < 30; ++i) {
+        UndergrowthPlant p = grid[static_cast<std::size_t>(i)];
+        p.id = 5000 + static_cast<std::uint64_t>(i);
+        p.xM += 0.3;
+        p.heightM = 0.2;
+        same.push_back(p);
+    }
+    CHECK(simulate("same.h5", same) == 0);
+    // The seedlings above min_height: pairs at 0.3 m, g of the first bin far above 0.
+    std::vector<UndergrowthPlant> close = same;
+    for (auto& p : close) p.heightM = std::max(p.heightM, 1.5);
+    std::vector<double> x, y;
+    for (const auto& p : close)
+        if (p.speciesId == toyon) {
+            x.push_back(p.xM);
+            y.push_back(p.yM);
+        }
+    const std::vector<double> g = pairCorrelation(x, y, window, ref.bins);
+    CHECK(g[0] > 1);
+    double sq = 0;
+    for (int k = 0; k < 8; ++k) sq += std::pow(g[static_cast<std::size_t>(k)] - ref.observed[static_cast<std::size_t>(k)], 2);
+    const double rms = simulate("close.h5", close);
+    CHECK(rms == Approx(std::sqrt(sq / 8)));
+    CHECK(rms > 0.3);
+    // r_min leaves the first bins out.
+    PairCorrelationReference far = ref;
+    far.rMinM = 1.0;
+    double sqFar = 0;
+    for (int k = 2; k < 8; ++k) sqFar += std::pow(g[static_cast<std::size_t>(k)] - ref.observed[static_cast<std::size_t>(k)], 2);
+    CHECK(pairCorrelationDistance(far, g) == Approx(std::sqrt(sqFar / 6)));
+    // No stem map: refused.
+    CHECK_THROWS_WITH(measureOutput(dir.file("same.h5"), parseSimulationOutput("pcf@5", "t")), Catch::Contains("stem map"));
+
+    // In a specification: a [[target]] with stem_map, window, r_max; no value.
+    const std::string head = "[calibrate]\nout_dir = \"" + dir.file("out") + "\"\n[calibrate.parameters]\n\"model.seeding_probability\" = { low = 0.0001, high = 0.01, scale = \"log\" }\n"
+                             "\"biome.species.Toyon.max_age_years\" = { low = 50, high = 200, integer = true, start = 150 }\n[calibrate.base.run]\nout_dir = \"x\"\n";
+    const auto write = [&](const std::string& target) {
+        const std::string path = dir.file("c.toml");
+        std::ofstream(path) << head << "[[target]]\noutput = \"density@5\"\nvalue = 1\nsd = 0.1\n[[target]]\n" << target;
+        return path;
+    };
+    const CalibrationSpec spec = loadCalibrationSpec(write("output = \"pcf:Toyon@5\"\nstem_map = \"stems.csv\"\nwindow = [0, 0, 20, 20]\nr_max = 4.0\nbins = 8\nmin_height = 1.0\nsd = 0.2\n"));
+    REQUIRE(spec.targets.size() == 2);
+    REQUIRE(spec.targets[1].output.pcf);
+    CHECK(spec.targets[1].value == 0);
+    CHECK(spec.targets[1].output.pcf->observed == ref.observed);
+    // The log-scaled parameter starts in the middle of its log range; the integer at its start.
+    std::map<std::string, double> start;
+    for (std::size_t i = 0; i < spec.parameters.size(); ++i) start[spec.parameters[i].key] = spec.start[i];
+    CHECK(start["model.seeding_probability"] == Approx(0.001));
+    CHECK(start["biome.species.Toyon.max_age_years"] == 150);
+    for (const auto& [target, expect] : std::vector<std::pair<std::string, std::string>>{
+             {"output = \"pcf@5\"\nstem_map = \"stems.csv\"\nwindow = [0, 0, 20, 20]\nr_max = 4.0\nvalue = 0\nsd = 0.2\n", "value"},
+             {"output = \"pcf@5\"\nstem_map = \"stems.csv\"\nwindow = [0, 0, 20]\nr_max = 4.0\nsd = 0.2\n", "window"},
+             {"output = \"pcf@5\"\nstem_map = \"stems.csv\"\nwindow = [0, 0, 20, 20]\nr_max = 11.0\nsd = 0.2\n", "half"},
+             {"output = \"pcf@5\"\nstem_map = \"none.csv\"\nwindow = [0, 0, 20, 20]\nr_max = 4.0\nsd = 0.2\n", "none.csv"},
+             {"output = \"density@5\"\nvalue = 1\nr_max = 4.0\nsd = 0.2\n", "pcf targets"},
+         }) {
+        INFO(target);
+        CHECK_THROWS_WITH(loadCalibrationSpec(write(target)), Catch::Contains("c.toml") && Catch::Contains(expect));
+    }
 }

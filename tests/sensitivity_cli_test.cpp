@@ -104,3 +104,48 @@ TEST_CASE("eco sensitivity: a bad specification is refused with its file and key
     CHECK(r.output.find("no_such_constant") != std::string::npos);
     CHECK_FALSE(fs::exists(dir.file("out/ensemble/members")));
 }
+
+TEST_CASE("eco sensitivity: Sobol indices through the ensemble, log-scaled range, a parameter without effect has S = ST = 0", "[sensitivity][cli]") {
+    test::TempDir dir("sensitivity_sobol_cli");
+    std::string spec = writeSpec(dir, "[\"density@3\", \"height_q90@3\"]");
+    {
+        std::string text = readTextFile(spec);
+        // One replicate (16 simulations; the seed noise is then not measured).
+        text.replace(text.find("trajectories = 2\nlevels = 4\nreplicates = 2\n"), 43, "method = \"sobol\"\nsamples = 4\nbootstrap = 100\nreplicates = 1\n");
+        text.replace(text.find("[0.0005, 0.003]"), 15, "{ low = 0.0003, high = 0.003, scale = \"log\" }");
+        std::ofstream(spec) << text;
+    }
+    const auto r = test::runEco("sensitivity " + spec);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("16 of 16 done") != std::string::npos);  // N (k + 2) R = 4 x 4 x 1
+    for (const char* f : {"sensitivity.md", "sensitivity.csv", "design.csv", "png/sobol_1.png", "png/sobol_2.png"})
+        CHECK(fs::exists(dir.file(std::string("out/") + f)));
+    const auto rows = readCsv(dir.file("out/sensitivity.csv"));
+    REQUIRE(rows.size() == 4);
+    for (const char* out : {"density@3", "height_q90@3"}) {
+        INFO(out);
+        const auto& none = rows.at({out, "model.deussen_dominated_survival"});
+        CHECK(std::stod(none.at("first")) == 0);
+        CHECK(std::stod(none.at("total")) == 0);
+        CHECK(std::stod(none.at("total_high")) == 0);
+        CHECK(none.at("rank") == "2");
+    }
+    const auto& seeding = rows.at({"density@3", "model.seeding_probability"});
+    CHECK(seeding.at("scale") == "log");
+    CHECK(std::stod(seeding.at("total")) > 0.5);  // the only parameter that acts
+    CHECK(std::stod(seeding.at("total_low")) <= std::stod(seeding.at("total")));
+    CHECK(seeding.at("rank") == "1");
+    CHECK(seeding.at("seed_noise_share").empty());
+    CHECK(seeding.at("above_noise") == "unknown");
+    // The design's seeding probabilities lie in the range and spread over its decade.
+    double lo = 1, hi = 0;
+    for (auto& row : test::readCsvRows(dir.file("out/design.csv"))) {
+        const double p = std::stod(row.at("model.seeding_probability"));
+        lo = std::min(lo, p);
+        hi = std::max(hi, p);
+    }
+    CHECK(lo >= 0.0003);
+    CHECK(hi <= 0.003);
+    CHECK(hi / lo > 2);
+}

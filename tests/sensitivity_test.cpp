@@ -4,9 +4,13 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
 #include <set>
 
 #include "biome.h"
+#include "rng.h"
 #include "sensitivity.h"
 #include "sim_file.h"
 #include "test_util.h"
@@ -161,4 +165,284 @@ TEST_CASE("Sensitivity outputs: parsed from their text, measured from a simulati
     CHECK(measureOutput(path, parseSimulationOutput("cv@0-3", "t")) == Approx(std::sqrt(125.0) / 55));
     CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("density@9", "t")), Catch::Contains("year 9") && Catch::Contains("0 .. 3"));
     CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("share:Nonesuch@1", "t")), Catch::Contains("no species 'Nonesuch'"));
+}
+
+namespace {
+
+/// Ishigami (1990): y = sin x1 + a sin^2 x2 + b x3^4 sin x1 on [-pi, pi]^3, a = 7, b = 0.1.
+/// Its indices are known in closed form (Sobol' and Levitan 1999).
+struct Ishigami {
+    static constexpr double kA = 7, kB = 0.1, kPi = 3.14159265358979323846;
+    static double f(const std::vector<double>& u) {
+        const double x1 = -kPi + 2 * kPi * u[0], x2 = -kPi + 2 * kPi * u[1], x3 = -kPi + 2 * kPi * u[2];
+        return std::sin(x1) + kA * std::sin(x2) * std::sin(x2) + kB * std::pow(x3, 4) * std::sin(x1);
+    }
+    static double pi4() { return std::pow(kPi, 4); }
+    static double v1() { return 0.5 * std::pow(1 + kB * pi4() / 5, 2); }
+    static double v2() { return kA * kA / 8; }
+    static double v13() { return kB * kB * std::pow(kPi, 8) * (1.0 / 18 - 1.0 / 50); }
+    static double variance() { return v1() + v2() + v13(); }
+};
+
+SobolResult sobolOf(const SobolDesign& d, const std::function<double(const std::vector<double>&)>& f, int bootstrap) {
+    std::vector<double> fA, fB;
+    std::vector<std::vector<double>> fAB(static_cast<std::size_t>(d.parameters));
+    for (int n = 0; n < d.samples; ++n) {
+        fA.push_back(f(d.point(0, n)));
+        fB.push_back(f(d.point(1, n)));
+        for (int i = 0; i < d.parameters; ++i) fAB[static_cast<std::size_t>(i)].push_back(f(d.point(2 + i, n)));
+    }
+    return sobolIndices(fA, fB, fAB, bootstrap, 5);
+}
+
+}  // namespace
+
+TEST_CASE("Sobol design: A, B and each AB_i differ from A in column i only", "[sensitivity]") {
+    const SobolDesign d = sobolDesign(4, 50, 7);
+    REQUIRE(d.a.size() == 50);
+    REQUIRE(d.b.size() == 50);
+    CHECK(d.matrices() == 6);
+    for (int n = 0; n < 50; ++n) {
+        CHECK(d.point(0, n) == d.a[static_cast<std::size_t>(n)]);
+        CHECK(d.point(1, n) == d.b[static_cast<std::size_t>(n)]);
+        for (int i = 0; i < 4; ++i) {
+            const std::vector<double> x = d.point(2 + i, n);
+            for (int j = 0; j < 4; ++j) {
+                const double want = j == i ? d.b[static_cast<std::size_t>(n)][static_cast<std::size_t>(j)] : d.a[static_cast<std::size_t>(n)][static_cast<std::size_t>(j)];
+                CHECK(x[static_cast<std::size_t>(j)] == want);
+                CHECK(want >= 0);
+                CHECK(want < 1);
+            }
+        }
+    }
+    // A larger design begins with the same rows; another seed gives others.
+    const SobolDesign more = sobolDesign(4, 80, 7);
+    CHECK(std::vector<std::vector<double>>(more.a.begin(), more.a.begin() + 50) == d.a);
+    CHECK(sobolDesign(4, 50, 8).a != d.a);
+    CHECK(sobolMemberName(0, 0, 0) == "A-0001-r01");
+    CHECK(sobolMemberName(1, 9, 1) == "B-0010-r02");
+    CHECK(sobolMemberName(4, 0, 0) == "AB03-0001-r01");
+}
+
+TEST_CASE("Sobol indices: the Ishigami function's known first-order and total indices", "[sensitivity]") {
+    const double v = Ishigami::variance();
+    const double s1 = Ishigami::v1() / v, s2 = Ishigami::v2() / v, s3 = 0;
+    const double t1 = (Ishigami::v1() + Ishigami::v13()) / v, t2 = s2, t3 = Ishigami::v13() / v;
+    // The closed forms, as published (Saltelli et al. 2008: 0.314, 0.442, 0; 0.558, 0.442, 0.244).
+    CHECK(s1 == Approx(0.3139).margin(5e-4));
+    CHECK(s2 == Approx(0.4424).margin(5e-4));
+    CHECK(t3 == Approx(0.2437).margin(5e-4));
+    const SobolResult r = sobolOf(sobolDesign(3, 8192, 1), Ishigami::f, 200);
+    REQUIRE(r.indices.size() == 3);
+    CHECK(r.variance == Approx(v).epsilon(0.05));
+    const double want[3][2] = {{s1, t1}, {s2, t2}, {s3, t3}};
+    for (std::size_t i = 0; i < 3; ++i) {
+        INFO("parameter " << i + 1);
+        const SobolIndex& s = r.indices[i];
+        CHECK(s.first == Approx(want[i][0]).margin(0.04));
+        CHECK(s.total == Approx(want[i][1]).margin(0.04));
+        // The 95 % intervals hold the estimate and are narrow at this N.
+        CHECK(s.firstLow <= s.first);
+        CHECK(s.first <= s.firstHigh);
+        CHECK(s.totalLow <= s.total);
+        CHECK(s.total <= s.totalHigh);
+        CHECK(s.firstHigh - s.firstLow < 0.12);
+        CHECK(s.totalHigh - s.totalLow < 0.12);
+        CHECK(s.firstLow - 0.02 < want[i][0]);
+        CHECK(s.firstHigh + 0.02 > want[i][0]);
+    }
+    // x3 acts only with x1: no first-order effect, a total one; x2 acts alone: S = ST.
+    CHECK(r.indices[2].total - r.indices[2].first > 0.15);
+    CHECK(r.indices[1].total - r.indices[1].first == Approx(0).margin(0.03));
+}
+
+TEST_CASE("Sobol indices: a linear model's shares c_i^2 / sum c^2; a parameter without effect gets 0", "[sensitivity]") {
+    // y = 4 x1 + 2 x2 + 1 x3 + 0 x4 on the unit cube: V_i = c_i^2 / 12, no interactions.
+    const auto f = [](const std::vector<double>& x) { return 4 * x[0] + 2 * x[1] + x[2]; };
+    const SobolResult r = sobolOf(sobolDesign(4, 8192, 3), f, 100);
+    const double c2[4] = {16, 4, 1, 0};
+    for (std::size_t i = 0; i < 4; ++i) {
+        CHECK(r.indices[i].first == Approx(c2[i] / 21).margin(0.04));
+        CHECK(r.indices[i].total == Approx(c2[i] / 21).margin(0.03));
+    }
+    CHECK(r.indices[3].total == 0);
+    CHECK(r.indices[3].first == 0);
+    CHECK(r.variance == Approx(21.0 / 12).epsilon(0.06));
+    // Without bootstrap the intervals are the estimates.
+    const SobolResult plain = sobolOf(sobolDesign(4, 64, 3), f, 0);
+    CHECK(plain.indices[0].firstLow == plain.indices[0].first);
+    CHECK(plain.indices[0].totalHigh == plain.indices[0].total);
+}
+
+TEST_CASE("Sobol seed noise: its share of the variance and the total index of noise alone", "[sensitivity]") {
+    // y = x1 + noise: per point R = 4 replicates; the noise of replicate r is common to every
+    // point (common seeds: it cancels in A - AB_i) plus an independent part of sd 0.2.
+    const int N = 400, R = 4;
+    const SobolDesign d = sobolDesign(2, N, 9);
+    RandomStream rs(11, 0);
+    std::vector<double> common(R);
+    for (double& c : common) c = rs.uniform(-1, 1);
+    const double sd = 0.2;
+    std::vector<std::vector<std::vector<double>>> values(4, std::vector<std::vector<double>>(N));
+    for (int m = 0; m < 4; ++m)
+        for (int n = 0; n < N; ++n)
+            for (int r = 0; r < R; ++r) {
+                // A uniform of sd 0.2: width sd sqrt(12).
+                const double e = (rs.uniform() - 0.5) * sd * std::sqrt(12.0);
+                values[static_cast<std::size_t>(m)][static_cast<std::size_t>(n)].push_back(d.point(m, n)[0] + common[static_cast<std::size_t>(r)] + e);
+            }
+    const SobolNoise noise = sobolNoise(values);
+    // Within a point the replicates differ by the common parts too.
+    CHECK(noise.replicateSd > sd);
+    // The mean of R replicates varies from point to point by sd^2 / R of noise (the common
+    // part is the same at every point); V = 1/12 + sd^2 / R.
+    const double noiseVar = sd * sd / R, v = 1.0 / 12 + noiseVar;
+    CHECK(noise.varianceShare == Approx(noiseVar / v).epsilon(0.12));
+    // One replicate: not measured.
+    std::vector<std::vector<std::vector<double>>> one(4, std::vector<std::vector<double>>(3, std::vector<double>{1.0}));
+    CHECK(std::isnan(sobolNoise(one).varianceShare));
+}
+
+TEST_CASE("Study parameters: log-scaled and integer ranges map the unit interval as documented", "[sensitivity]") {
+    const StudyParameter lin = makeStudyParameter("model.x", 2, 6, "t");
+    CHECK(lin.at(0.25) == Approx(3));
+    CHECK(lin.unitOf(3) == Approx(0.25));
+    // A probability over three decades: each decade a third of the interval.
+    const StudyParameter lg = makeStudyParameter("model.p", 1e-4, 1e-1, "t", true);
+    CHECK(lg.at(0) == Approx(1e-4));
+    CHECK(lg.at(1.0 / 3) == Approx(1e-3));
+    CHECK(lg.at(2.0 / 3) == Approx(1e-2));
+    CHECK(lg.at(1) == Approx(1e-1));
+    CHECK(lg.unitOf(1e-2) == Approx(2.0 / 3));
+    CHECK(lg.describe() == "0.0001 .. 0.1 (log)");
+    // Integers 1 .. 4: each a quarter of the interval; the middle of its quarter maps back.
+    const StudyParameter in = makeStudyParameter("biome.species.Toyon.max_age_years", 1, 4, "t", false, true);
+    CHECK(in.at(0) == 1);
+    CHECK(in.at(0.2499) == 1);
+    CHECK(in.at(0.25) == 2);
+    CHECK(in.at(0.74) == 3);
+    CHECK(in.at(1) == 4);
+    for (int v = 1; v <= 4; ++v) CHECK(in.at(in.unitOf(v)) == v);
+    CHECK(in.unitOf(3) == Approx(0.625));
+    std::map<double, int> counts;
+    for (int k = 0; k < 400; ++k) ++counts[in.at((k + 0.5) / 400)];
+    CHECK(counts == std::map<double, int>{{1, 100}, {2, 100}, {3, 100}, {4, 100}});
+    // Log and integer: 1 .. 99 over [log 1, log 100): 1 .. 9 take half the interval.
+    const StudyParameter li = makeStudyParameter("biome.species.Toyon.max_age_years", 1, 99, "t", true, true);
+    CHECK(li.at(0.4999) == 9);
+    CHECK(li.at(0.5) == 10);
+    CHECK(li.at(1) == 99);
+    CHECK_THROWS_WITH(makeStudyParameter("model.p", 0, 1, "t", true), Catch::Contains("LOW > 0"));
+    CHECK_THROWS_WITH(makeStudyParameter("model.n", 1, 2.5, "t", false, true), Catch::Contains("whole numbers"));
+}
+
+TEST_CASE("Sensitivity specification: method sobol, log and integer parameters, refused keys", "[sensitivity]") {
+    test::TempDir dir("sensitivity_spec");
+    const auto write = [&](const std::string& head, const std::string& params) {
+        const std::string path = dir.file("s.toml");
+        std::ofstream(path) << "[sensitivity]\nout_dir = \"" << dir.file("out") << "\"\noutputs = [\"density@3\"]\n" << head
+                            << "\n[sensitivity.parameters]\n" << params << "\n[sensitivity.base.run]\nout_dir = \"x\"\n";
+        return path;
+    };
+    const std::string params = "\"model.seeding_probability\" = { low = 0.0001, high = 0.01, scale = \"log\" }\n"
+                               "\"biome.species.Toyon.max_age_years\" = { low = 50, high = 200, integer = true }\n"
+                               "\"biome.species.Toyon.alpha\" = [0.5, 0.8]\n";
+    const SensitivitySpec s = loadSensitivitySpec(write("method = \"sobol\"\nsamples = 16\nbootstrap = 50\nreplicates = 3", params));
+    CHECK(s.method == SensitivitySpec::Method::Sobol);
+    CHECK(s.samples == 16);
+    CHECK(s.bootstrap == 50);
+    REQUIRE(s.parameters.size() == 3);
+    // toml++ keeps a table's keys sorted.
+    std::map<std::string, StudyParameter> byKey;
+    for (const auto& p : s.parameters) byKey[p.key] = p;
+    CHECK(byKey["model.seeding_probability"].logScale);
+    CHECK(!byKey["model.seeding_probability"].integer);
+    CHECK(byKey["biome.species.Toyon.max_age_years"].integer);
+    CHECK(!byKey["biome.species.Toyon.alpha"].logScale);
+    const std::vector<std::pair<std::pair<std::string, std::string>, std::string>> bad = {
+        {{"method = \"sobol\"\ntrajectories = 4", params}, "trajectories"},
+        {{"samples = 8", params}, "samples"},
+        {{"method = \"sobol\"\nsamples = 2", params}, "samples"},
+        {{"method = \"fast\"", params}, "morris or sobol"},
+        {{"", "\"model.p\" = { low = 0, high = 1, scale = \"log\" }"}, "LOW > 0"},
+        {{"", "\"model.p\" = { low = 1, high = 2, scale = \"ln\" }"}, "scale"},
+        {{"", "\"model.p\" = { low = 1, high = 2.5, integer = true }"}, "whole numbers"},
+        {{"", "\"model.p\" = { low = 1, high = 2, start = 1.5 }"}, "start"},
+    };
+    for (const auto& [text, expect] : bad) {
+        INFO(text.first << "\n" << text.second);
+        CHECK_THROWS_WITH(loadSensitivitySpec(write(text.first, text.second)), Catch::Contains("s.toml") && Catch::Contains(expect));
+    }
+    // The members' file writes an integer parameter as a TOML integer.
+    const SobolDesign d = sobolDesign(3, 4, 1);
+    const std::string ens = writeSobolEnsemble(s, d);
+    const toml::table t = toml::parse_file(ens);
+    const toml::array& members = *t["member"].as_array();
+    CHECK(members.size() == 4 * 5 * 3);
+    for (const auto& m : members) {
+        const toml::table& mt = *m.as_table();
+        CHECK(mt.get("biome.species.Toyon.max_age_years")->is_integer());
+        const double p = mt.get("model.seeding_probability")->as_floating_point()->get();
+        CHECK(p >= 1e-4);
+        CHECK(p <= 1e-2);
+    }
+}
+
+TEST_CASE("Height quantile output: from a snapshot, of all plants or one species", "[sensitivity]") {
+    CHECK_THROWS_WITH(parseSimulationOutput("height_q0@3", "s.toml"), Catch::Contains("1 .. 99"));
+    CHECK_THROWS_WITH(parseSimulationOutput("height_q100@3", "s.toml"), Catch::Contains("1 .. 99"));
+    CHECK_THROWS_WITH(parseSimulationOutput("height_qx@3", "s.toml"), Catch::Contains("height_qNN"));
+    const SimulationOutput q90 = parseSimulationOutput("height_q90@3", "t");
+    CHECK(q90.quantile == Approx(0.9));
+    CHECK(q90.units() == "m");
+    CHECK(heightQuantile({}, 0.5) == 0);
+    CHECK(heightQuantile({4, 1, 3, 2}, 0.5) == Approx(2.5));
+    CHECK(heightQuantile({1, 2, 3, 4, 5}, 0.9) == Approx(4.6));
+
+    test::TempDir dir("sensitivity_quantile");
+    const Biome biome = defaultBiome();
+    const int toyon = biome.speciesIndex("Toyon"), fern = biome.speciesIndex("Western Swordfern");
+    // Year 3: Toyons of 1 .. 10 m, ferns of 0.1 m; year 1: nothing.
+    std::vector<UndergrowthPlant> plants;
+    for (int i = 1; i <= 10; ++i) {
+        UndergrowthPlant p;
+        p.id = static_cast<std::uint64_t>(i);
+        p.speciesId = toyon;
+        p.xM = i;
+        p.yM = 1;
+        p.heightM = i;
+        p.crownRadiusM = 0.5;
+        plants.push_back(p);
+    }
+    for (int i = 0; i < 10; ++i) {
+        UndergrowthPlant p;
+        p.id = static_cast<std::uint64_t>(100 + i);
+        p.speciesId = fern;
+        p.xM = i;
+        p.yM = 5;
+        p.heightM = 0.1;
+        p.crownRadiusM = 0.1;
+        plants.push_back(p);
+    }
+    SimulationFileInfo info;
+    info.years = 3;
+    info.x0 = info.y0 = 0;
+    info.x1 = info.y1 = 20;
+    std::vector<YearRecord> series;
+    for (int year = 0; year <= 3; ++year) {
+        YearRecord r;
+        r.year = year;
+        r.count.assign(biome.species.size(), 0);
+        r.meanHeightM.assign(biome.species.size(), 0);
+        r.meanVigour.assign(biome.species.size(), 0);
+        r.crownAreaM2.assign(biome.species.size(), 0);
+        series.push_back(r);
+    }
+    const std::string path = dir.file("sim.h5");
+    writeSimulationFile(path, info, biome, {{1, {}}, {3, plants}}, series, {});
+    CHECK(measureOutput(path, parseSimulationOutput("height_q50:Toyon@3", "t")) == Approx(5.5));
+    CHECK(measureOutput(path, parseSimulationOutput("height_q90:Toyon@3", "t")) == Approx(9.1));
+    CHECK(measureOutput(path, parseSimulationOutput("height_q50@3", "t")) == Approx(0.55));  // 10 ferns of 0.1 m and Toyons of 1 .. 10 m
+    CHECK(measureOutput(path, parseSimulationOutput("height_q50@1", "t")) == 0);
+    CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("height_q50@2", "t")), Catch::Contains("no snapshot of year 2") && Catch::Contains("1, 3"));
 }
