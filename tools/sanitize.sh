@@ -80,12 +80,12 @@ png_error_tests='^terrain: a corrupt image is named$'
 # Also the ensemble's runs: its members and database, its kill test and its comparison of
 # child processes and MPI ranks with one process (one to three ensemble runs of three members
 # each; the specification reader runs sanitized in the others), and those of eco sensitivity (twelve
-# simulations) and eco calibrate (about twelve; their specification and report code run
+# simulations for Morris, sixteen for Sobol) and eco calibrate (about twelve; their specification and report code run
 # sanitized in the other tests). Also the HDF5 schema walk (a whole small eco run, about 3 s in
 # Release; h5io's own tests run sanitized), the gap-dynamics broken-model run (two 150-year
 # runs of a 45 m plot) and the install test (it installs this build and compiles a program
 # against it without the sanitizer flags).
-slow_tests='^(hdf5 schema: every file eco run writes follows docs/hdf5.md.*|Succession and Deussen-comparison checks fail under the literal growth rule|eco synth --method xu2015: a scene from an exemplar CSV.*|eco sensitivity: Morris screening.*|eco calibrate: recovers a known.*|eco ensemble: every member simulated.*|eco ensemble: killed at a checkpoint write.*|eco ensemble: members in child processes.*|synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*|Succession.s early peak fails when.*|The sun gradient fails for a biome.*|Gap dynamics fail when undergrowth is limited.*|cmake --install: a program of one.s own.*)$'
+slow_tests='^(hdf5 schema: every file eco run writes follows docs/hdf5.md.*|Succession and Deussen-comparison checks fail under the literal growth rule|eco synth --method xu2015: a scene from an exemplar CSV.*|eco sensitivity: Morris screening.*|eco sensitivity: Sobol indices through the ensemble.*|eco calibrate: recovers a known.*|eco ensemble: every member simulated.*|eco ensemble: killed at a checkpoint write.*|eco ensemble: members in child processes.*|synthesis is identical with 1 and 2 threads|refinement lowers the pair-correlation distance.*|eco run: the whole pipeline on a small scene.*|fidelity: CSR scores near 1.*|The fidelity scenario runs on a tiny scene.*|eco fidelity end to end on a tiny plot.*|Succession.s early peak fails when.*|The sun gradient fails for a biome.*|Gap dynamics fail when undergrowth is limited.*|cmake --install: a program of one.s own.*)$'
 # The test that feeds HDF5 files with a damaged byte: HDF5 1.10.8 leaks small blocks on the
 # error paths of damaged files, so it runs with the HDF5 fuzz targets' suppressions.
 hdf5_damage_tests='^h5io: a damaged byte anywhere in a file is an error, never a changed value$'
