@@ -256,7 +256,8 @@ void registerDocsCommands(CLI::App& app) {
         "file names.");
     auto shell = std::make_shared<std::string>("bash");
     completion->add_option("shell", *shell, "The shell (only bash)")->capture_default_str()->check(oneOf({"bash"}));
-    completion->callback([&app] {
+    // The callback owns the option's string (CLI11 writes into it while parsing).
+    completion->callback([&app, shell] {
         std::cout << bashCompletion(app);
         std::cout.flush();
     });

@@ -256,7 +256,7 @@ TEST_CASE("Sobol indices: the Ishigami function's known first-order and total in
     CHECK(r.indices[1].total - r.indices[1].first == Approx(0).margin(0.03));
 }
 
-TEST_CASE("Sobol indices: a linear model's shares c_i^2 / sum c^2; a parameter without effect gets 0", "[sensitivity]") {
+TEST_CASE("Sobol indices: a linear model's shares c_i^2 / sum c^2, and a parameter without effect gets 0", "[sensitivity]") {
     // y = 4 x1 + 2 x2 + 1 x3 + 0 x4 on the unit cube: V_i = c_i^2 / 12, no interactions.
     const auto f = [](const std::vector<double>& x) { return 4 * x[0] + 2 * x[1] + x[2]; };
     const SobolResult r = sobolOf(sobolDesign(4, 8192, 3), f, 100);
