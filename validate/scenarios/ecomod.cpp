@@ -262,7 +262,7 @@ void EcoModScenario::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scenari
                                  "R^2 of log(total trees) against year, from the first trees to the year the total reaches "
                                  "half its maximum (the paper: the number of trees increases exponentially)",
                                  r2, expNote));
-    r.checks.push_back(makeCheck(sc, "pioneer_retreat",
+    r.checks.push_back(makeCheck(sc, ctx.mode(), "pioneer_retreat",
                                  "pioneers' (max age <= " + num(st.pioneerMaxAgeYears) +
                                      " years) count in the last year over their peak count (the paper: shrubs propagate "
                                      "fastest, then retreat before the stronger trees)",
