@@ -2,6 +2,7 @@
 // maps, and the yearly step (seeding, growth with domination, elimination). See ecomod.h and
 // docs/ecomod.md.
 #include "ecomod.h"
+#include "state_hash.h"
 
 #include <omp.h>
 
@@ -436,26 +437,6 @@ void EcoModel::Impl::growYear() {
     }
     compact();
 }
-
-namespace {
-std::uint64_t hashBytes(std::uint64_t h, const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    std::size_t i = 0;
-    for (; i + 8 <= n; i += 8) {
-        std::uint64_t w;
-        std::memcpy(&w, p + i, 8);
-        h = mixStream(h, w);
-    }
-    std::uint64_t tail = n;
-    for (; i < n; ++i) tail = (tail << 8) ^ p[i];
-    return mixStream(h, tail);
-}
-std::string hex64(std::uint64_t v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-    return buf;
-}
-}  // namespace
 
 std::uint64_t EcoModel::Impl::computeFingerprint() const {
     std::uint64_t h = 0x65636F6D6F643031ull;

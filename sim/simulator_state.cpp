@@ -3,32 +3,15 @@
 #include "simulator_impl.h"
 
 #include "ecomod.h"
+#include "state_hash.h"
 
 namespace eco::sim {
 
 namespace {
 
-std::uint64_t hashBytes(std::uint64_t h, const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    std::size_t i = 0;
-    for (; i + 8 <= n; i += 8) {
-        std::uint64_t w;
-        std::memcpy(&w, p + i, 8);
-        h = mixStream(h, w);
-    }
-    std::uint64_t tail = n;
-    for (; i < n; ++i) tail = (tail << 8) ^ p[i];
-    return mixStream(h, tail);
-}
 template <typename T>
 std::uint64_t hashVector(std::uint64_t h, const std::vector<T>& v) {
     return hashBytes(h, v.data(), v.size() * sizeof(T));
-}
-
-std::string hex64(std::uint64_t v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-    return buf;
 }
 
 }  // namespace
