@@ -26,7 +26,7 @@ using test::writeFakeSimulation;
 
 namespace {
 
-int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+using eco::test::lineCount;
 
 }  // namespace
 

@@ -27,10 +27,7 @@ using eco::test::TempDir;
 
 namespace {
 
-void writeText(const std::string& path, const std::string& text) {
-    std::ofstream f(path, std::ios::binary);
-    f << text;
-}
+using eco::test::writeText;
 
 std::string readText(const std::string& path) {
     std::ifstream f(path, std::ios::binary);

@@ -19,11 +19,7 @@ using eco::test::runEco;
 
 namespace {
 
-int lineCount(const std::string& s) {
-    int n = 0;
-    for (char c : s) n += c == '\n';
-    return n;
-}
+using eco::test::lineCount;
 
 }  // namespace
 

@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 
 /// A specification of three tiny members (48 x 48 cells, 4 years, a checkpoint every year):
 /// two terrain seeds, and one with a tenth of the seeding probability. `extra` is appended.
-std::string writeSpec(const test::TempDir& dir, const std::string& extra = "") {
+std::string writeEnsembleSpec(const test::TempDir& dir, const std::string& extra = "") {
     const std::string path = dir.file("ensemble.toml");
     std::ofstream(path) << "[ensemble]\nout_dir = \"" << dir.file("out") << "\"\nkmax = 2\n" << extra << "\n"
                         << "[ensemble.base.run]\nout_dir = \"unused\"\n"
@@ -70,7 +70,7 @@ void requireSameResults(const fs::path& a, const fs::path& b) {
 
 TEST_CASE("eco ensemble: every member simulated, a manifest and one database, a rerun reuses all of it", "[ensemble][cli]") {
     test::TempDir dir("ensemble");
-    const std::string spec = writeSpec(dir);
+    const std::string spec = writeEnsembleSpec(dir);
     const auto dry = test::runEco("ensemble " + spec + " --dry-run");
     INFO(dry.output);
     REQUIRE(dry.exitCode == 0);
@@ -109,7 +109,7 @@ TEST_CASE("eco ensemble: every member simulated, a manifest and one database, a 
 
 TEST_CASE("eco ensemble: a failing member is recorded with its error, the others go on, no database", "[ensemble][cli]") {
     test::TempDir dir("ensemble_fail");
-    const std::string spec = writeSpec(dir);
+    const std::string spec = writeEnsembleSpec(dir);
     std::ofstream(spec, std::ios::app) << "[[member]]\nname = \"outside\"\n\"simulate.crop\" = [500.0, 500.0, 600.0, 600.0]\n";
     const auto r = test::runEco("ensemble " + spec);
     INFO(r.output);
@@ -134,7 +134,7 @@ TEST_CASE("eco ensemble: bad specifications are refused before anything runs", "
         {"[[member]]\nname = \"short\"\n\"seed\" = 3\n", "expected TABLE.KEY"},
     };
     for (const auto& [member, expect] : cases) {
-        const std::string spec = writeSpec(dir);
+        const std::string spec = writeEnsembleSpec(dir);
         std::ofstream(spec, std::ios::app) << member;
         const auto r = test::runEco("ensemble " + spec);
         INFO(member << "\n" << r.output);
@@ -146,12 +146,12 @@ TEST_CASE("eco ensemble: bad specifications are refused before anything runs", "
         CHECK(r.output.find("eco-ensemble-check") == std::string::npos);
     }
     // --dry-run lists the members and writes nothing either.
-    const auto dry = test::runEco("ensemble --dry-run " + writeSpec(dir));
+    const auto dry = test::runEco("ensemble --dry-run " + writeEnsembleSpec(dir));
     INFO(dry.output);
     CHECK(dry.exitCode == 0);
     CHECK(dry.output.find("sparse") != std::string::npos);
     CHECK_FALSE(fs::exists(dir.file("out")));
-    const std::string emptyVary = writeSpec(dir, "");
+    const std::string emptyVary = writeEnsembleSpec(dir, "");
     std::ofstream(emptyVary, std::ios::app) << "[vary]\n";
     const auto r = test::runEco("ensemble " + emptyVary);
     CHECK(r.exitCode == 1);  // [vary] twice: a TOML error naming the file
@@ -161,7 +161,7 @@ TEST_CASE("eco ensemble: bad specifications are refused before anything runs", "
 TEST_CASE("eco ensemble: killed at a checkpoint write and at a random time, then finished, gives the uninterrupted bytes",
           "[ensemble][kill][cli]") {
     test::TempDir dir("ensemble_kill");
-    const std::string spec = writeSpec(dir);
+    const std::string spec = writeEnsembleSpec(dir);
     const auto ref = test::runEco("--no-provenance ensemble " + spec);
     INFO(ref.output);
     REQUIRE(ref.exitCode == 0);
@@ -190,14 +190,14 @@ TEST_CASE("eco ensemble: killed at a checkpoint write and at a random time, then
 
 TEST_CASE("eco ensemble: members in child processes and under MPI give the bytes of one process", "[ensemble][mpi][cli]") {
     test::TempDir dir("ensemble_procs");
-    const std::string spec = writeSpec(dir);
+    const std::string spec = writeEnsembleSpec(dir);
     const auto ref = test::runEco("--no-provenance --threads 1 ensemble " + spec);
     INFO(ref.output);
     REQUIRE(ref.exitCode == 0);
     fs::rename(dir.path() / "out", dir.path() / "ref");
 
     // Two members at once, each in its own process.
-    const std::string atOnce = writeSpec(dir, "members_at_once = 2");
+    const std::string atOnce = writeEnsembleSpec(dir, "members_at_once = 2");
     const auto r = test::runEco("--no-provenance ensemble " + atOnce);
     INFO(r.output);
     REQUIRE(r.exitCode == 0);

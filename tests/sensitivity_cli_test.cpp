@@ -19,7 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string writeSpec(const test::TempDir& dir, const std::string& outputs) {
+std::string writeSensitivitySpec(const test::TempDir& dir, const std::string& outputs) {
     const std::string path = dir.file("sensitivity.toml");
     std::ofstream(path) << "[sensitivity]\nout_dir = \"" << dir.file("out") << "\"\ntrajectories = 2\nlevels = 4\nreplicates = 2\n"
                         << "outputs = " << outputs << "\n"
@@ -47,7 +47,7 @@ std::map<std::pair<std::string, std::string>, std::map<std::string, std::string>
 
 TEST_CASE("eco sensitivity: Morris screening through the ensemble, a parameter without effect scores exactly 0", "[sensitivity][cli]") {
     test::TempDir dir("sensitivity_cli");
-    const std::string spec = writeSpec(dir, "[\"density@3\", \"share:Redwood Sorrel@3\", \"cv@1-3\"]");
+    const std::string spec = writeSensitivitySpec(dir, "[\"density@3\", \"share:Redwood Sorrel@3\", \"cv@1-3\"]");
     const auto r = test::runEco("sensitivity " + spec);
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
@@ -83,7 +83,7 @@ TEST_CASE("eco sensitivity: a bad specification is refused with its file and key
     test::TempDir dir("sensitivity_bad");
     for (const auto& [outputs, expect] : std::vector<std::pair<std::string, std::string>>{
              {"[]", "no output"}, {"[\"height@3\"]", "unknown measure"}, {"[\"density@3\"]\nlevels = 3", "levels"}}) {
-        const auto r = test::runEco("sensitivity " + writeSpec(dir, outputs));
+        const auto r = test::runEco("sensitivity " + writeSensitivitySpec(dir, outputs));
         INFO(r.output);
         CHECK(r.exitCode == 1);
         CHECK(r.output.find("sensitivity.toml") != std::string::npos);
@@ -92,7 +92,7 @@ TEST_CASE("eco sensitivity: a bad specification is refused with its file and key
     }
     // A key the members' configuration does not have: found when the members are checked
     // (after the design and the members' specification are written), before any runs.
-    std::string spec = writeSpec(dir, "[\"density@3\"]");
+    std::string spec = writeSensitivitySpec(dir, "[\"density@3\"]");
     {
         std::string text = readTextFile(spec);
         text.replace(text.find("\"model.deussen_dominated_survival\""), 34, "\"model.no_such_constant\"");
@@ -107,7 +107,7 @@ TEST_CASE("eco sensitivity: a bad specification is refused with its file and key
 
 TEST_CASE("eco sensitivity: Sobol indices through the ensemble, log-scaled range, a parameter without effect has S = ST = 0", "[sensitivity][cli]") {
     test::TempDir dir("sensitivity_sobol_cli");
-    std::string spec = writeSpec(dir, "[\"density@3\", \"height_q90@3\"]");
+    std::string spec = writeSensitivitySpec(dir, "[\"density@3\", \"height_q90@3\"]");
     {
         std::string text = readTextFile(spec);
         // One replicate (16 simulations; the seed noise is then not measured).

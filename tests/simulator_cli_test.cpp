@@ -37,9 +37,7 @@ namespace {
 
 using test::smallDemoScene;
 
-void writeText(const std::string& path, const std::string& text) {
-    std::ofstream(path) << text;
-}
+using eco::test::writeText;
 
 // Scene files for the command line: abiotics.h5 and canopy.h5.
 void writeSceneFiles(const test::TempDir& dir) {
@@ -52,12 +50,7 @@ void writeSceneFiles(const test::TempDir& dir) {
     f.writeGrid("/chm/height", in.chmM, "m");
 }
 
-std::string readAll(const std::string& path) {
-    std::ifstream in(path);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using eco::test::readAll;
 
 }  // namespace
 

@@ -76,7 +76,7 @@ const UndergrowthPlant& bySpecies(const std::vector<UndergrowthPlant>& v, int s)
     return v.front();
 }
 
-bool samePlants(const std::vector<UndergrowthPlant>& a, const std::vector<UndergrowthPlant>& b) {
+bool sameSimPlants(const std::vector<UndergrowthPlant>& a, const std::vector<UndergrowthPlant>& b) {
     if (a.size() != b.size()) return false;
     for (std::size_t i = 0; i < a.size(); ++i) {
         const auto& p = a[i];
@@ -1049,7 +1049,7 @@ TEST_CASE("deussen: default mode unchanged, and bit-identical results with 1 and
             sa.stepYear();
             sb.stepYear();
         }
-        CHECK(samePlants(sa.plants(), sb.plants()));
+        CHECK(sameSimPlants(sa.plants(), sb.plants()));
         CHECK(sa.counters().diedDominated == 0);
     }
     setParallelThresholds(0, 0);  // exercise every parallel loop on this small scene
@@ -1070,7 +1070,7 @@ TEST_CASE("deussen: default mode unchanged, and bit-identical results with 1 and
     REQUIRE(results[0].size() > 100);
     CHECK(dominated[0] > 0);
     CHECK(dominated[0] == dominated[1]);
-    CHECK(samePlants(results[0], results[1]));
+    CHECK(sameSimPlants(results[0], results[1]));
 }
 
 // --------------------------------------------------------------------------- integration
@@ -1137,7 +1137,7 @@ TEST_CASE("determinism: the AVX2 and the SSE2 kernels give identical plants", "[
     eco::setAvx2Kernels(true);  // back to the default: AVX2 where the processor has it
     if (!avx2) WARN("no AVX2 on this processor: both runs used the SSE2 kernel");
     REQUIRE(results[0].size() > 100);
-    CHECK(samePlants(results[0], results[1]));
+    CHECK(sameSimPlants(results[0], results[1]));
 }
 
 TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determinism]") {
@@ -1155,8 +1155,8 @@ TEST_CASE("determinism: identical plants with 1, 2 and 4 threads", "[sim][determ
     omp_set_num_threads(before);
     setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
     REQUIRE(results[0].size() > 100);
-    CHECK(samePlants(results[0], results[1]));
-    CHECK(samePlants(results[0], results[2]));
+    CHECK(sameSimPlants(results[0], results[1]));
+    CHECK(sameSimPlants(results[0], results[2]));
 }
 
 TEST_CASE("dead kept between compactions, layouts reused: observing the run every month changes nothing", "[sim][determinism]") {
@@ -1186,7 +1186,7 @@ TEST_CASE("dead kept between compactions, layouts reused: observing the run ever
         CHECK(seenAlive > 0);
         const std::vector<UndergrowthPlant> pa = a.plants(), pb = b.plants();
         REQUIRE(pa.size() > 100);
-        CHECK(samePlants(pa, pb));
+        CHECK(sameSimPlants(pa, pb));
         const SimCounters &ca = a.counters(), &cb = b.counters();
         CHECK(ca.plantMonths == cb.plantMonths);
         CHECK(ca.plantCellMonths == cb.plantCellMonths);
@@ -1247,7 +1247,7 @@ TEST_CASE("checkpoint: a resumed run is identical to an uninterrupted one", "[si
     for (int m = 0; m < 12 * 5 + 3; ++m) resumed.stepMonth();
     REQUIRE(resumed.monthsDone() == straight.monthsDone());
     CHECK(straight.plantCount() > 50);
-    CHECK(samePlants(straight.plants(), resumed.plants()));
+    CHECK(sameSimPlants(straight.plants(), resumed.plants()));
     CHECK(straight.counters().germinated == resumed.counters().germinated);
 
     // Another seed is another run: its checkpoint is refused.
@@ -1281,7 +1281,7 @@ TEST_CASE("checkpoint: the paper's readings (every cell, monthly mean vigour, ca
     for (int m = 0; m < 12 * 3 + 1; ++m) resumed.stepMonth();
     REQUIRE(resumed.monthsDone() == straight.monthsDone());
     CHECK(straight.plantCount() > 50);
-    CHECK(samePlants(straight.plants(), resumed.plants()));
+    CHECK(sameSimPlants(straight.plants(), resumed.plants()));
     CHECK(straight.counters().germinated == resumed.counters().germinated);
     // The same bits on one thread.
     const int threads = omp_get_max_threads();
@@ -1289,7 +1289,7 @@ TEST_CASE("checkpoint: the paper's readings (every cell, monthly mean vigour, ca
     Simulation single(in, p, 5);
     for (int m = 0; m < 12 * 6 + 5; ++m) single.stepMonth();
     omp_set_num_threads(threads);
-    CHECK(samePlants(straight.plants(), single.plants()));
+    CHECK(sameSimPlants(straight.plants(), single.plants()));
     // The default readings are another run.
     Simulation defaults(in, SimParams{}, 5);
     auto f = h5::File::openRead(dir.file("state.h5"));

@@ -21,10 +21,7 @@ namespace {
 using eco::test::leftovers;
 using eco::test::sampleTerrain;
 
-void writeText(const std::string& path, const std::string& text) {
-    std::ofstream o(path, std::ios::binary);
-    o << text;
-}
+using eco::test::writeText;
 
 }  // namespace
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 #include <fstream>
+#include <iterator>
 #include <map>
 
 #include <OpenImageIO/imageio.h>
@@ -83,6 +84,26 @@ private:
     }
     std::filesystem::path path_;
 };
+
+/// The whole of a file.
+inline std::string readAll(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return s;
+}
+
+/// Writes text to a file exactly (binary mode), replacing it.
+inline void writeText(const std::string& path, const std::string& text) {
+    std::ofstream out(path, std::ios::binary);
+    out << text;
+}
+
+/// Number of newline characters in s.
+inline int lineCount(const std::string& s) {
+    int n = 0;
+    for (char c : s) n += c == '\n';
+    return n;
+}
 
 /// Path of a file in the source tree.
 inline std::string sourcePath(const std::string& rel) { return std::string(ECO_SOURCE_DIR) + "/" + rel; }

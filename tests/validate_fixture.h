@@ -3,6 +3,8 @@
 // configuration.
 #pragma once
 
+#include "test_util.h"
+
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -12,13 +14,6 @@
 
 namespace eco::test {
 
-/// The whole of a text file.
-inline std::string readAll(const std::string& path) {
-    std::ifstream in(path);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
 
 /// Rows of results.csv as (scenario/check) -> (value, pass).
 inline std::map<std::string, std::pair<std::string, std::string>> readResults(const std::string& path) {

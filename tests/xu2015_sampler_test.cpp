@@ -30,15 +30,15 @@ using namespace eco;
 
 namespace {
 
-constexpr double kSide = 20.0;  // exemplar window 20 m x 20 m
-const RectWindow kExemplarWindow{0, 0, kSide, kSide};
+constexpr double kExemplarSide = 20.0;  // exemplar window 20 m x 20 m
+const RectWindow kExemplarWindow{0, 0, kExemplarSide, kExemplarSide};
 
 /// About 196 points: a 14 x 14 grid, each point jittered uniformly by +-jitter x the spacing.
 PointPattern jitteredGrid(std::uint64_t seed, double jitter = 0.2) {
     PointPattern p;
     p.typeNames = {"a"};
     const int n = 14;
-    const double s = kSide / n;
+    const double s = kExemplarSide / n;
     RandomStream rs(seed, 11, 0);
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) {
@@ -55,10 +55,10 @@ PointPattern thomas(std::uint64_t seed, double kappa = 0.05, double mu = 10, dou
     PointPattern p;
     p.typeNames = {"a"};
     RandomStream rs(seed, 12, 0);
-    const double m = 4 * sigma, a = (kSide + 2 * m) * (kSide + 2 * m);
+    const double m = 4 * sigma, a = (kExemplarSide + 2 * m) * (kExemplarSide + 2 * m);
     const int parents = static_cast<int>(std::lround(kappa * a));
     for (int k = 0; k < parents; ++k) {
-        const double px = rs.uniform(-m, kSide + m), py = rs.uniform(-m, kSide + m);
+        const double px = rs.uniform(-m, kExemplarSide + m), py = rs.uniform(-m, kExemplarSide + m);
         const int c = static_cast<int>(std::lround(mu * (0.5 + rs.uniform())));
         for (int i = 0; i < c; ++i) {
             const double x = px + sigma * rs.normal(), y = py + sigma * rs.normal();
@@ -85,7 +85,7 @@ PointPattern poisson(std::uint64_t seed, std::size_t n, const RectWindow& w = kE
     return p;
 }
 
-RectWindow enlargement(int k) { return RectWindow{0, 0, k * kSide, k * kSide}; }
+RectWindow enlargement(int k) { return RectWindow{0, 0, k * kExemplarSide, k * kExemplarSide}; }
 
 /// Pooled g(r) (translation correction) of the points in a window.
 std::vector<double> pcf(const std::vector<double>& x, const std::vector<double>& y, const RectWindow& w, const DistanceBins& bins) {
