@@ -235,7 +235,7 @@ int main(int argc, char** argv) {
     bool km2Only = false;
     bool models = false;  // --models: the monthly model against EcoMod on the hectare
     int ecomodYears = 0;  // 0 = 150 (50 with --quick)
-    int ecomodCells = 512;  // --ecomod-cells: the bigger EcoMod scene (0 = none)
+    int ecomodCells = 256;  // --ecomod-cells: the bigger EcoMod scene (0 = none)
     SimParams params;
     int cells = 256;
     double cellSize = 0.914;
@@ -268,7 +268,7 @@ int main(int argc, char** argv) {
                 "  model's seconds per plant-month (--years, default 150) against EcoMod's seconds per\n"
                 "  tree-year (--ecomod-years, default 150), and their ratio (issue 30: at least 10). Then\n"
                 "  EcoMod alone on a bigger scene of the same kind (--ecomod-cells terrain cells of 0.914 m\n"
-                "  a side, default 512: about 21 ha; 0 = none), where per-year fixed costs weigh less, with\n"
+                "  a side, default 256: about 4.9 ha; 0 = none), where per-year fixed costs weigh less, with\n"
                 "  its 1- and 2-thread state hashes (equal hashes = the same trees).\n");
             return 0;
         }

@@ -129,6 +129,12 @@ double fireStepProbability(const DisturbanceSite& site, const FireSettings& f, i
 std::vector<std::uint8_t> spreadFire(const DisturbanceSite& site, const FireSettings& f, int ix, int iy,
                                      std::uint64_t seed, std::uint64_t eventKey);
 
+/// The cells a planned fire burns (its burn mask, site grid order; what runDisturbance
+/// burns for the event): the ignition drawn uniformly in the site's area on the event's
+/// stream, then spreadFire. The ignition point (world metres) goes to the pointers given.
+std::vector<std::uint8_t> fireBurntCells(const PlannedEvent& e, const FireSettings& f, const DisturbanceSite& site,
+                                         std::uint64_t seed, double* ignitionX = nullptr, double* ignitionY = nullptr);
+
 /// Kill probabilities (documented in docs/disturbance.md).
 double fireKillProbability(const FireSettings& f, double heightM, double tolerance);
 double stormKillProbability(const StormSettings& s, double heightM, double exposureMS, double referenceWindMS);

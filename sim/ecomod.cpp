@@ -201,7 +201,7 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> levelOf, dominated;
     std::vector<std::uint32_t> start, bucket, entries, fill, newIndex;
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
-    std::vector<Entry> packed;
+    std::vector<Entry> packed, byTree;  // in bucket order; in the store's order (trees, then canopy)
     std::vector<std::vector<std::pair<double, double>>> parentsOf;  // per species (seedYear)
     std::vector<std::vector<std::pair<double, double>>> born;       // per species (seedYear)
     std::vector<std::int64_t> attempts;
@@ -357,8 +357,10 @@ void EcoModel::Impl::growYear() {
         while (L < kMaxLevels - 1 && r > kLevel0M * static_cast<double>(1 << L)) ++L;
         return L;
     };
+    byTree.resize(total);
     for (std::size_t p = 0; p < n; ++p) {
         ability[p] = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
+        byTree[p] = {x[p], y[p], radius[p], ability[p]};
         const int L = levelFor(radius[p]);
         levelOf[p] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
@@ -366,13 +368,11 @@ void EcoModel::Impl::growYear() {
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
         ability[n + c] = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
+        byTree[n + c] = {t.xM, t.yM, t.crownRadiusM, ability[n + c]};
         const int L = levelFor(t.crownRadiusM);
         levelOf[n + c] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
     }
-    auto posX = [&](std::size_t e) { return e < n ? x[e] : canopy[e - n].xM; };
-    auto posY = [&](std::size_t e) { return e < n ? y[e] : canopy[e - n].yM; };
-    auto rad = [&](std::size_t e) { return e < n ? radius[e] : canopy[e - n].crownRadiusM; };
     levels.clear();
     std::size_t buckets = 0;
     for (int L = 0; L <= maxLevel; ++L) {
@@ -399,7 +399,7 @@ void EcoModel::Impl::growYear() {
     bucket.resize(total);
     entries.resize(total);
     for (std::size_t e = 0; e < total; ++e) {
-        const std::size_t k = cellIndex(levels[levelOf[e]], posX(e), posY(e));
+        const std::size_t k = cellIndex(levels[levelOf[e]], byTree[e].x, byTree[e].y);
         bucket[e] = static_cast<std::uint32_t>(k);
         ++start[k + 1];
         bucketMax[k] = std::max(bucketMax[k], ability[e]);
@@ -409,10 +409,7 @@ void EcoModel::Impl::growYear() {
     for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
     // Entries as (x, y, r, a) in bucket order, so that a scan reads memory in sequence.
     packed.resize(total);
-    for (std::size_t k = 0; k < total; ++k) {
-        const std::uint32_t e = entries[k];
-        packed[k] = {posX(e), posY(e), rad(e), ability[e]};
-    }
+    for (std::size_t k = 0; k < total; ++k) packed[k] = byTree[entries[k]];
     dominated.assign(n, 0);
     // Visited in bucket order (neighbours after each other: the buckets they scan stay in
     // cache); each writes only its own flag and witness, so the order changes nothing.
@@ -429,8 +426,8 @@ void EcoModel::Impl::growYear() {
         };
         const std::uint32_t w = witness[p];
         if (w != kNoWitness) {
-            const std::size_t q = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
-            if (pa < ability[q] && overlaps(posX(q), posY(q), rad(q))) {
+            const Entry& q = byTree[(w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w];
+            if (pa < q.a && overlaps(q.x, q.y, q.r)) {
                 dominated[p] = 1;
                 continue;
             }

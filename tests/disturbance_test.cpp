@@ -451,7 +451,7 @@ TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt par
     }
     const auto [westAfter, pioneerShareBurnt] = westShare(burnt);
     const auto [westControl, pioneerShareUnburnt] = westShare(unburnt);
-    INFO("west trees: " << westAfter << " after the fire, " << westControl << " without it; pioneer share "
+    INFO("killed " << killed << "; west trees: " << westAfter << " after the fire, " << westControl << " without it; pioneer share "
                         << pioneerShareBurnt << " against " << pioneerShareUnburnt);
     CHECK(westAfter > westKilled / 4);
     CHECK(pioneerShareBurnt > 2 * pioneerShareUnburnt);
