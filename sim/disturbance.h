@@ -2,8 +2,8 @@
 //
 // A unit of its own, acting on plain inputs only: grids of elevation, moisture and wind
 // exposure (one geometry), and plants given as parallel arrays (id, species, position,
-// height). The monthly simulator calls it from its step (sim/simulator.cpp); a yearly model
-// can call the same functions with its own plant arrays.
+// height). The monthly simulator calls it in the event's month (sim/simulator.cpp), the
+// yearly EcoMod model at the end of each year with its own tree arrays (sim/ecomod.cpp).
 //
 // Every random draw is a pure function of (run seed, a stream derived from the event, an
 // entity: cell or plant id), core/rng.h: an event's outcome depends neither on the thread

@@ -770,7 +770,9 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 }
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* step scratch: ability, fate, dominated, bucket entry and index */ sizeof(double) + 2 + 2 * sizeof(std::uint32_t);
+           /* witness */ sizeof(std::uint32_t) +
+           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
