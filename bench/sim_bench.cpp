@@ -235,6 +235,7 @@ int main(int argc, char** argv) {
     bool km2Only = false;
     bool models = false;  // --models: the monthly model against EcoMod on the hectare
     int ecomodYears = 0;  // 0 = 150 (50 with --quick)
+    int ecomodCells = 256;  // --ecomod-cells: the bigger EcoMod scene (0 = none)
     SimParams params;
     int cells = 256;
     double cellSize = 0.914;
@@ -261,15 +262,23 @@ int main(int argc, char** argv) {
                 "  --quick); the least and the median wall time are reported, and every run's.\n"
                 "  --parallel-thresholds P,C: loops over fewer than P plants or C cells run on one thread\n"
                 "  (the simulator's defaults otherwise; results never depend on them).\n"
-                "bench_sim --models [--years N] [--ecomod-years N] [--quick] [--out FILE]\n"
+                "bench_sim --models [--years N] [--ecomod-years N] [--ecomod-cells N] [--repeat N] [--quick]\n"
+                "          [--out FILE]\n"
                 "  The two simulator models on the same hectare, one thread each, alternating: the monthly\n"
                 "  model's seconds per plant-month (--years, default 150) against EcoMod's seconds per\n"
-                "  tree-year (--ecomod-years, default 150), and their ratio (issue 30: at least 10).\n");
+                "  tree-year (--ecomod-years, default 150), and their ratio (issue 30: at least 10). Then\n"
+                "  EcoMod alone on a bigger scene of the same kind (--ecomod-cells terrain cells of 0.914 m\n"
+                "  a side, default 256: about 4.9 ha; 0 = none), where per-year fixed costs weigh less, with\n"
+                "  its 1- and 2-thread state hashes (equal hashes = the same trees).\n");
             return 0;
         }
         if (a == "--quick") quick = true;
         else if (a == "--models") models = true;
         else if (a == "--ecomod-years") ecomodYears = static_cast<int>(positiveInteger(a, next()));
+        else if (a == "--ecomod-cells") {
+            const std::string v = next();
+            ecomodCells = v == "0" ? 0 : static_cast<int>(positiveInteger(a, v, 4096));
+        }
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
         else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));
@@ -348,6 +357,8 @@ int main(int argc, char** argv) {
                               eYears, b.seconds, static_cast<long long>(b.plantMonths / 12), 1e6 * perYear.back(), b.plants,
                               b.peakPlants);
                 m << line;
+                std::snprintf(line, sizeof line, "  ecomod state hash %016llx\n", static_cast<unsigned long long>(b.stateHash));
+                m << line;
                 std::fputs(line, stderr);
             }
             std::sort(perMonth.begin(), perMonth.end());
@@ -358,6 +369,49 @@ int main(int argc, char** argv) {
                           "(issue 30 asks at least 10 x)\n",
                           1e6 * med1, 1e6 * med2, med1 / med2);
             m << line;
+            if (ecomodCells > 0) {
+                // EcoMod alone on a bigger terrain of the same kind: the per-tree figure without the
+                // weight of the per-year fixed costs of a small scene.
+                DemoSceneParams bp;
+                bp.cells = ecomodCells;
+                bp.seed = 3;
+                const SimInputs big = makeDemoScene(bp, biome);
+                const double side = std::floor(ecomodCells * bp.cellSizeM - 12.0);
+                const SimArea bigArea{5, 5, 5 + side, 5 + side};
+                std::vector<double> perYearBig;
+                std::snprintf(line, sizeof line, "# ecomod alone on %.0f m x %.0f m (%.1f ha, %zu canopy trees), %d years, 1 thread\n",
+                              side, side, side * side / 1e4, big.canopy.size(), eYears);
+                m << line;
+                std::uint64_t hash1 = 0;
+                for (int r = 0; r < reps; ++r) {
+                    const Timing b = runScene(big, bigArea, eYears, 1, eco);
+                    hash1 = b.stateHash;
+                    perYearBig.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
+                    std::snprintf(line, sizeof line,
+                                  "big run %d: ecomod %d years %.2f s, %lld tree-years, %.3f us/tree-year (%zu trees at the end, "
+                                  "peak %zu), state hash %016llx\n",
+                                  r + 1, eYears, b.seconds, static_cast<long long>(b.plantMonths / 12), 1e6 * perYearBig.back(),
+                                  b.plants, b.peakPlants, static_cast<unsigned long long>(b.stateHash));
+                    m << line;
+                    std::fputs(line, stderr);
+                }
+                const Timing b2 = runScene(big, bigArea, eYears, 2, eco);
+                std::snprintf(line, sizeof line, "big run on 2 threads: %.2f s, state hash %016llx (%s)\n", b2.seconds,
+                              static_cast<unsigned long long>(b2.stateHash),
+                              b2.stateHash == hash1 ? "the same as 1 thread" : "DIFFERENT from 1 thread: a reproducibility bug");
+                m << line;
+                std::sort(perYearBig.begin(), perYearBig.end());
+                const double med3 = perYearBig[perYearBig.size() / 2];
+                std::snprintf(line, sizeof line,
+                              "median on the big scene: ecomod %.3f us per tree-year: %.1f x faster per step than the monthly "
+                              "model's median per plant-month on the hectare\n",
+                              1e6 * med3, med1 / med3);
+                m << line;
+                if (b2.stateHash != hash1) {
+                    std::fputs(m.str().c_str(), stdout);
+                    return 1;
+                }
+            }
             std::fputs(m.str().c_str(), stdout);
             if (outGiven) {
                 AtomicOutput out(outPath);

@@ -171,6 +171,18 @@ std::vector<std::uint8_t> spreadFire(const DisturbanceSite& site, const FireSett
     return burnt;
 }
 
+std::vector<std::uint8_t> fireBurntCells(const PlannedEvent& e, const FireSettings& f, const DisturbanceSite& site,
+                                         std::uint64_t seed, double* ignitionX, double* ignitionY) {
+    const Grid<float>& g = site.elevationM;
+    RandomStream rs(seed, mixStream(e.key, kIgnitionSalt));
+    const double xM = site.x0 + (site.x1 - site.x0) * rs.uniform();
+    const double yM = site.y0 + (site.y1 - site.y0) * rs.uniform();
+    if (ignitionX) *ignitionX = xM;
+    if (ignitionY) *ignitionY = yM;
+    const int ix = std::clamp(g.cellX(xM), 0, g.width() - 1), iy = std::clamp(g.cellY(yM), 0, g.height() - 1);
+    return spreadFire(site, f, ix, iy, seed, e.key);
+}
+
 double fireKillProbability(const FireSettings& f, double heightM, double tolerance) {
     const double scorch = heightM <= f.scorchHeightM ? 1.0 : f.scorchHeightM / heightM;
     return f.severity * (1.0 - std::clamp(tolerance, 0.0, 1.0)) * scorch;
@@ -210,11 +222,7 @@ DisturbanceOutcome runDisturbance(const PlannedEvent& e, const DisturbanceSettin
     };
     std::vector<std::uint8_t> damaged(g.size(), 0);
     if (e.kind == DisturbanceKind::Fire) {
-        RandomStream rs(seed, mixStream(e.key, kIgnitionSalt));
-        r.xM = site.x0 + (site.x1 - site.x0) * rs.uniform();
-        r.yM = site.y0 + (site.y1 - site.y0) * rs.uniform();
-        const int ix = std::clamp(g.cellX(r.xM), 0, g.width() - 1), iy = std::clamp(g.cellY(r.yM), 0, g.height() - 1);
-        out.burnt = spreadFire(site, s.fire, ix, iy, seed, e.key);
+        out.burnt = fireBurntCells(e, s.fire, site, seed, &r.xM, &r.yM);
         damaged = out.burnt;
     } else {
         r.xM = 0.5 * (site.x0 + site.x1);

@@ -2,8 +2,8 @@
 //
 // A unit of its own, acting on plain inputs only: grids of elevation, moisture and wind
 // exposure (one geometry), and plants given as parallel arrays (id, species, position,
-// height). The monthly simulator calls it from its step (sim/simulator.cpp); a yearly model
-// can call the same functions with its own plant arrays.
+// height). The monthly simulator calls it in the event's month (sim/simulator.cpp), the
+// yearly EcoMod model at the end of each year with its own tree arrays (sim/ecomod.cpp).
 //
 // Every random draw is a pure function of (run seed, a stream derived from the event, an
 // entity: cell or plant id), core/rng.h: an event's outcome depends neither on the thread
@@ -128,6 +128,12 @@ double fireStepProbability(const DisturbanceSite& site, const FireSettings& f, i
 /// (the same set whatever the visiting order). Nothing burns when the ignition cell is wet.
 std::vector<std::uint8_t> spreadFire(const DisturbanceSite& site, const FireSettings& f, int ix, int iy,
                                      std::uint64_t seed, std::uint64_t eventKey);
+
+/// The cells a planned fire burns (its burn mask, site grid order; what runDisturbance
+/// burns for the event): the ignition drawn uniformly in the site's area on the event's
+/// stream, then spreadFire. The ignition point (world metres) goes to the pointers given.
+std::vector<std::uint8_t> fireBurntCells(const PlannedEvent& e, const FireSettings& f, const DisturbanceSite& site,
+                                         std::uint64_t seed, double* ignitionX = nullptr, double* ignitionY = nullptr);
 
 /// Kill probabilities (documented in docs/disturbance.md).
 double fireKillProbability(const FireSettings& f, double heightM, double tolerance);

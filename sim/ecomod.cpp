@@ -155,6 +155,14 @@ struct EcoModel::Impl {
     Grid<float> elevation;         // whole abiotics elevation (ground z)
     std::vector<Plant> canopy;     // relevant static canopy trees
     std::vector<float> canopyV;    // their suitability
+    // Disturbance (sim/disturbance.h): the settings, the events so far, and the event ground:
+    // the abiotics cells of geom (elevation, wind exposure, each month's moisture).
+    DisturbanceSettings disturbance;
+    bool disturbanceOn = false;
+    std::vector<DisturbanceRecord> disturbanceEvents;
+    Grid<float> siteElevation, siteWind;
+    std::vector<Grid<float>> siteMoisture;  // 12 months
+    std::vector<double> fireTolerance;      // per species
     double hRef = 1.0;             // tallest full height of the biome: h / hRef in [0, 1]
     double areaHa = 0;
     std::uint64_t fingerprintValue = 0;
@@ -171,9 +179,32 @@ struct EcoModel::Impl {
     SimCounters counters;
     std::size_t droppedInitial = 0;
 
-    // Scratch of the step.
+    // The domination test's memory, a cache that never changes a result: per tree, the tree
+    // (index) or canopy tree (kWitnessCanopy | its index) that dominated it last time, or
+    // kNoWitness. Kept in step with the store by push and compact.
+    static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
+    std::vector<std::uint32_t> witness;
+
+    // Scratch of the step, kept between years (no allocation per year once grown).
+    struct Level {
+        double bucketM = 1, inverseM = 1;
+        double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
+        int bw = 1, bh = 1;
+        std::size_t first = 0;  // its first bucket in `start`
+    };
+    struct Entry {  // a tree or canopy tree in bucket order: position, crown radius, ability
+        double x, y, r, a;
+    };
     std::vector<double> ability;
-    std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 2 dominated death
+    std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 2 dominated death, 3 disturbance
+    std::vector<Level> levels;
+    std::vector<std::uint8_t> levelOf, dominated;
+    std::vector<std::uint32_t> start, bucket, entries, fill, newIndex;
+    std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
+    std::vector<Entry> packed, byTree;  // in bucket order; in the store's order (trees, then canopy)
+    std::vector<std::vector<std::pair<double, double>>> parentsOf;  // per species (seedYear)
+    std::vector<std::vector<std::pair<double, double>>> born;       // per species (seedYear)
+    std::vector<std::int64_t> attempts;
 
     std::size_t cellOf(double px, double py) const {
         const int ix = std::clamp(geom.cellX(px), 0, geom.width() - 1);
@@ -204,17 +235,22 @@ struct EcoModel::Impl {
         age.push_back(ageYears);
         deathAge.push_back(dAge);
         v.push_back(suitAt(s, px, py));
+        witness.push_back(kNoWitness);
     }
     std::size_t size() const { return id.size(); }
     void compact();
     void seedYear();
     void growYear();
+    void disturbYear();
     std::uint64_t computeFingerprint() const;
 };
 
 void EcoModel::Impl::compact() {
+    const std::size_t n = size();
+    newIndex.resize(n);
     std::size_t w = 0;
-    for (std::size_t p = 0; p < size(); ++p) {
+    for (std::size_t p = 0; p < n; ++p) {
+        newIndex[p] = fate[p] != 0 ? kNoWitness : static_cast<std::uint32_t>(w);
         if (fate[p] != 0) continue;
         if (w != p) {
             id[w] = id[p];
@@ -229,6 +265,8 @@ void EcoModel::Impl::compact() {
             deathAge[w] = deathAge[p];
             v[w] = v[p];
         }
+        const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
+        witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
         ++w;
     }
     for (auto* a : {&x, &y, &groundZ, &height, &radius, &growthAge, &deathAge}) a->resize(w);
@@ -236,6 +274,7 @@ void EcoModel::Impl::compact() {
     species.resize(w);
     age.resize(w);
     v.resize(w);
+    witness.resize(w);
     fate.assign(w, 0);
 }
 
@@ -243,13 +282,13 @@ void EcoModel::Impl::compact() {
 // appended in species order, so ids do not depend on the schedule).
 void EcoModel::Impl::seedYear() {
     const int ns = static_cast<int>(sp.size());
-    struct Seedling {
-        double x, y;
-    };
-    std::vector<std::vector<Seedling>> born(static_cast<std::size_t>(ns));
-    std::vector<std::int64_t> attempts(static_cast<std::size_t>(ns), 0);
+    // Scratch kept between years: cleared, not freed.
+    born.resize(static_cast<std::size_t>(ns));
+    parentsOf.resize(static_cast<std::size_t>(ns));
+    attempts.assign(static_cast<std::size_t>(ns), 0);
+    for (auto& b : born) b.clear();
+    for (auto& pa : parentsOf) pa.clear();
     // Parents: mature trees of each species (the store's order), then its canopy trees.
-    std::vector<std::vector<std::pair<double, double>>> parentsOf(static_cast<std::size_t>(ns));
     for (std::size_t t = 0; t < size(); ++t)
         if (age[t] >= sp[static_cast<std::size_t>(species[t])].maturityAgeYears)
             parentsOf[static_cast<std::size_t>(species[t])].emplace_back(x[t], y[t]);
@@ -265,10 +304,10 @@ void EcoModel::Impl::seedYear() {
         };
         const std::int64_t seeds = stochasticRound(static_cast<double>(parents.size()) * p.seedsPerYear * p.germination);
         const std::int64_t immigrants = stochasticRound(p.immigrantsPerHaYear * areaHa);
-        std::vector<Seedling>& out = born[static_cast<std::size_t>(s)];
+        std::vector<std::pair<double, double>>& out = born[static_cast<std::size_t>(s)];
         auto establish = [&](double px, double py) {
             if (!inArea(px, py)) return;  // the seed left the area
-            if (r.uniform() < suitAt(s, px, py)) out.push_back({px, py});  // germinates only where suitable
+            if (r.uniform() < suitAt(s, px, py)) out.emplace_back(px, py);  // germinates only where suitable
         };
         auto anywhere = [&] {
             const double px = r.uniform(area.x0, area.x1), py = r.uniform(area.y0, area.y1);
@@ -287,51 +326,54 @@ void EcoModel::Impl::seedYear() {
         attempts[static_cast<std::size_t>(s)] = seeds + immigrants;
     }
     for (int s = 0; s < ns; ++s) {
-        for (const Seedling& b : born[static_cast<std::size_t>(s)]) {
+        for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0));
+            push(pid, s, b.first, b.second, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0));
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
     fate.assign(size(), 0);
 }
 
-// Growth with domination (Algorithm 3) and the deaths of the year. The neighbour search is a
-// hierarchy of bucket grids by crown radius: level L holds the trees (and canopy trees) of
-// radius at most kLevel0M x 2^L in buckets of that size, so that a tree meets every
-// possible dominator of level L in the 3 x 3 (or a few more) buckets round it, and the many
-// small trees are never scanned against the reach of the largest crown.
+// Growth with domination (Algorithm 3) and the deaths of the year. A tree is dominated when
+// a more able tree (or canopy tree) overlaps its neighbourhood. First the tree that dominated
+// it last year is tried (its witness: most dominated trees stay dominated by the same
+// neighbour); otherwise a search over a hierarchy of bucket grids by crown radius: level L
+// holds the trees (and canopy trees) of radius at most kLevel0M x 2^L in buckets of that
+// size, so that a tree meets every possible dominator of level L in the 3 x 3 (or a few
+// more) buckets round it, from the level of the largest crowns down (a seedling under a
+// large crown finds it first), skipping levels and buckets with nobody more able. The
+// outcome is the existence of a dominator, the same whichever is found first.
 void EcoModel::Impl::growYear() {
     constexpr double kLevel0M = 1.0;
     constexpr int kMaxLevels = 16;
     const std::size_t n = size(), nc = canopy.size(), total = n + nc;
     counters.plantMonths += 12 * static_cast<std::int64_t>(n);
     ability.resize(total);
-    std::vector<double> ex(total), ey(total), er(total);
+    levelOf.resize(total);
+    int maxLevel = 0;
+    auto levelFor = [&](double r) {
+        int L = 0;
+        while (L < kMaxLevels - 1 && r > kLevel0M * static_cast<double>(1 << L)) ++L;
+        return L;
+    };
+    byTree.resize(total);
     for (std::size_t p = 0; p < n; ++p) {
         ability[p] = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
-        ex[p] = x[p], ey[p] = y[p], er[p] = radius[p];
+        byTree[p] = {x[p], y[p], radius[p], ability[p]};
+        const int L = levelFor(radius[p]);
+        levelOf[p] = static_cast<std::uint8_t>(L);
+        maxLevel = std::max(maxLevel, L);
     }
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
         ability[n + c] = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
-        ex[n + c] = t.xM, ey[n + c] = t.yM, er[n + c] = t.crownRadiusM;
-    }
-    struct Level {
-        double bucketM = 1, inverseM = 1;
-        double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
-        int bw = 1, bh = 1;
-        std::size_t first = 0;  // its first bucket in `start`
-    };
-    std::vector<Level> levels;
-    std::vector<std::uint8_t> levelOf(total);
-    int maxLevel = 0;
-    for (std::size_t e = 0; e < total; ++e) {
-        int L = 0;
-        while (L < kMaxLevels - 1 && er[e] > kLevel0M * static_cast<double>(1 << L)) ++L;
-        levelOf[e] = static_cast<std::uint8_t>(L);
+        byTree[n + c] = {t.xM, t.yM, t.crownRadiusM, ability[n + c]};
+        const int L = levelFor(t.crownRadiusM);
+        levelOf[n + c] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
     }
+    levels.clear();
     std::size_t buckets = 0;
     for (int L = 0; L <= maxLevel; ++L) {
         Level lv;
@@ -352,39 +394,49 @@ void EcoModel::Impl::growYear() {
         const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
         return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
     };
-    std::vector<std::uint32_t> start(buckets + 1, 0), bucket(total), entries(total);
+    start.assign(buckets + 1, 0);
+    bucketMax.assign(buckets, -1.0);
+    bucket.resize(total);
+    entries.resize(total);
     for (std::size_t e = 0; e < total; ++e) {
-        bucket[e] = static_cast<std::uint32_t>(cellIndex(levels[levelOf[e]], ex[e], ey[e]));
-        ++start[bucket[e] + 1];
+        const std::size_t k = cellIndex(levels[levelOf[e]], byTree[e].x, byTree[e].y);
+        bucket[e] = static_cast<std::uint32_t>(k);
+        ++start[k + 1];
+        bucketMax[k] = std::max(bucketMax[k], ability[e]);
     }
-    for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
-    {
-        std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-        for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
-    }
+    for (std::size_t k = 0; k < buckets; ++k) start[k + 1] += start[k];
+    fill.assign(start.begin(), start.end() - 1);
+    for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
     // Entries as (x, y, r, a) in bucket order, so that a scan reads memory in sequence.
-    struct Entry {
-        double x, y, r, a;
-    };
-    std::vector<Entry> packed(total);
-    for (std::size_t k = 0; k < total; ++k) {
-        const std::uint32_t e = entries[k];
-        packed[k] = {ex[e], ey[e], er[e], ability[e]};
-    }
-    std::vector<std::uint8_t> dominated(n, 0);
+    packed.resize(total);
+    for (std::size_t k = 0; k < total; ++k) packed[k] = byTree[entries[k]];
+    dominated.assign(n, 0);
     // Visited in bucket order (neighbours after each other: the buckets they scan stay in
-    // cache); each writes only its own flag, so the order changes nothing.
+    // cache); each writes only its own flag and witness, so the order changes nothing.
 #pragma omp parallel for schedule(dynamic, 1024) if (n > kParallelPlants)
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(total); ++ki) {
         const std::size_t p = entries[static_cast<std::size_t>(ki)];
         if (p >= n) continue;  // a canopy tree: static, never dominated
-        const double px = packed[static_cast<std::size_t>(ki)].x, py = packed[static_cast<std::size_t>(ki)].y;
-        const double pr = packed[static_cast<std::size_t>(ki)].r, pa = packed[static_cast<std::size_t>(ki)].a;
-        bool dom = false;
+        const Entry& me = packed[static_cast<std::size_t>(ki)];
+        const double px = me.x, py = me.y, pr = me.r, pa = me.a;
+        // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
+        auto overlaps = [px, py, pr](double qx, double qy, double qr) {
+            const double dx = px - qx, dy = py - qy, rr = pr + qr;
+            return dx * dx + dy * dy < rr * rr;
+        };
+        const std::uint32_t w = witness[p];
+        if (w != kNoWitness) {
+            const Entry& q = byTree[(w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w];
+            if (pa < q.a && overlaps(q.x, q.y, q.r)) {
+                dominated[p] = 1;
+                continue;
+            }
+        }
+        std::uint32_t found = kNoWitness;
         // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
         // clamps to bucket 0 as its floor would.
         const double ox = px - area.x0, oy = py - area.y0;
-        for (int L = 0; L <= maxLevel && !dom; ++L) {
+        for (int L = maxLevel; L >= 0 && found == kNoWitness; --L) {
             const Level& lv = levels[static_cast<std::size_t>(L)];
             if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
             const double reach = pr + lv.bucketM;  // every tree of level L has r <= bucketM
@@ -392,21 +444,30 @@ void EcoModel::Impl::growYear() {
             const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
             const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
             const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
-            for (int by = by0; by <= by1 && !dom; ++by) {
+            for (int by = by0; by <= by1 && found == kNoWitness; ++by) {
                 const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-                const std::uint32_t end = start[row + bx1 + 1];
-                for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
-                    const Entry& q = packed[k];
-                    if (!(pa < q.a)) continue;  // only the more able dominate (p itself never)
-                    const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
-                    if (dx * dx + dy * dy < rr * rr) {  // Eq. 8: the neighbourhoods intersect
-                        dom = true;
-                        break;
+                for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
+                    if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
+                    const std::uint32_t end = start[bk + 1];
+                    for (std::uint32_t k = start[bk]; k < end; ++k) {
+                        const Entry& q = packed[k];
+                        if (!(pa < q.a)) continue;  // only the more able dominate (p itself never)
+                        if (overlaps(q.x, q.y, q.r)) {
+                            found = k;
+                            break;
+                        }
                     }
+                    if (found != kNoWitness) break;
                 }
             }
         }
-        dominated[p] = dom ? 1 : 0;
+        if (found != kNoWitness) {
+            const std::uint32_t e = entries[found];
+            witness[p] = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+            dominated[p] = 1;
+        } else {
+            witness[p] = kNoWitness;
+        }
     }
 #pragma omp parallel for schedule(static) if (n > kParallelPlants)
     for (std::int64_t pi = 0; pi < static_cast<std::int64_t>(n); ++pi) {
@@ -456,6 +517,12 @@ std::uint64_t EcoModel::Impl::computeFingerprint() const {
     }
     h = hashBytes(h, suit.data(), suit.size() * sizeof(float));
     h = hashBytes(h, elevation.data().data(), elevation.size() * sizeof(float));
+    if (disturbanceOn) {  // only when on: checkpoints of runs without it keep their fingerprint
+        const std::string d = disturbance.toToml();
+        h = hashBytes(h, d.data(), d.size());
+        h = hashBytes(h, siteWind.data().data(), siteWind.size() * sizeof(float));
+        for (const Grid<float>& g : siteMoisture) h = hashBytes(h, g.data().data(), g.size() * sizeof(float));
+    }
     return h;
 }
 
@@ -529,6 +596,18 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
                 m.suit[s * cells + cell] = static_cast<float>(vv);
             }
         }
+    // The disturbance events' ground: the same cells (sim/disturbance.h).
+    auto crop = [&](const Grid<float>& src) {
+        Grid<float> out = Grid<float>::like(m.geom, 0.f);
+        if (src.sameGeometry(g))
+            for (int iy = 0; iy < m.geom.height(); ++iy)
+                for (int ix = 0; ix < m.geom.width(); ++ix) out(ix, iy) = src(ix0 + ix, iy0 + iy);
+        return out;
+    };
+    m.siteElevation = crop(abio.elevationM);
+    m.siteWind = crop(abio.windMS);
+    for (const Grid<float>& month : abio.moistureMm.months) m.siteMoisture.push_back(crop(month));
+    for (const Species& s : m.biome.species) m.fireTolerance.push_back(s.fireTolerance);
     m.elevation = std::move(abio.elevationM);
 
     // Static canopy trees that reach the area with their crown or their seeds.
@@ -564,8 +643,52 @@ EcoModel::~EcoModel() = default;
 void EcoModel::stepYear() {
     impl_->seedYear();
     impl_->growYear();
+    impl_->disturbYear();
     ++impl_->year;
 }
+
+// The disturbance events of the year, at its end (after growth and the year's deaths), in
+// month order: each on the living trees, the killed removed before the next.
+void EcoModel::Impl::disturbYear() {
+    if (!disturbanceOn) return;
+    const std::vector<PlannedEvent> events = eventsOfYear(disturbance, seed, year);
+    if (events.empty()) return;
+    std::vector<double> tolerance(sp.size());
+    for (std::size_t s = 0; s < sp.size(); ++s)
+        tolerance[s] = std::isnan(fireTolerance[s]) ? disturbance.fire.defaultTolerance : fireTolerance[s];
+    for (const PlannedEvent& e : events) {
+        DisturbanceSite site;
+        site.elevationM = siteElevation;
+        site.moistureMm = siteMoisture[static_cast<std::size_t>(e.month)];
+        site.windMS = siteWind;
+        site.windFromDeg = biome.wind.directionDeg;
+        site.windStrengthMS = biome.wind.strengthMS;
+        site.x0 = area.x0;
+        site.y0 = area.y0;
+        site.x1 = area.x1;
+        site.y1 = area.y1;
+        const PlantArrays arrays{size(), id.data(), species.data(), x.data(), y.data(), height.data()};
+        DisturbanceOutcome out = runDisturbance(e, disturbance, site, arrays, tolerance, sp.size(), seed);
+        fate.assign(size(), 0);
+        for (std::size_t p = 0; p < size(); ++p)
+            if (out.killed[p]) {
+                fate[p] = 3;
+                ++counters.diedDisturbance;
+            }
+        compact();
+        disturbanceEvents.push_back(std::move(out.record));
+    }
+}
+
+void EcoModel::setDisturbance(const DisturbanceSettings& settings) {
+    settings.validate("disturbance");
+    Impl& m = *impl_;
+    m.disturbance = settings;
+    m.disturbanceOn = settings.enabled();
+    m.fingerprintValue = m.computeFingerprint();
+}
+const DisturbanceSettings& EcoModel::disturbance() const { return impl_->disturbance; }
+const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return impl_->disturbanceEvents; }
 
 int EcoModel::yearsDone() const { return impl_->year; }
 std::size_t EcoModel::plantCount() const { return impl_->size(); }
@@ -647,7 +770,9 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 }
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* step scratch: ability, fate, dominated, bucket entry and index */ sizeof(double) + 2 + 2 * sizeof(std::uint32_t);
+           /* witness */ sizeof(std::uint32_t) +
+           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
@@ -663,6 +788,10 @@ void EcoModel::saveState(h5::File& f, const std::string& group) const {
     f.setAttr(group, "died_at_max_age", static_cast<std::int64_t>(m.counters.diedBackgroundOrStress));
     f.setAttr(group, "died_dominated", static_cast<std::int64_t>(m.counters.diedDominated));
     f.setAttr(group, "dropped_initial", static_cast<std::int64_t>(m.droppedInitial));
+    if (m.disturbanceOn) {  // the events so far (the draws are keyed by seed and event: no generator state)
+        f.setAttr(group, "died_disturbance", static_cast<std::int64_t>(m.counters.diedDisturbance));
+        writeDisturbanceTable(f, group + "/disturbance", m.disturbanceEvents, m.biome);
+    }
     std::vector<std::int32_t> idLo(n), idHi(n);
     for (std::size_t p = 0; p < n; ++p) {
         idLo[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(m.id[p]));
@@ -706,6 +835,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     for (auto* a : {&m.x, &m.y, &m.groundZ, &m.height, &m.radius, &m.growthAge, &m.deathAge}) a->clear();
     m.age.clear();
     m.v.clear();
+    m.witness.clear();
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
         const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |
@@ -721,6 +851,10 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.counters.diedBackgroundOrStress = f.attrInt(group, "died_at_max_age");
     m.counters.diedDominated = f.attrInt(group, "died_dominated");
     m.droppedInitial = static_cast<std::size_t>(f.attrInt(group, "dropped_initial"));
+    m.counters.diedDisturbance = f.hasAttr(group, "died_disturbance") ? f.attrInt(group, "died_disturbance") : 0;
+    m.disturbanceEvents.clear();
+    if (m.disturbanceOn && f.exists(group + "/disturbance"))
+        m.disturbanceEvents = readDisturbanceTable(f, group + "/disturbance", m.sp.size());
 }
 
 }  // namespace eco::sim

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "biome.h"
+#include "disturbance.h"
 #include "h5io.h"
 #include "sim_config.h"
 #include "sim_file.h"
@@ -95,6 +96,14 @@ public:
     const std::vector<EcoModSpeciesParams>& speciesParams() const;
     /// Suitability v of species s at world point (x, y) (0 outside the area).
     double suitability(int s, double xM, double yM) const;
+    /// Fire and windthrow events (sim/disturbance.h, docs/disturbance.md); off by default.
+    /// The year's events strike at its end, after growth and the year's deaths, in the
+    /// order of their months, on the abiotics cells covering the area (the event month's
+    /// moisture). Changes the fingerprint when on. ValidationError for bad settings.
+    void setDisturbance(const DisturbanceSettings& settings);
+    const DisturbanceSettings& disturbance() const;
+    /// The events so far, in order (restored from a checkpoint).
+    const std::vector<DisturbanceRecord>& disturbances() const;
     /// Disturbance hook (fire, windthrow; issue 30 item 3): removes the trees whose entry in
     /// `dead` (indexed as plants(), same length) is non-zero, keeping the others' order; returns
     /// how many were removed. ValidationError when the length differs.

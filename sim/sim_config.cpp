@@ -228,12 +228,6 @@ void RunConfig::validate() const {
     const std::string src = sourcePath.empty() ? std::string("run configuration") : sourcePath;
     params.validate(src);
     disturbance.validate(src);
-    // The disturbance unit (sim/disturbance.h) acts on the monthly model's plants; the EcoMod
-    // model has the hook (EcoModel::removeTrees) but does not call it yet: refuse rather than
-    // run without the events the file asks for.
-    if (disturbance.enabled() && params.kind == ModelKind::EcoMod)
-        throw ValidationError(src + ": [disturbance]: fire and storms are not available with [model] kind = \"ecomod\" yet "
-                              "(docs/disturbance.md); remove the [disturbance] tables or use the monthly model");
     if (years < 1 || years > 100000)
         throw ValidationError(src + ": [run] years = " + std::to_string(years) + ": must lie in 1..100000");
     if (checkpointEveryYears < 0)

@@ -161,20 +161,16 @@ Simulation::~Simulation() = default;
 
 void Simulation::setDisturbance(const DisturbanceSettings& settings) {
     settings.validate("disturbance");
-    // EcoMod has the hook (EcoModel::removeTrees) but does not run the events yet.
-    if (settings.enabled()) requireMonthly("disturbance (fire, storms)");
-    if (eco_) return;
+    if (eco_) return eco_->setDisturbance(settings);  // yearly: the events at the year's end
     impl_->disturbance = settings;
     impl_->disturbanceOn = settings.enabled();
     impl_->fingerprintReady = false;
 }
 const DisturbanceSettings& Simulation::disturbance() const {
-    static const DisturbanceSettings kOff;
-    return eco_ ? kOff : impl_->disturbance;
+    return eco_ ? eco_->disturbance() : impl_->disturbance;
 }
 const std::vector<DisturbanceRecord>& Simulation::disturbances() const {
-    static const std::vector<DisturbanceRecord> kNone;
-    return eco_ ? kNone : impl_->disturbanceEvents;
+    return eco_ ? eco_->disturbances() : impl_->disturbanceEvents;
 }
 
 void Simulation::stepMonth() {

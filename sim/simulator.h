@@ -97,7 +97,7 @@ public:
     Simulation& operator=(const Simulation&) = delete;
 
     /// Fire and windthrow events (sim/disturbance.h, docs/disturbance.md); off by default.
-    /// Call before the first step (part of the fingerprint when enabled). ValidationError for
+    /// Both models (EcoMod: at the end of each year, EcoModel::setDisturbance). Call before the first step (part of the fingerprint when enabled). ValidationError for
     /// bad settings.
     void setDisturbance(const DisturbanceSettings& settings);
     const DisturbanceSettings& disturbance() const;

@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <set>
 #include <cstring>
 
 #include "disturbance.h"
+#include "ecomod.h"
 #include "error.h"
 #include "h5io.h"
 #include "sim_config.h"
@@ -338,11 +340,181 @@ TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are re
                       Catch::Contains("not both"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nmonth = 12\n", "t.toml"), Catch::Contains("month"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nseverity = 1.5\n", "t.toml"), Catch::Contains("severity"));
-    // Not yet with the EcoMod model: refused, not silently ignored.
+    // With the EcoMod model too (the events at the year's end).
     const RunConfig eco = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n[disturbance.fire]\nyears = [10]\n", "t.toml");
-    CHECK_THROWS_WITH(eco.validate(), Catch::Contains("t.toml") && Catch::Contains("ecomod") && Catch::Contains("[disturbance]"));
-    const RunConfig ecoOff = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n", "t.toml");
-    CHECK_NOTHROW(ecoOff.validate());
+    CHECK_NOTHROW(eco.validate());
+    CHECK(eco.disturbance.fire.enabled);
+}
+
+namespace {
+
+// Flat ground of w x h cells of 1 m, every species indifferent to the site (v = 1); in August
+// only (the fire month) bone dry west of x = wetFromM and wetter than the extinction moisture
+// east of it: a fire of spread probability 1 ignited in the west burns exactly the west part.
+SimInputs ecomodFireScene(int w, int h, double wetFromM) {
+    SimInputs in;
+    in.biome = defaultBiome();
+    for (Species& sp : in.biome.species) {
+        EcoModSpecies& e = sp.ecomod;
+        e.elevationTol = e.moistureTol = e.sunTol = e.windTol = 1e9;
+        e.slopeHarm = 0;
+        e.immigrantsPerHaYear = 10;  // a quick start from empty ground
+    }
+    const Grid<float> like(w, h, 1.0, 0, 0, 0.f);
+    Abiotics& a = in.abiotics;
+    a.elevationM = Grid<float>::like(like, 50.f);
+    a.slopeDeg = Grid<float>::like(like, 0.f);
+    a.windMS = Grid<float>::like(like, 4.f);  // exposure for storms (no species responds to it here)
+    for (int m = 0; m < 12; ++m) {
+        a.sunHours.months.push_back(Grid<float>::like(like, 8.f));
+        Grid<float> moist = Grid<float>::like(like, 60.f);
+        if (m == 7)  // August: bone dry (fire passes with the spread probability itself) or wet
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x) moist(x, y) = x < wetFromM ? 0.f : 1000.f;
+        a.moistureMm.months.push_back(moist);
+        a.temperatureC.months.push_back(Grid<float>::like(like, 15.f));
+    }
+    return in;
+}
+
+}  // namespace
+
+TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt part, and pioneers recolonise it",
+          "[disturbance][sim][ecomod]") {
+    // 150 years of afforestation of empty ground, a fire at the end of year 150 that burns
+    // the dry west part (x < 50 m of 80 m) and kills every tree there, then 25 more years;
+    // compared with the same run without the fire.
+    constexpr double kWet = 50.0;
+    constexpr int kFireYear = 150, kAfter = 25;
+    const SimInputs in = ecomodFireScene(80, 40, kWet);
+    const Biome& b = in.biome;
+    SimParams params;
+    params.kind = ModelKind::EcoMod;
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.fire.timing.forcedYears = {kFireYear};
+    d.fire.spreadProbability = 1.0;
+    d.fire.slopeFactor = 0;
+    d.fire.windFactor = 0;
+    d.fire.severity = 1.0;
+    d.fire.scorchHeightM = 1000.0;  // scorches every tree whole
+    constexpr std::uint64_t kSeed = 4;  // its ignition falls in the dry part (checked below)
+    Simulation burnt(in, params, kSeed), unburnt(in, params, kSeed);
+    burnt.setDisturbance(d);
+    for (int y = 0; y < kFireYear; ++y) {
+        burnt.stepYear();
+        unburnt.stepYear();
+    }
+    // Before the fire: the same trees as without disturbance (no event has struck yet).
+    const auto before = burnt.plants();
+    REQUIRE(before.size() == unburnt.plantCount());
+    std::size_t westBefore = 0;
+    for (const auto& p : before) westBefore += p.xM < kWet ? 1 : 0;
+    REQUIRE(westBefore > 100);
+    burnt.stepYear();  // year 150: growth, then the fire at its end
+    unburnt.stepYear();
+    REQUIRE(burnt.disturbances().size() == 1);
+    const DisturbanceRecord& e = burnt.disturbances()[0];
+    CHECK(e.kind == "fire");
+    CHECK(e.year == kFireYear);
+    REQUIRE(e.xM < kWet);
+    CHECK(e.areaM2 == Approx(kWet * 40));
+    // Every tree of the burnt part is dead, none of the rest (the unburnt run's trees east of
+    // the edge are the burnt run's, one for one).
+    std::size_t eastBurnt = 0, eastUnburnt = 0;
+    for (const auto& p : burnt.plants()) {
+        CHECK(p.xM >= kWet);
+        ++eastBurnt;
+    }
+    std::size_t westKilled = 0;
+    for (const auto& p : unburnt.plants()) (p.xM < kWet ? westKilled : eastUnburnt) += 1;
+    CHECK(eastBurnt == eastUnburnt);
+    std::int64_t killed = 0;
+    for (auto k : e.killed) killed += k;
+    CHECK(killed == static_cast<std::int64_t>(westKilled));
+    CHECK(burnt.counters().diedDisturbance == killed);
+    // Recolonisation: pioneers (max age <= 100 years, as in the ecomod validation scenario)
+    // take the burnt ground first, far above their share of the mature stand.
+    auto pioneer = [&](int s) { return burnt.ecomod()->speciesParams()[static_cast<std::size_t>(s)].maxAgeYears <= 100; };
+    auto westShare = [&](const Simulation& sim) {
+        std::size_t all = 0, pio = 0;
+        for (const auto& p : sim.plants())
+            if (p.xM < kWet) {
+                ++all;
+                pio += pioneer(p.speciesId) ? 1 : 0;
+            }
+        return std::make_pair(all, all ? static_cast<double>(pio) / all : 0.0);
+    };
+    for (int y = 0; y < kAfter; ++y) {
+        burnt.stepYear();
+        unburnt.stepYear();
+    }
+    const auto [westAfter, pioneerShareBurnt] = westShare(burnt);
+    const auto [westControl, pioneerShareUnburnt] = westShare(unburnt);
+    INFO("killed " << killed << "; west trees: " << westAfter << " after the fire, " << westControl << " without it; pioneer share "
+                        << pioneerShareBurnt << " against " << pioneerShareUnburnt);
+    CHECK(westAfter > westKilled / 4);
+    CHECK(pioneerShareBurnt > 2 * pioneerShareUnburnt);
+    CHECK(pioneerShareBurnt > 0.2);
+    (void)b;
+}
+
+TEST_CASE("disturbance in EcoMod: same trees and events with 1 and 2 threads, and after a resume",
+          "[disturbance][sim][ecomod][determinism][checkpoint]") {
+    test::TempDir dir("ecodisturbresume");
+    const SimInputs in = ecomodFireScene(40, 40, 1000.0);
+    SimParams params;
+    params.kind = ModelKind::EcoMod;
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.fire.timing.probabilityPerYear = 0.2;
+    d.fire.spreadProbability = 0.3;
+    d.fire.scorchHeightM = 5.0;
+    d.storm.enabled = true;
+    d.storm.timing.probabilityPerYear = 0.2;
+    d.storm.severity = 0.2;
+    const int threads = omp_get_max_threads();
+    setParallelThresholds(0, 0);
+    auto run = [&](int t, int years) {
+        omp_set_num_threads(t);
+        auto s = std::make_unique<Simulation>(in, params, 11);
+        s->setDisturbance(d);
+        for (int y = 0; y < years; ++y) s->stepYear();
+        return s;
+    };
+    const auto one = run(1, 50);
+    const auto two = run(2, 50);
+    CHECK(one->disturbances().size() >= 10);
+    CHECK(one->counters().diedDisturbance > 0);
+    std::set<std::string> kinds;
+    for (const auto& e : one->disturbances()) kinds.insert(e.kind);
+    CHECK(kinds.size() == 2);  // fires and storms
+    CHECK(sameState(one->plants(), two->plants()));
+    const auto first = run(2, 23);  // mid-run, after some events
+    {
+        auto f = h5::File::create(dir.file("state.h5"));
+        first->saveState(f, "/state");
+    }
+    Simulation resumed(in, params, 11);
+    resumed.setDisturbance(d);
+    {
+        auto f = h5::File::openRead(dir.file("state.h5"));
+        resumed.loadState(f, "/state");
+    }
+    for (int y = 23; y < 50; ++y) resumed.stepYear();
+    CHECK(sameState(one->plants(), resumed.plants()));
+    REQUIRE(resumed.disturbances().size() == one->disturbances().size());
+    for (std::size_t i = 0; i < resumed.disturbances().size(); ++i) {
+        CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
+        CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
+        CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+    }
+    CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
+    Simulation plain(in, params, 11);  // without disturbance: another fingerprint
+    auto f = h5::File::openRead(dir.file("state.h5"));
+    CHECK_THROWS_WITH(plain.loadState(f, "/state"), Catch::Contains("another run"));
+    setParallelThresholds(kDefaultParallelPlants, kDefaultParallelCells);
+    omp_set_num_threads(threads);
 }
 
 TEST_CASE("disturbance validation: after a stand-clearing fire the early species peak again and the late ones recover",
