@@ -23,6 +23,7 @@
 // off), as it was before issue 25.
 //
 // Usage: bench_canopy_accuracy [OUT (default bench/results/canopy_accuracy.txt)] [SIZE (256)]
+//        [KEY=VALUE ...]  (canopy parameters of the "defaults" row, e.g. ring_samples=0)
 #include <omp.h>
 
 #include <algorithm>
@@ -56,6 +57,7 @@ struct Top {
 struct Scene {
     eco::Grid<float> chm;      ///< as the placer gets it (noise, negatives, gaps filled)
     std::vector<Top> tops;     ///< visible tree tops >= 3 m
+    std::vector<Top> all;      ///< every generated tree (hidden tops included)
     std::size_t trees = 0;     ///< all generated trees
     std::int64_t gaps = 0, negatives = 0;
 };
@@ -78,6 +80,7 @@ Scene makeScene(int n, std::uint64_t seed, double denseSpacingM, bool spheres = 
     const eco::Grid<float> sphereChm = eco::generateChm(sketch, cp, trees);
     Scene s;
     s.trees = trees.size();
+    for (const auto& t : trees) s.all.push_back({t.x, t.y, t.heightM});
     eco::Grid<float> clean = eco::Grid<float>::like(terrain, 0.0f);
     const double cs = clean.cellSizeM();
     std::vector<double> depth(trees.size()), shape(trees.size());
@@ -270,11 +273,21 @@ std::vector<Top> placerTops(const eco::synth::CanopyResult& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy_accuracy [OUT [SIZE]]\nPrecision and recall of tree tops on lidar-like CHMs of SIZE x SIZE cells (default 256): the canopy placer against a variable-window filter; writes OUT (default bench/results/canopy_accuracy.txt).\n")) return 0;
+    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy_accuracy [OUT [SIZE [KEY=VALUE ...]]]\nPrecision and recall of tree tops on lidar-like CHMs of SIZE x SIZE cells (default 256): the canopy placer against a variable-window filter; writes OUT (default bench/results/canopy_accuracy.txt). KEY=VALUE pairs (canopy parameters, docs/canopy.md) change the placer's first row.\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/canopy_accuracy.txt";
     const int n = argc > 2 ? std::max(32, std::atoi(argv[2])) : 256;
     std::ostringstream report;
     try {
+        eco::synth::CanopyParams tuned;
+        std::string overrides;
+        for (int a = 3; a < argc; ++a) {
+            const std::string kv = argv[a];
+            const auto eq = kv.find('=');
+            if (eq == std::string::npos) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
+            eco::synth::setCanopyParam(tuned, kv.substr(0, eq), std::stod(kv.substr(eq + 1)));
+            overrides += (overrides.empty() ? "" : ", ") + kv;
+        }
+        eco::synth::validateCanopyParams(tuned);
         const eco::Biome biome = eco::defaultBiome();
         int douglas = -1;
         for (const eco::Species& s : biome.species)
@@ -310,10 +323,31 @@ int main(int argc, char** argv) {
                 std::snprintf(line, sizeof line, "  %.3f s\n", seconds);
                 sec << line;
             };
-            eco::synth::CanopyParams p;
+            eco::synth::CanopyParams p = tuned;
             auto t0 = Clock::now();
             const eco::synth::CanopyResult full = eco::synth::placeCanopy(sc.chm, terrain, species, biome, p);
-            row("canopy placer (defaults)", score(sc.tops, placerTops(full)), std::chrono::duration<double>(Clock::now() - t0).count(), &full.final);
+            const std::string first = overrides.empty() ? "canopy placer (defaults)" : "placer (" + overrides + ")";
+            row(first.c_str(), score(sc.tops, placerTops(full)), std::chrono::duration<double>(Clock::now() - t0).count(), &full.final);
+            {
+                // Where the placer's detections are: within 1 m of a visible top, else within
+                // 1 m of a tree whose top is hidden, else 1-2 m from a visible top, else none.
+                std::size_t nearTop = 0, nearHidden = 0, offset = 0, other = 0;
+                for (const eco::Plant& pl : full.trees) {
+                    if (pl.heightM < 3) continue;
+                    double dTop = 1e300, dAny = 1e300;
+                    for (const Top& t : sc.tops) dTop = std::min(dTop, std::hypot(t.x - pl.xM, t.y - pl.yM));
+                    for (const Top& t : sc.all) dAny = std::min(dAny, std::hypot(t.x - pl.xM, t.y - pl.yM));
+                    if (dTop <= 1) ++nearTop;
+                    else if (dAny <= 1) ++nearHidden;
+                    else if (dTop <= 2) ++offset;
+                    else ++other;
+                }
+                std::snprintf(line, sizeof line,
+                              "    its detections: %zu within 1 m of a visible top, %zu within 1 m of a tree with a hidden top, "
+                              "%zu 1-2 m from a visible top, %zu elsewhere\n",
+                              nearTop, nearHidden, offset, other);
+                sec << line;
+            }
             eco::synth::CanopyParams paper;
             paper.anchorApexTrees = 0;
             paper.keepBestState = 0;
@@ -322,6 +356,7 @@ int main(int argc, char** argv) {
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);
+            p = eco::synth::CanopyParams{};
             p.maxIterations = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult seeds = eco::synth::placeCanopy(sc.chm, terrain, species, biome, p);

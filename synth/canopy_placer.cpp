@@ -79,6 +79,7 @@ struct Frame {
     std::vector<float> depth;        ///< crown surface above ground; lowest() where uncovered
     std::vector<std::int32_t> id;    ///< top crown, -1 where none
     std::vector<std::int32_t> disc;  ///< per crown: cells whose centre lies inside its disc
+    std::vector<Crown> crowns;       ///< the crowns rendered (kept as a buffer between renders)
 };
 
 /// Rows [y0, y1] whose cell centres can lie inside the crown's disc (y0 > y1: none).
@@ -243,21 +244,32 @@ void measure(const Frame& f, const Grid<float>& chm, double thresholdM, double t
 
 // ------------------------------------------------------------------------- spatial hashing
 
-/// Uniform grid of point indices over the CHM extent, rebuilt per query phase. A uniform
-/// grid rather than FLANN: crowns have a bounded radius, so a radius query touches 3 x 3
-/// buckets, the build is one counting sort (O(n), no allocation per query), results come in
-/// index order (deterministic), and points can be appended while accepting new trees.
-class BucketGrid {
+/// Uniform grid of point indices, built once by a counting sort (compressed rows: one index
+/// array, one offset per bucket; no allocation per bucket or query). A uniform grid rather
+/// than FLANN: crowns have a bounded radius, so a radius query touches 3 x 3 buckets, and
+/// results come in index order (deterministic).
+class PointGrid {
 public:
-    BucketGrid(double originX, double originY, double extentX, double extentY, double bucketM)
+    /// Points 0..n-1 at (xOf(i), yOf(i)); buckets of at least bucketM metres over the extent.
+    template <typename XOf, typename YOf>
+    PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
+              YOf&& yOf)
         : ox_(originX), oy_(originY), s_(std::max(bucketM, std::max(extentX, extentY) / 4096.0)) {
         nx_ = std::max(1, static_cast<int>(std::ceil(extentX / s_)) + 1);
         ny_ = std::max(1, static_cast<int>(std::ceil(extentY / s_)) + 1);
-        buckets_.assign(static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_), {});
+        start_.assign(static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_) + 1, 0);
+        std::vector<std::uint32_t> bucket(n);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i)
+            bucket[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(bucketOf(xOf(static_cast<std::size_t>(i)), yOf(static_cast<std::size_t>(i))));
+        for (std::size_t i = 0; i < n; ++i) ++start_[bucket[i] + 1];
+        for (std::size_t b = 1; b < start_.size(); ++b) start_[b] += start_[b - 1];
+        ids_.resize(n);
+        std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+        for (std::size_t i = 0; i < n; ++i) ids_[fill[bucket[i]]++] = static_cast<std::int32_t>(i);
     }
-    void insert(double x, double y, std::int32_t id) { buckets_[bucketOf(x, y)].push_back(id); }
-    /// Calls fn(id) for every point whose bucket lies within `radius` of (x, y); stops early
-    /// when fn returns true (and then returns true).
+    /// Calls fn(id) for every point whose bucket lies within `radius` of (x, y), in index
+    /// order per bucket; stops early when fn returns true (and then returns true).
     template <typename Fn>
     bool any(double x, double y, double radius, Fn&& fn) const {
         const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
@@ -265,10 +277,11 @@ public:
         const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
         const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
         for (int by = by0; by <= by1; ++by)
-            for (int bx = bx0; bx <= bx1; ++bx)
-                for (const std::int32_t id : buckets_[static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) +
-                                                      static_cast<std::size_t>(bx)])
-                    if (fn(id)) return true;
+            for (int bx = bx0; bx <= bx1; ++bx) {
+                const std::size_t b = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(bx);
+                for (std::uint32_t e = start_[b]; e < start_[b + 1]; ++e)
+                    if (fn(ids_[e])) return true;
+            }
         return false;
     }
 
@@ -282,8 +295,59 @@ private:
     }
     double ox_, oy_, s_;
     int nx_ = 1, ny_ = 1;
-    std::vector<std::vector<std::int32_t>> buckets_;
+    std::vector<std::uint32_t> start_;
+    std::vector<std::int32_t> ids_;
 };
+
+/// Greedy selection in a fixed priority order, computed in parallel with the serial result:
+/// item `order[k]` is accepted unless blocked(i) or it conflicts with an accepted item earlier
+/// in the order. conflicts(i, fn) calls fn(j) for every candidate j that may conflict with i
+/// (any order, any superset of the true conflicts is fine: they are filtered by
+/// earlier-in-order and conflict(i, j)). The conflict lists are built in parallel (pure
+/// functions of the inputs), then one serial pass in order decides: the same result as
+/// accepting one by one, for any number of threads.
+template <typename Blocked, typename Neighbours, typename Conflict>
+std::vector<char> greedyAccept(const std::vector<std::size_t>& order, std::size_t nItems, Blocked&& blocked,
+                               Neighbours&& neighbours, Conflict&& conflict) {
+    std::vector<std::uint32_t> rank(nItems, std::numeric_limits<std::uint32_t>::max());
+    for (std::size_t k = 0; k < order.size(); ++k) rank[order[k]] = static_cast<std::uint32_t>(k);
+    // Fixed blocks of the order (independent of the thread count), each with its own list
+    // of (position, earlier conflicting item) pairs.
+    constexpr std::size_t kBlock = 4096;
+    const std::size_t nBlocks = (order.size() + kBlock - 1) / kBlock;
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edges(nBlocks);
+    std::vector<char> isBlocked(order.size(), 0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nBlocks); ++b) {
+        auto& out = edges[static_cast<std::size_t>(b)];
+        const std::size_t k0 = static_cast<std::size_t>(b) * kBlock, k1 = std::min(order.size(), k0 + kBlock);
+        for (std::size_t k = k0; k < k1; ++k) {
+            const std::size_t i = order[k];
+            if (blocked(i)) {
+                isBlocked[k] = 1;
+                continue;
+            }
+            neighbours(i, [&](std::size_t j) {
+                if (rank[j] < k && conflict(i, j)) out.emplace_back(static_cast<std::uint32_t>(k), rank[j]);
+            });
+        }
+    }
+    std::vector<char> acceptedAt(order.size(), 0);  // by position in the order
+    for (std::size_t b = 0; b < nBlocks; ++b) {
+        const auto& list = edges[b];
+        std::size_t e = 0;
+        const std::size_t k0 = b * kBlock, k1 = std::min(order.size(), k0 + kBlock);
+        for (std::size_t k = k0; k < k1; ++k) {
+            bool ok = !isBlocked[k];
+            for (; e < list.size() && list[e].first == k; ++e)
+                if (acceptedAt[list[e].second]) ok = false;
+            acceptedAt[k] = ok;
+        }
+    }
+    std::vector<char> accepted(nItems, 0);
+    for (std::size_t k = 0; k < order.size(); ++k) accepted[order[k]] = acceptedAt[k];
+    return accepted;
+}
 
 // ------------------------------------------------------------------------- nearest mapped cell
 
@@ -471,7 +535,10 @@ std::vector<Crown> crownsOf(const std::vector<Tree>& trees) {
 /// Render the trees and measure them against the CHM.
 void renderAndMeasure(const std::vector<Tree>& trees, const Grid<float>& chm, const CanopyParams& p, Frame& frame,
                       Visibility& vis) {
-    render(crownsOf(trees), chm.width(), chm.height(), chm.cellSizeM(), chm.originX(), chm.originY(), frame);
+    std::vector<Crown>& cr = frame.crowns;
+    cr.resize(trees.size());
+    for (std::size_t i = 0; i < trees.size(); ++i) cr[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
+    render(cr, chm.width(), chm.height(), chm.cellSizeM(), chm.originX(), chm.originY(), frame);
     measure(frame, chm, p.canopyThresholdM, p.residualToleranceM, trees.size(), vis);
 }
 
@@ -551,24 +618,27 @@ std::vector<char> duplicateKeepFlags(const std::vector<Crown>& c, double minTrun
         return a < b;
     });
     const double reach = std::max({minTrunkDistanceM, maxR, 1e-6});
-    BucketGrid kept(originX, originY, extentX, extentY, reach);
-    std::vector<char> keep(c.size(), 0);
+    const PointGrid all(originX, originY, extentX, extentY, reach, c.size(), [&](std::size_t i) { return c[i].x; },
+                        [&](std::size_t i) { return c[i].y; });
     const double minD2 = minTrunkDistanceM * minTrunkDistanceM;
-    for (const std::size_t i : order) {
-        const Crown& a = c[i];
-        const bool duplicate = kept.any(a.x, a.y, reach, [&](std::int32_t j) {
-            const Crown& b = c[static_cast<std::size_t>(j)];  // at least as tall as a
+    // A crown goes when a kept crown earlier in the order (at least as tall) holds it.
+    return greedyAccept(
+        order, c.size(), [](std::size_t) { return false; },
+        [&](std::size_t i, auto&& fn) {
+            all.any(c[i].x, c[i].y, reach, [&](std::int32_t j) {
+                fn(static_cast<std::size_t>(j));
+                return false;
+            });
+        },
+        [&](std::size_t i, std::size_t j) {
+            const Crown& a = c[i];
+            const Crown& b = c[j];
             const double dx = b.x - a.x, dy = b.y - a.y;
             const double d2 = dx * dx + dy * dy;
             if (d2 < minD2) return true;
             const double dz = (b.h - b.r) - (a.h - a.r);
             return std::sqrt(d2 + dz * dz) + a.r <= b.r;
         });
-        if (duplicate) continue;
-        keep[i] = 1;
-        kept.insert(a.x, a.y, static_cast<std::int32_t>(i));
-    }
-    return keep;
 }
 
 }  // namespace
@@ -675,7 +745,6 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                                   std::to_string(i / static_cast<std::size_t>(speciesMap.width())) +
                                   ") is not a canopy species of biome '" + biome.name + "' nor -1");
     }
-
     const Scene scene(chmM, speciesMap, biome, params);
     const double cell = chmM.cellSizeM();
     const double maxRadius = std::max(largestRadius(biome, chmM.maxValue()), cell);
@@ -688,8 +757,6 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     result.initialSeeds = trees.size();
     Frame frame;
     Visibility vis;
-    std::vector<std::uint8_t> candValid;
-    std::vector<Tree> candTree;
     renderAndMeasure(trees, chmM, params, frame, vis);
     {
         IterationStats s;
@@ -706,15 +773,19 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     // iterations lost coverage).
     std::vector<Tree> bestTrees = trees;
     std::size_t bestIteration = 0;
+    std::vector<Tree> next;
+    std::vector<std::size_t> from;
     for (int it = 1; it <= params.maxIterations; ++it) {
         tIter = Clock::now();
         IterationStats s;
         s.iteration = it;
 
         // Remove sun-starved trees; move the others toward the centroid of their visible crown.
-        std::vector<Tree> next;
+        // (next and from keep their buffers across iterations: fresh large allocations cost
+        // page faults on every iteration.)
+        next.clear();
         next.reserve(trees.size());
-        std::vector<std::size_t> from;
+        from.clear();
         from.reserve(trees.size());
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) {
@@ -762,9 +833,11 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             }
             return static_cast<double>(open) >= params.supportFraction * static_cast<double>(disc);
         };
-        // Trunks of the trees so far, for the residual apices and the ring (new trees appended).
-        BucketGrid grid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
-        for (std::size_t t = 0; t < trees.size(); ++t) grid.insert(trees[t].x, trees[t].y, static_cast<std::int32_t>(t));
+        // Trunks of the trees so far (rebuilt after the residual apices for the ring).
+        auto trunkGrid = [&](const std::vector<Tree>& ts) {
+            return PointGrid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius, ts.size(),
+                             [&](std::size_t i) { return ts[i].x; }, [&](std::size_t i) { return ts[i].y; });
+        };
         if (params.residualApices != 0) {
             // Residual apices: strict maxima of the CHM among the footprint cells that no
             // crown of the last render explains (uncovered, or standing above the rendered
@@ -793,21 +866,51 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                              [&](std::size_t a, std::size_t b) { return chmData[apices[a]] > chmData[apices[b]]; });
             const std::size_t firstNew = trees.size();
             const double d2 = params.minTrunkDistanceM * params.minTrunkDistanceM;
-            for (const std::size_t k : order) {
+            const PointGrid oldTrunks = trunkGrid(trees);
+            auto cellXY = [&](std::size_t k, double& x, double& y) {
                 const std::size_t i = apices[k];
-                const double x = chmM.cellCentreX(static_cast<int>(i % w)), y = chmM.cellCentreY(static_cast<int>(i / w));
-                const double z = chmData[i];
-                const bool explained = grid.any(x, y, maxRadius, [&](std::int32_t j) {
-                    const Tree& o = trees[static_cast<std::size_t>(j)];
+                x = chmM.cellCentreX(static_cast<int>(i % w));
+                y = chmM.cellCentreY(static_cast<int>(i / w));
+            };
+            // Candidates' own trunks, for the conflicts among them.
+            const PointGrid candTrunks(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius,
+                                       order.size(), [&](std::size_t p) { return cand[order[p]].x; },
+                                       [&](std::size_t p) { return cand[order[p]].y; });
+            // A candidate is explained by an existing trunk closer than minTrunkDistanceM, or
+            // by an accepted candidate earlier in the order: its trunk that close, or its
+            // crown above the candidate's cell.
+            const std::vector<char> accept = greedyAccept(
+                order, apices.size(),
+                [&](std::size_t k) {
+                    double x, y;
+                    cellXY(k, x, y);
+                    return oldTrunks.any(x, y, params.minTrunkDistanceM, [&](std::int32_t j) {
+                        const Tree& o = trees[static_cast<std::size_t>(j)];
+                        return (o.x - x) * (o.x - x) + (o.y - y) * (o.y - y) < d2;
+                    });
+                },
+                [&](std::size_t k, auto&& fn) {
+                    double x, y;
+                    cellXY(k, x, y);
+                    candTrunks.any(x, y, maxRadius, [&](std::int32_t p) {
+                        fn(order[static_cast<std::size_t>(p)]);
+                        return false;
+                    });
+                },
+                [&](std::size_t k, std::size_t j) {
+                    double x, y;
+                    cellXY(k, x, y);
+                    const Tree& o = cand[j];
                     const double dd = (o.x - x) * (o.x - x) + (o.y - y) * (o.y - y);
                     if (dd < d2) return true;
-                    if (static_cast<std::size_t>(j) < firstNew || dd >= o.radiusM * o.radiusM) return false;
+                    if (dd >= o.radiusM * o.radiusM) return false;
+                    const double z = chmData[apices[k]];
                     return z <= o.heightM - o.radiusM + std::sqrt(o.radiusM * o.radiusM - dd) + params.residualToleranceM;
                 });
-                if (explained) continue;
+            for (const std::size_t k : order) {
+                if (!accept[k]) continue;
                 Tree c = cand[k];
                 c.uid = nextUid++;
-                grid.insert(c.x, c.y, static_cast<std::int32_t>(trees.size()));
                 trees.push_back(c);
             }
             s.added += trees.size() - firstNew;
@@ -820,13 +923,18 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             const int K = params.ringSamples;
             std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
             for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
-            // One slot per (tree, direction): a flag array (cleared each iteration) and tree
-            // slots that are only written when valid, kept across iterations.
-            candValid.assign(trees.size() * static_cast<std::size_t>(K), 0);
-            if (candTree.size() < candValid.size()) candTree.resize(candValid.size());
-#pragma omp parallel for schedule(dynamic, 256)
-            for (std::ptrdiff_t tt = 0; tt < static_cast<std::ptrdiff_t>(trees.size()); ++tt) {
-                const Tree& tr = trees[static_cast<std::size_t>(tt)];
+            // Candidates of fixed blocks of trees (independent of the thread count), each block's
+            // list in (tree, direction) order: their concatenation is that order.
+            const PointGrid trunks = trunkGrid(trees);
+            constexpr std::size_t kRingBlock = 1024;
+            const std::size_t nBlocks = (trees.size() + kRingBlock - 1) / kRingBlock;
+            std::vector<std::vector<Tree>> blockCand(nBlocks);
+#pragma omp parallel for schedule(dynamic, 1)
+            for (std::ptrdiff_t bb = 0; bb < static_cast<std::ptrdiff_t>(nBlocks); ++bb) {
+              auto& out = blockCand[static_cast<std::size_t>(bb)];
+              const std::size_t t0 = static_cast<std::size_t>(bb) * kRingBlock, t1 = std::min(trees.size(), t0 + kRingBlock);
+              for (std::size_t tt = t0; tt < t1; ++tt) {
+                const Tree& tr = trees[tt];
                 RandomStream rng(params.seed, mixStream(mixStream(kStreamRing, static_cast<std::uint64_t>(it)), tr.uid));
                 const double phase = rng.uniform() * kTwoPi / K;
                 const double cp = std::cos(phase), sp = std::sin(phase);
@@ -852,34 +960,52 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     if (!vis.open[ci]) continue;
                     const double hNew = scene.heightAt(x, y);
                     if (hNew < params.minSeedHeightM) continue;
-                    const bool inCrown = grid.any(x, y, maxRadius, [&](std::int32_t j) {
+                    const bool inCrown = trunks.any(x, y, maxRadius, [&](std::int32_t j) {
                         const Tree& o = trees[static_cast<std::size_t>(j)];
                         const double dx = o.x - x, dy = o.y - y;
                         return dx * dx + dy * dy < o.radiusM * o.radiusM;
                     });
                     if (inCrown) continue;
-                    if (!supported(chmM.cellX(x), chmM.cellY(y), scene.radiusFor(scene.speciesAt(x, y), hNew))) continue;
-                    const std::size_t slot = static_cast<std::size_t>(tt) * static_cast<std::size_t>(K) + static_cast<std::size_t>(k);
-                    candValid[slot] = 1;
-                    candTree[slot] = scene.makeTree(x, y, hNew, 0);
+                    const Tree c = scene.makeTree(x, y, hNew, 0);
+                    if (!supported(chmM.cellX(x), chmM.cellY(y), c.radiusM)) continue;
+                    out.push_back(c);
+                }
+              }
+            }
+            std::vector<Tree> cands;
+            {
+                std::size_t total = 0;
+                for (const auto& bc : blockCand) total += bc.size();
+                cands.reserve(total);
+                for (auto& bc : blockCand) {
+                    cands.insert(cands.end(), bc.begin(), bc.end());
+                    std::vector<Tree>().swap(bc);
                 }
             }
             // Accept in order: a candidate whose trunk lies in an accepted new crown, or whose
             // crown holds an accepted new trunk, is dropped.
-            BucketGrid added(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius);
-            std::vector<Tree> fresh;
-            for (std::size_t slot = 0; slot < candValid.size(); ++slot) {
-                if (!candValid[slot]) continue;
-                const Tree& c = candTree[slot];
-                const bool clash = added.any(c.x, c.y, maxRadius, [&](std::int32_t j) {
-                    const Tree& o = fresh[static_cast<std::size_t>(j)];
+            const PointGrid candTrunks = trunkGrid(cands);
+            std::vector<std::size_t> inOrder(cands.size());
+            std::iota(inOrder.begin(), inOrder.end(), 0);
+            const std::vector<char> accept = greedyAccept(
+                inOrder, cands.size(), [](std::size_t) { return false; },
+                [&](std::size_t i, auto&& fn) {
+                    candTrunks.any(cands[i].x, cands[i].y, maxRadius, [&](std::int32_t j) {
+                        fn(static_cast<std::size_t>(j));
+                        return false;
+                    });
+                },
+                [&](std::size_t i, std::size_t j) {
+                    const Tree& c = cands[i];
+                    const Tree& o = cands[j];
                     const double dx = o.x - c.x, dy = o.y - c.y;
                     const double rr = std::max(o.radiusM, c.radiusM);
                     return dx * dx + dy * dy < rr * rr;
                 });
-                if (clash) continue;
-                added.insert(c.x, c.y, static_cast<std::int32_t>(fresh.size()));
-                fresh.push_back(c);
+            std::vector<Tree> fresh;
+            for (std::size_t i = 0; i < cands.size(); ++i) {
+                if (!accept[i]) continue;
+                fresh.push_back(cands[i]);
                 fresh.back().uid = nextUid++;
             }
             s.added += fresh.size();
@@ -893,7 +1019,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         result.iterations.push_back(s);
         if (progress) progress(s);
         if (s.coverage > result.iterations[bestIteration].coverage) {
-            bestTrees = trees;
+            if (bestTrees.capacity() < trees.size()) bestTrees.reserve(trees.size() + trees.size() / 4);
+            bestTrees.assign(trees.begin(), trees.end());
             bestIteration = result.iterations.size() - 1;
         }
         if (gain < params.coverageEpsilon) {
@@ -914,7 +1041,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     IterationStats fin;
     fin.iteration = -1;
     {
-        std::vector<Tree> kept;
+        std::vector<Tree>& kept = next;
+        kept.clear();
         kept.reserve(trees.size());
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) kept.push_back(trees[t]);
@@ -924,7 +1052,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     {
         const auto keep = duplicateKeepFlags(crownsOf(trees), params.minTrunkDistanceM, chmM.originX(), chmM.originY(),
                                              chmM.extentX(), chmM.extentY());
-        std::vector<Tree> kept;
+        std::vector<Tree>& kept = next;
+        kept.clear();
         for (std::size_t i = 0; i < trees.size(); ++i)
             if (keep[i]) kept.push_back(trees[i]);
         result.duplicatesRemoved = trees.size() - kept.size();

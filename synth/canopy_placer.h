@@ -29,7 +29,9 @@
 // included): identical bits for any number of OpenMP threads. The render splits the grid
 // into bands of rows, each written by one thread, trees in index order, depth ties to the
 // lower tree index; per-tree sums are integers; random numbers come from Philox keyed by
-// (seed, iteration, tree id); new trees are accepted serially in a fixed order.
+// (seed, iteration, tree id); new trees and duplicates are decided in a fixed order (the
+// conflicts with earlier items listed in parallel over fixed blocks, then one serial pass:
+// the one-by-one result).
 #pragma once
 
 #include <cstdint>

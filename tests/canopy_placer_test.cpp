@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -224,6 +225,57 @@ TEST_CASE("crowns render as spheres with depth ties to the lower index", "[canop
     plants.push_back({2, 22.0, 30.0, 0, 14.0, 3.0});
     const synth::CrownRender r2 = synth::renderCrowns(plants, like);
     CHECK(r2.treeIndex(like.cellX(22.1), like.cellY(30.1)) == 2);
+}
+
+TEST_CASE("duplicate removal in parallel equals the one-by-one greedy rule, for 1 and 2 threads", "[canopy]") {
+    // Clustered random crowns (many chains of conflicts), with tied heights and radii.
+    std::vector<Plant> plants;
+    RandomStream rng(5, 77);
+    for (int c = 0; c < 300; ++c) {
+        const double cx = rng.uniform(0, 200), cy = rng.uniform(0, 150);
+        for (int k = 0; k < 8; ++k) {
+            const double h = std::round(rng.uniform(5, 25) * 2) / 2;  // ties on purpose
+            plants.push_back({0, cx + rng.uniform(-3, 3), cy + rng.uniform(-3, 3), 0, h, std::round(h / 5) / 2 + 0.5});
+        }
+    }
+    // Reference: tallest first (ties: larger crown, lower index), each against every kept one.
+    std::vector<std::size_t> order(plants.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        if (plants[a].heightM != plants[b].heightM) return plants[a].heightM > plants[b].heightM;
+        if (plants[a].crownRadiusM != plants[b].crownRadiusM) return plants[a].crownRadiusM > plants[b].crownRadiusM;
+        return a < b;
+    });
+    const double minD = 1.2;
+    std::vector<char> keep(plants.size(), 0);
+    std::vector<std::size_t> kept;
+    for (const std::size_t i : order) {
+        const Plant& a = plants[i];
+        bool dup = false;
+        for (const std::size_t j : kept) {
+            const Plant& b = plants[j];
+            const double d2 = (a.xM - b.xM) * (a.xM - b.xM) + (a.yM - b.yM) * (a.yM - b.yM);
+            const double dz = (b.heightM - b.crownRadiusM) - (a.heightM - a.crownRadiusM);
+            if (d2 < minD * minD || std::sqrt(d2 + dz * dz) + a.crownRadiusM <= b.crownRadiusM) {
+                dup = true;
+                break;
+            }
+        }
+        if (dup) continue;
+        keep[i] = 1;
+        kept.push_back(i);
+    }
+    std::vector<Plant> expected;
+    for (std::size_t i = 0; i < plants.size(); ++i)
+        if (keep[i]) expected.push_back(plants[i]);
+    REQUIRE(expected.size() < plants.size() * 3 / 4);  // many removed: the order matters
+    for (const int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        std::vector<Plant> got = plants;
+        CHECK(synth::removeDuplicateTrees(got, minD) == plants.size() - expected.size());
+        CHECK(sameTrees(got, expected));
+    }
+    omp_set_num_threads(2);
 }
 
 TEST_CASE("duplicates: close trunks and crowns inside larger crowns are removed", "[canopy]") {
