@@ -293,7 +293,7 @@ TEST_CASE("the structured sampler is identical for 1 and 2 threads", "[synth][st
 
 TEST_CASE("the structured sampler's parallel paths give one scene for 1, 2 and 3 threads", "[synth][structured]") {
     // The test above runs below the sampler's parallel threshold (65536 candidates): here a
-    // 400 m square at 0.5 m cells (about 200k candidates) with clustered ferns, Toyon with
+    // 400 m square at 0.5 m cells (about 200k darts) with clustered ferns, Toyon with
     // a hard core and Poisson sorrel, so that the threads split the candidate rows, the quota
     // keys, the hard cores' neighbour lists, the final order and the sizes; 3 threads split
     // every range unevenly.
@@ -316,7 +316,7 @@ TEST_CASE("the structured sampler's parallel paths give one scene for 1, 2 and 3
         if (ok) hard.push_back(undergrowthPlant(toyon, x, y, rng.uniform(0.2, 2.0)));
     }
     ug.insert(ug.end(), hard.begin(), hard.end());
-    for (int i = 0; i < 2000; ++i) ug.push_back(undergrowthPlant(sorrel, rng.uniform(0, kSideM), rng.uniform(0, kSideM), rng.uniform(0.05, 0.4)));
+    for (int i = 0; i < 6000; ++i) ug.push_back(undergrowthPlant(sorrel, rng.uniform(0, kSideM), rng.uniform(0, kSideM), rng.uniform(0.05, 0.4)));
     const BiomeDatabase db = analyseScene(small, ug);
 
     Scene big;
@@ -337,7 +337,7 @@ TEST_CASE("the structured sampler's parallel paths give one scene for 1, 2 and 3
     }
     omp_set_num_threads(before);
     const synth::UndergrowthSample& one = runs[0];
-    REQUIRE(one.darts > 150000);         // above the parallel threshold
+    REQUIRE(one.darts > 2 * 65536);      // well above the parallel threshold
     REQUIRE(one.dartsInhibited > 0);     // the hard cores took part
     REQUIRE(one.plants.size() > 50000);
     for (std::size_t k = 1; k < runs.size(); ++k) {
