@@ -9,8 +9,16 @@
 #include <ctime>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
+#include <memory>
+#include <new>
+#include <type_traits>
 #include <vector>
+
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
 
 #include "biome.h"
 #include "grid.h"
@@ -52,6 +60,59 @@ private:
     std::vector<UndergrowthSample::Phase>& phases_;
     std::chrono::steady_clock::time_point mark_;
     std::clock_t cpuMark_;
+};
+
+/// Asks the kernel for transparent huge pages (2 MB) over the whole 2 MB pages inside
+/// [p, p + bytes), where it offers them on request (Linux, THP mode "madvise"): the
+/// samplers' large arrays are written once, and on this project's virtual machines a
+/// fresh 4 kB page fault cost 10-30 us (a 2 MB one about as much as 50 small ones), which
+/// made page faults a large share of the sampler at 3072^2 (docs/synth.md, Performance).
+/// A hint only: nothing changes but the time.
+inline void adviseHugePages(void* p, std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    constexpr std::uintptr_t kHuge = std::uintptr_t{1} << 21;
+    const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
+    const std::uintptr_t b = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+    if (b > a) madvise(reinterpret_cast<void*>(a), b - a, MADV_HUGEPAGE);
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
+
+/// An uninitialised array of trivially copyable items (a std::vector clears its items on
+/// one thread first; here the threads that fill it touch its pages), on huge pages when it
+/// is large (adviseHugePages).
+template <typename T>
+class RawArray {
+    static_assert(std::is_trivially_copyable<T>::value && std::is_trivially_default_constructible<T>::value,
+                  "RawArray holds plain items");
+    struct Free {
+        void operator()(T* q) const { std::free(q); }
+    };
+
+public:
+    RawArray() = default;
+    explicit RawArray(std::size_t count) : n_(count) {
+        if (count == 0) return;
+        constexpr std::size_t kHuge = std::size_t{1} << 21;
+        const std::size_t bytes = count * sizeof(T);
+        const bool large = bytes >= 2 * kHuge;
+        const std::size_t align = large ? kHuge : 64;
+        void* q = std::aligned_alloc(align, (bytes + align - 1) / align * align);
+        if (q == nullptr) throw std::bad_alloc();
+        if (large) adviseHugePages(q, bytes);
+        p_.reset(static_cast<T*>(q));
+    }
+    T* data() { return p_.get(); }
+    const T* data() const { return p_.get(); }
+    std::size_t size() const { return n_; }
+    T& operator[](std::size_t i) { return p_.get()[i]; }
+    const T& operator[](std::size_t i) const { return p_.get()[i]; }
+
+private:
+    std::unique_ptr<T, Free> p_;
+    std::size_t n_ = 0;
 };
 
 /// Per species: the bitmask of its own sub-biomes (Table 3 column); a seed package of
@@ -232,9 +293,15 @@ std::vector<double> speciesContextDensities(const BiomeDatabase& db);
 /// out.heightsLimitedByCrown in the order of `accepted`. Parallel over plants, each keyed by
 /// its own random key (Candidate::key). Every candidate's cell must lie in a region.
 /// Defined in synth/structured_sampler.cpp; the structured and Deussen samplers use it.
+/// The plants are accepted[order[i]] for i < count (accepted[i] when order is null).
 void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
-               const Grid<float>& terrainM, const SynthParams& params, bool withContext,
-               const std::vector<Candidate>& accepted, UndergrowthSample& out);
+               const Grid<float>& terrainM, const SynthParams& params, bool withContext, const Candidate* accepted,
+               const std::uint32_t* order, std::size_t count, UndergrowthSample& out);
+inline void drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
+                      const Grid<float>& terrainM, const SynthParams& params, bool withContext,
+                      const std::vector<Candidate>& accepted, UndergrowthSample& out) {
+    drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted.data(), nullptr, accepted.size(), out);
+}
 
 }  // namespace eco::synth::detail
 

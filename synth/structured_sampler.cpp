@@ -23,6 +23,7 @@
 #include <cmath>
 #include <ctime>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <unordered_map>
 
@@ -393,12 +394,13 @@ namespace {
 /// (much more when other processes hold the cores).
 constexpr std::size_t kParallelMin = std::size_t{1} << 16;
 
-/// A counting sort of items 0 .. n-1 into buckets, in parallel: each thread counts, then
-/// places, a contiguous share of the items, so a bucket holds its items in input order for
-/// any number of threads. bucketOf(i) is in [0, nBuckets]; nBuckets leaves the item out.
-/// place(i, p) puts item i at position p. Returns the buckets' starts (nBuckets + 1).
-template <typename BucketOf, typename Place>
-std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, BucketOf bucketOf, Place place) {
+/// A counting sort of items into buckets, in parallel: each thread counts, then places, a
+/// contiguous share [lo, hi) of the items (forRange(lo, hi, f) calls f(item) on them in
+/// order), so a bucket holds its items in input order for any number of threads.
+/// bucketOf(item) is in [0, nBuckets]; nBuckets leaves the item out. place(item, p) puts the
+/// item at position p. Returns the buckets' starts (nBuckets + 1).
+template <typename ForRange, typename BucketOf, typename Place>
+std::vector<std::size_t> scatterRanges(std::size_t n, std::size_t nBuckets, ForRange forRange, BucketOf bucketOf, Place place) {
     const std::size_t maxThreads = static_cast<std::size_t>(omp_get_max_threads());
     std::vector<std::size_t> next(maxThreads * (nBuckets + 1), 0);  // [thread][bucket]: count, then position
     std::vector<std::size_t> start(nBuckets + 1, 0);
@@ -407,7 +409,7 @@ std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, Bu
         const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
         const std::size_t lo = n * t / nt, hi = n * (t + 1) / nt;
         std::size_t* mine = &next[t * (nBuckets + 1)];
-        for (std::size_t i = lo; i < hi; ++i) ++mine[bucketOf(i)];
+        forRange(lo, hi, [&](const auto& item) { ++mine[bucketOf(item)]; });
 #pragma omp barrier
 #pragma omp single
         {
@@ -423,28 +425,82 @@ std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, Bu
             }
             start[nBuckets] = at;
         }
-        for (std::size_t i = lo; i < hi; ++i) {
-            const std::size_t b = bucketOf(i);
-            if (b < nBuckets) place(i, mine[b]++);
-        }
+        forRange(lo, hi, [&](const auto& item) {
+            const std::size_t b = bucketOf(item);
+            if (b < nBuckets) place(item, mine[b]++);
+        });
     }
     return start;
 }
 
-/// Sorts v by `less`: a counting pass into buckets (bucketOf must not decrease along `less`),
-/// then each bucket sorted on its own, in parallel. The same order as std::sort for a strict
-/// total order, for any thread count.
+/// scatterRanges over the items 0 .. n-1 (bucketOf(i), place(i, p)).
+template <typename BucketOf, typename Place>
+std::vector<std::size_t> scatterByBucket(std::size_t n, std::size_t nBuckets, BucketOf bucketOf, Place place) {
+    auto indices = [](std::size_t lo, std::size_t hi, const auto& f) {
+        for (std::size_t i = lo; i < hi; ++i) f(i);
+    };
+    return scatterRanges(n, nBuckets, indices, bucketOf, place);
+}
+
+/// The candidates of a pass as the rows made them: item i of the whole is item
+/// i - rowStart[y] of row y (at rowPtr[y]). forRange visits a range of them in order without
+/// copying them into one array (at 3072^2 that copy was half a gigabyte of fresh pages).
+struct RowCandidates {
+    const std::vector<const Candidate*>& rowPtr;
+    const std::vector<std::size_t>& rowStart;  ///< rowPtr.size() + 1
+    template <typename F>
+    void operator()(std::size_t lo, std::size_t hi, const F& f) const {
+        if (lo >= hi) return;
+        std::size_t y = static_cast<std::size_t>(std::upper_bound(rowStart.begin(), rowStart.end(), lo) - rowStart.begin()) - 1;
+        std::size_t i = lo;
+        while (i < hi) {
+            const std::size_t end = std::min(hi, rowStart[y + 1]);
+            const Candidate* row = rowPtr[y];
+            for (std::size_t j = i - rowStart[y]; i < end; ++i, ++j) f(row[j]);
+            ++y;
+        }
+    }
+};
+
+/// A thread's store of candidate rows: blocks of a million candidates (24 MB, on huge
+/// pages), each row copied whole into one.
+struct CandidateArena {
+    static constexpr std::size_t kBlock = std::size_t{1} << 20;
+    std::vector<RawArray<Candidate>> blocks;
+    std::size_t used = 0;  ///< in the last block
+    const Candidate* append(const Candidate* src, std::size_t n) {
+        if (n == 0) return nullptr;
+        if (blocks.empty() || used + n > blocks.back().size()) {
+            blocks.emplace_back(std::max(n, kBlock));
+            used = 0;
+        }
+        Candidate* dst = blocks.back().data() + used;
+        std::copy(src, src + n, dst);
+        used += n;
+        return dst;
+    }
+};
+
+/// The order of v[0 .. n-1] by `less`, as indices: a counting pass into buckets (bucketOf
+/// must not decrease along `less`), then each bucket sorted on its own, in parallel (equal
+/// items by index). The same for any thread count.
 template <typename BucketOf, typename Less>
-void sortInBuckets(std::vector<Candidate>& v, std::size_t nBuckets, BucketOf bucketOf, Less less) {
-    std::vector<Candidate> sorted(v.size());
+RawArray<std::uint32_t> orderInBuckets(const Candidate* v, std::size_t n, std::size_t nBuckets, BucketOf bucketOf, Less less) {
+    RawArray<std::uint32_t> order(n);
     const std::vector<std::size_t> start = scatterByBucket(
-        v.size(), nBuckets, [&](std::size_t i) { return bucketOf(v[i]); }, [&](std::size_t i, std::size_t p) { sorted[p] = v[i]; });
-#pragma omp parallel for schedule(dynamic, 256) if (v.size() >= kParallelMin)
+        n, nBuckets, [&](std::size_t i) { return bucketOf(v[i]); },
+        [&](std::size_t i, std::size_t p) { order[p] = static_cast<std::uint32_t>(i); });
+#pragma omp parallel for schedule(dynamic, 256) if (n >= kParallelMin)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nBuckets); ++b) {
         const std::size_t lo = start[static_cast<std::size_t>(b)], hi = start[static_cast<std::size_t>(b) + 1];
-        if (hi - lo > 1) std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(lo), sorted.begin() + static_cast<std::ptrdiff_t>(hi), less);
+        if (hi - lo > 1)
+            std::sort(order.data() + lo, order.data() + hi, [&](std::uint32_t a, std::uint32_t c) {
+                if (less(v[a], v[c])) return true;
+                if (less(v[c], v[a])) return false;
+                return a < c;
+            });
     }
-    v.swap(sorted);
+    return order;
 }
 
 /// Per (region, mask index, context): cumulative weights over species (the roulette of the
@@ -655,9 +711,10 @@ struct HardCore {
                     if (conflict(c, placed[static_cast<std::size_t>(o)], hc)) return true;
         return false;
     }
-    /// Removes the dropped candidates of a pass from `cand` (the admitted keep their order)
-    /// and appends them to `dropped`; the admitted ones that inhibit others are placed.
-    void select(std::vector<Candidate>& cand, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
+    /// Removes the dropped candidates of a pass from cand[0 .. count - 1] (the admitted keep
+    /// their order, moved to the front) and appends them to `dropped`; the admitted ones that
+    /// inhibit others are placed. Returns how many are admitted.
+    std::size_t select(Candidate* cand, std::size_t count, const std::int32_t* regionOfCell, std::vector<Candidate>& dropped) {
         const std::size_t nb = head.size();
         auto inhibited = [&](const Candidate& c) {
             return speciesInhibited[static_cast<std::size_t>(regionOfCell[c.cell]) * nSpecies + c.species] != 0;
@@ -665,19 +722,19 @@ struct HardCore {
         auto concerned = [&](const Candidate& c) { return speciesInhibits[c.species] != 0 || inhibited(c); };
         // The concerned candidates by bucket, in the order they came inside a bucket: position p;
         // origin[p] its index in cand.
-        std::vector<std::uint32_t> concernedBucket(cand.size());
+        RawArray<std::uint32_t> concernedBucket(count);
         std::size_t n = 0;
-#pragma omp parallel for schedule(static) reduction(+ : n) if (cand.size() >= kParallelMin)
-        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(cand.size()); ++ii) {
+#pragma omp parallel for schedule(static) reduction(+ : n) if (count >= kParallelMin)
+        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(count); ++ii) {
             const Candidate& c = cand[static_cast<std::size_t>(ii)];
             const bool in = concerned(c);
             concernedBucket[static_cast<std::size_t>(ii)] = static_cast<std::uint32_t>(in ? bucketOf(c) : nb);
             n += in;
         }
-        std::vector<Candidate> cb(n);
-        std::vector<std::uint32_t> origin(n);
+        RawArray<Candidate> cb(n);
+        RawArray<std::uint32_t> origin(n);
         const std::vector<std::size_t> start = scatterByBucket(
-            cand.size(), nb, [&](std::size_t i) { return concernedBucket[i]; },
+            count, nb, [&](std::size_t i) { return concernedBucket[i]; },
             [&](std::size_t i, std::size_t p) {
                 cb[p] = cand[i];
                 origin[p] = static_cast<std::uint32_t>(i);
@@ -762,7 +819,7 @@ struct HardCore {
         }
         // Admitted ones that inhibit others placed; the dropped ones moved out of cand (in
         // place: a copy would be one more large array to fault in).
-        std::vector<std::uint8_t> drop(cand.size(), 0);
+        std::vector<std::uint8_t> drop(count, 0);
         for (std::size_t p = 0; p < n; ++p) {
             if (state[p] != 1) {
                 drop[origin[p]] = 1;
@@ -775,13 +832,13 @@ struct HardCore {
             placed.push_back(cb[p]);
         }
         std::size_t k = 0;
-        for (std::size_t i = 0; i < cand.size(); ++i) {
+        for (std::size_t i = 0; i < count; ++i) {
             if (drop[i])
                 dropped.push_back(cand[i]);
             else
                 cand[k++] = cand[i];
         }
-        cand.resize(k);
+        return k;
     }
 };
 
@@ -790,7 +847,7 @@ struct HardCore {
 // Sizes (declared in sampling_detail.h).
 void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::vector<Plant>& canopy, const ClusterMap& map,
                const Grid<float>& terrainM, const SynthParams& params, bool withContext,
-               const std::vector<Candidate>& accepted, UndergrowthSample& out) {
+               const Candidate* accepted, const std::uint32_t* order, std::size_t count, UndergrowthSample& out) {
     const std::size_t nR = db.regions.size(), nS = static_cast<std::size_t>(db.speciesCount());
     const double ox = terrainM.originX(), oy = terrainM.originY();
     const std::vector<DbHistogram> pooledHeight = pooledSizeHistograms(db, false);
@@ -829,13 +886,22 @@ void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::v
                 drawOf[(r * nS + s) * 2 + static_cast<std::size_t>(covered)] = static_cast<int>(draws.size());
                 draws.emplace_back(*hist, radius, biome.species[s].allometry);
             }
-    const std::int64_t nPlants = static_cast<std::int64_t>(accepted.size());
-    out.plants.resize(accepted.size());
-    out.plantRegion.resize(accepted.size());
+    const std::int64_t nPlants = static_cast<std::int64_t>(count);
+    out.plants.reserve(count);
+    out.plantRegion.reserve(count);
+    adviseHugePages(out.plants.data(), count * sizeof(Plant));
+    adviseHugePages(out.plantRegion.data(), count * sizeof(int));
+    out.plants.resize(count);
+    out.plantRegion.resize(count);
     std::int64_t limited = 0;
 #pragma omp parallel for schedule(static) reduction(+ : limited)
     for (std::int64_t i = 0; i < nPlants; ++i) {
-        const Candidate& cnd = accepted[static_cast<std::size_t>(i)];
+        // The plants come in cell order, read through the permutation from the pass order:
+        // the candidate some plants ahead fetched early (its cache miss was a quarter of
+        // this loop).
+        constexpr std::int64_t kAhead = 16;
+        if (order != nullptr && i + kAhead < nPlants) __builtin_prefetch(&accepted[order[i + kAhead]]);
+        const Candidate& cnd = accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)];
         const std::size_t s = cnd.species;
         const int r = map.region.data()[cnd.cell];
         Plant p;
@@ -939,7 +1005,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     for (int ix = 0; ix < w; ++ix) tileX[static_cast<std::size_t>(ix)] = std::min(nTx - 1, static_cast<int>((ix + 0.5) * cs / tileM));
     for (int iy = 0; iy < h; ++iy) tileY[static_cast<std::size_t>(iy)] = std::min(nTy - 1, static_cast<int>((iy + 0.5) * cs / tileM));
     // The quota tile of every cell (a lookup instead of a division per candidate).
-    std::vector<std::uint32_t> tileOfCell(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+    RawArray<std::uint32_t> tileOfCell(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
 #pragma omp parallel for schedule(static)
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix)
@@ -1005,9 +1071,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 
     HardCore hardCore(out.structure, nS, terrainM.extentX(), terrainM.extentY());
     phase("masks, quotas, trunks");
-    std::vector<Candidate> accepted;
-    // No group takes more than its quota: one allocation for every pass's plants.
-    accepted.reserve(static_cast<std::size_t>(std::accumulate(quotaG.begin(), quotaG.end(), std::int64_t{0})));
+    // No group takes more than its quota (and the hard cores' drops leave the array): one
+    // allocation for every pass's plants, filled in pass order.
+    RawArray<Candidate> accepted(static_cast<std::size_t>(std::accumulate(quotaG.begin(), quotaG.end(), std::int64_t{0})));
+    std::size_t nAccepted = 0;
     for (int pass = 0; pass < params.maxPasses; ++pass) {
         // Rate factor per (region, species): the oversampling times the share of its quota
         // still missing. Every pass draws from the same model: the free part, and offspring
@@ -1073,14 +1140,17 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             for (std::size_t m = 0; m < masks.size(); ++m)
                 for (std::size_t c = 0; c < nCtx; ++c)
                     expFree[(r * masks.size() + m) * nCtx + c] = std::exp(-std::min(100.0, table.total(r, m, c) * cellArea));
-        // Per row a list of candidates (one per thread would grow by copies of hundreds of MB
-        // on big terrains).
-        std::vector<std::vector<Candidate>> rowCand(static_cast<std::size_t>(h));
+        // Per row its candidates, made in a buffer of the thread and copied whole into the
+        // thread's arena (large blocks on huge pages: growing a vector per row cost a page
+        // fault per 4 kB, hundreds of MB at 3072^2); the rows are then read in row order.
+        const std::size_t maxThreads = static_cast<std::size_t>(omp_get_max_threads());
+        std::vector<const Candidate*> rowPtr(static_cast<std::size_t>(h), nullptr);
+        std::vector<std::size_t> rowCount(static_cast<std::size_t>(h), 0);
+        std::vector<CandidateArena> arenas(maxThreads);
+        std::vector<std::vector<Candidate>> rowBuffer(maxThreads);
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
-#pragma omp parallel for schedule(dynamic, 8)
-        for (int iy = 0; iy < h; ++iy) {
-            auto& cand = rowCand[static_cast<std::size_t>(iy)];
+        auto rowBody = [&](const int iy, std::vector<Candidate>& cand) {
             std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
             // A candidate off the trunks joins the row's list.
             auto keep = [&](double x, double y, std::size_t cell, std::size_t s, std::uint64_t key) {
@@ -1146,7 +1216,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     keep(x, y, cell, s, key);
                 }
             }
-            if (pass != 0) continue;
+            if (pass != 0) return;
             // Cluster parents of each field (the same in every pass): per row a Poisson number
             // at the row's total rate kappa x area, each in a cell drawn by its rate; then
             // their offspring of each attached species.
@@ -1197,33 +1267,34 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     }
                 }
             }
+        };
+#pragma omp parallel for schedule(dynamic, 8)
+        for (int iy = 0; iy < h; ++iy) {
+            const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+            std::vector<Candidate>& cand = rowBuffer[t];
+            cand.clear();
+            rowBody(iy, cand);
+            rowCount[static_cast<std::size_t>(iy)] = cand.size();
+            rowPtr[static_cast<std::size_t>(iy)] = arenas[t].append(cand.data(), cand.size());
         }
+        std::vector<std::vector<Candidate>>().swap(rowBuffer);
         phase("candidates");
-        // The pass's candidates in one array, rows in order, with their groups.
         std::vector<std::size_t> rowStart(static_cast<std::size_t>(h) + 1, 0);
         for (int iy = 0; iy < h; ++iy) {
             out.darts += rowThrown[static_cast<std::size_t>(iy)];
             out.dartsOnTrunks += rowOnTrunk[static_cast<std::size_t>(iy)];
-            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCand[static_cast<std::size_t>(iy)].size();
+            rowStart[static_cast<std::size_t>(iy) + 1] = rowStart[static_cast<std::size_t>(iy)] + rowCount[static_cast<std::size_t>(iy)];
         }
         const std::size_t nCand = rowStart[static_cast<std::size_t>(h)];
-        std::vector<Candidate> cand(nCand);
-        std::vector<std::uint32_t> grp(nCand);
-#pragma omp parallel for schedule(dynamic, 16) if (nCand >= kParallelMin)
-        for (int iy = 0; iy < h; ++iy) {
-            std::vector<Candidate>& row = rowCand[static_cast<std::size_t>(iy)];
-            for (std::size_t j = 0, at = rowStart[static_cast<std::size_t>(iy)]; j < row.size(); ++j, ++at) {
-                cand[at] = row[j];
-                grp[at] = static_cast<std::uint32_t>(groupOf(row[j].cell, row[j].species));
-            }
-            std::vector<Candidate>().swap(row);
-        }
+        const RowCandidates rows{rowPtr, rowStart};
+        auto groupOfCand = [&](const Candidate& c) { return groupOf(c.cell, c.species); };
         // Each (region, species, tile) keeps its lowest keys up to what it still misses: the
-        // keys of each group gathered in one array, each group's threshold found by
-        // nth_element in parallel (the k-th smallest key does not depend on the order).
-        std::vector<std::uint64_t> keys(nCand);
-        const std::vector<std::size_t> groupStart = scatterByBucket(
-            nCand, nGroups, [&](std::size_t i) { return grp[i]; }, [&](std::size_t i, std::size_t p) { keys[p] = cand[i].key; });
+        // keys of each group gathered in one array (straight from the rows' lists, in row
+        // order), each group's threshold found by nth_element in parallel (the k-th smallest
+        // key does not depend on the order).
+        RawArray<std::uint64_t> keys(nCand);
+        const std::vector<std::size_t> groupStart =
+            scatterRanges(nCand, nGroups, rows, groupOfCand, [&](const Candidate& c, std::size_t p) { keys[p] = c.key; });
         std::vector<std::uint64_t> threshold(nGroups, std::numeric_limits<std::uint64_t>::max());
         std::vector<std::int64_t> equalQuota(nGroups, std::numeric_limits<std::int64_t>::max());
 #pragma omp parallel for schedule(dynamic, 64) if (nCand >= kParallelMin)
@@ -1235,8 +1306,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 equalQuota[i] = 0;
                 continue;
             }
-            const auto b = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i]);
-            const auto e = keys.begin() + static_cast<std::ptrdiff_t>(groupStart[i + 1]);
+            std::uint64_t* b = keys.data() + groupStart[i];
+            std::uint64_t* e = keys.data() + groupStart[i + 1];
             placedG[i] += std::min<std::int64_t>(missing, e - b);  // less those the hard cores drop, below
             if (e - b <= missing) continue;
             std::nth_element(b, b + (missing - 1), e);
@@ -1245,42 +1316,67 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             for (auto it = b; it != e; ++it) less += *it < threshold[i];
             equalQuota[i] = missing - less;
         }
-        std::vector<std::uint64_t>().swap(keys);
+        keys = RawArray<std::uint64_t>();
         // Below the threshold: taken; at it: the first equalQuota[g] in candidate order (a
-        // key drawn twice), decided in order after the parallel pass.
-        std::vector<std::uint8_t> take(nCand);
-        std::size_t nTaken = 0;
-#pragma omp parallel for schedule(static) reduction(+ : nTaken) if (nCand >= kParallelMin)
-        for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(nCand); ++ii) {
-            const std::size_t i = static_cast<std::size_t>(ii);
-            const std::uint64_t t = threshold[grp[i]];
-            take[i] = cand[i].key < t ? 1 : cand[i].key == t ? 2 : 0;
-            nTaken += take[i] == 1;
-        }
-        for (std::size_t i = 0; i < nCand; ++i)
-            if (take[i] == 2) {
-                take[i] = equalQuota[grp[i]]-- > 0 ? 1 : 0;
-                nTaken += take[i];
+        // key drawn twice), decided in order between the parallel count and the copy. Each
+        // thread takes a contiguous share of the candidates, so the accepted ones come in
+        // candidate order, appended to `accepted`, for any number of threads.
+        const std::size_t passFirst = nAccepted;
+        {
+            std::vector<std::size_t> taken(maxThreads + 1, 0);
+            std::vector<std::vector<std::uint8_t>> tieTaken(maxThreads);
+            std::vector<std::vector<std::uint32_t>> tieGroup(maxThreads);
+#pragma omp parallel if (nCand >= kParallelMin)
+            {
+                const std::size_t t = static_cast<std::size_t>(omp_get_thread_num()), nt = static_cast<std::size_t>(omp_get_num_threads());
+                const std::size_t lo = nCand * t / nt, hi = nCand * (t + 1) / nt;
+                std::size_t below = 0;
+                rows(lo, hi, [&](const Candidate& c) {
+                    const std::size_t g = groupOfCand(c);
+                    if (c.key < threshold[g])
+                        ++below;
+                    else if (c.key == threshold[g])
+                        tieGroup[t].push_back(static_cast<std::uint32_t>(g));
+                });
+                taken[t] = below;
+#pragma omp barrier
+#pragma omp single
+                {
+                    std::size_t at = passFirst;
+                    for (std::size_t u = 0; u < nt; ++u) {
+                        for (const std::uint32_t g : tieGroup[u]) {
+                            const bool take = equalQuota[g]-- > 0;
+                            tieTaken[u].push_back(take ? 1 : 0);
+                            taken[u] += take;
+                        }
+                        const std::size_t k = taken[u];
+                        taken[u] = at;
+                        at += k;
+                    }
+                    nAccepted = at;
+                }
+                std::size_t at = taken[t], tie = 0;
+                rows(lo, hi, [&](const Candidate& c) {
+                    const std::uint64_t th = threshold[groupOfCand(c)];
+                    if (c.key < th || (c.key == th && tieTaken[t][tie++])) accepted[at++] = c;
+                });
             }
-        std::vector<Candidate> passAccepted(nTaken);
-        scatterByBucket(
-            nCand, 1, [&](std::size_t i) { return take[i] == 1 ? std::size_t{0} : std::size_t{1}; },
-            [&](std::size_t i, std::size_t p) { passAccepted[p] = cand[i]; });
+        }
+        std::vector<CandidateArena>().swap(arenas);
         phase("quota selection");
         // Inhibition: in ascending key order, a candidate closer than the hard-core distance
         // to a plant already placed is dropped (random sequential adsorption); later passes
         // throw darts for what is missing.
         if (hardCore.maxM > 0) {
             std::vector<Candidate> dropped;
-            hardCore.select(passAccepted, map.region.data().data(), dropped);
+            nAccepted = passFirst + hardCore.select(accepted.data() + passFirst, nAccepted - passFirst, map.region.data().data(), dropped);
             for (const Candidate& c : dropped) --placedG[groupOf(c.cell, c.species)];
             out.dartsInhibited += static_cast<std::int64_t>(dropped.size());
         }
-        accepted.insert(accepted.end(), passAccepted.begin(), passAccepted.end());
         phase("hard core");
     }
-    sortInBuckets(
-        accepted, (static_cast<std::size_t>(w) * static_cast<std::size_t>(h) + 15) / 16,
+    const RawArray<std::uint32_t> order = orderInBuckets(
+        accepted.data(), nAccepted, (static_cast<std::size_t>(w) * static_cast<std::size_t>(h) + 15) / 16,
         [](const Candidate& c) { return static_cast<std::size_t>(c.cell) / 16; },
         [](const Candidate& a, const Candidate& b) {
             if (a.cell != b.cell) return a.cell < b.cell;
@@ -1292,7 +1388,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             for (std::size_t t = 0; t < nTiles; ++t) out.regions[r].placed += placedG[(r * nS + s) * nTiles + t];
 
     phase("final sort");
-    drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted, out);
+    drawSizes(db, biome, canopy, map, terrainM, params, withContext, accepted.data(), order.data(), nAccepted, out);
     phase("sizes");
     out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return out;

@@ -291,6 +291,73 @@ TEST_CASE("the structured sampler is identical for 1 and 2 threads", "[synth][st
     }
 }
 
+TEST_CASE("the structured sampler's parallel paths give one scene for 1, 2 and 3 threads", "[synth][structured]") {
+    // The test above runs below the sampler's parallel threshold (65536 candidates): here a
+    // 400 m square at 0.5 m cells (about 200k darts) with clustered ferns, Toyon with
+    // a hard core and Poisson sorrel, so that the threads split the candidate rows, the quota
+    // keys, the hard cores' neighbour lists, the final order and the sizes; 3 threads split
+    // every range unevenly.
+    const Scene small = makeScene();
+    std::vector<Plant> ug;
+    RandomStream rng(47, 7);
+    const int fern = sp("Western Swordfern"), toyon = sp("Toyon"), sorrel = sp("Redwood Sorrel");
+    for (int i = 0; i < 100; ++i) {
+        const double px = rng.uniform(0, kSideM), py = rng.uniform(0, kSideM);
+        for (int j = 0; j < 12; ++j) {
+            const double x = px + rng.normal(), y = py + rng.normal();
+            if (inside(x, y)) ug.push_back(undergrowthPlant(fern, x, y, rng.uniform(0.1, 1.0)));
+        }
+    }
+    std::vector<Plant> hard;
+    for (int attempt = 0; attempt < 20000 && hard.size() < 2000; ++attempt) {
+        const double x = rng.uniform(0, kSideM), y = rng.uniform(0, kSideM);
+        bool ok = true;
+        for (const Plant& p : hard) ok = ok && (p.xM - x) * (p.xM - x) + (p.yM - y) * (p.yM - y) >= 0.8 * 0.8;
+        if (ok) hard.push_back(undergrowthPlant(toyon, x, y, rng.uniform(0.2, 2.0)));
+    }
+    ug.insert(ug.end(), hard.begin(), hard.end());
+    for (int i = 0; i < 6000; ++i) ug.push_back(undergrowthPlant(sorrel, rng.uniform(0, kSideM), rng.uniform(0, kSideM), rng.uniform(0.05, 0.4)));
+    const BiomeDatabase db = analyseScene(small, ug);
+
+    Scene big;
+    constexpr double kBigM = 400.0;
+    big.terrain = Grid<float>(static_cast<int>(kBigM / kCellM), static_cast<int>(kBigM / kCellM), kCellM, 0, 0, 50.f);
+    for (int iy = 0; iy < big.terrain.height(); ++iy)  // a slope, so that ground heights differ
+        for (int ix = 0; ix < big.terrain.width(); ++ix) big.terrain(ix, iy) = static_cast<float>(50 + 0.05 * ix + 0.02 * iy);
+    big.features = FactorGrids::uniform(big.terrain, {8, 100, 15, 5});
+    for (double y = 8; y < kBigM; y += 16)
+        for (double x = 8; x < kBigM; x += 16) big.canopy.push_back(undergrowthPlant(sp("Redwood"), x, y, 30.0));
+    for (Plant& t : big.canopy) t.crownRadiusM = 4.0;
+
+    const int before = omp_get_max_threads();
+    std::vector<synth::UndergrowthSample> runs;
+    for (int threads : {1, 2, 3}) {
+        omp_set_num_threads(threads);
+        runs.push_back(synthesize(big, db, synth::SynthMethod::Structured, 11));
+    }
+    omp_set_num_threads(before);
+    const synth::UndergrowthSample& one = runs[0];
+    REQUIRE(one.darts > 2 * 65536);      // well above the parallel threshold
+    REQUIRE(one.dartsInhibited > 0);     // the hard cores took part
+    REQUIRE(one.plants.size() > 50000);
+    for (std::size_t k = 1; k < runs.size(); ++k) {
+        const synth::UndergrowthSample& other = runs[k];
+        INFO("threads: " << k + 1);
+        REQUIRE(other.plants.size() == one.plants.size());
+        CHECK(other.darts == one.darts);
+        CHECK(other.dartsInhibited == one.dartsInhibited);
+        CHECK(other.passes == one.passes);
+        CHECK(other.plantRegion == one.plantRegion);
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < one.plants.size(); ++i) {
+            const Plant &a = one.plants[i], &b = other.plants[i];
+            differ += a.speciesId != b.speciesId || a.xM != b.xM || a.yM != b.yM || a.groundZM != b.groundZM ||
+                      a.heightM != b.heightM || a.crownRadiusM != b.crownRadiusM;
+        }
+        CHECK(differ == 0);
+    }
+}
+
 TEST_CASE("canopy depth map: the distance to the crown-cover edge, signed", "[synth][structured]") {
     // One crown of radius 5 m at the centre of a 40 m square of 0.5 m cells.
     const Grid<float> geometry(80, 80, 0.5, 0, 0);
