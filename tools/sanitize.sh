@@ -96,7 +96,7 @@ hdf5_damage_tests='^h5io: a damaged byte anywhere in a file is an error, never a
 # The browser tests' executable is not built here (the target list above), so CTest holds a
 # placeholder for it (eco_browser_tests_NOT_BUILT-...) that carries no label: left out by name.
 not_built='^eco_browser_tests_NOT_BUILT'
-ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -LE '^(validation|python|r|browser)$' -E "$png_error_tests|$hdf5_damage_tests|$slow_tests|$not_built" --timeout 900
+ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -LE '^(validation|python|r|browser|blender)$' -E "$png_error_tests|$hdf5_damage_tests|$slow_tests|$not_built" --timeout 900
 ASAN_OPTIONS="$ASAN_OPTIONS:fast_unwind_on_malloc=0" ctest --test-dir "$build" --output-on-failure --no-tests=error -R "$png_error_tests"
 LSAN_OPTIONS="suppressions=$root/tools/sanitize/lsan-hdf5-fuzz.supp:print_suppressions=0" \
   ctest --test-dir "$build" --output-on-failure --no-tests=error -R "$hdf5_damage_tests"
