@@ -1,16 +1,24 @@
 // eco biome show [BIOME.toml] and eco config defaults [COMMAND]: the built-in settings as TOML
 // that eco reads back. Printing only: the texts come from core (biomeToToml), sim
 // (defaultRunConfigToml) and the parameter descriptions of synth (paramTomlLines).
+// eco config describe [--markdown] [TABLE] (hidden): every parameter table (core/param_desc.h)
+// as the docs' tables, which tools/param_docs.py writes into docs/ and a test compares.
+#include <algorithm>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "abiotics.h"
+#include "analysis.h"
 #include "biome.h"
 #include "canopy_placer.h"
 #include "cli_common.h"
+#include "forest_floor.h"
 #include "sim_config.h"
 #include "species_map.h"
+#include "undergrowth.h"
 
 namespace eco::cli {
 
@@ -31,6 +39,146 @@ std::string canopyDefaultsToml() {
         if (!shared) speciesMapKeys.push_back(f);
     }
     return text + paramTomlLines(synth::SpeciesMapParams{}, speciesMapKeys);
+}
+
+// ------------------------------------------------------------------ eco config describe
+
+/// One parameter as the docs show it.
+struct DescribedParam {
+    std::string key;
+    std::string docRow;   ///< the descriptor's own row (paramDocRow / speciesDocRow), which unit tests find in the docs
+    std::string allowed;  ///< allowed values (ParamRange::valuesText)
+    std::string doc;      ///< the one-line meaning, with units
+};
+
+/// A parameter table: its struct, where its keys are set, its docs page and the commands
+/// whose flags set some of its keys.
+struct DescribedTable {
+    const char* name;      ///< eco config describe NAME
+    const char* type;      ///< the struct
+    const char* fields;    ///< the descriptor table's function
+    const char* where;     ///< where the keys are read from (TOML table, record)
+    const char* docs;      ///< the docs page holding the generated table
+    std::vector<std::string> commands;  ///< subcommands searched for the keys' flags
+    bool species;          ///< the biome's species keys (speciesDocRow's columns)
+    std::function<std::vector<DescribedParam>()> params;
+};
+
+template <typename S>
+std::vector<DescribedParam> describe(const std::vector<ParamDesc<S>>& fields) {
+    std::vector<DescribedParam> out;
+    for (const auto& f : fields) {
+        const std::string allowed = f.kind == ParamDesc<S>::Kind::Seed ? "[0, 2^53)" : f.range.valuesText();
+        out.push_back({f.key, paramDocRow(f), allowed, f.doc});
+    }
+    return out;
+}
+
+const std::vector<DescribedTable>& describedTables() {
+    static const std::vector<DescribedTable> tables = {
+        {"simulate", "sim::SimParams", "simParamFields()", "`[model]` of a simulation config (eco simulate --config, [simulate] of eco run); simulation file attributes",
+         "docs/simulator.md", {"simulate"}, false, [] { return describe(sim::simParamFields()); }},
+        {"canopy", "synth::CanopyParams", "canopyParamFields()", "`[canopy]` of eco canopy --config; canopy file attributes", "docs/canopy.md",
+         {"canopy"}, false, [] { return describe(synth::canopyParamFields()); }},
+        {"species-map", "synth::SpeciesMapParams", "speciesMapParamFields()", "`[canopy]` of eco canopy --config; canopy file attributes",
+         "docs/canopy.md", {"canopy"}, false, [] { return describe(synth::speciesMapParamFields()); }},
+        {"synth", "synth::SynthParams", "synthParamFields()", "eco synth flags; scene file attributes", "docs/synth.md", {"synth"}, false,
+         [] { return describe(synth::synthParamFields()); }},
+        {"refine", "synth::RefineParams", "refineParamFields()", "eco synth flags; scene file attributes", "docs/synth.md", {"synth"}, false,
+         [] { return describe(synth::refineParamFields()); }},
+        {"forest-floor", "synth::ForestFloorParams", "forestFloorParamFields()", "eco synth flags; scene file attributes", "docs/synth.md",
+         {"synth"}, false, [] { return describe(synth::forestFloorParamFields()); }},
+        {"deussen", "synth::DeussenParams", "deussenParamFields()", "eco synth --method deussen flags; scene file attributes", "docs/synth.md",
+         {"synth"}, false, [] { return describe(synth::deussenParamFields()); }},
+        {"xu2015", "synth::XuParams", "xuParamFields()", "eco synth --method xu2015 flags; scene file attributes", "docs/synth.md", {"synth"},
+         false, [] { return describe(synth::xuParamFields()); }},
+        {"analysis", "analysis::AnalysisParams", "analysisParamFields()", "eco analyse flags; the database's `/parameters`", "docs/analysis.md",
+         {"analyse"}, false, [] { return describe(analysis::analysisParamFields()); }},
+        {"sun", "SunParams", "sunParamFields()", "eco abiotics flags; abiotics file attributes", "docs/abiotics.md", {"abiotics"}, false,
+         [] { return describe(sunParamFields()); }},
+        {"abiotics", "AbioticParams", "abioticParamFields()", "eco abiotics flags; abiotics file attributes", "docs/abiotics.md", {"abiotics"},
+         false, [] { return describe(abioticParamFields()); }},
+        {"climate", "Climate", "climateFields()", "`[climate]` of a biome TOML (the scalar keys); every output's biome record",
+         "docs/biome.md", {}, false, [] { return describe(climateFields()); }},
+        {"soil", "Soil", "soilFields()", "`[soil]` of a biome TOML; every output's biome record", "docs/biome.md", {}, false,
+         [] { return describe(soilFields()); }},
+        {"vigour", "VigourShape", "vigourFields()", "`[vigour]` of a biome TOML; every output's biome record", "docs/biome.md", {},
+         false, [] { return describe(vigourFields()); }},
+        {"wind", "Wind", "windFields()", "`[wind]` of a biome TOML (optional); the biome record when given", "docs/biome.md", {},
+         false, [] { return describe(windFields()); }},
+        {"species", "Species", "speciesFields()", "`[[species]]` of a biome TOML (`--biome`); every output's biome record", "docs/biome.md", {},
+         true,
+         [] {
+             std::vector<DescribedParam> out;
+             for (const auto& f : speciesFields()) out.push_back({f.key, speciesDocRow(f), f.allowedText(), f.doc});
+             return out;
+         }},
+    };
+    return tables;
+}
+
+/// The flags (as "`eco CMD --flag`") that set `key`: an option of the table's commands (or
+/// their subcommands) named after the key, or whose help text is the key's doc line
+/// (paramHelp), with or without a prefix.
+std::string flagsOf(const CLI::App& root, const DescribedTable& t, const DescribedParam& p) {
+    auto lowerFirst = [](std::string s) {
+        if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
+        return s;
+    };
+    std::string dashed = p.key;
+    std::replace(dashed.begin(), dashed.end(), '_', '-');
+    const std::string doc = lowerFirst(p.doc);
+    std::vector<std::string> found;
+    std::function<void(const CLI::App&, const std::string&)> visit = [&](const CLI::App& app, const std::string& path) {
+        for (const CLI::Option* o : app.get_options()) {
+            const std::vector<std::string>& names = o->get_lnames();
+            if (names.empty()) continue;
+            const std::string desc = o->get_description();
+            bool match = std::find(names.begin(), names.end(), dashed) != names.end();
+            if (!match && doc.size() >= 12 && desc.size() >= doc.size()) {
+                std::string tail = desc.substr(desc.size() - doc.size());
+                if (desc.size() == doc.size()) tail = lowerFirst(tail);
+                match = tail == doc;
+            }
+            if (match) found.push_back("`" + path + " --" + names.front() + "`");
+        }
+        for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+            visit(*sub, path + " " + sub->get_name());
+    };
+    for (const std::string& c : t.commands)
+        for (const CLI::App* sub : root.get_subcommands([&](const CLI::App* a) { return a->get_name() == c; }))
+            visit(*sub, "eco " + c);
+    std::string out;
+    for (const auto& f : found) out += (out.empty() ? "" : ", ") + f;
+    return out.empty() ? "-" : out;
+}
+
+/// A table as the docs show it (the generated block between the markers of
+/// tools/param_docs.py), or as tab-separated text.
+std::string describeTable(const CLI::App& root, const DescribedTable& t, bool markdown) {
+    std::string out;
+    const std::vector<DescribedParam> params = t.params();
+    if (markdown) {
+        if (t.species)
+            out += "| key | meaning, unit | allowed values |\n|---|---|---|\n";
+        else
+            out += "| key | default | meaning, unit | allowed values | flag |\n|---|---|---|---|---|\n";
+        for (const auto& p : params)
+            out += t.species ? p.docRow + "\n" : p.docRow + " " + p.allowed + " | " + flagsOf(root, t, p) + " |\n";
+    } else {
+        for (const auto& p : params)
+            out += std::string(t.name) + "\t" + p.key + "\t" + p.allowed + "\t" + (t.species ? "" : flagsOf(root, t, p)) + "\t" + p.doc + "\n";
+    }
+    return out;
+}
+
+/// The index of the tables (docs/factors.md): struct, descriptor, where read and recorded, docs.
+std::string describeIndex() {
+    std::string out = "| table (`eco config describe`) | struct | descriptor | keys | read from; recorded in | docs |\n|---|---|---|---|---|---|\n";
+    for (const auto& t : describedTables())
+        out += std::string("| `") + t.name + "` | `" + t.type + "` | `" + t.fields + "` | " + std::to_string(t.params().size()) + " | " +
+               t.where + " | `" + t.docs + "` |\n";
+    return out;
 }
 
 }  // namespace
@@ -71,6 +219,41 @@ void registerConfigCommands(CLI::App& app) {
         std::cout << (*which == "canopy" ? canopyDefaultsToml()
                                          : "# eco config defaults simulate: the simulation configuration (docs/simulator.md)\n" +
                                                sim::defaultRunConfigToml());
+        std::cout.flush();
+    });
+
+    // eco config describe (hidden: for the docs and their test)
+    struct DescribeArgs {
+        std::string table;
+        bool markdown = false;
+        bool index = false;
+    };
+    auto d = std::make_shared<DescribeArgs>();
+    CLI::App* describeCmd = config->add_subcommand(
+        "describe",
+        "Print the parameter tables (core/param_desc.h: key, default, meaning and unit, allowed values, flags) as the "
+        "docs show them; tools/param_docs.py writes them into docs/ and a test checks that the docs hold them.");
+    describeCmd->group("");  // hidden: a tool for the docs
+    std::string names;
+    for (const auto& t : describedTables()) names += (names.empty() ? "" : ", ") + std::string(t.name);
+    describeCmd->add_option("table", d->table, "One table (" + names + "); default: every table");
+    describeCmd->add_flag("--markdown", d->markdown, "Markdown tables, as in docs/ (default: tab-separated lines)");
+    describeCmd->add_flag("--index", d->index, "The list of tables (docs/factors.md) instead of their rows");
+    const CLI::App* root = &app;
+    describeCmd->callback([d, root] {
+        if (d->index) {
+            std::cout << describeIndex();
+            return;
+        }
+        bool any = false;
+        for (const auto& t : describedTables()) {
+            if (!d->table.empty() && d->table != t.name) continue;
+            if (d->table.empty() && d->markdown) std::cout << "### " << t.name << " (`" << t.type << "`, " << t.docs << ")\n\n";
+            std::cout << describeTable(*root, t, d->markdown);
+            if (d->table.empty() && d->markdown) std::cout << "\n";
+            any = true;
+        }
+        if (!any) usageError("table", "unknown parameter table '" + d->table + "'");
         std::cout.flush();
     });
 }

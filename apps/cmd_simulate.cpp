@@ -15,7 +15,8 @@ void registerSimulateCommand(CLI::App& app) {
         "simulate",
         "Undergrowth simulation under a fixed canopy (paper §6.1): monthly competition for sun and water, carbon "
         "pools, growth, mortality and yearly germination. Flags override the keys of --config (docs/simulator.md).");
-    sub->add_option("--config", opt->config, "Run configuration TOML (configs/sim-*.toml)");
+    sub->add_option("--config", opt->config, "Run configuration TOML (configs/sim-*.toml; embedded:sim-default.toml: the copy built into eco, also "
+                    "read when a file of that name is missing)");
     sub->add_option("--terrain", opt->terrain, "Terrain file (optional; default: the elevation of the abiotics)");
     sub->add_option("--abiotics", opt->abiotics, "Abiotics HDF5 (eco abiotics), without canopy shade");
     sub->add_option("--canopy", opt->canopy, "Canopy HDF5 (eco canopy): /canopy plants and /chm/height");

@@ -5,8 +5,9 @@
 // (synth/), simParamFields (sim/sim_config.h), synthParamFields, refineParamFields and
 // forestFloorParamFields (synth/), analysisParamFields (analysis/), sunParamFields and
 // abioticParamFields (core/abiotics.h); the biome's species keys have a descriptor of their
-// own built on ParamRange (SpeciesField, core/biome.h). What is still described by hand:
-// docs/factors.md, the end.
+// own built on ParamRange (SpeciesField, core/biome.h). The docs' tables are generated from
+// these tables: eco config describe --markdown (apps/cmd_config.cpp) prints them,
+// tools/param_docs.py writes them into docs/, tests/docs_cli_test.cpp checks the docs hold them.
 #pragma once
 
 #include <cmath>

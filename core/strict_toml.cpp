@@ -8,7 +8,8 @@ namespace eco {
 
 std::string pathRelativeToConfig(const std::string& configPath, const std::string& value) {
     namespace fs = std::filesystem;
-    if (value.empty() || fs::path(value).is_absolute()) return value;
+    // "embedded:NAME" names a configuration built into eco (sim::loadRunConfig), not a file.
+    if (value.empty() || fs::path(value).is_absolute() || value.rfind("embedded:", 0) == 0) return value;
     const fs::path dir = fs::path(configPath).parent_path();
     if (dir.empty()) return value;
     return (dir / value).lexically_normal().string();

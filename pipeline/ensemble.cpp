@@ -144,7 +144,8 @@ MemberFiles composeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
             if (!simChanged) {
                 const auto* cfg = run["simulate"]["config"].as_string();
                 if (!cfg) throw ValidationError(where + ": the base configuration's [simulate] has no config file to override");
-                sim = parseTomlFile(cfg->get());
+                sim = sim::namesEmbeddedConfig(cfg->get()) ? toml::parse(sim::embeddedRunConfigToml(cfg->get()))
+                                                            : parseTomlFile(cfg->get());
                 // simulate.toml goes into the member's folder: its paths must not depend on where it was.
                 absolutizeConfigPaths(sim, cfg->get(), sim::runConfigPathKeys());
                 simChanged = true;

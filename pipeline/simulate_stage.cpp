@@ -10,8 +10,8 @@
 
 namespace eco::pipeline {
 
-sim::RunConfig simulateConfig(const SimulateOptions& o) {
-    sim::RunConfig cfg = o.config.empty() ? sim::RunConfig{} : sim::loadRunConfig(o.config);
+sim::RunConfig simulateConfig(const SimulateOptions& o, const std::function<void(const std::string&)>& note) {
+    sim::RunConfig cfg = o.config.empty() ? sim::RunConfig{} : sim::loadRunConfig(o.config, note);
     if (!o.terrain.empty()) cfg.terrainPath = o.terrain;
     if (!o.abiotics.empty()) cfg.abioticsPath = o.abiotics;
     if (!o.canopy.empty()) cfg.canopyPath = o.canopy;
@@ -33,7 +33,7 @@ sim::RunConfig simulateConfig(const SimulateOptions& o) {
 }
 
 SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
-    sim::RunConfig cfg = simulateConfig(o);
+    sim::RunConfig cfg = simulateConfig(o, [&](const std::string& line) { reporter.info("simulate: " + line); });
     requireOutputsNotInputs({{"--out", cfg.outputPath}, {"--csv", cfg.csvPath}},
                             {o.config, cfg.abioticsPath, cfg.canopyPath, cfg.terrainPath, cfg.biomePath, cfg.initialPath});
 

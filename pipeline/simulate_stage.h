@@ -1,6 +1,7 @@
 // eco simulate: the undergrowth simulation (sim/) from a run configuration and overrides.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -32,8 +33,9 @@ struct SimulateResult {
 SimulateResult simulateStage(const SimulateOptions& options, Reporter& reporter);
 /// The run configuration the stage would use (its file read, the options applied, checked):
 /// ValidationError naming the file and key. Reads no input data (eco run checks every stage
-/// with it before the first runs).
-sim::RunConfig simulateConfig(const SimulateOptions& options);
+/// with it before the first runs). `note` gets a line when a missing configuration file is read
+/// from the copy built into eco (sim::loadRunConfig).
+sim::RunConfig simulateConfig(const SimulateOptions& options, const std::function<void(const std::string&)>& note = {});
 std::vector<std::string> commandLine(const SimulateOptions& options);
 
 }  // namespace eco::pipeline

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -92,26 +93,26 @@ const std::vector<ParamDesc<SimParams>>& simParamFields() {
     using R = ParamRange;
     using P = SimParams;
     static const std::vector<ParamDesc<SimParams>> fields = {
-        {"cell_size_m", "simulation cell, m", K::Real, &P::cellSizeM, nullptr, R::openClosed(0.001, 10), nullptr,
+        {"cell_size_m", "side of a simulation cell, m", K::Real, &P::cellSizeM, nullptr, R::openClosed(0.001, 10), nullptr,
          "must lie in (0.001, 10] metres"},
-        {"min_water_demand_mm", "per occupant and cell, mm/month", K::Real, &P::minWaterDemandMm, nullptr, R::atLeast(0),
+        {"min_water_demand_mm", "minimum water demand of each plant over a cell (canopy trees take this first), mm/month", K::Real, &P::minWaterDemandMm, nullptr, R::atLeast(0),
          nullptr, "must not be negative"},
-        {"seeding_probability", "gamma", K::Real, &P::seedingProbability, nullptr, R::closed(0, 1)},
+        {"seeding_probability", "gamma: germination probability a canopy tree adds to the cells of its inner seeding disc (yearly draw)", K::Real, &P::seedingProbability, nullptr, R::closed(0, 1)},
         {"seed_inner_radius_factor", "inner kernel radius, in crown radii", K::Real, &P::seedInnerRadiusFactor, nullptr,
          R::atLeast(0), nullptr, "must not be negative"},
         // Also more than seed_inner_radius_factor (firstInvalid).
         {"seed_outer_radius_factor", "outer kernel radius, in crown radii", K::Real, &P::seedOuterRadiusFactor, nullptr,
          R::any()},
-        {"roulette_age_exponent", "beta", K::Real, &P::rouletteAgeExponent, nullptr, R::closed(0, 10)},
-        {"survival_at_max_age", "P_s", K::Real, &P::survivalAtMaxAge, nullptr,
+        {"roulette_age_exponent", "beta: the species roulette weighs vbar_s / max_age_s^beta", K::Real, &P::rouletteAgeExponent, nullptr, R::closed(0, 10)},
+        {"survival_at_max_age", "P_s: probability of surviving background mortality up to the maximum age", K::Real, &P::survivalAtMaxAge, nullptr,
          R{R::Bound::Open, 0, R::Bound::Open, 1}},
-        {"pool_capacity_stress_months", "capacity = this x alpha_s x a", K::Real, &P::poolCapacityStressMonths, nullptr,
+        {"pool_capacity_stress_months", "carbon pool capacity = this x alpha_s x a: months of the worst vigour a full pool survives", K::Real, &P::poolCapacityStressMonths, nullptr,
          R::above(0), nullptr, "must be positive"},
-        {"canopy_threshold_m", "canopy limit where the CHM is lower", K::Real, &P::canopyThresholdM, nullptr, R::above(0),
+        {"canopy_threshold_m", "undergrowth dies at this height, m, where the CHM at its root is lower", K::Real, &P::canopyThresholdM, nullptr, R::above(0),
          nullptr, "must be positive"},
         {"seeding_month", "germination at the end of this month (0 = January)", K::Integer, nullptr, &P::seedingMonth,
          R::closed(0, 11), nullptr, "must lie in 0..11 (0 = January)"},
-        {"seedling_growth_age_months", "seedling size, via Eq. 3", K::Real, &P::seedlingGrowthAgeMonths, nullptr,
+        {"seedling_growth_age_months", "growth age of a new seedling (its size via Eq. 3), months", K::Real, &P::seedlingGrowthAgeMonths, nullptr,
          R::above(0), nullptr, "must be positive"},
         {"growth_months_per_overflow",
          "months of growth age per unit overflow (a multiplier under both growth rules)", K::Real,
@@ -413,9 +414,47 @@ const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {
     return keys;
 }
 
-RunConfig loadRunConfig(const std::string& path) {
+const std::vector<std::string>& embeddedRunConfigNames() {
+    static const std::vector<std::string> names = {"sim-default.toml"};
+    return names;
+}
+
+bool namesEmbeddedConfig(const std::string& path) { return path.rfind(kEmbeddedConfigPrefix, 0) == 0; }
+
+namespace {
+const char* embeddedText(const std::string& name) {
+    if (name == "sim-default.toml") return detail::kSimDefaultToml;
+    return nullptr;
+}
+std::string embeddedNamesText() {
+    std::string names;
+    for (const auto& n : embeddedRunConfigNames()) names += (names.empty() ? "" : ", ") + std::string(kEmbeddedConfigPrefix) + n;
+    return names;
+}
+}  // namespace
+
+std::string embeddedRunConfigToml(const std::string& path) {
+    const char* text = namesEmbeddedConfig(path) ? embeddedText(path.substr(std::string(kEmbeddedConfigPrefix).size())) : nullptr;
+    if (!text) throw IoError(path + ": no such configuration built into eco (built in: " + embeddedNamesText() + ")");
+    return text;
+}
+
+RunConfig loadRunConfig(const std::string& path, const std::function<void(const std::string&)>& note) {
+    namespace fs = std::filesystem;
+    const std::string names = embeddedNamesText();
+    if (namesEmbeddedConfig(path)) return parseRunConfig(embeddedRunConfigToml(path), path, "");
+    std::error_code ec;
+    if (!fs::exists(path, ec)) {
+        const std::string name = fs::path(path).filename().string();
+        if (const char* text = embeddedText(name)) {
+            if (note)
+                note(path + " not found: using the copy of configs/" + name + " built into eco (" + kEmbeddedConfigPrefix +
+                     name + "; 'eco config defaults simulate' prints it)");
+            return parseRunConfig(text, kEmbeddedConfigPrefix + name, "");
+        }
+    }
     std::ifstream in(path);
-    if (!in) throw IoError(path + ": cannot open run configuration");
+    if (!in) throw IoError(path + ": cannot open run configuration (missing or unreadable; built in: " + names + ")");
     std::stringstream ss;
     ss << in.rdbuf();
     return parseRunConfig(ss.str(), path, path);

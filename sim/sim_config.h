@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -190,7 +191,23 @@ struct RunConfig {
 /// naming the file, the line and the key for an unknown key, a wrong type or a bad value.
 /// The paths of [inputs] and [outputs] are relative to the directory of `path`
 /// (pathRelativeToConfig; docs/simulator.md).
-RunConfig loadRunConfig(const std::string& path);
+/// The configurations built into eco (embeddedRunConfigNames) are read without a file:
+/// `path` "embedded:sim-default.toml" names one; a `path` that does not exist but whose file
+/// name is that of an embedded one ("configs/sim-default.toml" copied away with demo.toml)
+/// reads the embedded copy too, and `note` gets a line saying so. An embedded configuration's
+/// own relative paths are relative to the working directory; its source is recorded as
+/// "embedded:NAME".
+RunConfig loadRunConfig(const std::string& path, const std::function<void(const std::string&)>& note = {});
+
+/// The prefix that names a built-in configuration: "embedded:".
+inline constexpr const char* kEmbeddedConfigPrefix = "embedded:";
+/// The file names of the configurations built into eco: {"sim-default.toml"}.
+const std::vector<std::string>& embeddedRunConfigNames();
+/// True for "embedded:NAME" (any NAME: loadRunConfig refuses an unknown one, listing the names).
+bool namesEmbeddedConfig(const std::string& path);
+/// The text of the built-in configuration "embedded:NAME"; IoError listing the built-in
+/// names for another NAME.
+std::string embeddedRunConfigToml(const std::string& path);
 /// Same from TOML text; `sourceName` is used in messages. `filePath`: the file the text came
 /// from, whose directory relative paths are resolved against ("" = left as written).
 RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath = "");

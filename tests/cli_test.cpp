@@ -417,6 +417,44 @@ TEST_CASE("eco run: the shipped demo configuration plans the same stages from an
     CHECK_THAT(fromRoot.output, Catch::Contains("--config configs/sim-default.toml "));
 }
 
+TEST_CASE("eco run: a demo-like configuration copied alone into an empty directory runs on the built-in sim-default.toml", "[cli][run]") {
+    // configs/sim-default.toml is built into eco (issue 31 item 5): the demo configuration,
+    // copied without it, still plans; a small demo-like one (the same [simulate] config key)
+    // runs, reading the built-in copy with a line saying so and recording it as such.
+    eco::test::TempDir dir("run_alone");
+    std::filesystem::copy_file(eco::test::sourcePath("configs/demo.toml"), dir.file("demo.toml"));
+    const auto plan = runEcoIn(dir.path().string(), "run demo.toml --dry-run --out-dir plan");
+    INFO(plan.output);
+    REQUIRE(plan.exitCode == 0);
+    CHECK_THAT(plan.output, Catch::Contains("--config sim-default.toml"));
+    std::ofstream(dir.file("small.toml")) << "[run]\nout_dir = \"out\"\nseed = 3\n"
+                                          << "[terrain]\nwidth = 48\nheight = 48\ncell_size_m = 0.914\n"
+                                          << "[chm]\n[abiotics]\nsun_step_minutes = 120\n[canopy]\n"
+                                          << "[simulate]\nconfig = \"sim-default.toml\"\nyears = 2\n"
+                                          << "crop = [5.0, 5.0, 25.0, 25.0]\n";
+    const auto r = runEcoIn(dir.path().string(), "run small.toml");
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("sim-default.toml not found: using the copy of configs/sim-default.toml built into eco"));
+    REQUIRE(std::filesystem::exists(dir.file("out/simulation.h5")));
+    const eco::h5::File sim = eco::h5::File::openRead(dir.file("out/simulation.h5"));
+    CHECK(sim.attrString("/", "config_path") == "embedded:sim-default.toml");
+    // The explicit form, and a name that is not built in: an error listing what is.
+    std::ofstream(dir.file("explicit.toml")) << "[run]\nout_dir = \"out2\"\n[terrain]\nwidth = 16\nheight = 16\n"
+                                             << "[chm]\n[abiotics]\n[canopy]\n[simulate]\nconfig = \"embedded:sim-default.toml\"\n";
+    const auto explicitPlan = runEcoIn(dir.path().string(), "run explicit.toml --dry-run");
+    INFO(explicitPlan.output);
+    CHECK(explicitPlan.exitCode == 0);
+    CHECK_THAT(explicitPlan.output, Catch::Contains("--config embedded:sim-default.toml"));
+    const auto unknown = runEcoIn(dir.path().string(), "simulate --config embedded:nope.toml");
+    CHECK(unknown.exitCode == 1);
+    CHECK_THAT(unknown.output, Catch::Contains("embedded:nope.toml: no such configuration built into eco (built in: embedded:sim-default.toml)"));
+    // Only a missing file of an embedded name falls back: another missing file is an error.
+    const auto missing = runEcoIn(dir.path().string(), "simulate --config other.toml");
+    CHECK(missing.exitCode == 1);
+    CHECK_THAT(missing.output, Catch::Contains("other.toml: cannot open run configuration"));
+}
+
 TEST_CASE("eco --quiet prints nothing on success and still prints errors, --verbose adds detail", "[cli]") {
     eco::test::TempDir dir("quiet");
     const auto quiet = runEco("--quiet terrain generate --width 16 --height 16 --out " + dir.file("t.h5") + " --png " + dir.file("png"));

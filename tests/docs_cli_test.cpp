@@ -3,10 +3,14 @@
 #include <catch2/catch.hpp>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <set>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "test_util.h"
 
@@ -164,4 +168,70 @@ TEST_CASE("cmake --install: a program of one's own builds with find_package(eco)
     INFO(out);
     CHECK(status == 0);
     CHECK(out.find("biome Sonoma species 16") != std::string::npos);
+}
+
+TEST_CASE("docs: every parameter table in docs/ is what eco config describe prints from the descriptors", "[cli][docs]") {
+    // Issue 23 item 5: the parameter tables of the docs are generated from the descriptors
+    // (core/param_desc.h) by tools/param_docs.py between marker lines; a table edited by hand,
+    // or a descriptor changed without regenerating the docs, fails here (the difference shown).
+    const std::regex begin(R"(^<!-- generated: eco (config describe [^(]*?) \(tools/param_docs\.py; do not edit\) -->$)");
+    // What eco prints for each block: every table at once ("### NAME (...)" before each; one
+    // eco run instead of one per table), the index on its own.
+    std::map<std::string, std::string> printed;
+    {
+        const auto all = runEco("config describe --markdown");
+        REQUIRE(all.exitCode == 0);
+        std::istringstream in(all.output);
+        std::string name;
+        for (std::string line; std::getline(in, line);) {
+            if (line.rfind("### ", 0) == 0) {
+                name = "config describe --markdown " + line.substr(4, line.find(' ', 4) - 4);
+                std::getline(in, line);  // the blank line after the heading
+            } else if (!line.empty() && !name.empty()) {
+                printed[name] += line + "\n";
+            }
+        }
+        const auto index = runEco("config describe --index");
+        REQUIRE(index.exitCode == 0);
+        printed["config describe --index"] = index.output;
+    }
+    std::set<std::string> blocks;
+    for (const auto& entry : std::filesystem::directory_iterator(eco::test::sourcePath("docs"))) {
+        if (entry.path().extension() != ".md") continue;
+        std::ifstream in(entry.path());
+        std::vector<std::string> lines;
+        for (std::string line; std::getline(in, line);) lines.push_back(line);
+        for (std::size_t i = 0; i < lines.size(); ++i) {
+            std::smatch m;
+            if (!std::regex_match(lines[i], m, begin)) continue;
+            const std::string args = m[1];
+            std::string text;
+            std::size_t end = i + 1;
+            for (; end < lines.size() && lines[end] != "<!-- end generated -->"; ++end) text += lines[end] + "\n";
+            INFO(entry.path().filename().string() << ": eco " << args << " (regenerate: tools/param_docs.py build/apps/eco)");
+            REQUIRE(end < lines.size());
+            REQUIRE(printed.count(args) == 1);
+            CHECK(text == printed.at(args));
+            blocks.insert(args);
+            i = end;
+        }
+    }
+    // Every table eco describes has its block somewhere in docs/, and so has the list of tables.
+    const auto all = runEco("config describe");
+    REQUIRE(all.exitCode == 0);
+    std::set<std::string> tables;
+    std::istringstream rows(all.output);
+    for (std::string row; std::getline(rows, row);) tables.insert(row.substr(0, row.find('\t')));
+    CHECK(tables.size() >= 12);
+    for (const std::string& t : tables) {
+        INFO("table " << t);
+        CHECK(blocks.count("config describe --markdown " + t) == 1);
+    }
+    CHECK(blocks.count("config describe --index") == 1);
+    // The rows carry what the brief asks for: a flag found from the command tree, an allowed range.
+    const auto canopy = runEco("config describe --markdown canopy");
+    CHECK_THAT(canopy.output, Catch::Contains("| `max_iterations` | 30 | iterations of the placer at most | [0, 100000] |"));
+    const auto unknown = runEco("config describe nope");
+    CHECK(unknown.exitCode == 2);
+    CHECK_THAT(unknown.output, Catch::Contains("unknown parameter table 'nope'"));
 }

@@ -6,7 +6,8 @@
 (or open this file in Blender's Scripting workspace, set DIRECTORY below and press Run).
 
 What it builds (Blender 3.2 or later, for the Named Attribute node; written against the 3.x and
-4.x Python API, not run in CI: Blender is not a dependency):
+4.x Python API; run in Blender 3.4.1 by the CTest blender_import, tests/blender, which
+checks every plant's instance and is skipped where Blender is not installed):
 * a hidden collection "eco prototypes" with one placeholder object per row of
   prototypes.csv: a cone of the prototype's height and crown radius, standing on its base,
   in its species' colour. Replace them by real plant models (keep the names, which keep
@@ -14,6 +15,7 @@ What it builds (Blender 3.2 or later, for the Named Attribute node; written agai
 * an object "eco plants": one vertex per plant of instances.ply (world metres, minus the
   offset printed below so that Blender's float precision holds for large coordinates), with
   the point attributes `prototype`, `rotation` (radians about z), `scale`, `species`, `layer`,
+  the offset as custom properties eco_offset_x_m, eco_offset_y_m (world = local + offset),
   and a Geometry Nodes modifier that puts an instance of its prototype on every point
   (Instance on Points, pick instance by `prototype`, rotated and scaled): hundreds of
   thousands of instances stay light because they share the prototypes' meshes;
@@ -146,6 +148,16 @@ def _group_socket(group, name, in_out, kind):
         group.outputs.new(kind, name)
 
 
+def _output(node, name):
+    """The node's output `name` that is in use: Blender 3.x's Named Attribute node has one
+    "Attribute" output per data type, only the one of its data_type enabled (outputs[name]
+    would give the first, a float vector, whatever the type); Blender 4 has one."""
+    for socket in node.outputs:
+        if socket.name == name and socket.enabled:
+            return socket
+    raise KeyError(f"{node.name}: no enabled output '{name}'")
+
+
 def _instancing_nodes(bpy, collection):
     group = bpy.data.node_groups.new("eco instances", "GeometryNodeTree")
     _group_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
@@ -168,10 +180,10 @@ def _instancing_nodes(bpy, collection):
     links = group.links
     links.new(gin.outputs[0], inst.inputs["Points"])
     links.new(info.outputs[0], inst.inputs["Instance"])
-    links.new(attr["prototype"].outputs["Attribute"], inst.inputs["Instance Index"])
-    links.new(attr["rotation"].outputs["Attribute"], euler.inputs["Z"])
+    links.new(_output(attr["prototype"], "Attribute"), inst.inputs["Instance Index"])
+    links.new(_output(attr["rotation"], "Attribute"), euler.inputs["Z"])
     links.new(euler.outputs[0], inst.inputs["Rotation"])
-    links.new(attr["scale"].outputs["Attribute"], inst.inputs["Scale"])
+    links.new(_output(attr["scale"], "Attribute"), inst.inputs["Scale"])
     links.new(inst.outputs[0], gout.inputs[0])
     return group
 
@@ -214,6 +226,7 @@ def build(directory):
         a = points.attributes.new(name, kind, "POINT")
         a.data.foreach_set("value", values)
     plants = bpy.data.objects.new("eco plants", points)
+    plants["eco_offset_x_m"], plants["eco_offset_y_m"] = float(offset[0]), float(offset[1])  # world = local + offset
     bpy.context.scene.collection.objects.link(plants)
     modifier = plants.modifiers.new("eco instances", "NODES")
     modifier.node_group = _instancing_nodes(bpy, protos)
