@@ -38,7 +38,7 @@ void registerRunCommand(CLI::App& app) {
                "Each stage is an ordinary eco command; its command line is printed so it can be rerun alone.\n"
                "Relative paths inside CONFIG (and inside the configuration files it names) are relative to the "
                "directory of the file that contains them, so the run works from any working directory; "
-               "[simulate] config = \"embedded:sim-default.toml\" (or a missing sim-default.toml) is the copy built "
+               "[simulate] config = \"embedded:sim-default.toml\" (or a sim-default.toml missing from an existing folder) is the copy built "
                "into eco, so configs/demo.toml also runs copied alone into an empty directory.\n"
                "Writes OUT/report.md and OUT/report.html: the same report as one self-contained page (pictures "
                "embedded, works offline) with interactive plots of the population and g(r) and a pan-and-zoom view "

@@ -444,7 +444,10 @@ RunConfig loadRunConfig(const std::string& path, const std::function<void(const 
     const std::string names = embeddedNamesText();
     if (namesEmbeddedConfig(path)) return parseRunConfig(embeddedRunConfigToml(path), path, "");
     std::error_code ec;
-    if (!fs::exists(path, ec)) {
+    // The fallback covers a configuration copied alone into a folder (its sim-default.toml is
+    // not beside it); a path through a directory that does not exist is a typo: an error.
+    const fs::path parent = fs::path(path).parent_path();
+    if (!fs::exists(path, ec) && fs::is_directory(parent.empty() ? fs::path(".") : parent, ec)) {
         const std::string name = fs::path(path).filename().string();
         if (const char* text = embeddedText(name)) {
             if (note)
