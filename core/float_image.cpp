@@ -1,7 +1,5 @@
 #include "float_image.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -9,6 +7,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "image_codec.h"
 
 namespace eco {
 
@@ -17,32 +16,37 @@ void writeFloatExr(const std::string& path, const Grid<float>& g, const std::str
     // OIIO picks the format from the extension, so the temporary name ends in .exr too.
     const std::string temp = out.tempPath() + ".exr";
     {
-        std::unique_ptr<OIIO::ImageOutput> io = OIIO::ImageOutput::create("openexr");
-        if (!io) throw IoError(path + ": OpenEXR writer unavailable: " + OIIO::geterror());
-        OIIO::ImageSpec spec(g.width(), g.height(), 1, OIIO::TypeDesc::FLOAT);
-        spec.channelnames = {"Y"};
-        spec.attribute("compression", "none");
+        ImageWriteSpec spec;
+        spec.format = "openexr";
+        spec.width = g.width();
+        spec.height = g.height();
+        spec.channels = 1;
+        spec.stored = SampleType::Float;
+        spec.channelNames = {"Y"};
+        spec.attributes.emplace_back("compression", "none");
         // OIIO stamps the current time as capDate unless DateTime is given: an empty one
         // keeps the same inputs giving the same bytes.
-        spec.attribute("DateTime", "");
+        spec.attributes.emplace_back("DateTime", "");
         const auto text = [](double v) {
             char buf[40];
             std::snprintf(buf, sizeof buf, "%.17g", v);
             return std::string(buf);
         };
-        spec.attribute("eco:cell_size_m", text(g.cellSizeM()));
-        spec.attribute("eco:origin_x_m", text(g.originX()));
-        spec.attribute("eco:origin_y_m", text(g.originY()));
-        spec.attribute("eco:units", units);
-        spec.attribute("eco:description", description);
+        spec.attributes.emplace_back("eco:cell_size_m", text(g.cellSizeM()));
+        spec.attributes.emplace_back("eco:origin_x_m", text(g.originX()));
+        spec.attributes.emplace_back("eco:origin_y_m", text(g.originY()));
+        spec.attributes.emplace_back("eco:units", units);
+        spec.attributes.emplace_back("eco:description", description);
         const auto w = static_cast<std::size_t>(g.width());
         std::vector<float> rows(w * static_cast<std::size_t>(g.height()));
         for (int iy = 0; iy < g.height(); ++iy)  // image row 0 = the northern grid row
             for (int ix = 0; ix < g.width(); ++ix)
                 rows[static_cast<std::size_t>(g.height() - 1 - iy) * w + static_cast<std::size_t>(ix)] = g(ix, iy);
-        if (!io->open(temp, spec) || !io->write_image(OIIO::TypeDesc::FLOAT, rows.data()) || !io->close()) {
+        const ImageWriteResult r = writeImageFile(temp, spec, SampleType::Float, rows.data());
+        if (r.step == ImageWriteResult::Step::Create) throw IoError(path + ": OpenEXR writer unavailable: " + r.reason);
+        if (!r.ok()) {
             std::remove(temp.c_str());
-            throw IoError(path + ": cannot write OpenEXR: " + io->geterror());
+            throw IoError(path + ": cannot write OpenEXR: " + r.reason);
         }
     }
     std::error_code ec;

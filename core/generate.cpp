@@ -2,7 +2,6 @@
 
 #include "memory.h"
 
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,6 +11,7 @@
 #include <sstream>
 
 #include "atomic_file.h"
+#include "image_codec.h"
 #include "image_in.h"
 #include "error.h"
 #include "rng.h"
@@ -427,15 +427,19 @@ void writeDensitySketch(const std::string& imagePath, const Grid<std::int32_t>& 
                                       ") is not 0, 1 or 2");
             px[static_cast<std::size_t>(row) * w + ix] = level == Empty ? 0 : (level == Sparse ? 128 : 255);
         }
-    OIIO::ImageSpec spec(w, h, 1, OIIO::TypeDesc::UINT8);
-    spec.attribute("ImageDescription", "eco density sketch: black = empty, grey = sparse, white = dense; row 0 = north");
+    ImageWriteSpec spec;
+    spec.format = format;
+    spec.width = w;
+    spec.height = h;
+    spec.channels = 1;
+    spec.stored = SampleType::UInt8;
+    spec.attributes.emplace_back("ImageDescription",
+                                 "eco density sketch: black = empty, grey = sparse, white = dense; row 0 = north");
     AtomicOutput out(imagePath);
-    auto img = OIIO::ImageOutput::create(format);
-    if (!img) throw IoError(imagePath + ": cannot create image writer: " + OIIO::geterror());
-    if (!img->open(out.tempPath(), spec)) throw IoError(imagePath + ": cannot create image: " + img->geterror());
-    if (!img->write_image(OIIO::TypeDesc::UINT8, px.data()) || !img->close())
-        throw IoError(imagePath + ": cannot write image: " + img->geterror());
-    img.reset();
+    const ImageWriteResult r = writeImageFile(out.tempPath(), spec, SampleType::UInt8, px.data());
+    if (r.step == ImageWriteResult::Step::Create) throw IoError(imagePath + ": cannot create image writer: " + r.reason);
+    if (r.step == ImageWriteResult::Step::Open) throw IoError(imagePath + ": cannot create image: " + r.reason);
+    if (!r.ok()) throw IoError(imagePath + ": cannot write image: " + r.reason);
     out.commit();
 }
 

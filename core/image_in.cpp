@@ -1,7 +1,5 @@
 #include "image_in.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -9,6 +7,7 @@
 #include <cstdio>
 
 #include "error.h"
+#include "image_codec.h"
 #include "provenance.h"
 
 namespace eco {
@@ -71,30 +70,27 @@ ImagePixels readImagePixels(const std::string& path, const std::string& what, in
     std::string failure;
     {
         QuietStderr quiet;
-        OIIO::ImageSpec config;
-        config.attribute("oiio:UnassociatedAlpha", 1);  // keep values as stored where alpha is 0
-        auto in = OIIO::ImageInput::open(path, &config);
+        std::string openError;
+        auto in = openImageFile(path, openError);
         if (!in) {
-            const std::string why = oneLine(OIIO::geterror());
+            const std::string why = oneLine(openError);
             failure = "cannot read " + what + ": " + (why.empty() ? std::string("unrecognised or corrupt image") : why);
         } else {
-            const OIIO::ImageSpec& spec = in->spec();
-            px.width = spec.width;
-            px.height = spec.height;
-            px.channels = maxChannels > 0 ? std::min(maxChannels, spec.nchannels) : spec.nchannels;
+            px.width = in->width();
+            px.height = in->height();
+            px.channels = maxChannels > 0 ? std::min(maxChannels, in->channels()) : in->channels();
+            px.stored = in->stored();
             if (px.width <= 0 || px.height <= 0 || px.channels < 1) {
                 failure = what + " has no pixels";
             } else {
                 if (checkHeader) checkHeader(px.width, px.height, px.channels);  // may throw; stderr is restored
                 px.values.resize(static_cast<std::size_t>(px.width) * static_cast<std::size_t>(px.height) *
                                  static_cast<std::size_t>(px.channels));
-                // A truncated TIFF can come back "read" with the missing strips as zeros: an
-                // error the reader recorded on the way counts too.
-                if (!in->read_image(0, 0, 0, px.channels, OIIO::TypeDesc::FLOAT, px.values.data()) || in->has_error()) {
-                    const std::string why = oneLine(in->geterror());
+                // A truncated file's error recorded on the way counts too (readFloat).
+                if (!in->readFloat(px.channels, px.values.data())) {
+                    const std::string why = oneLine(in->error());
                     failure = "cannot read " + what + " pixels (corrupt or truncated file?)" + (why.empty() ? "" : ": " + why);
                 }
-                in->close();
             }
         }
     }

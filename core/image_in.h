@@ -1,4 +1,4 @@
-// Reading raster images (PNG, TIFF, EXR, ...) through OpenImageIO, for terrains, CHMs,
+// Reading raster images (PNG, TIFF, EXR, ...) through OpenImageIO (image_codec.h), for terrains, CHMs,
 // density sketches and masks: one place that turns the library's failures into one-line
 // errors naming the file.
 #pragma once
@@ -6,6 +6,8 @@
 #include <functional>
 #include <string>
 #include <vector>
+
+#include "image_codec.h"
 
 namespace eco {
 
@@ -15,6 +17,7 @@ struct ImagePixels {
     int width = 0;
     int height = 0;
     int channels = 0;
+    SampleType stored = SampleType::UInt8;  ///< the sample type in the file
     std::vector<float> values;
 };
 

@@ -1,9 +1,5 @@
 #include "image_out.h"
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +9,7 @@
 #include "atomic_file.h"
 #include "chart.h"
 #include "error.h"
+#include "image_codec.h"
 
 namespace eco {
 
@@ -134,10 +131,8 @@ void Canvas::fillDisc(double cx, double cy, double radius, Rgb c, float opacity)
 }
 
 bool Canvas::text(int x, int y, const std::string& s, int sizePx, Rgb c) {
-    OIIO::ImageSpec spec(width_, height_, 3, OIIO::TypeDesc::FLOAT);
-    OIIO::ImageBuf buf(spec, px_.data());
     const float col[3] = {c[0], c[1], c[2]};
-    return OIIO::ImageBufAlgo::render_text(buf, x, y, s, sizePx, kFont, col);
+    return renderText(px_.data(), width_, height_, x, y, s, sizePx, kFont, col);
 }
 
 void Canvas::paste(const Canvas& other, int x, int y) {
@@ -150,15 +145,20 @@ void Canvas::writePng(const std::string& path) const {
     // OIIO picks the format from the extension, so the temporary name ends in .png too.
     const std::string temp = out.tempPath() + ".png";
     {
-        std::unique_ptr<OIIO::ImageOutput> io = OIIO::ImageOutput::create("png");
-        if (!io) throw IoError(path + ": PNG writer unavailable: " + OIIO::geterror());
-        OIIO::ImageSpec spec(width_, height_, 3, OIIO::TypeDesc::UINT8);
+        ImageWriteSpec spec;
+        spec.format = "png";
+        spec.width = width_;
+        spec.height = height_;
+        spec.channels = 3;
+        spec.stored = SampleType::UInt8;
         std::vector<unsigned char> bytes(px_.size());
         for (std::size_t i = 0; i < px_.size(); ++i)
             bytes[i] = static_cast<unsigned char>(std::lround(std::clamp(px_[i], 0.f, 1.f) * 255.f));
-        if (!io->open(temp, spec) || !io->write_image(OIIO::TypeDesc::UINT8, bytes.data()) || !io->close()) {
+        const ImageWriteResult r = writeImageFile(temp, spec, SampleType::UInt8, bytes.data());
+        if (r.step == ImageWriteResult::Step::Create) throw IoError(path + ": PNG writer unavailable: " + r.reason);
+        if (!r.ok()) {
             std::remove(temp.c_str());
-            throw IoError(path + ": cannot write PNG: " + io->geterror());
+            throw IoError(path + ": cannot write PNG: " + r.reason);
         }
     }
     std::error_code ec;

@@ -1,6 +1,5 @@
 #include "terrain_io.h"
 
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cctype>
@@ -20,6 +19,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "geo_raster.h"
+#include "image_codec.h"
 #include "image_in.h"
 #include "memory.h"
 #include "text_format.h"
@@ -153,9 +153,7 @@ bool parseNumber(const char* b, const char* e, T& out) {
     return res.ec == std::errc() && res.ptr == e;
 }
 
-OIIO::TypeDesc::BASETYPE storageFor(const std::string& ext) {
-    return ext == ".png" ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::FLOAT;
-}
+SampleType storageFor(const std::string& ext) { return ext == ".png" ? SampleType::UInt16 : SampleType::Float; }
 
 /// OIIO format name for an extension: the temporary file's name has no usable extension.
 std::string oiioFormat(const std::string& ext) {
@@ -370,24 +368,29 @@ void writeTerrainImage(const std::string& path, const Grid<float>& g, const Terr
     requireFiniteForWrite(g, path);
     const int w = g.width(), h = g.height();
     const auto base = storageFor(ext);
-    OIIO::ImageSpec spec(w, h, 1, base);
-    spec.attribute("ImageDescription",
+    ImageWriteSpec spec;
+    spec.format = oiioFormat(ext);
+    spec.width = w;
+    spec.height = h;
+    spec.channels = 1;
+    spec.stored = base;
+    spec.attributes.emplace_back("ImageDescription",
                    "eco terrain: cell_size_m=" + exactText(g.cellSizeM()) + " origin_x_m=" +
                        exactText(g.originX()) + " origin_y_m=" + exactText(g.originY()) +
                        " z_m = value * " + exactText(options.verticalScale) + " + " +
                        exactText(options.verticalOffsetM) + "; row 0 = north");
-    if (ext != ".png") spec.attribute("compression", "zip");
+    if (ext != ".png") spec.attributes.emplace_back("compression", "zip");
 
     std::vector<float> f32;
     std::vector<std::uint16_t> u16;
-    if (base == OIIO::TypeDesc::UINT16) u16.resize(g.size());
+    if (base == SampleType::UInt16) u16.resize(g.size());
     else f32.resize(g.size());
     for (int row = 0; row < h; ++row) {
         const int iy = h - 1 - row;
         for (int ix = 0; ix < w; ++ix) {
             const double v = (static_cast<double>(g(ix, iy)) - options.verticalOffsetM) / options.verticalScale;
             const std::size_t k = static_cast<std::size_t>(row) * w + ix;
-            if (base == OIIO::TypeDesc::UINT16)
+            if (base == SampleType::UInt16)
                 u16[k] = static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.0, 1.0) * 65535.0));
             else
                 f32[k] = static_cast<float>(v);
@@ -396,15 +399,13 @@ void writeTerrainImage(const std::string& path, const Grid<float>& g, const Terr
 
     AtomicOutput out(path);
     // The temporary file's name ends in ".tmp<pid>", so name the format explicitly.
-    auto img = OIIO::ImageOutput::create(oiioFormat(ext));
-    if (!img) throw IoError(path + ": cannot create image writer: " + OIIO::geterror());
-    if (!img->open(out.tempPath(), spec))
-        throw IoError(path + ": cannot create image: " + img->geterror());
-    const bool ok = base == OIIO::TypeDesc::UINT16 ? img->write_image(OIIO::TypeDesc::UINT16, u16.data())
-                                                   : img->write_image(OIIO::TypeDesc::FLOAT, f32.data());
-    if (!ok) throw IoError(path + ": cannot write image: " + img->geterror());
-    if (!img->close()) throw IoError(path + ": cannot finish image: " + img->geterror());
-    img.reset();
+    const ImageWriteResult r = base == SampleType::UInt16 ? writeImageFile(out.tempPath(), spec, base, u16.data())
+                                                          : writeImageFile(out.tempPath(), spec, base, f32.data());
+    using Step = ImageWriteResult::Step;
+    if (r.step == Step::Create) throw IoError(path + ": cannot create image writer: " + r.reason);
+    if (r.step == Step::Open) throw IoError(path + ": cannot create image: " + r.reason);
+    if (r.step == Step::Write) throw IoError(path + ": cannot write image: " + r.reason);
+    if (r.step == Step::Close) throw IoError(path + ": cannot finish image: " + r.reason);
     out.commit();
 }
 

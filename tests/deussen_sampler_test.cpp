@@ -17,7 +17,6 @@
 #include <map>
 #include <vector>
 
-#include <OpenImageIO/imageio.h>
 
 #include "biome_db.h"
 #include "param_table_check.h"
@@ -315,11 +314,7 @@ TEST_CASE("deussen: parameters, the density image's checks and the method's name
     auto writeTif = [&](float at23) {
         std::vector<float> px(static_cast<std::size_t>(20 * 20), 3.0f);
         px[static_cast<std::size_t>(2 * 20 + 1)] = at23;  // column 2, row 3 (row 1 = north)
-        auto out = OIIO::ImageOutput::create(tif);
-        REQUIRE(out);
-        REQUIRE(out->open(tif, OIIO::ImageSpec(20, 20, 1, OIIO::TypeDesc::FLOAT)));
-        REQUIRE(out->write_image(OIIO::TypeDesc::FLOAT, px.data()));
-        out->close();
+        REQUIRE(test::writeImage(tif, 20, 20, 1, SampleType::Float, SampleType::Float, px.data()));
     };
     writeTif(7.0f);
     const Grid<float> read = synth::readDensityImage(tif, p.terrain);

@@ -1,6 +1,5 @@
 // Command-line tests of `eco` for the generate module (split from generate_test.cpp, issue 23):
 // they run the eco binary (ECO_BINARY) and live in eco_cli_tests, apart from the unit tests.
-#include <OpenImageIO/imageio.h>
 #include <omp.h>
 
 #include <catch2/catch.hpp>

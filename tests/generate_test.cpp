@@ -1,6 +1,5 @@
 // Procedural terrain, density sketch and CHM: determinism, thread independence and the
 // properties the rest of the pipeline relies on.
-#include <OpenImageIO/imageio.h>
 #include <omp.h>
 
 #include <catch2/catch.hpp>
@@ -274,11 +273,7 @@ TEST_CASE("generate: density sketch image round trip, grey levels and size check
         // Top row: black, dark grey (0.3), mid grey (0.5); bottom row: 0.7 grey, white, red (mean 1/3).
         const float px[h][w][4] = {{{0, 0, 0, 1}, {0.3f, 0.3f, 0.3f, 1}, {0.5f, 0.5f, 0.5f, 1}},
                                    {{0.7f, 0.7f, 0.7f, 1}, {1, 1, 1, 0}, {1, 0, 0.01f, 1}}};
-        auto out = OIIO::ImageOutput::create(rgb);
-        REQUIRE(out);
-        REQUIRE(out->open(rgb, OIIO::ImageSpec(w, h, 4, OIIO::TypeDesc::UINT8)));
-        REQUIRE(out->write_image(OIIO::TypeDesc::FLOAT, &px[0][0][0]));
-        out->close();
+        REQUIRE(eco::test::writeImage(rgb, w, h, 4, eco::SampleType::UInt8, eco::SampleType::Float, &px[0][0][0]));
     }
     const auto painted = eco::readDensitySketch(rgb, Grid<float>(3, 2, 1.0));
     CHECK(painted(0, 1) == eco::Empty);   // NW black

@@ -2,13 +2,14 @@
 // round ticks, map axes and small multiples (core/chart.h).
 #include <catch2/catch.hpp>
 
-#include <OpenImageIO/imageio.h>
-
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "chart.h"
 #include "error.h"
 #include "image_out.h"
+#include "plugin.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -16,14 +17,10 @@ using namespace eco;
 namespace {
 
 std::vector<unsigned char> readRgb(const std::string& path, int& w, int& h) {
-    auto in = OIIO::ImageInput::open(path);
-    REQUIRE(in);
-    const auto& spec = in->spec();
-    w = spec.width;
-    h = spec.height;
-    std::vector<unsigned char> px(static_cast<std::size_t>(w) * h * spec.nchannels);
-    REQUIRE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, px.data()));
-    REQUIRE(spec.nchannels == 3);
+    int channels = 0;
+    std::vector<unsigned char> px = test::readImage8(path, w, h, channels);
+    REQUIRE(!px.empty());
+    REQUIRE(channels == 3);
     return px;
 }
 
@@ -207,4 +204,30 @@ TEST_CASE("chartPanels draws every panel, beyond twelve", "[image][chart]") {
         CHECK(found);
     }
     CHECK(c.height() > 4 * 180);  // four rows
+}
+
+TEST_CASE("plugins: a missing one is an error naming the file, the folders searched and ECO_PLUGIN_DIR", "[image][plugin]") {
+    // core/plugin.h: the folders, in order; the build tree's plugin folder is among them, and
+    // the OpenImageIO plugin is there (the tests above drew through it).
+    const std::vector<std::string> dirs = pluginDirs();
+    REQUIRE(dirs.size() >= 3);
+    bool found = false;
+    for (const std::string& d : dirs) found = found || std::filesystem::is_regular_file(d + "/eco_oiio.so");
+    CHECK(found);
+    try {
+        pluginEntry("eco_no_such_plugin.so", "eco_image_plugin");
+        FAIL("a missing plugin was loaded");
+    } catch (const IoError& e) {
+        const std::string what = e.what();
+        CHECK(what.find("eco_no_such_plugin.so") != std::string::npos);
+        CHECK(what.find("ECO_PLUGIN_DIR") != std::string::npos);
+        CHECK(what.find(dirs.back()) != std::string::npos);
+    }
+    // A plugin that is there but lacks the entry point: named, with the symbol.
+    try {
+        pluginEntry("eco_oiio.so", "eco_no_such_entry");
+        FAIL("a missing entry point was found");
+    } catch (const IoError& e) {
+        CHECK(std::string(e.what()).find("eco_no_such_entry") != std::string::npos);
+    }
 }

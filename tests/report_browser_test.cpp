@@ -3,7 +3,7 @@
 // a screenshot taken. The page's own hooks say what happened: <pre id="eco-js-errors"> holds
 // any script error, console.error or failed load; the body gets data-eco-ready="1" when
 // every plot and scene is drawn; each drawn canvas carries data-eco-rect (CSS pixels) and
-// data-eco-drawn. The screenshot is then read back (OpenImageIO) inside those rectangles.
+// data-eco-drawn. The screenshot is then read back (core's image reader) inside those rectangles.
 // Labelled `browser` (ctest -LE browser leaves them out, e.g. in the sanitizer stage).
 // Chromium missing is a failure, not a skip: CI installs it.
 #include <catch2/catch.hpp>
@@ -107,15 +107,10 @@ struct Screenshot {
 Screenshot screenshot(const std::string& page, const std::string& dir) {
     const std::string png = dir + "/shot.png";
     runChromium(page, "--screenshot=" + png, dir + "/shot.log");
-    auto in = OIIO::ImageInput::open(png);
-    REQUIRE(in);
     Screenshot s;
-    s.width = in->spec().width;
-    s.height = in->spec().height;
-    std::vector<unsigned char> all(static_cast<std::size_t>(s.width) * s.height * in->spec().nchannels);
-    REQUIRE(in->read_image(0, 0, 0, in->spec().nchannels, OIIO::TypeDesc::UINT8, all.data()));
-    const int nc = in->spec().nchannels;
-    in->close();
+    int nc = 0;
+    const std::vector<unsigned char> all = eco::test::readImage8(png, s.width, s.height, nc);
+    REQUIRE(!all.empty());
     REQUIRE(nc >= 3);
     s.rgb.resize(static_cast<std::size_t>(s.width) * s.height * 3);
     for (std::size_t p = 0; p < static_cast<std::size_t>(s.width) * s.height; ++p)

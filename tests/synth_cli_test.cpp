@@ -24,7 +24,6 @@
 #include "geo_raster.h"
 #include "geotiff_fixture.h"
 #include <ogrsf_frmts.h>
-#include <OpenImageIO/imageio.h>
 #include "h5io.h"
 #include "scene.h"
 #include "synth_world_fixture.h"
@@ -401,11 +400,7 @@ void writeGreyPng(const std::string& path, int width, int height, const std::fun
         for (int ix = 0; ix < width; ++ix)
             px[static_cast<std::size_t>(row) * static_cast<std::size_t>(width) + static_cast<std::size_t>(ix)] =
                 static_cast<std::uint8_t>(std::lround(255.0 * value(ix, height - 1 - row)));
-    auto out = OIIO::ImageOutput::create(path);
-    REQUIRE(out);
-    REQUIRE(out->open(path, OIIO::ImageSpec(width, height, 1, OIIO::TypeDesc::UINT8)));
-    REQUIRE(out->write_image(OIIO::TypeDesc::UINT8, px.data()));
-    out->close();
+    REQUIRE(eco::test::writeImage(path, width, height, 1, eco::SampleType::UInt8, eco::SampleType::UInt8, px.data()));
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <cstdlib>
@@ -14,7 +15,10 @@
 #include <iterator>
 #include <map>
 
-#include <OpenImageIO/imageio.h>
+#include <cmath>
+#include <memory>
+
+#include "image_codec.h"
 
 // AddressSanitizer reserves terabytes of address space at start, so a process built with it
 // cannot run under `ulimit -v`; such builds pass the limit as ECO_MEMORY_LIMIT_MB instead
@@ -139,16 +143,45 @@ inline std::vector<std::map<std::string, std::string>> readCsvRows(const std::st
     return rows;
 }
 
-/// An 8-bit RGB PNG's pixels, row by row; its size in w, h. Empty when it cannot be read.
-inline std::vector<unsigned char> readPngRgb(const std::string& path, int& w, int& h) {
-    auto in = OIIO::ImageInput::open(path);
+/// An image's pixels as 8-bit values (rows from the top, channels interleaved), read through
+/// core's image door (image_codec.h); its size and channels in w, h, channels. Empty when it
+/// cannot be read.
+inline std::vector<unsigned char> readImage8(const std::string& path, int& w, int& h, int& channels) {
+    std::string error;
+    const std::unique_ptr<eco::ImageFileReader> in = eco::openImageFile(path, error);
     if (!in) return {};
-    const auto& spec = in->spec();
-    w = spec.width;
-    h = spec.height;
-    std::vector<unsigned char> px(static_cast<std::size_t>(w) * h * 3);
-    if (spec.nchannels != 3 || !in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data())) return {};
+    w = in->width();
+    h = in->height();
+    channels = in->channels();
+    std::vector<float> f(static_cast<std::size_t>(w) * h * channels);
+    if (!in->readFloat(channels, f.data())) return {};
+    std::vector<unsigned char> px(f.size());
+    for (std::size_t i = 0; i < f.size(); ++i)
+        px[i] = static_cast<unsigned char>(std::lround(std::min(1.f, std::max(0.f, f[i])) * 255.f));
     return px;
+}
+
+/// An 8-bit RGB PNG's pixels, row by row; its size in w, h. Empty when it cannot be read or
+/// has not 3 channels.
+inline std::vector<unsigned char> readPngRgb(const std::string& path, int& w, int& h) {
+    int channels = 0;
+    std::vector<unsigned char> px = readImage8(path, w, h, channels);
+    return channels == 3 ? px : std::vector<unsigned char>();
+}
+
+/// Writes an image file (format from the extension: .png, .tif or .exr) with `channels`
+/// channels stored as `stored`, from pixels of type `given` (rows from the top). True when
+/// written.
+inline bool writeImage(const std::string& path, int w, int h, int channels, eco::SampleType stored,
+                       eco::SampleType given, const void* pixels) {
+    eco::ImageWriteSpec spec;
+    const std::string ext = std::filesystem::path(path).extension().string();
+    spec.format = ext == ".png" ? "png" : ext == ".exr" ? "openexr" : "tiff";
+    spec.width = w;
+    spec.height = h;
+    spec.channels = channels;
+    spec.stored = stored;
+    return eco::writeImageFile(path, spec, given, pixels).ok();
 }
 
 }  // namespace eco::test

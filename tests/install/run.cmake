@@ -12,12 +12,13 @@ function(run)
     message(FATAL_ERROR "failed (${status}): ${line}\n${out}\n${err}")
   endif()
   set(out "${out}" PARENT_SCOPE)
+  set(err "${err}" PARENT_SCOPE)
 endfunction()
 
 run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${prefix})
 foreach(f bin/eco share/man/man1/eco.1 share/bash-completion/completions/eco lib/cmake/eco/ecoConfig.cmake
           lib/cmake/eco/ecoConfigVersion.cmake include/eco/biome.h include/eco/eco_version.h include/eco/sim_config.h
-          lib/libeco_core.a lib/libeco_validate.a share/doc/eco/LICENSE share/doc/eco/CITATION.cff)
+          lib/libeco_core.a lib/libeco_validate.a lib/eco/eco_oiio.so share/doc/eco/LICENSE share/doc/eco/CITATION.cff)
   if(NOT EXISTS ${prefix}/${f})
     message(FATAL_ERROR "cmake --install did not install ${f}")
   endif()
@@ -30,8 +31,19 @@ endif()
 run(${CMAKE_COMMAND} -S ${SOURCE}/tests/install/consumer -B ${WORK}/consumer -DCMAKE_BUILD_TYPE=Release
     -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
 run(${CMAKE_COMMAND} --build ${WORK}/consumer)
-run(${WORK}/consumer/consumer)
+# The consumer draws a PNG: OpenImageIO's plugin is found through ECO_PLUGIN_DIR, as
+# docs/install.md says for an install outside the prefix eco was configured with.
+run(${CMAKE_COMMAND} -E env ECO_PLUGIN_DIR=${prefix}/lib/eco ${WORK}/consumer/consumer ${WORK}/consumer.png)
 set(consumer_out "${out}")
+if(NOT EXISTS ${WORK}/consumer.png)
+  message(FATAL_ERROR "the consumer wrote no PNG:\n${consumer_out}")
+endif()
+# The installed eco finds the installed plugin next to itself (../lib/eco), not the build's.
+run(${CMAKE_COMMAND} -E env --unset=ECO_PLUGIN_DIR LD_DEBUG=files ${prefix}/bin/eco terrain generate --width 8 --height 8
+    --out ${WORK}/t.png)
+if(NOT err MATCHES "file=${prefix}/lib/eco/eco_oiio.so")
+  message(FATAL_ERROR "the installed eco did not load the installed plugin ${prefix}/lib/eco/eco_oiio.so:\n${err}")
+endif()
 run(${prefix}/bin/eco --version)
 string(REGEX MATCH "[0-9]+\\.[0-9]+\\.[0-9]+" version "${out}")
 if(NOT consumer_out MATCHES "version ${version}\n")

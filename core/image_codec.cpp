@@ -1,0 +1,38 @@
+#include "image_codec.h"
+
+#include "error.h"
+#include "image_plugin.h"
+#include "plugin.h"
+
+namespace eco {
+
+namespace {
+
+/// The OpenImageIO plugin, loaded on first use.
+plugin::ImagePlugin& images() {
+    static plugin::ImagePlugin* const instance = [] {
+        using Entry = plugin::ImagePlugin* (*)(int);
+        const auto entry = reinterpret_cast<Entry>(pluginEntry("eco_oiio.so", "eco_image_plugin"));
+        plugin::ImagePlugin* p = entry(plugin::kImagePluginAbi);
+        if (!p) throw IoError("the plugin eco_oiio.so was built for another version of eco; rebuild or reinstall it");
+        return p;
+    }();
+    return *instance;
+}
+
+}  // namespace
+
+ImageWriteResult writeImageFile(const std::string& path, const ImageWriteSpec& spec, SampleType given, const void* pixels) {
+    return images().write(path, spec, given, pixels);
+}
+
+std::unique_ptr<ImageFileReader> openImageFile(const std::string& path, std::string& error) {
+    return images().open(path, error);
+}
+
+bool renderText(float* rgb, int width, int height, int x, int y, const std::string& text, int sizePx,
+                const std::string& font, const float colour[3]) {
+    return images().renderText(rgb, width, height, x, y, text, sizePx, font, colour);
+}
+
+}  // namespace eco
