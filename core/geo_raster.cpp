@@ -1,70 +1,48 @@
 // Georeferenced rasters through GDAL (geo_raster.h).
 #include "geo_raster.h"
 
-#include <gdal_priv.h>
-#include <ogrsf_frmts.h>
-#include <ogr_spatialref.h>
-#include <cpl_error.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <optional>
 #include <type_traits>
 #include <limits>
-#include <memory>
-#include <mutex>
 #include <utility>
 #include <vector>
 
 #include "atomic_file.h"
 #include "error.h"
+#include "gdal_plugin.h"
 #include "h5io.h"
 #include "memory.h"
+#include "plugin.h"
 
 namespace eco {
 
 namespace {
 
-void registerGdal() {
-    static std::once_flag once;
-    std::call_once(once, [] { GDALAllRegister(); });
+/// The GDAL plugin, loaded on first use (GDAL links about a hundred shared libraries: loaded
+/// at every start they took most of it).
+plugin::GdalPlugin& gdal() {
+    static plugin::GdalPlugin* const instance = [] {
+        using Entry = plugin::GdalPlugin* (*)(int);
+        const auto entry = reinterpret_cast<Entry>(pluginEntry("eco_gdal.so", "eco_gdal_plugin"));
+        plugin::GdalPlugin* p = entry(plugin::kGdalPluginAbi);
+        if (!p) throw IoError("the plugin eco_gdal.so was built for another version of eco; rebuild or reinstall it");
+        return p;
+    }();
+    return *instance;
 }
 
-/// GDAL's messages go to our exceptions, not to stderr: quiet while a call runs.
-struct QuietGdal {
-    QuietGdal() {
-        CPLPushErrorHandler(CPLQuietErrorHandler);
-        CPLErrorReset();
-    }
-    ~QuietGdal() { CPLPopErrorHandler(); }
-    QuietGdal(const QuietGdal&) = delete;
-    QuietGdal& operator=(const QuietGdal&) = delete;
-};
-
-std::string lastGdalError() {
-    const char* m = CPLGetLastErrorMsg();
-    return m != nullptr && *m != '\0' ? std::string(": ") + m : std::string();
-}
-
-struct DatasetCloser {
-    void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
-};
-using Dataset = std::unique_ptr<GDALDataset, DatasetCloser>;
-
-Dataset openRaster(const std::string& path) {
-    registerGdal();
-    return Dataset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-}
+/// GDAL's reason after ": ", or nothing when it gave none.
+std::string reason(const std::string& gdalMessage) { return gdalMessage.empty() ? "" : ": " + gdalMessage; }
 
 }  // namespace
 
 bool hasGeotransform(const std::string& path) {
-    QuietGdal quiet;
-    const Dataset ds = openRaster(path);
-    if (!ds) return false;
-    double gt[6];
-    return ds->GetGeoTransform(gt) == CE_None;
+    plugin::RasterInfo info;
+    std::string error;
+    return gdal().inspect(path, info, error) && info.hasGeotransform;
 }
 
 namespace {
@@ -79,49 +57,50 @@ void writeGeoTiffBands(const std::string& path, const std::vector<const Grid<T>*
     const Grid<T>& g = *bands.front();
     for (const Grid<T>* b : bands)
         if (!b->sameGeometry(g)) throw ValidationError(path + ": the bands differ in geometry");
-    QuietGdal quiet;
-    registerGdal();
-    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
-    if (drv == nullptr) throw IoError(path + ": GDAL has no GeoTIFF driver");
-    OGRSpatialReference srs;
-    if (!g.crsWkt().empty() && srs.importFromWkt(g.crsWkt().c_str()) != OGRERR_NONE)
-        throw ValidationError(path + ": the grid's CRS is not valid WKT");
+    plugin::GdalPlugin& plug = gdal();
+    if (!g.crsWkt().empty() && !plug.validCrs(g.crsWkt())) throw ValidationError(path + ": the grid's CRS is not valid WKT");
     AtomicOutput out(path);
     const int w = g.width(), h = g.height();
-    char compress[] = "COMPRESS=DEFLATE";
-    char interleave[] = "INTERLEAVE=BAND";
-    char* options[] = {compress, interleave, nullptr};
-    const GDALDataType type = kFloat ? GDT_Float32 : GDT_Int32;
-    {
-        const Dataset ds(drv->Create(out.tempPath().c_str(), w, h, static_cast<int>(bands.size()), type, options));
-        if (!ds) throw IoError(path + ": cannot create the GeoTIFF" + lastGdalError());
-        double gt[6] = {g.originX(), g.cellSizeM(), 0.0, g.originY() + h * g.cellSizeM(), 0.0, -g.cellSizeM()};
-        ds->SetGeoTransform(gt);
-        if (!g.crsWkt().empty()) ds->SetSpatialRef(&srs);
-        constexpr float kNodata = -3.4e38f;
-        std::vector<T> rows(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-        for (std::size_t b = 0; b < bands.size(); ++b) {
-            GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
-            bool anyNan = false;
-            for (int row = 0; row < h; ++row)
-                for (int ix = 0; ix < w; ++ix) {
-                    T v = (*bands[b])(ix, h - 1 - row);  // the file's first row is the northern edge
-                    if constexpr (kFloat) {
-                        if (std::isnan(v)) {
-                            anyNan = true;
-                            v = kNodata;
-                        }
+    plugin::GeoTiffSpec spec;
+    spec.width = w;
+    spec.height = h;
+    spec.isFloat = kFloat;
+    const double gt[6] = {g.originX(), g.cellSizeM(), 0.0, g.originY() + h * g.cellSizeM(), 0.0, -g.cellSizeM()};
+    std::copy(gt, gt + 6, spec.geotransform);
+    spec.crsWkt = g.crsWkt();
+    spec.units = units;
+    constexpr float kNodata = -3.4e38f;
+    std::vector<plugin::GeoTiffBand> meta(bands.size());
+    for (std::size_t b = 0; b < bands.size(); ++b) {
+        if (b < descriptions.size()) meta[b].description = descriptions[b];
+        meta[b].hasNodata = !kFloat && intNodata.has_value();
+        meta[b].nodata = kFloat ? static_cast<double>(kNodata) : static_cast<double>(intNodata.value_or(0));
+    }
+    static_assert(sizeof(T) == 4, "GeoTIFF cells are Float32 or Int32");
+    const plugin::GeoTiffFill fill = [&](std::size_t b, void* target) {
+        T* rows = static_cast<T*>(target);
+        bool anyNan = false;
+        for (int row = 0; row < h; ++row)
+            for (int ix = 0; ix < w; ++ix) {
+                T v = (*bands[b])(ix, h - 1 - row);  // the file's first row is the northern edge
+                if constexpr (kFloat) {
+                    if (std::isnan(v)) {
+                        anyNan = true;
+                        v = kNodata;
                     }
-                    rows[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix)] = v;
                 }
-            if (anyNan) band->SetNoDataValue(kNodata);
-            if (!kFloat && intNodata) band->SetNoDataValue(*intNodata);
-            if (b < descriptions.size()) band->SetDescription(descriptions[b].c_str());
-            if (!units.empty()) band->SetUnitType(units.c_str());
-            if (band->RasterIO(GF_Write, 0, 0, w, h, rows.data(), w, h, type, 0, 0) != CE_None)
-                throw IoError(path + ": cannot write the GeoTIFF's cells" + lastGdalError());
-        }
-    }  // closed (flushed) before the commit
+                rows[static_cast<std::size_t>(row) * static_cast<std::size_t>(w) + static_cast<std::size_t>(ix)] = v;
+            }
+        return anyNan;
+    };
+    std::string error;
+    switch (plug.writeGeoTiff(out.tempPath(), spec, meta, fill, error)) {
+    case plugin::GdalStep::Done: break;
+    case plugin::GdalStep::NoDriver: throw IoError(path + ": GDAL has no GeoTIFF driver");
+    case plugin::GdalStep::BadCrs: throw ValidationError(path + ": the grid's CRS is not valid WKT");
+    case plugin::GdalStep::Create: throw IoError(path + ": cannot create the GeoTIFF" + reason(error));
+    default: throw IoError(path + ": cannot write the GeoTIFF's cells" + reason(error));
+    }
     out.commit();
 }
 
@@ -195,76 +174,60 @@ std::vector<std::string> exportGridsAsGeoTiff(const std::string& h5Path, const s
 
 void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& layers, const Biome& biome,
                      const std::string& crsWkt) {
-    QuietGdal quiet;
-    registerGdal();
-    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
-    if (drv == nullptr) throw IoError(path + ": GDAL has no GeoPackage driver");
-    OGRSpatialReference srs;
-    if (!crsWkt.empty() && srs.importFromWkt(crsWkt.c_str()) != OGRERR_NONE)
-        throw ValidationError(path + ": the CRS to write is not valid WKT");
+    plugin::GdalPlugin& plug = gdal();
+    if (!crsWkt.empty() && !plug.validCrs(crsWkt)) throw ValidationError(path + ": the CRS to write is not valid WKT");
     AtomicOutput out(path);
-    {
-        const Dataset ds(drv->Create(out.tempPath().c_str(), 0, 0, 0, GDT_Unknown, nullptr));
-        if (!ds) throw IoError(path + ": cannot create the GeoPackage" + lastGdalError());
-        OGRLayer* layer = ds->CreateLayer("plants", crsWkt.empty() ? nullptr : &srs, wkbPoint, nullptr);
-        if (layer == nullptr) throw IoError(path + ": cannot create its layer" + lastGdalError());
-        const std::pair<const char*, OGRFieldType> fields[] = {{"layer", OFTString},      {"species", OFTString},
-                                                               {"species_id", OFTInteger}, {"height_m", OFTReal},
-                                                               {"crown_radius_m", OFTReal}, {"ground_z_m", OFTReal}};
-        for (const auto& [name, type] : fields) {
-            OGRFieldDefn def(name, type);
-            if (layer->CreateField(&def) != OGRERR_NONE) throw IoError(path + ": cannot create field " + name + lastGdalError());
+    std::size_t layer = 0, index = 0;
+    const plugin::GpkgNext next = [&](plugin::GpkgPlant& row) {
+        while (layer < layers.size() && (layers[layer].plants == nullptr || index >= layers[layer].plants->size())) {
+            ++layer;
+            index = 0;
         }
-        if (ds->StartTransaction() != OGRERR_NONE) throw IoError(path + ": cannot start writing" + lastGdalError());
-        for (const PlantLayer& l : layers) {
-            if (l.plants == nullptr) continue;
-            for (const Plant& p : *l.plants) {
-                OGRFeature* f = OGRFeature::CreateFeature(layer->GetLayerDefn());
-                f->SetField(0, l.name.c_str());
-                const bool known = p.speciesId >= 0 && static_cast<std::size_t>(p.speciesId) < biome.species.size();
-                f->SetField(1, known ? biome.species[static_cast<std::size_t>(p.speciesId)].name.c_str() : "");
-                f->SetField(2, p.speciesId);
-                f->SetField(3, p.heightM);
-                f->SetField(4, p.crownRadiusM);
-                f->SetField(5, p.groundZM);
-                OGRPoint pt(p.xM, p.yM);
-                f->SetGeometry(&pt);
-                const OGRErr e = layer->CreateFeature(f);
-                OGRFeature::DestroyFeature(f);
-                if (e != OGRERR_NONE) throw IoError(path + ": cannot write a plant" + lastGdalError());
-            }
-        }
-        if (ds->CommitTransaction() != OGRERR_NONE) throw IoError(path + ": cannot finish writing" + lastGdalError());
+        if (layer >= layers.size()) return false;
+        const Plant& p = (*layers[layer].plants)[index++];
+        row.layer = layers[layer].name.c_str();
+        const bool known = p.speciesId >= 0 && static_cast<std::size_t>(p.speciesId) < biome.species.size();
+        row.species = known ? biome.species[static_cast<std::size_t>(p.speciesId)].name.c_str() : "";
+        row.speciesId = p.speciesId;
+        row.height = p.heightM;
+        row.crownRadius = p.crownRadiusM;
+        row.groundZ = p.groundZM;
+        row.x = p.xM;
+        row.y = p.yM;
+        return true;
+    };
+    std::string field, error;
+    switch (plug.writeGpkg(out.tempPath(), crsWkt, next, field, error)) {
+    case plugin::GdalStep::Done: break;
+    case plugin::GdalStep::NoDriver: throw IoError(path + ": GDAL has no GeoPackage driver");
+    case plugin::GdalStep::BadCrs: throw ValidationError(path + ": the CRS to write is not valid WKT");
+    case plugin::GdalStep::Create: throw IoError(path + ": cannot create the GeoPackage" + reason(error));
+    case plugin::GdalStep::Layer: throw IoError(path + ": cannot create its layer" + reason(error));
+    case plugin::GdalStep::Field: throw IoError(path + ": cannot create field " + field + reason(error));
+    case plugin::GdalStep::Start: throw IoError(path + ": cannot start writing" + reason(error));
+    case plugin::GdalStep::Feature: throw IoError(path + ": cannot write a plant" + reason(error));
+    default: throw IoError(path + ": cannot finish writing" + reason(error));
     }
     out.commit();
 }
 
 std::string rasterCrsWkt(const std::string& path) {
-    QuietGdal quiet;
-    const Dataset ds = openRaster(path);
-    if (!ds) return "";
-    const OGRSpatialReference* srs = ds->GetSpatialRef();
-    if (srs == nullptr) return "";
-    char* wkt = nullptr;
-    std::string out;
-    if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out = wkt;
-    CPLFree(wkt);
-    return out;
+    plugin::RasterInfo info;
+    std::string error;
+    return gdal().inspect(path, info, error) ? info.crsWkt : std::string();
 }
 
 bool sameCrs(const std::string& wktA, const std::string& wktB) {
     if (wktA.empty() || wktB.empty()) return wktA.empty() && wktB.empty();
-    OGRSpatialReference a, b;
-    if (a.importFromWkt(wktA.c_str()) != OGRERR_NONE || b.importFromWkt(wktB.c_str()) != OGRERR_NONE) return wktA == wktB;
-    return a.IsSame(&b) != 0;
+    const int same = gdal().sameCrs(wktA, wktB);
+    return same < 0 ? wktA == wktB : same == 1;
 }
 
 std::string sharedCrs(const std::string& wktA, const std::string& whatA, const std::string& wktB, const std::string& whatB) {
     if (wktA.empty() || wktB.empty() || sameCrs(wktA, wktB)) return wktA.empty() ? wktB : wktA;
     auto name = [](const std::string& wkt) {
-        OGRSpatialReference s;
-        if (s.importFromWkt(wkt.c_str()) == OGRERR_NONE && s.GetName() != nullptr) return std::string(s.GetName());
-        return std::string("unnamed CRS");
+        const std::string n = gdal().crsName(wkt);
+        return n.empty() ? std::string("unnamed CRS") : n;
     };
     throw ValidationError(whatA + " is in " + name(wktA) + " but " + whatB + " is in " + name(wktB) +
                           ": the two must share one CRS; reproject one onto the other's grid, e.g. gdalwarp -t_srs <CRS of " + whatA +
@@ -276,18 +239,20 @@ void requireSameCrs(const std::string& pathA, const std::string& pathB) {
 }
 
 GeoRaster readGeoRaster(const std::string& path) {
-    QuietGdal quiet;
-    const Dataset ds = openRaster(path);
-    if (!ds) throw IoError(path + ": cannot read as a raster (missing, unreadable or not a format GDAL reads)" + lastGdalError());
+    plugin::GdalPlugin& plug = gdal();
+    plugin::RasterInfo info;
+    std::string error;
+    if (!plug.inspect(path, info, error))
+        throw IoError(path + ": cannot read as a raster (missing, unreadable or not a format GDAL reads)" + reason(error));
     GeoRaster out;
-    out.driver = ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "";
-    const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-    if (w <= 0 || h <= 0 || ds->GetRasterCount() < 1) throw IoError(path + ": the raster has no cells or no band");
+    out.driver = info.driver;
+    const int w = info.width, h = info.height;
+    if (w <= 0 || h <= 0 || info.bands < 1) throw IoError(path + ": the raster has no cells or no band");
     // Cells as double, the nodata mask and the grid: about 13 bytes a cell.
     requireMemory(13.0 * w * h, path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells",
                   "crop or resample it first, e.g. gdal_translate -srcwin / gdalwarp -tr");
-    double gt[6];
-    if (ds->GetGeoTransform(gt) != CE_None)
+    const double* gt = info.geotransform;
+    if (!info.hasGeotransform)
         throw ValidationError(path + ": no georeferencing (geotransform) in the file; give the cell size with --cell-size "
                               "or georeference it (gdal_translate -a_ullr ... -a_srs ...)");
     if (gt[2] != 0.0 || gt[4] != 0.0)
@@ -299,17 +264,15 @@ GeoRaster readGeoRaster(const std::string& path) {
     if (std::abs(cw - chAbs) > 1e-9 * cw)
         throw ValidationError(path + ": cells are not square (" + formatNumber(cw, 10) + " x " + formatNumber(chAbs, 10) +
                               "); resample them: gdalwarp -tr " + formatNumber(cw, 10) + " " + formatNumber(cw, 10) + " IN OUT");
-    if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
-        char* wkt = nullptr;
-        if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out.crsWkt = wkt;
-        CPLFree(wkt);
-        if (const char* name = srs->GetName()) out.crsName = name;
-        if (srs->IsGeographic())
+    if (info.hasCrs) {
+        out.crsWkt = info.crsWkt;
+        out.crsName = info.crsName;
+        if (info.geographic)
             throw ValidationError(path + ": the raster is in a geographic CRS (" + out.crsName +
                                   ", cells in degrees); reproject it to a projected CRS in metres, e.g. gdalwarp -t_srs "
                                   "EPSG:<UTM zone> IN OUT");
-        if (srs->IsProjected()) {
-            const double toMetres = srs->GetLinearUnits();
+        if (info.projected) {
+            const double toMetres = info.linearUnits;
             if (std::abs(toMetres - 1.0) > 1e-9)
                 throw ValidationError(path + ": the CRS's unit is not the metre (1 unit = " + formatNumber(toMetres, 10) +
                                       " m); reproject it to a CRS in metres with gdalwarp -t_srs");
@@ -318,21 +281,15 @@ GeoRaster readGeoRaster(const std::string& path) {
     // After the CRS (a geographic raster's cells in degrees get that message instead).
     if (!cellSizeInRange(cw))
         throw ValidationError(path + ": cell size " + formatNumber(cw) + " in the geotransform " + cellSizeRangeText());
-    GDALRasterBand* band = ds->GetRasterBand(1);
-    std::vector<double> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-    if (band->RasterIO(GF_Read, 0, 0, w, h, px.data(), w, h, GDT_Float64, 0, 0) != CE_None)
-        throw IoError(path + ": cannot read the raster's cells (corrupt or truncated file?)" + lastGdalError());
-    // Nodata: the band's mask (nodata value, alpha or an explicit mask); 0 = nodata.
-    std::vector<std::uint8_t> valid;
-    if ((band->GetMaskFlags() & GMF_ALL_VALID) == 0) {
-        valid.resize(px.size());
-        if (band->GetMaskBand()->RasterIO(GF_Read, 0, 0, w, h, valid.data(), w, h, GDT_Byte, 0, 0) != CE_None)
-            throw IoError(path + ": cannot read the raster's nodata mask" + lastGdalError());
+    plugin::RasterCells cells;
+    switch (plug.readBand1(path, cells, error)) {
+    case plugin::GdalStep::Done: break;
+    case plugin::GdalStep::Mask: throw IoError(path + ": cannot read the raster's nodata mask" + reason(error));
+    default: throw IoError(path + ": cannot read the raster's cells (corrupt or truncated file?)" + reason(error));
     }
-    int hasScale = 0, hasOffset = 0;
-    double scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
-    if (!hasScale) scale = 1;
-    if (!hasOffset) offset = 0;
+    const std::vector<double>& px = cells.values;
+    const std::vector<std::uint8_t>& valid = cells.valid;
+    const double scale = cells.scale, offset = cells.offset;
     const bool northUp = gt[5] < 0;
     const double originY = northUp ? gt[3] + gt[5] * h : gt[3];
     out.grid = Grid<float>(w, h, cw, gt[0], originY);

@@ -48,7 +48,7 @@ cmake -S . -B "$build" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   || { cat "$work/configure.log"; exit 1; }
 stamp "configured $build"
 # Only what the tests and the fuzz runs need (no benchmarks).
-cmake --build "$build" -j"$(nproc)" --target eco eco_tests eco_synth_tests eco_sim_tests eco_analysis_tests \
+cmake --build "$build" -j"$(nproc)" --target eco eco_tests eco_geo_tests eco_synth_tests eco_sim_tests eco_analysis_tests \
   eco_pipeline_tests eco_validate_tests eco_cli_tests eco_fuzz
 stamp "built"
 

@@ -18,7 +18,7 @@ endfunction()
 run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${prefix})
 foreach(f bin/eco share/man/man1/eco.1 share/bash-completion/completions/eco lib/cmake/eco/ecoConfig.cmake
           lib/cmake/eco/ecoConfigVersion.cmake include/eco/biome.h include/eco/eco_version.h include/eco/sim_config.h
-          lib/libeco_core.a lib/libeco_validate.a lib/eco/eco_oiio.so share/doc/eco/LICENSE share/doc/eco/CITATION.cff)
+          lib/libeco_core.a lib/libeco_validate.a lib/eco/eco_oiio.so lib/eco/eco_gdal.so share/doc/eco/LICENSE share/doc/eco/CITATION.cff)
   if(NOT EXISTS ${prefix}/${f})
     message(FATAL_ERROR "cmake --install did not install ${f}")
   endif()
