@@ -136,9 +136,7 @@ void registerAnalyseCommand(CLI::App& app) {
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--out", args->out, "Output biome database, e.g. biome-db.h5 (written atomically)")->required();
-    const auto& kmax = paramField(analysis::analysisParamFields(), "kmax");  // its range from the table
-    cmd->add_option("--kmax", args->kMax, "Largest number of k-means clusters tried per combination (default 6)")
-        ->check(CLI::Range(static_cast<int>(kmax.range.lo), static_cast<int>(kmax.range.hi)));
+    addParamOption(cmd, "--kmax", args->kMax, analysis::analysisParamFields(), "kmax");  // 0 (not given): the table's default
     cmd->add_option("--year", args->year, "Snapshot year to analyse (default: the last)")->check(nonNegativeNumber());
     cmd->add_option("--abiotics", args->abiotics,
                     "Abiotics file(s) replacing those the simulations name: one for all, or one per simulation in order");
