@@ -110,9 +110,9 @@ const std::vector<ParamDesc<EcoModSpecies>>& ecomodSpeciesFields() {
         e("sun_tol", "Delta l_o: tolerated deviation", "hours/day", &E::sunTol, R::atLeast(0), "r / 4 of the `sun` response"),
         e("sun_harm", "f_l: harmfulness beyond the tolerance", "day/hour", &E::sunHarm, R::atLeast(0), "1 / r of the `sun` response"),
         e("wind_opt", "w_o: optimal wind exposure", "m/s", &E::windOpt, R::any(),
-          "c of the `wind` response; a species without one is indifferent (tolerance infinite)"),
-        e("wind_tol", "Delta w_o: tolerated deviation", "m/s", &E::windTol, R::atLeast(0), "r / 4 of the `wind` response"),
-        e("wind_harm", "f_w: harmfulness beyond the tolerance", "s/m", &E::windHarm, R::atLeast(0), "1 / r of the `wind` response"),
+          "c of the `wind` response; 0 without one (the species is then indifferent)"),
+        e("wind_tol", "Delta w_o: tolerated deviation", "m/s", &E::windTol, R::atLeast(0), "r / 4 of the `wind` response; infinite without one"),
+        e("wind_harm", "f_w: harmfulness beyond the tolerance", "s/m", &E::windHarm, R::atLeast(0), "1 / r of the `wind` response; 0 without one"),
         e("slope_harm", "f_s: slope harmfulness, s = 1 - (f_s (1 - cos slope))^2", "", &E::slopeHarm, R::atLeast(0),
           "1 / (1 - cos(min(90, c + r))) from the `slope` response: s = 0 at the steepest slope the response tolerates"),
     };
