@@ -242,7 +242,7 @@ void registerConfigCommands(CLI::App& app) {
     auto d = std::make_shared<DescribeArgs>();
     CLI::App* describeCmd = config->add_subcommand(
         "describe",
-        "Print the parameter tables (core/param_desc.h: key, default, meaning and unit, allowed values, flags) as the "
+        "Print the parameter tables (core/param_desc.h: key, default, unit, meaning, allowed values, flags) as the "
         "docs show them; tools/param_docs.py writes them into docs/ and a test checks that the docs hold them.");
     describeCmd->group("");  // hidden: a tool for the docs
     std::string names;
