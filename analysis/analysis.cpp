@@ -378,7 +378,7 @@ const std::vector<AnalysisParamField>& analysisParamFields() {
     using R = ParamRange;
     using P = AnalysisParams;
     static const std::vector<AnalysisParamField> fields = {
-        {"seeding_radius_factor", "seeding disc radius (`eco analyse`: the simulation's when it records one)", "crown radii",
+        {"seeding_radius_factor", "canopy trees seed cells within this radius (`eco analyse`: the simulation's when it records one, else this default)", "crown radii",
          K::Real, &P::seedingRadiusFactor, nullptr, R::above(0), nullptr, "must be positive"},
         {"kmax", "largest number of k-means clusters tried per combination", "", K::Integer, nullptr, &P::kMax, R::closed(1, 64)},
         {"silhouette_threshold", "best mean silhouette below this: k = 1", "", K::Real, &P::silhouetteThreshold, nullptr,
