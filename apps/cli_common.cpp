@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <map>
 #include <streambuf>
 
 namespace eco::cli {
@@ -119,6 +120,23 @@ CLI::Validator numberIn(double lo, double hi) {
             return "";
         },
         "NUMBER in " + range);
+}
+
+namespace {
+std::map<const CLI::Option*, ParamFlag>& paramFlags() {
+    static std::map<const CLI::Option*, ParamFlag> flags;
+    return flags;
+}
+std::string firstLongName(const CLI::Option* o) { return o->get_lnames().empty() ? std::string() : o->get_lnames().front(); }
+}  // namespace
+
+void noteParamFlag(const CLI::Option* option, const void* table, const std::string& key) {
+    paramFlags()[option] = ParamFlag{table, key, firstLongName(option)};
+}
+
+const ParamFlag* paramFlagOf(const CLI::Option* option) {
+    const auto it = paramFlags().find(option);
+    return it != paramFlags().end() && it->second.flag == firstLongName(option) ? &it->second : nullptr;
 }
 
 CLI::Validator oneOf(const std::vector<std::string>& choices) {

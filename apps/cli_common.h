@@ -125,12 +125,54 @@ CLI::Validator parsedBy(const std::string& flag, const std::function<void(const 
 
 /// A flag's help text from the description of the parameter it sets (core/param_desc.h),
 /// so that --help and the docs' parameter tables say the same: `prefix` and the doc line,
-/// capitalised when there is no prefix.
+/// capitalised when there is no prefix, and the unit after a comma ("... this radius, m", as
+/// in eco config defaults).
 template <typename S>
 std::string paramHelp(const ParamDesc<S>& f, const std::string& prefix = "") {
-    std::string doc = f.doc;
+    std::string doc = paramDocWithUnit(f);
     if (prefix.empty() && !doc.empty() && doc[0] >= 'a' && doc[0] <= 'z') doc[0] = static_cast<char>(doc[0] - 'a' + 'A');
     return prefix + doc;
+}
+
+/// Which described parameter a flag sets (addParamOption): the descriptor table (its
+/// address) and the key. eco config describe lists a parameter's flags from this.
+struct ParamFlag {
+    const void* table = nullptr;
+    std::string key;
+    std::string flag;  ///< the option's first long name, to tell a reused address
+};
+void noteParamFlag(const CLI::Option* option, const void* table, const std::string& key);
+/// The parameter `option` sets, or nullptr for an option not made by addParamOption.
+const ParamFlag* paramFlagOf(const CLI::Option* option);
+
+/// The one way to declare a flag that sets a described parameter (core/param_desc.h): an
+/// option `flag` (e.g. "--max-passes") bound to `target`, with the help text of the
+/// parameter (paramHelp: doc, unit; `prefix` before it), the parameter's default (S{}) shown
+/// as the flag's, and the range checked at parse time (paramCheck: a value
+/// out of range is a usage error naming the flag, exit 2; seeds are checked by their
+/// conversion). A new parameter thus gets its flag, help and docs row from its descriptor.
+template <typename S, typename T>
+CLI::Option* addParamOption(CLI::App* cmd, const std::string& flag, T& target, const std::vector<ParamDesc<S>>& fields,
+                            const std::string& key, const std::string& prefix = "") {
+    const ParamDesc<S>& f = paramField(fields, key);
+    static const S defaults{};  // static: every byte initialised (see paramDocRow)
+    CLI::Option* o = cmd->add_option(flag, target, paramHelp(f, prefix))->default_str(f.defaultText ? std::string(f.defaultText) : paramText(f, defaults, 6));
+    if (f.kind != ParamDesc<S>::Kind::Seed) o->check(paramCheck(f));
+    noteParamFlag(o, &fields, key);
+    return o;
+}
+
+/// addParamOption bound to the parameter's own member of `params`.
+template <typename S>
+CLI::Option* addParamOption(CLI::App* cmd, const std::string& flag, S& params, const std::vector<ParamDesc<S>>& fields,
+                            const std::string& key, const std::string& prefix = "") {
+    const ParamDesc<S>& f = paramField(fields, key);
+    switch (f.kind) {
+        case ParamDesc<S>::Kind::Real: return addParamOption(cmd, flag, params.*(f.real), fields, key, prefix);
+        case ParamDesc<S>::Kind::Integer: return addParamOption(cmd, flag, params.*(f.integer), fields, key, prefix);
+        case ParamDesc<S>::Kind::Seed: break;
+    }
+    return addParamOption(cmd, flag, params.*(f.seed), fields, key, prefix);
 }
 
 /// How much the command line prints: eco --quiet (errors only: no progress, no information,

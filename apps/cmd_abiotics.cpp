@@ -54,10 +54,7 @@ void registerAbioticsCommand(CLI::App& app) {
         ->capture_default_str();
     args->offsetOpt = cmd->add_option("--vertical-offset", args->verticalOffsetM, "Image terrains only: metres added after scaling")
         ->capture_default_str();
-    const ParamDesc<SunParams>& step = paramField(sunParamFields(), "sun_step_minutes");
-    cmd->add_option("--sun-step", o.sunStepMinutes, paramHelp(step))
-        ->check(CLI::Range(step.range.lo, step.range.hi))
-        ->capture_default_str();
+    addParamOption(cmd, "--sun-step", o.sunStepMinutes, sunParamFields(), "sun_step_minutes");
     cmd->callback([args] { runAbiotics(*args); });
 }
 

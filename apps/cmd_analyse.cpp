@@ -136,18 +136,17 @@ void registerAnalyseCommand(CLI::App& app) {
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--out", args->out, "Output biome database, e.g. biome-db.h5 (written atomically)")->required();
-    const auto& kmax = paramField(analysis::analysisParamFields(), "kmax");  // its range from the table
-    cmd->add_option("--kmax", args->kMax, "Largest number of k-means clusters tried per combination (default 6)")
-        ->check(CLI::Range(static_cast<int>(kmax.range.lo), static_cast<int>(kmax.range.hi)));
+    // Flags of described parameters (analysis/analysis.cpp); not given (0, -1): the table's
+    // default, or for the seeding radius the simulation's.
+    const auto& fields = analysis::analysisParamFields();
+    addParamOption(cmd, "--kmax", args->kMax, fields, "kmax");
     cmd->add_option("--year", args->year, "Snapshot year to analyse (default: the last)")->check(nonNegativeNumber());
     cmd->add_option("--abiotics", args->abiotics,
                     "Abiotics file(s) replacing those the simulations name: one for all, or one per simulation in order");
-    cmd->add_option("--seed", args->seed, "Seed of k-means++ and sampling (default 1)")->check(nonNegativeNumber());
+    addParamOption(cmd, "--seed", args->seed, fields, "seed")->check(nonNegativeNumber());
     cmd->add_option("--rmax", args->rMaxM, "Largest pair distance, m (default 10)")->check(positiveNumber());
     cmd->add_option("--bins", args->bins, "Distance bins of the pair correlation (default 40)")->check(CLI::Range(1, 100000));
-    cmd->add_option("--seeding-radius-factor", args->seedingRadiusFactor,
-                    "Canopy trees seed cells within this factor x crown radius (default: the simulation's, else 12)")
-        ->check(positiveNumber());
+    addParamOption(cmd, "--seeding-radius-factor", args->seedingRadiusFactor, fields, "seeding_radius_factor");
     cmd->add_flag("--species-sub-biomes", args->speciesSubBiomes,
                   "Label cells by the canopy species' own sub_biomes instead of the sub-biomes' canopy lists");
     cmd->callback([args] {

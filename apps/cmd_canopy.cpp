@@ -17,11 +17,8 @@ struct CanopyArgs {
     pipeline::CanopyOptions options;
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     CLI::Option *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
-    // Overrides of CanopyParams (applied after --config when given).
-    std::uint64_t seed = 1;
-    int maxIterations = 0;
-    double minVisibleFraction = 0, moveFactor = 0, ringFactor = 0, minTrunkDistanceM = 0, coverageEpsilon = 0,
-           canopyThresholdM = 0, minSeedHeightM = 0;
+    // Overrides of CanopyParams (applied after --config when given); the flags' defaults.
+    synth::CanopyParams flags;
     // Which overrides were given.
     CLI::Option *seedOpt = nullptr, *maxIterationsOpt = nullptr, *minVisibleOpt = nullptr, *moveOpt = nullptr,
                 *ringOpt = nullptr, *trunkOpt = nullptr, *epsilonOpt = nullptr, *thresholdOpt = nullptr,
@@ -38,15 +35,15 @@ void runCanopy(CanopyArgs& a) {
     o.terrainRead.cellSizeM = given(a.cellOpt, a.cellSizeM);
     o.terrainRead.verticalScale = given(a.scaleOpt, a.verticalScale);
     o.terrainRead.verticalOffsetM = given(a.offsetOpt, a.verticalOffsetM);
-    o.seed = given(a.seedOpt, a.seed);
-    o.maxIterations = given(a.maxIterationsOpt, a.maxIterations);
-    o.minVisibleFraction = given(a.minVisibleOpt, a.minVisibleFraction);
-    o.moveFactor = given(a.moveOpt, a.moveFactor);
-    o.ringFactor = given(a.ringOpt, a.ringFactor);
-    o.minTrunkDistanceM = given(a.trunkOpt, a.minTrunkDistanceM);
-    o.coverageEpsilon = given(a.epsilonOpt, a.coverageEpsilon);
-    o.canopyThresholdM = given(a.thresholdOpt, a.canopyThresholdM);
-    o.minSeedHeightM = given(a.seedHeightOpt, a.minSeedHeightM);
+    o.seed = given(a.seedOpt, a.flags.seed);
+    o.maxIterations = given(a.maxIterationsOpt, a.flags.maxIterations);
+    o.minVisibleFraction = given(a.minVisibleOpt, a.flags.minVisibleFraction);
+    o.moveFactor = given(a.moveOpt, a.flags.moveFactor);
+    o.ringFactor = given(a.ringOpt, a.flags.ringFactor);
+    o.minTrunkDistanceM = given(a.trunkOpt, a.flags.minTrunkDistanceM);
+    o.coverageEpsilon = given(a.epsilonOpt, a.flags.coverageEpsilon);
+    o.canopyThresholdM = given(a.thresholdOpt, a.flags.canopyThresholdM);
+    o.minSeedHeightM = given(a.seedHeightOpt, a.flags.minSeedHeightM);
     CliReporter reporter;
     pipeline::canopyStage(o, reporter);
 }
@@ -83,30 +80,18 @@ void registerCanopyCommand(CLI::App& app) {
                     "with the inputs' geotransform and CRS");
     cmd->add_option("--config", o.config,
                     "TOML with placer parameters ([canopy] table or top-level keys; unknown keys are errors)");
-    auto canopyCheck = [](const char* key) { return paramCheck(paramField(synth::canopyParamFields(), key)); };
-    args->seedOpt = cmd->add_option("--seed", args->seed, "Random seed of the ring seeding")->capture_default_str();
-    args->maxIterationsOpt =
-        cmd->add_option("--max-iterations", args->maxIterations, "Iteration cap (default 30)")->check(canopyCheck("max_iterations"));
-    args->minVisibleOpt = cmd->add_option("--min-visible-fraction", args->minVisibleFraction,
-                                          "Remove trees whose visible crown is below this fraction of the disc (0.2)")
-        ->check(canopyCheck("min_visible_fraction"));
-    args->moveOpt = cmd->add_option("--move-factor", args->moveFactor,
-                                    "Fraction of the way to the visible centroid moved per iteration (0.5; 1 = the paper)")
-        ->check(canopyCheck("move_factor"));
-    args->ringOpt = cmd->add_option("--ring-factor", args->ringFactor, "Ring radius = factor * (r_i + r_new) (0.8)")
-        ->check(canopyCheck("ring_factor"));
-    args->trunkOpt = cmd->add_option("--min-trunk-distance", args->minTrunkDistanceM,
-                                     "Duplicates: trunks closer than this, metres (1)")
-        ->check(canopyCheck("min_trunk_distance_m"));
-    args->epsilonOpt = cmd->add_option("--coverage-epsilon", args->coverageEpsilon,
-                                       "Stop when an iteration gains less coverage than this (0.0005)")
-        ->check(canopyCheck("coverage_epsilon"));
-    args->thresholdOpt = cmd->add_option("--canopy-threshold", args->canopyThresholdM,
-                                         "CHM cells >= this are canopy (forested), metres (3)")
-        ->check(canopyCheck("canopy_threshold_m"));
-    args->seedHeightOpt = cmd->add_option("--min-seed-height", args->minSeedHeightM,
-                                          "Trees stand only where the CHM is >= this, metres (3)")
-        ->check(canopyCheck("min_seed_height_m"));
+    // The placer parameters' flags from their descriptions (synth/canopy_placer.cpp).
+    const auto& fields = synth::canopyParamFields();
+    synth::CanopyParams& flags = args->flags;
+    args->seedOpt = addParamOption(cmd, "--seed", flags, fields, "seed");
+    args->maxIterationsOpt = addParamOption(cmd, "--max-iterations", flags, fields, "max_iterations");
+    args->minVisibleOpt = addParamOption(cmd, "--min-visible-fraction", flags, fields, "min_visible_fraction");
+    args->moveOpt = addParamOption(cmd, "--move-factor", flags, fields, "move_factor");
+    args->ringOpt = addParamOption(cmd, "--ring-factor", flags, fields, "ring_factor");
+    args->trunkOpt = addParamOption(cmd, "--min-trunk-distance", flags, fields, "min_trunk_distance_m");
+    args->epsilonOpt = addParamOption(cmd, "--coverage-epsilon", flags, fields, "coverage_epsilon");
+    args->thresholdOpt = addParamOption(cmd, "--canopy-threshold", flags, fields, "canopy_threshold_m");
+    args->seedHeightOpt = addParamOption(cmd, "--min-seed-height", flags, fields, "min_seed_height_m");
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for plain images; georeferenced rasters carry it)")
         ->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")

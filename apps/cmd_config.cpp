@@ -48,7 +48,9 @@ struct DescribedParam {
     std::string key;
     std::string docRow;   ///< the descriptor's own row (paramDocRow / speciesDocRow), which unit tests find in the docs
     std::string allowed;  ///< allowed values (ParamRange::valuesText)
-    std::string doc;      ///< the one-line meaning, with units
+    std::string doc;      ///< the one-line meaning (with the unit for the species keys)
+    std::string unit;     ///< "-" for none; "" for the species keys (in their doc)
+    const void* table;    ///< the descriptor table (the flags made by addParamOption name it)
 };
 
 /// A parameter table: its struct, where its keys are set, its docs page and the commands
@@ -69,7 +71,7 @@ std::vector<DescribedParam> describe(const std::vector<ParamDesc<S>>& fields) {
     std::vector<DescribedParam> out;
     for (const auto& f : fields) {
         const std::string allowed = f.kind == ParamDesc<S>::Kind::Seed ? "[0, 2^53)" : f.range.valuesText();
-        out.push_back({f.key, paramDocRow(f), allowed, f.doc});
+        out.push_back({f.key, paramDocRow(f), allowed, f.doc, paramUnitText(f), &fields});
     }
     return out;
 }
@@ -104,22 +106,26 @@ const std::vector<DescribedTable>& describedTables() {
          [] { return describe(soilFields()); }},
         {"vigour", "VigourShape", "vigourFields()", "`[vigour]` of a biome TOML; every output's biome record", "docs/biome.md", {},
          false, [] { return describe(vigourFields()); }},
+        {"ecomod-species", "EcoModSpecies", "ecomodSpeciesFields()",
+         "the `ecomod = { ... }` table of a biome's `[[species]]`; the biome record (the keys given)", "docs/ecomod.md", {}, false,
+         [] { return describe(ecomodSpeciesFields()); }},
         {"wind", "Wind", "windFields()", "`[wind]` of a biome TOML (optional); the biome record when given", "docs/biome.md", {},
          false, [] { return describe(windFields()); }},
         {"species", "Species", "speciesFields()", "`[[species]]` of a biome TOML (`--biome`); every output's biome record", "docs/biome.md", {},
          true,
          [] {
              std::vector<DescribedParam> out;
-             for (const auto& f : speciesFields()) out.push_back({f.key, speciesDocRow(f), f.allowedText(), f.doc});
+             for (const auto& f : speciesFields()) out.push_back({f.key, speciesDocRow(f), f.allowedText(), f.doc, "", nullptr});
              return out;
          }},
     };
     return tables;
 }
 
-/// The flags (as "`eco CMD --flag`") that set `key`: an option of the table's commands (or
-/// their subcommands) named after the key, or whose help text is the key's doc line
-/// (paramHelp), with or without a prefix.
+/// The flags (as "`eco CMD --flag`") that set `key`: the options of the table's commands (or
+/// their subcommands) that addParamOption made for the key; else (a flag declared by hand)
+/// an option named after the key, or whose help text is the key's doc line (paramHelp), with
+/// or without a prefix.
 std::string flagsOf(const CLI::App& root, const DescribedTable& t, const DescribedParam& p) {
     auto lowerFirst = [](std::string s) {
         if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
@@ -134,6 +140,10 @@ std::string flagsOf(const CLI::App& root, const DescribedTable& t, const Describ
             const std::vector<std::string>& names = o->get_lnames();
             if (names.empty()) continue;
             const std::string desc = o->get_description();
+            if (const ParamFlag* pf = paramFlagOf(o)) {  // declared from a descriptor: exact
+                if (pf->table == p.table && pf->key == p.key) found.push_back("`" + path + " --" + names.front() + "`");
+                continue;
+            }
             bool match = std::find(names.begin(), names.end(), dashed) != names.end();
             if (!match && doc.size() >= 12 && desc.size() >= doc.size()) {
                 std::string tail = desc.substr(desc.size() - doc.size());
@@ -162,12 +172,13 @@ std::string describeTable(const CLI::App& root, const DescribedTable& t, bool ma
         if (t.species)
             out += "| key | meaning, unit | allowed values |\n|---|---|---|\n";
         else
-            out += "| key | default | meaning, unit | allowed values | flag |\n|---|---|---|---|---|\n";
+            out += "| key | default | unit | meaning | allowed values | flag |\n|---|---|---|---|---|---|\n";
         for (const auto& p : params)
             out += t.species ? p.docRow + "\n" : p.docRow + " " + p.allowed + " | " + flagsOf(root, t, p) + " |\n";
     } else {
         for (const auto& p : params)
-            out += std::string(t.name) + "\t" + p.key + "\t" + p.allowed + "\t" + (t.species ? "" : flagsOf(root, t, p)) + "\t" + p.doc + "\n";
+            out += std::string(t.name) + "\t" + p.key + "\t" + p.allowed + "\t" + (t.species ? "" : flagsOf(root, t, p)) + "\t" + p.doc +
+                   (p.unit.empty() || p.unit == "-" ? "" : " (" + p.unit + ")") + "\n";
     }
     return out;
 }
@@ -231,7 +242,7 @@ void registerConfigCommands(CLI::App& app) {
     auto d = std::make_shared<DescribeArgs>();
     CLI::App* describeCmd = config->add_subcommand(
         "describe",
-        "Print the parameter tables (core/param_desc.h: key, default, meaning and unit, allowed values, flags) as the "
+        "Print the parameter tables (core/param_desc.h: key, default, unit, meaning, allowed values, flags) as the "
         "docs show them; tools/param_docs.py writes them into docs/ and a test checks that the docs hold them.");
     describeCmd->group("");  // hidden: a tool for the docs
     std::string names;

@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "cli_common.h"
 #include "synth_stages.h"
@@ -64,31 +65,17 @@ void registerSynthCommand(CLI::App& app) {
                     "Abiotics file from 'eco abiotics' for this terrain (default: computed with default parameters)");
     CLI::Option* refine = cmd->add_flag(
         "--refine", a->refine, "Refine the undergrowth towards the database's pair correlation (slow; canopy never moves)");
-    // Help texts of the parameters' flags from their descriptions (synth/synth_params.cpp).
-    auto synthHelp = [](const char* key) { return paramHelp(paramField(synth::synthParamFields(), key)); };
-    auto refineHelp = [](const char* key) { return paramHelp(paramField(synth::refineParamFields(), key), "Refinement: "); };
-    auto synthCheck = [](const char* key) { return paramCheck(paramField(synth::synthParamFields(), key)); };
-    auto refineCheck = [](const char* key) { return paramCheck(paramField(synth::refineParamFields(), key)); };
-    args->sweepsOpt = cmd->add_option("--refine-sweeps", args->refine.sweeps, refineHelp("refine_sweeps"))
-        ->check(refineCheck("refine_sweeps"))
-        ->capture_default_str()
-        ->needs(refine);
-    args->rMaxOpt = cmd->add_option("--refine-rmax", args->refine.rMaxM, refineHelp("refine_rmax_m"))
-        ->check(refineCheck("refine_rmax_m"))
-        ->capture_default_str()
-        ->needs(refine);
+    // The parameters' flags from their descriptions (synth/synth_params.cpp): help, unit,
+    // default and range check (addParamOption).
+    const auto& refineFields = synth::refineParamFields();
+    args->sweepsOpt = addParamOption(cmd, "--refine-sweeps", args->refine, refineFields, "refine_sweeps", "Refinement: ")->needs(refine);
+    args->rMaxOpt = addParamOption(cmd, "--refine-rmax", args->refine, refineFields, "refine_rmax_m", "Refinement: ")->needs(refine);
     cmd->add_option("--refine-window", a->refineWindow,
                     "Refinement: only inside x0,y0,x1,y1 (metres); the rest of the undergrowth stays as sampled")
         ->check(parsedBy("--refine-window", [](const std::string& t) { parseWindow(t, "--refine-window"); }))
         ->needs(refine);
-    args->moveOpt = cmd->add_option("--refine-move", args->refine.moveRadiusM, refineHelp("refine_move_radius_m"))
-        ->check(refineCheck("refine_move_radius_m"))
-        ->capture_default_str()
-        ->needs(refine);
-    args->swapOpt = cmd->add_option("--refine-swap", args->refine.swapRadiusM, refineHelp("refine_swap_radius_m"))
-        ->check(refineCheck("refine_swap_radius_m"))
-        ->capture_default_str()
-        ->needs(refine);
+    args->moveOpt = addParamOption(cmd, "--refine-move", args->refine, refineFields, "refine_move_radius_m", "Refinement: ")->needs(refine);
+    args->swapOpt = addParamOption(cmd, "--refine-swap", args->refine, refineFields, "refine_swap_radius_m", "Refinement: ")->needs(refine);
     cmd->add_option("--png", a->pngDir,
                     "Also write scene.png, scene_zoom.png, grass.png, litter.png and cluster_map.png into this directory");
     cmd->add_option("--zoom", a->zoom, "Crop of scene_zoom.png: x,y,side or x0,y0,x1,y1 in metres (default: 60 m at the centre)")
@@ -103,7 +90,7 @@ void registerSynthCommand(CLI::App& app) {
     cmd->add_option("--geotiff", a->geotiffDir,
                     "Also write the scene's grids (grass, litter, cluster and combination maps, terrain) as GeoTIFFs into "
                     "this directory, in the terrain's geotransform and CRS");
-    cmd->add_option("--seed", a->params.seed, "Random seed")->capture_default_str();
+    addParamOption(cmd, "--seed", a->params, synth::synthParamFields(), "seed");
     args->methodOpt = cmd->add_option("--method", args->method,
                     "Undergrowth sampler: 'structured' (conditioned on the canopy context and clustered as the "
                     "database's pair correlation; heights below the crown above, radius by allometry), 'darts' "
@@ -118,14 +105,10 @@ void registerSynthCommand(CLI::App& app) {
                     "--method deussen: a greyscale image (PNG, TIFF) of the terrain's size, value = relative density "
                     "of the whole undergrowth (white densest, black none) multiplying the database's density map; the "
                     "undergrowth keeps the database's total over the terrain");
-    auto deussenHelp = [](const char* key) { return paramHelp(paramField(synth::deussenParamFields(), key), "--method deussen: "); };
-    auto deussenCheck = [](const char* key) { return paramCheck(paramField(synth::deussenParamFields(), key)); };
-    args->lloydOpt = cmd->add_option("--lloyd-iterations", a->params.deussen.lloydIterations, deussenHelp("deussen_lloyd_iterations"))
-        ->check(deussenCheck("deussen_lloyd_iterations"))
-        ->capture_default_str();
-    args->minDistanceOpt = cmd->add_option("--min-distance-factor", a->params.deussen.minDistanceFactor, deussenHelp("deussen_min_distance_factor"))
-        ->check(deussenCheck("deussen_min_distance_factor"))
-        ->capture_default_str();
+    const auto& deussenFields = synth::deussenParamFields();
+    args->lloydOpt = addParamOption(cmd, "--lloyd-iterations", a->params.deussen, deussenFields, "deussen_lloyd_iterations", "--method deussen: ");
+    args->minDistanceOpt =
+        addParamOption(cmd, "--min-distance-factor", a->params.deussen, deussenFields, "deussen_min_distance_factor", "--method deussen: ");
     args->xuOnly.push_back(cmd->add_option(
         "--exemplar", a->exemplar,
         "--method xu2015: the exemplar stand, a simulation file of 'eco simulate' (HDF5: the undergrowth of a snapshot "
@@ -140,33 +123,15 @@ void registerSynthCommand(CLI::App& app) {
                         "--method xu2015: the exemplar's plot x0,y0,x1,y1 in metres; plants outside are left out (default: "
                         "a simulation's area, a CSV's bounding box)")
             ->check(parsedBy("--exemplar-window", [](const std::string& t) { parseWindow(t, "--exemplar-window"); })));
-    auto xuHelp = [](const char* key) { return paramHelp(paramField(synth::xuParamFields(), key), "--method xu2015: "); };
-    auto xuCheck = [](const char* key) { return paramCheck(paramField(synth::xuParamFields(), key)); };
-    args->xuOnly.push_back(cmd->add_option("--xu-radius-factor", a->params.xu.radiusFactor, xuHelp("xu_radius_factor"))
-                               ->check(xuCheck("xu_radius_factor"))
-                               ->capture_default_str());
-    args->xuOnly.push_back(cmd->add_option("--xu-sigma", a->params.xu.sigma, xuHelp("xu_sigma"))
-                               ->check(xuCheck("xu_sigma"))
-                               ->capture_default_str());
-    args->xuOnly.push_back(cmd->add_option("--xu-candidates", a->params.xu.candidates, xuHelp("xu_candidates"))
-                               ->check(xuCheck("xu_candidates"))
-                               ->capture_default_str());
-    args->xuOnly.push_back(cmd->add_option("--xu-tile", a->params.xu.tileM, xuHelp("xu_tile_m"))
-                               ->check(xuCheck("xu_tile_m"))
-                               ->capture_default_str());
-    cmd->add_option("--max-passes", a->params.maxPasses, synthHelp("max_passes"))
-        ->check(synthCheck("max_passes"))
-        ->capture_default_str();
-    cmd->add_option("--seed-inner-radius-factor", a->params.seedInnerRadiusFactor, synthHelp("seed_inner_radius_factor"))
-        ->check(synthCheck("seed_inner_radius_factor"))
-        ->capture_default_str();
-    cmd->add_option("--trunk-exclusion", a->params.trunkExclusionFactor, synthHelp("trunk_exclusion_factor"))
-        ->check(synthCheck("trunk_exclusion_factor"))
-        ->capture_default_str();
-    cmd->add_option("--litter-full-alpha", a->floorParams.litterFullAlpha,
-                    paramHelp(paramField(synth::forestFloorParamFields(), "litter_full_alpha"), "Forest floor: "))
-        ->check(paramCheck(paramField(synth::forestFloorParamFields(), "litter_full_alpha")))
-        ->capture_default_str();
+    const auto& xuFields = synth::xuParamFields();
+    for (const auto& [flag, key] : {std::pair<const char*, const char*>{"--xu-radius-factor", "xu_radius_factor"},
+                                    {"--xu-sigma", "xu_sigma"}, {"--xu-candidates", "xu_candidates"}, {"--xu-tile", "xu_tile_m"}})
+        args->xuOnly.push_back(addParamOption(cmd, flag, a->params.xu, xuFields, key, "--method xu2015: "));
+    const auto& synthFields = synth::synthParamFields();
+    addParamOption(cmd, "--max-passes", a->params, synthFields, "max_passes");
+    addParamOption(cmd, "--seed-inner-radius-factor", a->params, synthFields, "seed_inner_radius_factor");
+    addParamOption(cmd, "--trunk-exclusion", a->params, synthFields, "trunk_exclusion_factor");
+    addParamOption(cmd, "--litter-full-alpha", a->floorParams, synth::forestFloorParamFields(), "litter_full_alpha", "Forest floor: ");
     cmd->add_flag("--no-undergrowth-shade", a->noUndergrowthShade,
                   "Forest floor: only canopy crowns shade the grass and drop litter");
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for image terrains)")->check(cellSizeRange());

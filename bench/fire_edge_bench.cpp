@@ -30,31 +30,7 @@ namespace {
 
 // The simulator's event ground (Simulation::Impl::disturb): the abiotics cells covering the area.
 DisturbanceSite siteOf(const SimInputs& in, const SimArea& area, int month) {
-    const Abiotics& abio = in.abiotics;
-    const Grid<float>& ag = abio.slopeDeg;
-    const int cx0 = std::clamp(ag.cellX(area.x0), 0, ag.width() - 1), cy0 = std::clamp(ag.cellY(area.y0), 0, ag.height() - 1);
-    const int cx1 = std::clamp(ag.cellX(std::nextafter(area.x1, area.x0)), 0, ag.width() - 1);
-    const int cy1 = std::clamp(ag.cellY(std::nextafter(area.y1, area.y0)), 0, ag.height() - 1);
-    const int w = cx1 - cx0 + 1, h = cy1 - cy0 + 1;
-    const double cs = ag.cellSizeM();
-    auto crop = [&](const Grid<float>& src) {
-        Grid<float> g(w, h, cs, ag.originX() + cx0 * cs, ag.originY() + cy0 * cs, 0.0f);
-        if (src.width() == ag.width() && src.height() == ag.height())
-            for (int y = 0; y < h; ++y)
-                for (int x = 0; x < w; ++x) g(x, y) = src(cx0 + x, cy0 + y);
-        return g;
-    };
-    DisturbanceSite site;
-    site.elevationM = crop(abio.elevationM);
-    site.moistureMm = crop(abio.moistureMm.months[static_cast<std::size_t>(month)]);
-    site.windMS = crop(abio.windMS);
-    site.windFromDeg = in.biome.wind.directionDeg;
-    site.windStrengthMS = in.biome.wind.strengthMS;
-    site.x0 = area.x0;
-    site.y0 = area.y0;
-    site.x1 = area.x1;
-    site.y1 = area.y1;
-    return site;
+    return abioticsDisturbanceSite(in.abiotics, in.biome.wind, month, area.x0, area.y0, area.x1, area.y1);
 }
 
 // Band of each site cell by distance to the burn's boundary (distance between cell centres

@@ -959,13 +959,13 @@ const std::vector<ParamDesc<SunParams>>& sunParamFields() {
     using P = SunParams;
     static const std::vector<ParamDesc<SunParams>> fields = {
         // Counts of samples per day are kept in 16 bits: at most 65535 samples (>= 0.022 min).
-        {"sun_step_minutes", "sampling interval of the sun path, minutes (about)", K::Real, &P::stepMinutes, nullptr,
+        {"sun_step_minutes", "sampling interval of the sun path (about)", "minutes", K::Real, &P::stepMinutes, nullptr,
          R::closed(0.1, 720)},
-        {"sun_sky_azimuths", "azimuths of the sky-view sweeps", K::Integer, nullptr, &P::skyAzimuths,
+        {"sun_sky_azimuths", "azimuths of the sky-view sweeps", "", K::Integer, nullptr, &P::skyAzimuths,
          R::closed(1, 4096)},
-        {"sun_sky_elevations", "elevation bands of the sky-view sweeps (0..90 degrees)", K::Integer, nullptr,
+        {"sun_sky_elevations", "elevation bands of the sky-view sweeps (0..90 degrees)", "", K::Integer, nullptr,
          &P::skyElevations, R::closed(1, 1024)},
-        {"sun_day_of_month", "representative day of each month", K::Integer, nullptr, &P::dayOfMonth,
+        {"sun_day_of_month", "representative day of each month", "day", K::Integer, nullptr, &P::dayOfMonth,
          R::closed(1, 28)},
     };
     return fields;
@@ -974,7 +974,7 @@ const std::vector<ParamDesc<SunParams>>& sunParamFields() {
 const std::vector<ParamDesc<AbioticParams>>& abioticParamFields() {
     using K = ParamDesc<AbioticParams>::Kind;
     static const std::vector<ParamDesc<AbioticParams>> fields = {
-        {"moisture_spin_up_years", "years of moisture routing run before the recorded year", K::Integer, nullptr,
+        {"moisture_spin_up_years", "years of moisture routing run before the recorded year", "years", K::Integer, nullptr,
          &AbioticParams::moistureSpinUpYears, ParamRange::closed(0, 1000)},
     };
     return fields;

@@ -33,9 +33,9 @@ const std::vector<ParamDesc<Climate>>& climateFields() {
     using K = ParamDesc<Climate>::Kind;
     using R = ParamRange;
     static const std::vector<ParamDesc<Climate>> f = {
-        {"latitude_deg", "latitude of the biome, degrees north (the sun's path)", K::Real, &Climate::latitudeDeg, nullptr,
+        {"latitude_deg", "latitude of the biome (the sun's path)", "degrees north", K::Real, &Climate::latitudeDeg, nullptr,
          R::closed(-90, 90)},
-        {"lapse_rate_c_per_km", "temperature fall with elevation, C per km", K::Real, &Climate::lapseRateCPerKm, nullptr,
+        {"lapse_rate_c_per_km", "temperature fall with elevation", "C/km", K::Real, &Climate::lapseRateCPerKm, nullptr,
          R::closed(0, 50)},
     };
     return f;
@@ -45,14 +45,14 @@ const std::vector<ParamDesc<Soil>>& soilFields() {
     using K = ParamDesc<Soil>::Kind;
     using R = ParamRange;
     static const std::vector<ParamDesc<Soil>> f = {
-        {"runoff_limit_mm", "most water a cell absorbs in a month, mm", K::Real, &Soil::runoffLimitMm, nullptr, R::above(0)},
-        {"slope_threshold_deg", "below this slope all water infiltrates, degrees", K::Real, &Soil::slopeThresholdDeg, nullptr,
+        {"runoff_limit_mm", "most water a cell absorbs in a month", "mm/month", K::Real, &Soil::runoffLimitMm, nullptr, R::above(0)},
+        {"slope_threshold_deg", "below this slope all water infiltrates", "degrees", K::Real, &Soil::slopeThresholdDeg, nullptr,
          R::closed(0, 90)},
-        {"slope_max_deg", "above this slope all water runs off, degrees (> slope_threshold_deg)", K::Real,
+        {"slope_max_deg", "above this slope all water runs off (> slope_threshold_deg)", "degrees", K::Real,
          &Soil::slopeMaxDeg, nullptr, R::closed(0, 90)},
-        {"evaporation_fraction", "share of the soil water evaporated per month", K::Real, &Soil::evaporationFraction,
+        {"evaporation_fraction", "share of the soil water evaporated per month", "", K::Real, &Soil::evaporationFraction,
          nullptr, R::closed(0, 1)},
-        {"saturation_mm", "soil water capacity, mm", K::Real, &Soil::saturationMm, nullptr, R::above(0)},
+        {"saturation_mm", "soil water capacity", "mm", K::Real, &Soil::saturationMm, nullptr, R::above(0)},
     };
     return f;
 }
@@ -61,48 +61,60 @@ const std::vector<ParamDesc<VigourShape>>& vigourFields() {
     using K = ParamDesc<VigourShape>::Kind;
     using R = ParamRange;
     static const std::vector<ParamDesc<VigourShape>> f = {
-        {"a", "g(d) = (1 + a) exp((d / r)^p ln q) - a (Eq. 1): depth of the penalty beyond the range", K::Real,
+        {"a", "g(d) = (1 + a) exp((d / r)^p ln q) - a (Eq. 1): depth of the penalty beyond the range", "", K::Real,
          &VigourShape::a, nullptr, R::closed(0, 10)},
-        {"q", "Eq. 1: (g + a) / (1 + a) at d = r", K::Real, &VigourShape::q, nullptr, R::open(0, 1)},
-        {"p", "Eq. 1: sharpness of the fall towards the range", K::Real, &VigourShape::p, nullptr, R::above(0)},
+        {"q", "Eq. 1: (g + a) / (1 + a) at d = r", "", K::Real, &VigourShape::q, nullptr, R::open(0, 1)},
+        {"p", "Eq. 1: sharpness of the fall towards the range", "", K::Real, &VigourShape::p, nullptr, R::above(0)},
     };
     return f;
 }
 
 const std::vector<ParamDesc<EcoModSpecies>>& ecomodSpeciesFields() {
-    using K = ParamDesc<EcoModSpecies>::Kind;
     using R = ParamRange;
     using E = EcoModSpecies;
+    // Every key is a real whose default is derived from the species' other keys
+    // (sim/ecomod.cpp resolves them): the default in words (docs/ecomod.md's table).
+    auto e = [](const char* key, const char* doc, const char* unit, double E::*member, ParamRange range, const char* dflt) {
+        return ParamDesc<E>{key, doc, unit, ParamDesc<E>::Kind::Real, member, nullptr, range, nullptr, nullptr, dflt};
+    };
     static const std::vector<ParamDesc<EcoModSpecies>> f = {
-        {"maturity_age_years", "t_m: age at maturity, years", K::Real, &E::maturityAgeYears, nullptr, R::openClosed(0, 10000)},
-        {"full_grown_age_years", "t_a: age when fully grown, years", K::Real, &E::fullGrownAgeYears, nullptr, R::openClosed(0, 10000)},
-        {"max_age_years", "t_f: maximum potential age, years", K::Real, &E::maxAgeYears, nullptr, R::openClosed(0, 10000)},
-        {"mature_height_m", "h_m: height at maturity, m", K::Real, &E::matureHeightM, nullptr, R::openClosed(0, 200)},
-        {"full_height_m", "height when fully grown, m", K::Real, &E::fullHeightM, nullptr, R::openClosed(0, 200)},
-        {"persistence", "p_persist: persistent clinging to life", K::Real, &E::persistence, nullptr, R::closed(0, 1)},
-        {"seeds_per_year", "seeds per mature tree and year", K::Real, &E::seedsPerYear, nullptr, R::closed(0, 1e6)},
-        {"germination", "share of last year's seeds that try to establish", K::Real, &E::germination, nullptr, R::closed(0, 1)},
-        {"near_probability", "p_s: share of new trees placed near a parent", K::Real, &E::nearProbability, nullptr, R::closed(0, 1)},
-        {"dispersal_radius_m", "near seeds land within this distance of the parent, m", K::Real, &E::dispersalRadiusM, nullptr,
-         R::openClosed(0, 10000)},
-        {"immigrants_per_ha_year", "new trees from outside per hectare and year", K::Real, &E::immigrantsPerHaYear, nullptr,
-         R::closed(0, 1e6)},
-        {"dominated_survival", "probability of surviving a year of domination", K::Real, &E::dominatedSurvival, nullptr,
-         R::closed(0, 1)},
-        {"dominated_growth", "growth age gained in a dominated year, years", K::Real, &E::dominatedGrowth, nullptr, R::closed(0, 1)},
-        {"elevation_opt", "y_o: optimal normalised elevation", K::Real, &E::elevationOpt, nullptr, R::closed(0, 1)},
-        {"elevation_tol", "Delta y_o: tolerated deviation of normalised elevation", K::Real, &E::elevationTol, nullptr, R::atLeast(0)},
-        {"elevation_harm", "f_y: harmfulness beyond the tolerance", K::Real, &E::elevationHarm, nullptr, R::atLeast(0)},
-        {"moisture_opt", "m_o: optimal moisture, mm", K::Real, &E::moistureOpt, nullptr, R::any()},
-        {"moisture_tol", "Delta m_o: tolerated deviation, mm", K::Real, &E::moistureTol, nullptr, R::atLeast(0)},
-        {"moisture_harm", "f_m: harmfulness, 1/mm", K::Real, &E::moistureHarm, nullptr, R::atLeast(0)},
-        {"sun_opt", "l_o: optimal sunlight, hours/day", K::Real, &E::sunOpt, nullptr, R::any()},
-        {"sun_tol", "Delta l_o: tolerated deviation, hours/day", K::Real, &E::sunTol, nullptr, R::atLeast(0)},
-        {"sun_harm", "f_l: harmfulness, day/hour", K::Real, &E::sunHarm, nullptr, R::atLeast(0)},
-        {"wind_opt", "w_o: optimal wind exposure, m/s", K::Real, &E::windOpt, nullptr, R::any()},
-        {"wind_tol", "Delta w_o: tolerated deviation, m/s", K::Real, &E::windTol, nullptr, R::atLeast(0)},
-        {"wind_harm", "f_w: harmfulness, s/m", K::Real, &E::windHarm, nullptr, R::atLeast(0)},
-        {"slope_harm", "f_s: slope harmfulness, s = 1 - (f_s (1 - cos slope))^2", K::Real, &E::slopeHarm, nullptr, R::atLeast(0)},
+        e("maturity_age_years", "t_m: average age at maturity (first seeds; the polyline's first bend)", "years", &E::maturityAgeYears,
+          R::openClosed(0, 10000), "0.1 x `max_age_years` of the species"),
+        e("full_grown_age_years", "t_a: average age when fully grown", "years", &E::fullGrownAgeYears, R::openClosed(0, 10000),
+          "0.5 x `max_age_years`"),
+        e("max_age_years", "t_f: maximum potential age", "years", &E::maxAgeYears, R::openClosed(0, 10000), "the species' `max_age_years`"),
+        e("mature_height_m", "h_m: height at maturity", "m", &E::matureHeightM, R::openClosed(0, 200), "0.6 x `full_height_m`"),
+        e("full_height_m", "height when fully grown", "m", &E::fullHeightM, R::openClosed(0, 200), "the species' `max_height_m`"),
+        e("persistence", "p_persist: persistent clinging to life", "", &E::persistence, R::closed(0, 1),
+          "t_f / (t_f + 50): pioneers (short-lived) low, long-lived trees high"),
+        e("seeds_per_year", "seeds a mature tree sheds per year", "1/year", &E::seedsPerYear, R::closed(0, 1e6), "2"),
+        e("germination", "share of last year's seeds that try to establish", "", &E::germination, R::closed(0, 1), "0.5"),
+        e("near_probability", "p_s: share of a parent's seeds that land near it", "", &E::nearProbability, R::closed(0, 1), "0.9"),
+        e("dispersal_radius_m", "a near seed lands within this distance of its parent", "m", &E::dispersalRadiusM, R::openClosed(0, 10000),
+          "2 x the crown radius at `full_height_m`, at least 1 m"),
+        e("immigrants_per_ha_year", "new trees arriving from outside per hectare and year", "1/(ha year)", &E::immigrantsPerHaYear,
+          R::closed(0, 1e6), "1"),
+        e("dominated_survival", "probability that a dominated tree survives a year", "", &E::dominatedSurvival, R::closed(0, 1),
+          "`persistence`"),
+        e("dominated_growth", "growth age a dominated tree gains in a year", "years", &E::dominatedGrowth, R::closed(0, 1), "0"),
+        e("elevation_opt", "y_o: optimal normalised elevation", "", &E::elevationOpt, R::closed(0, 1), "0.5"),
+        e("elevation_tol", "Delta y_o: tolerated deviation of normalised elevation", "", &E::elevationTol, R::atLeast(0),
+          "0.5 (indifferent: every normalised elevation is within it)"),
+        e("elevation_harm", "f_y: harmfulness beyond the tolerance", "", &E::elevationHarm, R::atLeast(0), "1"),
+        e("moisture_opt", "m_o: optimal moisture", "mm", &E::moistureOpt, R::any(), "c of the species' `moisture` response {c, r}"),
+        e("moisture_tol", "Delta m_o: tolerated deviation", "mm", &E::moistureTol, R::atLeast(0),
+          "r / 4 of the `moisture` response (full suitability within r/4 of the optimum)"),
+        e("moisture_harm", "f_m: harmfulness beyond the tolerance", "1/mm", &E::moistureHarm, R::atLeast(0),
+          "1 / r of the `moisture` response (none from r on, as Eq. 1's g reaches 0 near r)"),
+        e("sun_opt", "l_o: optimal sunlight", "hours/day", &E::sunOpt, R::any(), "c of the `sun` response"),
+        e("sun_tol", "Delta l_o: tolerated deviation", "hours/day", &E::sunTol, R::atLeast(0), "r / 4 of the `sun` response"),
+        e("sun_harm", "f_l: harmfulness beyond the tolerance", "day/hour", &E::sunHarm, R::atLeast(0), "1 / r of the `sun` response"),
+        e("wind_opt", "w_o: optimal wind exposure", "m/s", &E::windOpt, R::any(),
+          "c of the `wind` response; 0 without one (the species is then indifferent)"),
+        e("wind_tol", "Delta w_o: tolerated deviation", "m/s", &E::windTol, R::atLeast(0), "r / 4 of the `wind` response; infinite without one"),
+        e("wind_harm", "f_w: harmfulness beyond the tolerance", "s/m", &E::windHarm, R::atLeast(0), "1 / r of the `wind` response; 0 without one"),
+        e("slope_harm", "f_s: slope harmfulness, s = 1 - (f_s (1 - cos slope))^2", "", &E::slopeHarm, R::atLeast(0),
+          "1 / (1 - cos(min(90, c + r))) from the `slope` response: s = 0 at the steepest slope the response tolerates"),
     };
     return f;
 }
@@ -111,13 +123,13 @@ const std::vector<ParamDesc<Wind>>& windFields() {
     using K = ParamDesc<Wind>::Kind;
     using R = ParamRange;
     static const std::vector<ParamDesc<Wind>> f = {
-        {"direction_deg", "where the prevailing wind comes from, degrees clockwise from north (270: from the west)",
+        {"direction_deg", "where the prevailing wind comes from, clockwise from north (270: from the west)", "degrees",
          K::Real, &Wind::directionDeg, nullptr, R::closed(0, 360)},
-        {"strength_m_s", "yearly mean speed of the prevailing wind on exposed ground, m/s", K::Real, &Wind::strengthMS,
+        {"strength_m_s", "yearly mean speed of the prevailing wind on exposed ground", "m/s", K::Real, &Wind::strengthMS,
          nullptr, R::closed(0, 100)},
-        {"threshold_deg", "occlusion angle at which the wind is fully sheltered (EcoMod's Theta_0), degrees", K::Real,
+        {"threshold_deg", "occlusion angle at which the wind is fully sheltered (EcoMod's Theta_0)", "degrees", K::Real,
          &Wind::thresholdDeg, nullptr, R::openClosed(0, 90)},
-        {"samples", "upwind samples N_w, one cell apart (EcoMod: 10)", K::Integer, nullptr, &Wind::samples,
+        {"samples", "upwind samples N_w, one cell apart (EcoMod: 10)", "cells", K::Integer, nullptr, &Wind::samples,
          R::closed(1, 10000)},
     };
     return f;

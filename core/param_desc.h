@@ -1,4 +1,4 @@
-// One description per parameter (issue 23, item 5): key, one-line doc with units, and the
+// One description per parameter (issue 23, item 5): key, one-line doc, unit and the
 // allowed range, so that one table drives setting by key (TOML and flags), the attributes
 // written into outputs, validation with its messages, and the documentation (a test checks
 // each key's row in the docs). The tables: canopyParamFields and speciesMapParamFields
@@ -77,14 +77,16 @@ struct ParamRange {
 /// One parameter of struct S: a real, an integer or a 64-bit seed member.
 template <typename S>
 struct ParamDesc {
-    const char* key;  ///< snake_case, as in TOML configs, flags and HDF5 attributes
-    const char* doc;  ///< one line, with units
+    const char* key;   ///< snake_case, as in TOML configs, flags and HDF5 attributes
+    const char* doc;   ///< one line, the meaning (the unit is `unit`)
+    const char* unit;  ///< "m", "mm/month", "crown radii", ...; "" for a count, share or pure number
     enum class Kind { Real, Integer, Seed } kind;
     double S::*real = nullptr;
     int S::*integer = nullptr;
     ParamRange range{};               ///< allowed values (seeds: [0, 2^53))
     std::uint64_t S::*seed = nullptr;
     const char* rule = nullptr;       ///< message text of the range when not range.text()
+    const char* defaultText = nullptr;  ///< the default in words when it is derived (not S{}'s value)
 
     /// The range as message text ("must lie in [0, 1]").
     std::string ruleText() const { return rule ? std::string(rule) : range.text(); }
@@ -177,6 +179,18 @@ inline std::string tomlReal(double v) {
     return s;
 }
 
+/// The doc line with its unit after a comma ("side of a simulation cell, m"), or alone.
+template <typename S>
+std::string paramDocWithUnit(const ParamDesc<S>& f) {
+    return *f.unit ? std::string(f.doc) + ", " + f.unit : std::string(f.doc);
+}
+
+/// The unit as the docs' tables show it: "-" for none.
+template <typename S>
+std::string paramUnitText(const ParamDesc<S>& f) {
+    return *f.unit ? std::string(f.unit) : std::string("-");
+}
+
 /// The fields of p as TOML lines "key = value  # doc" in table order (integers and seeds as
 /// TOML integers, reals with tomlReal): `eco config defaults` prints tables with it.
 template <typename S>
@@ -184,18 +198,19 @@ std::string paramTomlLines(const S& p, const std::vector<ParamDesc<S>>& fields) 
     std::string out;
     for (const auto& f : fields) {
         const std::string value = f.kind == ParamDesc<S>::Kind::Real ? tomlReal(p.*(f.real)) : paramText(f, p, 17);
-        out += std::string(f.key) + " = " + value + "  # " + f.doc + "\n";
+        out += std::string(f.key) + " = " + value + "  # " + paramDocWithUnit(f) + "\n";
     }
     return out;
 }
 
-/// The documentation row of a field: "| `key` | default | doc |" (default from S{}).
+/// The documentation row of a field: "| `key` | default | unit | doc |" (default from S{}).
 template <typename S>
 std::string paramDocRow(const ParamDesc<S>& f) {
     // Static, so that every byte (padding too) is initialised: GCC warns of reading a
     // temporary's padding through a member pointer it cannot see.
     static const S defaults{};
-    return std::string("| `") + f.key + "` | " + formatNumber(f.value(defaults), 6) + " | " + f.doc + " |";
+    const std::string dflt = f.defaultText ? std::string(f.defaultText) : formatNumber(f.value(defaults), 6);
+    return std::string("| `") + f.key + "` | " + dflt + " | " + paramUnitText(f) + " | " + f.doc + " |";
 }
 
 }  // namespace eco

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <numeric>
 #include <sstream>
+#include <utility>
 
 #include "atomic_file.h"
 #include "chart.h"
@@ -279,6 +280,26 @@ void writeMorrisPng(const std::string& path, const SensitivitySpec& spec, const 
     canvas.writePng(path);
 }
 
+// The picture of output o of a report (png/<stem>_<o + 1>.png in the study folder, the
+// folder made): its path.
+std::string reportPngPath(const SensitivitySpec& spec, const char* stem, std::size_t o) {
+    ensureDirectory((fs::path(spec.outDir) / "png").string());
+    return (fs::path(spec.outDir) / "png" / (stem + ("_" + std::to_string(o + 1)) + ".png")).string();
+}
+
+// The end of a report (Morris or Sobol): sensitivity.csv and sensitivity.md written, and
+// with the pictures committed together.
+SensitivityReport finishReport(SensitivityReport rep, const SensitivitySpec& spec, AtomicOutputSet& outputs,
+                               const std::ostringstream& csv, const std::ostringstream& md, const std::ostringstream& summary) {
+    rep.csvPath = (fs::path(spec.outDir) / "sensitivity.csv").string();
+    rep.markdownPath = (fs::path(spec.outDir) / "sensitivity.md").string();
+    writeTextFile(rep.csvPath, csv.str());
+    writeTextFile(rep.markdownPath, md.str());
+    outputs.commit();
+    rep.summary = summary.str();
+    return rep;
+}
+
 }  // namespace
 
 SensitivityReport writeSensitivityReport(const SensitivitySpec& spec, const MorrisDesign& design) {
@@ -341,19 +362,12 @@ SensitivityReport writeSensitivityReport(const SensitivitySpec& spec, const Morr
             summary << (rank == 0 ? " " : ", ") << p.key << " " << formatNumber(s.muStar, 3) << (above == "no" ? " (noise)" : "");
         }
         summary << "\n";
-        const std::string png = (fs::path(spec.outDir) / "png" / ("morris_" + std::to_string(o + 1) + ".png")).string();
-        ensureDirectory((fs::path(spec.outDir) / "png").string());
+        const std::string png = reportPngPath(spec, "morris", o);
         writeMorrisPng(png, spec, out, stats, noise);
         md << "\n![mu* against sigma](png/morris_" << o + 1 << ".png)\n";
         rep.pngPaths.push_back(png);
     }
-    rep.csvPath = (fs::path(spec.outDir) / "sensitivity.csv").string();
-    rep.markdownPath = (fs::path(spec.outDir) / "sensitivity.md").string();
-    writeTextFile(rep.csvPath, csv.str());
-    writeTextFile(rep.markdownPath, md.str());
-    outputs.commit();
-    rep.summary = summary.str();
-    return rep;
+    return finishReport(std::move(rep), spec, outputs, csv, md, summary);
 }
 
 // ---- Sobol indices ----
@@ -658,19 +672,12 @@ SensitivityReport writeSobolReport(const SensitivitySpec& spec, const SobolDesig
                     << (above == "no" ? " (noise)" : "");
         }
         summary << "\n";
-        ensureDirectory((fs::path(spec.outDir) / "png").string());
-        const std::string png = (fs::path(spec.outDir) / "png" / ("sobol_" + std::to_string(o + 1) + ".png")).string();
+        const std::string png = reportPngPath(spec, "sobol", o);
         writeSobolPng(png, spec, out, res, noise);
         md << "\n![S and ST](png/sobol_" << o + 1 << ".png)\n";
         rep.pngPaths.push_back(png);
     }
-    rep.csvPath = (fs::path(spec.outDir) / "sensitivity.csv").string();
-    rep.markdownPath = (fs::path(spec.outDir) / "sensitivity.md").string();
-    writeTextFile(rep.csvPath, csv.str());
-    writeTextFile(rep.markdownPath, md.str());
-    outputs.commit();
-    rep.summary = summary.str();
-    return rep;
+    return finishReport(std::move(rep), spec, outputs, csv, md, summary);
 }
 
 }  // namespace eco::pipeline

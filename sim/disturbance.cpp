@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 #include "error.h"
 #include "rng.h"
@@ -123,6 +124,40 @@ std::vector<PlannedEvent> eventsOfYear(const DisturbanceSettings& s, std::uint64
     }
     std::stable_sort(out.begin(), out.end(), [](const PlannedEvent& a, const PlannedEvent& b) { return a.month < b.month; });
     return out;
+}
+
+DisturbanceSite disturbanceSite(Grid<float> elevationM, Grid<float> moistureMm, Grid<float> windMS, const Wind& wind,
+                                double x0, double y0, double x1, double y1) {
+    DisturbanceSite site;
+    site.elevationM = std::move(elevationM);
+    site.moistureMm = std::move(moistureMm);
+    site.windMS = std::move(windMS);
+    site.windFromDeg = wind.directionDeg;
+    site.windStrengthMS = wind.strengthMS;
+    site.x0 = x0;
+    site.y0 = y0;
+    site.x1 = x1;
+    site.y1 = y1;
+    return site;
+}
+
+DisturbanceSite abioticsDisturbanceSite(const Abiotics& abio, const Wind& wind, int month, double x0, double y0, double x1,
+                                        double y1) {
+    const Grid<float>& ag = abio.slopeDeg;
+    const int cx0 = std::clamp(ag.cellX(x0), 0, ag.width() - 1), cy0 = std::clamp(ag.cellY(y0), 0, ag.height() - 1);
+    const int cx1 = std::clamp(ag.cellX(std::nextafter(x1, x0)), 0, ag.width() - 1);
+    const int cy1 = std::clamp(ag.cellY(std::nextafter(y1, y0)), 0, ag.height() - 1);
+    const int w = cx1 - cx0 + 1, h = cy1 - cy0 + 1;
+    const double cs = ag.cellSizeM();
+    auto crop = [&](const Grid<float>& src) {
+        Grid<float> g(w, h, cs, ag.originX() + cx0 * cs, ag.originY() + cy0 * cs, 0.0f);
+        if (src.width() == ag.width() && src.height() == ag.height())
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x) g(x, y) = src(cx0 + x, cy0 + y);
+        return g;
+    };
+    return disturbanceSite(crop(abio.elevationM), crop(abio.moistureMm.months[static_cast<std::size_t>(month)]),
+                           crop(abio.windMS), wind, x0, y0, x1, y1);
 }
 
 double fireStepProbability(const DisturbanceSite& site, const FireSettings& f, int ax, int ay, int dx, int dy) {

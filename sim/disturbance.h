@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "abiotics.h"
+#include "biome.h"
 #include "grid.h"
 #include "sim_file.h"
 
@@ -107,6 +109,17 @@ struct DisturbanceSite {
     double windStrengthMS = 5.0; ///< the biome's prevailing strength (storm reference)
     double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  ///< area (ignitions fall inside; areas are clipped to it)
 };
+
+/// The site of an event on grids already of one geometry: the grids, the biome's prevailing
+/// wind (direction and strength) and the area (x0, y0)-(x1, y1), world metres.
+DisturbanceSite disturbanceSite(Grid<float> elevationM, Grid<float> moistureMm, Grid<float> windMS, const Wind& wind,
+                                double x0, double y0, double x1, double y1);
+
+/// The simulator's event ground: the abiotics cells covering the area (x0, y0)-(x1, y1) cut
+/// from `abio` (elevation, the moisture of `month` (0 = January), wind exposure; a grid of
+/// another geometry than the slope's gives zeros), with the biome's prevailing wind.
+DisturbanceSite abioticsDisturbanceSite(const Abiotics& abio, const Wind& wind, int month, double x0, double y0, double x1,
+                                        double y1);
 
 /// Plants as parallel arrays (the simulator's own store, or any other model's).
 struct PlantArrays {

@@ -657,16 +657,8 @@ void EcoModel::Impl::disturbYear() {
     for (std::size_t s = 0; s < sp.size(); ++s)
         tolerance[s] = std::isnan(fireTolerance[s]) ? disturbance.fire.defaultTolerance : fireTolerance[s];
     for (const PlannedEvent& e : events) {
-        DisturbanceSite site;
-        site.elevationM = siteElevation;
-        site.moistureMm = siteMoisture[static_cast<std::size_t>(e.month)];
-        site.windMS = siteWind;
-        site.windFromDeg = biome.wind.directionDeg;
-        site.windStrengthMS = biome.wind.strengthMS;
-        site.x0 = area.x0;
-        site.y0 = area.y0;
-        site.x1 = area.x1;
-        site.y1 = area.y1;
+        const DisturbanceSite site = disturbanceSite(siteElevation, siteMoisture[static_cast<std::size_t>(e.month)], siteWind,
+                                                     biome.wind, area.x0, area.y0, area.x1, area.y1);
         const PlantArrays arrays{size(), id.data(), species.data(), x.data(), y.data(), height.data()};
         DisturbanceOutcome out = runDisturbance(e, disturbance, site, arrays, tolerance, sp.size(), seed);
         fate.assign(size(), 0);

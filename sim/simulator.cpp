@@ -71,20 +71,6 @@ void Simulation::Impl::disturb(int m) {
     std::vector<PlannedEvent> events = eventsOfYear(disturbance, seed, year);
     events.erase(std::remove_if(events.begin(), events.end(), [m](const PlannedEvent& e) { return e.month != m; }), events.end());
     if (events.empty()) return;
-    // The abiotics cells covering the area: the event's ground.
-    const Grid<float>& ag = abio.slopeDeg;
-    const int cx0 = std::clamp(ag.cellX(area.x0), 0, ag.width() - 1), cy0 = std::clamp(ag.cellY(area.y0), 0, ag.height() - 1);
-    const int cx1 = std::clamp(ag.cellX(std::nextafter(area.x1, area.x0)), 0, ag.width() - 1);
-    const int cy1 = std::clamp(ag.cellY(std::nextafter(area.y1, area.y0)), 0, ag.height() - 1);
-    const int w = cx1 - cx0 + 1, h = cy1 - cy0 + 1;
-    const double cs = ag.cellSizeM();
-    auto crop = [&](const Grid<float>& src) {
-        Grid<float> g(w, h, cs, ag.originX() + cx0 * cs, ag.originY() + cy0 * cs, 0.0f);
-        if (src.width() == ag.width() && src.height() == ag.height())
-            for (int y = 0; y < h; ++y)
-                for (int x = 0; x < w; ++x) g(x, y) = src(cx0 + x, cy0 + y);
-        return g;
-    };
     std::vector<double> tolerance(spc.size());
     for (std::size_t s = 0; s < spc.size(); ++s) {
         const double t = biome.species[s].fireTolerance;
@@ -92,16 +78,8 @@ void Simulation::Impl::disturb(int m) {
     }
     for (const PlannedEvent& e : events) {
         compact();  // the store holds the living only
-        DisturbanceSite site;
-        site.elevationM = crop(abio.elevationM);
-        site.moistureMm = crop(abio.moistureMm.months[static_cast<std::size_t>(m)]);
-        site.windMS = crop(abio.windMS);
-        site.windFromDeg = biome.wind.directionDeg;
-        site.windStrengthMS = biome.wind.strengthMS;
-        site.x0 = area.x0;
-        site.y0 = area.y0;
-        site.x1 = area.x1;
-        site.y1 = area.y1;
+        // The abiotics cells covering the area: the event's ground.
+        const DisturbanceSite site = abioticsDisturbanceSite(abio, biome.wind, m, area.x0, area.y0, area.x1, area.y1);
         PlantArrays arrays{pl.size(), pl.id.data(), pl.species.data(), pl.x.data(), pl.y.data(), pl.height.data()};
         DisturbanceOutcome out = runDisturbance(e, disturbance, site, arrays, tolerance, spc.size(), seed);
         fate.assign(pl.size(), 0);

@@ -27,7 +27,7 @@ void checkResponse(const Response& r, const std::string& key) {
 const std::vector<ParamDesc<ForestFloorParams>>& forestFloorParamFields() {
     using K = ParamDesc<ForestFloorParams>::Kind;
     static const std::vector<ParamDesc<ForestFloorParams>> fields = {
-        {"litter_full_alpha", "cumulative crown alpha at which litter density reaches 1", K::Real,
+        {"litter_full_alpha", "cumulative crown alpha at which litter density reaches 1", "", K::Real,
          &ForestFloorParams::litterFullAlpha, nullptr, ParamRange::above(0), nullptr, "must be positive"},
     };
     return fields;

@@ -194,11 +194,11 @@ const std::vector<SpeciesMapParamField>& speciesMapParamFields() {
     using R = ParamRange;
     using P = SpeciesMapParams;
     static const std::vector<SpeciesMapParamField> fields = {
-        {"target_tolerance", "species map: a target is met within this share", K::Real, &P::targetTolerance, nullptr,
+        {"target_tolerance", "species map: a target is met within this share", "", K::Real, &P::targetTolerance, nullptr,
          R{R::Bound::Open, 0, R::Bound::Open, 1}},
-        {"max_bisection_steps", "species map: evaluations per bisection", K::Integer, nullptr, &P::maxBisectionSteps,
+        {"max_bisection_steps", "species map: evaluations per bisection", "", K::Integer, nullptr, &P::maxBisectionSteps,
          R::closed(1, 10000)},
-        {"target_sweeps", "species map: rounds over several targets", K::Integer, nullptr, &P::targetSweeps,
+        {"target_sweeps", "species map: rounds over several targets", "", K::Integer, nullptr, &P::targetSweeps,
          R::closed(1, 1000)},
     };
     return fields;

@@ -24,29 +24,29 @@ const std::vector<SynthParamField>& synthParamFields() {
     using R = ParamRange;
     using P = SynthParams;
     static const std::vector<SynthParamField> fields = {
-        {"seed", "`--seed`; sampling and refinement", K::Seed, nullptr, nullptr, R::any(), &P::seed},
+        {"seed", "random seed of sampling and refinement", "", K::Seed, nullptr, nullptr, R::any(), &P::seed},
         {"seed_inner_radius_factor",
          "seeding kernel: full weight within this x crown radius (the outer radius is the database's "
-         "`seeding_radius_factor`)",
+         "`seeding_radius_factor`)", "crown radii",
          K::Real, &P::seedInnerRadiusFactor, nullptr, R::atLeast(0)},
-        {"trunk_exclusion_factor", "no undergrowth within this x crown radius of a canopy trunk", K::Real,
+        {"trunk_exclusion_factor", "no undergrowth within this x crown radius of a canopy trunk", "crown radii", K::Real,
          &P::trunkExclusionFactor, nullptr, R{R::Bound::Closed, 0, R::Bound::Open, 1}},
-        {"max_passes", "dart-throwing passes at most", K::Integer, nullptr, &P::maxPasses, R::closed(1, 10000)},
-        {"candidate_oversample", "darts per missing plant in a pass (structured: doubled in each later pass)", K::Real,
+        {"max_passes", "dart-throwing passes at most", "", K::Integer, nullptr, &P::maxPasses, R::closed(1, 10000)},
+        {"candidate_oversample", "darts per missing plant in a pass (structured: doubled in each later pass)", "", K::Real,
          &P::candidateOversample, nullptr, R::closed(1, 100)},
-        {"cluster_sigma_min_m", "structured: smallest cluster scale searched (m)", K::Real, &P::clusterSigmaMinM,
+        {"cluster_sigma_min_m", "structured: smallest cluster scale searched", "m", K::Real, &P::clusterSigmaMinM,
          nullptr, R::above(0)},
         // Also at least cluster_sigma_min_m (SynthParams::validate).
-        {"cluster_sigma_max_m", "structured: largest cluster scale searched (m), at least the smallest", K::Real,
+        {"cluster_sigma_max_m", "structured: largest cluster scale searched, at least the smallest", "m", K::Real,
          &P::clusterSigmaMaxM, nullptr, R::openClosed(0, 1000)},
-        {"cluster_min_plants", "structured: fewer plants of a species in a region: the pooled clustering",
+        {"cluster_min_plants", "structured: fewer plants of a species in a region: the pooled clustering", "",
          K::Integer, nullptr, &P::clusterMinPlants, R::atLeast(0)},
-        {"quota_tile_m", "structured: quotas per (region, species, tile of this side, m); 0 = per region", K::Real,
+        {"quota_tile_m", "structured: quotas per (region, species, tile of this side); 0 = per region", "m", K::Real,
          &P::quotaTileM, nullptr, R::atLeast(0)},
-        {"hard_core_g", "structured: inhibition where the database's g stays below this in the leading bins",
+        {"hard_core_g", "structured: inhibition where the database's g stays below this in the leading bins", "",
          K::Real, &P::hardCoreG, nullptr, R::closed(0, 1)},
         {"hard_core_min_expected_pairs",
-         "structured: ... of those bins where a Poisson pattern has at least this many pairs", K::Real,
+         "structured: ... of those bins where a Poisson pattern has at least this many pairs", "", K::Real,
          &P::hardCoreMinExpectedPairs, nullptr, R::atLeast(0)},
     };
     return fields;
@@ -105,22 +105,22 @@ const std::vector<DeussenParamField>& deussenParamFields() {
     using R = ParamRange;
     using P = DeussenParams;
     static const std::vector<DeussenParamField> fields = {
-        {"deussen_lloyd_iterations", "Lloyd relaxation steps (0: half-toned positions kept)",
+        {"deussen_lloyd_iterations", "Lloyd relaxation steps (0: half-toned positions kept)", "",
          K::Integer, nullptr, &P::lloydIterations, R::closed(0, 1000)},
         {"deussen_halftone_fill",
          "half-toning cell: terrain cell / k, k the smallest giving at most this many expected plants of the species "
-         "in a cell where it is densest",
+         "in a cell where it is densest", "",
          K::Real, &P::halftoneFill, nullptr, R::openClosed(0, 1)},
-        {"deussen_halftone_tile_m", "error diffusion in square tiles of this side (m), each on its own (parallel)",
+        {"deussen_halftone_tile_m", "error diffusion in square tiles of this side, each on its own (parallel)", "m",
          K::Real, &P::halftoneTileM, nullptr, R::closed(1, 1e6)},
         {"deussen_min_distance_factor",
          "plants of one species at least this x its mean crown radius apart (any pair at "
-         "least the database's hard-core distance)",
+         "least the database's hard-core distance)", "crown radii",
          K::Real, &P::minDistanceFactor, nullptr, R::closed(0, 10)},
-        {"deussen_voronoi_samples", "Voronoi centroid from the centres of a samples x samples lattice per plant",
+        {"deussen_voronoi_samples", "Voronoi centroid from the centres of a samples x samples lattice per plant", "",
          K::Integer, nullptr, &P::voronoiSamples, R::closed(1, 64)},
         {"deussen_voronoi_radius_factor",
-         "... in a square of half-side this / sqrt(the species' density at the plant)", K::Real,
+         "... in a square of half-side this / sqrt(the species' density at the plant)", "", K::Real,
          &P::voronoiRadiusFactor, nullptr, R::closed(0.25, 4)},
     };
     return fields;
@@ -131,25 +131,25 @@ const std::vector<XuParamField>& xuParamFields() {
     using R = ParamRange;
     using P = XuParams;
     static const std::vector<XuParamField> fields = {
-        {"xu_radius_factor", "neighbourhood radius R = this / sqrt(the exemplar's density)", K::Real, &P::radiusFactor, nullptr,
+        {"xu_radius_factor", "neighbourhood radius R = this / sqrt(the exemplar's density)", "", K::Real, &P::radiusFactor, nullptr,
          R::closed(0.5, 10)},
-        {"xu_shells", "rings of equal width in the neighbourhood disc", K::Integer, nullptr, &P::shells, R::closed(1, 16)},
-        {"xu_sectors", "sectors of the neighbourhood disc", K::Integer, nullptr, &P::sectors, R::closed(1, 64)},
-        {"xu_sigma", "adjacency smoothing of the histogram distance, a_ij = exp(-d(i, j) / sigma) (0 = none)", K::Real, &P::sigma, nullptr,
+        {"xu_shells", "rings of equal width in the neighbourhood disc", "", K::Integer, nullptr, &P::shells, R::closed(1, 16)},
+        {"xu_sectors", "sectors of the neighbourhood disc", "", K::Integer, nullptr, &P::sectors, R::closed(1, 64)},
+        {"xu_sigma", "adjacency smoothing of the histogram distance, a_ij = exp(-d(i, j) / sigma) (0 = none)", "", K::Real, &P::sigma, nullptr,
          R::closed(0, 100)},
-        {"xu_candidates", "exemplar elements compared per extension, a random subset (0 = all)", K::Integer, nullptr,
+        {"xu_candidates", "exemplar elements compared per extension, a random subset (0 = all)", "", K::Integer, nullptr,
          &P::candidates, R::closed(0, 1000000)},
         {"xu_verify_best",
          "of the candidates, this many nearest by histogram are tried and the copy with the fewest conflicts wins (1 = "
-         "the paper's nearest alone)",
+         "the paper's nearest alone)", "",
          K::Integer, nullptr, &P::verifyBest, R::closed(1, 1000)},
         {"xu_density_tolerance",
          "drift of the running count from the exemplar's density allowed in that choice, in expected neighbourhoods "
-         "(0 = no density feedback)",
+         "(0 = no density feedback)", "",
          K::Real, &P::densityTolerance, nullptr, R::closed(0, 1e6)},
-        {"xu_min_distance_factor", "copies refused closer than this x the exemplar's shortest nearest-neighbour distance",
+        {"xu_min_distance_factor", "copies refused closer than this x the exemplar's shortest nearest-neighbour distance", "",
          K::Real, &P::minDistanceFactor, nullptr, R::closed(0, 10)},
-        {"xu_tile_m", "grown in square tiles of this side (m), in parallel (0 = one tile)", K::Real, &P::tileM, nullptr,
+        {"xu_tile_m", "grown in square tiles of this side, in parallel (0 = one tile)", "m", K::Real, &P::tileM, nullptr,
          R::closed(0, 1e6)},
     };
     return fields;
@@ -188,15 +188,15 @@ const std::vector<RefineParamField>& refineParamFields() {
     using R = ParamRange;
     using P = RefineParams;
     static const std::vector<RefineParamField> fields = {
-        {"refine_sweeps", "proposals per plant", K::Integer, nullptr, &P::sweeps, R::closed(0, 100000)},
-        {"refine_move_radius_m", "displacement proposals: uniform in a disc of this radius (m)", K::Real,
+        {"refine_sweeps", "proposals per plant", "", K::Integer, nullptr, &P::sweeps, R::closed(0, 100000)},
+        {"refine_move_radius_m", "displacement proposals: uniform in a disc of this radius", "m", K::Real,
          &P::moveRadiusM, nullptr, R::above(0), nullptr, "must be positive"},
-        {"refine_swap_radius_m", "swap proposals: a partner within this distance (m)", K::Real, &P::swapRadiusM,
+        {"refine_swap_radius_m", "swap proposals: a partner within this distance", "m", K::Real, &P::swapRadiusM,
          nullptr, R::above(0), nullptr, "must be positive"},
-        {"refine_swap_probability", "share of swap proposals", K::Real, &P::swapProbability, nullptr, R::closed(0, 1)},
-        {"refine_rmax_m", "pair correlation matched up to this distance (m); 0 = automatic", K::Real, &P::rMaxM,
+        {"refine_swap_probability", "share of swap proposals", "", K::Real, &P::swapProbability, nullptr, R::closed(0, 1)},
+        {"refine_rmax_m", "pair correlation matched up to this distance; 0 = automatic", "m", K::Real, &P::rMaxM,
          nullptr, R::atLeast(0)},
-        {"refine_auto_neighbours", "neighbours per plant the automatic range aims at", K::Real, &P::autoNeighbours,
+        {"refine_auto_neighbours", "neighbours per plant the automatic range aims at", "", K::Real, &P::autoNeighbours,
          nullptr, R::above(0), nullptr, "must be positive"},
     };
     return fields;

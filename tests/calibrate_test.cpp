@@ -12,6 +12,7 @@
 #include "calibrate.h"
 #include "rng.h"
 #include "sim_file.h"
+#include "sim_file_fixture.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -128,22 +129,8 @@ TEST_CASE("calibrate: a stem map's pair correlation as a target, measured agains
     SimulationOutput out = parseSimulationOutput("pcf:Toyon@5", "t");
     out.pcf = std::make_shared<const PairCorrelationReference>(ref);
     const auto simulate = [&](const std::string& name, std::vector<UndergrowthPlant> plants) {
-        SimulationFileInfo info;
-        info.years = 5;
-        info.x0 = info.y0 = 0;
-        info.x1 = info.y1 = 20;
-        std::vector<YearRecord> series;
-        for (int year = 0; year <= 5; ++year) {
-            YearRecord r;
-            r.year = year;
-            r.count.assign(biome.species.size(), 0);
-            r.meanHeightM.assign(biome.species.size(), 0);
-            r.meanVigour.assign(biome.species.size(), 0);
-            r.crownAreaM2.assign(biome.species.size(), 0);
-            series.push_back(r);
-        }
         const std::string path = dir.file(name);
-        writeSimulationFile(path, info, biome, {{5, plants}}, series, {});
+        test::writeSnapshotSimulation(path, biome, 5, {{5, plants}});
         return measureOutput(path, out);
     };
     // The same Toyons with the ferns and with Toyon seedlings below min_height (1 m): no difference.

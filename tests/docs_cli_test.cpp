@@ -228,9 +228,17 @@ TEST_CASE("docs: every parameter table in docs/ is what eco config describe prin
         CHECK(blocks.count("config describe --markdown " + t) == 1);
     }
     CHECK(blocks.count("config describe --index") == 1);
-    // The rows carry what the brief asks for: a flag found from the command tree, an allowed range.
+    // The rows carry what the brief asks for: default, unit, an allowed range and the flags
+    // declared from the descriptor (addParamOption), found from the command tree.
     const auto canopy = runEco("config describe --markdown canopy");
-    CHECK_THAT(canopy.output, Catch::Contains("| `max_iterations` | 30 | iterations of the placer at most | [0, 100000] |"));
+    CHECK_THAT(canopy.output, Catch::Contains("| `max_iterations` | 30 | - | iterations of the placer at most | [0, 100000] | "
+                                              "`eco canopy --max-iterations` |"));
+    CHECK_THAT(canopy.output, Catch::Contains("| `min_trunk_distance_m` | 1 | m | duplicates: trunks closer than this | >= 0 | "
+                                              "`eco canopy --min-trunk-distance` |"));
+    // A flag declared from its descriptor: help text with the unit, the default and the range.
+    const auto help = runEco("canopy --help");
+    CHECK_THAT(help.output, Catch::Contains("--min-trunk-distance FLOAT:NUMBER >= 0=1") &&
+                                Catch::Contains("Duplicates: trunks closer than this, m"));
     const auto unknown = runEco("config describe nope");
     CHECK(unknown.exitCode == 2);
     CHECK_THAT(unknown.output, Catch::Contains("unknown parameter table 'nope'"));

@@ -13,6 +13,7 @@
 #include "rng.h"
 #include "sensitivity.h"
 #include "sim_file.h"
+#include "sim_file_fixture.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -424,22 +425,8 @@ TEST_CASE("Height quantile output: from a snapshot, of all plants or one species
         p.crownRadiusM = 0.1;
         plants.push_back(p);
     }
-    SimulationFileInfo info;
-    info.years = 3;
-    info.x0 = info.y0 = 0;
-    info.x1 = info.y1 = 20;
-    std::vector<YearRecord> series;
-    for (int year = 0; year <= 3; ++year) {
-        YearRecord r;
-        r.year = year;
-        r.count.assign(biome.species.size(), 0);
-        r.meanHeightM.assign(biome.species.size(), 0);
-        r.meanVigour.assign(biome.species.size(), 0);
-        r.crownAreaM2.assign(biome.species.size(), 0);
-        series.push_back(r);
-    }
     const std::string path = dir.file("sim.h5");
-    writeSimulationFile(path, info, biome, {{1, {}}, {3, plants}}, series, {});
+    test::writeSnapshotSimulation(path, biome, 3, {{1, {}}, {3, plants}});
     CHECK(measureOutput(path, parseSimulationOutput("height_q50:Toyon@3", "t")) == Approx(5.5));
     CHECK(measureOutput(path, parseSimulationOutput("height_q90:Toyon@3", "t")) == Approx(9.1));
     CHECK(measureOutput(path, parseSimulationOutput("height_q50@3", "t")) == Approx(0.55));  // 10 ferns of 0.1 m and Toyons of 1 .. 10 m

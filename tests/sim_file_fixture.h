@@ -1,5 +1,6 @@
 // A small simulation file for the tests of reading simulations (analysis_test.cpp) and of
-// `eco analyse` / `eco inspect` (analysis_cli_test.cpp).
+// `eco analyse` / `eco inspect` (analysis_cli_test.cpp); a file of snapshots only for the
+// outputs of parameter studies (sensitivity_test.cpp, calibrate_test.cpp).
 #pragma once
 
 #include <cstdint>
@@ -74,6 +75,26 @@ inline void writeFakeSimulation(const std::string& simPath, const std::string& a
         }
     }
     if (omit != "/canopy") writePlants(f, "/canopy", canopy, biome);
+}
+
+/// A simulation file of the 20 m square (0, 0)-(20, 20) holding `snapshots` (year, plants)
+/// and an empty census of the years 0 .. `years`, no canopy.
+inline void writeSnapshotSimulation(const std::string& path, const Biome& biome, int years, const SnapshotList& snapshots) {
+    SimulationFileInfo info;
+    info.years = years;
+    info.x0 = info.y0 = 0;
+    info.x1 = info.y1 = 20;
+    std::vector<YearRecord> series;
+    for (int year = 0; year <= years; ++year) {
+        YearRecord r;
+        r.year = year;
+        r.count.assign(biome.species.size(), 0);
+        r.meanHeightM.assign(biome.species.size(), 0);
+        r.meanVigour.assign(biome.species.size(), 0);
+        r.crownAreaM2.assign(biome.species.size(), 0);
+        series.push_back(r);
+    }
+    writeSimulationFile(path, info, biome, snapshots, series, {});
 }
 
 }  // namespace eco::test

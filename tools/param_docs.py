@@ -11,7 +11,7 @@ A generated block in a docs page is
     <!-- end generated -->
 
 and holds exactly what `eco config describe --markdown canopy` prints (the descriptors of
-core/param_desc.h: key, default, meaning with units, allowed values, flags). Edit the
+core/param_desc.h: key, default, unit, meaning, allowed values, the flags declared from them). Edit the
 descriptor (its one-line doc, range or default), rebuild eco, run this script. The C++ test
 "docs parameter tables are the descriptors' output" (tests/docs_cli_test.cpp) makes the
 same comparison, so the docs cannot drift from the code.
