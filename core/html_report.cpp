@@ -9,6 +9,7 @@
 #include <iterator>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include "atomic_file.h"
 #include "image_out.h"
@@ -423,7 +424,7 @@ SceneView plotView(std::string title, double x0M, double y0M, double x1M, double
     if (!(x1M > x0M && y1M > y0M)) {
         x0M = y0M = std::numeric_limits<double>::infinity();
         x1M = y1M = -x0M;
-        for (const auto* layer : {&canopy, &view.undergrowth})
+        for (const std::vector<Plant>* layer : {&canopy, &std::as_const(view.undergrowth)})
             for (const Plant& p : *layer) {
                 x0M = std::min(x0M, p.xM), x1M = std::max(x1M, p.xM);
                 y0M = std::min(y0M, p.yM), y1M = std::max(y1M, p.yM);

@@ -336,7 +336,7 @@ TEST_CASE("eco validate: report.html with a figure plot and a picture loads with
     CHECK(html.find("alt=\"a scene shown only here\"") == std::string::npos);
     const std::string md = readAll(dir.file("report.md"));
     CHECK(md.find("![a plot at the end](demo.png)") != std::string::npos);
-    CHECK(md.find("*a scene shown only here (an interactive view in report.html)*") != std::string::npos);
+    CHECK(md.find("*a scene shown only here* (an interactive view, in report.html only)") != std::string::npos);
     CHECK(md.find("]()") == std::string::npos);
 
     const std::vector<Drawn> canvases = loadCleanly(page, dir.path().string());

@@ -294,7 +294,7 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         page.markdown(md.str().substr(sectionStart), outDir);
         for (const auto& f : s.figures) {
             if (f.file.empty())
-                md << "*" << f.caption << " (an interactive view in report.html)*\n\n";
+                md << "*" << f.caption << "* (an interactive view, in report.html only)\n\n";
             else
                 md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
             const bool interactive = !f.plot.groups.empty() || f.scene.has_value();
