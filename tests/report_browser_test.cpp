@@ -280,7 +280,8 @@ TEST_CASE("eco run: report.html loads in Chromium without errors and shows the p
     CHECK(colouredIn(shot, scene) > 0);
 }
 
-TEST_CASE("eco validate: report.html with a figure plot and a picture loads without errors", "[browser][report][validate]") {
+TEST_CASE("eco validate: report.html with a plot, pictures and views from above loads without errors, plants where the data say",
+          "[browser][report][validate]") {
     using namespace eco::validate;
     TempDir dir("validate_html");
     // A suite result as the scenarios make it: a failing check, a figure with its interactive
