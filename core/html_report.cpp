@@ -7,7 +7,9 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <sstream>
+#include <utility>
 
 #include "atomic_file.h"
 #include "image_out.h"
@@ -411,6 +413,30 @@ void Document::sceneView(const SceneView& scene) {
             base64(species.data(), species.size()) + "\"}";
     body_ += "<div class=\"eco-scene\" id=\"eco-scene-" + std::to_string(nextId_++) +
              "\"><script type=\"application/json\">" + json + "</script></div>\n";
+}
+
+SceneView plotView(std::string title, double x0M, double y0M, double x1M, double y1M, std::vector<std::string> speciesNames,
+                   const std::vector<Plant>& canopy, std::vector<Plant> undergrowth) {
+    SceneView view;
+    view.title = std::move(title);
+    view.speciesNames = std::move(speciesNames);
+    view.undergrowth = std::move(undergrowth);
+    if (!(x1M > x0M && y1M > y0M)) {
+        x0M = y0M = std::numeric_limits<double>::infinity();
+        x1M = y1M = -x0M;
+        for (const std::vector<Plant>* layer : {&canopy, &std::as_const(view.undergrowth)})
+            for (const Plant& p : *layer) {
+                x0M = std::min(x0M, p.xM), x1M = std::max(x1M, p.xM);
+                y0M = std::min(y0M, p.yM), y1M = std::max(y1M, p.yM);
+            }
+        if (!(x0M <= x1M)) x0M = y0M = 0, x1M = y1M = 1;
+    }
+    view.x0M = x0M, view.y0M = y0M, view.x1M = x1M, view.y1M = y1M;
+    for (const Plant& p : canopy)
+        if (p.xM + p.crownRadiusM >= x0M && p.xM - p.crownRadiusM <= x1M && p.yM + p.crownRadiusM >= y0M &&
+            p.yM - p.crownRadiusM <= y1M)
+            view.canopy.push_back(p);
+    return view;
 }
 
 std::string Document::str() const {

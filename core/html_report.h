@@ -63,6 +63,14 @@ struct SceneView {
     std::vector<Plant> canopy, undergrowth;
 };
 
+/// A top view of a plot [x0, x1] x [y0, y1] (world metres), as both reports show a simulated
+/// plot: its undergrowth, and of `canopy` (a simulation keeps its whole scene's) the trees
+/// whose crown reaches the plot. An empty or inverted rectangle is replaced by the plants'
+/// bounding box (a unit square when there are none).
+SceneView plotView(std::string title, double x0M, double y0M, double x1M, double y1M,
+                   std::vector<std::string> speciesNames, const std::vector<Plant>& canopy,
+                   std::vector<Plant> undergrowth);
+
 /// An HTML document built section by section; str() gives the whole page with its style
 /// sheet and script. Everything passed as text is escaped; raw() and markdown() are the
 /// only ways to add markup.

@@ -26,7 +26,7 @@ th, td { border: 1px solid #d4d4d0; padding: 3px 8px; text-align: left; vertical
 th { background: #f0f0ec; } td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
 td code { word-break: break-all; }
 figure { margin: 12px 0 20px; } figure img { max-width: 100%; height: auto; border: 1px solid #e4e4e0; }
-figcaption { font-size: 0.85em; color: #555; }
+figcaption, .eco-caption { font-size: 0.85em; color: #555; }
 .eco-errors { background: #fde8e8; color: #8a1010; border: 1px solid #e0a0a0; padding: 8px; white-space: pre-wrap; }
 .eco-plot, .eco-scene { margin: 12px 0 24px; }
 .eco-title { font-weight: bold; margin-bottom: 4px; }

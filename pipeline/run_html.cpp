@@ -147,27 +147,13 @@ void addRunViews(html::Document& doc, const RunPlan& plan) {
         if (simulate) {
             try {
                 const SimulationFileData sim = readSimulationFile(simulate->out);
-                html::SceneView view;
-                view.title = "The simulated plot from above at year " + std::to_string(sim.year) + " (" + simulate->out + ")";
-                if (sim.area) {
-                    view.x0M = (*sim.area)[0], view.y0M = (*sim.area)[1], view.x1M = (*sim.area)[2], view.y1M = (*sim.area)[3];
-                } else {
-                    view.x0M = view.y0M = 1e300;
-                    view.x1M = view.y1M = -1e300;
-                    for (const auto* layer : {&sim.canopy, &sim.undergrowth})
-                        for (const Plant& p : *layer) {
-                            view.x0M = std::min(view.x0M, p.xM), view.x1M = std::max(view.x1M, p.xM);
-                            view.y0M = std::min(view.y0M, p.yM), view.y1M = std::max(view.y1M, p.yM);
-                        }
-                    if (view.x0M > view.x1M) view.x0M = view.y0M = 0, view.x1M = view.y1M = 1;
-                }
-                for (const Species& s : sim.biome.species) view.speciesNames.push_back(s.name);
-                view.undergrowth = sim.undergrowth;
-                // The canopy trees over the plot (the simulation keeps the whole scene's).
-                for (const Plant& p : sim.canopy)
-                    if (p.xM + p.crownRadiusM >= view.x0M && p.xM - p.crownRadiusM <= view.x1M &&
-                        p.yM + p.crownRadiusM >= view.y0M && p.yM - p.crownRadiusM <= view.y1M)
-                        view.canopy.push_back(p);
+                std::vector<std::string> names;
+                for (const Species& s : sim.biome.species) names.push_back(s.name);
+                // Without a recorded area, the plants' bounding box (plotView's fallback).
+                const std::array<double, 4> area = sim.area ? *sim.area : std::array<double, 4>{0, 0, 0, 0};
+                const html::SceneView view =
+                    html::plotView("The simulated plot from above at year " + std::to_string(sim.year) + " (" + simulate->out + ")",
+                                   area[0], area[1], area[2], area[3], names, sim.canopy, sim.undergrowth);
                 doc.sceneView(view);
             } catch (const Error& e) {
                 note(doc, "The plot view", e);

@@ -103,3 +103,35 @@ TEST_CASE("html: a scene view stores every plant, positions to 16 bits of the re
     const auto species = html::base64Decode(field("s"));
     CHECK(species == std::vector<std::uint8_t>{1, 0});
 }
+
+TEST_CASE("html: a plot view keeps the canopy trees whose crown reaches the plot", "[html]") {
+    const auto plant = [](int species, double x, double y, double r) {
+        Plant p;
+        p.speciesId = species, p.xM = x, p.yM = y, p.crownRadiusM = r, p.heightM = 20;
+        return p;
+    };
+    // A plot [10, 30] x [10, 20]: a tree inside, one outside whose crown reaches in (west),
+    // one whose crown stops 0.5 m short (north), one far away.
+    const std::vector<Plant> canopy = {plant(0, 15, 15, 3), plant(1, 7, 12, 3.5), plant(2, 20, 24, 3.5), plant(3, 500, 500, 9)};
+    const html::SceneView view = html::plotView("plot", 10, 10, 30, 20, {"a", "b", "c", "d"}, canopy, {plant(1, 12, 11, 0.3)});
+    CHECK(view.title == "plot");
+    CHECK(view.x0M == 10);
+    CHECK(view.y1M == 20);
+    REQUIRE(view.canopy.size() == 2);
+    CHECK(view.canopy[0].speciesId == 0);
+    CHECK(view.canopy[1].speciesId == 1);
+    REQUIRE(view.undergrowth.size() == 1);
+    CHECK(view.undergrowth[0].xM == 12);
+    CHECK(view.speciesNames.size() == 4);
+    // No rectangle (a simulation file without its area): the plants' bounding box, and then
+    // every tree is kept.
+    const html::SceneView box = html::plotView("box", 0, 0, 0, 0, {}, canopy, {plant(1, 12, 11, 0.3)});
+    CHECK(box.x0M == 7);
+    CHECK(box.y0M == 11);
+    CHECK(box.x1M == 500);
+    CHECK(box.y1M == 500);
+    CHECK(box.canopy.size() == 4);
+    const html::SceneView none = html::plotView("none", 0, 0, 0, 0, {}, {}, {});
+    CHECK(none.x1M - none.x0M == 1);
+    CHECK(none.y1M - none.y0M == 1);
+}

@@ -141,6 +141,14 @@ bool near(const std::array<int, 3>& a, const std::array<int, 3>& b, int toleranc
     return true;
 }
 
+/// Where world point (x, y) of a scene view over [x0, x1] x [y0, y1] lands in the screenshot:
+/// the view is fitted (98 %) and centred in its canvas, north up.
+std::array<int, 2> scenePixel(const Drawn& canvas, double x0, double y0, double x1, double y1, double x, double y) {
+    const double s = std::min(canvas.w / (x1 - x0), canvas.h / (y1 - y0)) * 0.98;
+    const double cx = canvas.x + canvas.w / 2.0, cy = canvas.y + canvas.h / 2.0;
+    return {static_cast<int>(std::lround(cx + (x - (x0 + x1) / 2) * s)), static_cast<int>(std::lround(cy - (y - (y0 + y1) / 2) * s))};
+}
+
 }  // namespace
 
 TEST_CASE("report.html: a constructed scene and plot are drawn where their data say, north up", "[browser][report]") {
@@ -267,7 +275,8 @@ TEST_CASE("eco run: report.html loads in Chromium without errors and shows the p
     CHECK(colouredIn(shot, scene) > 0);
 }
 
-TEST_CASE("eco validate: report.html with a figure plot and a picture loads without errors", "[browser][report][validate]") {
+TEST_CASE("eco validate: report.html with a plot, pictures and views from above loads without errors, plants where the data say",
+          "[browser][report][validate]") {
     using namespace eco::validate;
     TempDir dir("validate_html");
     // A suite result as the scenarios make it: a failing check, a figure with its interactive
@@ -297,16 +306,58 @@ TEST_CASE("eco validate: report.html with a figure plot and a picture loads with
     plot.groups.push_back({"plants per species", {a, b}});
     s.figures.push_back({"demo.png", "with a plot", plot});
     s.figures.push_back({"demo.png", "a picture only"});
+    // A simulated plot from above beside its picture (as the forest scenarios' last render):
+    // 100 m x 40 m, one undergrowth plant of species 1 in the west, a canopy tree of species 0
+    // over the plot's south-east, one far outside it (dropped); and a scene shown only in
+    // report.html (as the fidelity scenario's synthesized scene): one plant of species 3.
+    const auto plant = [](int species, double x, double y, double r, double h) {
+        eco::Plant p;
+        p.speciesId = species, p.xM = x, p.yM = y, p.crownRadiusM = r, p.heightM = h;
+        return p;
+    };
+    const std::vector<std::string> species = {"Douglas-Fir", "Toyon", "Tanoak", "Redwood"};
+    s.figures.push_back({"demo.png", "a plot at the end",
+                         eco::html::plotView("plot from above", 0, 0, 100, 40, species,
+                                             {plant(0, 85, 8, 6, 30), plant(0, 400, 300, 6, 30)}, {plant(1, 20, 30, 5, 1)})});
+    s.figures.push_back({"", "a scene shown only here",
+                         eco::html::plotView("scene from above", 0, 0, 100, 40, species, {}, {plant(3, 70, 15, 5, 1)})});
     res.scenarios.push_back(s);
     writeReport(res, dir.path().string());
     const std::string page = dir.file("report.html");
     const std::string html = readAll(page);
     CHECK(html.find("<td><strong>FAIL</strong></td>") != std::string::npos);
     CHECK(html.find("<p>A <em>demo</em> scenario with <code>code</code>.</p>") != std::string::npos);
+    // The render's picture is folded away under its view; the view-only figure has no picture.
+    CHECK(html.find("<details><summary>a plot at the end (picture)</summary>") != std::string::npos);
+    CHECK(html.find("alt=\"a scene shown only here\"") == std::string::npos);
+    const std::string md = readAll(dir.file("report.md"));
+    CHECK(md.find("![a plot at the end](demo.png)") != std::string::npos);
+    CHECK(md.find("*a scene shown only here* (an interactive view, in report.html only)") != std::string::npos);
+    CHECK(md.find("]()") == std::string::npos);
+
     const std::vector<Drawn> canvases = loadCleanly(page, dir.path().string());
-    REQUIRE(canvases.size() == 1);
+    REQUIRE(canvases.size() == 3);
     CHECK(canvases[0].drawn == 8);  // the two lines' points
-    REQUIRE(canvases[0].y + canvases[0].h <= kWindowH);
+    CHECK(canvases[1].drawn == 2);  // the plant and the tree over the plot
+    CHECK(canvases[2].drawn == 1);
+    for (const Drawn& d : canvases) REQUIRE(d.y + d.h <= kWindowH);
     const Screenshot shot = screenshot(page, dir.path().string());
     CHECK(colouredIn(shot, canvases[0]) > 100);
+    const auto colourAt = [&](const Drawn& canvas, double x, double y) {
+        const auto p = scenePixel(canvas, 0, 0, 100, 40, x, y);
+        INFO("world " << x << "," << y << " at pixel " << p[0] << "," << p[1]);
+        return shot.at(p[0], p[1]);
+    };
+    const std::array<int, 3> white{255, 255, 255};
+    // The plot: the plant in its species' colour, white where nothing stands (mirrored through
+    // the centre, and beyond the crown), the canopy tree's crown not white (half transparent).
+    CHECK(near(colourAt(canvases[1], 20, 30), hexColour(eco::html::categoryHex(1)), 40));
+    CHECK(near(colourAt(canvases[1], 23, 30), hexColour(eco::html::categoryHex(1)), 40));
+    CHECK(near(colourAt(canvases[1], 80, 10), white, 2) == false);
+    CHECK(near(colourAt(canvases[1], 20, 10), white, 2));
+    CHECK(near(colourAt(canvases[1], 28, 30), white, 2));
+    // The view-only scene: its plant where the data say, nothing at the other's place.
+    CHECK(near(colourAt(canvases[2], 70, 15), hexColour(eco::html::categoryHex(3)), 40));
+    CHECK(near(colourAt(canvases[2], 30, 25), white, 2));
+    CHECK(near(colourAt(canvases[2], 20, 30), white, 2));
 }

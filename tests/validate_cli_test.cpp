@@ -180,4 +180,16 @@ TEST_CASE("eco validate --quick runs end to end and writes a complete report", "
     // failing the pooled-g and under-crown bounds (docs/validation.md).
     CHECK(md.find("dart sampler (control)") != std::string::npos);
     CHECK(md.find("| **fail** |") != std::string::npos);
+    // report.html's views from above (drawn in a browser by report_browser_test.cpp): the
+    // succession plot at its last year, both plots of the Deussen comparison, and the fidelity
+    // scenario's synthesized scene and its plot beside held-out B; each with plants.
+    const std::string html = readAll(dir.file("out/report.html"));
+    int scenes = 0;
+    for (std::size_t at = 0; (at = html.find("<div class=\"eco-scene\"", at)) != std::string::npos; ++at) {
+        ++scenes;
+        const std::size_t n = html.find("\"n\":", at);
+        REQUIRE(n != std::string::npos);
+        CHECK(std::stol(html.substr(n + 4, 12)) > 0);
+    }
+    CHECK(scenes >= 6);
 }

@@ -488,6 +488,44 @@ TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bi
     CHECK(readAll(dir.file("t1/fidelity_structured.csv")) == readAll(dir.file("t2/fidelity_structured.csv")));
     CHECK(readAll(dir.file("t1/fidelity_darts.csv")) == readAll(dir.file("t2/fidelity_darts.csv")));
     CHECK(std::filesystem::exists(dir.file("t1/fidelity_pooled_g.png")));
+    // report.html's views from above (no picture each): the whole synthesized scene over the
+    // terrain's rectangle, then the plot as the scene and as held-out B have it; the same
+    // plants for 1 and 2 threads.
+    std::vector<const Figure*> views;
+    for (const Figure& f : s.figures)
+        if (f.scene) views.push_back(&f);
+    REQUIRE(views.size() == 3);
+    const html::SceneView& whole = *views[0]->scene;
+    CHECK(views[0]->file.empty());
+    CHECK(whole.x0M == 0);
+    CHECK(whole.x1M == Approx(64 * 0.914));
+    CHECK_FALSE(whole.canopy.empty());
+    CHECK(whole.undergrowth.size() > views[1]->scene->undergrowth.size());
+    for (const Figure* f : {views[1], views[2]}) {
+        INFO(f->caption);
+        CHECK(f->file.empty());
+        CHECK(f->scene->x0M == 18);
+        CHECK(f->scene->y1M == 40);
+        CHECK_FALSE(f->scene->undergrowth.empty());
+        for (const Plant& p : f->scene->undergrowth) CHECK((p.xM >= 18 && p.xM <= 40 && p.yM >= 18 && p.yM <= 40));
+    }
+    // Held-out B: the plants the details count ("B, held out: N plants").
+    const std::string bCount = "(B, held out: " + std::to_string(views[2]->scene->undergrowth.size()) + " plants";
+    CHECK(details.find(bCount) != std::string::npos);
+    std::vector<const Figure*> views2;
+    for (const Figure& f : two.scenarios[0].figures)
+        if (f.scene) views2.push_back(&f);
+    REQUIRE(views2.size() == 3);
+    for (std::size_t v = 0; v < 3; ++v) {
+        const auto& a = views[v]->scene->undergrowth;
+        const auto& b = views2[v]->scene->undergrowth;
+        REQUIRE(a.size() == b.size());
+        for (std::size_t i = 0; i < a.size(); ++i) CHECK((a[i].xM == b[i].xM && a[i].yM == b[i].yM && a[i].speciesId == b[i].speciesId));
+    }
+    const std::string page = readAll(dir.file("t1/report.html"));
+    std::size_t scenes = 0;
+    for (std::size_t at = 0; (at = page.find("<div class=\"eco-scene\"", at)) != std::string::npos; ++at) ++scenes;
+    CHECK(scenes == 3);
 }
 
 TEST_CASE("The shipped configurations load and every scenario has its checks", "[validate][config]") {

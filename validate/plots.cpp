@@ -107,4 +107,20 @@ html::LinePlot populationLinePlot(const std::vector<YearRecord>& census, const B
     return plot;
 }
 
+html::SceneView plotSceneView(const std::string& title, const sim::SimArea& area, const Biome& biome,
+                              const std::vector<Plant>& canopy, const std::vector<UndergrowthPlant>& undergrowth) {
+    std::vector<std::string> names;
+    for (const Species& s : biome.species) names.push_back(s.name);
+    std::vector<Plant> plants(undergrowth.size());
+    for (std::size_t i = 0; i < undergrowth.size(); ++i) {
+        plants[i].speciesId = undergrowth[i].speciesId;
+        plants[i].xM = undergrowth[i].xM;
+        plants[i].yM = undergrowth[i].yM;
+        plants[i].groundZM = undergrowth[i].groundZM;
+        plants[i].heightM = undergrowth[i].heightM;
+        plants[i].crownRadiusM = undergrowth[i].crownRadiusM;
+    }
+    return html::plotView(title, area.x0, area.y0, area.x1, area.y1, std::move(names), canopy, std::move(plants));
+}
+
 }  // namespace eco::validate

@@ -8,6 +8,7 @@
 #include "html_report.h"
 #include "image_out.h"
 #include "plants.h"
+#include "sim_config.h"
 #include "sim_file.h"
 
 namespace eco::validate {
@@ -30,5 +31,10 @@ html::LinePlot toLinePlot(const std::string& title, const std::string& xLabel, c
 
 /// Plants per species (those that ever had one) and year of a census, for report.html.
 html::LinePlot populationLinePlot(const std::vector<YearRecord>& census, const Biome& biome, const std::string& title);
+
+/// A simulated plot from above for report.html (html::plotView): its undergrowth and the
+/// canopy trees whose crown reaches it, species named and coloured as in `biome`.
+html::SceneView plotSceneView(const std::string& title, const sim::SimArea& area, const Biome& biome,
+                              const std::vector<Plant>& canopy, const std::vector<UndergrowthPlant>& undergrowth);
 
 }  // namespace eco::validate

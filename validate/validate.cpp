@@ -293,11 +293,18 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         md << "\n";
         page.markdown(md.str().substr(sectionStart), outDir);
         for (const auto& f : s.figures) {
-            md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
-            if (f.plot.groups.empty()) {
+            if (f.file.empty())
+                md << "*" << f.caption << "* (an interactive view, in report.html only)\n\n";
+            else
+                md << "![" << f.caption << "](" << f.file << ")\n\n*" << f.caption << "*\n\n";
+            const bool interactive = !f.plot.groups.empty() || f.scene.has_value();
+            if (!f.plot.groups.empty()) page.linePlot(f.plot);
+            if (f.scene) page.sceneView(*f.scene);
+            if (f.file.empty()) {
+                page.raw("<p class=\"eco-caption\">" + html::escape(f.caption) + "</p>\n");
+            } else if (!interactive) {
                 page.picture(outDir + "/" + f.file, f.caption);
-            } else {  // the interactive plot, its picture folded away below it
-                page.linePlot(f.plot);
+            } else {  // the interactive view, its picture folded away below it
                 page.raw("<details><summary>" + html::escape(f.caption) + " (picture)</summary>\n");
                 page.picture(outDir + "/" + f.file, f.caption);
                 page.raw("</details>\n");

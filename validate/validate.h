@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,15 +39,22 @@ struct CheckResult {
     const char* outcome() const { return pass ? "pass" : knownDeviation() ? "known_deviation" : "fail"; }
 };
 
-/// A picture of a scenario, written into the output directory.
+/// A picture of a scenario, written into the output directory, and what report.html shows
+/// of it: the picture, or an interactive view with the picture folded away under it.
 struct Figure {
     Figure() = default;
     Figure(std::string file_, std::string caption_, html::LinePlot plot_ = {})
         : file(std::move(file_)), caption(std::move(caption_)), plot(std::move(plot_)) {}
-    std::string file;     ///< relative to the output directory
+    Figure(std::string file_, std::string caption_, html::SceneView scene_)
+        : file(std::move(file_)), caption(std::move(caption_)), scene(std::move(scene_)) {}
+    /// Relative to the output directory; "" = no picture: an interactive view of report.html
+    /// only (report.md names it in a line).
+    std::string file;
     std::string caption;
     /// The picture's data as an interactive plot for report.html (no groups: none).
     html::LinePlot plot;
+    /// Plants to show from above in report.html (pan and zoom; docs/report.md).
+    std::optional<html::SceneView> scene;
 };
 
 struct ScenarioResult {

@@ -8,6 +8,7 @@
 
 #include "error.h"
 #include "point_pattern.h"
+#include "plots.h"
 #include "sim_render.h"
 #include "strict_toml.h"
 
@@ -135,8 +136,13 @@ void DeussenComparison::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scen
                          "Deussen 1998 competition, year " + std::to_string(Y), 900);
     sim::renderPlantsPng(ctx.file(b), ours.plantsAt(Y), ours.canopy, ours.area, biome,
                          "Ours (resource competition), year " + std::to_string(Y), 900);
-    r.figures.push_back({a, "Deussen et al. 1998 competition (left of the paper's Fig. 20)."});
-    r.figures.push_back({b, "Our resource competition (right of the paper's Fig. 20)."});
+    // report.html: each plot also from above, to pan and zoom (its picture folded away).
+    r.figures.push_back({a, "Deussen et al. 1998 competition (left of the paper's Fig. 20).",
+                         plotSceneView("Deussen 1998 competition, year " + std::to_string(Y) + ", from above", theirs.area, biome,
+                                       theirs.canopy, theirs.plantsAt(Y))});
+    r.figures.push_back({b, "Our resource competition (right of the paper's Fig. 20).",
+                         plotSceneView("Ours (resource competition), year " + std::to_string(Y) + ", from above", ours.area,
+                                       biome, ours.canopy, ours.plantsAt(Y))});
     const std::string counts = sc.name + "_deussen_population.png";
     sim::plotSpeciesCountsPng(ctx.file(counts), theirs.censusUpTo(Y), biome, "Deussen competition: plants per species");
     r.figures.push_back({counts, "Plants per species per year under Deussen's competition (compare with the succession scenario)."});

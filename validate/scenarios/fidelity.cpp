@@ -20,6 +20,7 @@
 #include "error.h"
 #include "fidelity.h"
 #include "generate.h"
+#include "html_report.h"
 #include "plots.h"
 #include "species_map.h"
 #include "strict_toml.h"
@@ -468,6 +469,33 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
                          "Pooled undergrowth g(r) in the plot rectangle: held-out simulation B, replicate A, the "
                          "structured and the dart sampler's scenes, and CSR.",
                          interactive});
+    // report.html: the synthesized scene from above (the whole terrain: canopy and the
+    // structured sampler's undergrowth), and the plot as simulation B left it beside the same
+    // plot of the scene.
+    {
+        std::vector<std::string> names;
+        for (const Species& sp : dbBiome.species) names.push_back(sp.name);
+        const Grid<float>& tm = scene.terrainM;
+        const double x1 = tm.originX() + tm.width() * tm.cellSizeM(), y1 = tm.originY() + tm.height() * tm.cellSizeM();
+        r.figures.push_back({"",
+                             "The synthesized scene from above: " + std::to_string(structured.plants.size()) +
+                                 " undergrowth plants of the structured sampler and " + std::to_string(scene.canopy.size()) +
+                                 " canopy trees on the whole terrain; the plot compared is " + plotText(size.plot) + " (m).",
+                             html::plotView("Synthesized scene (structured sampler), whole terrain", tm.originX(), tm.originY(), x1,
+                                            y1, names, scene.canopy, structured.plants)});
+        const auto inPlot = [&](const std::vector<Plant>& plants) {
+            std::vector<Plant> out;
+            for (const Plant& p : plants)
+                if (size.plot.contains(p.xM, p.yM)) out.push_back(p);
+            return out;
+        };
+        r.figures.push_back({"", "The plot " + plotText(size.plot) + " (m) as the structured sampler synthesized it.",
+                             html::plotView("Synthesized scene in the plot", size.plot.x0, size.plot.y0, size.plot.x1, size.plot.y1,
+                                            names, scene.canopy, inPlot(structured.plants))});
+        r.figures.push_back({"", "The same plot as the held-out simulation B left it after " + std::to_string(size.years) + " years.",
+                             html::plotView("Held-out simulation B in the plot, year " + std::to_string(size.years), size.plot.x0,
+                                            size.plot.y0, size.plot.x1, size.plot.y1, names, B.canopy, inPlot(B.undergrowth))});
+    }
     ctx.log("validate:   fidelity: done in " + fixed(secondsSince(t0), 1) + " s");
 }
 

@@ -229,9 +229,15 @@ void ScenarioContext::forestFigures(const ForestRun& run, int lastYear, const st
         if (!s) continue;
         char name[64];
         std::snprintf(name, sizeof name, "%s_year_%04d.png", stem.c_str(), y);
-        sim::renderPlantsPng(file(name), toUndergrowth(*s), run.canopy, run.area, biome_,
-                             what + ", year " + std::to_string(y), 900);
-        r.figures.push_back({name, what + ", top-down at year " + std::to_string(y) + " (as the paper's Fig. 14)."});
+        const std::vector<sim::UndergrowthPlant> plants = toUndergrowth(*s);
+        sim::renderPlantsPng(file(name), plants, run.canopy, run.area, biome_, what + ", year " + std::to_string(y), 900);
+        const std::string caption = what + ", top-down at year " + std::to_string(y) + " (as the paper's Fig. 14).";
+        if (y == lastYear)  // report.html: the plot at the end also from above, to pan and zoom
+            r.figures.push_back({name, caption,
+                                 plotSceneView(what + ", year " + std::to_string(y) + ", from above", run.area, biome_, run.canopy,
+                                               plants)});
+        else
+            r.figures.push_back({name, caption});
     }
 }
 
