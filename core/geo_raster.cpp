@@ -24,14 +24,9 @@ namespace {
 /// The GDAL plugin, loaded on first use (GDAL links about a hundred shared libraries: loaded
 /// at every start they took most of it).
 plugin::GdalPlugin& gdal() {
-    static plugin::GdalPlugin* const instance = [] {
-        using Entry = plugin::GdalPlugin* (*)(int);
-        const auto entry = reinterpret_cast<Entry>(pluginEntry("eco_gdal.so", "eco_gdal_plugin"));
-        plugin::GdalPlugin* p = entry(plugin::kGdalPluginAbi);
-        if (!p) throw IoError("the plugin eco_gdal.so was built for another version of eco; rebuild or reinstall it");
-        return p;
-    }();
-    return *instance;
+    static plugin::GdalPlugin& instance =
+        loadPlugin<plugin::GdalPlugin>("eco_gdal.so", "eco_gdal_plugin", plugin::kGdalPluginAbi);
+    return instance;
 }
 
 /// GDAL's reason after ": ", or nothing when it gave none.

@@ -1,6 +1,5 @@
 #include "image_codec.h"
 
-#include "error.h"
 #include "image_plugin.h"
 #include "plugin.h"
 
@@ -10,14 +9,9 @@ namespace {
 
 /// The OpenImageIO plugin, loaded on first use.
 plugin::ImagePlugin& images() {
-    static plugin::ImagePlugin* const instance = [] {
-        using Entry = plugin::ImagePlugin* (*)(int);
-        const auto entry = reinterpret_cast<Entry>(pluginEntry("eco_oiio.so", "eco_image_plugin"));
-        plugin::ImagePlugin* p = entry(plugin::kImagePluginAbi);
-        if (!p) throw IoError("the plugin eco_oiio.so was built for another version of eco; rebuild or reinstall it");
-        return p;
-    }();
-    return *instance;
+    static plugin::ImagePlugin& instance =
+        loadPlugin<plugin::ImagePlugin>("eco_oiio.so", "eco_image_plugin", plugin::kImagePluginAbi);
+    return instance;
 }
 
 }  // namespace

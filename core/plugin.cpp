@@ -68,4 +68,8 @@ void* pluginEntry(const std::string& file, const char* symbol) {
                   "); set ECO_PLUGIN_DIR to the folder that holds it (docs/install.md)");
 }
 
+void pluginAbiMismatch(const std::string& file) {
+    throw IoError("the plugin " + file + " was built for another version of eco; rebuild or reinstall it");
+}
+
 }  // namespace eco

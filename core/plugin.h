@@ -26,4 +26,17 @@ std::vector<std::string> pluginDirs();
 /// ECO_PLUGIN_DIR when it is not found, and dlopen's reason when it does not load.
 void* pluginEntry(const std::string& file, const char* symbol);
 
+/// IoError: the plugin `file` was built for another version of eco.
+[[noreturn]] void pluginAbiMismatch(const std::string& file);
+
+/// The object a plugin's entry point `symbol` makes for the interface version `abi`: every
+/// entry point has the signature `Plugin* entry(int abi)` and returns nullptr on a mismatch.
+template <typename Plugin>
+Plugin& loadPlugin(const std::string& file, const char* symbol, int abi) {
+    using Entry = Plugin* (*)(int);
+    Plugin* p = reinterpret_cast<Entry>(pluginEntry(file, symbol))(abi);
+    if (p == nullptr) pluginAbiMismatch(file);
+    return *p;
+}
+
 }  // namespace eco

@@ -9,6 +9,7 @@
 #include "chart.h"
 #include "error.h"
 #include "image_out.h"
+#include "image_plugin.h"
 #include "plugin.h"
 #include "test_util.h"
 
@@ -230,4 +231,7 @@ TEST_CASE("plugins: a missing one is an error naming the file, the folders searc
     } catch (const IoError& e) {
         CHECK(std::string(e.what()).find("eco_no_such_entry") != std::string::npos);
     }
+    // A plugin built for another interface version refuses, and core says so.
+    CHECK_THROWS_WITH((loadPlugin<plugin::ImagePlugin>("eco_oiio.so", "eco_image_plugin", plugin::kImagePluginAbi + 1)),
+                      Catch::Contains("eco_oiio.so") && Catch::Contains("another version of eco"));
 }
