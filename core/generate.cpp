@@ -433,6 +433,7 @@ void writeDensitySketch(const std::string& imagePath, const Grid<std::int32_t>& 
     spec.height = h;
     spec.channels = 1;
     spec.stored = SampleType::UInt8;
+    spec.attributes.emplace_back("DateTime", "");  // no time stamp in a TIFF: same sketch, same bytes
     spec.attributes.emplace_back("ImageDescription",
                                  "eco density sketch: black = empty, grey = sparse, white = dense; row 0 = north");
     AtomicOutput out(imagePath);

@@ -380,6 +380,9 @@ void writeTerrainImage(const std::string& path, const Grid<float>& g, const Terr
                        " z_m = value * " + exactText(options.verticalScale) + " + " +
                        exactText(options.verticalOffsetM) + "; row 0 = north");
     if (ext != ".png") spec.attributes.emplace_back("compression", "zip");
+    // OpenImageIO stamps TIFF and EXR files with the current time unless DateTime is given:
+    // an empty one keeps the same terrain giving the same bytes.
+    spec.attributes.emplace_back("DateTime", "");
 
     std::vector<float> f32;
     std::vector<std::uint16_t> u16;

@@ -5,9 +5,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <string>
 
 #include "error.h"
+#include "generate.h"
 #include "h5io.h"
 #include "terrain_fixture.h"
 #include "terrain_io.h"
@@ -324,4 +326,21 @@ TEST_CASE("terrain: writers refuse non-finite values and leave no file", "[terra
         CHECK_FALSE(std::filesystem::exists(path));
     }
     CHECK_FALSE(leftovers(dir));
+}
+
+TEST_CASE("terrain: TIFF and EXR files carry no time stamp, so the same terrain gives the same bytes", "[terrain]") {
+    // OpenImageIO writes the current time into a TIFF's DateTime tag unless told otherwise;
+    // a "YYYY:MM:DD HH:MM:SS" anywhere in the file would make two runs differ.
+    TempDir dir("tio_stamp");
+    const Grid<float> g = sampleTerrain();
+    const std::regex stamp(R"([12][0-9]{3}:[01][0-9]:[0-3][0-9] [0-2][0-9]:[0-5][0-9]:[0-5][0-9])");
+    for (const char* name : {"t.tif", "t.exr"}) {
+        INFO(name);
+        eco::writeTerrain(dir.file(name), g);
+        CHECK_FALSE(std::regex_search(eco::test::readAll(dir.file(name)), stamp));
+    }
+    eco::Grid<std::int32_t> sketch(4, 3, 1.0);
+    sketch.fill(eco::Empty);
+    eco::writeDensitySketch(dir.file("s.tif"), sketch);
+    CHECK_FALSE(std::regex_search(eco::test::readAll(dir.file("s.tif")), stamp));
 }
