@@ -33,16 +33,16 @@ constexpr std::uint64_t kStreamChmHeightField = 0x63686d0000000001ull;
 constexpr std::uint64_t kStreamChmGapField = 0x63686d0000000002ull;
 constexpr std::uint64_t kStreamChmCandidate = 0x63686d0000000010ull;  // + level
 
-std::string num(double v) { return formatNumber(v, 6); }
+std::string genNum(double v) { return formatNumber(v, 6); }
 
 void requirePositive(double v, const char* field) {
     if (!(v > 0) || !std::isfinite(v))
-        throw ValidationError(std::string(field) + " must be positive, got " + num(v));
+        throw ValidationError(std::string(field) + " must be positive, got " + genNum(v));
 }
 
 void requireNonNegative(double v, const char* field) {
     if (!(v >= 0) || !std::isfinite(v))
-        throw ValidationError(std::string(field) + " must be >= 0, got " + num(v));
+        throw ValidationError(std::string(field) + " must be >= 0, got " + genNum(v));
 }
 
 double smoothstep(double t) {
@@ -198,7 +198,7 @@ void validate(const TerrainGenParams& p) {
     requirePositive(p.ridgeWavelengthM, "terrain generator: ridgeWavelengthM");
     requirePositive(p.hillWavelengthM, "terrain generator: hillWavelengthM");
     if (!(p.ridgeWeight >= 0 && p.ridgeWeight <= 1))
-        throw ValidationError("terrain generator: ridgeWeight must be in [0, 1], got " + num(p.ridgeWeight));
+        throw ValidationError("terrain generator: ridgeWeight must be in [0, 1], got " + genNum(p.ridgeWeight));
     requirePositive(p.valleyHalfWidthM, "terrain generator: valleyHalfWidthM");
     requireNonNegative(p.meanderAmplitudeM, "terrain generator: meanderAmplitudeM");
     requirePositive(p.meanderWavelengthM, "terrain generator: meanderWavelengthM");
@@ -323,12 +323,12 @@ namespace {
 void validate(const SketchParams& p) {
     requirePositive(p.featureSizeM, "density sketch: featureSizeM");
     if (!(p.emptyFraction >= 0 && p.emptyFraction <= 1))
-        throw ValidationError("density sketch: emptyFraction must be in [0, 1], got " + num(p.emptyFraction));
+        throw ValidationError("density sketch: emptyFraction must be in [0, 1], got " + genNum(p.emptyFraction));
     if (!(p.denseFraction >= 0 && p.denseFraction <= 1))
-        throw ValidationError("density sketch: denseFraction must be in [0, 1], got " + num(p.denseFraction));
+        throw ValidationError("density sketch: denseFraction must be in [0, 1], got " + genNum(p.denseFraction));
     if (p.emptyFraction + p.denseFraction > 1.0 + 1e-12)
         throw ValidationError("density sketch: emptyFraction + denseFraction must be <= 1, got " +
-                              num(p.emptyFraction + p.denseFraction));
+                              genNum(p.emptyFraction + p.denseFraction));
 }
 
 /// Value below which `fraction` of `values` lie (k-th smallest, k = round(fraction * n)).
@@ -454,16 +454,16 @@ void validate(const ChmGenParams& p) {
     requirePositive(p.minHeightM, "CHM generator: minHeightM");
     requirePositive(p.maxHeightM, "CHM generator: maxHeightM");
     if (!(p.minHeightM <= p.maxHeightM))
-        throw ValidationError("CHM generator: minHeightM (" + num(p.minHeightM) + ") must be <= maxHeightM (" +
-                              num(p.maxHeightM) + ")");
+        throw ValidationError("CHM generator: minHeightM (" + genNum(p.minHeightM) + ") must be <= maxHeightM (" +
+                              genNum(p.maxHeightM) + ")");
     if (!std::isfinite(p.crownA) || !(p.crownB > 0) || !std::isfinite(p.crownB))
-        throw ValidationError("CHM generator: crown allometry needs finite a and b > 0, got a = " + num(p.crownA) +
-                              ", b = " + num(p.crownB));
+        throw ValidationError("CHM generator: crown allometry needs finite a and b > 0, got a = " + genNum(p.crownA) +
+                              ", b = " + genNum(p.crownB));
     requirePositive(p.heightFieldWavelengthM, "CHM generator: heightFieldWavelengthM");
     requireNonNegative(p.treeHeightSpread, "CHM generator: treeHeightSpread");
     requirePositive(p.sparseHeightFactor, "CHM generator: sparseHeightFactor");
     if (!(p.denseGapFraction >= 0 && p.denseGapFraction < 1))
-        throw ValidationError("CHM generator: denseGapFraction must be in [0, 1), got " + num(p.denseGapFraction));
+        throw ValidationError("CHM generator: denseGapFraction must be in [0, 1), got " + genNum(p.denseGapFraction));
     requirePositive(p.gapSizeM, "CHM generator: gapSizeM");
 }
 

@@ -23,7 +23,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::string num(double v) { return formatNumber(v, 10); }
+std::string ppNum(double v) { return formatNumber(v, 10); }
 
 /// Points per chunk of the parallel pair loops. Fixed (never derived from the thread count)
 /// so that the chunked floating-point sums, added in chunk order, are bit-identical.
@@ -36,7 +36,7 @@ std::string trimmed(const std::string& s) { return trimmedText(s); }
 void RectWindow::validate(const std::string& what) const {
     if (!std::isfinite(x0) || !std::isfinite(y0) || !std::isfinite(x1) || !std::isfinite(y1) || !(x0 < x1) ||
         !(y0 < y1))
-        throw ValidationError(what + ": window " + num(x0) + "," + num(y0) + "," + num(x1) + "," + num(y1) +
+        throw ValidationError(what + ": window " + ppNum(x0) + "," + ppNum(y0) + "," + ppNum(x1) + "," + ppNum(y1) +
                               " must have finite corners with x0 < x1 and y0 < y1");
 }
 
@@ -53,7 +53,7 @@ std::vector<double> DistanceBins::edgesM() const {
 
 void DistanceBins::validate(const std::string& what) const {
     if (!(rMaxM > 0.0) || !std::isfinite(rMaxM))
-        throw ValidationError(what + ": rmax must be positive and finite, got " + num(rMaxM));
+        throw ValidationError(what + ": rmax must be positive and finite, got " + ppNum(rMaxM));
     if (count < 1 || count > 100000)
         throw ValidationError(what + ": number of distance bins must be in 1..100000, got " + std::to_string(count));
 }
@@ -66,9 +66,9 @@ std::vector<double> SeparationBins::edgesM() const {
 
 void SeparationBins::validate(const std::string& what) const {
     if (!std::isfinite(minM) || !std::isfinite(maxM) || !(minM < maxM))
-        throw ValidationError(what + ": separation range " + num(minM) + " .. " + num(maxM) +
+        throw ValidationError(what + ": separation range " + ppNum(minM) + " .. " + ppNum(maxM) +
                               " m must be finite with min < max");
-    if (!(maxM >= 0.0)) throw ValidationError(what + ": separation max must be >= 0 m, got " + num(maxM));
+    if (!(maxM >= 0.0)) throw ValidationError(what + ": separation max must be >= 0 m, got " + ppNum(maxM));
     if (count < 1 || count > 100000)
         throw ValidationError(what + ": number of separation bins must be in 1..100000, got " + std::to_string(count));
 }
@@ -96,7 +96,7 @@ double isotropicWeight(const RectWindow& w, double x, double y, double r) {
 std::vector<CellWindow> CellWindow::fromLabels(const Grid<std::int32_t>& labels, int nLabels, double maxLagM) {
     if (nLabels < 0) throw ValidationError("CellWindow: negative number of labels");
     if (!(maxLagM >= 0.0) || !std::isfinite(maxLagM))
-        throw ValidationError("CellWindow: maximum lag must be finite and >= 0, got " + num(maxLagM));
+        throw ValidationError("CellWindow: maximum lag must be finite and >= 0, got " + ppNum(maxLagM));
     const double cs = labels.cellSizeM();
     // One extra lag so that the bilinear interpolation is defined up to maxLagM; no more
     // lags than the grid has (beyond them every overlap is 0, which the lookup returns for
@@ -166,7 +166,7 @@ PointGrid::PointGrid(const std::vector<double>& x, const std::vector<double>& y,
     if (x.size() != y.size()) throw ValidationError("PointGrid: x and y differ in length");
     if (x.size() > 0xFFFFFFFFull) throw ValidationError("PointGrid: too many points");
     if (!(cellSizeM > 0.0) || !std::isfinite(cellSizeM))
-        throw ValidationError("PointGrid: cell size must be positive, got " + num(cellSizeM));
+        throw ValidationError("PointGrid: cell size must be positive, got " + ppNum(cellSizeM));
     const std::size_t n = x.size();
     if (n == 0) return;
     double minX = x[0], maxX = x[0], minY = y[0], maxY = y[0];
@@ -242,8 +242,8 @@ PairSums countPairs(const PointPattern& pattern, const RectWindow& window, const
     options.bins.validate("pair correlation");
     const double halfShorter = 0.5 * std::min(window.widthM(), window.heightM());
     if (options.bins.rMaxM > halfShorter)
-        throw ValidationError("pair correlation: rmax " + num(options.bins.rMaxM) +
-                              " m is beyond half the window's shorter side (" + num(halfShorter) + " m)");
+        throw ValidationError("pair correlation: rmax " + ppNum(options.bins.rMaxM) +
+                              " m is beyond half the window's shorter side (" + ppNum(halfShorter) + " m)");
     const std::size_t n = pattern.size();
     if (pattern.y.size() != n || pattern.type.size() != n)
         throw ValidationError("pair correlation: x, y and type arrays differ in length");
@@ -257,8 +257,8 @@ PairSums countPairs(const PointPattern& pattern, const RectWindow& window, const
     out.typeCount.assign(static_cast<std::size_t>(nTypes), 0);
     for (std::size_t i = 0; i < n; ++i) {
         if (!window.contains(pattern.x[i], pattern.y[i]))
-            throw ValidationError("pair correlation: point " + std::to_string(i) + " (" + num(pattern.x[i]) + ", " +
-                                  num(pattern.y[i]) + ") lies outside the window");
+            throw ValidationError("pair correlation: point " + std::to_string(i) + " (" + ppNum(pattern.x[i]) + ", " +
+                                  ppNum(pattern.y[i]) + ") lies outside the window");
         const int t = pattern.type[i];
         if (t < 0 || t >= nTypes)
             throw ValidationError("pair correlation: point " + std::to_string(i) + " has type " + std::to_string(t) +
@@ -405,8 +405,8 @@ PointPattern readPointPatternCsv(const std::string& path, const RectWindow* wind
               cs >= 0 ? row[static_cast<std::size_t>(cs)] : std::string("all"), lineNo};
         if (cs >= 0 && r.type.empty()) throw IoError(where + "column species is empty");
         if (window && !window->contains(r.x, r.y))
-            throw IoError(where + "point (" + num(r.x) + ", " + num(r.y) + ") lies outside the window " + num(window->x0) +
-                          "," + num(window->y0) + "," + num(window->x1) + "," + num(window->y1));
+            throw IoError(where + "point (" + ppNum(r.x) + ", " + ppNum(r.y) + ") lies outside the window " + ppNum(window->x0) +
+                          "," + ppNum(window->y0) + "," + ppNum(window->x1) + "," + ppNum(window->y1));
         rows.push_back(std::move(r));
     });
     PointPattern p;
