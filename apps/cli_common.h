@@ -175,6 +175,32 @@ CLI::Option* addParamOption(CLI::App* cmd, const std::string& flag, S& params, c
     return addParamOption(cmd, flag, params.*(f.seed), fields, key, prefix);
 }
 
+/// addParamOption for every flag of a command's flag table (core/param_desc.h), bound to
+/// `params`' members; returns each key with its option, for setGivenParams.
+template <typename S>
+std::vector<std::pair<std::string, CLI::Option*>> addParamOptions(CLI::App* cmd, const std::vector<ParamFlagName>& flags,
+                                                                   S& params, const std::vector<ParamDesc<S>>& fields,
+                                                                   const std::string& prefix = "") {
+    std::vector<std::pair<std::string, CLI::Option*>> options;
+    for (const auto& f : flags) options.emplace_back(f.key, addParamOption(cmd, f.flag, params, fields, f.key, prefix));
+    return options;
+}
+
+/// The parameters whose flag was given (addParamOptions) as overrides, with the values the
+/// flags wrote into `params`.
+template <typename S>
+void setGivenParams(ParamOverrides<S>& overrides, const std::vector<std::pair<std::string, CLI::Option*>>& options,
+                    const S& params, const std::vector<ParamDesc<S>>& fields) {
+    for (const auto& [key, option] : options) {
+        if (!option->count()) continue;
+        const ParamDesc<S>& f = paramField(fields, key);
+        if (f.kind == ParamDesc<S>::Kind::Seed)
+            overrides.setSeed(key, params.*(f.seed));
+        else
+            overrides.set(key, f.value(params));
+    }
+}
+
 /// How much the command line prints: eco --quiet (errors only: no progress, no information,
 /// no summaries or "wrote ..." lines on stdout) or --verbose (also the extra detail stages
 /// offer, e.g. phase timings and a simulation line every year), before the command.

@@ -4,6 +4,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "canopy_stage.h"
 #include "canopy_placer.h"
@@ -17,12 +19,10 @@ struct CanopyArgs {
     pipeline::CanopyOptions options;
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     CLI::Option *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
-    // Overrides of CanopyParams (applied after --config when given); the flags' defaults.
+    // The placer parameters' flags (pipeline::canopyParamFlags) write into `flags`; those
+    // given become overrides, applied after --config.
     synth::CanopyParams flags;
-    // Which overrides were given.
-    CLI::Option *seedOpt = nullptr, *maxIterationsOpt = nullptr, *minVisibleOpt = nullptr, *moveOpt = nullptr,
-                *ringOpt = nullptr, *trunkOpt = nullptr, *epsilonOpt = nullptr, *thresholdOpt = nullptr,
-                *seedHeightOpt = nullptr;
+    std::vector<std::pair<std::string, CLI::Option*>> paramOpts;  // key, option
 };
 
 template <class T>
@@ -35,15 +35,7 @@ void runCanopy(CanopyArgs& a) {
     o.terrainRead.cellSizeM = given(a.cellOpt, a.cellSizeM);
     o.terrainRead.verticalScale = given(a.scaleOpt, a.verticalScale);
     o.terrainRead.verticalOffsetM = given(a.offsetOpt, a.verticalOffsetM);
-    o.seed = given(a.seedOpt, a.flags.seed);
-    o.maxIterations = given(a.maxIterationsOpt, a.flags.maxIterations);
-    o.minVisibleFraction = given(a.minVisibleOpt, a.flags.minVisibleFraction);
-    o.moveFactor = given(a.moveOpt, a.flags.moveFactor);
-    o.ringFactor = given(a.ringOpt, a.flags.ringFactor);
-    o.minTrunkDistanceM = given(a.trunkOpt, a.flags.minTrunkDistanceM);
-    o.coverageEpsilon = given(a.epsilonOpt, a.flags.coverageEpsilon);
-    o.canopyThresholdM = given(a.thresholdOpt, a.flags.canopyThresholdM);
-    o.minSeedHeightM = given(a.seedHeightOpt, a.flags.minSeedHeightM);
+    setGivenParams(o.params, a.paramOpts, a.flags, synth::canopyParamFields());
     CliReporter reporter;
     pipeline::canopyStage(o, reporter);
 }
@@ -83,15 +75,7 @@ void registerCanopyCommand(CLI::App& app) {
     // The placer parameters' flags from their descriptions (synth/canopy_placer.cpp).
     const auto& fields = synth::canopyParamFields();
     synth::CanopyParams& flags = args->flags;
-    args->seedOpt = addParamOption(cmd, "--seed", flags, fields, "seed");
-    args->maxIterationsOpt = addParamOption(cmd, "--max-iterations", flags, fields, "max_iterations");
-    args->minVisibleOpt = addParamOption(cmd, "--min-visible-fraction", flags, fields, "min_visible_fraction");
-    args->moveOpt = addParamOption(cmd, "--move-factor", flags, fields, "move_factor");
-    args->ringOpt = addParamOption(cmd, "--ring-factor", flags, fields, "ring_factor");
-    args->trunkOpt = addParamOption(cmd, "--min-trunk-distance", flags, fields, "min_trunk_distance_m");
-    args->epsilonOpt = addParamOption(cmd, "--coverage-epsilon", flags, fields, "coverage_epsilon");
-    args->thresholdOpt = addParamOption(cmd, "--canopy-threshold", flags, fields, "canopy_threshold_m");
-    args->seedHeightOpt = addParamOption(cmd, "--min-seed-height", flags, fields, "min_seed_height_m");
+    args->paramOpts = addParamOptions(cmd, pipeline::canopyParamFlags(), flags, fields);
     args->cellOpt = cmd->add_option("--cell-size", args->cellSizeM, "Metres per cell (required for plain images; georeferenced rasters carry it)")
         ->check(cellSizeRange());
     args->scaleOpt = cmd->add_option("--vertical-scale", args->verticalScale, "Image terrain only: metres per stored unit")

@@ -15,6 +15,7 @@
 #include "biome.h"
 #include "canopy_placer.h"
 #include "cli_common.h"
+#include "fidelity.h"
 #include "forest_floor.h"
 #include "sim_config.h"
 #include "species_map.h"
@@ -48,8 +49,8 @@ struct DescribedParam {
     std::string key;
     std::string docRow;   ///< the descriptor's own row (paramDocRow / speciesDocRow), which unit tests find in the docs
     std::string allowed;  ///< allowed values (ParamRange::valuesText)
-    std::string doc;      ///< the one-line meaning (with the unit for the species keys)
-    std::string unit;     ///< "-" for none; "" for the species keys (in their doc)
+    std::string doc;      ///< the one-line meaning
+    std::string unit;     ///< "-" for none
     const void* table;    ///< the descriptor table (the flags made by addParamOption name it)
 };
 
@@ -111,11 +112,14 @@ const std::vector<DescribedTable>& describedTables() {
          [] { return describe(ecomodSpeciesFields()); }},
         {"wind", "Wind", "windFields()", "`[wind]` of a biome TOML (optional); the biome record when given", "docs/biome.md", {},
          false, [] { return describe(windFields()); }},
+        {"fidelity", "validate::FidelityParams", "fidelityParamFields()",
+         "the measures of eco fidelity and of eco validate's fidelity scenario; the report's parameters", "docs/fidelity.md",
+         {"fidelity"}, false, [] { return describe(validate::fidelityParamFields()); }},
         {"species", "Species", "speciesFields()", "`[[species]]` of a biome TOML (`--biome`); every output's biome record", "docs/biome.md", {},
          true,
          [] {
              std::vector<DescribedParam> out;
-             for (const auto& f : speciesFields()) out.push_back({f.key, speciesDocRow(f), f.allowedText(), f.doc, "", nullptr});
+             for (const auto& f : speciesFields()) out.push_back({f.key, speciesDocRow(f), f.allowedText(), f.doc, f.unit.empty() ? "-" : f.unit, nullptr});
              return out;
          }},
     };
@@ -170,7 +174,7 @@ std::string describeTable(const CLI::App& root, const DescribedTable& t, bool ma
     const std::vector<DescribedParam> params = t.params();
     if (markdown) {
         if (t.species)
-            out += "| key | meaning, unit | allowed values |\n|---|---|---|\n";
+            out += "| key | meaning | unit | allowed values |\n|---|---|---|---|\n";
         else
             out += "| key | default | unit | meaning | allowed values | flag |\n|---|---|---|---|---|---|\n";
         for (const auto& p : params)

@@ -7,6 +7,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_common.h"
@@ -109,10 +110,10 @@ void registerFidelityCommand(CLI::App& app) {
     opt("--years", a->years, "Years simulated")->capture_default_str()->check(positiveNumber());
     opt("--kmax", a->kmax, "Analysis: largest k per combination")->capture_default_str()->check(positiveNumber());
     opt("--crop", a->crop, "The plot x0,y0,x1,y1 (m): simulated and compared")->capture_default_str();
-    opt("--edge-band", a->params.edgeBandM, "Gap-edge band, m (either side of the crown-cover edge)")
-        ->capture_default_str()
-        ->check(positiveNumber());
-    opt("--csr-seed", a->params.csrSeed, "Seed of the CSR reference pattern")->capture_default_str();
+    // The measures' parameters from their descriptions (validate/fidelity.cpp).
+    for (const auto& [flag, key] : std::vector<std::pair<const char*, const char*>>{{"--edge-band", "edge_band_m"}, {"--csr-seed", "csr_seed"}})
+        addParamOption(cmd, flag, a->params, validate::fidelityParamFields(), key)
+            ->each([args, name = std::string(flag)](const std::string&) { args->given.insert(name); });
     cmd->callback([args] { runFidelity(*args); });
 }
 

@@ -2,6 +2,8 @@
 // sim/), its progress line and signal handling in the CLI's reporter.
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli_common.h"
 #include "sim_config.h"
@@ -9,8 +11,19 @@
 
 namespace eco::cli {
 
+namespace {
+
+struct SimulateArgs {
+    pipeline::SimulateOptions options;
+    sim::SimParams model;  // the [model] flags' values (defaults shown in --help)
+    std::vector<std::pair<std::string, CLI::Option*>> modelOpts;  // key, option
+};
+
+}  // namespace
+
 void registerSimulateCommand(CLI::App& app) {
-    auto opt = std::make_shared<pipeline::SimulateOptions>();
+    auto args = std::make_shared<SimulateArgs>();
+    pipeline::SimulateOptions* opt = &args->options;
     CLI::App* sub = app.add_subcommand(
         "simulate",
         "Undergrowth simulation under a fixed canopy (paper §6.1): monthly competition for sun and water, carbon "
@@ -42,9 +55,23 @@ void registerSimulateCommand(CLI::App& app) {
                     "Simulator model: monthly (default, the paper's) or ecomod (Zamuda & Brest's yearly afforestation "
                     "model, docs/ecomod.md) ([model] kind)")
         ->check(parsedBy("--model", [](const std::string& t) { sim::parseModelKind(t, "--model"); }));
-    sub->callback([opt] {
+    sub->add_option("--germination-cells", opt->germinationCells,
+                    "Cells tested for germination: uncovered (default: no undergrowth crown over them) or every (the "
+                    "paper's wording) ([model] germination_cells)")
+        ->check(parsedBy("--germination-cells", [](const std::string& t) { sim::parseGerminationCells(t, "--germination-cells"); }));
+    sub->add_option("--germination-vigour", opt->germinationVigour,
+                    "Vigour of the germination roulette: mean_resources (default: Eq. 1 on the season's mean leftovers) "
+                    "or mean_vigour ([model] germination_vigour)")
+        ->check(parsedBy("--germination-vigour", [](const std::string& t) { sim::parseGerminationVigour(t, "--germination-vigour"); }));
+    sub->add_option("--canopy-limit", opt->canopyLimit,
+                    "Where undergrowth dies at the canopy: chm_or_threshold (default) or canopy_only ([model] canopy_limit)")
+        ->check(parsedBy("--canopy-limit", [](const std::string& t) { sim::parseCanopyLimit(t, "--canopy-limit"); }));
+    // Every numeric [model] key as a flag, from its description (sim/sim_config.cpp).
+    args->modelOpts = addParamOptions(sub, pipeline::simParamFlags(), args->model, sim::simParamFields(), "[model] ");
+    sub->callback([args] {
+        setGivenParams(args->options.modelParams, args->modelOpts, args->model, sim::simParamFields());
         CliReporter reporter;
-        pipeline::simulateStage(*opt, reporter);
+        pipeline::simulateStage(args->options, reporter);
     });
 }
 

@@ -21,7 +21,7 @@ struct SynthArgs {
     double cellSizeM = 0, verticalScale = 1, verticalOffsetM = 0;
     CLI::Option *methodOpt = nullptr, *cellOpt = nullptr, *scaleOpt = nullptr, *offsetOpt = nullptr;
     synth::RefineParams refine;  // the --refine-* values (defaults shown in --help)
-    CLI::Option *sweepsOpt = nullptr, *rMaxOpt = nullptr, *moveOpt = nullptr, *swapOpt = nullptr;
+    std::vector<std::pair<std::string, CLI::Option*>> refineOpts;  // key, option
     CLI::Option *lloydOpt = nullptr, *minDistanceOpt = nullptr;
     std::vector<CLI::Option*> xuOnly;  // --exemplar and the --xu-* options
 };
@@ -40,10 +40,7 @@ void runSynth(SynthArgs& a) {
     if (a.cellOpt->count()) o.terrainRead.cellSizeM = a.cellSizeM;
     if (a.scaleOpt->count()) o.terrainRead.verticalScale = a.verticalScale;
     if (a.offsetOpt->count()) o.terrainRead.verticalOffsetM = a.verticalOffsetM;
-    if (a.sweepsOpt->count()) o.refineSweeps = a.refine.sweeps;
-    if (a.rMaxOpt->count()) o.refineRMaxM = a.refine.rMaxM;
-    if (a.moveOpt->count()) o.refineMoveRadiusM = a.refine.moveRadiusM;
-    if (a.swapOpt->count()) o.refineSwapRadiusM = a.refine.swapRadiusM;
+    setGivenParams(o.refineParams, a.refineOpts, a.refine, synth::refineParamFields());
     CliReporter reporter;
     pipeline::synthStage(o, reporter);
 }
@@ -67,15 +64,12 @@ void registerSynthCommand(CLI::App& app) {
         "--refine", a->refine, "Refine the undergrowth towards the database's pair correlation (slow; canopy never moves)");
     // The parameters' flags from their descriptions (synth/synth_params.cpp): help, unit,
     // default and range check (addParamOption).
-    const auto& refineFields = synth::refineParamFields();
-    args->sweepsOpt = addParamOption(cmd, "--refine-sweeps", args->refine, refineFields, "refine_sweeps", "Refinement: ")->needs(refine);
-    args->rMaxOpt = addParamOption(cmd, "--refine-rmax", args->refine, refineFields, "refine_rmax_m", "Refinement: ")->needs(refine);
     cmd->add_option("--refine-window", a->refineWindow,
                     "Refinement: only inside x0,y0,x1,y1 (metres); the rest of the undergrowth stays as sampled")
         ->check(parsedBy("--refine-window", [](const std::string& t) { parseWindow(t, "--refine-window"); }))
         ->needs(refine);
-    args->moveOpt = addParamOption(cmd, "--refine-move", args->refine, refineFields, "refine_move_radius_m", "Refinement: ")->needs(refine);
-    args->swapOpt = addParamOption(cmd, "--refine-swap", args->refine, refineFields, "refine_swap_radius_m", "Refinement: ")->needs(refine);
+    args->refineOpts = addParamOptions(cmd, pipeline::refineParamFlags(), args->refine, synth::refineParamFields(), "Refinement: ");
+    for (auto& keyOption : args->refineOpts) keyOption.second->needs(refine);
     cmd->add_option("--png", a->pngDir,
                     "Also write scene.png, scene_zoom.png, grass.png, litter.png and cluster_map.png into this directory");
     cmd->add_option("--zoom", a->zoom, "Crop of scene_zoom.png: x,y,side or x0,y0,x1,y1 in metres (default: 60 m at the centre)")

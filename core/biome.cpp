@@ -269,7 +269,7 @@ void printSpeciesField(toml::table& st, const SpeciesField& f, const Species& s)
 }  // namespace
 
 std::string speciesDocRow(const SpeciesField& f) {
-    return "| `" + f.key + "` | " + f.doc + " | " + f.allowedText() + " |";
+    return "| `" + f.key + "` | " + f.doc + " | " + (f.unit.empty() ? std::string("-") : f.unit) + " | " + f.allowedText() + " |";
 }
 
 Biome parseBiome(const std::string& tomlText, const std::string& sourceName) {

@@ -98,7 +98,8 @@ struct SpeciesField {
         OptionalReal,  ///< like Real, but may be absent (NaN in `real` then, and not printed)
     };
     std::string key;   ///< the TOML key
-    std::string doc;   ///< meaning and units: docs/biome.md's row
+    std::string doc;   ///< the meaning: docs/biome.md's row
+    std::string unit;  ///< "years", "m", ...; "" for a pure number, a name or a table
     Kind kind;
     std::string allowed;               ///< the allowed values in words (Real: range.valuesText())
     double Species::*real = nullptr;
@@ -124,21 +125,21 @@ inline const std::vector<SpeciesField>& speciesFields() {
     using R = ParamRange;
     static const std::vector<SpeciesField> fields = [] {
         std::vector<SpeciesField> v = {
-            {"name", "the species' name in every output and in `--target`", K::Name, "text, unique in the biome"},
-            {"sub_biomes", "the sub-biomes (`[[sub_biome]]` numbers) the species grows in", K::SubBiomes,
+            {"name", "the species' name in every output and in `--target`", "", K::Name, "text, unique in the biome"},
+            {"sub_biomes", "the sub-biomes (`[[sub_biome]]` numbers) the species grows in", "", K::SubBiomes,
              "a non-empty list of existing sub-biome numbers"},
             // Upper bounds well above any living plant (the oldest about 5000 years, the
             // tallest about 116 m): a typo such as 1e300 is refused, not simulated.
-            {"max_age_years", "l_s: maximum age, years", K::Real, "", &Species::maxAgeYears, R::openClosed(0, 10000)},
-            {"max_height_m", "h'_s: maximum height, m", K::Real, "", &Species::maxHeightM, R::openClosed(0, 200)},
-            {"alpha", "alpha_s: share of the light the crown absorbs, and the vigour scale (Eq. 1)", K::Real, "",
+            {"max_age_years", "l_s: maximum age", "years", K::Real, "", &Species::maxAgeYears, R::openClosed(0, 10000)},
+            {"max_height_m", "h'_s: maximum height", "m", K::Real, "", &Species::maxHeightM, R::openClosed(0, 200)},
+            {"alpha", "alpha_s: share of the light the crown absorbs, and the vigour scale (Eq. 1)", "", K::Real, "",
              &Species::alpha, R::closed(0, 1)},
         };
         // One response per abiotic factor, named by the factor table (core/factors.h).
         for (std::size_t f = 0; f < kFactorCount; ++f) {
             SpeciesField r{kFactors[f].key,
-                           std::string("response to ") + kFactors[f].label + " (Eq. 1): `{ c = optimum, r = range }`, " +
-                               kFactors[f].unit,
+                           std::string("response to ") + kFactors[f].label + " (Eq. 1): `{ c = optimum, r = range }`",
+                           kFactors[f].unit,
                            K::Response,
                            kFactors[f].responseRequired
                                ? "c any number, r > 0"
@@ -146,25 +147,25 @@ inline const std::vector<SpeciesField>& speciesFields() {
             r.factor = static_cast<Factor>(f);
             v.push_back(r);
         }
-        v.push_back({"growth_period", "the months in which carbon overflow drives growth", K::GrowthPeriod,
+        v.push_back({"growth_period", "the months in which carbon overflow drives growth", "", K::GrowthPeriod,
                      "a name from `[growth_periods]`"});
-        v.push_back({"allometry", "crown radius from height", K::Allometry, "a code from `[allometry]`"});
-        v.push_back({"canopy", "the species can be a canopy tree", K::Flag, "true or false", nullptr, {}, nullptr,
+        v.push_back({"allometry", "crown radius from height", "", K::Allometry, "a code from `[allometry]`"});
+        v.push_back({"canopy", "the species can be a canopy tree", "", K::Flag, "true or false", nullptr, {}, nullptr,
                      &Species::canopy});
         v.push_back({"ecomod",
                      "optional: the species' parameters of the EcoMod model (`[model] kind = \"ecomod\"`; docs/ecomod.md), "
                      "`{ maturity_age_years = ..., ... }`; a key not given gets its documented default",
-                     K::EcoMod, "a table of the keys in docs/ecomod.md"});
+                     "", K::EcoMod, "a table of the keys in docs/ecomod.md"});
         v.push_back({"fire_tolerance",
                      "share of the fire kill probability the species resists (docs/disturbance.md); absent: the run's "
                      "`default_tolerance`",
-                     K::OptionalReal, "", &Species::fireTolerance, R::closed(0, 1)});
+                     "", K::OptionalReal, "", &Species::fireTolerance, R::closed(0, 1)});
         return v;
     }();
     return fields;
 }
 
-/// docs/biome.md's row of a species key: "| `key` | doc | allowed values |".
+/// docs/biome.md's row of a species key: "| `key` | doc | unit | allowed values |" ("-" for no unit).
 std::string speciesDocRow(const SpeciesField& f);
 
 struct SubBiome {

@@ -213,4 +213,84 @@ std::string paramDocRow(const ParamDesc<S>& f) {
     return std::string("| `") + f.key + "` | " + dflt + " | " + paramUnitText(f) + " | " + f.doc + " |";
 }
 
+/// A command's flag and the described parameter it sets: one table per command serves both
+/// the flags' declaration (apps/) and the command line a stage prints (pipeline/).
+struct ParamFlagName {
+    std::string flag;  ///< "--max-iterations"
+    std::string key;   ///< "max_iterations"
+};
+
+/// A flag for every parameter of a table: "--" and the key with hyphens for underscores,
+/// the unit suffix kept (cell_size_m: --cell-size-m), in table order.
+template <typename S>
+std::vector<ParamFlagName> hyphenatedParamFlags(const std::vector<ParamDesc<S>>& fields) {
+    std::vector<ParamFlagName> flags;
+    for (const auto& f : fields) {
+        std::string flag = std::string("--") + f.key;
+        for (char& c : flag)
+            if (c == '_') c = '-';
+        flags.push_back({flag, f.key});
+    }
+    return flags;
+}
+
+/// The flag of `key` in a flag table; std::logic_error when the table has none (a
+/// programming error the CLI tests meet).
+inline const std::string& paramFlagFor(const std::vector<ParamFlagName>& flags, const std::string& key) {
+    for (const auto& f : flags)
+        if (key == f.key) return f.flag;
+    throw std::logic_error("no flag for parameter '" + key + "'");
+}
+
+/// Values given for some parameters of S over a base (a configuration file, else S{}), e.g.
+/// by flags or a run configuration: one value per key, in the order first given. A stage's
+/// options carry their parameter overrides this way instead of one optional per key, so a
+/// new parameter with a flag needs no new member. Seeds are kept as 64-bit integers.
+template <typename S>
+class ParamOverrides {
+public:
+    struct Value {
+        std::string key;
+        double number = 0;         ///< reals and integers
+        std::uint64_t seed = 0;    ///< seeds
+        bool isSeed = false;
+    };
+    /// Set a real or integer parameter (checked against the table when applied).
+    void set(const std::string& key, double value) { slot(key) = Value{key, value, 0, false}; }
+    /// Set a seed parameter.
+    void setSeed(const std::string& key, std::uint64_t value) { slot(key) = Value{key, 0, value, true}; }
+    const Value* find(const std::string& key) const {
+        for (const auto& v : values_)
+            if (v.key == key) return &v;
+        return nullptr;
+    }
+    bool empty() const { return values_.empty(); }
+    const std::vector<Value>& values() const { return values_; }
+
+    /// Apply to p in order: setParam for reals and integers (ValidationError "<what> 'key' ..."
+    /// for an unknown key or a non-integer integer), seeds assigned whole. The ranges are
+    /// checked afterwards by the caller's validateParams.
+    void applyTo(S& p, const std::vector<ParamDesc<S>>& fields, const std::string& what) const {
+        for (const auto& v : values_) {
+            if (!v.isSeed) {
+                setParam(p, fields, v.key, v.number, what);
+                continue;
+            }
+            const ParamDesc<S>* seedField = nullptr;
+            for (const auto& f : fields)
+                if (v.key == f.key && f.kind == ParamDesc<S>::Kind::Seed) seedField = &f;
+            if (!seedField) throw ValidationError("unknown seed " + what + " '" + v.key + "'");
+            p.*(seedField->seed) = v.seed;
+        }
+    }
+
+private:
+    Value& slot(const std::string& key) {
+        for (auto& v : values_)
+            if (v.key == key) return v;
+        return values_.emplace_back();
+    }
+    std::vector<Value> values_;
+};
+
 }  // namespace eco

@@ -65,15 +65,7 @@ void warnIfCoarse(const Grid<float>& chm, const Biome& biome, double thresholdM,
 synth::CanopyParams canopyParamsFrom(const CanopyOptions& a, synth::SpeciesMapParams& sm) {
     synth::CanopyParams p;
     if (!a.config.empty()) synth::loadCanopyConfig(a.config, p, sm);
-    if (a.seed) p.seed = *a.seed;
-    if (a.maxIterations) p.maxIterations = *a.maxIterations;
-    if (a.minVisibleFraction) p.minVisibleFraction = *a.minVisibleFraction;
-    if (a.moveFactor) p.moveFactor = *a.moveFactor;
-    if (a.ringFactor) p.ringFactor = *a.ringFactor;
-    if (a.minTrunkDistanceM) p.minTrunkDistanceM = *a.minTrunkDistanceM;
-    if (a.coverageEpsilon) p.coverageEpsilon = *a.coverageEpsilon;
-    if (a.canopyThresholdM) p.canopyThresholdM = *a.canopyThresholdM;
-    if (a.minSeedHeightM) p.minSeedHeightM = *a.minSeedHeightM;
+    a.params.applyTo(p, synth::canopyParamFields(), "canopy parameter");
     sm.canopyThresholdM = p.canopyThresholdM;
     synth::validateCanopyParams(p);
     return p;
@@ -255,6 +247,21 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
     return stageResult;
 }
 
+const std::vector<ParamFlagName>& canopyParamFlags() {
+    static const std::vector<ParamFlagName> flags = {
+        {"--seed", "seed"},
+        {"--max-iterations", "max_iterations"},
+        {"--min-visible-fraction", "min_visible_fraction"},
+        {"--move-factor", "move_factor"},
+        {"--ring-factor", "ring_factor"},
+        {"--min-trunk-distance", "min_trunk_distance_m"},
+        {"--coverage-epsilon", "coverage_epsilon"},
+        {"--canopy-threshold", "canopy_threshold_m"},
+        {"--min-seed-height", "min_seed_height_m"},
+    };
+    return flags;
+}
+
 std::vector<std::string> commandLine(const CanopyOptions& a) {
     std::vector<std::string> args = {"canopy", "--terrain", a.terrain, "--chm", a.chm};
     if (!a.abiotics.empty()) args.insert(args.end(), {"--abiotics", a.abiotics});
@@ -263,7 +270,10 @@ std::vector<std::string> commandLine(const CanopyOptions& a) {
     if (!a.csv.empty()) args.insert(args.end(), {"--csv", a.csv});
     if (!a.gpkg.empty()) args.insert(args.end(), {"--gpkg", a.gpkg});
     if (!a.geotiffDir.empty()) args.insert(args.end(), {"--geotiff", a.geotiffDir});
-    if (a.seed) args.insert(args.end(), {"--seed", std::to_string(*a.seed)});
+    // The seed here and the other parameters below, where the command line has always shown them.
+    const std::vector<ParamFlagName>& flags = canopyParamFlags();
+    checkParamFlags(a.params, flags);
+    appendParamArgs(args, a.params, {flags.begin(), flags.begin() + 1});
     a.terrainRead.appendArgs(args);
     if (a.chmVerticalScale != 1) args.insert(args.end(), {"--chm-vertical-scale", argNumber(a.chmVerticalScale)});
     if (a.chmVerticalOffsetM != 0) args.insert(args.end(), {"--chm-vertical-offset", argNumber(a.chmVerticalOffsetM)});
@@ -273,17 +283,7 @@ std::vector<std::string> commandLine(const CanopyOptions& a) {
     if (!a.config.empty()) args.insert(args.end(), {"--config", a.config});
     for (const auto& t : a.targets) args.insert(args.end(), {"--target", t});
     if (!a.mask.empty()) args.insert(args.end(), {"--mask", a.mask});
-    const auto opt = [&](const char* flag, const std::optional<double>& v) {
-        if (v) args.insert(args.end(), {flag, argNumber(*v)});
-    };
-    if (a.maxIterations) args.insert(args.end(), {"--max-iterations", std::to_string(*a.maxIterations)});
-    opt("--min-visible-fraction", a.minVisibleFraction);
-    opt("--move-factor", a.moveFactor);
-    opt("--ring-factor", a.ringFactor);
-    opt("--min-trunk-distance", a.minTrunkDistanceM);
-    opt("--coverage-epsilon", a.coverageEpsilon);
-    opt("--canopy-threshold", a.canopyThresholdM);
-    opt("--min-seed-height", a.minSeedHeightM);
+    appendParamArgs(args, a.params, {flags.begin() + 1, flags.end()});
     if (!a.biome.empty()) args.insert(args.end(), {"--biome", a.biome});
     return args;
 }

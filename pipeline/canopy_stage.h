@@ -29,12 +29,12 @@ struct CanopyOptions {
     std::string chmGaps = "fill";  ///< nodata cells of the CHM: fill, zero or fail (core/terrain_io.h)
     double chmFillMaxM = 2.0;      ///< fill: how far from data a gap is filled, metres
     bool resampleTerrain = false;  ///< a terrain on other cells than the CHM's is resampled onto them (bilinear)
-    // Overrides of CanopyParams (unset: from `config`, else the defaults).
-    std::optional<std::uint64_t> seed;
-    std::optional<int> maxIterations;
-    std::optional<double> minVisibleFraction, moveFactor, ringFactor, minTrunkDistanceM, coverageEpsilon,
-        canopyThresholdM, minSeedHeightM;
+    /// Placer parameters set over `config` (else the defaults), by key of
+    /// synth::canopyParamFields(); on the command line as the flags of canopyParamFlags().
+    ParamOverrides<synth::CanopyParams> params;
 };
+/// The placer parameters eco canopy takes as flags: flag and key, the seed first.
+const std::vector<ParamFlagName>& canopyParamFlags();
 struct CanopyStageResult {
     synth::CanopyResult placement;  ///< the trees and the iteration statistics
     std::vector<std::string> written;

@@ -136,7 +136,7 @@ RunPlan planRun(const std::string& configPath, const std::string& outOverride) {
             o.geotiffDir = at(dir + "gis");
             o.gpkg = at(dir + "gis/canopy.gpkg");
         }
-        o.seed = canopySeed;
+        o.params.setSeed("seed", canopySeed);
         o.terrainRead = read;
         o.config = canopyConfig;
         o.targets = canopyTargets;

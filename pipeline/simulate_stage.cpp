@@ -28,6 +28,15 @@ sim::RunConfig simulateConfig(const SimulateOptions& o, const std::function<void
     if (!o.growthRule.empty()) cfg.params.growthRule = sim::parseGrowthRule(o.growthRule, "--growth-rule");
     if (!o.competition.empty()) cfg.params.competition = sim::parseCompetitionMode(o.competition, "--competition");
     if (!o.model.empty()) cfg.params.kind = sim::parseModelKind(o.model, "--model");
+    if (!o.germinationCells.empty())
+        cfg.params.germinationCells = sim::parseGerminationCells(o.germinationCells, "--germination-cells");
+    if (!o.germinationVigour.empty())
+        cfg.params.germinationVigour = sim::parseGerminationVigour(o.germinationVigour, "--germination-vigour");
+    if (!o.canopyLimit.empty()) cfg.params.canopyLimit = sim::parseCanopyLimit(o.canopyLimit, "--canopy-limit");
+    if (!o.modelParams.empty()) {
+        o.modelParams.applyTo(cfg.params, sim::simParamFields(), "[model] key");
+        cfg.params.validate("[model] keys given as flags");
+    }
     cfg.validate();
     return cfg;
 }
@@ -88,6 +97,11 @@ SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
     return result;
 }
 
+const std::vector<ParamFlagName>& simParamFlags() {
+    static const std::vector<ParamFlagName> flags = hyphenatedParamFlags(sim::simParamFields());
+    return flags;
+}
+
 std::vector<std::string> commandLine(const SimulateOptions& o) {
     std::vector<std::string> args = {"simulate"};
     const auto str = [&](const char* flag, const std::string& v) {
@@ -109,6 +123,11 @@ std::vector<std::string> commandLine(const SimulateOptions& o) {
     str("--growth-rule", o.growthRule);
     str("--competition", o.competition);
     str("--model", o.model);
+    str("--germination-cells", o.germinationCells);
+    str("--germination-vigour", o.germinationVigour);
+    str("--canopy-limit", o.canopyLimit);
+    checkParamFlags(o.modelParams, simParamFlags());
+    appendParamArgs(args, o.modelParams, simParamFlags());
     if (o.resume) args.push_back("--resume");
     str("--biome", o.biome);
     return args;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "param_desc.h"
 #include "reporter.h"
 #include "sim_run.h"
 
@@ -19,6 +20,12 @@ struct SimulateOptions {
     std::string out, csv, png;
     std::string growthRule, competition;  ///< model choices by name
     std::string model;          ///< "monthly" or "ecomod" ([model] kind); "" = the configuration's
+    /// The readings of the paper by name ([model] germination_cells, germination_vigour,
+    /// canopy_limit); "" = the configuration's.
+    std::string germinationCells, germinationVigour, canopyLimit;
+    /// Numeric [model] keys set over the configuration's, by key of sim::simParamFields(); on
+    /// the command line as the flags of simParamFlags() (--cell-size-m, ...).
+    ParamOverrides<sim::SimParams> modelParams;
     int years = -1;
     long long seed = -1;
     int checkpointEvery = -1;  ///< years between checkpoints (0 = never)
@@ -37,5 +44,8 @@ SimulateResult simulateStage(const SimulateOptions& options, Reporter& reporter)
 /// from the copy built into eco (sim::loadRunConfig).
 sim::RunConfig simulateConfig(const SimulateOptions& options, const std::function<void(const std::string&)>& note = {});
 std::vector<std::string> commandLine(const SimulateOptions& options);
+/// eco simulate's flags for the numeric [model] keys: "--" and the key with hyphens, unit
+/// suffix kept (cell_size_m: --cell-size-m), in the table's order.
+const std::vector<ParamFlagName>& simParamFlags();
 
 }  // namespace eco::pipeline

@@ -10,6 +10,7 @@
 #include "atomic_file.h"
 #include "biome.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "point_pattern.h"
 #include "reporter.h"
 #include "terrain_io.h"
@@ -30,6 +31,21 @@ struct TerrainReadFlags {
 
 /// A number as the command line of a stage shows it (%.10g).
 std::string argNumber(double v);
+/// The overrides that `flags` names (part of a command's flag table, core/param_desc.h) as
+/// command-line arguments, in the table's order: seeds in full, numbers as argNumber. Keys the
+/// part does not name are left to the caller (checkParamFlags checks the whole table has them).
+template <typename S>
+void appendParamArgs(std::vector<std::string>& args, const ParamOverrides<S>& overrides,
+                     const std::vector<ParamFlagName>& flags) {
+    for (const auto& f : flags)
+        if (const auto* v = overrides.find(f.key))
+            args.insert(args.end(), {f.flag, v->isSeed ? std::to_string(v->seed) : argNumber(v->number)});
+}
+/// std::logic_error when an override has no flag in the command's table (a programming error).
+template <typename S>
+void checkParamFlags(const ParamOverrides<S>& overrides, const std::vector<ParamFlagName>& flags) {
+    for (const auto& v : overrides.values()) paramFlagFor(flags, v.key);
+}
 /// The value a stage gets when `v` is given on its command line as argNumber(v): a stage run
 /// from a plan gets the same bits as the same stage run from the printed command line.
 double asOnCommandLine(double v);

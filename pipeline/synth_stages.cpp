@@ -110,10 +110,7 @@ SynthResult synthStage(const SynthOptions& a, Reporter& reporter) {
         throw ValidationError("--density-image '" + a.densityImage + "' is read by --method deussen only (method is '" +
                               synth::toString(params.method) + "')");
     synth::RefineParams refineParams;
-    if (a.refineSweeps) refineParams.sweeps = *a.refineSweeps;
-    if (a.refineRMaxM) refineParams.rMaxM = *a.refineRMaxM;
-    if (a.refineMoveRadiusM) refineParams.moveRadiusM = *a.refineMoveRadiusM;
-    if (a.refineSwapRadiusM) refineParams.swapRadiusM = *a.refineSwapRadiusM;
+    a.refineParams.applyTo(refineParams, synth::refineParamFields(), "refinement parameter");
     refineParams.seed = params.seed;
     if (!a.refineWindow.empty()) {
         refineParams.useWindow = true;
@@ -428,6 +425,16 @@ CompareResult compareStage(const CompareOptions& a, Reporter& reporter) {
     return result;
 }
 
+const std::vector<ParamFlagName>& refineParamFlags() {
+    static const std::vector<ParamFlagName> flags = {
+        {"--refine-sweeps", "refine_sweeps"},
+        {"--refine-rmax", "refine_rmax_m"},
+        {"--refine-move", "refine_move_radius_m"},
+        {"--refine-swap", "refine_swap_radius_m"},
+    };
+    return flags;
+}
+
 std::vector<std::string> commandLine(const SynthOptions& a) {
     std::vector<std::string> args = {"synth", "--terrain", a.terrain, "--canopy", a.canopy, "--database", a.database};
     if (!a.abiotics.empty()) args.insert(args.end(), {"--abiotics", a.abiotics});
@@ -472,10 +479,8 @@ std::vector<std::string> commandLine(const SynthOptions& a) {
     if (a.refine) {
         args.push_back("--refine");
         if (!a.refineWindow.empty()) args.insert(args.end(), {"--refine-window", a.refineWindow});
-        if (a.refineSweeps) args.insert(args.end(), {"--refine-sweeps", std::to_string(*a.refineSweeps)});
-        if (a.refineRMaxM) args.insert(args.end(), {"--refine-rmax", argNumber(*a.refineRMaxM)});
-        if (a.refineMoveRadiusM) args.insert(args.end(), {"--refine-move", argNumber(*a.refineMoveRadiusM)});
-        if (a.refineSwapRadiusM) args.insert(args.end(), {"--refine-swap", argNumber(*a.refineSwapRadiusM)});
+        checkParamFlags(a.refineParams, refineParamFlags());
+        appendParamArgs(args, a.refineParams, refineParamFlags());
     }
     return args;
 }

@@ -33,9 +33,9 @@ struct SynthOptions {
     TerrainReadFlags terrainRead;
     bool refine = false;
     synth::SynthParams params;  ///< params.method is set from `method`
-    // Overrides of RefineParams (unset: the defaults); its seed is params.seed.
-    std::optional<int> refineSweeps;
-    std::optional<double> refineRMaxM, refineMoveRadiusM, refineSwapRadiusM;
+    /// Refinement parameters set over the defaults, by key of synth::refineParamFields(); on
+    /// the command line as the flags of refineParamFlags(). Its seed is params.seed.
+    ParamOverrides<synth::RefineParams> refineParams;
     synth::ForestFloorParams floorParams;
     bool noUndergrowthShade = false;  ///< only canopy crowns shade the forest floor
 };
@@ -55,6 +55,8 @@ struct SynthResult {
     std::vector<std::string> written;
 };
 SynthResult synthStage(const SynthOptions& options, Reporter& reporter);
+/// The refinement parameters eco synth takes as flags (--refine-*): flag and key.
+const std::vector<ParamFlagName>& refineParamFlags();
 std::vector<std::string> commandLine(const SynthOptions& options);
 
 struct CompareOptions {

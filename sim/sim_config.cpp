@@ -160,6 +160,13 @@ CompetitionMode parseCompetitionMode(const std::string& text, const std::string&
     return parseEnum(text, kCompetitionModes, what);
 }
 ModelKind parseModelKind(const std::string& text, const std::string& what) { return parseEnum(text, kModelKinds, what); }
+GerminationCells parseGerminationCells(const std::string& text, const std::string& what) {
+    return parseEnum(text, kGerminationCells, what);
+}
+GerminationVigour parseGerminationVigour(const std::string& text, const std::string& what) {
+    return parseEnum(text, kGerminationVigours, what);
+}
+CanopyLimit parseCanopyLimit(const std::string& text, const std::string& what) { return parseEnum(text, kCanopyLimits, what); }
 
 void SimParams::validate(const std::string& source) const {
     const auto [key, what] = firstInvalid(*this);

@@ -88,6 +88,9 @@ const char* canopyLimitName(CanopyLimit c);
 GrowthRule parseGrowthRule(const std::string& text, const std::string& what);
 CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what);
 ModelKind parseModelKind(const std::string& text, const std::string& what);
+GerminationCells parseGerminationCells(const std::string& text, const std::string& what);
+GerminationVigour parseGerminationVigour(const std::string& text, const std::string& what);
+CanopyLimit parseCanopyLimit(const std::string& text, const std::string& what);
 
 /// Model constants of the simulation (units in the names). Defaults are the paper's values.
 struct SimParams {

@@ -16,6 +16,7 @@
 #include <fstream>
 #include <functional>
 #include <sstream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -618,6 +619,9 @@ std::vector<BadCase> corpus() {
     add({"simulate growth rule", nullptr, simulate + " --growth-rule slow", 2, {"--growth-rule", "'slow'", "ideal"}});
     add({"simulate competition", nullptr, simulate + " --competition war", 2, {"--competition", "'war'"}});
     add({"simulate years 0", nullptr, simulate + " --years 0", 2, {"--years", "0"}});
+    add({"simulate model cell size", nullptr, simulate + " --cell-size-m 0", 2, {"--cell-size-m", "(0.001, 10]", "0"}});
+    add({"simulate model seeding month", nullptr, simulate + " --seeding-month 12", 2, {"--seeding-month", "12"}});
+    add({"simulate canopy limit", nullptr, simulate + " --canopy-limit maybe", 2, {"--canopy-limit", "'maybe'", "canopy_only"}});
     add({"simulate seed 1e400", nullptr, simulate + " --seed 1e400", 2, {"--seed"}});
     add({"canopy min visible", nullptr, canopy + " --min-visible-fraction 2", 2, {"--min-visible-fraction", "[0, 1]", "2"}});
     add({"canopy ring factor", nullptr, canopy + " --ring-factor -1", 2, {"--ring-factor", "-1"}});
@@ -667,14 +671,18 @@ std::vector<std::string> filesUnder(const std::string& dir) {
     return out;
 }
 
-}  // namespace
+/// Run every case whose index is `part` modulo kCorpusParts: the corpus runs as several test
+/// cases so that CTest spreads it over the cores instead of one serial tail (82 s under the
+/// sanitizers as one case).
+constexpr int kCorpusParts = 3;
 
-TEST_CASE("a corpus of bad inputs: each refused with its exit code, one line naming it, no output", "[cli][bad-input]") {
+void checkCorpusPart(int part) {
     const GoodInputs& g = good();
     const std::vector<BadCase> cases = corpus();
-    CHECK(cases.size() >= 100);  // issue 26: at least 100
-    int refusedAsExpected = 0;
-    for (const BadCase& bc : cases) {
+    int refusedAsExpected = 0, tried = 0;
+    for (std::size_t i = static_cast<std::size_t>(part); i < cases.size(); i += kCorpusParts) {
+        const BadCase& bc = cases[i];
+        ++tried;
         TempDir dir("bad_input");
         const CaseDirs d{dir.file("in"), dir.file("out")};
         fs::create_directories(d.in);
@@ -705,6 +713,28 @@ TEST_CASE("a corpus of bad inputs: each refused with its exit code, one line nam
         CHECK(left.empty());
         refusedAsExpected += r.exitCode == bc.exitCode && left.empty();
     }
-    INFO(refusedAsExpected << " of " << cases.size() << " refused as expected");
-    CHECK(refusedAsExpected == static_cast<int>(cases.size()));
+    INFO(refusedAsExpected << " of " << tried << " cases of part " << part << " refused as expected");
+    CHECK(tried > 0);
+    CHECK(refusedAsExpected == tried);
+}
+
+}  // namespace
+
+TEST_CASE("a corpus of bad inputs has at least 100 cases, each named once", "[cli][bad-input]") {
+    const std::vector<BadCase> cases = corpus();
+    CHECK(cases.size() >= 100);  // issue 26: at least 100
+    std::set<std::string> names;
+    for (const BadCase& bc : cases) {
+        INFO("case '" << bc.name << "'");
+        CHECK(names.insert(bc.name).second);
+    }
+}
+TEST_CASE("a corpus of bad inputs, part 1 of 3: each refused with its exit code, one line naming it, no output", "[cli][bad-input]") {
+    checkCorpusPart(0);
+}
+TEST_CASE("a corpus of bad inputs, part 2 of 3: each refused with its exit code, one line naming it, no output", "[cli][bad-input]") {
+    checkCorpusPart(1);
+}
+TEST_CASE("a corpus of bad inputs, part 3 of 3: each refused with its exit code, one line naming it, no output", "[cli][bad-input]") {
+    checkCorpusPart(2);
 }

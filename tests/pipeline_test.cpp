@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include "database_build.h"
+#include "simulate_stage.h"
+#include "canopy_stage.h"
 #include "generate.h"
 #include "terrain_io.h"
 #include "ensemble.h"
@@ -102,8 +104,8 @@ TEST_CASE("pipeline: a stage's command line shows exactly the options given", "[
     CHECK(quotedCommand(eco::pipeline::commandLine(c)) == "eco canopy --terrain t.png --chm c.h5 --out k.h5");
     c.terrainRead.cellSizeM = 0.5;
     c.terrainRead.verticalScale = 1.0;  // given, even at the reader's default
-    c.seed = 7;
-    c.ringFactor = 0.75;
+    c.params.setSeed("seed", 7);
+    c.params.set("ring_factor", 0.75);
     c.targets = {"Redwood=0.4", "Gray Pine=0.1"};
     CHECK(quotedCommand(eco::pipeline::commandLine(c)) ==
           "eco canopy --terrain t.png --chm c.h5 --out k.h5 --seed 7 --cell-size 0.5 --vertical-scale 1 --target "
@@ -117,10 +119,55 @@ TEST_CASE("pipeline: a stage's command line shows exactly the options given", "[
     s.method = "darts";
     s.refine = true;
     s.refineWindow = "0,0,10,10";
-    s.refineSweeps = 4;
+    s.refineParams.set("refine_sweeps", 4);
     CHECK(quotedCommand(eco::pipeline::commandLine(s)) ==
           "eco synth --terrain t.h5 --canopy k.h5 --database db.h5 --out s.h5 --seed 1 --method darts --refine "
           "--refine-window 0,0,10,10 --refine-sweeps 4");
+}
+
+TEST_CASE("pipeline: parameter overrides reach the stage and its command line by their descriptions", "[pipeline]") {
+    using Catch::Matchers::Contains;
+    eco::pipeline::SimulateOptions o;
+    o.abiotics = "a.h5";
+    o.canopy = "c.h5";
+    o.modelParams.set("seeding_month", 3);
+    o.modelParams.set("cell_size_m", 0.25);
+    o.canopyLimit = "canopy_only";
+    const eco::sim::RunConfig cfg = eco::pipeline::simulateConfig(o);
+    CHECK(cfg.params.cellSizeM == 0.25);
+    CHECK(cfg.params.seedingMonth == 3);
+    CHECK(cfg.params.canopyLimit == eco::sim::CanopyLimit::CanopyOnly);
+    CHECK(cfg.params.minWaterDemandMm == eco::sim::SimParams{}.minWaterDemandMm);
+    // The flags in the table's order, whatever the order given.
+    CHECK(quotedCommand(eco::pipeline::commandLine(o)) ==
+          "eco simulate --abiotics a.h5 --canopy c.h5 --canopy-limit canopy_only --cell-size-m 0.25 --seeding-month 3");
+    // Every numeric [model] key has its flag, named from the key.
+    REQUIRE(eco::pipeline::simParamFlags().size() == eco::sim::simParamFields().size());
+    CHECK(eco::pipeline::simParamFlags()[0].flag == "--cell-size-m");
+    o.modelParams.set("cell_size_m", 0);  // replaces the earlier value
+    CHECK(o.modelParams.values().size() == 2);
+    CHECK_THROWS_WITH(eco::pipeline::simulateConfig(o), Contains("cell_size_m") && Contains("(0.001, 10]"));
+    o.modelParams.set("seed_outer_radius_factor", 1);  // below the inner radius of 4 crown radii
+    o.modelParams.set("cell_size_m", 0.2);
+    CHECK_THROWS_WITH(eco::pipeline::simulateConfig(o), Contains("radius"));
+    eco::pipeline::SimulateOptions unknown = o;
+    unknown.modelParams = {};
+    unknown.modelParams.set("no_such_key", 1);
+    CHECK_THROWS_WITH(eco::pipeline::simulateConfig(unknown), Contains("no_such_key") && Contains("cell_size_m"));
+    CHECK_THROWS_AS(eco::pipeline::commandLine(unknown), std::logic_error);
+
+    // The placer: overrides over the defaults, checked by the descriptions' ranges.
+    eco::pipeline::CanopyOptions c;
+    c.terrain = "t.png";
+    c.chm = "c.h5";
+    c.out = "k.h5";
+    c.params.set("ring_factor", -1);
+    CHECK_THROWS_WITH(eco::pipeline::checkCanopyOptions(c), Contains("ring_factor") && Contains("-1"));
+    c.params.set("ring_factor", 0.5);
+    c.params.setSeed("seed", 18446744073709551615ull);  // a seed keeps all its 64 bits
+    CHECK_NOTHROW(eco::pipeline::checkCanopyOptions(c));
+    CHECK(quotedCommand(eco::pipeline::commandLine(c)) ==
+          "eco canopy --terrain t.png --chm c.h5 --out k.h5 --seed 18446744073709551615 --ring-factor 0.5");
 }
 
 TEST_CASE("pipeline: a number from a configuration reaches a stage as the command line gives it", "[pipeline]") {

@@ -149,32 +149,47 @@ struct CrownIndex {
 
 // ------------------------------------------------------------------------- parameters
 
+const std::vector<ParamDesc<FidelityParams>>& fidelityParamFields() {
+    using K = ParamDesc<FidelityParams>::Kind;
+    using R = ParamRange;
+    using P = FidelityParams;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"edge_band_m", "light classes: the gap-edge band either side of the crown-cover edge", "m", K::Real, &P::edgeBandM,
+         nullptr, R::above(0)},
+        {"cover_raster_m", "cell of the crown-cover raster the light classes are read from (at most edge_band_m)", "m",
+         K::Real, &P::coverRasterM, nullptr, R::above(0)},
+        {"trunk_exclusion_factor", "the CSR reference: no plant within this share of a crown radius of a trunk", "crown radii",
+         K::Real, &P::trunkExclusionFactor, nullptr, R{ParamRange::Bound::Closed, 0, ParamRange::Bound::Open, 1}},
+        {"chm_threshold_m", "heights against the CHM only where it is at least this tall (the simulator's canopy_threshold_m)",
+         "m", K::Real, &P::chmThresholdM, nullptr, R::atLeast(0)},
+        {"csr_seed", "seed of the CSR reference pattern", "", K::Seed, nullptr, nullptr, R::any(),
+         &P::csrSeed},
+        {"score_guard_fraction",
+         "a score is given only when d(CSR, B) - d(A, B) exceeds this share of d(CSR, B) (else n/a)", "", K::Real,
+         &P::scoreGuardFraction, nullptr, R{ParamRange::Bound::Closed, 0, ParamRange::Bound::Open, 1}},
+    };
+    return fields;
+}
+
 void FidelityParams::validate() const {
     window.validate("fidelity plot window");
     bins.validate("fidelity distance bins");
     if (bins.rMaxM > 0.5 * std::min(window.widthM(), window.heightM()))
         throw ValidationError("fidelity: rmax " + num(bins.rMaxM) + " m exceeds half the plot's shorter side (" +
                               num(0.5 * std::min(window.widthM(), window.heightM())) + " m)");
-    if (!(edgeBandM > 0) || !std::isfinite(edgeBandM)) throw ValidationError("fidelity: edge_band_m must be > 0, got " + num(edgeBandM));
-    if (!(coverRasterM > 0) || !(coverRasterM <= edgeBandM))
-        throw ValidationError("fidelity: cover_raster_m must be in (0, edge_band_m], got " + num(coverRasterM));
-    if (!(trunkExclusionFactor >= 0) || !(trunkExclusionFactor < 1))
-        throw ValidationError("fidelity: trunk_exclusion_factor must be in [0, 1), got " + num(trunkExclusionFactor));
-    if (!(chmThresholdM >= 0)) throw ValidationError("fidelity: chm_threshold_m must be >= 0, got " + num(chmThresholdM));
-    if (!(scoreGuardFraction >= 0) || !(scoreGuardFraction < 1))
-        throw ValidationError("fidelity: score_guard_fraction must be in [0, 1), got " + num(scoreGuardFraction));
+    validateParams(*this, fidelityParamFields(), "fidelity parameter");
+    if (coverRasterM > edgeBandM)
+        throw ValidationError("fidelity parameter 'cover_raster_m' must not exceed edge_band_m (" + num(edgeBandM) + "), got " +
+                              num(coverRasterM));
 }
 
 std::vector<std::pair<std::string, std::string>> FidelityParams::asParameters() const {
-    return {{"window", num(window.x0) + "," + num(window.y0) + "," + num(window.x1) + "," + num(window.y1)},
-            {"pcf_rmax_m", num(bins.rMaxM)},
-            {"pcf_bins", std::to_string(bins.count)},
-            {"edge_band_m", num(edgeBandM)},
-            {"cover_raster_m", num(coverRasterM)},
-            {"trunk_exclusion_factor", num(trunkExclusionFactor)},
-            {"chm_threshold_m", num(chmThresholdM)},
-            {"csr_seed", std::to_string(csrSeed)},
-            {"score_guard_fraction", num(scoreGuardFraction)}};
+    std::vector<std::pair<std::string, std::string>> out = {
+        {"window", num(window.x0) + "," + num(window.y0) + "," + num(window.x1) + "," + num(window.y1)},
+        {"pcf_rmax_m", num(bins.rMaxM)},
+        {"pcf_bins", std::to_string(bins.count)}};
+    for (const auto& f : fidelityParamFields()) out.emplace_back(f.key, paramText(f, *this, 6));
+    return out;
 }
 
 // ------------------------------------------------------------------------- small pieces

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "param_desc.h"
 #include "biome.h"
 #include "grid.h"
 #include "plants.h"
@@ -43,10 +44,15 @@ struct FidelityParams {
     /// 1e-9: otherwise the figure does not tell structure from none (n/a).
     double scoreGuardFraction = 0.05;
 
-    /// ValidationError naming the field when one is out of range.
+    /// ValidationError naming the field when one is out of range (fidelityParamFields).
     void validate() const;
+    /// (key, value text) of every parameter, as the report records them: the window and bins,
+    /// then fidelityParamFields() in order.
     std::vector<std::pair<std::string, std::string>> asParameters() const;
 };
+/// The one description of FidelityParams' scalar keys (core/param_desc.h): validation, the
+/// recorded parameters and docs/fidelity.md's table (eco config describe fidelity).
+const std::vector<ParamDesc<FidelityParams>>& fidelityParamFields();
 
 /// The plot's fixed context, shared by every pattern compared.
 struct FidelityContext {

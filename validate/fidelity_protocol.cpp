@@ -183,7 +183,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
             o.chm = chm;
             o.abiotics = abiotics;
             o.out = canopy;
-            o.seed = static_cast<std::uint64_t>(a.terrainSeed);
+            o.params.setSeed("seed", static_cast<std::uint64_t>(a.terrainSeed));
             o.targets = a.canopyTargets;
             stages.run("canopy", canopy, o);
         }
@@ -241,7 +241,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
         if (a.refine) {
             o.refine = true;
             o.refineWindow = a.crop;
-            o.refineSweeps = a.refineSweeps;
+            o.refineParams.set("refine_sweeps", a.refineSweeps);
         }
         stages.run(a.refine ? "synthesis (refined in the plot)" : "synthesis", scene, o);
     }
