@@ -19,11 +19,13 @@
 // smoothed by a 3 x 3 Gaussian, no cell within k x crown radius(h) is higher (ties to the
 // lower index), k the best of 0.2 .. 1.0 on each scene (a strong baseline). The placer runs
 // with its defaults (apex trees anchored, the best state kept, trees added at residual apices,
-// added trees supported by CHM cells no crown explains) and with the paper's rules (all four
-// off), as it was before issue 25.
+// added trees supported by CHM cells no crown explains, seeds without a saddle between them
+// merged) and with the paper's rules (all five off), as it was before issue 25.
 //
 // Usage: bench_canopy_accuracy [OUT (default bench/results/canopy_accuracy.txt)] [SIZE (256)]
-//        [KEY=VALUE ...]  (canopy parameters of the "defaults" row, e.g. ring_samples=0)
+//        [KEY=VALUE ...]  (canopy parameters of the "defaults" row, e.g. ring_samples=0; and
+//        scene_seed_offset=N: the four scenes made with seeds 1+N .. 4+N instead of 1 .. 4,
+//        to check a rule on other CHMs than the ones it was measured on)
 #include <omp.h>
 
 #include <algorithm>
@@ -273,17 +275,22 @@ std::vector<Top> placerTops(const eco::synth::CanopyResult& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy_accuracy [OUT [SIZE [KEY=VALUE ...]]]\nPrecision and recall of tree tops on lidar-like CHMs of SIZE x SIZE cells (default 256): the canopy placer against a variable-window filter; writes OUT (default bench/results/canopy_accuracy.txt). KEY=VALUE pairs (canopy parameters, docs/canopy.md) change the placer's first row.\n")) return 0;
+    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy_accuracy [OUT [SIZE [KEY=VALUE ...]]]\nPrecision and recall of tree tops on lidar-like CHMs of SIZE x SIZE cells (default 256): the canopy placer against a variable-window filter; writes OUT (default bench/results/canopy_accuracy.txt). KEY=VALUE pairs (canopy parameters, docs/canopy.md) change the placer's first row; scene_seed_offset=N makes the scenes with seeds 1+N .. 4+N.\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/canopy_accuracy.txt";
     const int n = argc > 2 ? std::max(32, std::atoi(argv[2])) : 256;
     std::ostringstream report;
     try {
         eco::synth::CanopyParams tuned;
         std::string overrides;
+        std::uint64_t sceneSeedOffset = 0;
         for (int a = 3; a < argc; ++a) {
             const std::string kv = argv[a];
             const auto eq = kv.find('=');
             if (eq == std::string::npos) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
+            if (kv.substr(0, eq) == "scene_seed_offset") {
+                sceneSeedOffset = std::stoull(kv.substr(eq + 1));
+                continue;
+            }
             eco::synth::setCanopyParam(tuned, kv.substr(0, eq), std::stod(kv.substr(eq + 1)));
             overrides += (overrides.empty() ? "" : ", ") + kv;
         }
@@ -298,7 +305,8 @@ int main(int argc, char** argv) {
                << " cells of 0.914 m, OpenMP threads " << omp_get_max_threads() << "\n"
                << "match: one to one within 1 m; tree tops = visible apices >= 3 m; detections >= 3 m\n\n";
         std::cout << report.str() << std::flush;
-        for (const auto& [seed, spacing] : std::vector<std::pair<std::uint64_t, double>>{{1, 5.0}, {2, 7.0}, {3, 10.0}, {4, 2.0}}) {
+        for (const auto& [seed0, spacing] : std::vector<std::pair<std::uint64_t, double>>{{1, 5.0}, {2, 7.0}, {3, 10.0}, {4, 2.0}}) {
+            const std::uint64_t seed = seed0 + sceneSeedOffset;
             const bool spheres = spacing < 3;  // the last: bench_canopy's CHM (spheres, 3.5-11 m, 2 m spacing)
             const Scene sc = makeScene(n, seed, spacing, spheres);
             std::ostringstream sec;
@@ -344,8 +352,8 @@ int main(int argc, char** argv) {
                 }
                 std::snprintf(line, sizeof line,
                               "    its detections: %zu within 1 m of a visible top, %zu within 1 m of a tree with a hidden top, "
-                              "%zu 1-2 m from a visible top, %zu elsewhere\n",
-                              nearTop, nearHidden, offset, other);
+                              "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged\n",
+                              nearTop, nearHidden, offset, other, full.seedsMerged);
                 sec << line;
             }
             eco::synth::CanopyParams paper;
@@ -353,6 +361,7 @@ int main(int argc, char** argv) {
             paper.keepBestState = 0;
             paper.residualApices = 0;
             paper.supportFraction = 0;
+            paper.seedMergeSaddleM = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);

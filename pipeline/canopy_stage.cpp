@@ -196,7 +196,8 @@ CanopyStageResult canopyStage(const CanopyOptions& args, Reporter& reporter) {
         synth::placeCanopy(chm, terrain, speciesMap, biome, params, [&](const IterationStats& s) { printIteration(out, s); });
     const synth::CanopyResult& result = stageResult.placement;
     out << "placed " << result.trees.size() << " canopy trees in " << num(result.seconds, 3) << " s ("
-        << result.initialSeeds << " initial seeds, " << result.duplicatesRemoved << " duplicates removed; stop: "
+        << result.initialSeeds << " initial seeds, " << result.seedsMerged << " merged, " << result.duplicatesRemoved
+        << " duplicates removed; stop: "
         << result.stopReason << ")\n";
     if (result.fallbackTrees > 0)
         out << "  " << result.fallbackTrees

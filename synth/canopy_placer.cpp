@@ -579,6 +579,58 @@ Tree apexTree(const Scene& scene, int ix, int iy, std::uint64_t uid, bool anchor
     return t;
 }
 
+/// Lowest CHM cell on the segment between two trunks (cells sampled every half cell, the
+/// end cells included).
+double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, double y1) {
+    const double len = std::hypot(x1 - x0, y1 - y0);
+    const int steps = std::max(1, static_cast<int>(std::ceil(2.0 * len / chm.cellSizeM())));
+    double lo = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= steps; ++k) {
+        const double t = static_cast<double>(k) / steps;
+        const int ix = std::clamp(chm.cellX(x0 + t * (x1 - x0)), 0, chm.width() - 1);
+        const int iy = std::clamp(chm.cellY(y0 + t * (y1 - y0)), 0, chm.height() - 1);
+        lo = std::min(lo, static_cast<double>(chm(ix, iy)));
+    }
+    return lo;
+}
+
+/// Keep flags of the seed merge among the trees with eligible(i) (the others are kept):
+/// tallest first (ties to the lower index), a tree goes when a kept one earlier in the order
+/// has its trunk less than kSeedMergeCells cells away and the CHM on the segment between the
+/// two trunks never drops more than saddleM below the lower tree's height: no saddle between
+/// them, so two maxima of one crown top's noise, not two tops.
+constexpr double kSeedMergeCells = 2.0;
+template <typename Eligible>
+std::vector<char> seedMergeKeepFlags(const std::vector<Tree>& trees, const Grid<float>& chm, double saddleM,
+                                     Eligible&& eligible) {
+    std::vector<std::size_t> order;
+    for (std::size_t i = 0; i < trees.size(); ++i)
+        if (eligible(i)) order.push_back(i);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return trees[a].heightM > trees[b].heightM; });
+    const double reach = kSeedMergeCells * chm.cellSizeM();
+    const PointGrid grid(chm.originX(), chm.originY(), chm.extentX(), chm.extentY(), reach, trees.size(),
+                         [&](std::size_t i) { return trees[i].x; }, [&](std::size_t i) { return trees[i].y; });
+    std::vector<char> keep = greedyAccept(
+        order, trees.size(), [](std::size_t) { return false; },
+        [&](std::size_t i, auto&& fn) {
+            grid.any(trees[i].x, trees[i].y, reach, [&](std::int32_t j) {
+                fn(static_cast<std::size_t>(j));
+                return false;
+            });
+        },
+        [&](std::size_t i, std::size_t j) {
+            const Tree& a = trees[i];
+            const Tree& b = trees[j];
+            const double dx = b.x - a.x, dy = b.y - a.y;
+            if (dx * dx + dy * dy >= reach * reach) return false;
+            return segmentMinimum(chm, a.x, a.y, b.x, b.y) >= a.heightM - saddleM;
+        });
+    for (std::size_t i = 0; i < trees.size(); ++i)
+        if (!eligible(i)) keep[i] = 1;
+    return keep;
+}
+
 /// Initial seeds at the CHM maxima.
 std::vector<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
     const Grid<float>& chm = scene.chm();
@@ -666,6 +718,8 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          R::openClosed(0, 10)},
         {"anchor_apex_trees", "trees seeded at CHM maxima stay there, at the CHM's height; 0 = they move", "", K::Integer,
          nullptr, &CanopyParams::anchorApexTrees, R::closed(0, 1)},
+        {"seed_merge_saddle_m", "final: of two seeded trees < 2 cells apart with no CHM saddle deeper than this between them the lower goes; 0 = off",
+         "m", K::Real, &CanopyParams::seedMergeSaddleM, nullptr, R::atLeast(0)},
         {"residual_apices", "each iteration adds trees at maxima of the CHM cells no crown explains; 0 = ring only", "",
          K::Integer, nullptr, &CanopyParams::residualApices, R::closed(0, 1)},
         {"residual_tolerance_m", "a covered cell more than this above the crowns is unexplained", "m", K::Real,
@@ -1047,6 +1101,20 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) kept.push_back(trees[t]);
         fin.removed = trees.size() - kept.size();
+        trees.swap(kept);
+    }
+    if (params.seedMergeSaddleM > 0) {
+        // Two maxima of one crown top's lidar noise: the lower seed goes. Done here rather
+        // than at the seeding: removing seeds there changed the iterations' additions and
+        // cost recall (docs/canopy.md, "One top, one seed").
+        const std::uint64_t seeds = result.initialSeeds;
+        const auto keep = seedMergeKeepFlags(trees, chmM, params.seedMergeSaddleM,
+                                             [&](std::size_t i) { return trees[i].apex && trees[i].uid < seeds; });
+        std::vector<Tree>& kept = next;
+        kept.clear();
+        for (std::size_t i = 0; i < trees.size(); ++i)
+            if (keep[i]) kept.push_back(trees[i]);
+        result.seedsMerged = trees.size() - kept.size();
         trees.swap(kept);
     }
     {

@@ -9,7 +9,8 @@
 //      around each tree where the CHM is uncovered, each new crown supported by unexplained
 //      cells. Stop when the coverage of the CHM footprint gains less than coverageEpsilon, or
 //      after maxIterations.
-//   3. Remove starved trees of the last render and duplicates (trunks closer than
+//   3. Remove starved trees of the last render, seeded trees without a saddle between them
+//      and a taller one (seedMergeSaddleM), and duplicates (trunks closer than
 //      minTrunkDistanceM; crowns whose sphere lies entirely inside a larger one).
 //
 // A tree is a sphere of crown radius r (species allometry, Eq. 2) with its apex at the
@@ -80,6 +81,10 @@ struct CanopyParams {
     /// 1: trees seeded at CHM maxima stay at their apex with the CHM's height (on real lidar
     /// the visible-centroid move pulls them off it); 0: they move like added trees.
     int anchorApexTrees = 1;
+    /// Final clean-up: of two trees seeded at CHM maxima whose trunks are less than 2 cells
+    /// apart and between which the CHM never drops more than this (metres) below the lower
+    /// one, the lower goes: one crown top, two maxima of its lidar noise. 0: off.
+    double seedMergeSaddleM = 0.5;
     /// 1: each iteration also adds a tree at every residual apex: a strict 3 x 3 maximum of
     /// the CHM among the footprint cells no crown explains (see residualToleranceM), with
     /// the CHM's height there, anchored like a seed. The top of a tree beside a taller
@@ -127,6 +132,7 @@ struct CanopyResult {
     std::vector<IterationStats> iterations;  ///< 0 = initial seeding, then one per iteration
     IterationStats final;        ///< after the final clean-up (starved trees, duplicates)
     std::size_t initialSeeds = 0;
+    std::size_t seedsMerged = 0;         ///< seeded trees merged into a taller one (seedMergeSaddleM)
     std::size_t duplicatesRemoved = 0;   ///< trunks too close or crowns inside larger crowns
     std::size_t fallbackTrees = 0;       ///< final trees whose cell has no species (nearest mapped)
     std::string stopReason;      ///< "coverage gain below epsilon" or "iteration cap"

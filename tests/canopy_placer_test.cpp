@@ -494,3 +494,57 @@ TEST_CASE("a top on a taller neighbour's flank is no CHM maximum but is found as
     const synth::CanopyResult missed = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     CHECK(nearestDistance(missed.trees, trees[1].x, trees[1].y) > 1.0);
 }
+
+TEST_CASE("two noise maxima of one crown top give one tree, two close tops with a saddle two", "[canopy]") {
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const double cell = 0.914;
+    const int n = 48;
+    // A wide dome (flat within 0.04 m over a cell of its top) centred on cell (24, 24), with
+    // two bumps of lidar noise two cells apart: both cells are strict 3 x 3 maxima.
+    Grid<float> dome(n, n, cell, 0, 0, 0.f);
+    const double cx = dome.cellCentreX(24), cy = dome.cellCentreY(24);
+    for (int iy = 0; iy < n; ++iy)
+        for (int ix = 0; ix < n; ++ix) {
+            const double d = std::hypot(dome.cellCentreX(ix) - cx, dome.cellCentreY(iy) - cy);
+            if (d < 8.0) dome(ix, iy) = static_cast<float>(20.0 - 6.0 * std::pow(d / 8.0, 2.5));
+        }
+    dome(23, 24) += 0.2f;
+    dome(25, 24) += 0.25f;
+    const auto maxima = synth::chmLocalMaxima(dome, 3.0, 1);
+    REQUIRE(maxima.size() == 2);
+    const Grid<float> terrain = Grid<float>::like(dome, 0.f);
+    synth::CanopyParams p;
+    p.ringSamples = 0;
+    p.residualApices = 0;
+    p.maxIterations = 0;  // the seeds as they are, then the final clean-up
+    auto near = [&](const synth::CanopyResult& r) {
+        std::size_t k = 0;
+        for (const Plant& t : r.trees) k += std::hypot(t.xM - cx, t.yM - cy) < 2.5;
+        return k;
+    };
+    const synth::CanopyResult merged = synth::placeCanopy(dome, terrain, uniformMap(dome, df), b, p);
+    CHECK(merged.seedsMerged == 1);
+    CHECK(near(merged) == 1);
+    // The taller maximum is kept, at its cell.
+    REQUIRE(merged.trees.size() == 1);
+    CHECK(std::abs(merged.trees[0].xM - dome.cellCentreX(25)) < 0.5 * cell);
+    p.seedMergeSaddleM = 0;
+    const synth::CanopyResult off = synth::placeCanopy(dome, terrain, uniformMap(dome, df), b, p);
+    CHECK(off.seedsMerged == 0);
+    CHECK(near(off) == 2);
+
+    // Two narrow cones two cells apart: the CHM drops 2 m between them, two trees stay.
+    Grid<float> cones(n, n, cell, 0, 0, 0.f);
+    for (const int c : {23, 25})
+        for (int iy = 0; iy < n; ++iy)
+            for (int ix = 0; ix < n; ++ix) {
+                const double d = std::hypot(cones.cellCentreX(ix) - cones.cellCentreX(c), cones.cellCentreY(iy) - cy);
+                if (d < 4.0) cones(ix, iy) = std::max(cones(ix, iy), static_cast<float>(12.0 - 2.5 * d));
+            }
+    REQUIRE(synth::chmLocalMaxima(cones, 3.0, 1).size() == 2);
+    p.seedMergeSaddleM = 0.5;
+    const synth::CanopyResult two = synth::placeCanopy(cones, terrain, uniformMap(cones, df), b, p);
+    CHECK(two.seedsMerged == 0);
+    CHECK(near(two) == 2);
+}
