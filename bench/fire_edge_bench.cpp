@@ -210,6 +210,41 @@ int main(int argc, char** argv) {
     // Per (years after, band): one value per fire.
     std::vector<double> dens[kAfter][4], ctrl[kAfter][4], ratio[kAfter][4], hf[kAfter][4], hc[kAfter][4];
     std::vector<double> edgeLead[kAfter];  // ratio at the burnt edge minus ratio inside
+    // The summary over the fires done so far, written after each fire (a partial result survives
+    // an interrupted run; the header says over how many fires).
+    auto writeSummary = [&](int done_) {
+        std::ostringstream sum;
+        sum << rep.str();
+        std::snprintf(line, sizeof line, "# mean +- half-width of the 95 %% interval of the mean over the %d fires (Student t, %d df)\n",
+                      done_, done_ - 1);
+        sum << line;
+        sum << "years after | band | plants/m2 with fire | without | ratio | mean height m with fire | without\n";
+        for (int ai = 0; ai < kAfter; ++ai)
+            for (int k = 0; k < 4; ++k) {
+                std::snprintf(line, sizeof line, "%d | %s | %s | %s | %s | %s | %s\n", after[ai], names[k],
+                              fmtCi(dens[ai][k], 2).c_str(), fmtCi(ctrl[ai][k], 2).c_str(), fmtCi(ratio[ai][k], 2).c_str(),
+                              fmtCi(hf[ai][k], 3).c_str(), fmtCi(hc[ai][k], 3).c_str());
+                sum << line;
+            }
+        sum << "# does the burnt edge recover first? ratio (with / without fire) at the burnt edge minus inside, per fire:\n";
+        sum << "years after | edge - inside ratio | fires with the edge ahead\n";
+        for (int ai = 0; ai < kAfter; ++ai) {
+            int ahead = 0;
+            for (double v : edgeLead[ai]) ahead += v > 0 ? 1 : 0;
+            std::snprintf(line, sizeof line, "%d | %s | %d of %d\n", after[ai], fmtCi(edgeLead[ai], 3).c_str(), ahead, done_);
+            sum << line;
+        }
+        std::snprintf(line, sizeof line, "# %.0f s wall, 2 threads, load average %.1f at the end\n", bench::secondsSince(t0),
+                      bench::loadAverage());
+        sum << line;
+        std::fputs(sum.str().c_str(), stdout);
+        AtomicOutput out(outPath);
+        {
+            std::ofstream f(out.tempPath());
+            f << sum.str();
+        }
+        out.commit();
+    };
     for (const Fire& fi : chosen) {
         const std::vector<int> band = bands(g, fi.burnt, area);
         double bandArea[4] = {0, 0, 0, 0};
@@ -257,35 +292,7 @@ int main(int argc, char** argv) {
             }
             edgeLead[ai].push_back(r[1] - r[0]);
         }
+        writeSummary(static_cast<int>(edgeLead[0].size()));
     }
-    std::snprintf(line, sizeof line, "# mean +- half-width of the 95 %% interval of the mean over the %d fires (Student t, %d df)\n",
-                  fires, fires - 1);
-    rep << line;
-    rep << "years after | band | plants/m2 with fire | without | ratio | mean height m with fire | without\n";
-    for (int ai = 0; ai < kAfter; ++ai)
-        for (int k = 0; k < 4; ++k) {
-            std::snprintf(line, sizeof line, "%d | %s | %s | %s | %s | %s | %s\n", after[ai], names[k],
-                          fmtCi(dens[ai][k], 2).c_str(), fmtCi(ctrl[ai][k], 2).c_str(), fmtCi(ratio[ai][k], 2).c_str(),
-                          fmtCi(hf[ai][k], 3).c_str(), fmtCi(hc[ai][k], 3).c_str());
-            rep << line;
-        }
-    rep << "# does the burnt edge recover first? ratio (with / without fire) at the burnt edge minus inside, per fire:\n";
-    rep << "years after | edge - inside ratio | fires with the edge ahead\n";
-    for (int ai = 0; ai < kAfter; ++ai) {
-        int ahead = 0;
-        for (double v : edgeLead[ai]) ahead += v > 0 ? 1 : 0;
-        std::snprintf(line, sizeof line, "%d | %s | %d of %d\n", after[ai], fmtCi(edgeLead[ai], 3).c_str(), ahead, fires);
-        rep << line;
-    }
-    std::snprintf(line, sizeof line, "# %.0f s wall, 2 threads, load average %.1f at the end\n", bench::secondsSince(t0),
-                  bench::loadAverage());
-    rep << line;
-    std::fputs(rep.str().c_str(), stdout);
-    AtomicOutput out(outPath);
-    {
-        std::ofstream f(out.tempPath());
-        f << rep.str();
-    }
-    out.commit();
     return 0;
 }
