@@ -309,6 +309,8 @@ TEST_CASE("disturbance in the simulator: same plants and events with 1 and 2 thr
         CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
         CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
         CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+        CHECK(resumed.disturbances()[i].mask.cells == one->disturbances()[i].mask.cells);  // masks kept by the checkpoint
+        CHECK(one->disturbances()[i].mask.cells == two->disturbances()[i].mask.cells);
     }
     CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
     // A run without disturbance refuses the checkpoint (another fingerprint).
@@ -508,6 +510,8 @@ TEST_CASE("disturbance in EcoMod: same trees and events with 1 and 2 threads, an
         CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
         CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
         CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+        CHECK(resumed.disturbances()[i].mask.cells == one->disturbances()[i].mask.cells);  // masks kept by the checkpoint
+        CHECK(one->disturbances()[i].mask.cells == two->disturbances()[i].mask.cells);
     }
     CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
     Simulation plain(in, params, 11);  // without disturbance: another fingerprint
