@@ -1,6 +1,7 @@
 #include "sim_file.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -106,6 +107,21 @@ std::vector<YearRecord> readTimeseries(const h5::File& f, const std::string& gro
 
 // ------------------------------------------------------------------ disturbance events
 
+Grid<std::uint8_t> DisturbanceMask::grid() const {
+    if (!present()) return {};
+    Grid<std::uint8_t> g(width, height, cellSizeM, originX, originY, 0);
+    for (std::int32_t c : cells) g.data()[static_cast<std::size_t>(c)] = 1;
+    return g;
+}
+
+bool DisturbanceMask::contains(double xM, double yM) const {
+    if (!present()) return false;
+    const double fx = std::floor((xM - originX) / cellSizeM), fy = std::floor((yM - originY) / cellSizeM);
+    if (!(fx >= 0 && fy >= 0 && fx < width && fy < height)) return false;
+    const auto c = static_cast<std::int32_t>(static_cast<std::int64_t>(fy) * width + static_cast<std::int64_t>(fx));
+    return std::binary_search(cells.begin(), cells.end(), c);
+}
+
 void writeDisturbanceTable(h5::File& f, const std::string& group, const std::vector<DisturbanceRecord>& ev,
                            const Biome& biome) {
     const hsize_t ne = ev.size(), ns = biome.species.size();
@@ -135,8 +151,33 @@ void writeDisturbanceTable(h5::File& f, const std::string& group, const std::vec
     f.writeI32(group + "/killed", killed, {ne, ns}, "1");
     f.writeI32(group + "/killed_total", total, {ne}, "1");
     f.writeStrings(group + "/species_names", speciesNames(biome));
+    // The masks, sparse (docs/disturbance.md "Output"): event e's cells are
+    // mask_cells[mask_offset[e] : mask_offset[e + 1]] on its grid of mask_width x mask_height.
+    std::vector<std::int64_t> offset(ne + 1, 0);
+    std::vector<std::int32_t> cells, mw(ne), mh(ne);
+    std::vector<double> mx(ne), my(ne), mc(ne);
+    for (std::size_t e = 0; e < ne; ++e) {
+        const DisturbanceMask& m = ev[e].mask;
+        mw[e] = m.width;
+        mh[e] = m.height;
+        mx[e] = m.originX;
+        my[e] = m.originY;
+        mc[e] = m.cellSizeM;
+        cells.insert(cells.end(), m.cells.begin(), m.cells.end());
+        offset[e + 1] = static_cast<std::int64_t>(cells.size());
+    }
+    f.writeI64(group + "/mask_offset", offset, {ne + 1}, "1");
+    f.writeI32(group + "/mask_cells", cells, {cells.size()}, "1");
+    f.writeI32(group + "/mask_width", mw, {ne}, "cells");
+    f.writeI32(group + "/mask_height", mh, {ne}, "cells");
+    f.writeF64(group + "/mask_origin_x", mx, {ne}, "m");
+    f.writeF64(group + "/mask_origin_y", my, {ne}, "m");
+    f.writeF64(group + "/mask_cell_size", mc, {ne}, "m");
     f.setAttr(group, "layout", std::string("one row per event in the order they struck; killed: [event][species], species in "
-                                           "the order of species_names"));
+                                           "the order of species_names; mask: event e struck the cells "
+                                           "mask_cells[mask_offset[e]:mask_offset[e+1]] (iy * mask_width + ix, row 0 "
+                                           "south) of its grid, lower-left corner (mask_origin_x, mask_origin_y), cells "
+                                           "of mask_cell_size; fire: burnt cells, storm: cells with a plant thrown"));
 }
 
 std::vector<DisturbanceRecord> readDisturbanceTable(const h5::File& f, const std::string& group, std::size_t ns) {
@@ -162,6 +203,33 @@ std::vector<DisturbanceRecord> readDisturbanceTable(const h5::File& f, const std
         out[e].yM = y[e];
         out[e].killed.assign(killed.begin() + static_cast<std::ptrdiff_t>(e * ns),
                              killed.begin() + static_cast<std::ptrdiff_t>((e + 1) * ns));
+    }
+    if (!f.exists(group + "/mask_offset")) return out;  // written before the masks (2026-11-27)
+    const auto offset = f.readI64(group + "/mask_offset");
+    const auto cells = f.readI32(group + "/mask_cells");
+    const auto mw = f.readI32(group + "/mask_width"), mh = f.readI32(group + "/mask_height");
+    const auto mx = f.readF64(group + "/mask_origin_x"), my = f.readF64(group + "/mask_origin_y");
+    const auto mc = f.readF64(group + "/mask_cell_size");
+    if (offset.size() != ne + 1 || mw.size() != ne || mh.size() != ne || mx.size() != ne || my.size() != ne ||
+        mc.size() != ne || offset[0] != 0 || offset[ne] != static_cast<std::int64_t>(cells.size()))
+        throw IoError(f.path() + ": " + group + ": disturbance mask arrays have inconsistent shapes");
+    for (std::size_t e = 0; e < ne; ++e) {
+        DisturbanceMask& m = out[e].mask;
+        const std::int64_t b = offset[e], en = offset[e + 1];
+        const std::int64_t n = static_cast<std::int64_t>(mw[e]) * mh[e];
+        if (b > en || mw[e] < 0 || mh[e] < 0 || (n > 0 && !(mc[e] > 0)))
+            throw IoError(f.path() + ": " + group + ": disturbance mask of event " + std::to_string(e) + " is malformed");
+        m.width = mw[e];
+        m.height = mh[e];
+        m.originX = mx[e];
+        m.originY = my[e];
+        m.cellSizeM = mc[e];
+        m.cells.assign(cells.begin() + b, cells.begin() + en);
+        for (std::size_t i = 0; i < m.cells.size(); ++i)
+            if (m.cells[i] < 0 || m.cells[i] >= n || (i > 0 && m.cells[i] <= m.cells[i - 1]))
+                throw IoError(f.path() + ": " + group + "/mask_cells: event " + std::to_string(e) +
+                              ": cell indices must be ascending and inside its " + std::to_string(mw[e]) + " x " +
+                              std::to_string(mh[e]) + " grid");
     }
     return out;
 }
@@ -280,6 +348,7 @@ SimulationFileData readSimulationFile(const std::string& path, int wantedYear) {
     out.seed = f.hasAttr("/", "seed") ? static_cast<std::uint64_t>(f.attrInt("/", "seed")) : 0;
     out.modelToml = firstAttr(f, {"model_toml", "parameters"});
     if (f.hasAttr("/", "seed_outer_radius_factor")) out.seedOuterRadiusFactor = f.attrDouble("/", "seed_outer_radius_factor");
+    if (f.exists("/disturbance")) out.disturbances = readDisturbanceTable(f, "/disturbance", out.biome.species.size());
     return out;
 }
 

@@ -9,6 +9,12 @@
 //                         crown_area float64 [ny][ns], species_names
 //   /canopy               the canopy trees that influence the area (plants.h layout)
 //   /species_names        the biome's species names
+//   /disturbance          only when disturbance is configured: one row per event (year, month,
+//                         kind, area, x, y, killed [event][species]) and, since 2026-11-27, each
+//                         event's burn / damage mask (mask_offset, mask_cells and the mask grid's
+//                         geometry per event); a file without the mask datasets still reads.
+//                         Schema version unchanged: the masks are optional datasets, an older
+//                         reader ignores them (docs/disturbance.md "Output").
 //   /provenance           attributes wall_time_s, threads, resumed_from_year (core/provenance.h;
 //                         absent with eco --no-provenance; files written before
 //                         the group have them at the root)
@@ -26,6 +32,7 @@
 #include <vector>
 
 #include "biome.h"
+#include "grid.h"
 #include "h5io.h"
 #include "plants.h"
 
@@ -45,6 +52,22 @@ struct YearRecord {
     std::vector<double> crownAreaM2;     ///< sum of pi r^2
 };
 
+/// The cells an event struck (its burn mask, or a storm's damage mask) on the grid of its
+/// event ground (sim/disturbance.h: the abiotics cells covering the simulated area): a fire's
+/// burnt cells, a storm's cells in which at least one plant was thrown. Stored sparse: the
+/// cell indices iy * width + ix, ascending (row iy = 0 is the southern row, core/grid.h).
+struct DisturbanceMask {
+    int width = 0, height = 0;           ///< the event grid's columns (x) and rows (y); 0 = no mask
+    double originX = 0, originY = 0;     ///< its lower-left corner, world metres
+    double cellSizeM = 0;
+    std::vector<std::int32_t> cells;     ///< struck cells, iy * width + ix, ascending
+    bool present() const { return width > 0 && height > 0; }
+    /// 1 for each struck cell on the event grid (empty grid when no mask is recorded).
+    Grid<std::uint8_t> grid() const;
+    /// True when world point (x, y) lies in a struck cell.
+    bool contains(double xM, double yM) const;
+};
+
 /// A disturbance event of a run (sim/disturbance.h, docs/disturbance.md): one row of the
 /// /disturbance table.
 struct DisturbanceRecord {
@@ -54,9 +77,12 @@ struct DisturbanceRecord {
     double areaM2 = 0;                   ///< burnt (fire) or damaged (storm) area, m^2
     double xM = 0, yM = 0;               ///< fire: ignition point, world metres; storm: the area's centre
     std::vector<std::int32_t> killed;    ///< plants killed per species (index = species id)
+    DisturbanceMask mask;                ///< the struck cells (files written before 2026-11-27: none)
 };
 
-/// Write / read the disturbance table (layout in docs/simulator.md) under `group`.
+/// Write / read the disturbance table (layout in docs/disturbance.md) under `group`, with the
+/// events' masks (datasets mask_*; a table without them, as written before the masks, reads
+/// with masks not present).
 void writeDisturbanceTable(h5::File& file, const std::string& group, const std::vector<DisturbanceRecord>& events,
                            const Biome& biome);
 std::vector<DisturbanceRecord> readDisturbanceTable(const h5::File& file, const std::string& group, std::size_t speciesCount);
@@ -117,6 +143,8 @@ struct SimulationFileData {
     std::uint64_t seed = 0;
     std::string modelToml;
     double seedOuterRadiusFactor = 0;     ///< 0 when not recorded
+    /// The disturbance events with their masks (empty when the run had none configured).
+    std::vector<DisturbanceRecord> disturbances;
 };
 
 /// Read one snapshot (`year`, or the last one when year < 0) of a simulation file. IoError

@@ -282,9 +282,19 @@ DisturbanceOutcome runDisturbance(const PlannedEvent& e, const DisturbanceSettin
             damaged[c] = 1;
         }
     }
+    // The event's mask (fire: the burnt cells; storm: the cells with a plant thrown), in
+    // ascending cell order, and its area inside the site's area.
+    r.mask.width = g.width();
+    r.mask.height = g.height();
+    r.mask.originX = g.originX();
+    r.mask.originY = g.originY();
+    r.mask.cellSizeM = g.cellSizeM();
     for (int cy = 0; cy < g.height(); ++cy)
         for (int cx = 0; cx < g.width(); ++cx)
-            if (damaged[g.index(cx, cy)]) r.areaM2 += clippedCellArea(site, g, cx, cy);
+            if (damaged[g.index(cx, cy)]) {
+                r.areaM2 += clippedCellArea(site, g, cx, cy);
+                r.mask.cells.push_back(static_cast<std::int32_t>(g.index(cx, cy)));
+            }
     return out;
 }
 

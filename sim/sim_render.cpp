@@ -10,8 +10,13 @@
 
 namespace eco::sim {
 
-void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant>& plants, const std::vector<Plant>& canopy,
-                     const SimArea& area, const Biome& biome, const std::string& title, int maxSidePx) {
+namespace {
+
+// The top-down picture of renderPlantsPng, with an optional event mask painted on the ground
+// under the plants (tinted cells) and its boundary drawn over them.
+void renderPlot(const std::string& path, const std::vector<UndergrowthPlant>& plants, const std::vector<Plant>& canopy,
+                const SimArea& area, const Biome& biome, const std::string& title, int maxSidePx,
+                const DisturbanceRecord* event) {
     const double ex = area.x1 - area.x0, ey = area.y1 - area.y0;
     const double scale = maxSidePx / std::max(ex, ey);  // pixels per metre
     const int w = std::max(1, static_cast<int>(std::lround(ex * scale)));
@@ -19,6 +24,23 @@ void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant
     Canvas c(w, h, {0.96f, 0.95f, 0.90f});
     auto px = [&](double x) { return (x - area.x0) * scale; };
     auto py = [&](double y) { return (area.y1 - y) * scale; };  // north up
+    // The event's mask: which pixels' centres fall in a struck cell.
+    const bool fire = event && event->kind == "fire";
+    const Rgb maskFill = fire ? Rgb{0.98f, 0.62f, 0.30f} : Rgb{0.55f, 0.70f, 0.95f};
+    const Rgb maskEdge = fire ? Rgb{0.70f, 0.10f, 0.05f} : Rgb{0.10f, 0.20f, 0.65f};
+    std::vector<std::uint8_t> struck;
+    if (event && event->mask.present()) {
+        const Grid<std::uint8_t> g = event->mask.grid();
+        struck.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), 0);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const int cx = g.cellX(area.x0 + (x + 0.5) / scale), cy = g.cellY(area.y1 - (y + 0.5) / scale);
+                if (g.inside(cx, cy) && g(cx, cy)) {
+                    struck[static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x)] = 1;
+                    c.set(x, y, maskFill);
+                }
+            }
+    }
     // Canopy crowns: outline circles, in a grey no species has (categoryColour).
     const Rgb outline{0.55f, 0.55f, 0.55f};
     for (const Plant& t : canopy) {
@@ -42,10 +64,27 @@ void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant
         const double r = std::max(0.6, p.crownRadiusM * scale);
         c.fillDisc(px(p.xM), py(p.yM), r, categoryColour(p.speciesId), 0.85f);
     }
+    // The mask's boundary over the plants: struck pixels with an unstruck 4-neighbour.
+    if (!struck.empty()) {
+        auto at = [&](int x, int y) {
+            return x >= 0 && y >= 0 && x < w && y < h &&
+                   struck[static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x)];
+        };
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                if (at(x, y) && (!at(x - 1, y) || !at(x + 1, y) || !at(x, y - 1) || !at(x, y + 1))) c.set(x, y, maskEdge);
+    }
     std::vector<std::pair<std::string, Rgb>> entries;
     for (std::size_t s = 0; s < used.size(); ++s)
         if (used[s]) entries.emplace_back(biome.species[s].name, categoryColour(static_cast<int>(s)));
     entries.emplace_back("canopy crown (outline)", outline);
+    if (event) {
+        char m[96];
+        std::snprintf(m, sizeof m, "%s (%.0f m2, ground tint)", fire ? "burnt cells" : "cells with plants thrown",
+                      event->areaM2);
+        entries.emplace_back(m, maskFill);
+        entries.emplace_back(fire ? "burn edge" : "damage edge", maskEdge);
+    }
     char size[64];
     std::snprintf(size, sizeof size, "%.0f m x %.0f m", ex, ey);
     entries.emplace_back(size, Rgb{1.f, 1.f, 1.f});
@@ -53,6 +92,19 @@ void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant
     // axes and a scale bar round it.
     const MapFrame map = mapFrame(c, MapExtent{area.x0, area.y1 - h / scale, area.x0 + w / scale, area.y1});
     withLegend(map.canvas, title, entries).writePng(path);
+}
+
+}  // namespace
+
+void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant>& plants, const std::vector<Plant>& canopy,
+                     const SimArea& area, const Biome& biome, const std::string& title, int maxSidePx) {
+    renderPlot(path, plants, canopy, area, biome, title, maxSidePx, nullptr);
+}
+
+void renderDisturbancePng(const std::string& path, const DisturbanceRecord& event,
+                          const std::vector<UndergrowthPlant>& plants, const std::vector<Plant>& canopy,
+                          const SimArea& area, const Biome& biome, const std::string& title, int maxSidePx) {
+    renderPlot(path, plants, canopy, area, biome, title, maxSidePx, &event);
 }
 
 void plotSpeciesCountsPng(const std::string& path, const std::vector<YearRecord>& ts, const Biome& biome,

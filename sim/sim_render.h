@@ -16,6 +16,14 @@ void renderPlantsPng(const std::string& path, const std::vector<UndergrowthPlant
                      const std::vector<Plant>& canopy, const SimArea& area, const Biome& biome,
                      const std::string& title, int maxSidePx = 1600);
 
+/// The same picture with a disturbance event's mask (sim_file.h DisturbanceMask) under the
+/// plants: the struck cells tinted on the ground (fire orange, storm blue) and the mask's
+/// boundary drawn over the plants. `plants` are those of a census after the event (the
+/// regrowth) or before it. Atomic PNG.
+void renderDisturbancePng(const std::string& path, const DisturbanceRecord& event,
+                          const std::vector<UndergrowthPlant>& plants, const std::vector<Plant>& canopy,
+                          const SimArea& area, const Biome& biome, const std::string& title, int maxSidePx = 1200);
+
 /// Line plot of the number of plants of each species per year, with axes, ticks and a
 /// legend of the species that ever occur. Atomic PNG.
 void plotSpeciesCountsPng(const std::string& path, const std::vector<YearRecord>& timeseries,

@@ -382,6 +382,26 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
                             "Undergrowth after " + std::to_string(year) + " years (" + std::to_string(plants.size()) + " plants)");
             summary.written.push_back(p);
         }
+        // Each disturbance event's mask over the plants of the first snapshot after it (the
+        // census of year + 1 is the first after an event of year `year`), or the final plants.
+        const std::vector<DisturbanceRecord>& events = sim.disturbances();
+        for (std::size_t e = 0; e < events.size(); ++e) {
+            const DisturbanceRecord& ev = events[e];
+            const std::vector<UndergrowthPlant>* shown = &finalPlants;
+            int shownYear = sim.yearsDone();
+            for (const auto& [year, plants] : record.snapshots)
+                if (year > ev.year) {
+                    shown = &plants;
+                    shownYear = year;
+                    break;
+                }
+            char name[96];
+            std::snprintf(name, sizeof name, "/disturbance_%03zu_year_%04d_%s.png", e, ev.year, ev.kind.c_str());
+            const std::string p = config.pngDir + name;
+            renderDisturbancePng(p, ev, *shown, sim.relevantCanopy(), sim.area(), sim.biome(),
+                                 describeDisturbance(ev) + "; plants after " + std::to_string(shownYear) + " years");
+            summary.written.push_back(p);
+        }
         const std::string plot = config.pngDir + "/species_counts.png";
         plotSpeciesCountsPng(plot, record.timeseries, sim.biome(), "Plants per species per year");
         summary.written.push_back(plot);

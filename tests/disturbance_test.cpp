@@ -309,6 +309,8 @@ TEST_CASE("disturbance in the simulator: same plants and events with 1 and 2 thr
         CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
         CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
         CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+        CHECK(resumed.disturbances()[i].mask.cells == one->disturbances()[i].mask.cells);  // masks kept by the checkpoint
+        CHECK(one->disturbances()[i].mask.cells == two->disturbances()[i].mask.cells);
     }
     CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
     // A run without disturbance refuses the checkpoint (another fingerprint).
@@ -508,6 +510,8 @@ TEST_CASE("disturbance in EcoMod: same trees and events with 1 and 2 threads, an
         CHECK(resumed.disturbances()[i].year == one->disturbances()[i].year);
         CHECK(resumed.disturbances()[i].killed == one->disturbances()[i].killed);
         CHECK(resumed.disturbances()[i].areaM2 == one->disturbances()[i].areaM2);
+        CHECK(resumed.disturbances()[i].mask.cells == one->disturbances()[i].mask.cells);  // masks kept by the checkpoint
+        CHECK(one->disturbances()[i].mask.cells == two->disturbances()[i].mask.cells);
     }
     CHECK(resumed.counters().diedDisturbance == one->counters().diedDisturbance);
     Simulation plain(in, params, 11);  // without disturbance: another fingerprint
@@ -573,4 +577,232 @@ TEST_CASE("disturbance validation: after a stand-clearing fire the early species
     CHECK(atEnd < 0.85 * peakAfter);
     CHECK(lateAfter < 0.05 * lateAtFire);
     CHECK(lateEnd > 0.5 * lateControlEnd);
+}
+
+// ------------------------------------------------------------------ burn and damage masks
+
+namespace {
+
+// Plants of `control` (the same run without the event, stepped alike) missing from `struck`:
+// the plants the event killed. REQUIREs that `struck` holds no plant `control` lacks.
+std::vector<UndergrowthPlant> killedByEvent(const std::vector<UndergrowthPlant>& control,
+                                            const std::vector<UndergrowthPlant>& struck) {
+    std::set<std::uint64_t> alive;
+    for (const auto& p : struck) alive.insert(p.id);
+    std::set<std::uint64_t> inControl;
+    for (const auto& p : control) inControl.insert(p.id);
+    for (const auto& p : struck) REQUIRE(inControl.count(p.id) == 1);
+    std::vector<UndergrowthPlant> out;
+    for (const auto& p : control)
+        if (!alive.count(p.id)) out.push_back(p);
+    return out;
+}
+
+// The cells (mask grid order) holding at least one of `plants`.
+std::set<std::int32_t> cellsOfPlants(const DisturbanceMask& m, const std::vector<UndergrowthPlant>& plants) {
+    std::set<std::int32_t> cells;
+    for (const auto& p : plants) {
+        const int cx = static_cast<int>(std::floor((p.xM - m.originX) / m.cellSizeM));
+        const int cy = static_cast<int>(std::floor((p.yM - m.originY) / m.cellSizeM));
+        if (cx >= 0 && cy >= 0 && cx < m.width && cy < m.height) cells.insert(cy * m.width + cx);
+    }
+    return cells;
+}
+
+}  // namespace
+
+TEST_CASE("disturbance masks: a fire's burn mask holds exactly the cells where the fire killed plants (monthly model)",
+          "[disturbance][sim][mask]") {
+    // A partial fire that kills every plant it reaches (severity 1, scorch height above every
+    // plant, no tolerance), against the same run without it: the plants it killed are the
+    // control's plants missing after the fire's month. The recorded mask must hold every
+    // killed plant, and no cell of it may keep a plant.
+    SimInputs in = test::smallDemoScene();
+    in.area = SimArea{8, 8, 32, 32};
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.fire.timing.forcedYears = {2};
+    d.fire.timing.month = 6;  // July: no germination after it in its month (August's would differ)
+    d.fire.spreadProbability = 0.45;
+    d.fire.severity = 1.0;
+    d.fire.scorchHeightM = 1000.0;
+    constexpr std::uint64_t kSeed = 5;
+    Simulation fire(in, SimParams{}, kSeed), control(in, SimParams{}, kSeed);
+    fire.setDisturbance(d);
+    for (int m = 0; m < 12 * 2 + 7; ++m) {  // to the end of July of year 2: the fire's month
+        fire.stepMonth();
+        control.stepMonth();
+    }
+    REQUIRE(fire.disturbances().size() == 1);
+    const DisturbanceRecord& e = fire.disturbances()[0];
+    const DisturbanceMask& m = e.mask;
+    REQUIRE(m.present());
+    const std::vector<UndergrowthPlant> before = control.plants();
+    const std::vector<UndergrowthPlant> killed = killedByEvent(before, fire.plants());
+    const std::size_t gridCells = static_cast<std::size_t>(m.width) * static_cast<std::size_t>(m.height);
+    INFO("mask " << m.cells.size() << " of " << gridCells << " cells, " << killed.size() << " of " << before.size()
+                 << " plants killed");
+    // A partial burn, so that the mask has to separate burnt from unburnt ground.
+    REQUIRE(m.cells.size() > gridCells / 10);
+    REQUIRE(m.cells.size() < gridCells * 9 / 10);
+    REQUIRE(killed.size() > 50);
+    REQUIRE(killed.size() + 50 < before.size());
+    std::int64_t recorded = 0;
+    for (auto k : e.killed) recorded += k;
+    CHECK(recorded == static_cast<std::int64_t>(killed.size()));
+    // Every killed plant in the mask; every plant left alive outside it.
+    std::size_t killedOutside = 0, aliveInside = 0;
+    for (const auto& p : killed) killedOutside += m.contains(p.xM, p.yM) ? 0 : 1;
+    for (const auto& p : fire.plants()) aliveInside += m.contains(p.xM, p.yM) ? 1 : 0;
+    CHECK(killedOutside == 0);
+    CHECK(aliveInside == 0);
+    // The mask's cells that held a plant are the killed plants' cells, one for one.
+    const std::set<std::int32_t> maskCells(m.cells.begin(), m.cells.end());
+    std::set<std::int32_t> occupiedMask;
+    for (std::int32_t c : cellsOfPlants(m, before))
+        if (maskCells.count(c)) occupiedMask.insert(c);
+    CHECK(cellsOfPlants(m, killed) == occupiedMask);
+    // Its area is the recorded one (cells inside the simulated area, clipped).
+    double area = 0;
+    for (std::int32_t c : m.cells) {
+        const double x0 = m.originX + (c % m.width) * m.cellSizeM, y0 = m.originY + (c / m.width) * m.cellSizeM;
+        area += std::max(0.0, std::min(x0 + m.cellSizeM, 32.0) - std::max(x0, 8.0)) *
+                std::max(0.0, std::min(y0 + m.cellSizeM, 32.0) - std::max(y0, 8.0));
+    }
+    CHECK(area == Approx(e.areaM2).epsilon(1e-9));
+}
+
+TEST_CASE("disturbance masks: EcoMod's fire and storm masks hold exactly the cells of the trees they killed",
+          "[disturbance][sim][ecomod][mask]") {
+    const SimInputs in = ecomodFireScene(40, 40, 1000.0);  // dry everywhere in August
+    SimParams params;
+    params.kind = ModelKind::EcoMod;
+    constexpr int kYear = 40;
+    DisturbanceSettings fireOnly;
+    fireOnly.fire.enabled = true;
+    fireOnly.fire.timing.forcedYears = {kYear};
+    fireOnly.fire.spreadProbability = 0.25;  // a patchy burn, at the percolation threshold
+    fireOnly.fire.slopeFactor = 0;
+    fireOnly.fire.windFactor = 0;
+    fireOnly.fire.severity = 1.0;
+    fireOnly.fire.scorchHeightM = 1000.0;
+    DisturbanceSettings stormOnly;
+    stormOnly.storm.enabled = true;
+    stormOnly.storm.timing.forcedYears = {kYear};
+    stormOnly.storm.severity = 0.5;
+    stormOnly.storm.referenceHeightM = 1.0;
+    constexpr std::uint64_t kSeed = 3;
+    Simulation burnt(in, params, kSeed), stormed(in, params, kSeed), control(in, params, kSeed);
+    burnt.setDisturbance(fireOnly);
+    stormed.setDisturbance(stormOnly);
+    for (int y = 0; y <= kYear; ++y) {  // the events strike at the end of year kYear
+        burnt.stepYear();
+        stormed.stepYear();
+        control.stepYear();
+    }
+    const std::vector<UndergrowthPlant> trees = control.plants();
+    REQUIRE(trees.size() > 200);
+    for (Simulation* sim : {&burnt, &stormed}) {
+        REQUIRE(sim->disturbances().size() == 1);
+        const DisturbanceRecord& e = sim->disturbances()[0];
+        const DisturbanceMask& m = e.mask;
+        REQUIRE(m.present());
+        const std::vector<UndergrowthPlant> killed = killedByEvent(trees, sim->plants());
+        const std::size_t gridCells = static_cast<std::size_t>(m.width) * static_cast<std::size_t>(m.height);
+        INFO(e.kind << ": mask " << m.cells.size() << " of " << gridCells << " cells, " << killed.size() << " of "
+                    << trees.size() << " trees killed");
+        REQUIRE(killed.size() > 20);
+        REQUIRE(killed.size() + 20 < trees.size());
+        REQUIRE(m.cells.size() < gridCells * 9 / 10);
+        std::size_t killedOutside = 0;
+        for (const auto& p : killed) killedOutside += m.contains(p.xM, p.yM) ? 0 : 1;
+        CHECK(killedOutside == 0);
+        const std::set<std::int32_t> maskCells(m.cells.begin(), m.cells.end());
+        if (e.kind == "fire") {
+            // Burnt cells kill every tree (severity 1): none is left inside, and the burnt
+            // cells that held a tree are the killed trees' cells.
+            REQUIRE(m.cells.size() > gridCells / 10);
+            std::size_t aliveInside = 0;
+            for (const auto& p : sim->plants()) aliveInside += m.contains(p.xM, p.yM) ? 1 : 0;
+            CHECK(aliveInside == 0);
+            std::set<std::int32_t> occupiedMask;
+            for (std::int32_t c : cellsOfPlants(m, trees))
+                if (maskCells.count(c)) occupiedMask.insert(c);
+            CHECK(cellsOfPlants(m, killed) == occupiedMask);
+        } else {
+            // A storm's mask is the cells in which a tree was thrown, exactly; survivors stand
+            // in and out of it (severity 0.5).
+            CHECK(cellsOfPlants(m, killed) == maskCells);
+        }
+    }
+}
+
+TEST_CASE("disturbance masks: the simulation file keeps each event's mask, and a table without masks still reads",
+          "[disturbance][mask][io]") {
+    test::TempDir dir("disturbmask");
+    const Biome biome = defaultBiome();
+    DisturbanceRecord fire;
+    fire.year = 3;
+    fire.month = 7;
+    fire.kind = "fire";
+    fire.areaM2 = 2.5;
+    fire.killed.assign(biome.species.size(), 0);
+    fire.killed[1] = 4;
+    fire.mask.width = 5;
+    fire.mask.height = 4;
+    fire.mask.originX = 10;
+    fire.mask.originY = 20;
+    fire.mask.cellSizeM = 0.5;
+    fire.mask.cells = {0, 6, 7, 19};
+    DisturbanceRecord storm = fire;
+    storm.kind = "storm";
+    storm.mask.cells = {};  // a storm that threw nothing
+    {
+        auto f = h5::File::create(dir.file("t.h5"));
+        writeDisturbanceTable(f, "/disturbance", {fire, storm}, biome);
+    }
+    auto f = h5::File::openRead(dir.file("t.h5"));
+    const auto back = readDisturbanceTable(f, "/disturbance", biome.species.size());
+    REQUIRE(back.size() == 2);
+    CHECK(back[0].mask.cells == fire.mask.cells);
+    CHECK(back[0].mask.width == 5);
+    CHECK(back[0].mask.height == 4);
+    CHECK(back[0].mask.originX == 10);
+    CHECK(back[0].mask.cellSizeM == 0.5);
+    CHECK(back[1].mask.present());
+    CHECK(back[1].mask.cells.empty());
+    // Cell 7 = (2, 1): world x in [11, 11.5), y in [20.5, 21); cell 19 = (4, 3).
+    CHECK(back[0].mask.contains(11.2, 20.7));
+    CHECK_FALSE(back[0].mask.contains(11.7, 20.7));
+    CHECK(back[0].mask.contains(12.4, 21.9));
+    CHECK_FALSE(back[0].mask.contains(12.6, 21.9));  // outside the grid
+    const Grid<std::uint8_t> g = back[0].mask.grid();
+    CHECK(g(2, 1) == 1);
+    CHECK(g(3, 1) == 0);
+    // A table as written before the masks: the same datasets without mask_*.
+    {
+        auto old = h5::File::create(dir.file("old.h5"));
+        old.ensureGroup("/d");
+        old.writeI32("/d/year", {3}, {1}, "years");
+        old.writeI32("/d/month", {7}, {1}, "1");
+        old.writeStrings("/d/kind", {"fire"});
+        old.writeF64("/d/area", {2.5}, {1}, "m2");
+        old.writeF64("/d/x", {1}, {1}, "m");
+        old.writeF64("/d/y", {2}, {1}, "m");
+        old.writeI32("/d/killed", fire.killed, {1, biome.species.size()}, "1");
+    }
+    auto o = h5::File::openRead(dir.file("old.h5"));
+    const auto oldBack = readDisturbanceTable(o, "/d", biome.species.size());
+    REQUIRE(oldBack.size() == 1);
+    CHECK(oldBack[0].killed == fire.killed);
+    CHECK_FALSE(oldBack[0].mask.present());
+    // A malformed mask is refused with the dataset named.
+    {
+        auto bad = h5::File::create(dir.file("bad.h5"));
+        DisturbanceRecord r = fire;
+        r.mask.cells = {7, 6};  // not ascending
+        writeDisturbanceTable(bad, "/disturbance", {r}, biome);
+    }
+    auto b = h5::File::openRead(dir.file("bad.h5"));
+    CHECK_THROWS_WITH(readDisturbanceTable(b, "/disturbance", biome.species.size()), Catch::Contains("mask_cells"));
 }

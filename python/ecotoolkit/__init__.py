@@ -8,12 +8,12 @@ arrays with a unit per column; ``to_pandas()`` where pandas is installed. See do
 
 from ._h5 import FORMATS, EcoFormatError
 from .database import Database, Region, read_database
-from .files import (Abiotics, Canopy, Census, Chm, EcoFile, Scene, Simulation, Terrain, open, read_abiotics,
+from .files import (Abiotics, Canopy, Census, Chm, Disturbance, EcoFile, Scene, Simulation, Terrain, open, read_abiotics,
                     read_canopy, read_chm, read_scene, read_simulation, read_terrain)
 from .grid import MONTH_NAMES, Grid
 from .plants import PLANT_UNITS, Plants
 
-__all__ = ["FORMATS", "EcoFormatError", "EcoFile", "Grid", "Plants", "Census", "Region", "MONTH_NAMES",
+__all__ = ["FORMATS", "EcoFormatError", "EcoFile", "Grid", "Plants", "Census", "Disturbance", "Region", "MONTH_NAMES",
            "PLANT_UNITS", "Terrain", "Chm", "Abiotics", "Canopy", "Simulation", "Database", "Scene", "open",
            "read_terrain", "read_chm", "read_abiotics", "read_canopy", "read_simulation", "read_database",
            "read_scene"]

@@ -178,11 +178,69 @@ class Census:
         return f"Census({len(self.years)} years x {len(self.species_names)} species)"
 
 
+class Disturbance:
+    """A disturbance event of a simulation (``/disturbance``, docs/disturbance.md): ``year``
+    (simulated year, 0 = the first), ``month`` (0 = January), ``kind`` ("fire" or "storm"),
+    ``area_m2``, ``x``, ``y`` (ignition or the area's centre, m), ``killed`` (int array per
+    species), ``killed_total``; and its mask: ``mask`` (bool array [row][column], row 0 the
+    SOUTHERN row, as eco's grids; None for files written before the masks), ``mask_extent``
+    (x0, y0, x1, y1 of the mask grid, m) and ``mask_cell_m``. A fire's mask is its burnt
+    cells, a storm's the cells in which at least one plant was thrown."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+    def mask_contains(self, x, y):
+        """True where world points (x, y) (scalars or arrays, m) fall in a struck cell."""
+        if self.mask is None:
+            raise ValueError("this event has no mask (file written before the masks)")
+        x0, y0 = self.mask_extent[0], self.mask_extent[1]
+        cx = np.floor((np.asarray(x, dtype=float) - x0) / self.mask_cell_m).astype(np.int64)
+        cy = np.floor((np.asarray(y, dtype=float) - y0) / self.mask_cell_m).astype(np.int64)
+        h, w = self.mask.shape
+        inside = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
+        out = np.zeros(np.broadcast(cx, cy).shape, dtype=bool)
+        out[inside] = self.mask[cy[inside], cx[inside]]
+        return out
+
+    def __repr__(self):
+        return f"Disturbance({self.kind}, year {self.year}, {self.area_m2:.0f} m2, killed {self.killed_total})"
+
+
+def _read_disturbances(f):
+    if "disturbance" not in f:
+        return []
+    d = f["disturbance"]
+    year = d["year"][()]
+    n = len(year)
+    kind = read_strings(d["kind"]) if n else []
+    killed = d["killed"][()].reshape(n, -1)
+    out = []
+    has_mask = "mask_offset" in d
+    if has_mask:
+        offset, cells = d["mask_offset"][()], d["mask_cells"][()]
+        mw, mh = d["mask_width"][()], d["mask_height"][()]
+        mx, my, mc = d["mask_origin_x"][()], d["mask_origin_y"][()], d["mask_cell_size"][()]
+    for e in range(n):
+        mask = extent = cell = None
+        if has_mask and mw[e] > 0 and mh[e] > 0:
+            flat = np.zeros(int(mw[e]) * int(mh[e]), dtype=bool)
+            flat[cells[offset[e]:offset[e + 1]]] = True
+            mask = flat.reshape(int(mh[e]), int(mw[e]))
+            cell = float(mc[e])
+            extent = (float(mx[e]), float(my[e]), float(mx[e]) + cell * int(mw[e]), float(my[e]) + cell * int(mh[e]))
+        out.append(Disturbance(year=int(year[e]), month=int(d["month"][e]), kind=kind[e], area_m2=float(d["area"][e]),
+                               x=float(d["x"][e]), y=float(d["y"][e]), killed=killed[e],
+                               killed_total=int(killed[e].sum()), mask=mask, mask_extent=extent, mask_cell_m=cell))
+    return out
+
+
 class Simulation(EcoFile):
     """``snapshots``: dict year -> Plants (undergrowth with its state), ``years``: the
     snapshot years ascending, ``final``: the last snapshot; ``census``: Census;
     ``canopy``: Plants (the canopy trees near the simulated area); ``window_m``:
-    (x0, y0, x1, y1) of the simulated area, world metres; ``species_names``."""
+    (x0, y0, x1, y1) of the simulated area, world metres; ``species_names``;
+    ``disturbances``: list of Disturbance (empty when the run had none configured)."""
 
 
 def read_simulation(path):
@@ -209,6 +267,7 @@ def read_simulation(path):
             units["year"] = CENSUS_UNITS["year"]
             names = read_strings(ts["species_names"]) if "species_names" in ts else s.species_names
             s.census = Census(ts["year"][()].astype(np.int64), names, values, units)
+        s.disturbances = _read_disturbances(f)
     return s
 
 

@@ -88,6 +88,15 @@ def setUpModule():
     run_eco("simulate", "simulate", "--abiotics", "abiotics.h5", "--canopy", "canopy.h5", "--terrain", "terrain.h5",
             "--crop", ",".join(f"{v:g}" for v in CROP), "--years", str(YEARS), "--seed", "5",
             "--snapshot-years", str(SNAPSHOT_EVERY), "--out", "sim.h5", "--csv", "sim.csv")
+    # The same window with a fire in year 1 and a storm in year 2 (docs/disturbance.md): the
+    # events' burn and damage masks.
+    with open(os.path.join(D, "fire.toml"), "w") as f:
+        f.write('[inputs]\nabiotics = "abiotics.h5"\ncanopy = "canopy.h5"\nterrain = "terrain.h5"\n'
+                f'[run]\nyears = 3\nseed = 5\ncrop = [{", ".join(f"{v:g}" for v in CROP)}]\n'
+                'snapshot_years = [0, 1, 2, 3]\n[outputs]\nhdf5 = "fire.h5"\n'
+                '[disturbance.fire]\nyears = [1]\nspread_probability = 0.45\nseverity = 1.0\nscorch_height_m = 1000.0\n'
+                '[disturbance.storm]\nyears = [2]\nseverity = 1.0\nreference_height_m = 0.05\n')
+    run_eco("simulate fire", "simulate", "--config", "fire.toml")
     run_eco("analyse", "analyse", "sim.h5", "--out", "db.h5", "--kmax", "3")
     run_eco("inspect", "inspect", "db.h5")
     run_eco("synth", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db.h5",
@@ -217,6 +226,39 @@ class TestCanopy(unittest.TestCase, GridGeometry):
         self.assertEqual(c.trees.counts(), {name: sum(r["species"] == name for r in rows)
                                             for name in {r["species"] for r in rows}})
         self.assertEqual(int(c.iterations["trees"][-1]), len(rows))
+
+
+class TestDisturbanceMasks(unittest.TestCase):
+    def test_fire_mask_holds_no_survivor_and_the_killed_plants(self):
+        s = eco.read_simulation(path("fire.h5"))
+        self.assertEqual([(e.kind, e.year) for e in s.disturbances], [("fire", 1), ("storm", 2)])
+        self.assertEqual(eco.read_simulation(path("sim.h5")).disturbances, [])  # no disturbance configured
+        fire = s.disturbances[0]
+        self.assertEqual(fire.mask.dtype, bool)
+        cells = int(fire.mask.sum())
+        self.assertGreater(cells, 0)
+        # Its area: the struck cells' area clipped to the simulated window.
+        x0, y0 = fire.mask_extent[0], fire.mask_extent[1]
+        cy, cx = np.nonzero(fire.mask)
+        ax0 = np.maximum(x0 + cx * fire.mask_cell_m, s.window_m[0])
+        ax1 = np.minimum(x0 + (cx + 1) * fire.mask_cell_m, s.window_m[2])
+        ay0 = np.maximum(y0 + cy * fire.mask_cell_m, s.window_m[1])
+        ay1 = np.minimum(y0 + (cy + 1) * fire.mask_cell_m, s.window_m[3])
+        self.assertAlmostEqual(float(np.sum(np.clip(ax1 - ax0, 0, None) * np.clip(ay1 - ay0, 0, None))), fire.area_m2,
+                               places=6)
+        # The fire (year 1, August) kills every plant of a burnt cell (severity 1, scorch above
+        # all): a plant of the census before it (year 1) still alive in the next (year 2) stands
+        # outside the mask, and plants before it inside the mask are gone.
+        before, after = s.snapshots[1], s.snapshots[2]
+        survived = np.isin(before["id"], after["id"])
+        inside = fire.mask_contains(before["x"], before["y"])
+        self.assertGreater(int(inside.sum()), 0)
+        self.assertGreater(int(survived.sum()), 0)
+        self.assertEqual(int((survived & inside).sum()), 0)
+        # A storm's mask: cells in which a plant was thrown (killed_total > 0 then).
+        storm = s.disturbances[1]
+        self.assertEqual(storm.mask.shape, fire.mask.shape)
+        self.assertEqual(int(storm.mask.any()), int(storm.killed_total > 0))
 
 
 class TestSimulation(unittest.TestCase):
