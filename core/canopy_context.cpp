@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include "error.h"
 
@@ -101,32 +102,41 @@ void distanceTransform1d(const double* f, int n, double* d, int* v, double* z) {
     }
 }
 
-/// Squared distance (in cells^2) from every cell to the nearest cell with mask == target;
-/// kFar where there is none.
-std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8_t target) {
+/// No cell of the target class in the column.
+constexpr std::uint32_t kNoneInColumn = std::numeric_limits<std::uint32_t>::max();
+
+/// Distance (in cells) along its column from every cell to the nearest cell of the column
+/// that is covered (toCovered) and uncovered (toOpen); kNoneInColumn where the column has
+/// none. Two sweeps down and up the rows of a block of columns (reading the grid row by row
+/// instead of a column at a time). Along the columns the input of the 2-D transform is 0 or
+/// far, so its column pass is the square of this distance exactly.
+void columnDistances(const Grid<std::uint8_t>& mask, std::uint32_t* toCovered, std::uint32_t* toOpen) {
     const int w = mask.width(), h = mask.height();
-    std::vector<double> g(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-    // Along the columns the input is 0 or kFar, so the transform is the squared distance to
-    // the nearest target cell in the column (what distanceTransform1d gives exactly): two
-    // sweeps down and up the rows of a block of columns, reading the grid row by row instead
-    // of a column at a time.
     constexpr int kBlockColumns = 256;
     const int nBlocks = (w + kBlockColumns - 1) / kBlockColumns;
 #pragma omp parallel
     {
-        std::vector<int> nearest(static_cast<std::size_t>(kBlockColumns));
-        // Rows first .. last (exclusive) in steps of step: the squared distance to the nearest
-        // target met so far in each column; kept only where nearer when `nearer`.
+        std::vector<int> metCovered(static_cast<std::size_t>(kBlockColumns)), metOpen(static_cast<std::size_t>(kBlockColumns));
+        // Rows first .. last (exclusive) in steps of step: the distance to the nearest cell of
+        // each class met so far in each column; kept only where nearer when `nearer`.
         auto sweep = [&](int x0, int x1, int first, int last, int step, bool nearer) {
-            std::fill(nearest.begin(), nearest.end(), -1);
+            std::fill(metCovered.begin(), metCovered.end(), -1);
+            std::fill(metOpen.begin(), metOpen.end(), -1);
             for (int iy = first; iy != last; iy += step) {
                 const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
-                double* row = g.data() + mask.index(0, iy);
+                std::uint32_t* rowC = toCovered + mask.index(0, iy);
+                std::uint32_t* rowO = toOpen + mask.index(0, iy);
                 for (int ix = x0; ix < x1; ++ix) {
-                    int& met = nearest[static_cast<std::size_t>(ix - x0)];
-                    if (m[ix] == target) met = iy;
-                    const double d = double(iy - met), d2 = met < 0 ? kFar : d * d;
-                    if (!nearer || d2 < row[ix]) row[ix] = d2;
+                    int& mc = metCovered[static_cast<std::size_t>(ix - x0)];
+                    int& mo = metOpen[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == 1)
+                        mc = iy;
+                    else if (m[ix] == 0)
+                        mo = iy;
+                    const std::uint32_t dc = mc < 0 ? kNoneInColumn : static_cast<std::uint32_t>(std::abs(iy - mc));
+                    const std::uint32_t dn = mo < 0 ? kNoneInColumn : static_cast<std::uint32_t>(std::abs(iy - mo));
+                    if (!nearer || dc < rowC[ix]) rowC[ix] = dc;
+                    if (!nearer || dn < rowO[ix]) rowO[ix] = dn;
                 }
             }
         };
@@ -137,19 +147,11 @@ std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8
             sweep(x0, x1, h - 1, -1, -1, true);
         }
     }
-#pragma omp parallel
-    {
-        std::vector<double> d(static_cast<std::size_t>(w)), z(static_cast<std::size_t>(w) + 1);
-        std::vector<int> v(static_cast<std::size_t>(w));
-#pragma omp for schedule(static)
-        for (int iy = 0; iy < h; ++iy) {
-            double* row = g.data() + mask.index(0, iy);
-            distanceTransform1d(row, w, d.data(), v.data(), z.data());
-            std::copy(d.begin(), d.end(), row);
-        }
-    }
-    return g;
 }
+
+/// The squared column distance of columnDistances as the 2-D transform's input: kFar where
+/// the column has no target.
+inline double squaredColumnDistance(std::uint32_t d) { return d == kNoneInColumn ? kFar : double(d) * double(d); }
 
 }  // namespace
 
@@ -157,17 +159,37 @@ Grid<float> canopyDepthMap(const Grid<float>& geometry, const std::vector<Plant>
     const Grid<std::uint8_t> mask = canopyCoverMask(geometry, canopy);
     Grid<float> depth = Grid<float>::like(geometry, 0.0f);
     if (mask.empty()) return depth;
-    const std::vector<double> toCovered = squaredDistanceTo(mask, 1), toOpen = squaredDistanceTo(mask, 0);
+    // Squared Euclidean distance (cells^2) from every cell to the nearest uncovered cell
+    // (toOpen) and to the nearest covered one (toCovered): the column pass into two arrays
+    // of 4 bytes a cell (uninitialised: every cell is written), the row pass one row at a
+    // time into scratch, and the depth made from the row at once (no full-grid arrays of
+    // squared distances).
+    const int w = mask.width(), h = mask.height();
+    const std::size_t n = mask.size();
+    const std::unique_ptr<std::uint32_t[]> colCovered(new std::uint32_t[n]), colOpen(new std::uint32_t[n]);
+    columnDistances(mask, colCovered.get(), colOpen.get());
     const double cs = geometry.cellSizeM();
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(mask.size());
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < n; ++i) {
-        const std::size_t c = static_cast<std::size_t>(i);
-        const bool covered = mask.data()[c] != 0;
-        const double d2 = covered ? toOpen[c] : toCovered[c];
-        double dm = d2 >= kFar * 0.5 ? kCanopyDepthCapM : (std::sqrt(d2) - 0.5) * cs;
-        dm = std::min(dm, kCanopyDepthCapM);
-        depth.data()[c] = static_cast<float>(covered ? dm : -dm);
+#pragma omp parallel
+    {
+        const std::size_t ws = static_cast<std::size_t>(w);
+        std::vector<double> f(ws), toCovered(ws), toOpen(ws), z(ws + 1);
+        std::vector<int> v(ws);
+#pragma omp for schedule(static)
+        for (int iy = 0; iy < h; ++iy) {
+            const std::size_t row = mask.index(0, iy);
+            for (std::size_t ix = 0; ix < ws; ++ix) f[ix] = squaredColumnDistance(colCovered[row + ix]);
+            distanceTransform1d(f.data(), w, toCovered.data(), v.data(), z.data());
+            for (std::size_t ix = 0; ix < ws; ++ix) f[ix] = squaredColumnDistance(colOpen[row + ix]);
+            distanceTransform1d(f.data(), w, toOpen.data(), v.data(), z.data());
+            for (std::size_t ix = 0; ix < ws; ++ix) {
+                const std::size_t c = row + ix;
+                const bool covered = mask.data()[c] != 0;
+                const double d2 = covered ? toOpen[ix] : toCovered[ix];
+                double dm = d2 >= kFar * 0.5 ? kCanopyDepthCapM : (std::sqrt(d2) - 0.5) * cs;
+                dm = std::min(dm, kCanopyDepthCapM);
+                depth.data()[c] = static_cast<float>(covered ? dm : -dm);
+            }
+        }
     }
     return depth;
 }
