@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <limits>
 #include <memory>
 #include <new>
@@ -23,6 +22,7 @@
 
 #include "biome.h"
 #include "grid.h"
+#include "memory.h"
 #include "plants.h"
 #include "point_pattern.h"
 #include "rng.h"
@@ -79,21 +79,6 @@ inline void adviseHugePages(void* p, std::size_t bytes) {
     (void)p;
     (void)bytes;
 #endif
-}
-
-/// Writes zeros over `bytes` of fresh memory (a vector's reserved capacity, before its
-/// resize) in parallel blocks of 2 MB, so that the kernel's page faults are shared between
-/// the threads instead of all taken by the one that resizes.
-inline void firstTouch(void* p, std::size_t bytes) {
-    constexpr std::size_t kBlock = std::size_t{1} << 21;
-    if (bytes < 4 * kBlock) return;
-    unsigned char* base = static_cast<unsigned char*>(p);
-    const std::int64_t blocks = static_cast<std::int64_t>((bytes + kBlock - 1) / kBlock);
-#pragma omp parallel for schedule(static)
-    for (std::int64_t b = 0; b < blocks; ++b) {
-        const std::size_t at = static_cast<std::size_t>(b) * kBlock;
-        std::memset(base + at, 0, std::min(kBlock, bytes - at));
-    }
 }
 
 /// An uninitialised array of trivially copyable items (a std::vector clears its items on

@@ -893,8 +893,8 @@ void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::v
     adviseHugePages(out.plantRegion.data(), count * sizeof(int));
     // The plants' fresh pages faulted in by every thread (430 MB at 3072^2): the resize below
     // runs on one thread, and its page faults were a large serial part of this phase.
-    firstTouch(out.plants.data(), count * sizeof(Plant));
-    firstTouch(out.plantRegion.data(), count * sizeof(int));
+    prepareLargeBuffer(out.plants.data(), count * sizeof(Plant));
+    prepareLargeBuffer(out.plantRegion.data(), count * sizeof(int));
     out.plants.resize(count);
     out.plantRegion.resize(count);
     std::int64_t limited = 0;
