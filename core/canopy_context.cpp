@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include "error.h"
 
@@ -101,32 +102,41 @@ void distanceTransform1d(const double* f, int n, double* d, int* v, double* z) {
     }
 }
 
-/// Squared distance (in cells^2) from every cell to the nearest cell with mask == target;
-/// kFar where there is none.
-std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8_t target) {
+/// No cell of the target class in the column.
+constexpr std::uint32_t kNoneInColumn = std::numeric_limits<std::uint32_t>::max();
+
+/// Distance (in cells) along its column from every cell to the nearest cell of the column
+/// that is covered (toCovered) and uncovered (toOpen); kNoneInColumn where the column has
+/// none. Two sweeps down and up the rows of a block of columns (reading the grid row by row
+/// instead of a column at a time). Along the columns the input of the 2-D transform is 0 or
+/// far, so its column pass is the square of this distance exactly.
+void columnDistances(const Grid<std::uint8_t>& mask, std::uint32_t* toCovered, std::uint32_t* toOpen) {
     const int w = mask.width(), h = mask.height();
-    std::vector<double> g(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-    // Along the columns the input is 0 or kFar, so the transform is the squared distance to
-    // the nearest target cell in the column (what distanceTransform1d gives exactly): two
-    // sweeps down and up the rows of a block of columns, reading the grid row by row instead
-    // of a column at a time.
     constexpr int kBlockColumns = 256;
     const int nBlocks = (w + kBlockColumns - 1) / kBlockColumns;
 #pragma omp parallel
     {
-        std::vector<int> nearest(static_cast<std::size_t>(kBlockColumns));
-        // Rows first .. last (exclusive) in steps of step: the squared distance to the nearest
-        // target met so far in each column; kept only where nearer when `nearer`.
+        std::vector<int> metCovered(static_cast<std::size_t>(kBlockColumns)), metOpen(static_cast<std::size_t>(kBlockColumns));
+        // Rows first .. last (exclusive) in steps of step: the distance to the nearest cell of
+        // each class met so far in each column; kept only where nearer when `nearer`.
         auto sweep = [&](int x0, int x1, int first, int last, int step, bool nearer) {
-            std::fill(nearest.begin(), nearest.end(), -1);
+            std::fill(metCovered.begin(), metCovered.end(), -1);
+            std::fill(metOpen.begin(), metOpen.end(), -1);
             for (int iy = first; iy != last; iy += step) {
                 const std::uint8_t* m = &mask.data()[mask.index(0, iy)];
-                double* row = g.data() + mask.index(0, iy);
+                std::uint32_t* rowC = toCovered + mask.index(0, iy);
+                std::uint32_t* rowO = toOpen + mask.index(0, iy);
                 for (int ix = x0; ix < x1; ++ix) {
-                    int& met = nearest[static_cast<std::size_t>(ix - x0)];
-                    if (m[ix] == target) met = iy;
-                    const double d = double(iy - met), d2 = met < 0 ? kFar : d * d;
-                    if (!nearer || d2 < row[ix]) row[ix] = d2;
+                    int& mc = metCovered[static_cast<std::size_t>(ix - x0)];
+                    int& mo = metOpen[static_cast<std::size_t>(ix - x0)];
+                    if (m[ix] == 1)
+                        mc = iy;
+                    else if (m[ix] == 0)
+                        mo = iy;
+                    const std::uint32_t dc = mc < 0 ? kNoneInColumn : static_cast<std::uint32_t>(std::abs(iy - mc));
+                    const std::uint32_t dn = mo < 0 ? kNoneInColumn : static_cast<std::uint32_t>(std::abs(iy - mo));
+                    if (!nearer || dc < rowC[ix]) rowC[ix] = dc;
+                    if (!nearer || dn < rowO[ix]) rowO[ix] = dn;
                 }
             }
         };
@@ -137,19 +147,11 @@ std::vector<double> squaredDistanceTo(const Grid<std::uint8_t>& mask, std::uint8
             sweep(x0, x1, h - 1, -1, -1, true);
         }
     }
-#pragma omp parallel
-    {
-        std::vector<double> d(static_cast<std::size_t>(w)), z(static_cast<std::size_t>(w) + 1);
-        std::vector<int> v(static_cast<std::size_t>(w));
-#pragma omp for schedule(static)
-        for (int iy = 0; iy < h; ++iy) {
-            double* row = g.data() + mask.index(0, iy);
-            distanceTransform1d(row, w, d.data(), v.data(), z.data());
-            std::copy(d.begin(), d.end(), row);
-        }
-    }
-    return g;
 }
+
+/// The squared column distance of columnDistances as the 2-D transform's input: kFar where
+/// the column has no target.
+inline double squaredColumnDistance(std::uint32_t d) { return d == kNoneInColumn ? kFar : double(d) * double(d); }
 
 }  // namespace
 
@@ -157,17 +159,37 @@ Grid<float> canopyDepthMap(const Grid<float>& geometry, const std::vector<Plant>
     const Grid<std::uint8_t> mask = canopyCoverMask(geometry, canopy);
     Grid<float> depth = Grid<float>::like(geometry, 0.0f);
     if (mask.empty()) return depth;
-    const std::vector<double> toCovered = squaredDistanceTo(mask, 1), toOpen = squaredDistanceTo(mask, 0);
+    // Squared Euclidean distance (cells^2) from every cell to the nearest uncovered cell
+    // (toOpen) and to the nearest covered one (toCovered): the column pass into two arrays
+    // of 4 bytes a cell (uninitialised: every cell is written), the row pass one row at a
+    // time into scratch, and the depth made from the row at once (no full-grid arrays of
+    // squared distances).
+    const int w = mask.width(), h = mask.height();
+    const std::size_t n = mask.size();
+    const std::unique_ptr<std::uint32_t[]> colCovered(new std::uint32_t[n]), colOpen(new std::uint32_t[n]);
+    columnDistances(mask, colCovered.get(), colOpen.get());
     const double cs = geometry.cellSizeM();
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(mask.size());
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < n; ++i) {
-        const std::size_t c = static_cast<std::size_t>(i);
-        const bool covered = mask.data()[c] != 0;
-        const double d2 = covered ? toOpen[c] : toCovered[c];
-        double dm = d2 >= kFar * 0.5 ? kCanopyDepthCapM : (std::sqrt(d2) - 0.5) * cs;
-        dm = std::min(dm, kCanopyDepthCapM);
-        depth.data()[c] = static_cast<float>(covered ? dm : -dm);
+#pragma omp parallel
+    {
+        const std::size_t ws = static_cast<std::size_t>(w);
+        std::vector<double> f(ws), toCovered(ws), toOpen(ws), z(ws + 1);
+        std::vector<int> v(ws);
+#pragma omp for schedule(static)
+        for (int iy = 0; iy < h; ++iy) {
+            const std::size_t row = mask.index(0, iy);
+            for (std::size_t ix = 0; ix < ws; ++ix) f[ix] = squaredColumnDistance(colCovered[row + ix]);
+            distanceTransform1d(f.data(), w, toCovered.data(), v.data(), z.data());
+            for (std::size_t ix = 0; ix < ws; ++ix) f[ix] = squaredColumnDistance(colOpen[row + ix]);
+            distanceTransform1d(f.data(), w, toOpen.data(), v.data(), z.data());
+            for (std::size_t ix = 0; ix < ws; ++ix) {
+                const std::size_t c = row + ix;
+                const bool covered = mask.data()[c] != 0;
+                const double d2 = covered ? toOpen[ix] : toCovered[ix];
+                double dm = d2 >= kFar * 0.5 ? kCanopyDepthCapM : (std::sqrt(d2) - 0.5) * cs;
+                dm = std::min(dm, kCanopyDepthCapM);
+                depth.data()[c] = static_cast<float>(covered ? dm : -dm);
+            }
+        }
     }
     return depth;
 }
@@ -183,62 +205,77 @@ Grid<std::uint8_t> canopyContextMap(const Grid<float>& depthM, const CanopyConte
 
 CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
     double x0 = kNone, y0 = kNone, x1 = -kNone, y1 = -kNone, radiusSum = 0;
+    std::vector<const Plant*> trees;
     for (const Plant& t : canopy) {
         if (!(t.crownRadiusM > 0)) continue;
-        x_.push_back(t.xM);
-        y_.push_back(t.yM);
-        radius_.push_back(t.crownRadiusM);
-        height_.push_back(t.heightM);
+        trees.push_back(&t);
         x0 = std::min(x0, t.xM - t.crownRadiusM);
         x1 = std::max(x1, t.xM + t.crownRadiusM);
         y0 = std::min(y0, t.yM - t.crownRadiusM);
         y1 = std::max(y1, t.yM + t.crownRadiusM);
         radiusSum += t.crownRadiusM;
     }
-    if (x_.empty()) return;
+    if (trees.empty()) return;
     // Cells of about the mean crown radius: a crown spans a few of them, a cell lists a few
     // crowns (at most 4096 cells a side, for memory). A crown is listed one cell beyond its
     // bounding box on each side, so that a point that the rounded distance test puts inside
     // it is never in a cell that does not list it.
-    const double cell = std::max({0.25, radiusSum / static_cast<double>(x_.size()), std::max(x1 - x0, y1 - y0) / 4096});
+    const double cell = std::max({0.25, radiusSum / static_cast<double>(trees.size()), std::max(x1 - x0, y1 - y0) / 4096});
     invCellM_ = 1.0 / cell;
     originX_ = x0 - cell;
     originY_ = y0 - cell;
     nx_ = static_cast<int>((x1 - originX_) * invCellM_) + 2;
     ny_ = static_cast<int>((y1 - originY_) * invCellM_) + 2;
     const std::size_t nCells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
+    auto cellOf = [&](double v, double origin, int n) { return std::clamp(static_cast<int>(std::floor((v - origin) * invCellM_)), 0, n - 1); };
+    auto cellIndex = [&](int ix, int iy) { return static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(ix); };
+    // The discs in the order of their trunk's cell (a query reads the discs of one cell, and
+    // nearby queries nearby discs: one cache line per disc tested, not four arrays at random
+    // places). The lowest crown over a point does not depend on the order.
     struct Box {
         int x0, x1, y0, y1;
     };
-    std::vector<Box> box(x_.size());
-    for (std::size_t t = 0; t < x_.size(); ++t) {
-        auto cellOf = [&](double v, double origin, int n) { return std::clamp(static_cast<int>(std::floor((v - origin) * invCellM_)), 0, n - 1); };
-        box[t] = Box{std::max(0, cellOf(x_[t] - radius_[t], originX_, nx_) - 1), std::min(nx_ - 1, cellOf(x_[t] + radius_[t], originX_, nx_) + 1),
-                     std::max(0, cellOf(y_[t] - radius_[t], originY_, ny_) - 1), std::min(ny_ - 1, cellOf(y_[t] + radius_[t], originY_, ny_) + 1)};
+    std::vector<Box> box(trees.size());
+    {
+        std::vector<std::uint32_t> at(nCells + 1, 0);
+        std::vector<std::uint32_t> trunkCell(trees.size());
+        for (std::size_t t = 0; t < trees.size(); ++t) {
+            trunkCell[t] = static_cast<std::uint32_t>(cellIndex(cellOf(trees[t]->xM, originX_, nx_), cellOf(trees[t]->yM, originY_, ny_)));
+            ++at[trunkCell[t] + 1];
+        }
+        for (std::size_t c = 0; c < nCells; ++c) at[c + 1] += at[c];
+        disc_.resize(trees.size());
+        for (std::size_t t = 0; t < trees.size(); ++t) {
+            const Plant& p = *trees[t];
+            const double x = p.xM, y = p.yM, r = p.crownRadiusM;
+            const std::size_t k = at[trunkCell[t]]++;
+            disc_[k] = Disc{x, y, r * r, p.heightM};
+            box[k] = Box{std::max(0, cellOf(x - r, originX_, nx_) - 1), std::min(nx_ - 1, cellOf(x + r, originX_, nx_) + 1),
+                         std::max(0, cellOf(y - r, originY_, ny_) - 1), std::min(ny_ - 1, cellOf(y + r, originY_, ny_) + 1)};
+        }
     }
     start_.assign(nCells + 1, 0);
     for (const Box& b : box)
         for (int iy = b.y0; iy <= b.y1; ++iy)
-            for (int ix = b.x0; ix <= b.x1; ++ix) ++start_[static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(ix) + 1];
+            for (int ix = b.x0; ix <= b.x1; ++ix) ++start_[cellIndex(ix, iy) + 1];
     for (std::size_t c = 0; c < nCells; ++c) start_[c + 1] += start_[c];
     crown_.resize(start_[nCells]);
     std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
     for (std::size_t t = 0; t < box.size(); ++t)
         for (int iy = box[t].y0; iy <= box[t].y1; ++iy)
-            for (int ix = box[t].x0; ix <= box[t].x1; ++ix)
-                crown_[fill[static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(ix)]++] = static_cast<std::uint32_t>(t);
+            for (int ix = box[t].x0; ix <= box[t].x1; ++ix) crown_[fill[cellIndex(ix, iy)]++] = static_cast<std::uint32_t>(t);
 }
 
 double CanopyCover::lowestCrownAboveM(double xM, double yM) const {
     double lowest = kNone;
-    if (x_.empty()) return lowest;
+    if (disc_.empty()) return lowest;
     const double fx = std::floor((xM - originX_) * invCellM_), fy = std::floor((yM - originY_) * invCellM_);
     if (!(fx >= 0 && fx < nx_ && fy >= 0 && fy < ny_)) return lowest;  // beyond every crown
     const std::size_t c = static_cast<std::size_t>(fy) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(fx);
     for (std::uint32_t e = start_[c]; e < start_[c + 1]; ++e) {
-        const std::size_t t = crown_[e];
-        const double dx = x_[t] - xM, dy = y_[t] - yM;
-        if (dx * dx + dy * dy < radius_[t] * radius_[t]) lowest = std::min(lowest, height_[t]);
+        const Disc& d = disc_[crown_[e]];
+        const double dx = d.x - xM, dy = d.y - yM;
+        if (dx * dx + dy * dy < d.radius2) lowest = std::min(lowest, d.height);
     }
     return lowest;
 }

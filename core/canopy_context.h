@@ -69,7 +69,10 @@ private:
     int nx_ = 0, ny_ = 0;
     std::vector<std::uint32_t> start_;  ///< [ny][nx] + 1: first entry of each cell in crown_
     std::vector<std::uint32_t> crown_;  ///< per entry: a tree whose crown may reach the cell
-    std::vector<double> x_, y_, radius_, height_;  ///< per tree with a crown
+    struct Disc {
+        double x, y, radius2, height;  ///< trunk, squared crown radius, height
+    };
+    std::vector<Disc> disc_;  ///< per tree with a crown, in the order of its trunk's cell
 };
 
 }  // namespace eco

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "error.h"
+#include "memory.h"
 
 namespace eco {
 
@@ -52,7 +53,12 @@ public:
         if (!(cellSizeM > 0.0) || !std::isfinite(cellSizeM))
             throw ValidationError("Grid: cell size must be positive and finite, got " +
                                   std::to_string(cellSizeM));
-        data_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), fill);
+        const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+        if (n * sizeof(T) >= kLargeBufferBytes) {  // its pages faulted in by every thread
+            data_.reserve(n);
+            prepareLargeBuffer(data_.data(), n * sizeof(T));
+        }
+        data_.assign(n, fill);
     }
 
     /// Same geometry (size, cell size, origin, CRS) as `other`, every cell set to `fill`.

@@ -1,11 +1,13 @@
 // Memory checks before large allocations (memory.h).
 #include "memory.h"
 
+#include <sys/mman.h>
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -52,6 +54,23 @@ void requireMemory(double bytes, const std::string& what, const std::string& hin
     if (avail == 0 || bytes <= static_cast<double>(avail)) return;
     throw ValidationError(what + " needs about " + bytesText(bytes) + " of memory but the machine has " +
                           bytesText(static_cast<double>(avail)) + " available" + (hint.empty() ? "" : " (" + hint + ")"));
+}
+
+void prepareLargeBuffer(void* p, std::size_t bytes) {
+    if (p == nullptr || bytes < kLargeBufferBytes) return;
+    constexpr std::size_t kBlock = std::size_t{1} << 21;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(p) + kBlock - 1) & ~(kBlock - 1);
+    const std::uintptr_t b = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kBlock - 1);
+    if (b > a) madvise(reinterpret_cast<void*>(a), b - a, MADV_HUGEPAGE);
+#endif
+    unsigned char* base = static_cast<unsigned char*>(p);
+    const std::int64_t blocks = static_cast<std::int64_t>((bytes + kBlock - 1) / kBlock);
+#pragma omp parallel for schedule(static)
+    for (std::int64_t k = 0; k < blocks; ++k) {
+        const std::size_t at = static_cast<std::size_t>(k) * kBlock;
+        std::memset(base + at, 0, std::min(kBlock, bytes - at));
+    }
 }
 
 }  // namespace eco

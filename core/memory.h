@@ -3,6 +3,7 @@
 // std::bad_alloc deep inside a computation (or an abort inside an OpenMP region).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
@@ -22,5 +23,13 @@ std::string bytesText(double bytes);
 /// (<hint>)" when `bytes` exceeds what is available; nothing when the amount is unknown.
 /// `bytes` is a double so that products of sizes cannot overflow before the check.
 void requireMemory(double bytes, const std::string& what, const std::string& hint);
+
+/// Prepares `bytes` of fresh memory (a vector's reserved capacity, before it is filled)
+/// when it is large: advised for transparent huge pages (Linux) and first touched by all
+/// OpenMP threads in blocks of 2 MB, so that the kernel's page faults are fewer and shared
+/// between the threads instead of all taken, 4 kB at a time, by the one thread that fills it.
+/// The contents are left as zeros. Does nothing below `kLargeBufferBytes`.
+inline constexpr std::size_t kLargeBufferBytes = std::size_t{16} << 20;
+void prepareLargeBuffer(void* p, std::size_t bytes);
 
 }  // namespace eco

@@ -170,10 +170,13 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
                     wrow[ix] += std::min(1.0f, std::max(0.0f, k));
                 }
             }
+            // The band's weights capped at 1 (here rather than in a serial pass at the end).
+            for (int iy = by0; iy <= by1; ++iy) {
+                float* wrow = &(*seedWeight)(0, iy);
+                for (int ix = 0; ix < w; ++ix) wrow[ix] = std::min(wrow[ix], 1.0f);
+            }
         }
     }
-    if (seedWeight)
-        for (float& v : seedWeight->data()) v = std::min(v, 1.0f);
     return labels;
 }
 

@@ -93,8 +93,10 @@ inline void crownRows(const Crown& c, double originY, double cell, int height, i
 /// the buffers do not depend on the number of threads.
 void render(const std::vector<Crown>& crowns, int w, int h, double cell, double ox, double oy, Frame& f) {
     const std::size_t nCells = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
-    f.depth.assign(nCells, std::numeric_limits<float>::lowest());
-    f.id.assign(nCells, -1);
+    // Cleared band by band in the parallel loop below (two grids of 4 bytes a cell: on one
+    // thread their fill was a serial part of every render).
+    f.depth.resize(nCells);
+    f.id.resize(nCells);
     f.disc.assign(crowns.size(), 0);
     const int nBands = (h + kBandRows - 1) / kBandRows;
     // Bucket crowns by band (counting sort keeps index order inside a band).
@@ -119,6 +121,13 @@ void render(const std::vector<Crown>& crowns, int w, int h, double cell, double 
 #pragma omp parallel for schedule(dynamic, 1)
     for (int b = 0; b < nBands; ++b) {
         const int bandLo = b * kBandRows, bandHi = std::min(h, bandLo + kBandRows) - 1;
+        {
+            const std::size_t lo = static_cast<std::size_t>(bandLo) * static_cast<std::size_t>(w);
+            const std::size_t hi = static_cast<std::size_t>(bandHi + 1) * static_cast<std::size_t>(w);
+            std::fill(f.depth.begin() + static_cast<std::ptrdiff_t>(lo), f.depth.begin() + static_cast<std::ptrdiff_t>(hi),
+                      std::numeric_limits<float>::lowest());
+            std::fill(f.id.begin() + static_cast<std::ptrdiff_t>(lo), f.id.begin() + static_cast<std::ptrdiff_t>(hi), -1);
+        }
         for (std::size_t e = start[static_cast<std::size_t>(b)]; e < start[static_cast<std::size_t>(b) + 1]; ++e) {
             const std::int32_t t = entries[e];
             const Crown& c = crowns[static_cast<std::size_t>(t)];

@@ -22,6 +22,7 @@
 
 #include "biome.h"
 #include "grid.h"
+#include "memory.h"
 #include "plants.h"
 #include "point_pattern.h"
 #include "rng.h"
