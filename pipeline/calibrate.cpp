@@ -406,11 +406,14 @@ SearchResult minimiseInUnitCube(const std::function<double(const std::vector<dou
     if (settings.global == "none") {
         add(runOptimiser(f, local, settings.algorithm, start, settings.maxEvaluations, settings, false));
     } else if (settings.global == "multistart") {
-        // The budget is shared: each start gets what the earlier ones left (at least 2).
-        for (const std::vector<double>& x : multistartPoints(static_cast<int>(start.size()), settings.starts, start, settings.seed)) {
+        // The budget is shared: each start gets an equal share of what the earlier ones left
+        // (a start that converges early leaves its rest to the later ones), at least 2.
+        const std::vector<std::vector<double>> starts = multistartPoints(static_cast<int>(start.size()), settings.starts, start, settings.seed);
+        for (std::size_t n = 0; n < starts.size(); ++n) {
             const int left = settings.maxEvaluations - r.evaluations;
-            if (left < 2) break;
-            add(runOptimiser(f, local, settings.algorithm, x, left, settings, false));
+            const int share = left / static_cast<int>(starts.size() - n);
+            if (share < 2) break;
+            add(runOptimiser(f, local, settings.algorithm, starts[n], share, settings, false));
         }
     } else if (settings.global == "crs2" || settings.global == "isres") {
         const int globalBudget = settings.globalEvaluations > 0 ? settings.globalEvaluations : settings.maxEvaluations / 2;

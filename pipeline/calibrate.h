@@ -116,7 +116,7 @@ struct SearchSettings {
     int starts = 4;
     int globalEvaluations = 0;
     std::uint64_t seed = 1;
-    int maxEvaluations = 40;   ///< of the whole search (every start, both phases)
+    int maxEvaluations = 40;   ///< of the whole search (every start, both phases; multistart: an equal share of what is left per start)
     double tolerance = 1e-3;
     double initialStep = 0.25;
 };
