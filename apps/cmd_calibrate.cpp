@@ -47,8 +47,8 @@ void registerCalibrateCommand(CLI::App& app) {
         "calibrate",
         "Fit species parameters and model constants within bounds (linear, log-scaled or integer) to observations "
         "(species shares, density, mean heights, cover, height quantiles at a year; cv of the plant count; a field "
-        "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt) of "
-        "chi2 over simulations averaged over replicate seeds, run as an eco ensemble (parallel; a killed calibration "
+        "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt; local, or global: "
+        "multistart, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (parallel; a killed calibration "
         "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
         "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");
     sub->add_option("spec", a->spec, "Calibration specification (TOML; configs/calibrate.toml is an example)")

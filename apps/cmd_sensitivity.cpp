@@ -21,11 +21,11 @@ void runSensitivity(const SensitivityArgs& a) {
     const pipeline::SensitivitySpec spec = pipeline::loadSensitivitySpec(a.spec, a.outDir);
     const std::string k = std::to_string(spec.parameters.size());
     if (spec.method == pipeline::SensitivitySpec::Method::Sobol) {
-        const pipeline::SobolDesign design = pipeline::sobolDesign(static_cast<int>(spec.parameters.size()), spec.samples, spec.seed);
+        const pipeline::SobolDesign design = pipeline::sobolDesign(spec);
         const std::string members = pipeline::writeSobolEnsemble(spec, design);
         info("sensitivity: Sobol indices of " + std::to_string(spec.outputs.size()) + " outputs for " + k + " parameters: N = " +
              std::to_string(spec.samples) + " x " + std::to_string(spec.parameters.size() + 2) + " matrices x " + std::to_string(spec.replicates) +
-             " replicates, run as the ensemble " + members);
+             " replicates (" + (spec.sampling == pipeline::SensitivitySpec::Sampling::QuasiRandom ? "quasi-random" : "pseudo-random") + "), run as the ensemble " + members);
         if (runEnsembleFile(members, "", a.dryRun) != 0 || a.dryRun) return;
         const pipeline::SensitivityReport r = pipeline::writeSobolReport(spec, design);
         printResult("first-order S and total ST by output (largest ST first):\n%s%s\n%s\n", r.summary.c_str(), r.markdownPath.c_str(), r.csvPath.c_str());

@@ -16,6 +16,8 @@
 #include "chart.h"
 #include "error.h"
 #include "image_out.h"
+#include "rng.h"
+#include "sobol_sequence.h"
 #include "strict_toml.h"
 #include "text_format.h"
 
@@ -32,6 +34,8 @@ nlopt_algorithm algorithmOf(const std::string& name) {
     if (name == "cobyla") return NLOPT_LN_COBYLA;
     throw ValidationError("unknown algorithm '" + name + "'");
 }
+
+bool convergedBy(nlopt_result r) { return r == NLOPT_SUCCESS || r == NLOPT_XTOL_REACHED || r == NLOPT_FTOL_REACHED || r == NLOPT_STOPVAL_REACHED; }
 
 std::string stopText(nlopt_result r) {
     switch (r) {
@@ -76,6 +80,28 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     spec.tolerance = c.numberInOr("tolerance", 1e-9, 0.5, spec.tolerance);
     spec.initialStep = c.numberInOr("initial_step", 1e-3, 1.0, spec.initialStep);
     spec.uncertainty = c.booleanOr("uncertainty", spec.uncertainty);
+    spec.global = c.stringOr("global", spec.global);
+    if (spec.global != "none" && spec.global != "multistart" && spec.global != "crs2" && spec.global != "isres")
+        c.fail("global", "'" + spec.global + "' is not one of none, multistart, crs2, isres");
+    if (spec.global == "multistart") {
+        spec.starts = static_cast<int>(c.integerOr("starts", spec.starts));
+        if (spec.starts < 2 || spec.starts > 100) c.fail("starts", "must be in 2 .. 100");
+    } else if (c.has("starts")) {
+        c.fail("starts", "is a key of global = \"multistart\"");
+    }
+    if (spec.global == "crs2" || spec.global == "isres") {
+        spec.globalEvaluations = static_cast<int>(c.integerOr("global_evaluations", spec.maxEvaluations / 2));
+        if (spec.globalEvaluations < 2 || spec.globalEvaluations >= spec.maxEvaluations)
+            c.fail("global_evaluations", "must be in 2 .. max_evaluations - 1 (" + std::to_string(spec.maxEvaluations - 1) + ")");
+    } else if (c.has("global_evaluations")) {
+        c.fail("global_evaluations", "is a key of global = \"crs2\" or \"isres\"");
+    }
+    if (spec.global == "none" && c.has("seed")) c.fail("seed", "is a key of a global search (global = multistart, crs2 or isres)");
+    {
+        const std::int64_t seed = c.integerOr("seed", 1);
+        if (seed < 0) c.fail("seed", "must not be negative");
+        spec.seed = static_cast<std::uint64_t>(seed);
+    }
     spec.membersAtOnce = static_cast<int>(c.integerOr("members_at_once", 1));
     if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) c.fail("members_at_once", "must be in 1 .. 256");
     for (const auto& [k, v] : c.table("parameters")) {
@@ -243,25 +269,61 @@ private:
     std::size_t best_ = 0;
 };
 
-struct Objective {
-    Calibrator* calibrator;
-    const CalibrationSpec* spec;
+struct CubeObjective {
+    const std::function<double(const std::vector<double>&)>* f;
     nlopt_opt opt;
     std::exception_ptr error;
+    int calls = 0;
 };
 
-double objective(unsigned n, const double* u, double* /*grad*/, void* data) {
-    auto* o = static_cast<Objective*>(data);
+double cubeObjective(unsigned n, const double* u, double* /*grad*/, void* data) {
+    auto* o = static_cast<CubeObjective*>(data);
     try {
-        std::vector<double> values(n);
-        for (unsigned i = 0; i < n; ++i) values[i] = o->spec->parameters[i].at(std::clamp(u[i], 0.0, 1.0));
-        return o->calibrator->evaluate(values, "search").chi2;
+        std::vector<double> x(n);
+        for (unsigned i = 0; i < n; ++i) x[i] = std::clamp(u[i], 0.0, 1.0);
+        ++o->calls;
+        const double v = (*o->f)(x);
+        return std::isnan(v) ? HUGE_VAL : v;
     } catch (...) {
         // No exception may cross NLopt's C frames: kept, and rethrown after the optimiser stops.
         o->error = std::current_exception();
         nlopt_force_stop(o->opt);
         return HUGE_VAL;
     }
+}
+
+/// One NLopt run in the unit cube from `start`.
+SearchRun runOptimiser(const std::function<double(const std::vector<double>&)>& f, nlopt_algorithm algorithm, const std::string& name,
+                       const std::vector<double>& start, int maxEvaluations, const SearchSettings& s, bool global) {
+    const auto k = static_cast<unsigned>(start.size());
+    nlopt_opt opt = nlopt_create(algorithm, k);
+    if (!opt) throw ValidationError("calibrate: NLopt could not create its optimiser");
+    CubeObjective data{&f, opt, nullptr, 0};
+    const std::vector<double> lower(k, 0.0), upper(k, 1.0);
+    nlopt_set_lower_bounds(opt, lower.data());
+    nlopt_set_upper_bounds(opt, upper.data());
+    nlopt_set_min_objective(opt, cubeObjective, &data);
+    nlopt_set_maxeval(opt, maxEvaluations);
+    nlopt_set_xtol_rel(opt, s.tolerance);
+    if (!global) nlopt_set_initial_step1(opt, s.initialStep);
+    // The global methods draw their points from NLopt's generator: seeded, so that the same
+    // settings give the same points (and a rerun replays them over finished simulations).
+    if (global) nlopt_srand(static_cast<unsigned long>(s.seed));
+    SearchRun run;
+    run.method = name;
+    run.start = start;
+    std::vector<double> u = start;
+    double minimum = HUGE_VAL;
+    const nlopt_result status = nlopt_optimize(opt, u.data(), &minimum);
+    nlopt_destroy(opt);
+    if (data.error) std::rethrow_exception(data.error);
+    for (double& v : u) v = std::clamp(v, 0.0, 1.0);
+    run.best = u;
+    run.value = minimum;
+    run.evaluations = data.calls;
+    run.stopReason = stopText(status);
+    run.converged = convergedBy(status);
+    return run;
 }
 
 /// log10(chi2) of each evaluation, the search in blue, the uncertainty's in grey.
@@ -295,6 +357,81 @@ void writeConvergencePng(const std::string& path, const CalibrationResult& r) {
 
 }  // namespace
 
+SearchSettings searchSettingsOf(const CalibrationSpec& spec) {
+    SearchSettings s;
+    s.algorithm = spec.algorithm;
+    s.global = spec.global;
+    s.starts = spec.starts;
+    s.globalEvaluations = spec.globalEvaluations;
+    s.seed = spec.seed;
+    s.maxEvaluations = spec.maxEvaluations;
+    s.tolerance = spec.tolerance;
+    s.initialStep = spec.initialStep;
+    return s;
+}
+
+std::vector<std::vector<double>> multistartPoints(int k, int starts, const std::vector<double>& first, std::uint64_t seed) {
+    if (k < 1 || static_cast<int>(first.size()) != k || starts < 1) throw ValidationError("multistart: needs k >= 1, a first point of k values and starts >= 1");
+    std::vector<std::vector<double>> points{first};
+    if (starts == 1) return points;
+    const SobolSequence seq(k);
+    RandomStream rs(seed, 0x4d756c7469737461ull);
+    std::vector<double> shift(static_cast<std::size_t>(k));
+    for (double& v : shift) v = rs.uniform();
+    for (int n = 1; n < starts; ++n) {
+        std::vector<double> x = seq.point(static_cast<std::uint32_t>(n));
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            x[i] += shift[i];
+            if (x[i] >= 1) x[i] -= 1;
+        }
+        points.push_back(std::move(x));
+    }
+    return points;
+}
+
+SearchResult minimiseInUnitCube(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start,
+                                const SearchSettings& settings) {
+    if (start.empty()) throw ValidationError("calibrate: nothing to search (no parameter)");
+    const nlopt_algorithm local = algorithmOf(settings.algorithm);
+    SearchResult r;
+    const auto add = [&](SearchRun run) {
+        r.evaluations += run.evaluations;
+        if (r.runs.empty() || run.value < r.value) {
+            r.value = run.value;
+            r.best = run.best;
+            r.bestRun = r.runs.size();
+        }
+        r.runs.push_back(std::move(run));
+    };
+    if (settings.global == "none") {
+        add(runOptimiser(f, local, settings.algorithm, start, settings.maxEvaluations, settings, false));
+    } else if (settings.global == "multistart") {
+        // The budget is shared: each start gets an equal share of what the earlier ones left
+        // (a start that converges early leaves its rest to the later ones), at least 2.
+        const std::vector<std::vector<double>> starts = multistartPoints(static_cast<int>(start.size()), settings.starts, start, settings.seed);
+        for (std::size_t n = 0; n < starts.size(); ++n) {
+            const int left = settings.maxEvaluations - r.evaluations;
+            const int share = left / static_cast<int>(starts.size() - n);
+            if (share < 2) break;
+            add(runOptimiser(f, local, settings.algorithm, starts[n], share, settings, false));
+        }
+    } else if (settings.global == "crs2" || settings.global == "isres") {
+        const int globalBudget = settings.globalEvaluations > 0 ? settings.globalEvaluations : settings.maxEvaluations / 2;
+        add(runOptimiser(f, settings.global == "crs2" ? NLOPT_GN_CRS2_LM : NLOPT_GN_ISRES, settings.global, start, globalBudget, settings, true));
+        const int left = settings.maxEvaluations - r.evaluations;
+        // The local method polishes the global phase's best.
+        if (left >= 2) add(runOptimiser(f, local, settings.algorithm, r.best, left, settings, false));
+    } else {
+        throw ValidationError("calibrate: unknown global search '" + settings.global + "' (none, multistart, crs2, isres)");
+    }
+    const SearchRun& best = r.runs[r.bestRun];
+    r.converged = best.converged;
+    r.stopReason = r.runs.size() == 1 ? best.stopReason
+                                      : "run " + std::to_string(r.bestRun + 1) + " of " + std::to_string(r.runs.size()) + " (" + best.method +
+                                            ", the best) " + best.stopReason;
+    return r;
+}
+
 CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& run, Reporter& reporter) {
     const std::size_t k = given.parameters.size();
     CalibrationSpec spec = given;
@@ -319,25 +456,20 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     for (const CalibrationTarget& t : spec.targets) result.targetValues.push_back(t.value);
     Calibrator cal(spec, run, reporter, truthMembers);
     // The search in the unit cube: every parameter's range is [0, 1] to the optimiser.
-    nlopt_opt opt = nlopt_create(algorithmOf(spec.algorithm), static_cast<unsigned>(k));
-    if (!opt) throw ValidationError("calibrate: NLopt could not create its optimiser");
-    Objective data{&cal, &spec, opt, nullptr};
-    std::vector<double> lower(k, 0.0), upper(k, 1.0), u(k);
+    std::vector<double> u(k);
     for (std::size_t i = 0; i < k; ++i) {
         const StudyParameter& p = spec.parameters[i];
         u[i] = p.logScale || p.integer ? std::clamp(p.unitOf(spec.start[i]), 0.0, 1.0) : (spec.start[i] - p.low) / (p.high - p.low);
     }
-    nlopt_set_lower_bounds(opt, lower.data());
-    nlopt_set_upper_bounds(opt, upper.data());
-    nlopt_set_min_objective(opt, objective, &data);
-    nlopt_set_maxeval(opt, spec.maxEvaluations);
-    nlopt_set_xtol_rel(opt, spec.tolerance);
-    nlopt_set_initial_step1(opt, spec.initialStep);
-    double minimum = 0;
-    const nlopt_result status = nlopt_optimize(opt, u.data(), &minimum);
-    nlopt_destroy(opt);
-    if (data.error) std::rethrow_exception(data.error);
-    result.stopReason = stopText(status);
+    const auto chi2At = [&](const std::vector<double>& x) {
+        std::vector<double> values(k);
+        for (std::size_t i = 0; i < k; ++i) values[i] = spec.parameters[i].at(x[i]);
+        return cal.evaluate(values, "search").chi2;
+    };
+    const SearchResult search = minimiseInUnitCube(chi2At, u, searchSettingsOf(spec));
+    result.stopReason = search.stopReason;
+    result.converged = search.converged;
+    result.runs = search.runs;
     if (cal.history().empty()) throw ValidationError("calibrate: the optimiser stopped before any evaluation (" + result.stopReason + ")");
     const Evaluation bestSearch = cal.history()[cal.best()];
 
@@ -403,9 +535,15 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << (spec.targets.size() > 1 ? "s" : "") << ", NLopt `" << spec.algorithm << "` in the unit cube of the ranges (first step "
        << formatNumber(spec.initialStep, 3) << ", tolerance " << formatNumber(spec.tolerance, 3) << "), " << spec.replicates
        << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (run.seed 1 .. " << spec.replicates << ", the same at every evaluation). "
+       << (spec.global == "multistart" ? "Multistart: " + std::to_string(spec.starts) + " local searches (the start, then quasi-random points, seed " + std::to_string(spec.seed) + ") sharing the budget. "
+           : spec.global == "none" ? std::string()
+                                   : "Global search: NLopt " + std::string(spec.global == "crs2" ? "GN_CRS2_LM" : "GN_ISRES") + " (seed " + std::to_string(spec.seed) + ") for " +
+                                         std::to_string(spec.globalEvaluations) + " evaluations, then `" + spec.algorithm + "` from its best. ")
        << result.history.size() << " evaluations (" << result.history.size() * static_cast<std::size_t>(spec.replicates)
        << " simulations); the search stopped: " << result.stopReason << ". chi2 = sum over targets of ((simulated - observed) / sd)^2.\n\n"
        << (spec.truth.empty() ? "" : "The targets' values are the outputs of simulations at known parameter values (`[calibrate.truth]`, seeds 1001 .. 1000 + replicates): a test of whether the calibration recovers them.\n\n")
+       << (result.converged ? "The search converged: the best was found by a local search that stopped on the tolerance.\n\n"
+                            : "The search did not converge: the best was found by a run that stopped on its budget (max_evaluations).\n\n")
        << "## Parameters\n\n| parameter | range | start | best | ± sd (linearised) |" << (spec.truth.empty() ? "" : " truth | best - truth |")
        << "\n|---|---|---:|---:|---:|" << (spec.truth.empty() ? "" : "---:|---:|") << "\n";
     for (std::size_t i = 0; i < k; ++i)
@@ -421,6 +559,19 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         md << "| `" << spec.targets[t].output.text << "` | " << formatNumber(spec.targets[t].value, 5) << " | " << formatNumber(spec.targets[t].sd, 3) << " | "
            << formatNumber(best.simulated[t], 5) << " | " << formatNumber(best.spread[t], 3) << " | "
            << formatNumber((best.simulated[t] - spec.targets[t].value) / spec.targets[t].sd, 3) << " |\n";
+    if (result.runs.size() > 1) {
+        md << "\n## Search runs\n\n| run | method | start (unit cube) | best (unit cube) | chi2 | evaluations | stopped |\n|---:|---|---|---|---:|---:|---|\n";
+        const auto unit = [](const std::vector<double>& x) {
+            std::string t;
+            for (std::size_t i = 0; i < x.size(); ++i) t += (i ? ", " : "") + formatNumber(x[i], 3);
+            return t;
+        };
+        for (std::size_t i = 0; i < result.runs.size(); ++i) {
+            const SearchRun& r = result.runs[i];
+            md << "| " << i + 1 << " | " << r.method << " | " << unit(r.start) << " | " << unit(r.best) << " | " << formatNumber(r.value, 5) << " | "
+               << r.evaluations << " | " << r.stopReason << " |\n";
+        }
+    }
     md << "\n![chi2 per evaluation](png/chi2.png)\n\nFiles: `history.csv` (every evaluation)"
        << (result.bestBiome.empty() ? "" : ", `best-biome.toml` (the biome with the best values)")
        << (result.bestSimulation.empty() ? "" : ", `best-simulate.toml` (the simulation configuration with the best values)")

@@ -13,6 +13,7 @@
 
 #include <toml++/toml.h>
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -37,6 +38,14 @@ struct CalibrationSpec {
     double tolerance = 1e-3;     ///< relative change of the parameters (in their ranges) that stops
     double initialStep = 0.25;   ///< first step of the optimiser, as a fraction of each range
     bool uncertainty = true;     ///< k more evaluations at the optimum (finite differences)
+    /// Global search (docs/calibration.md): "none" (the local `algorithm` from `start`),
+    /// "multistart" (the local algorithm from `starts` points: `start`, then quasi-random
+    /// points shifted by `seed`), "crs2" or "isres" (NLopt's GN_CRS2_LM or GN_ISRES, seeded
+    /// with `seed`, for `global_evaluations`, then the local algorithm from their best).
+    std::string global = "none";
+    int starts = 4;              ///< multistart: local searches
+    int globalEvaluations = 0;   ///< crs2, isres: evaluations of the global phase (0: half of max_evaluations)
+    std::uint64_t seed = 1;      ///< multistart, crs2, isres
     int membersAtOnce = 1;
     std::vector<StudyParameter> parameters;
     std::vector<double> start;   ///< starting values (default: the middle of each range)
@@ -60,10 +69,32 @@ struct Evaluation {
     double chi2 = 0;
 };
 
+/// One run of an optimiser: a local search from one start, or a global phase.
+struct SearchRun {
+    std::string method;          ///< e.g. "sbplx", "crs2"
+    std::vector<double> start;   ///< in the unit cube
+    std::vector<double> best;    ///< in the unit cube
+    double value = 0;
+    int evaluations = 0;         ///< calls of the objective (a repeated point counts again)
+    std::string stopReason;
+    bool converged = false;      ///< stopped by the tolerance (not the budget)
+};
+struct SearchResult {
+    std::vector<double> best;    ///< in the unit cube
+    double value = 0;
+    std::vector<SearchRun> runs;
+    std::size_t bestRun = 0;
+    int evaluations = 0;
+    std::string stopReason;      ///< of the run that found the best (with its index when several)
+    bool converged = false;      ///< the run that found the best stopped by the tolerance
+};
+
 struct CalibrationResult {
     std::vector<Evaluation> history;
     std::size_t best = 0;               ///< index into history
     std::string stopReason;
+    bool converged = false;             ///< the best's search stopped by the tolerance
+    std::vector<SearchRun> runs;        ///< the search's runs (one without a global search)
     /// Linearised standard deviation of each parameter at the optimum (NaN when not
     /// estimated or not identifiable from the targets).
     std::vector<double> parameterSd;
@@ -76,6 +107,33 @@ struct CalibrationResult {
 /// runs the members not yet done (eco ensemble's runner: this process, its children or MPI
 /// ranks) and returns when all are done (throws when one failed).
 using MemberRunner = std::function<void(const std::string& ensembleSpecPath)>;
+
+/// How the optimiser searches the unit cube of the ranges (the search part of a
+/// CalibrationSpec).
+struct SearchSettings {
+    std::string algorithm = "sbplx";
+    std::string global = "none";
+    int starts = 4;
+    int globalEvaluations = 0;
+    std::uint64_t seed = 1;
+    int maxEvaluations = 40;   ///< of the whole search (every start, both phases; multistart: an equal share of what is left per start)
+    double tolerance = 1e-3;
+    double initialStep = 0.25;
+};
+SearchSettings searchSettingsOf(const CalibrationSpec& spec);
+
+/// The starts of a multistart in the unit cube: `first`, then points 1, 2, ... of the k-
+/// dimensional Sobol' sequence (pipeline/sobol_sequence.h) shifted modulo 1 by a uniform
+/// vector drawn with `seed` (a Cranley-Patterson rotation: another seed, other starts spread
+/// as evenly). k <= SobolSequence::kMaxDimensions.
+std::vector<std::vector<double>> multistartPoints(int k, int starts, const std::vector<double>& first, std::uint64_t seed);
+
+/// Minimises f over the unit cube [0, 1]^k from `start` as `settings` say. Deterministic: the
+/// same points in the same order for the same settings (NLopt's generator seeded with
+/// settings.seed before each global phase). An exception thrown by f stops the search and is
+/// rethrown.
+SearchResult minimiseInUnitCube(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start,
+                                const SearchSettings& settings);
 
 /// The member name of replicate r (0-based) of evaluation e (1-based).
 std::string calibrationMemberName(int evaluation, int replicate);

@@ -14,6 +14,7 @@
 #include "image_out.h"
 #include "rng.h"
 #include "sim_file.h"
+#include "sobol_sequence.h"
 #include "strict_toml.h"
 #include "text_format.h"
 
@@ -41,7 +42,7 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
     if (method != "morris" && method != "sobol") s.fail("method", "'" + method + "' is not supported (morris or sobol)");
     spec.method = method == "sobol" ? SensitivitySpec::Method::Sobol : SensitivitySpec::Method::Morris;
     if (spec.method == SensitivitySpec::Method::Morris) {
-        for (const char* key : {"samples", "bootstrap"})
+        for (const char* key : {"samples", "bootstrap", "sampling"})
             if (s.has(key)) s.fail(key, "is a key of method = \"sobol\"");
         spec.trajectories = static_cast<int>(s.integerOr("trajectories", spec.trajectories));
         if (spec.trajectories < 2 || spec.trajectories > 1000) s.fail("trajectories", "must be in 2 .. 1000");
@@ -54,6 +55,9 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
         if (spec.samples < 4 || spec.samples > 100000) s.fail("samples", "must be in 4 .. 100000");
         spec.bootstrap = static_cast<int>(s.integerOr("bootstrap", spec.bootstrap));
         if (spec.bootstrap < 0 || spec.bootstrap > 100000) s.fail("bootstrap", "must be in 0 .. 100000");
+        const std::string sampling = s.stringOr("sampling", "random");
+        if (sampling != "random" && sampling != "quasi-random") s.fail("sampling", "'" + sampling + "' is not supported (random or quasi-random)");
+        spec.sampling = sampling == "quasi-random" ? SensitivitySpec::Sampling::QuasiRandom : SensitivitySpec::Sampling::Random;
     }
     spec.replicates = static_cast<int>(s.integerOr("replicates", spec.replicates));
     if (spec.replicates < 1 || spec.replicates > 100) s.fail("replicates", "must be in 1 .. 100");
@@ -74,6 +78,9 @@ SensitivitySpec loadSensitivitySpec(const std::string& path, const std::string& 
             s.fail("outputs", "'" + o + "': a pair correlation needs a stem map: a target of eco calibrate");
     }
     if (spec.outputs.empty()) s.fail("outputs", "no output to measure");
+    if (spec.sampling == SensitivitySpec::Sampling::QuasiRandom && 2 * spec.parameters.size() > static_cast<std::size_t>(SobolSequence::kMaxDimensions))
+        s.fail("sampling", "quasi-random sampling takes at most " + std::to_string(SobolSequence::kMaxDimensions / 2) + " parameters (" +
+                               std::to_string(spec.parameters.size()) + " given)");
     spec.base = studyBase(s.node("base"), path, path + ": [sensitivity] base");
     s.finish();
     top.finish();
@@ -382,21 +389,38 @@ std::vector<double> SobolDesign::point(int matrix, int row) const {
     return x;
 }
 
-SobolDesign sobolDesign(int parameters, int samples, std::uint64_t seed) {
+SobolDesign sobolDesign(int parameters, int samples, std::uint64_t seed, SensitivitySpec::Sampling sampling) {
     if (parameters < 1 || samples < 2) throw ValidationError("Sobol design: needs parameters >= 1 and samples >= 2");
     SobolDesign d;
     d.parameters = parameters;
     d.samples = samples;
+    d.sampling = sampling;
+    const auto k = static_cast<std::size_t>(parameters);
+    if (sampling == SensitivitySpec::Sampling::QuasiRandom) {
+        if (2 * parameters > SobolSequence::kMaxDimensions)
+            throw ValidationError("Sobol design: quasi-random sampling takes at most " + std::to_string(SobolSequence::kMaxDimensions / 2) + " parameters");
+        const SobolSequence seq(2 * parameters);
+        for (int n = 0; n < samples; ++n) {
+            const std::vector<double> x = seq.point(static_cast<std::uint32_t>(n) + 1);
+            d.a.emplace_back(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(k));
+            d.b.emplace_back(x.begin() + static_cast<std::ptrdiff_t>(k), x.end());
+        }
+        return d;
+    }
     // One stream per row, so that a design with more samples begins with the same rows.
     for (int n = 0; n < samples; ++n) {
         RandomStream rs(seed, 0x536f626f6c000000ull + static_cast<std::uint64_t>(n));
-        std::vector<double> a(static_cast<std::size_t>(parameters)), b(static_cast<std::size_t>(parameters));
+        std::vector<double> a(k), b(k);
         for (double& v : a) v = rs.uniform();
         for (double& v : b) v = rs.uniform();
         d.a.push_back(std::move(a));
         d.b.push_back(std::move(b));
     }
     return d;
+}
+
+SobolDesign sobolDesign(const SensitivitySpec& spec) {
+    return sobolDesign(static_cast<int>(spec.parameters.size()), spec.samples, spec.seed, spec.sampling);
 }
 
 namespace {
@@ -623,7 +647,11 @@ SensitivityReport writeSobolReport(const SensitivitySpec& spec, const SobolDesig
        << "Specification `" << spec.path << "`: " << k << " parameters, base sample N = " << N << " (matrices A, B and one AB_i per parameter: "
        << N * (k + 2) << " points), " << spec.replicates << " replicate" << (spec.replicates > 1 ? "s" : "") << " per point (run.seed 1 .. "
        << spec.replicates << ", the same at every point); " << N * (k + 2) * static_cast<std::size_t>(spec.replicates)
-       << " simulations. Design seed " << spec.seed << "; the points are in `design.csv`, the members in `ensemble/`.\n\n"
+       << " simulations. "
+       << (design.sampling == SensitivitySpec::Sampling::QuasiRandom
+               ? std::string("Quasi-random design: A and B from the ") + std::to_string(2 * k) + "-dimensional Sobol' sequence (Joe and Kuo 2008's direction numbers)"
+               : "Pseudo-random design, seed " + std::to_string(spec.seed))
+       << "; the points are in `design.csv`, the members in `ensemble/`.\n\n"
        << "**S** (first-order index, Saltelli 2010's estimator): the share of the output's variance that the parameter "
        << "explains alone. **ST** (total index, Jansen's estimator): its share with all its interactions; ST - S is the "
        << "interaction part, and a parameter with ST near 0 can be fixed anywhere in its range. Intervals: 95 % of "

@@ -18,11 +18,14 @@ namespace eco::pipeline {
 
 struct SensitivitySpec {
     enum class Method { Morris, Sobol };
+    /// Sobol: how the A and B samples are drawn (docs/sensitivity.md).
+    enum class Sampling { Random, QuasiRandom };
     std::string path;
     std::string outDir;
     Method method = Method::Morris;
     int samples = 32;       ///< Sobol: N, the base sample size (N (k + 2) design points)
     int bootstrap = 1000;   ///< Sobol: bootstrap resamples of the 95 % intervals
+    Sampling sampling = Sampling::Random;  ///< Sobol: `sampling`, "random" or "quasi-random"
     int trajectories = 10;  ///< r
     int levels = 4;         ///< p (even), the grid of each parameter's range
     int replicates = 2;     ///< seeds per design point (run.seed = 1 .. replicates)
@@ -89,16 +92,26 @@ struct SensitivityReport {
 /// (OUT/png/morris_<n>.png: mu* against sigma, with the seed-noise level).
 SensitivityReport writeSensitivityReport(const SensitivitySpec& spec, const MorrisDesign& design);
 
-/// A Sobol design (Saltelli 2002, 2010): two independent uniform samples A and B of N points
-/// in the unit cube, and for each parameter i the matrix AB_i: A with column i taken from B.
-/// N (k + 2) points; matrix 0 is A, 1 is B, 2 + i is AB_i.
+/// A Sobol design (Saltelli 2002, 2010): two samples A and B of N points in the unit cube,
+/// and for each parameter i the matrix AB_i: A with column i taken from B. N (k + 2) points;
+/// matrix 0 is A, 1 is B, 2 + i is AB_i.
+///
+/// Sampling::Random: A and B independent pseudo-random uniform, one stream per row (seeded).
+/// Sampling::QuasiRandom (Saltelli 2002, 2010): row n of A is the first k coordinates and
+/// row n of B the last k of point n + 1 of the 2k-dimensional Sobol' sequence
+/// (pipeline/sobol_sequence.h; point 0, the origin, would give A = B); no seed, at most
+/// SobolSequence::kMaxDimensions / 2 = 25 parameters. Both: a larger N begins with the same rows.
 struct SobolDesign {
     int parameters = 0, samples = 0;
+    SensitivitySpec::Sampling sampling = SensitivitySpec::Sampling::Random;
     std::vector<std::vector<double>> a, b;  ///< [n][i] in [0, 1)
     int matrices() const { return parameters + 2; }
     std::vector<double> point(int matrix, int row) const;
 };
-SobolDesign sobolDesign(int parameters, int samples, std::uint64_t seed);
+SobolDesign sobolDesign(int parameters, int samples, std::uint64_t seed,
+                        SensitivitySpec::Sampling sampling = SensitivitySpec::Sampling::Random);
+/// The design of a specification (its parameters, samples, seed and sampling).
+SobolDesign sobolDesign(const SensitivitySpec& spec);
 
 /// One parameter's indices with bootstrap 95 % intervals (percentiles of the resampled rows).
 struct SobolIndex {

@@ -2,6 +2,7 @@
 // is known, and the specification's checks.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -10,6 +11,7 @@
 
 #include "biome.h"
 #include "calibrate.h"
+#include "error.h"
 #include "rng.h"
 #include "sim_file.h"
 #include "sim_file_fixture.h"
@@ -72,6 +74,12 @@ TEST_CASE("calibrate: a bad specification is refused with its file and key", "[c
         {{"", params + "[[target]]\noutput = \"density@3\"\nvalue = 1\nsd = 0\n"}, "sd"},
         {{"", params + "[calibrate.truth]\n\"model.seeding_probability\" = 0.5\n" + target}, "outside its range"},
         {{"", params + "[calibrate.truth]\n" + target}, "seeding_probability"},
+        {{"global = \"basinhopping\"", params + target}, "global"},
+        {{"starts = 4", params + target}, "starts"},
+        {{"global = \"multistart\"\nstarts = 1", params + target}, "starts"},
+        {{"global = \"crs2\"\nmax_evaluations = 20\nglobal_evaluations = 20", params + target}, "global_evaluations"},
+        {{"global = \"multistart\"\nglobal_evaluations = 10", params + target}, "global_evaluations"},
+        {{"seed = 3", params + target}, "seed"},
     };
     for (const auto& [files, expect] : bad) {
         INFO(files.first << "\n" << files.second);
@@ -81,6 +89,102 @@ TEST_CASE("calibrate: a bad specification is refused with its file and key", "[c
     const auto truth = loadCalibrationSpec(write("", params + "[calibrate.truth]\n\"model.seeding_probability\" = 0.002\n" +
                                                          "[[target]]\noutput = \"density@3\"\nsd = 0.1\n"));
     CHECK(truth.truth == std::vector<double>{0.002});
+    // The global searches' keys.
+    const auto multi = loadCalibrationSpec(write("global = \"multistart\"\nstarts = 6\nseed = 9", params + target));
+    CHECK(multi.global == "multistart");
+    CHECK(multi.starts == 6);
+    CHECK(multi.seed == 9);
+    const auto crs = loadCalibrationSpec(write("global = \"crs2\"\nmax_evaluations = 30", params + target));
+    CHECK(crs.globalEvaluations == 15);
+    CHECK(searchSettingsOf(crs).global == "crs2");
+}
+
+namespace {
+
+/// A function of the unit square with four minima: each coordinate has a broad shallow well
+/// at 0.6 (g = 0) and a narrow deep one near 0.1 (g = -0.156 at 0.11238): the global minimum
+/// -0.312 at (0.11238, 0.11238), local ones at (0.11238, 0.6), (0.6, 0.11238) and (0.6, 0.6)
+/// (-0.156 and 0). From the middle, (0.5, 0.5), a local search goes down into (0.6, 0.6).
+constexpr double kDeepWell = 0.11238;
+double twoWells(const std::vector<double>& u) {
+    double f = 0;
+    for (double x : u) f += (x - 0.6) * (x - 0.6) - 0.4 * std::exp(-std::pow((x - 0.1) / 0.1, 2));
+    return f;
+}
+
+}  // namespace
+
+TEST_CASE("calibrate search: on a function with several minima the local method is trapped, the global searches are not", "[calibrate]") {
+    const std::vector<double> middle{0.5, 0.5};
+    SearchSettings local;
+    local.maxEvaluations = 300;
+    local.tolerance = 1e-4;
+    local.initialStep = 0.1;  // local searches from spread starts: a first step shorter than the default
+    const SearchResult trapped = minimiseInUnitCube(twoWells, middle, local);
+    REQUIRE(trapped.runs.size() == 1);
+    CHECK(trapped.converged);  // stopped by the tolerance, in the wrong well
+    CHECK(trapped.best[0] == Approx(0.6).margin(0.005));
+    CHECK(trapped.best[1] == Approx(0.6).margin(0.005));
+    CHECK(trapped.value > -0.01);
+    CHECK(twoWells({kDeepWell, kDeepWell}) == Approx(-0.3122).margin(1e-4));
+    for (const std::string global : {"multistart", "crs2", "isres"}) {
+        INFO(global);
+        SearchSettings s = local;
+        s.global = global;
+        s.starts = 16;
+        s.maxEvaluations = global == "crs2" ? 600 : 3000;
+        std::vector<std::vector<double>> points;
+        const auto recorded = [&](const std::vector<double>& x) {
+            points.push_back(x);
+            return twoWells(x);
+        };
+        const SearchResult found = minimiseInUnitCube(recorded, middle, s);
+        for (const SearchRun& r : found.runs) UNSCOPED_INFO(r.method << " from " << r.start[0] << ", " << r.start[1] << ": " << r.best[0] << ", " << r.best[1] << " f " << r.value << " in " << r.evaluations << " (" << r.stopReason << ")");
+        CHECK(found.best[0] == Approx(kDeepWell).margin(0.005));
+        CHECK(found.best[1] == Approx(kDeepWell).margin(0.005));
+        CHECK(found.value < -0.3);
+        CHECK(found.converged);  // the best's local search stopped by the tolerance
+        CHECK(found.evaluations == static_cast<int>(points.size()));
+        CHECK(found.evaluations <= s.maxEvaluations);
+        for (const auto& x : points)
+            for (double v : x) {
+                CHECK(v >= 0);
+                CHECK(v <= 1);
+            }
+        // Deterministic: the same settings evaluate the same points in the same order.
+        std::vector<std::vector<double>> again;
+        const SearchResult repeat = minimiseInUnitCube([&](const std::vector<double>& x) { again.push_back(x); return twoWells(x); }, middle, s);
+        CHECK(again == points);
+        CHECK(repeat.best == found.best);
+        // Another seed: other points.
+        s.seed = 2;
+        std::vector<std::vector<double>> other;
+        minimiseInUnitCube([&](const std::vector<double>& x) { other.push_back(x); return twoWells(x); }, middle, s);
+        CHECK(other != points);
+    }
+}
+
+TEST_CASE("calibrate search: multistart points begin with the start and spread over the unit cube", "[calibrate]") {
+    const auto p = multistartPoints(3, 16, {0.2, 0.4, 0.6}, 1);
+    REQUIRE(p.size() == 16);
+    CHECK(p[0] == std::vector<double>{0.2, 0.4, 0.6});
+    // Each coordinate of the 15 others: one point in each of 15 of the 16 sixteenths (the
+    // shifted Sobol' points 1 .. 15 of 0 .. 15, which are stratified).
+    for (std::size_t i = 0; i < 3; ++i) {
+        std::vector<int> per(16, 0);
+        for (std::size_t n = 1; n < p.size(); ++n) {
+            REQUIRE(p[n][i] >= 0);
+            REQUIRE(p[n][i] < 1);
+            ++per[static_cast<std::size_t>(p[n][i] * 16)];
+        }
+        CHECK(*std::max_element(per.begin(), per.end()) == 1);
+    }
+    CHECK(multistartPoints(3, 16, {0.2, 0.4, 0.6}, 2) != p);
+    CHECK(multistartPoints(3, 16, {0.2, 0.4, 0.6}, 1) == p);
+    // A throwing objective stops the search and its exception comes through.
+    SearchSettings s;
+    CHECK_THROWS_WITH(minimiseInUnitCube([](const std::vector<double>&) -> double { throw ValidationError("boom"); }, {0.5}, s),
+                      Catch::Contains("boom"));
 }
 
 TEST_CASE("calibrate: a stem map's pair correlation as a target, measured against a snapshot's plants", "[calibrate]") {

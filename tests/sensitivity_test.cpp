@@ -14,6 +14,7 @@
 #include "sensitivity.h"
 #include "sim_file.h"
 #include "sim_file_fixture.h"
+#include "sobol_sequence.h"
 #include "test_util.h"
 
 using namespace eco;
@@ -257,6 +258,92 @@ TEST_CASE("Sobol indices: the Ishigami function's known first-order and total in
     CHECK(r.indices[1].total - r.indices[1].first == Approx(0).margin(0.03));
 }
 
+TEST_CASE("Sobol sequence: the first points are those of Joe and Kuo's reference program", "[sensitivity]") {
+    // The output of Joe and Kuo's sobol.cc with new-joe-kuo-6.21201 (as published in Sobol.jl's
+    // test/results/exp_results_5, _20 and _50): points 0 .. 7 in 5 dimensions, point 100 in
+    // 20 and points 677 and 1023 in 50 (these need the direction numbers up to m_10).
+    const double first[8][5] = {{0, 0, 0, 0, 0},
+                                {0.5, 0.5, 0.5, 0.5, 0.5},
+                                {0.75, 0.25, 0.25, 0.25, 0.75},
+                                {0.25, 0.75, 0.75, 0.75, 0.25},
+                                {0.375, 0.375, 0.625, 0.875, 0.375},
+                                {0.875, 0.875, 0.125, 0.375, 0.875},
+                                {0.625, 0.125, 0.875, 0.625, 0.625},
+                                {0.125, 0.625, 0.375, 0.125, 0.125}};
+    const SobolSequence five(5);
+    for (std::uint32_t n = 0; n < 8; ++n) {
+        INFO("point " << n);
+        CHECK(five.point(n) == std::vector<double>(first[n], first[n] + 5));
+    }
+    CHECK(SobolSequence(20).point(100) ==
+          std::vector<double>{0.4140625, 0.2578125, 0.7734375, 0.7265625, 0.8828125, 0.7421875, 0.0234375, 0.4765625, 0.6328125, 0.6953125,
+                              0.4609375, 0.6796875, 0.4765625, 0.8515625, 0.3203125, 0.4921875, 0.6796875, 0.7421875, 0.8359375, 0.3359375});
+    const SobolSequence fifty(50);
+    CHECK(fifty.point(677) ==
+          std::vector<double>{0.9365234375, 0.6923828125, 0.1689453125, 0.1279296875, 0.3369140625, 0.4443359375, 0.4228515625, 0.1083984375,
+                              0.9052734375, 0.0908203125, 0.2626953125, 0.4560546875, 0.4208984375, 0.4013671875, 0.3486328125, 0.4228515625,
+                              0.5107421875, 0.5888671875, 0.4189453125, 0.8564453125, 0.3564453125, 0.8408203125, 0.0068359375, 0.6748046875,
+                              0.3349609375, 0.5693359375, 0.2451171875, 0.1533203125, 0.8935546875, 0.7880859375, 0.7275390625, 0.5263671875,
+                              0.1181640625, 0.5439453125, 0.2412109375, 0.6474609375, 0.2529296875, 0.4345703125, 0.3173828125, 0.9736328125,
+                              0.6728515625, 0.0341796875, 0.5400390625, 0.5556640625, 0.0419921875, 0.8369140625, 0.2099609375, 0.7255859375,
+                              0.4892578125, 0.8994140625});
+    CHECK(fifty.point(1023) ==
+          std::vector<double>{0.0009765625, 0.7529296875, 0.6123046875, 0.1455078125, 0.1865234375, 0.4384765625, 0.1396484375, 0.6181640625,
+                              0.3447265625, 0.8505859375, 0.6787109375, 0.0361328125, 0.1298828125, 0.6650390625, 0.3623046875, 0.4638671875,
+                              0.3134765625, 0.8759765625, 0.5849609375, 0.3193359375, 0.8662109375, 0.0185546875, 0.7939453125, 0.1962890625,
+                              0.2392578125, 0.3759765625, 0.5087890625, 0.7607421875, 0.8408203125, 0.4345703125, 0.9287109375, 0.6142578125,
+                              0.4521484375, 0.8740234375, 0.3330078125, 0.8642578125, 0.9423828125, 0.9873046875, 0.9013671875, 0.6982421875,
+                              0.6318359375, 0.9736328125, 0.9287109375, 0.1083984375, 0.4970703125, 0.3115234375, 0.9658203125, 0.7626953125,
+                              0.8427734375, 0.8232421875});
+    // Every 2^m first points are stratified in each dimension: one in each interval of 2^-m.
+    for (int d = 0; d < 50; ++d) {
+        std::set<std::uint32_t> cells;
+        for (std::uint32_t n = 0; n < 256; ++n) cells.insert(static_cast<std::uint32_t>(fifty.point(n)[static_cast<std::size_t>(d)] * 256));
+        CHECK(cells.size() == 256);
+    }
+    CHECK_THROWS_WITH(SobolSequence(51), Catch::Contains("1 .. 50"));
+    CHECK_THROWS(SobolSequence(0));
+}
+
+TEST_CASE("Sobol indices: quasi-random designs estimate the Ishigami indices better than pseudo-random ones at equal N", "[sensitivity]") {
+    const double v = Ishigami::variance();
+    const double want[3][2] = {{Ishigami::v1() / v, (Ishigami::v1() + Ishigami::v13()) / v}, {Ishigami::v2() / v, Ishigami::v2() / v}, {0, Ishigami::v13() / v}};
+    // The error of a design: the largest |estimate - truth| of the six indices.
+    const auto error = [&](const SobolDesign& d) {
+        const SobolResult r = sobolOf(d, Ishigami::f, 0);
+        double e = 0;
+        for (std::size_t i = 0; i < 3; ++i) e = std::max({e, std::abs(r.indices[i].first - want[i][0]), std::abs(r.indices[i].total - want[i][1])});
+        return e;
+    };
+    for (const int n : {256, 1024}) {
+        INFO("N = " << n);
+        const SobolDesign q = sobolDesign(3, n, 1, SensitivitySpec::Sampling::QuasiRandom);
+        CHECK(q.sampling == SensitivitySpec::Sampling::QuasiRandom);
+        const double quasi = error(q);
+        double randomMean = 0;
+        int randomBetter = 0;
+        const int seeds = 20;
+        for (int seed = 1; seed <= seeds; ++seed) {
+            const double e = error(sobolDesign(3, n, static_cast<std::uint64_t>(seed)));
+            randomMean += e / seeds;
+            if (e < quasi) ++randomBetter;
+        }
+        INFO("quasi-random error " << quasi << ", pseudo-random mean error " << randomMean << ", better in " << randomBetter << " of " << seeds);
+        CHECK(quasi < 0.5 * randomMean);
+        CHECK(randomBetter <= 2);
+    }
+    // The quasi-random design: rows n of A and B are point n + 1 of the 6-dimensional sequence;
+    // no seed; a larger N begins with the same rows.
+    const SobolDesign q = sobolDesign(3, 64, 1, SensitivitySpec::Sampling::QuasiRandom);
+    const std::vector<double> p5 = SobolSequence(6).point(5);
+    CHECK(q.a[4] == std::vector<double>(p5.begin(), p5.begin() + 3));
+    CHECK(q.b[4] == std::vector<double>(p5.begin() + 3, p5.end()));
+    CHECK(sobolDesign(3, 64, 2, SensitivitySpec::Sampling::QuasiRandom).a == q.a);
+    const SobolDesign more = sobolDesign(3, 100, 1, SensitivitySpec::Sampling::QuasiRandom);
+    CHECK(std::vector<std::vector<double>>(more.b.begin(), more.b.begin() + 64) == q.b);
+    CHECK_THROWS_WITH(sobolDesign(26, 8, 1, SensitivitySpec::Sampling::QuasiRandom), Catch::Contains("25 parameters"));
+}
+
 TEST_CASE("Sobol indices: a linear model's shares c_i^2 / sum c^2, and a parameter without effect gets 0", "[sensitivity]") {
     // y = 4 x1 + 2 x2 + 1 x3 + 0 x4 on the unit cube: V_i = c_i^2 / 12, no interactions.
     const auto f = [](const std::vector<double>& x) { return 4 * x[0] + 2 * x[1] + x[2]; };
@@ -352,6 +439,8 @@ TEST_CASE("Sensitivity specification: method sobol, log and integer parameters, 
     CHECK(s.method == SensitivitySpec::Method::Sobol);
     CHECK(s.samples == 16);
     CHECK(s.bootstrap == 50);
+    CHECK(s.sampling == SensitivitySpec::Sampling::Random);
+    CHECK(loadSensitivitySpec(write("method = \"sobol\"\nsampling = \"quasi-random\"", params)).sampling == SensitivitySpec::Sampling::QuasiRandom);
     REQUIRE(s.parameters.size() == 3);
     // toml++ keeps a table's keys sorted.
     std::map<std::string, StudyParameter> byKey;
@@ -365,6 +454,8 @@ TEST_CASE("Sensitivity specification: method sobol, log and integer parameters, 
         {{"samples = 8", params}, "samples"},
         {{"method = \"sobol\"\nsamples = 2", params}, "samples"},
         {{"method = \"fast\"", params}, "morris or sobol"},
+        {{"sampling = \"quasi-random\"", params}, "sampling"},
+        {{"method = \"sobol\"\nsampling = \"halton\"", params}, "random or quasi-random"},
         {{"", "\"model.p\" = { low = 0, high = 1, scale = \"log\" }"}, "LOW > 0"},
         {{"", "\"model.p\" = { low = 1, high = 2, scale = \"ln\" }"}, "scale"},
         {{"", "\"model.p\" = { low = 1, high = 2.5, integer = true }"}, "whole numbers"},
