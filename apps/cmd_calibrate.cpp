@@ -22,12 +22,13 @@ void runCalibrate(const CalibrateArgs& a) {
          " targets, NLopt " + spec.algorithm + ", at most " + std::to_string(spec.maxEvaluations) + " evaluations of " +
          std::to_string(spec.replicates) + " simulations; in " + spec.outDir);
     CliReporter reporter;
-    // Each evaluation's simulations run as members of one ensemble (OUT/ensemble.toml, written
-    // again with every evaluation: finished members are skipped); stdout keeps the result.
-    int rank = 0;
+    // Each evaluation's simulations (or a round's, or the uncertainty's) run as members of one
+    // ensemble (OUT/ensemble.toml, written again with every run: finished members are skipped),
+    // shared by members_at_once children or the MPI ranks; under MPI every rank runs the same
+    // search, and rank 0 writes the outputs. stdout keeps the result.
     const pipeline::CalibrationResult r =
-        pipeline::calibrate(spec, [&](const std::string& members) { rank = runEnsembleFile(members, "", false, false); }, reporter);
-    if (rank != 0) return;
+        pipeline::calibrate(spec, [&](const std::string& members) { return runEnsembleFile(members, "", false, false) == 0; }, reporter);
+    if (!r.writer) return;
     const pipeline::Evaluation& best = r.history[r.best];
     printResult("best of %zu evaluations (%s): chi2 = %g\n", r.history.size(), r.stopReason.c_str(), best.chi2);
     for (std::size_t i = 0; i < spec.parameters.size(); ++i)
@@ -48,7 +49,8 @@ void registerCalibrateCommand(CLI::App& app) {
         "Fit species parameters and model constants within bounds (linear, log-scaled or integer) to observations "
         "(species shares, density, mean heights, cover, height quantiles at a year; cv of the plant count; a field "
         "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt; local, or global: "
-        "multistart, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (parallel; a killed calibration "
+        "multistart, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (in "
+        "members_at_once child processes or across MPI ranks: mpirun -n N eco calibrate SPEC; the same history for any number; a killed calibration "
         "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
         "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");
     sub->add_option("spec", a->spec, "Calibration specification (TOML; configs/calibrate.toml is an example)")

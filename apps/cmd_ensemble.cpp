@@ -205,12 +205,12 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
     a.spec = specPath;
     a.outDir = outDir;
     a.dryRun = dryRun;
-    const std::unique_ptr<ProcessGroup> group = joinProcessGroup();
-    const int rank = group->rank();
+    ProcessGroup& group = joinProcessGroup();
+    const int rank = group.rank();
     // Ranks that share a machine share its cores, unless told otherwise.
-    if (group->localSize() > 1 && !threadsFlagGiven() && !std::getenv("OMP_NUM_THREADS"))
-        omp_set_num_threads(std::max(1, omp_get_num_procs() / group->localSize()));
-    const std::string who = group->size() > 1 ? "ensemble [rank " + std::to_string(rank) + "]: " : "ensemble: ";
+    if (group.localSize() > 1 && !threadsFlagGiven() && !std::getenv("OMP_NUM_THREADS"))
+        omp_set_num_threads(std::max(1, omp_get_num_procs() / group.localSize()));
+    const std::string who = group.size() > 1 ? "ensemble [rank " + std::to_string(rank) + "]: " : "ensemble: ";
 
     // Rank 0 reads the specification, takes the folder's lock and names the run; the others
     // learn the run (or rank 0's error) from it.
@@ -228,7 +228,7 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
             start = std::string("!") + e.what();
         }
     }
-    start = group->broadcast(start);
+    start = group.broadcast(start);
     if (!start.empty() && start[0] == '!') {
         if (rank == 0) throw ValidationError(start.substr(1));
         throw ExitStatus(1, who + "stopped: rank 0 could not start the run");
@@ -240,18 +240,18 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
     }
     const std::string& run = start;
     if (rank == 0) {
-        const bool children = group->size() == 1 && spec.membersAtOnce > 1;
+        const bool children = group.size() == 1 && spec.membersAtOnce > 1;
         info("ensemble: " + std::to_string(spec.members.size()) + " members in " + spec.outDir + " (configuration " +
              spec.baseSource + "); " +
-             (group->size() > 1 ? std::to_string(group->size()) + " MPI ranks" : children ? std::to_string(spec.membersAtOnce) + " members at once" : "one member at a time") +
+             (group.size() > 1 ? std::to_string(group.size()) + " MPI ranks" : children ? std::to_string(spec.membersAtOnce) + " members at once" : "one member at a time") +
              ", " + std::to_string(children ? std::max(1, omp_get_max_threads() / spec.membersAtOnce) : omp_get_max_threads()) +
              " threads each; run " + run);
-        info("ensemble: " + pipeline::progressLine(spec, pipeline::countMembers(spec, run), group->size()));
+        info("ensemble: " + pipeline::progressLine(spec, pipeline::countMembers(spec, run), group.size()));
     }
     EnsembleReporter reporter;
-    if (group->size() == 1 && spec.membersAtOnce > 1) runInChildren(spec, run, reporter);
-    else runInProcess(spec, run, *group, who, reporter);
-    group->barrier();
+    if (group.size() == 1 && spec.membersAtOnce > 1) runInChildren(spec, run, reporter);
+    else runInProcess(spec, run, group, who, reporter);
+    group.barrier();
 
     // Rank 0 writes the manifest and, when every member is done, the database; every rank
     // ends with its verdict.
@@ -260,7 +260,7 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
         try {
             const std::string manifest = pipeline::writeManifest(spec);
             const pipeline::EnsembleCounts c = pipeline::countMembers(spec, run);
-            info("ensemble: " + pipeline::progressLine(spec, c, group->size()) + "; manifest " + manifest);
+            info("ensemble: " + pipeline::progressLine(spec, c, group.size()) + "; manifest " + manifest);
             if (c.done < static_cast<int>(spec.members.size())) {
                 verdict = std::to_string(spec.members.size() - static_cast<std::size_t>(c.done)) + " of " +
                           std::to_string(spec.members.size()) + " members not done (" + std::to_string(c.failed) + " failed, " +
@@ -278,7 +278,7 @@ int runEnsembleFile(const std::string& specPath, const std::string& outDir, bool
         }
         std::fflush(stdout);
     }
-    verdict = group->broadcast(verdict);
+    verdict = group.broadcast(verdict);
     if (!verdict.empty()) throw ExitStatus(1, rank == 0 ? "ensemble: " + verdict : who + "the run is not complete (rank 0 says why)");
     return rank;
 }

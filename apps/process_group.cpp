@@ -56,19 +56,25 @@ private:
 
 }  // namespace
 
-std::unique_ptr<ProcessGroup> joinProcessGroup() {
+static std::unique_ptr<ProcessGroup> makeProcessGroup() {
     if (launchedByMpi()) return std::make_unique<MpiGroup>();
     return std::make_unique<ProcessGroup>();
 }
 #else
 bool haveMpi() { return false; }
 
-std::unique_ptr<ProcessGroup> joinProcessGroup() {
+static std::unique_ptr<ProcessGroup> makeProcessGroup() {
     if (launchedByMpi())
         throw ExitStatus(2, "ensemble: started by an MPI launcher, but this eco was built without MPI (install "
                             "libopenmpi-dev and configure again); every rank would run every member");
     return std::make_unique<ProcessGroup>();
 }
 #endif
+
+ProcessGroup& joinProcessGroup() {
+    // Destroyed (MPI finalised) when the process exits.
+    static const std::unique_ptr<ProcessGroup> group = makeProcessGroup();
+    return *group;
+}
 
 }  // namespace eco::cli

@@ -23,9 +23,11 @@ public:
 bool launchedByMpi();
 /// This build has MPI (OpenMPI from Debian, found when it was configured).
 bool haveMpi();
-/// The group of this process: MPI's world when launched by MPI (MPI is initialised here and
-/// finalised when the group is destroyed), else a group of one. ExitStatus (usage) when
-/// launched by MPI and this build has no MPI: every rank would run every member.
-std::unique_ptr<ProcessGroup> joinProcessGroup();
+/// The group of this process: MPI's world when launched by MPI, else a group of one. One for
+/// the life of the process: MPI is initialised at the first call and finalised when the
+/// process exits (MPI may be initialised only once, and eco calibrate runs an ensemble per
+/// evaluation). ExitStatus (usage) when launched by MPI and this build has no MPI: every rank
+/// would run every member.
+ProcessGroup& joinProcessGroup();
 
 }  // namespace eco::cli

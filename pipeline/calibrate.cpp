@@ -6,11 +6,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
 #include <exception>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <numeric>
 #include <sstream>
+#include <thread>
 
 #include "atomic_file.h"
 #include "chart.h"
@@ -73,10 +76,14 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     } catch (const ValidationError&) {
         c.fail("algorithm", "'" + spec.algorithm + "' is not one of sbplx, neldermead, bobyqa, cobyla");
     }
-    spec.maxEvaluations = static_cast<int>(c.integerOr("max_evaluations", spec.maxEvaluations));
-    if (spec.maxEvaluations < 2 || spec.maxEvaluations > 10000) c.fail("max_evaluations", "must be in 2 .. 10000");
-    spec.replicates = static_cast<int>(c.integerOr("replicates", spec.replicates));
-    if (spec.replicates < 1 || spec.replicates > 100) c.fail("replicates", "must be in 1 .. 100");
+    // A whole number in lo .. hi; the message names the key and the value given.
+    const auto count = [&c](const std::string& key, std::int64_t lo, std::int64_t hi, std::int64_t fallback) {
+        const std::int64_t v = c.integerOr(key, fallback);
+        if (v < lo || v > hi) c.fail(key, "must be in " + std::to_string(lo) + " .. " + std::to_string(hi) + ", got " + std::to_string(v));
+        return static_cast<int>(v);
+    };
+    spec.maxEvaluations = count("max_evaluations", 2, 10000, spec.maxEvaluations);
+    spec.replicates = count("replicates", 1, 100, spec.replicates);
     spec.tolerance = c.numberInOr("tolerance", 1e-9, 0.5, spec.tolerance);
     spec.initialStep = c.numberInOr("initial_step", 1e-3, 1.0, spec.initialStep);
     spec.uncertainty = c.booleanOr("uncertainty", spec.uncertainty);
@@ -84,26 +91,27 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     if (spec.global != "none" && spec.global != "multistart" && spec.global != "crs2" && spec.global != "isres")
         c.fail("global", "'" + spec.global + "' is not one of none, multistart, crs2, isres");
     if (spec.global == "multistart") {
-        spec.starts = static_cast<int>(c.integerOr("starts", spec.starts));
-        if (spec.starts < 2 || spec.starts > 100) c.fail("starts", "must be in 2 .. 100");
-    } else if (c.has("starts")) {
-        c.fail("starts", "is a key of global = \"multistart\"");
+        spec.starts = count("starts", 2, 100, spec.starts);
+        spec.parallelStarts = c.booleanOr("parallel_starts", spec.parallelStarts);
+        if (spec.parallelStarts && spec.maxEvaluations < 2 * spec.starts)
+            c.fail("max_evaluations", "must be at least 2 x starts (" + std::to_string(2 * spec.starts) + ") with parallel_starts: each start gets max_evaluations / starts, got " +
+                                          std::to_string(spec.maxEvaluations));
+    } else {
+        for (const char* key : {"starts", "parallel_starts"})
+            if (c.has(key)) c.fail(key, "is a key of global = \"multistart\" (global is \"" + spec.global + "\")");
     }
     if (spec.global == "crs2" || spec.global == "isres") {
-        spec.globalEvaluations = static_cast<int>(c.integerOr("global_evaluations", spec.maxEvaluations / 2));
-        if (spec.globalEvaluations < 2 || spec.globalEvaluations >= spec.maxEvaluations)
-            c.fail("global_evaluations", "must be in 2 .. max_evaluations - 1 (" + std::to_string(spec.maxEvaluations - 1) + ")");
+        spec.globalEvaluations = count("global_evaluations", 2, spec.maxEvaluations - 1, spec.maxEvaluations / 2);
     } else if (c.has("global_evaluations")) {
-        c.fail("global_evaluations", "is a key of global = \"crs2\" or \"isres\"");
+        c.fail("global_evaluations", "is a key of global = \"crs2\" or \"isres\" (global is \"" + spec.global + "\")");
     }
     if (spec.global == "none" && c.has("seed")) c.fail("seed", "is a key of a global search (global = multistart, crs2 or isres)");
     {
         const std::int64_t seed = c.integerOr("seed", 1);
-        if (seed < 0) c.fail("seed", "must not be negative");
+        if (seed < 0) c.fail("seed", "must not be negative, got " + std::to_string(seed));
         spec.seed = static_cast<std::uint64_t>(seed);
     }
-    spec.membersAtOnce = static_cast<int>(c.integerOr("members_at_once", 1));
-    if (spec.membersAtOnce < 1 || spec.membersAtOnce > 256) c.fail("members_at_once", "must be in 1 .. 256");
+    spec.membersAtOnce = count("members_at_once", 1, 256, 1);
     for (const auto& [k, v] : c.table("parameters")) {
         double start = 0;
         const StudyParameter p = parseStudyParameter(std::string(k.str()), v, path, "[calibrate.parameters]", &start);
@@ -229,35 +237,59 @@ public:
 
     /// chi2 at these parameter values (evaluated once; a repeated point is looked up).
     const Evaluation& evaluate(const std::vector<double>& values, const std::string& purpose) {
-        if (const auto it = seen_.find(values); it != seen_.end()) return history_[it->second];
-        Evaluation e;
-        e.index = static_cast<int>(history_.size()) + 1;
-        e.purpose = purpose;
-        e.values = values;
-        for (int r = 0; r < spec_.replicates; ++r) members_.push_back({calibrationMemberName(e.index, r), values, r + 1});
-        run_(writeStudyEnsemble(spec_.outDir, spec_.base, spec_.membersAtOnce, spec_.parameters, members_,
-                                "# The simulations of eco calibrate " + spec_.path + ": one per evaluation and replicate\n"
-                                "# (written by eco calibrate; run.seed is the replicate).\n"));
-        for (const CalibrationTarget& t : spec_.targets) {
-            std::vector<double> reps;
-            for (int r = 0; r < spec_.replicates; ++r) reps.push_back(measureOutput(studySimulation(spec_.outDir, calibrationMemberName(e.index, r)), t.output));
-            const double m = std::accumulate(reps.begin(), reps.end(), 0.0) / static_cast<double>(reps.size());
-            double sq = 0;
-            for (double v : reps) sq += (v - m) * (v - m);
-            e.simulated.push_back(m);
-            e.spread.push_back(reps.size() > 1 ? std::sqrt(sq / static_cast<double>(reps.size() - 1)) : 0.0);
+        return history_[evaluateAll({values}, purpose).front()];
+    }
+
+    /// Several points at once: the new ones (a point seen before, or twice in the list, is
+    /// simulated once) become evaluations in the order given, and all their simulations run as
+    /// one ensemble run (side by side in members_at_once children or MPI ranks). Returns each
+    /// point's index into the history.
+    std::vector<std::size_t> evaluateAll(const std::vector<std::vector<double>>& points, const std::string& purpose) {
+        std::vector<std::size_t> at;
+        std::vector<std::size_t> fresh;  // history indices added now
+        for (const auto& values : points) {
+            if (const auto it = seen_.find(values); it != seen_.end()) {
+                at.push_back(it->second);
+                continue;
+            }
+            Evaluation e;
+            e.index = static_cast<int>(history_.size()) + 1;
+            e.purpose = purpose;
+            e.values = values;
+            for (int r = 0; r < spec_.replicates; ++r) members_.push_back({calibrationMemberName(e.index, r), values, r + 1});
+            seen_[values] = history_.size();
+            at.push_back(history_.size());
+            fresh.push_back(history_.size());
+            history_.push_back(std::move(e));
         }
-        e.chi2 = chiSquare(spec_.targets, e.simulated);
-        seen_[values] = history_.size();
-        history_.push_back(e);
-        if (history_.size() == 1 || e.chi2 < history_[best_].chi2) best_ = history_.size() - 1;
-        reporter_.info("calibrate: evaluation " + std::to_string(e.index) + " (" + purpose + "): " + joinValues(spec_.parameters, values) +
-                       "; chi2 = " + formatNumber(e.chi2, 5) + " (best " + formatNumber(history_[best_].chi2, 5) + ")");
-        return history_.back();
+        if (fresh.empty()) return at;
+        writer_ = run_(writeStudyEnsemble(spec_.outDir, spec_.base, spec_.membersAtOnce, spec_.parameters, members_,
+                                          "# The simulations of eco calibrate " + spec_.path + ": one per evaluation and replicate\n"
+                                          "# (written by eco calibrate; run.seed is the replicate).\n"));
+        for (std::size_t h : fresh) {
+            Evaluation& e = history_[h];
+            for (const CalibrationTarget& t : spec_.targets) {
+                std::vector<double> reps;
+                for (int r = 0; r < spec_.replicates; ++r) reps.push_back(measureOutput(studySimulation(spec_.outDir, calibrationMemberName(e.index, r)), t.output));
+                const double m = std::accumulate(reps.begin(), reps.end(), 0.0) / static_cast<double>(reps.size());
+                double sq = 0;
+                for (double v : reps) sq += (v - m) * (v - m);
+                e.simulated.push_back(m);
+                e.spread.push_back(reps.size() > 1 ? std::sqrt(sq / static_cast<double>(reps.size() - 1)) : 0.0);
+            }
+            e.chi2 = chiSquare(spec_.targets, e.simulated);
+            if (h == 0 || e.chi2 < history_[best_].chi2) best_ = h;
+            if (writer_)
+                reporter_.info("calibrate: evaluation " + std::to_string(e.index) + " (" + purpose + "): " + joinValues(spec_.parameters, e.values) +
+                               "; chi2 = " + formatNumber(e.chi2, 5) + " (best " + formatNumber(history_[best_].chi2, 5) + ")");
+        }
+        return at;
     }
 
     std::vector<Evaluation>& history() { return history_; }
     std::size_t best() const { return best_; }
+    /// Whether this process writes the outputs (rank 0 under MPI); known after the first run.
+    bool writer() const { return writer_; }
 
 private:
     const CalibrationSpec& spec_;
@@ -267,6 +299,7 @@ private:
     std::vector<Evaluation> history_;
     std::map<std::vector<double>, std::size_t> seen_;
     std::size_t best_ = 0;
+    bool writer_ = true;
 };
 
 struct CubeObjective {
@@ -355,6 +388,95 @@ void writeConvergencePng(const std::string& path, const CalibrationResult& r) {
     c.writePng(path);
 }
 
+/// The local searches of a multistart side by side, in rounds (docs/calibration.md,
+/// parallel_starts): each search runs in its own thread, and its objective hands its point to
+/// this thread and waits; when every search still running waits, the round's points (in the
+/// order of the starts) go to `batch` together, and each search gets its value back. A
+/// search's points depend only on the values it gets, so each search is the one it would be
+/// alone, and the rounds are the same for the same settings, however `batch` runs them.
+std::vector<SearchRun> multistartInRounds(const BatchObjective& batch, const std::vector<std::vector<double>>& starts, nlopt_algorithm local,
+                                          const SearchSettings& s) {
+    const std::size_t n = starts.size();
+    const int share = s.maxEvaluations / static_cast<int>(n);
+    std::mutex m;
+    std::condition_variable cv;
+    std::vector<const std::vector<double>*> asked(n, nullptr);
+    std::vector<double> answer(n, 0.0);
+    std::vector<char> answered(n, 0);
+    std::size_t waiting = 0, running = n;
+    bool failed = false;
+    std::vector<SearchRun> runs(n);
+    std::vector<std::exception_ptr> own(n);  // a search's own failure (not a failed round's)
+    std::vector<std::thread> threads;
+    threads.reserve(n);
+    for (std::size_t i = 0; i < n; ++i)
+        threads.emplace_back([&, i] {
+            const std::function<double(const std::vector<double>&)> f = [&, i](const std::vector<double>& x) {
+                std::unique_lock<std::mutex> lock(m);
+                if (failed) throw ValidationError("calibrate: stopped");
+                asked[i] = &x;
+                answered[i] = 0;
+                ++waiting;
+                cv.notify_all();
+                cv.wait(lock, [&] { return answered[i] != 0 || failed; });
+                if (!answered[i]) throw ValidationError("calibrate: stopped");
+                return answer[i];
+            };
+            try {
+                runs[i] = runOptimiser(f, local, s.algorithm, starts[i], share, s, false);
+            } catch (...) {
+                own[i] = std::current_exception();  // after a failed round, the round's error is rethrown instead
+            }
+            const std::lock_guard<std::mutex> lock(m);
+            --running;
+            cv.notify_all();
+        });
+    std::exception_ptr error;
+    {
+        std::unique_lock<std::mutex> lock(m);
+        while (true) {
+            cv.wait(lock, [&] { return waiting == running; });
+            if (running == 0) break;
+            std::vector<std::size_t> who;
+            std::vector<std::vector<double>> points;
+            for (std::size_t i = 0; i < n; ++i)
+                if (asked[i]) {
+                    who.push_back(i);
+                    points.push_back(*asked[i]);
+                }
+            lock.unlock();
+            std::vector<double> values;
+            try {
+                values = batch(points);
+                if (values.size() != points.size()) throw ValidationError("calibrate: a batch of " + std::to_string(points.size()) + " points gave " + std::to_string(values.size()) + " values");
+            } catch (...) {
+                error = std::current_exception();
+            }
+            lock.lock();
+            for (std::size_t j = 0; j < who.size(); ++j) {
+                asked[who[j]] = nullptr;
+                if (!error) {
+                    answer[who[j]] = std::isnan(values[j]) ? HUGE_VAL : values[j];
+                    answered[who[j]] = 1;
+                }
+            }
+            waiting = 0;
+            if (error) {
+                failed = true;
+                cv.notify_all();
+                cv.wait(lock, [&] { return running == 0; });
+                break;
+            }
+            cv.notify_all();
+        }
+    }
+    for (std::thread& t : threads) t.join();
+    if (error) std::rethrow_exception(error);
+    for (const std::exception_ptr& e : own)
+        if (e) std::rethrow_exception(e);
+    return runs;
+}
+
 }  // namespace
 
 SearchSettings searchSettingsOf(const CalibrationSpec& spec) {
@@ -362,6 +484,7 @@ SearchSettings searchSettingsOf(const CalibrationSpec& spec) {
     s.algorithm = spec.algorithm;
     s.global = spec.global;
     s.starts = spec.starts;
+    s.parallelStarts = spec.parallelStarts;
     s.globalEvaluations = spec.globalEvaluations;
     s.seed = spec.seed;
     s.maxEvaluations = spec.maxEvaluations;
@@ -390,7 +513,7 @@ std::vector<std::vector<double>> multistartPoints(int k, int starts, const std::
 }
 
 SearchResult minimiseInUnitCube(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start,
-                                const SearchSettings& settings) {
+                                const SearchSettings& settings, const BatchObjective& batch) {
     if (start.empty()) throw ValidationError("calibrate: nothing to search (no parameter)");
     const nlopt_algorithm local = algorithmOf(settings.algorithm);
     SearchResult r;
@@ -409,7 +532,16 @@ SearchResult minimiseInUnitCube(const std::function<double(const std::vector<dou
         // The budget is shared: each start gets an equal share of what the earlier ones left
         // (a start that converges early leaves its rest to the later ones), at least 2.
         const std::vector<std::vector<double>> starts = multistartPoints(static_cast<int>(start.size()), settings.starts, start, settings.seed);
-        for (std::size_t n = 0; n < starts.size(); ++n) {
+        if (settings.parallelStarts) {
+            if (settings.maxEvaluations / settings.starts < 2) throw ValidationError("calibrate: parallel starts need max_evaluations >= 2 x starts");
+            const BatchObjective oneByOne = [&f](const std::vector<std::vector<double>>& points) {
+                std::vector<double> v;
+                for (const auto& x : points) v.push_back(f(x));
+                return v;
+            };
+            for (SearchRun& run : multistartInRounds(batch ? batch : oneByOne, starts, local, settings)) add(std::move(run));
+        }
+        for (std::size_t n = 0; n < starts.size() && !settings.parallelStarts; ++n) {
             const int left = settings.maxEvaluations - r.evaluations;
             const int share = left / static_cast<int>(starts.size() - n);
             if (share < 2) break;
@@ -437,12 +569,13 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     CalibrationSpec spec = given;
     CalibrationResult result;
     // A known truth: the targets' values are its simulations' outputs (other seeds).
+    bool writer = true;  // this process writes the outputs (rank 0 under MPI)
     std::vector<StudyMember> truthMembers;
     for (std::size_t r = 0; r < given.truth.size() && r < static_cast<std::size_t>(given.replicates); ++r)
         truthMembers.push_back({"truth-r" + std::string(r < 9 ? "0" : "") + std::to_string(r + 1), given.truth, 1001 + static_cast<int>(r)});
     if (!truthMembers.empty()) {
-        run(writeStudyEnsemble(spec.outDir, spec.base, spec.membersAtOnce, spec.parameters, truthMembers,
-                               "# The simulations of eco calibrate " + spec.path + " (written by eco calibrate).\n"));
+        writer = run(writeStudyEnsemble(spec.outDir, spec.base, spec.membersAtOnce, spec.parameters, truthMembers,
+                                        "# The simulations of eco calibrate " + spec.path + " (written by eco calibrate).\n"));
         for (CalibrationTarget& t : spec.targets) {
             if (t.output.pcf) continue;  // fitted to its stem map
             double sum = 0;
@@ -451,7 +584,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         }
         std::string line = "calibrate: targets from the truth (" + joinValues(spec.parameters, given.truth) + "):";
         for (const CalibrationTarget& t : spec.targets) line += " " + t.output.text + " = " + formatNumber(t.value, 6);
-        reporter.info(line);
+        if (writer) reporter.info(line);
     }
     for (const CalibrationTarget& t : spec.targets) result.targetValues.push_back(t.value);
     Calibrator cal(spec, run, reporter, truthMembers);
@@ -461,12 +594,21 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         const StudyParameter& p = spec.parameters[i];
         u[i] = p.logScale || p.integer ? std::clamp(p.unitOf(spec.start[i]), 0.0, 1.0) : (spec.start[i] - p.low) / (p.high - p.low);
     }
-    const auto chi2At = [&](const std::vector<double>& x) {
+    const auto valuesAt = [&](const std::vector<double>& x) {
         std::vector<double> values(k);
         for (std::size_t i = 0; i < k; ++i) values[i] = spec.parameters[i].at(x[i]);
-        return cal.evaluate(values, "search").chi2;
+        return values;
     };
-    const SearchResult search = minimiseInUnitCube(chi2At, u, searchSettingsOf(spec));
+    const auto chi2At = [&](const std::vector<double>& x) { return cal.evaluate(valuesAt(x), "search").chi2; };
+    // Parallel starts: a round's points are simulated together.
+    const BatchObjective chi2AtAll = [&](const std::vector<std::vector<double>>& xs) {
+        std::vector<std::vector<double>> points;
+        for (const auto& x : xs) points.push_back(valuesAt(x));
+        std::vector<double> chi2;
+        for (std::size_t h : cal.evaluateAll(points, "search")) chi2.push_back(cal.history()[h].chi2);
+        return chi2;
+    };
+    const SearchResult search = minimiseInUnitCube(chi2At, u, searchSettingsOf(spec), chi2AtAll);
     result.stopReason = search.stopReason;
     result.converged = search.converged;
     result.runs = search.runs;
@@ -474,10 +616,12 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     const Evaluation bestSearch = cal.history()[cal.best()];
 
     // Uncertainty: the Jacobian of the normalised residuals by forward differences of a tenth
-    // of each range (backwards at the upper bound), at the same replicate seeds.
+    // of each range (backwards at the upper bound), at the same replicate seeds; the k points
+    // are simulated together.
     result.parameterSd.assign(k, std::nan(""));
     if (spec.uncertainty) {
         std::vector<std::vector<double>> jac(spec.targets.size(), std::vector<double>(k, 0.0));
+        std::vector<std::vector<double>> steps;
         for (std::size_t i = 0; i < k; ++i) {
             std::vector<double> v = bestSearch.values;
             const StudyParameter& p = spec.parameters[i];
@@ -492,9 +636,13 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
                 if (p.integer && moved == v[i]) v[i] = v[i] + 1 <= p.high ? v[i] + 1 : v[i] - 1;
                 else v[i] = moved;
             }
-            const Evaluation e = cal.evaluate(v, "uncertainty");
+            steps.push_back(std::move(v));
+        }
+        const std::vector<std::size_t> at = cal.evaluateAll(steps, "uncertainty");
+        for (std::size_t i = 0; i < k; ++i) {
+            const Evaluation& e = cal.history()[at[i]];
             for (std::size_t t = 0; t < spec.targets.size(); ++t)
-                jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (v[i] - bestSearch.values[i]);
+                jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (steps[i][i] - bestSearch.values[i]);
         }
         result.parameterSd = linearisedSd(jac);
     }
@@ -502,6 +650,8 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
     // The best of the search (an uncertainty step may score lower by chance; it is not a fit).
     result.best = static_cast<std::size_t>(bestSearch.index - 1);
     const Evaluation& best = result.history[result.best];
+    result.writer = writer && cal.writer();
+    if (!result.writer) return result;  // another MPI rank's: rank 0 writes the outputs
 
     // Outputs, together: the history, the report, the picture, the best configuration files.
     AtomicOutputSet outputs;
@@ -535,7 +685,9 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << (spec.targets.size() > 1 ? "s" : "") << ", NLopt `" << spec.algorithm << "` in the unit cube of the ranges (first step "
        << formatNumber(spec.initialStep, 3) << ", tolerance " << formatNumber(spec.tolerance, 3) << "), " << spec.replicates
        << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (run.seed 1 .. " << spec.replicates << ", the same at every evaluation). "
-       << (spec.global == "multistart" ? "Multistart: " + std::to_string(spec.starts) + " local searches (the start, then quasi-random points, seed " + std::to_string(spec.seed) + ") sharing the budget. "
+       << (spec.global == "multistart" ? "Multistart: " + std::to_string(spec.starts) + " local searches (the start, then quasi-random points, seed " + std::to_string(spec.seed) + ")" +
+                                                 (spec.parallelStarts ? " side by side (parallel_starts: in rounds, one evaluation of each start per round, " + std::to_string(spec.maxEvaluations / spec.starts) + " evaluations each). "
+                                                                      : " sharing the budget. ")
            : spec.global == "none" ? std::string()
                                    : "Global search: NLopt " + std::string(spec.global == "crs2" ? "GN_CRS2_LM" : "GN_ISRES") + " (seed " + std::to_string(spec.seed) + ") for " +
                                          std::to_string(spec.globalEvaluations) + " evaluations, then `" + spec.algorithm + "` from its best. ")

@@ -44,6 +44,10 @@ struct CalibrationSpec {
     /// with `seed`, for `global_evaluations`, then the local algorithm from their best).
     std::string global = "none";
     int starts = 4;              ///< multistart: local searches
+    /// multistart: the starts search side by side, in rounds: one evaluation of every start
+    /// still searching per round, the round's simulations run together (members_at_once
+    /// children or MPI ranks share them); each start gets max_evaluations / starts.
+    bool parallelStarts = false;
     int globalEvaluations = 0;   ///< crs2, isres: evaluations of the global phase (0: half of max_evaluations)
     std::uint64_t seed = 1;      ///< multistart, crs2, isres
     int membersAtOnce = 1;
@@ -101,12 +105,16 @@ struct CalibrationResult {
     std::string bestBiome, bestSimulation;  ///< written files ("" when no key of that kind)
     std::string reportPath, historyPath;
     std::vector<double> targetValues;  ///< the values fitted (from the truth when given)
+    bool writer = true;                ///< this process wrote the outputs (false on MPI ranks other than 0)
 };
 
 /// Runs a set of members: writes nothing itself; given the ensemble specification's path it
 /// runs the members not yet done (eco ensemble's runner: this process, its children or MPI
-/// ranks) and returns when all are done (throws when one failed).
-using MemberRunner = std::function<void(const std::string& ensembleSpecPath)>;
+/// ranks) and returns when all are done (throws when one failed). Returns whether this
+/// process writes the calibration's outputs: under MPI every rank runs the same (determin-
+/// istic) search and shares each run's members, and rank 0 alone writes the report and
+/// the history; true in a single process.
+using MemberRunner = std::function<bool(const std::string& ensembleSpecPath)>;
 
 /// How the optimiser searches the unit cube of the ranges (the search part of a
 /// CalibrationSpec).
@@ -114,6 +122,7 @@ struct SearchSettings {
     std::string algorithm = "sbplx";
     std::string global = "none";
     int starts = 4;
+    bool parallelStarts = false;  ///< multistart: the starts in rounds (minimiseInUnitCube's batch objective), max_evaluations / starts each
     int globalEvaluations = 0;
     std::uint64_t seed = 1;
     int maxEvaluations = 40;   ///< of the whole search (every start, both phases; multistart: an equal share of what is left per start)
@@ -128,12 +137,21 @@ SearchSettings searchSettingsOf(const CalibrationSpec& spec);
 /// as evenly). k <= SobolSequence::kMaxDimensions.
 std::vector<std::vector<double>> multistartPoints(int k, int starts, const std::vector<double>& first, std::uint64_t seed);
 
+/// Values of the objective at several points at once (in the order given).
+using BatchObjective = std::function<std::vector<double>(const std::vector<std::vector<double>>&)>;
+
 /// Minimises f over the unit cube [0, 1]^k from `start` as `settings` say. Deterministic: the
 /// same points in the same order for the same settings (NLopt's generator seeded with
 /// settings.seed before each global phase). An exception thrown by f stops the search and is
 /// rethrown.
+///
+/// With a multistart whose settings.parallelStarts is set, the starts' local searches run
+/// side by side in rounds through `batch` (f when it is empty, one point after the other):
+/// round n holds the n-th point of every start still searching, in the order of the starts,
+/// so the rounds depend on the settings alone; each start gets maxEvaluations / starts, and
+/// its points are those of the same local search run alone.
 SearchResult minimiseInUnitCube(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start,
-                                const SearchSettings& settings);
+                                const SearchSettings& settings, const BatchObjective& batch = {});
 
 /// The member name of replicate r (0-based) of evaluation e (1-based).
 std::string calibrationMemberName(int evaluation, int replicate);
