@@ -711,7 +711,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         md << "| `" << spec.targets[t].output.text << "` | " << formatNumber(spec.targets[t].value, 5) << " | " << formatNumber(spec.targets[t].sd, 3) << " | "
            << formatNumber(best.simulated[t], 5) << " | " << formatNumber(best.spread[t], 3) << " | "
            << formatNumber((best.simulated[t] - spec.targets[t].value) / spec.targets[t].sd, 3) << " |\n";
-    if (result.runs.size() > 1) {
+    if (result.runs.size() > 1 || spec.global != "none") {
         md << "\n## Search runs\n\n| run | method | start (unit cube) | best (unit cube) | chi2 | evaluations | stopped |\n|---:|---|---|---|---:|---:|---|\n";
         const auto unit = [](const std::vector<double>& x) {
             std::string t;

@@ -1,12 +1,21 @@
 // eco calibrate end to end (issue 28 item 4) on a tiny scene: the seeding probability
 // recovered from the density that simulations at a known value gave (other seeds), within 10 %;
 // the report, history and best configuration written; the same command again replays the
-// search over the finished simulations and gives the same history.
+// search over the finished simulations and gives the same history. The global search options
+// on the command line (recorded, refused when bad, replayed for the same seed), and parallel
+// starts over two MPI ranks (the history of one process).
 #include <catch2/catch.hpp>
 
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "atomic_file.h"
 #include "test_util.h"
@@ -65,4 +74,129 @@ TEST_CASE("eco calibrate: recovers a known seeding probability, and a rerun repl
     REQUIRE(again.exitCode == 0);
     CHECK(again.output.find("started") == std::string::npos);
     CHECK(readTextFile(dir.file("out/history.csv")) == history);
+}
+
+namespace {
+
+/// A calibration of the seeding probability on the smallest scene (32 x 32 cells, 2 years,
+/// about 1 s per simulation), with `calibrate` added to its [calibrate] table.
+std::string writeTinyCalibrationSpec(const test::TempDir& dir, const std::string& name, const std::string& calibrate) {
+    const std::string spec = dir.file(name);
+    std::ofstream(spec) << "[calibrate]\nout_dir = \"" << dir.file("out") << "\"\nuncertainty = false\n" << calibrate << "\n"
+                        << "[calibrate.parameters]\n\"model.seeding_probability\" = [0.0005, 0.004]\n"
+                        << "[calibrate.base.run]\nout_dir = \"unused\"\n"
+                        << "[calibrate.base.terrain]\nwidth = 32\nheight = 32\n"
+                        << "[calibrate.base.chm]\n[calibrate.base.abiotics]\nsun_step_minutes = 120\n[calibrate.base.canopy]\n"
+                        << "[calibrate.base.simulate]\nconfig = \"" << test::sourcePath("configs/sim-default.toml") << "\"\n"
+                        << "years = 2\ncrop = [2.0, 2.0, 26.0, 26.0]\n"
+                        << "[[target]]\noutput = \"density@2\"\nvalue = 1.0\nsd = 0.1\n";
+    return spec;
+}
+
+}  // namespace
+
+TEST_CASE("eco calibrate: the global search is recorded, a bad setting is refused naming its key and value, the same seed replays", "[calibrate][cli]") {
+    namespace fs = std::filesystem;
+    test::TempDir dir("calibrate_global");
+    // Bad settings: refused before anything runs (a value in a file: exit 1, docs/robustness.md),
+    // one line naming the file, the key and the value given.
+    const std::vector<std::pair<std::string, std::vector<std::string>>> bad = {
+        {"global = \"anneal\"", {"field 'global'", "'anneal'", "multistart, crs2, isres"}},
+        {"global = \"multistart\"\nstarts = 1", {"field 'starts'", "2 .. 100", "got 1"}},
+        {"global = \"multistart\"\nstarts = 101", {"field 'starts'", "got 101"}},
+        {"global = \"multistart\"\nstarts = 2.5", {"field 'starts'", "integer"}},
+        {"global = \"crs2\"\nstarts = 4", {"field 'starts'", "multistart", "\"crs2\""}},
+        {"global = \"isres\"\nmax_evaluations = 10\nglobal_evaluations = 10", {"field 'global_evaluations'", "2 .. 9", "got 10"}},
+        {"global = \"multistart\"\nglobal_evaluations = 5", {"field 'global_evaluations'", "\"multistart\""}},
+        {"global = \"crs2\"\nseed = -3", {"field 'seed'", "got -3"}},
+        {"seed = 4", {"field 'seed'", "global search"}},
+        {"global = \"multistart\"\nstarts = 3\nparallel_starts = true\nmax_evaluations = 5", {"field 'max_evaluations'", "2 x starts (6)", "got 5"}},
+        {"global = \"multistart\"\nparallel_starts = \"yes\"", {"field 'parallel_starts'", "true or false"}},
+        {"global = \"none\"\nparallel_starts = true", {"field 'parallel_starts'", "multistart"}},
+    };
+    for (const auto& [setting, fragments] : bad) {
+        INFO(setting);
+        const std::string spec = writeTinyCalibrationSpec(dir, "bad.toml", setting);
+        const auto r = test::runEco("calibrate " + spec);
+        INFO(r.output);
+        CHECK(r.exitCode == 1);
+        CHECK(r.output.find("eco: error: " + spec) != std::string::npos);
+        for (const std::string& f : fragments) CHECK(r.output.find(f) != std::string::npos);
+        CHECK_FALSE(fs::exists(dir.file("out")));
+    }
+
+    // Multistart from 2 starts with seed 7: the report names the method, the seed and each
+    // start's run; the history has the budget's evaluations.
+    const std::string multistart = writeTinyCalibrationSpec(dir, "multistart.toml", "global = \"multistart\"\nstarts = 2\nseed = 7\nmax_evaluations = 4\nreplicates = 1");
+    const auto r = test::runEco("calibrate " + multistart);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    const std::string report = readTextFile(dir.file("out/calibration.md"));
+    CHECK(report.find("Multistart: 2 local searches (the start, then quasi-random points, seed 7) sharing the budget.") != std::string::npos);
+    CHECK(report.find("## Search runs") != std::string::npos);
+    CHECK(report.find("| 1 | sbplx | 0.5 |") != std::string::npos);  // the first start: the middle
+    CHECK(report.find("| 2 | sbplx |") != std::string::npos);
+    const std::string history = readTextFile(dir.file("out/history.csv"));
+    CHECK(std::count(history.begin(), history.end(), '\n') == 5);  // header and 4 evaluations
+    CHECK(history.find("\n1,search,0.00225,") != std::string::npos);  // the middle of the range first
+    // The same seed again: the same points (nothing simulated again), the same history.
+    const auto again = test::runEco("calibrate " + multistart);
+    INFO(again.output);
+    REQUIRE(again.exitCode == 0);
+    CHECK(again.output.find("started") == std::string::npos);
+    CHECK(readTextFile(dir.file("out/history.csv")) == history);
+    CHECK(readTextFile(dir.file("out/calibration.md")) == report);
+
+    // ISRES for 2 evaluations (the 1 left is too few for the local polish): recorded as such.
+    const std::string isres = writeTinyCalibrationSpec(dir, "isres.toml", "global = \"isres\"\nseed = 5\nmax_evaluations = 3\nglobal_evaluations = 2\nreplicates = 1");
+    const auto g = test::runEco("calibrate " + isres + " --out-dir " + dir.file("isres"));
+    INFO(g.output);
+    REQUIRE(g.exitCode == 0);
+    const std::string isresReport = readTextFile(dir.file("isres/calibration.md"));
+    CHECK(isresReport.find("Global search: NLopt GN_ISRES (seed 5) for 2 evaluations, then `sbplx` from its best.") != std::string::npos);
+    CHECK(isresReport.find("| 1 | isres |") != std::string::npos);
+    CHECK(isresReport.find("\n| 2 | ") == std::string::npos);  // no second run
+    CHECK(readTextFile(dir.file("isres/history.csv")).find("\n2,search,") != std::string::npos);
+}
+
+// (Child processes, members_at_once, run a round through the same ensemble runner, whose
+// bytes the test "eco ensemble: members in child processes and under MPI..." compares.)
+TEST_CASE("eco calibrate: parallel starts over two MPI ranks give the history of one process", "[calibrate][mpi][cli]") {
+    test::TempDir dir("calibrate_procs");
+    // 2 starts side by side, 2 evaluations each (2 rounds), 2 replicates: 4 simulations a round.
+    const std::string settings = "global = \"multistart\"\nstarts = 2\nparallel_starts = true\nseed = 7\nmax_evaluations = 4\nreplicates = 2\n";
+    const std::string spec = writeTinyCalibrationSpec(dir, "calibrate.toml", settings);
+    const auto ref = test::runEco("--no-provenance --threads 1 calibrate " + spec + " --out-dir " + dir.file("ref"));
+    INFO(ref.output);
+    REQUIRE(ref.exitCode == 0);
+    const std::string history = readTextFile(dir.file("ref/history.csv"));
+    // Evaluations 1 and 2 are the rounds' first: the two starts' first points.
+    CHECK(history.find("\n1,search,0.00225,") != std::string::npos);
+    CHECK(std::count(history.begin(), history.end(), '\n') == 5);
+    const std::string report = readTextFile(dir.file("ref/calibration.md"));
+    CHECK(report.find("side by side (parallel_starts: in rounds, one evaluation of each start per round, 2 evaluations each)") != std::string::npos);
+    const auto body = [](const std::string& md) { return md.substr(md.find("## Parameters")); };
+
+#ifdef ECO_TEST_HAVE_MPI
+    // Two MPI ranks: every rank runs the search, the ranks share each round's simulations, rank
+    // 0 writes the outputs. (Before, the second ensemble run of one process initialised MPI
+    // again, and eco calibrate under mpirun aborted at its second evaluation.)
+    const std::string cmd = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -n 2 " + std::string(ECO_BINARY) +
+                            " --no-provenance calibrate " + spec + " --out-dir " + dir.file("mpi") + " 2>&1";
+    std::string output;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    REQUIRE(pipe != nullptr);
+    char buf[4096];
+    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) output.append(buf, n);
+    const int status = ::pclose(pipe);
+    INFO(output);
+    REQUIRE(WIFEXITED(status));
+    REQUIRE(WEXITSTATUS(status) == 0);
+    CHECK(output.find("2 MPI ranks") != std::string::npos);
+    CHECK(output.find("[rank 1]: member") != std::string::npos);
+    CHECK(readTextFile(dir.file("mpi/history.csv")) == history);
+    CHECK(body(readTextFile(dir.file("mpi/calibration.md"))) == body(report));
+#else
+    WARN("MPI part skipped: this build has no MPI (install libopenmpi-dev and configure again)");
+#endif
 }

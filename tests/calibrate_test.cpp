@@ -187,6 +187,85 @@ TEST_CASE("calibrate search: multistart points begin with the start and spread o
                       Catch::Contains("boom"));
 }
 
+TEST_CASE("calibrate search: parallel starts run in rounds, each start as it would run alone", "[calibrate]") {
+    const std::vector<double> middle{0.5, 0.5};
+    SearchSettings s;
+    s.global = "multistart";
+    s.parallelStarts = true;
+    s.starts = 6;
+    s.maxEvaluations = 600;  // 100 per start
+    s.tolerance = 1e-4;
+    s.initialStep = 0.1;
+    std::vector<std::vector<std::vector<double>>> rounds;
+    const BatchObjective batch = [&](const std::vector<std::vector<double>>& xs) {
+        rounds.push_back(xs);
+        std::vector<double> v;
+        for (const auto& x : xs) v.push_back(twoWells(x));
+        return v;
+    };
+    const auto unused = [](const std::vector<double>&) -> double { throw ValidationError("the batch objective is used"); };
+    const SearchResult found = minimiseInUnitCube(unused, middle, s, batch);
+    REQUIRE(found.runs.size() == 6);
+    CHECK(found.best[0] == Approx(kDeepWell).margin(0.005));
+    CHECK(found.best[1] == Approx(kDeepWell).margin(0.005));
+    // Round n holds the n-th point of every start still searching, in the order of the starts:
+    // start i's points are the i-th of the rounds it takes part in, and they are the points of
+    // the same local search run alone from that start with the same share of the budget.
+    const auto starts = multistartPoints(2, 6, middle, s.seed);
+    REQUIRE(rounds.size() > 1);
+    CHECK(rounds.front().size() == 6);
+    int total = 0;
+    for (std::size_t i = 0; i < 6; ++i) {
+        INFO("start " << i);
+        SearchSettings alone = s;
+        alone.global = "none";
+        alone.parallelStarts = false;
+        alone.maxEvaluations = 100;
+        std::vector<std::vector<double>> own;
+        const SearchResult single = minimiseInUnitCube([&](const std::vector<double>& x) { own.push_back(x); return twoWells(x); }, starts[i], alone);
+        CHECK(found.runs[i].start == starts[i]);
+        CHECK(found.runs[i].best == single.best);
+        CHECK(found.runs[i].evaluations == static_cast<int>(own.size()));
+        CHECK(found.runs[i].evaluations <= 100);
+        total += found.runs[i].evaluations;
+        // The rounds have shrinking sizes (a search that stops leaves them); start i's n-th
+        // point sits in round n at its rank among the starts still running.
+        for (std::size_t n = 0; n < own.size(); ++n) {
+            REQUIRE(n < rounds.size());
+            std::size_t before = 0;  // starts before i that still search in round n
+            for (std::size_t j = 0; j < i; ++j)
+                if (static_cast<int>(n) < found.runs[j].evaluations) ++before;
+            REQUIRE(before < rounds[n].size());
+            CHECK(rounds[n][before] == own[n]);
+        }
+    }
+    std::size_t inRounds = 0;
+    for (const auto& r : rounds) inRounds += r.size();
+    CHECK(static_cast<int>(inRounds) == total);
+    CHECK(found.evaluations == total);
+    // The same settings, the same rounds.
+    const auto first = rounds;
+    rounds.clear();
+    minimiseInUnitCube(unused, middle, s, batch);
+    CHECK(rounds == first);
+    // Without a batch objective the rounds go one point after the other through f: the same result.
+    const SearchResult serial = minimiseInUnitCube(twoWells, middle, s);
+    CHECK(serial.best == found.best);
+    CHECK(serial.evaluations == found.evaluations);
+    // A round that fails stops every search, and its error comes through.
+    int calls = 0;
+    CHECK_THROWS_WITH(minimiseInUnitCube(unused, middle, s,
+                                         [&](const std::vector<std::vector<double>>& xs) {
+                                             if (++calls == 3) throw ValidationError("round 3 failed");
+                                             return std::vector<double>(xs.size(), 1.0);
+                                         }),
+                      Catch::Contains("round 3 failed"));
+    CHECK(calls == 3);
+    // Fewer than 2 evaluations per start: refused.
+    s.maxEvaluations = 11;
+    CHECK_THROWS_WITH(minimiseInUnitCube(twoWells, middle, s), Catch::Contains("2 x starts"));
+}
+
 TEST_CASE("calibrate: a stem map's pair correlation as a target, measured against a snapshot's plants", "[calibrate]") {
     test::TempDir dir("calibrate_pcf");
     const Biome biome = defaultBiome();
