@@ -6,10 +6,7 @@
 // starts over two MPI ranks (the history of one process).
 #include <catch2/catch.hpp>
 
-#include <sys/wait.h>
-
 #include <algorithm>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -181,17 +178,10 @@ TEST_CASE("eco calibrate: parallel starts over two MPI ranks give the history of
     // Two MPI ranks: every rank runs the search, the ranks share each round's simulations, rank
     // 0 writes the outputs. (Before, the second ensemble run of one process initialised MPI
     // again, and eco calibrate under mpirun aborted at its second evaluation.)
-    const std::string cmd = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -n 2 " + std::string(ECO_BINARY) +
-                            " --no-provenance calibrate " + spec + " --out-dir " + dir.file("mpi") + " 2>&1";
-    std::string output;
-    FILE* pipe = ::popen(cmd.c_str(), "r");
-    REQUIRE(pipe != nullptr);
-    char buf[4096];
-    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) output.append(buf, n);
-    const int status = ::pclose(pipe);
+    const auto mpi = test::runEcoMpi(2, "--no-provenance calibrate " + spec + " --out-dir " + dir.file("mpi"));
+    const std::string& output = mpi.output;
     INFO(output);
-    REQUIRE(WIFEXITED(status));
-    REQUIRE(WEXITSTATUS(status) == 0);
+    REQUIRE(mpi.exitCode == 0);
     CHECK(output.find("2 MPI ranks") != std::string::npos);
     CHECK(output.find("[rank 1]: member") != std::string::npos);
     CHECK(readTextFile(dir.file("mpi/history.csv")) == history);

@@ -207,18 +207,10 @@ TEST_CASE("eco ensemble: members in child processes and under MPI give the bytes
 
     // Two MPI ranks.
 #ifdef ECO_TEST_HAVE_MPI
-    // CI runs as root, which mpirun refuses without being told; two ranks on any machine.
-    const std::string cmd = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -n 2 " +
-                            std::string(ECO_BINARY) + " --no-provenance ensemble " + spec + " 2>&1";
-    std::string output;
-    FILE* pipe = ::popen(cmd.c_str(), "r");
-    REQUIRE(pipe != nullptr);
-    char buf[4096];
-    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) output.append(buf, n);
-    const int status = ::pclose(pipe);
+    const auto mpi = test::runEcoMpi(2, "--no-provenance ensemble " + spec);
+    const std::string& output = mpi.output;
     INFO(output);
-    REQUIRE(WIFEXITED(status));
-    REQUIRE(WEXITSTATUS(status) == 0);
+    REQUIRE(mpi.exitCode == 0);
     CHECK(output.find("2 MPI ranks") != std::string::npos);
     CHECK(output.find("[rank 1]: member") != std::string::npos);
     requireSameResults(dir.path() / "ref", dir.path() / "out");

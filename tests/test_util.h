@@ -39,6 +39,19 @@ struct CommandResult {
 };
 
 #ifdef ECO_BINARY  // defined for eco_cli_tests only: unit tests do not run the binary
+/// Runs a shell command line, capturing its output; exitCode -1 when it did not exit.
+inline CommandResult runShell(const std::string& cmd) {
+    CommandResult r;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    std::array<char, 4096> buf{};
+    std::size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
+    const int status = ::pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
 /// Run the eco binary with `args` (a shell-quoted string), capturing its output.
 /// Runs eco with its arguments; with `memoryLimitKb` > 0 under that address-space limit
 /// (ulimit -v), so that memory checks are tested the same on any machine.
@@ -53,15 +66,14 @@ inline CommandResult runEco(const std::string& args, long memoryLimitKb = 0) {
     const std::string limit = "ulimit -v " + std::to_string(memoryLimitKb) + "; ";
 #endif
     const std::string cmd = memoryLimitKb > 0 ? limit + run : run;
-    CommandResult r;
-    FILE* pipe = ::popen(cmd.c_str(), "r");
-    if (!pipe) return r;
-    std::array<char, 4096> buf{};
-    std::size_t n;
-    while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
-    const int status = ::pclose(pipe);
-    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
+    return runShell(cmd);
+}
+
+/// Run the eco binary under `mpirun -n ranks` (as root too, which mpirun refuses unless told;
+/// --oversubscribe: any number of ranks on any machine), capturing the output of every rank.
+inline CommandResult runEcoMpi(int ranks, const std::string& args) {
+    return runShell("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -n " + std::to_string(ranks) + " " +
+                    std::string(ECO_BINARY) + " " + args + " 2>&1");
 }
 #endif
 
