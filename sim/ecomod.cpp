@@ -209,7 +209,8 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> levelOf, dominated;
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
-    std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex;
+    std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
+    std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
     std::vector<Entry> packed;      // the able in bucket order
     std::vector<std::vector<std::pair<double, double>>> parentsOf;  // per species (seedYear)
@@ -309,10 +310,20 @@ void EcoModel::Impl::seedYear() {
     seedsOf.resize(static_cast<std::size_t>(ns));
     for (auto& b : born) b.clear();
     for (auto& pa : parentsOf) pa.clear();
-    // Parents: mature trees of each species (the store's order), then its canopy trees.
-    for (std::size_t t = 0; t < size(); ++t)
-        if (age[t] >= sp[static_cast<std::size_t>(species[t])].maturityAgeYears)
-            parentsOf[static_cast<std::size_t>(species[t])].emplace_back(x[t], y[t]);
+    // Parents: mature trees of each species (the store's order), then its canopy trees. The
+    // same pass rates every tree's competitive ability for growYear (heights do not change
+    // in between; the year's new trees, appended below, are rated there).
+    rated = size();
+    ability.resize(rated);
+    able.clear();
+    for (std::size_t t = 0; t < rated; ++t) {
+        const std::size_t s = static_cast<std::size_t>(species[t]);
+        const EcoModSpeciesParams& ps = sp[s];
+        const double a = height[t] / hRef * ps.persistence * v[t];
+        ability[t] = a;
+        if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
+        if (age[t] >= ps.maturityAgeYears) parentsOf[s].emplace_back(x[t], y[t]);
+    }
     for (const Plant& c : canopy) parentsOf[static_cast<std::size_t>(c.speciesId)].emplace_back(c.xM, c.yM);
 #pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
@@ -388,9 +399,8 @@ void EcoModel::Impl::growYear() {
     constexpr int kMaxLevels = 24;
     const std::size_t n = size(), nc = canopy.size(), total = n + nc;
     counters.plantMonths += 12 * static_cast<std::int64_t>(n);
-    ability.resize(total);
-    able.clear();
-    for (std::size_t p = 0; p < n; ++p) {
+    ability.resize(total);  // the first `rated` from seedYear, with `able` among them
+    for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
         if (a > 0) able.push_back(static_cast<std::uint32_t>(p));
@@ -524,6 +534,7 @@ void EcoModel::Impl::growYear() {
     // compaction in place (the dead out, the order kept; witnesses renumbered after).
     const std::uint64_t dominatedKey = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(year));
     newIndex.resize(n);
+    fixup.clear();
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(p, Entry{x[p], y[p], radius[p], ability[p]});
@@ -555,6 +566,19 @@ void EcoModel::Impl::growYear() {
             r = crown(s, h);
         }
         newIndex[p] = static_cast<std::uint32_t>(w);
+        // The witness follows its tree to its new place: now if it was before (its new index
+        // is known), after the pass otherwise.
+        const std::uint32_t q = witness[p];
+        if (q != kNoWitness && !(q & kWitnessCanopy)) {
+            if (q < p)
+                witness[w] = newIndex[q];
+            else {
+                witness[w] = q;
+                fixup.push_back(static_cast<std::uint32_t>(w));
+            }
+        } else {
+            witness[w] = q;
+        }
         if (w != p) {
             id[w] = id[p];
             species[w] = s;
@@ -562,7 +586,6 @@ void EcoModel::Impl::growYear() {
             y[w] = y[p];
             deathAge[w] = deathAge[p];
             v[w] = v[p];
-            witness[w] = witness[p];
         }
         height[w] = h;
         radius[w] = r;
@@ -576,8 +599,7 @@ void EcoModel::Impl::growYear() {
     age.resize(w);
     v.resize(w);
     witness.resize(w);
-    for (std::uint32_t& q : witness)  // dominators follow to their new places (or are forgotten)
-        if (q != kNoWitness && !(q & kWitnessCanopy)) q = newIndex[q];
+    for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
 }
 
 std::uint64_t EcoModel::Impl::computeFingerprint() const {
