@@ -213,14 +213,19 @@ struct EcoModel::Impl {
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
     std::vector<Entry> packed;      // the able in bucket order
-    std::vector<std::vector<std::pair<double, double>>> parentsOf;  // per species (seedYear)
-    struct Seed {  // a seed that reached the area: its place, its cell, its establishment draw
-        double x, y, draw;
-        std::uint32_t cell;
+    struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
+        double x, y;
+        std::uint32_t self;
     };
-    struct Sapling {  // an established seed: its place and the suitability there
+    std::vector<std::vector<Parent>> parentsOf;  // per species (seedYear)
+    struct Seed {  // a seed that reached the area: its place, its cell, its establishment draw, its parent
+        double x, y, draw;
+        std::uint32_t cell, parent;
+    };
+    struct Sapling {  // an established seed: its place, the suitability there, its parent (kNoWitness: none)
         double x, y;
         float v;
+        std::uint32_t parent;
     };
     std::vector<std::vector<Seed>> seedsOf;       // per species (seedYear)
     std::vector<std::vector<Sapling>> born;       // per species (seedYear)
@@ -246,7 +251,9 @@ struct EcoModel::Impl {
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
         push(pid, s, px, py, h, gAge, ageYears, dAge, suitAt(s, px, py));
     }
-    void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge, float vv) {
+    // `guess`: a first candidate for the tree's witness (a cache: no result depends on it).
+    void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge, float vv,
+              std::uint32_t guess = kNoWitness) {
         id.push_back(pid);
         species.push_back(s);
         x.push_back(px);
@@ -257,7 +264,7 @@ struct EcoModel::Impl {
         age.push_back(ageYears);
         deathAge.push_back(dAge);
         v.push_back(vv);
-        witness.push_back(kNoWitness);
+        witness.push_back(guess);
     }
     std::size_t size() const { return id.size(); }
     void compact();
@@ -322,13 +329,15 @@ void EcoModel::Impl::seedYear() {
         const double a = height[t] / hRef * ps.persistence * v[t];
         ability[t] = a;
         if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
-        if (age[t] >= ps.maturityAgeYears) parentsOf[s].emplace_back(x[t], y[t]);
+        if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
-    for (const Plant& c : canopy) parentsOf[static_cast<std::size_t>(c.speciesId)].emplace_back(c.xM, c.yM);
+    for (std::size_t c = 0; c < canopy.size(); ++c)
+        parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
+            {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
 #pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
-        const std::vector<std::pair<double, double>>& parents = parentsOf[static_cast<std::size_t>(s)];
+        const std::vector<Parent>& parents = parentsOf[static_cast<std::size_t>(s)];
         CounterDraws r(seed, mixStream(mixStream(kStreamSeeding, static_cast<std::uint64_t>(year)), static_cast<std::uint64_t>(s)));
         auto stochasticRound = [&r](double expected) {
             const double whole = std::floor(expected);
@@ -341,19 +350,20 @@ void EcoModel::Impl::seedYear() {
         // map of a species over a large area is beyond the caches, and a seed lands anywhere.
         std::vector<Seed>& cand = seedsOf[static_cast<std::size_t>(s)];
         cand.clear();
-        auto establish = [&](double px, double py) {
+        auto establish = [&](double px, double py, std::uint32_t parent) {
             if (!inArea(px, py)) return;  // the seed left the area
-            cand.push_back({px, py, r.uniform(), static_cast<std::uint32_t>(cellOf(px, py))});
+            cand.push_back({px, py, r.uniform(), static_cast<std::uint32_t>(cellOf(px, py)), parent});
         };
         auto anywhere = [&] {
             const double px = r.uniform(area.x0, area.x1), py = r.uniform(area.y0, area.y1);
-            establish(px, py);
+            establish(px, py, kNoWitness);
         };
         for (std::int64_t n = 0; n < seeds; ++n) {
             if (r.uniform() < p.nearProbability) {  // under-dispersion: near a parent of the species
                 const auto& parent = parents[r.below(static_cast<std::uint32_t>(parents.size()))];
                 const double dist = p.dispersalRadiusM * std::sqrt(r.uniform()), angle = 2 * kPi * r.uniform();
-                establish(parent.first + dist * std::cos(angle), parent.second + dist * std::sin(angle));
+                // The parent is the seedling's first guess of a dominator (it often stands over it).
+                establish(parent.x + dist * std::cos(angle), parent.y + dist * std::sin(angle), parent.self);
             } else {
                 anywhere();
             }
@@ -368,13 +378,13 @@ void EcoModel::Impl::seedYear() {
             if (i + kAhead < cand.size()) __builtin_prefetch(sv + cand[i + kAhead].cell);
             const Seed& c = cand[i];
             const float vv = sv[c.cell];
-            if (c.draw < vv) out.push_back({c.x, c.y, vv});  // germinates only where suitable
+            if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
         }
     }
     for (int s = 0; s < ns; ++s) {
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v);
+            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
