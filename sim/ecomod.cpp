@@ -267,6 +267,14 @@ struct EcoModel::Impl {
         witness.push_back(guess);
     }
     std::size_t size() const { return id.size(); }
+    void truncate(std::size_t w) {  // the store keeps its first w trees
+        for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
+        id.resize(w);
+        species.resize(w);
+        age.resize(w);
+        v.resize(w);
+        witness.resize(w);
+    }
     void compact();
     void seedYear();
     void growYear();
@@ -297,12 +305,7 @@ void EcoModel::Impl::compact() {
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
         ++w;
     }
-    for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
-    id.resize(w);
-    species.resize(w);
-    age.resize(w);
-    v.resize(w);
-    witness.resize(w);
+    truncate(w);
     fate.assign(w, 0);
 }
 
@@ -603,12 +606,7 @@ void EcoModel::Impl::growYear() {
         age[w] = ageYears;
         ++w;
     }
-    for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
-    id.resize(w);
-    species.resize(w);
-    age.resize(w);
-    v.resize(w);
-    witness.resize(w);
+    truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
 }
 
