@@ -183,6 +183,24 @@ TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", 
         REQUIRE(sim.plantCount() == 1);
         CHECK(sim.plants()[0].speciesId == small);
     }
+    SECTION("a seedling held under a full-grown tree grows once that tree is gone") {
+        // The seedling (height 0, no dominated growth) under a full-grown oak skips its
+        // domination test while the oak lives (growYear's `settled` cache); the oak's removal
+        // must end that, whether it happens in a year's step or by the disturbance hook.
+        b.species[static_cast<std::size_t>(tall)].ecomod.fullHeightM = 20;
+        b.species[static_cast<std::size_t>(tall)].ecomod.maxAgeYears = 1000;  // it does not die of age here
+        b.species[static_cast<std::size_t>(small)].ecomod.dominatedSurvival = 1;
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 10, 10, 20), tree(small, 10.5, 10, 0)});
+        for (int y = 0; y < 4; ++y) sim.stepYear();
+        REQUIRE(sim.plantCount() == 2);
+        CHECK(sim.plants()[1].heightM == 0);  // dominated every year
+        CHECK(sim.plants()[1].ageYears == 4);
+        REQUIRE(sim.ecomod() != nullptr);
+        CHECK(sim.ecomod()->removeTrees({1, 0}) == 1);
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 1);
+        CHECK(sim.plants()[0].heightM > 0);  // free: grew
+    }
     SECTION("trees whose neighbourhoods do not intersect both grow") {
         for (int s : {tall, small}) b.species[static_cast<std::size_t>(s)].ecomod.dominatedSurvival = 0;
         Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 5, 10, 8), tree(small, 15, 10, 3)});
