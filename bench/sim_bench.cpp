@@ -351,10 +351,12 @@ int main(int argc, char** argv) {
                 perMonth.push_back(a.seconds / static_cast<double>(a.plantMonths));
                 perYear.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
                 std::snprintf(line, sizeof line,
-                              "run %d: monthly %d years %.2f s, %lld plant-months, %.3f us/plant-month (%zu plants at the end); "
-                              "ecomod %d years %.2f s, %lld tree-years, %.3f us/tree-year (%zu trees at the end, peak %zu)\n",
-                              r + 1, mYears, a.seconds, static_cast<long long>(a.plantMonths), 1e6 * perMonth.back(), a.plants,
-                              eYears, b.seconds, static_cast<long long>(b.plantMonths / 12), 1e6 * perYear.back(), b.plants,
+                              "run %d: monthly %d years %.2f s (CPU %.2f s), %lld plant-months, %.3f us/plant-month (%zu plants at "
+                              "the end); ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.3f us/tree-year (CPU %.3f; %zu "
+                              "trees at the end, peak %zu)\n",
+                              r + 1, mYears, a.seconds, a.cpuSeconds, static_cast<long long>(a.plantMonths), 1e6 * perMonth.back(),
+                              a.plants, eYears, b.seconds, b.cpuSeconds, static_cast<long long>(b.plantMonths / 12),
+                              1e6 * perYear.back(), 1e6 * b.cpuSeconds / (static_cast<double>(b.plantMonths) / 12.0), b.plants,
                               b.peakPlants);
                 m << line;
                 std::snprintf(line, sizeof line, "  ecomod state hash %016llx\n", static_cast<unsigned long long>(b.stateHash));
@@ -388,16 +390,17 @@ int main(int argc, char** argv) {
                     hash1 = b.stateHash;
                     perYearBig.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
                     std::snprintf(line, sizeof line,
-                                  "big run %d: ecomod %d years %.2f s, %lld tree-years, %.3f us/tree-year (%zu trees at the end, "
-                                  "peak %zu), state hash %016llx\n",
-                                  r + 1, eYears, b.seconds, static_cast<long long>(b.plantMonths / 12), 1e6 * perYearBig.back(),
+                                  "big run %d: ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.3f us/tree-year (CPU %.3f; "
+                                  "%zu trees at the end, peak %zu), state hash %016llx\n",
+                                  r + 1, eYears, b.seconds, b.cpuSeconds, static_cast<long long>(b.plantMonths / 12),
+                                  1e6 * perYearBig.back(), 1e6 * b.cpuSeconds / (static_cast<double>(b.plantMonths) / 12.0),
                                   b.plants, b.peakPlants, static_cast<unsigned long long>(b.stateHash));
                     m << line;
                     std::fputs(line, stderr);
                 }
                 const Timing b2 = runScene(big, bigArea, eYears, 2, eco);
-                std::snprintf(line, sizeof line, "big run on 2 threads: %.2f s, state hash %016llx (%s)\n", b2.seconds,
-                              static_cast<unsigned long long>(b2.stateHash),
+                std::snprintf(line, sizeof line, "big run on 2 threads: %.2f s (CPU %.2f s), state hash %016llx (%s)\n",
+                              b2.seconds, b2.cpuSeconds, static_cast<unsigned long long>(b2.stateHash),
                               b2.stateHash == hash1 ? "the same as 1 thread" : "DIFFERENT from 1 thread: a reproducibility bug");
                 m << line;
                 std::sort(perYearBig.begin(), perYearBig.end());

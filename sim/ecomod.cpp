@@ -53,6 +53,13 @@ private:
     std::uint64_t key_, counter_ = 0;
 };
 
+// The yearly step's loops have little work per tree (tens of nanoseconds): a parallel region
+// pays off only on large scenes, and on a loaded machine each fork and join may wait for a
+// descheduled thread (milliseconds). They go parallel above this many times the simulator's
+// plant threshold (setParallelThresholds; 0 in the tests, to exercise the parallel paths).
+constexpr std::size_t kEcoModParallelFactor = 64;
+bool parallelLoop(std::size_t items) { return items > kParallelPlants * kEcoModParallelFactor; }
+
 double given(double v, double fallback) { return std::isnan(v) ? fallback : v; }
 
 }  // namespace
@@ -170,7 +177,7 @@ struct EcoModel::Impl {
     // The trees (structure of arrays; creation order).
     std::vector<std::uint64_t> id;
     std::vector<std::int32_t> species;
-    std::vector<double> x, y, groundZ, height, radius, growthAge, deathAge;
+    std::vector<double> x, y, height, radius, growthAge, deathAge;  // ground z: from `elevation` when written
     std::vector<std::int32_t> age;
     std::vector<float> v;
 
@@ -184,26 +191,50 @@ struct EcoModel::Impl {
     // kNoWitness. Kept in step with the store by push and compact.
     static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
     std::vector<std::uint32_t> witness;
+    // Per tree, also a cache: 1 when its witness dominates it for as long as both live (a
+    // suppressed seedling: height 0, so crown 0 and ability 0, of a species with no dominated
+    // growth, so it stays so; under a witness that is a canopy tree or full-grown, whose
+    // place, crown and ability never change). Such a tree skips the domination test.
+    std::vector<std::uint8_t> settled;
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
         double bucketM = 1, inverseM = 1;
         double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
+        double maxRadius = 0;    // of its trees
         int bw = 1, bh = 1;
         std::size_t first = 0;  // its first bucket in `start`
     };
     struct Entry {  // a tree or canopy tree in bucket order: position, crown radius, ability
         double x, y, r, a;
     };
-    std::vector<double> ability;
-    std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 2 dominated death, 3 disturbance
+    std::vector<double> ability;     // per tree, then per canopy tree (the store's order)
+    std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 3 disturbance (compact's input)
     std::vector<Level> levels;
     std::vector<std::uint8_t> levelOf, dominated;
-    std::vector<std::uint32_t> start, bucket, entries, fill, newIndex;
+    std::vector<std::uint8_t> frozen;  // per tree, then canopy tree: place, crown, ability fixed for good
+    // The able (ability > 0, the only possible dominators): their store indices (n + c for
+    // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
+    std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
+    std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
-    std::vector<Entry> packed, byTree;  // in bucket order; in the store's order (trees, then canopy)
-    std::vector<std::vector<std::pair<double, double>>> parentsOf;  // per species (seedYear)
-    std::vector<std::vector<std::pair<double, double>>> born;       // per species (seedYear)
+    std::vector<Entry> packed;      // the able in bucket order
+    struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
+        double x, y;
+        std::uint32_t self;
+    };
+    std::vector<std::vector<Parent>> parentsOf;  // per species (seedYear)
+    struct Seed {  // a seed that reached the area: its place, its cell, its establishment draw, its parent
+        double x, y, draw;
+        std::uint32_t cell, parent;
+    };
+    struct Sapling {  // an established seed: its place, the suitability there, its parent (kNoWitness: none)
+        double x, y;
+        float v;
+        std::uint32_t parent;
+    };
+    std::vector<std::vector<Seed>> seedsOf;       // per species (seedYear)
+    std::vector<std::vector<Sapling>> born;       // per species (seedYear)
     std::vector<std::int64_t> attempts;
 
     std::size_t cellOf(double px, double py) const {
@@ -224,20 +255,34 @@ struct EcoModel::Impl {
         return lo + (hi - lo) * unitDraw(seed, kStreamDeathAge, plantId);
     }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
+        push(pid, s, px, py, h, gAge, ageYears, dAge, suitAt(s, px, py));
+    }
+    // `guess`: a first candidate for the tree's witness (a cache: no result depends on it).
+    void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge, float vv,
+              std::uint32_t guess = kNoWitness) {
         id.push_back(pid);
         species.push_back(s);
         x.push_back(px);
         y.push_back(py);
-        groundZ.push_back(elevation.sampleBilinear(px, py));
         height.push_back(h);
         radius.push_back(crown(s, h));
         growthAge.push_back(gAge);
         age.push_back(ageYears);
         deathAge.push_back(dAge);
-        v.push_back(suitAt(s, px, py));
-        witness.push_back(kNoWitness);
+        v.push_back(vv);
+        witness.push_back(guess);
+        settled.push_back(0);
     }
     std::size_t size() const { return id.size(); }
+    void truncate(std::size_t w) {  // the store keeps its first w trees
+        for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
+        id.resize(w);
+        species.resize(w);
+        age.resize(w);
+        v.resize(w);
+        witness.resize(w);
+        settled.resize(w);
+    }
     void compact();
     void seedYear();
     void growYear();
@@ -257,7 +302,6 @@ void EcoModel::Impl::compact() {
             species[w] = species[p];
             x[w] = x[p];
             y[w] = y[p];
-            groundZ[w] = groundZ[p];
             height[w] = height[p];
             radius[w] = radius[p];
             growthAge[w] = growthAge[p];
@@ -267,14 +311,10 @@ void EcoModel::Impl::compact() {
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
+        settled[w] = settled[p];  // a dead witness (kNoWitness) ends it: growYear tests both
         ++w;
     }
-    for (auto* a : {&x, &y, &groundZ, &height, &radius, &growthAge, &deathAge}) a->resize(w);
-    id.resize(w);
-    species.resize(w);
-    age.resize(w);
-    v.resize(w);
-    witness.resize(w);
+    truncate(w);
     fate.assign(w, 0);
 }
 
@@ -286,17 +326,32 @@ void EcoModel::Impl::seedYear() {
     born.resize(static_cast<std::size_t>(ns));
     parentsOf.resize(static_cast<std::size_t>(ns));
     attempts.assign(static_cast<std::size_t>(ns), 0);
+    seedsOf.resize(static_cast<std::size_t>(ns));
     for (auto& b : born) b.clear();
     for (auto& pa : parentsOf) pa.clear();
-    // Parents: mature trees of each species (the store's order), then its canopy trees.
-    for (std::size_t t = 0; t < size(); ++t)
-        if (age[t] >= sp[static_cast<std::size_t>(species[t])].maturityAgeYears)
-            parentsOf[static_cast<std::size_t>(species[t])].emplace_back(x[t], y[t]);
-    for (const Plant& c : canopy) parentsOf[static_cast<std::size_t>(c.speciesId)].emplace_back(c.xM, c.yM);
-#pragma omp parallel for schedule(dynamic, 1) if (size() > kParallelPlants)
+    // Parents: mature trees of each species (the store's order), then its canopy trees. The
+    // same pass rates every tree's competitive ability for growYear (heights do not change
+    // in between; the year's new trees, appended below, are rated there).
+    rated = size();
+    ability.resize(rated);
+    frozen.resize(rated);
+    able.clear();
+    for (std::size_t t = 0; t < rated; ++t) {
+        const std::size_t s = static_cast<std::size_t>(species[t]);
+        const EcoModSpeciesParams& ps = sp[s];
+        const double a = height[t] / hRef * ps.persistence * v[t];
+        ability[t] = a;
+        frozen[t] = growthAge[t] >= ps.fullGrownAgeYears ? 1 : 0;  // growYear keeps its height and crown
+        if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
+        if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
+    }
+    for (std::size_t c = 0; c < canopy.size(); ++c)
+        parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
+            {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
+#pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
-        const std::vector<std::pair<double, double>>& parents = parentsOf[static_cast<std::size_t>(s)];
+        const std::vector<Parent>& parents = parentsOf[static_cast<std::size_t>(s)];
         CounterDraws r(seed, mixStream(mixStream(kStreamSeeding, static_cast<std::uint64_t>(year)), static_cast<std::uint64_t>(s)));
         auto stochasticRound = [&r](double expected) {
             const double whole = std::floor(expected);
@@ -304,199 +359,284 @@ void EcoModel::Impl::seedYear() {
         };
         const std::int64_t seeds = stochasticRound(static_cast<double>(parents.size()) * p.seedsPerYear * p.germination);
         const std::int64_t immigrants = stochasticRound(p.immigrantsPerHaYear * areaHa);
-        std::vector<std::pair<double, double>>& out = born[static_cast<std::size_t>(s)];
-        auto establish = [&](double px, double py) {
+        // The draws first (their sequence does not depend on the suitabilities), then the
+        // establishment test of each seed, with the suitability of its cell fetched ahead: the
+        // map of a species over a large area is beyond the caches, and a seed lands anywhere.
+        std::vector<Seed>& cand = seedsOf[static_cast<std::size_t>(s)];
+        cand.clear();
+        auto establish = [&](double px, double py, std::uint32_t parent) {
             if (!inArea(px, py)) return;  // the seed left the area
-            if (r.uniform() < suitAt(s, px, py)) out.emplace_back(px, py);  // germinates only where suitable
+            cand.push_back({px, py, r.uniform(), static_cast<std::uint32_t>(cellOf(px, py)), parent});
         };
         auto anywhere = [&] {
             const double px = r.uniform(area.x0, area.x1), py = r.uniform(area.y0, area.y1);
-            establish(px, py);
+            establish(px, py, kNoWitness);
         };
         for (std::int64_t n = 0; n < seeds; ++n) {
             if (r.uniform() < p.nearProbability) {  // under-dispersion: near a parent of the species
                 const auto& parent = parents[r.below(static_cast<std::uint32_t>(parents.size()))];
                 const double dist = p.dispersalRadiusM * std::sqrt(r.uniform()), angle = 2 * kPi * r.uniform();
-                establish(parent.first + dist * std::cos(angle), parent.second + dist * std::sin(angle));
+                // The parent is the seedling's first guess of a dominator (it often stands over it).
+                establish(parent.x + dist * std::cos(angle), parent.y + dist * std::sin(angle), parent.self);
             } else {
                 anywhere();
             }
         }
         for (std::int64_t n = 0; n < immigrants; ++n) anywhere();
         attempts[static_cast<std::size_t>(s)] = seeds + immigrants;
+        std::vector<Sapling>& out = born[static_cast<std::size_t>(s)];
+        const float* sv = suit.data() + static_cast<std::size_t>(s) * geom.size();
+        constexpr std::size_t kAhead = 16;
+        for (std::size_t i = 0; i < std::min(kAhead, cand.size()); ++i) __builtin_prefetch(sv + cand[i].cell);
+        for (std::size_t i = 0; i < cand.size(); ++i) {
+            if (i + kAhead < cand.size()) __builtin_prefetch(sv + cand[i + kAhead].cell);
+            const Seed& c = cand[i];
+            const float vv = sv[c.cell];
+            if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
+        }
     }
     for (int s = 0; s < ns; ++s) {
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            push(pid, s, b.first, b.second, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0));
+            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
-    fate.assign(size(), 0);
 }
 
 // Growth with domination (Algorithm 3) and the deaths of the year. A tree is dominated when
-// a more able tree (or canopy tree) overlaps its neighbourhood. First the tree that dominated
-// it last year is tried (its witness: most dominated trees stay dominated by the same
-// neighbour); otherwise a search over a hierarchy of bucket grids by crown radius: level L
-// holds the trees (and canopy trees) of radius at most kLevel0M x 2^L in buckets of that
-// size, so that a tree meets every possible dominator of level L in the 3 x 3 (or a few
-// more) buckets round it, from the level of the largest crowns down (a seedling under a
-// large crown finds it first), skipping levels and buckets with nobody more able. The
-// outcome is the existence of a dominator, the same whichever is found first.
+// a more able tree (or canopy tree) overlaps its neighbourhood. Only trees of ability > 0
+// can dominate (abilities are >= 0 and domination needs a strictly higher one): in a closed
+// stand most trees are seedlings of height 0, suppressed at birth and never growing, and
+// they stay out of the search structure. First the tree that dominated a tree last year is
+// tried (its witness: most dominated trees stay dominated by the same neighbour); otherwise
+// a search over a hierarchy of bucket grids by crown radius: level L holds the able of
+// radius at most base x 2^L in buckets of that size (base: about the spacing of the able,
+// at least 1 m), so that a tree meets every possible dominator of level L in the 3 x 3 (or a
+// few more) buckets round it, from the level of the largest crowns down (a seedling under a
+// large crown finds it first), skipping levels and buckets with nobody more able. The outcome
+// is the existence of a dominator, the same whichever is found first, whatever the buckets.
+// The able are tested first, in bucket order (their neighbours' buckets stay in cache; in
+// parallel on large scenes); then one pass in the store's order tests the others, grows
+// every tree, draws the dominated trees' survival and compacts the store (the dead out).
 void EcoModel::Impl::growYear() {
-    constexpr double kLevel0M = 1.0;
-    constexpr int kMaxLevels = 16;
+    constexpr int kMaxLevels = 24;
     const std::size_t n = size(), nc = canopy.size(), total = n + nc;
     counters.plantMonths += 12 * static_cast<std::int64_t>(n);
-    ability.resize(total);
-    levelOf.resize(total);
-    int maxLevel = 0;
-    auto levelFor = [&](double r) {
-        int L = 0;
-        while (L < kMaxLevels - 1 && r > kLevel0M * static_cast<double>(1 << L)) ++L;
-        return L;
-    };
-    byTree.resize(total);
-    for (std::size_t p = 0; p < n; ++p) {
-        ability[p] = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
-        byTree[p] = {x[p], y[p], radius[p], ability[p]};
-        const int L = levelFor(radius[p]);
-        levelOf[p] = static_cast<std::uint8_t>(L);
-        maxLevel = std::max(maxLevel, L);
+    ability.resize(total);  // the first `rated` from seedYear, with `able` among them
+    frozen.resize(total);
+    for (std::size_t p = rated; p < n; ++p) {
+        const EcoModSpeciesParams& ps = sp[static_cast<std::size_t>(species[p])];
+        const double a = height[p] / hRef * ps.persistence * v[p];
+        ability[p] = a;
+        frozen[p] = growthAge[p] >= ps.fullGrownAgeYears ? 1 : 0;
+        if (a > 0) able.push_back(static_cast<std::uint32_t>(p));
     }
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
-        ability[n + c] = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
-        byTree[n + c] = {t.xM, t.yM, t.crownRadiusM, ability[n + c]};
-        const int L = levelFor(t.crownRadiusM);
-        levelOf[n + c] = static_cast<std::uint8_t>(L);
+        const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
+        ability[n + c] = a;
+        frozen[n + c] = 1;  // static
+        if (a > 0) able.push_back(static_cast<std::uint32_t>(n + c));
+    }
+    const std::size_t m = able.size();
+    auto entryOf = [&](std::size_t e) {
+        if (e < n) return Entry{x[e], y[e], radius[e], ability[e]};
+        const Plant& t = canopy[e - n];
+        return Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
+    };
+    // The level of each able tree, and the levels' grids.
+    const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
+    const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
+    levelOf.resize(m);
+    int maxLevel = 0;
+    for (std::size_t i = 0; i < m; ++i) {
+        const std::size_t e = able[i];
+        const double r = e < n ? radius[e] : canopy[e - n].crownRadiusM;
+        int L = 0;
+        while (L < kMaxLevels - 1 && r > base * static_cast<double>(1 << L)) ++L;
+        levelOf[i] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
     }
     levels.clear();
     std::size_t buckets = 0;
     for (int L = 0; L <= maxLevel; ++L) {
         Level lv;
-        lv.bucketM = kLevel0M * static_cast<double>(1 << L);
+        lv.bucketM = base * static_cast<double>(1 << L);
         lv.inverseM = 1.0 / lv.bucketM;
-        lv.bw = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / lv.bucketM)));
-        lv.bh = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / lv.bucketM)));
+        lv.bw = std::max(1, static_cast<int>(std::ceil(areaW / lv.bucketM)));
+        lv.bh = std::max(1, static_cast<int>(std::ceil(areaH / lv.bucketM)));
         lv.first = buckets;
         buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
         levels.push_back(lv);
-    }
-    for (std::size_t e = 0; e < total; ++e) {
-        Level& lv = levels[levelOf[e]];
-        lv.maxAbility = std::max(lv.maxAbility, ability[e]);
     }
     auto cellIndex = [&](const Level& lv, double px, double py) {
         const int bx = std::clamp(static_cast<int>((px - area.x0) * lv.inverseM), 0, lv.bw - 1);
         const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
         return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
     };
+    // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
+    // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
     bucketMax.assign(buckets, -1.0);
-    bucket.resize(total);
-    entries.resize(total);
-    for (std::size_t e = 0; e < total; ++e) {
-        const std::size_t k = cellIndex(levels[levelOf[e]], byTree[e].x, byTree[e].y);
-        bucket[e] = static_cast<std::uint32_t>(k);
-        ++start[k + 1];
-        bucketMax[k] = std::max(bucketMax[k], ability[e]);
+    bucket.resize(m);
+    packed.resize(m);
+    packedItem.resize(m);
+    slot.resize(total);
+    for (std::size_t i = 0; i < m; ++i) {
+        const Entry q = entryOf(able[i]);
+        Level& lv = levels[levelOf[i]];
+        lv.maxAbility = std::max(lv.maxAbility, q.a);
+        lv.maxRadius = std::max(lv.maxRadius, q.r);
+        const std::size_t k = cellIndex(lv, q.x, q.y);
+        bucket[i] = static_cast<std::uint32_t>(k);
+        ++start[k];
+        bucketMax[k] = std::max(bucketMax[k], q.a);
     }
-    for (std::size_t k = 0; k < buckets; ++k) start[k + 1] += start[k];
-    fill.assign(start.begin(), start.end() - 1);
-    for (std::size_t e = 0; e < total; ++e) entries[fill[bucket[e]]++] = static_cast<std::uint32_t>(e);
-    // Entries as (x, y, r, a) in bucket order, so that a scan reads memory in sequence.
-    packed.resize(total);
-    for (std::size_t k = 0; k < total; ++k) packed[k] = byTree[entries[k]];
-    dominated.assign(n, 0);
-    // Visited in bucket order (neighbours after each other: the buckets they scan stay in
-    // cache); each writes only its own flag and witness, so the order changes nothing.
-#pragma omp parallel for schedule(dynamic, 1024) if (n > kParallelPlants)
-    for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(total); ++ki) {
-        const std::size_t p = entries[static_cast<std::size_t>(ki)];
-        if (p >= n) continue;  // a canopy tree: static, never dominated
-        const Entry& me = packed[static_cast<std::size_t>(ki)];
+    for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
+    for (std::size_t i = m; i-- > 0;) {
+        const std::uint32_t k = --start[bucket[i]];
+        packed[k] = entryOf(able[i]);
+        packedItem[k] = able[i];
+        slot[able[i]] = k;
+    }
+
+    // Is tree p (position, radius and ability `me` at the start of the year) dominated? Reads
+    // only the start-of-year entries; writes only p's witness.
+    auto isDominated = [&](std::size_t p, const Entry& me) {
         const double px = me.x, py = me.y, pr = me.r, pa = me.a;
         // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
-        auto overlaps = [px, py, pr](double qx, double qy, double qr) {
-            const double dx = px - qx, dy = py - qy, rr = pr + qr;
+        auto overlaps = [px, py, pr](const Entry& q) {
+            const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
             return dx * dx + dy * dy < rr * rr;
         };
         const std::uint32_t w = witness[p];
         if (w != kNoWitness) {
-            const Entry& q = byTree[(w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w];
-            if (pa < q.a && overlaps(q.x, q.y, q.r)) {
-                dominated[p] = 1;
-                continue;
+            const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+            if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
+                const Entry& q = packed[slot[e]];
+                if (pa < q.a && overlaps(q)) return true;
             }
         }
-        std::uint32_t found = kNoWitness;
         // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
         // clamps to bucket 0 as its floor would.
         const double ox = px - area.x0, oy = py - area.y0;
-        for (int L = maxLevel; L >= 0 && found == kNoWitness; --L) {
+        for (int L = maxLevel; L >= 0; --L) {
             const Level& lv = levels[static_cast<std::size_t>(L)];
             if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
-            const double reach = pr + lv.bucketM;  // every tree of level L has r <= bucketM
+            const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
             const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
             const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
             const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
             const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
-            for (int by = by0; by <= by1 && found == kNoWitness; ++by) {
+            for (int by = by0; by <= by1; ++by) {
                 const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
                 for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
                     if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
                     const std::uint32_t end = start[bk + 1];
                     for (std::uint32_t k = start[bk]; k < end; ++k) {
                         const Entry& q = packed[k];
-                        if (!(pa < q.a)) continue;  // only the more able dominate (p itself never)
-                        if (overlaps(q.x, q.y, q.r)) {
-                            found = k;
-                            break;
+                        if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                            const std::uint32_t e = packedItem[k];
+                            witness[p] = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                            return true;
                         }
                     }
-                    if (found != kNoWitness) break;
                 }
             }
         }
-        if (found != kNoWitness) {
-            const std::uint32_t e = entries[found];
-            witness[p] = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
-            dominated[p] = 1;
-        } else {
-            witness[p] = kNoWitness;
-        }
+        witness[p] = kNoWitness;
+        return false;
+    };
+
+    // The able trees, in bucket order; each writes only its own flag and witness.
+    dominated.resize(n);
+#pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
+    for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
+        const std::size_t k = static_cast<std::size_t>(ki);
+        const std::size_t p = packedItem[k];
+        if (p < n) dominated[p] = isDominated(p, packed[k]) ? 1 : 0;  // canopy trees: static, never dominated
     }
-#pragma omp parallel for schedule(static) if (n > kParallelPlants)
-    for (std::int64_t pi = 0; pi < static_cast<std::int64_t>(n); ++pi) {
-        const std::size_t p = static_cast<std::size_t>(pi);
+
+    // Every tree in the store's order: the others' test, growth, survival, natural death, and
+    // compaction in place (the dead out, the order kept; witnesses renumbered after).
+    const std::uint64_t dominatedKey = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(year));
+    newIndex.resize(n);
+    fixup.clear();
+    std::size_t w = 0;
+    for (std::size_t p = 0; p < n; ++p) {
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
-        std::uint8_t f = 0;
-        const double before = growthAge[p];
-        if (dominated[p]) {
-            growthAge[p] += sps.dominatedGrowth;
-            if (unitDraw(seed, kStreamDominated ^ static_cast<std::uint64_t>(year), id[p]) >= sps.dominatedSurvival) f = 2;
+        bool dom;
+        if (ability[p] > 0) {
+            dom = dominated[p] != 0;
+        } else if (settled[p] && witness[p] != kNoWitness) {  // its witness, alive at the start of the year, still overlaps it
+            dom = true;
         } else {
-            growthAge[p] += 1.0;
+            dom = isDominated(p, Entry{x[p], y[p], radius[p], ability[p]});
+            // The witness that dominates it now will as long as both live (see `settled`).
+            const std::uint32_t q = witness[p];
+            settled[p] = dom && height[p] == 0 && sps.dominatedGrowth == 0 &&
+                                 frozen[(q & kWitnessCanopy) ? n + (q & ~kWitnessCanopy) : q]
+                             ? 1
+                             : 0;
         }
-        age[p] += 1;
-        if (f == 0 && age[p] >= deathAge[p]) f = 1;
+        const double before = growthAge[p];
+        double g = before;
+        if (dom) {
+            g += sps.dominatedGrowth;
+            if (static_cast<double>(mixStream(dominatedKey, id[p]) >> 11) * 0x1.0p-53 >= sps.dominatedSurvival) {
+                ++counters.diedDominated;  // suffocation
+                newIndex[p] = kNoWitness;
+                continue;
+            }
+        } else {
+            g += 1.0;
+        }
+        const std::int32_t ageYears = age[p] + 1;
+        if (ageYears >= deathAge[p]) {
+            ++counters.diedBackgroundOrStress;  // natural death
+            newIndex[p] = kNoWitness;
+            continue;
+        }
+        double h = height[p], r = radius[p];
         // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
-        // both): the allometry's exp and log are the costliest part of the step.
-        if (f == 0 && growthAge[p] != before && before < sps.fullGrownAgeYears) {
-            height[p] = ecomodPolylineHeightM(sps, growthAge[p]);
-            radius[p] = crown(s, height[p]);
+        // both): the allometry's exp and log are the costliest part of a growing tree's year.
+        if (g != before && before < sps.fullGrownAgeYears) {
+            h = ecomodPolylineHeightM(sps, g);
+            r = crown(s, h);
         }
-        fate[p] = f;
+        newIndex[p] = static_cast<std::uint32_t>(w);
+        // The witness follows its tree to its new place: now if it was before (its new index
+        // is known), after the pass otherwise.
+        const std::uint32_t q = witness[p];
+        if (q != kNoWitness && !(q & kWitnessCanopy)) {
+            if (q < p)
+                witness[w] = newIndex[q];
+            else {
+                witness[w] = q;
+                fixup.push_back(static_cast<std::uint32_t>(w));
+            }
+        } else {
+            witness[w] = q;
+        }
+        if (w != p) {
+            id[w] = id[p];
+            species[w] = s;
+            x[w] = x[p];
+            y[w] = y[p];
+            deathAge[w] = deathAge[p];
+            v[w] = v[p];
+            settled[w] = settled[p];
+        }
+        height[w] = h;
+        radius[w] = r;
+        growthAge[w] = g;
+        age[w] = ageYears;
+        ++w;
     }
-    for (std::size_t p = 0; p < n; ++p) {
-        if (fate[p] == 1) ++counters.diedBackgroundOrStress;
-        if (fate[p] == 2) ++counters.diedDominated;
-    }
-    compact();
+    truncate(w);
+    for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
 }
 
 std::uint64_t EcoModel::Impl::computeFingerprint() const {
@@ -694,7 +834,7 @@ std::vector<UndergrowthPlant> EcoModel::plants() const {
         u.speciesId = m.species[p];
         u.xM = m.x[p];
         u.yM = m.y[p];
-        u.groundZM = m.groundZ[p];
+        u.groundZM = m.elevation.sampleBilinear(m.x[p], m.y[p]);
         u.heightM = m.height[p];
         u.crownRadiusM = m.radius[p];
         u.ageYears = m.age[p];
@@ -762,9 +902,9 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 }
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* witness */ sizeof(std::uint32_t) +
-           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+           /* witness, settled */ sizeof(std::uint32_t) + 1 +
+           /* step scratch: ability, fate, dominated, frozen, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
@@ -824,7 +964,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
         if (len != n) throw IoError(where + ": plant arrays differ in length");
     m.id.clear();
     m.species.clear();
-    for (auto* a : {&m.x, &m.y, &m.groundZ, &m.height, &m.radius, &m.growthAge, &m.deathAge}) a->clear();
+    for (auto* a : {&m.x, &m.y, &m.height, &m.radius, &m.growthAge, &m.deathAge}) a->clear();
     m.age.clear();
     m.v.clear();
     m.witness.clear();

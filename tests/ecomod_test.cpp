@@ -1,6 +1,7 @@
 // The EcoMod model (sim/ecomod.h): the height polyline, the suitabilities, domination between
-// two constructed trees, under-dispersion seeding statistics, determinism across thread
-// counts and checkpoint / resume, and the refusal of bad parameters.
+// two constructed trees and among hundreds (against a brute-force search), under-dispersion
+// seeding statistics, determinism across thread counts and checkpoint / resume, and the
+// refusal of bad parameters.
 #include <catch2/catch.hpp>
 #include <omp.h>
 
@@ -182,6 +183,24 @@ TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", 
         REQUIRE(sim.plantCount() == 1);
         CHECK(sim.plants()[0].speciesId == small);
     }
+    SECTION("a seedling held under a full-grown tree grows once that tree is gone") {
+        // The seedling (height 0, no dominated growth) under a full-grown oak skips its
+        // domination test while the oak lives (growYear's `settled` cache); the oak's removal
+        // must end that, whether it happens in a year's step or by the disturbance hook.
+        b.species[static_cast<std::size_t>(tall)].ecomod.fullHeightM = 20;
+        b.species[static_cast<std::size_t>(tall)].ecomod.maxAgeYears = 1000;  // it does not die of age here
+        b.species[static_cast<std::size_t>(small)].ecomod.dominatedSurvival = 1;
+        Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 10, 10, 20), tree(small, 10.5, 10, 0)});
+        for (int y = 0; y < 4; ++y) sim.stepYear();
+        REQUIRE(sim.plantCount() == 2);
+        CHECK(sim.plants()[1].heightM == 0);  // dominated every year
+        CHECK(sim.plants()[1].ageYears == 4);
+        REQUIRE(sim.ecomod() != nullptr);
+        CHECK(sim.ecomod()->removeTrees({1, 0}) == 1);
+        sim.stepYear();
+        REQUIRE(sim.plantCount() == 1);
+        CHECK(sim.plants()[0].heightM > 0);  // free: grew
+    }
     SECTION("trees whose neighbourhoods do not intersect both grow") {
         for (int s : {tall, small}) b.species[static_cast<std::size_t>(s)].ecomod.dominatedSurvival = 0;
         Simulation sim(flatScene(b, 20), ecomodParams(), 1, {tree(tall, 5, 10, 8), tree(small, 15, 10, 3)});
@@ -189,6 +208,78 @@ TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", 
         REQUIRE(sim.plantCount() == 2);
         CHECK(sim.plants()[1].heightM > 3);
     }
+}
+
+TEST_CASE("ecomod: the domination test agrees with a brute-force search over every pair", "[sim][ecomod]") {
+    // Hundreds of trees of several species, many of height 0 (seedlings, which cannot dominate),
+    // crowds and gaps, and static canopy trees; nobody dies of domination, so that each year's
+    // outcome shows in the growth ages: a dominated tree keeps its growth age, the others gain a year.
+    Biome b = quietBiome();
+    for (Species& s : b.species) {
+        s.ecomod.dominatedGrowth = 0;
+        s.ecomod.dominatedSurvival = 1;
+        s.ecomod.maxAgeYears = 1000;  // no natural deaths in these years
+        s.ecomod.fullGrownAgeYears = 500;
+    }
+    const int nsp = static_cast<int>(b.species.size());
+    std::vector<UndergrowthPlant> initial;
+    std::uint64_t state = 12345;
+    auto uniform = [&state] {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        return static_cast<double>(state >> 11) * 0x1.0p-53;
+    };
+    for (int i = 0; i < 500; ++i) {
+        const int s = static_cast<int>(uniform() * nsp) % nsp;
+        const double h = uniform() < 0.4 ? 0.0 : uniform() * 0.5 * b.species[static_cast<std::size_t>(s)].maxHeightM;
+        initial.push_back(tree(s, 1 + 58 * uniform(), 1 + 58 * uniform(), h));
+    }
+    SimInputs in = flatScene(b, 60);
+    for (int c = 0; c < 6; ++c) {
+        Plant t;
+        t.speciesId = c % nsp;
+        t.xM = 5 + 10 * c;
+        t.yM = 30;
+        t.heightM = 4 + 3 * c;
+        t.crownRadiusM = 1 + c;
+        in.canopy.push_back(t);
+    }
+    Simulation sim(in, ecomodParams(), 3, initial);
+    const auto& params = sim.ecomod()->speciesParams();
+    double hRef = 0;
+    for (const auto& p : params) hRef = std::max(hRef, p.fullHeightM);
+    std::size_t dominatedSeen = 0, freeSeen = 0, seedlingsDominated = 0;
+    for (int year = 0; year < 3; ++year) {
+        const std::vector<UndergrowthPlant> before = sim.plants();
+        std::vector<bool> dominated(before.size(), false);
+        for (std::size_t i = 0; i < before.size(); ++i) {
+            const UndergrowthPlant& p = before[i];
+            auto beats = [&](double qx, double qy, double qr, double qa) {
+                const double dx = p.xM - qx, dy = p.yM - qy, rr = p.crownRadiusM + qr;
+                return p.pool < qa && dx * dx + dy * dy < rr * rr;
+            };
+            for (std::size_t j = 0; j < before.size() && !dominated[i]; ++j)
+                dominated[i] = j != i && beats(before[j].xM, before[j].yM, before[j].crownRadiusM, before[j].pool);
+            for (const Plant& t : sim.relevantCanopy()) {
+                const double a = t.heightM / hRef * params[static_cast<std::size_t>(t.speciesId)].persistence * 1.0;
+                if (!dominated[i]) dominated[i] = beats(t.xM, t.yM, t.crownRadiusM, a);
+            }
+        }
+        sim.stepYear();
+        const std::vector<UndergrowthPlant> after = sim.plants();
+        REQUIRE(after.size() == before.size());  // nobody died, and seeding is off
+        for (std::size_t i = 0; i < before.size(); ++i) {
+            REQUIRE(after[i].id == before[i].id);
+            INFO("year " << year << ", tree " << before[i].id << " at (" << before[i].xM << ", " << before[i].yM
+                         << "), height " << before[i].heightM);
+            CHECK(after[i].growthAgeYears == before[i].growthAgeYears + (dominated[i] ? 0.0 : 1.0));
+            (dominated[i] ? dominatedSeen : freeSeen) += 1;
+            if (dominated[i] && before[i].heightM == 0) ++seedlingsDominated;
+        }
+    }
+    // The scene tests both outcomes, seedlings among the dominated.
+    CHECK(dominatedSeen > 200);
+    CHECK(freeSeen > 100);
+    CHECK(seedlingsDominated > 50);
 }
 
 TEST_CASE("ecomod: under-dispersion puts the share p_s of new trees near their parent, uniformly in its disc",
