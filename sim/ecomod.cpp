@@ -191,11 +191,6 @@ struct EcoModel::Impl {
     // kNoWitness. Kept in step with the store by push and compact.
     static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
     std::vector<std::uint32_t> witness;
-    // Per tree, also a cache: 1 when its witness dominates it for as long as both live (a
-    // suppressed seedling: height 0, so crown 0 and ability 0, of a species with no dominated
-    // growth, so it stays so; under a witness that is a canopy tree or full-grown, whose
-    // place, crown and ability never change). Such a tree skips the domination test.
-    std::vector<std::uint8_t> settled;
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
@@ -212,7 +207,6 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 3 disturbance (compact's input)
     std::vector<Level> levels;
     std::vector<std::uint8_t> levelOf, dominated;
-    std::vector<std::uint8_t> frozen;  // per tree, then canopy tree: place, crown, ability fixed for good
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
@@ -271,7 +265,6 @@ struct EcoModel::Impl {
         deathAge.push_back(dAge);
         v.push_back(vv);
         witness.push_back(guess);
-        settled.push_back(0);
     }
     std::size_t size() const { return id.size(); }
     void truncate(std::size_t w) {  // the store keeps its first w trees
@@ -281,7 +274,6 @@ struct EcoModel::Impl {
         age.resize(w);
         v.resize(w);
         witness.resize(w);
-        settled.resize(w);
     }
     void compact();
     void seedYear();
@@ -311,7 +303,6 @@ void EcoModel::Impl::compact() {
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
-        settled[w] = settled[p];  // a dead witness (kNoWitness) ends it: growYear tests both
         ++w;
     }
     truncate(w);
@@ -334,14 +325,12 @@ void EcoModel::Impl::seedYear() {
     // in between; the year's new trees, appended below, are rated there).
     rated = size();
     ability.resize(rated);
-    frozen.resize(rated);
     able.clear();
     for (std::size_t t = 0; t < rated; ++t) {
         const std::size_t s = static_cast<std::size_t>(species[t]);
         const EcoModSpeciesParams& ps = sp[s];
         const double a = height[t] / hRef * ps.persistence * v[t];
         ability[t] = a;
-        frozen[t] = growthAge[t] >= ps.fullGrownAgeYears ? 1 : 0;  // growYear keeps its height and crown
         if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
         if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
@@ -424,19 +413,15 @@ void EcoModel::Impl::growYear() {
     const std::size_t n = size(), nc = canopy.size(), total = n + nc;
     counters.plantMonths += 12 * static_cast<std::int64_t>(n);
     ability.resize(total);  // the first `rated` from seedYear, with `able` among them
-    frozen.resize(total);
     for (std::size_t p = rated; p < n; ++p) {
-        const EcoModSpeciesParams& ps = sp[static_cast<std::size_t>(species[p])];
-        const double a = height[p] / hRef * ps.persistence * v[p];
+        const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
-        frozen[p] = growthAge[p] >= ps.fullGrownAgeYears ? 1 : 0;
         if (a > 0) able.push_back(static_cast<std::uint32_t>(p));
     }
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
         const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
         ability[n + c] = a;
-        frozen[n + c] = 1;  // static
         if (a > 0) able.push_back(static_cast<std::uint32_t>(n + c));
     }
     const std::size_t m = able.size();
@@ -565,22 +550,9 @@ void EcoModel::Impl::growYear() {
     fixup.clear();
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
+        const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(p, Entry{x[p], y[p], radius[p], ability[p]});
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
-        bool dom;
-        if (ability[p] > 0) {
-            dom = dominated[p] != 0;
-        } else if (settled[p] && witness[p] != kNoWitness) {  // its witness, alive at the start of the year, still overlaps it
-            dom = true;
-        } else {
-            dom = isDominated(p, Entry{x[p], y[p], radius[p], ability[p]});
-            // The witness that dominates it now will as long as both live (see `settled`).
-            const std::uint32_t q = witness[p];
-            settled[p] = dom && height[p] == 0 && sps.dominatedGrowth == 0 &&
-                                 frozen[(q & kWitnessCanopy) ? n + (q & ~kWitnessCanopy) : q]
-                             ? 1
-                             : 0;
-        }
         const double before = growthAge[p];
         double g = before;
         if (dom) {
@@ -627,7 +599,6 @@ void EcoModel::Impl::growYear() {
             y[w] = y[p];
             deathAge[w] = deathAge[p];
             v[w] = v[p];
-            settled[w] = settled[p];
         }
         height[w] = h;
         radius[w] = r;
@@ -902,9 +873,9 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 }
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* witness, settled */ sizeof(std::uint32_t) + 1 +
-           /* step scratch: ability, fate, dominated, frozen, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+           /* witness */ sizeof(std::uint32_t) +
+           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {

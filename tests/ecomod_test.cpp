@@ -184,9 +184,9 @@ TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", 
         CHECK(sim.plants()[0].speciesId == small);
     }
     SECTION("a seedling held under a full-grown tree grows once that tree is gone") {
-        // The seedling (height 0, no dominated growth) under a full-grown oak skips its
-        // domination test while the oak lives (growYear's `settled` cache); the oak's removal
-        // must end that, whether it happens in a year's step or by the disturbance hook.
+        // The seedling (height 0, no dominated growth) under a full-grown oak stays dominated
+        // while the oak lives; once it is removed (here by the disturbance hook) nothing holds
+        // it: a guard for any shortcut that keeps such seedlings aside while their dominator lives.
         b.species[static_cast<std::size_t>(tall)].ecomod.fullHeightM = 20;
         b.species[static_cast<std::size_t>(tall)].ecomod.maxAgeYears = 1000;  // it does not die of age here
         b.species[static_cast<std::size_t>(small)].ecomod.dominatedSurvival = 1;
