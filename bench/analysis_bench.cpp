@@ -121,6 +121,7 @@ double totalPairs(const BiomeDatabase& db) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/analysis_bench.txt";
     bool quick = false;
     std::vector<std::string> sims;

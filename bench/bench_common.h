@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "memory.h"
+
 namespace eco::bench {
 
 using Clock = std::chrono::steady_clock;

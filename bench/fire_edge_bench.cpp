@@ -108,6 +108,7 @@ std::string fmtCi(const std::vector<double>& v, int digits) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/fire_edge.txt";
     int fireYear = 20, fires = 8;
     double spread = 0.45;

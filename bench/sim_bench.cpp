@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "memory.h"
 #include "atomic_file.h"
 #include "canopy_file.h"
 #include "demo_scene.h"
@@ -226,6 +227,7 @@ long positiveInteger(const std::string& flag, const std::string& text, long maxV
 }
 
 int main(int argc, char** argv) {
+    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/sim_bench.txt", sceneDir;
     bool outGiven = false;
     bool quick = false, hectareOnly = false;

@@ -254,16 +254,37 @@ CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
                          std::max(0, cellOf(y - r, originY_, ny_) - 1), std::min(ny_ - 1, cellOf(y + r, originY_, ny_) + 1)};
         }
     }
+    // Each cell's list in tree order, made by bands of cell rows in parallel: the discs are in
+    // row order of their trunks, so the ones whose boxes reach a band are one range of them
+    // (trunk rows within the largest reach of the band). Every band counts and fills only
+    // its own cells, each in tree order: the lists are the same for any number of threads.
+    std::vector<int> trunkRow(box.size());
+    int reach = 0;
+    for (std::size_t k = 0; k < box.size(); ++k) {
+        trunkRow[k] = cellOf(disc_[k].y, originY_, ny_);
+        reach = std::max({reach, trunkRow[k] - box[k].y0, box[k].y1 - trunkRow[k]});
+    }
+    const int bandRows = std::max(16, 4 * reach);
+    const int nBands = (ny_ + bandRows - 1) / bandRows;
+    // f(cell, k) for every cell of band b listed by disc k, in disc order.
+    auto forBandCells = [&](int b, auto&& f) {
+        const int r0 = b * bandRows, r1 = std::min(ny_, r0 + bandRows);
+        const std::size_t k0 = static_cast<std::size_t>(std::lower_bound(trunkRow.begin(), trunkRow.end(), r0 - reach) - trunkRow.begin());
+        const std::size_t k1 = static_cast<std::size_t>(std::lower_bound(trunkRow.begin(), trunkRow.end(), r1 + reach) - trunkRow.begin());
+        for (std::size_t k = k0; k < k1; ++k)
+            for (int iy = std::max(box[k].y0, r0); iy <= std::min(box[k].y1, r1 - 1); ++iy)
+                for (int ix = box[k].x0; ix <= box[k].x1; ++ix) f(cellIndex(ix, iy), k);
+    };
+    const bool parallel = nBands > 1 && box.size() >= 4096;
     start_.assign(nCells + 1, 0);
-    for (const Box& b : box)
-        for (int iy = b.y0; iy <= b.y1; ++iy)
-            for (int ix = b.x0; ix <= b.x1; ++ix) ++start_[cellIndex(ix, iy) + 1];
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+    for (int b = 0; b < nBands; ++b) forBandCells(b, [&](std::size_t c, std::size_t) { ++start_[c + 1]; });
     for (std::size_t c = 0; c < nCells; ++c) start_[c + 1] += start_[c];
     crown_.resize(start_[nCells]);
     std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
-    for (std::size_t t = 0; t < box.size(); ++t)
-        for (int iy = box[t].y0; iy <= box[t].y1; ++iy)
-            for (int ix = box[t].x0; ix <= box[t].x1; ++ix) crown_[fill[cellIndex(ix, iy)]++] = static_cast<std::uint32_t>(t);
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+    for (int b = 0; b < nBands; ++b)
+        forBandCells(b, [&](std::size_t c, std::size_t k) { crown_[fill[c]++] = static_cast<std::uint32_t>(k); });
 }
 
 double CanopyCover::lowestCrownAboveM(double xM, double yM) const {

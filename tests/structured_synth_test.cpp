@@ -387,21 +387,29 @@ TEST_CASE("canopy depth map: the distance to the crown-cover edge, signed", "[sy
 
 TEST_CASE("canopy cover: lowest crown above a point equal to a direct search", "[synth][structured]") {
     // Crowns of very different radii (the cover's cells follow the mean one), points inside,
-    // on and beyond them: the answer is the lowest tree whose disc holds the point.
+    // on and beyond them: the answer is the lowest tree whose disc holds the point. 6000 trees
+    // take the parallel construction (bands of cell rows), on 1 and 2 threads.
+    const int nTrees = GENERATE(300, 6000);
+    const int threads = GENERATE(1, 2);
+    const double side = std::sqrt(nTrees / 300.0);  // the same density at both sizes
     std::vector<Plant> canopy;
     RandomStream rs(9, 3);
-    for (int i = 0; i < 300; ++i) {
+    for (int i = 0; i < nTrees; ++i) {
         Plant t;
-        t.xM = rs.uniform(-50, 50);
-        t.yM = rs.uniform(0, 80);
+        t.xM = rs.uniform(-50, 50) * side;
+        t.yM = rs.uniform(0, 80) * side;
         t.crownRadiusM = i % 50 == 0 ? rs.uniform(8, 15) : i % 7 == 0 ? 0.0 : rs.uniform(0.5, 3);
         t.heightM = rs.uniform(2, 30);
         canopy.push_back(t);
     }
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(threads);
     const CanopyCover cover(canopy);
+    omp_set_num_threads(before);
     int covered = 0;
-    for (int k = 0; k < 20000; ++k) {
-        double x = rs.uniform(-70, 70), y = rs.uniform(-20, 100);
+    const int nPoints = nTrees > 1000 ? 4000 : 20000;
+    for (int k = 0; k < nPoints; ++k) {
+        double x = rs.uniform(-70, 70) * side, y = rs.uniform(-20, 100) * side;
         if (k % 4 == 0) {  // on a crown's rim
             const Plant& t = canopy[static_cast<std::size_t>(k) % canopy.size()];
             x = t.xM + t.crownRadiusM;
@@ -415,7 +423,7 @@ TEST_CASE("canopy cover: lowest crown above a point equal to a direct search", "
         covered += lowest < CanopyCover::kNone;
         REQUIRE(cover.lowestCrownAboveM(x, y) == lowest);
     }
-    CHECK(covered > 2000);
+    CHECK(covered > nPoints / 10);
     CHECK(CanopyCover({}).lowestCrownAboveM(0, 0) == CanopyCover::kNone);
 }
 
