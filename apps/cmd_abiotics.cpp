@@ -30,11 +30,13 @@ void runAbiotics(AbioticsArgs& a) {
 void registerAbioticsCommand(CLI::App& app) {
     auto args = std::make_shared<AbioticsArgs>();
     pipeline::AbioticsOptions& o = args->options;
-    CLI::App* cmd = app.add_subcommand(
-        "abiotics",
-        "Monthly abiotic maps of a terrain: sunlight (hours/day, terrain shadows and sky view), soil moisture "
-        "(mm), temperature (degC), slope (degrees) and the wind exposure of the biome's prevailing wind (m/s); "
-        "written to one HDF5 file");
+    // The maps listed from kAbioticMaps (core/abiotics.h), so that a new map needs no line here.
+    std::string maps;
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        maps += std::string(maps.empty() ? "" : "; ") + m.name + " (" + m.unit + (m.isMonthly() ? ", monthly" : "") + "): " +
+                m.description;
+    CLI::App* cmd = app.add_subcommand("abiotics", "Abiotic maps of a terrain, written to one HDF5 file with its elevation: " +
+                                                       maps);
     cmd->add_option("--terrain", o.terrain, "Terrain (.asc, .h5, .png, .tif, .exr), elevations in metres")
         ->required();
     cmd->add_option("--biome", o.biome, "Biome TOML (default: the embedded Sonoma biome)");

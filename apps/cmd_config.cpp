@@ -16,6 +16,7 @@
 #include "canopy_placer.h"
 #include "cli_common.h"
 #include "fidelity.h"
+#include "scenario.h"
 #include "forest_floor.h"
 #include "sim_config.h"
 #include "species_map.h"
@@ -57,14 +58,15 @@ struct DescribedParam {
 /// A parameter table: its struct, where its keys are set, its docs page and the commands
 /// whose flags set some of its keys.
 struct DescribedTable {
-    const char* name;      ///< eco config describe NAME
-    const char* type;      ///< the struct
-    const char* fields;    ///< the descriptor table's function
-    const char* where;     ///< where the keys are read from (TOML table, record)
-    const char* docs;      ///< the docs page holding the generated table
+    std::string name;      ///< eco config describe NAME
+    std::string type;      ///< the struct
+    std::string fields;    ///< the descriptor table's function
+    std::string where;     ///< where the keys are read from (TOML table, record)
+    std::string docs;      ///< the docs page holding the generated table
     std::vector<std::string> commands;  ///< subcommands searched for the keys' flags
     bool species;          ///< the biome's species keys (speciesDocRow's columns)
     std::function<std::vector<DescribedParam>()> params;
+    bool scenario = false;  ///< a validation scenario kind's keys (ScenarioKeyDoc's columns; no default, no flag)
 };
 
 template <typename S>
@@ -123,7 +125,26 @@ const std::vector<DescribedTable>& describedTables() {
              return out;
          }},
     };
-    return tables;
+    // The validation scenarios' own keys, one table per kind (validate/scenarios/scenario_keys.h).
+    static const std::vector<DescribedTable> all = [] {
+        std::vector<DescribedTable> t = tables;
+        for (const validate::ScenarioKind& k : validate::scenarioKinds())
+            t.push_back({std::string("validate-") + k.name, std::string("scenario ") + k.name,
+                         "ScenarioKind::keys (scenarios/" + std::string(k.name) + ".cpp)",
+                         std::string("the kind's own tables of a `kind = \"") + k.name +
+                             "\"` scenario file (configs/validation/)",
+                         "docs/validation.md", {}, false,
+                         [&k] {
+                             std::vector<DescribedParam> out;
+                             for (const validate::ScenarioKeyDoc& d : k.keys())
+                                 out.push_back({d.key, "| `" + d.key + "` | `" + d.table + "` | " + d.unit + " | " + d.doc + " |",
+                                                d.allowed, d.doc, d.unit, nullptr});
+                             return out;
+                         },
+                         true});
+        return t;
+    }();
+    return all;
 }
 
 /// The flags (as "`eco CMD --flag`") that set `key`: the options of the table's commands (or
@@ -175,13 +196,17 @@ std::string describeTable(const CLI::App& root, const DescribedTable& t, bool ma
     if (markdown) {
         if (t.species)
             out += "| key | meaning | unit | allowed values |\n|---|---|---|---|\n";
+        else if (t.scenario)
+            out += "| key | table | unit | meaning | allowed values |\n|---|---|---|---|---|\n";
         else
             out += "| key | default | unit | meaning | allowed values | flag |\n|---|---|---|---|---|---|\n";
         for (const auto& p : params)
-            out += t.species ? p.docRow + "\n" : p.docRow + " " + p.allowed + " | " + flagsOf(root, t, p) + " |\n";
+            out += t.species ? p.docRow + "\n"
+                   : t.scenario ? p.docRow + " " + p.allowed + " |\n"
+                                : p.docRow + " " + p.allowed + " | " + flagsOf(root, t, p) + " |\n";
     } else {
         for (const auto& p : params)
-            out += std::string(t.name) + "\t" + p.key + "\t" + p.allowed + "\t" + (t.species ? "" : flagsOf(root, t, p)) + "\t" + p.doc +
+            out += t.name + "\t" + p.key + "\t" + p.allowed + "\t" + (t.species || t.scenario ? "" : flagsOf(root, t, p)) + "\t" + p.doc +
                    (p.unit.empty() || p.unit == "-" ? "" : " (" + p.unit + ")") + "\n";
     }
     return out;

@@ -931,14 +931,14 @@ MonthlyGrids<float> moistureMm(const Grid<float>& elevationM, const Climate& cli
 // ---------------------------------------------------------------------------------------
 // All maps together
 
+Grid<float> annualMap(const Abiotics& a, const AbioticMapInfo& m) {
+    return m.isMonthly() ? (a.*(m.monthly)).annualMean() : a.*(m.single);
+}
+
 FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual) {
-    static_assert(kFactorCount == 5, "a new factor: give its annual map here (docs/factors.md)");
     FactorGrids g;
-    g[Factor::Sun] = sunHoursAnnual ? *sunHoursAnnual : a.sunHours.annualMean();
-    g[Factor::Moisture] = a.moistureMm.annualMean();
-    g[Factor::Temperature] = a.temperatureC.annualMean();
-    g[Factor::Slope] = a.slopeDeg;
-    g[Factor::Wind] = a.windMS;
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        g[m.factor] = m.factor == Factor::Sun && sunHoursAnnual ? *sunHoursAnnual : annualMap(a, m);
     return g;
 }
 
@@ -1035,27 +1035,26 @@ void writeParamAttrs(h5::File& f, const std::string& object, const S& p, const s
 
 void writeAbiotics(const std::string& path, const Abiotics& maps, const Biome& biome, const AbioticParams& params) {
     const Grid<float>& e = maps.elevationM;
-    auto checkStack = [&](const MonthlyGrids<float>& s, const char* name) {
-        if (s.months.size() != static_cast<std::size_t>(kMonths))
-            throw ValidationError(path + ": " + name + ": expected 12 monthly planes, got " + std::to_string(s.months.size()));
-        for (const auto& g : s.months)
-            if (!g.sameGeometry(e)) throw ValidationError(path + ": " + name + ": geometry differs from the elevation grid");
-    };
-    checkStack(maps.sunHours, "sun");
-    checkStack(maps.moistureMm, "moisture");
-    checkStack(maps.temperatureC, "temperature");
-    if (!maps.slopeDeg.sameGeometry(e)) throw ValidationError(path + ": slope: geometry differs from the elevation grid");
-    if (!maps.windMS.sameGeometry(e)) throw ValidationError(path + ": wind: geometry differs from the elevation grid");
+    // Monthly maps first, then the static ones (the order of the messages before the table).
+    for (const bool monthly : {true, false})
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (m.isMonthly() != monthly) continue;
+            if (monthly && (maps.*(m.monthly)).months.size() != static_cast<std::size_t>(kMonths))
+                throw ValidationError(path + ": " + m.name + ": expected 12 monthly planes, got " +
+                                      std::to_string((maps.*(m.monthly)).months.size()));
+            forEachPlane(maps, m, [&](const Grid<float>& g) {
+                if (!g.sameGeometry(e)) throw ValidationError(path + ": " + m.name + ": geometry differs from the elevation grid");
+            });
+        }
 
     AtomicOutput out(path);
     {
         h5::File f = h5::File::create(out.tempPath());
         f.writeGrid("/elevation", e, "m");
-        f.writeGrid("/slope", maps.slopeDeg, "degrees");
-        f.writeStack("/sun", maps.sunHours.months, "hours/day");
-        f.writeStack("/moisture", maps.moistureMm.months, "mm/month");
-        f.writeStack("/temperature", maps.temperatureC.months, "degC");
-        f.writeGrid("/wind", maps.windMS, "m/s");
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (m.isMonthly()) f.writeStack(m.dataset, (maps.*(m.monthly)).months, m.unit);
+            else f.writeGrid(m.dataset, maps.*(m.single), m.unit);
+        }
         const std::string root = "/";
         f.setAttr(root, "format", std::string(kFormat));
         f.setAttr(root, "schema_version", kSchemaVersion);
@@ -1116,7 +1115,8 @@ Abiotics readAbiotics(const std::string& path) {
     auto require = [&](const std::string& name) {
         if (!f.exists(name)) throw IoError(path + ": dataset " + name + " is missing");
     };
-    for (const char* name : {"/elevation", "/slope", "/sun", "/moisture", "/temperature", "/wind"}) require(name);
+    require("/elevation");
+    for (const AbioticMapInfo& m : kAbioticMaps) require(m.dataset);
 
     Abiotics a;
     // Files written before the attribute existed hold the terrain's own sun.
@@ -1133,43 +1133,34 @@ Abiotics readAbiotics(const std::string& path) {
     };
     const std::vector<hsize_t> planeShape = eShape;
     const std::vector<hsize_t> stackShape = {static_cast<hsize_t>(kMonths), eShape[0], eShape[1]};
-    auto checkShape = [&](const std::string& name, const std::vector<hsize_t>& expect) {
-        const auto s = f.shape(name);
-        if (s != expect)
-            throw IoError(path + ": dataset " + name + " has shape " + shapeText(s) + ", expected " + shapeText(expect));
-    };
-    checkShape("/slope", planeShape);
-    a.slopeDeg = f.readGrid("/slope");
-    auto readMonthly = [&](const std::string& name) {
-        checkShape(name, stackShape);
-        MonthlyGrids<float> mg;
-        mg.months = f.readStack(name);
-        for (const auto& g : mg.months)
-            if (!g.sameGeometry(a.elevationM))
-                throw IoError(path + ": dataset " + name + " has a different cell size or origin than /elevation");
-        return mg;
-    };
-    if (!a.slopeDeg.sameGeometry(a.elevationM))
-        throw IoError(path + ": dataset /slope has a different cell size or origin than /elevation");
-    checkShape("/wind", planeShape);
-    a.windMS = f.readGrid("/wind");
-    if (!a.windMS.sameGeometry(a.elevationM))
-        throw IoError(path + ": dataset /wind has a different cell size or origin than /elevation");
-    a.sunHours = readMonthly("/sun");
-    a.moistureMm = readMonthly("/moisture");
-    a.temperatureC = readMonthly("/temperature");
+    // The static maps first, then the monthly ones (the order of the messages before the table).
+    for (const bool monthly : {false, true})
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (m.isMonthly() != monthly) continue;
+            const auto s = f.shape(m.dataset);
+            const std::vector<hsize_t>& expect = monthly ? stackShape : planeShape;
+            if (s != expect)
+                throw IoError(path + ": dataset " + m.dataset + " has shape " + shapeText(s) + ", expected " +
+                              shapeText(expect));
+            if (monthly) (a.*(m.monthly)).months = f.readStack(m.dataset);
+            else a.*(m.single) = f.readGrid(m.dataset);
+            forEachPlane(a, m, [&](const Grid<float>& g) {
+                if (!g.sameGeometry(a.elevationM))
+                    throw IoError(path + ": dataset " + m.dataset + " has a different cell size or origin than /elevation");
+            });
+        }
     // The values too (issue 26): a NaN sun or a negative moisture would flow into every
     // vigour, species map and database feature without a word.
     requireGridIn(a.elevationM, -1e5, 1e5, path, "/elevation");
-    requireGridIn(a.slopeDeg, 0, 90, path, "/slope");
-    requireGridIn(a.windMS, 0, 100, path, "/wind");
-    const std::pair<const char*, const MonthlyGrids<float>*> monthly[] = {
-        {"/sun", &a.sunHours}, {"/moisture", &a.moistureMm}, {"/temperature", &a.temperatureC}};
-    const double lo[] = {0, 0, -100}, hi[] = {24, 1e6, 100};
-    for (std::size_t k = 0; k < 3; ++k)
-        for (std::size_t m = 0; m < monthly[k].second->months.size(); ++m)
-            requireGridIn(monthly[k].second->months[m], lo[k], hi[k], path,
-                          std::string(monthly[k].first) + " (month " + std::to_string(m) + ")");
+    for (const bool monthly : {false, true})
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (m.isMonthly() != monthly) continue;
+            int month = 0;
+            forEachPlane(a, m, [&](const Grid<float>& g) {
+                requireGridIn(g, m.lo, m.hi, path,
+                              monthly ? std::string(m.dataset) + " (month " + std::to_string(month++) + ")" : m.dataset);
+            });
+        }
     return a;
 }
 

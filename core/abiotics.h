@@ -177,9 +177,70 @@ struct Abiotics {
     std::string canopyShadeSource;
 };
 
+/// One map of Abiotics (besides the elevation, which is the terrain and the geometry of the
+/// others): the one description that the abiotics file's writer and reader, the CRS
+/// setting, annualFactors, the simulator's input checks and its checkpoint fingerprint loop
+/// over (issue 23; docs/factors.md). A map is monthly (12 planes, `monthly`) or static (one
+/// plane, `single`); exactly one of the two member pointers is set.
+struct AbioticMapInfo {
+    const char* name;     ///< "sun": the map's name in messages
+    const char* dataset;  ///< "/sun": its dataset in the abiotics file
+    const char* unit;     ///< "hours/day": the dataset's unit attribute (of one plane)
+    Factor factor;        ///< the factor whose annual map it gives (factors.h)
+    MonthlyGrids<float> Abiotics::*monthly;  ///< the member holding a monthly map, else nullptr
+    Grid<float> Abiotics::*single;           ///< the member holding a static map, else nullptr
+    double lo, hi;            ///< the values a file may hold (readAbiotics refuses others)
+    const char* description;  ///< one line, what the map is (docs/abiotics.md)
+
+    bool isMonthly() const { return monthly != nullptr; }
+};
+
+/// The maps of Abiotics, in the order of the abiotics file's datasets. A new abiotic factor
+/// adds its member to Abiotics and its row here (docs/factors.md "Adding a factor").
+inline constexpr std::array<AbioticMapInfo, 5> kAbioticMaps = {{
+    {"slope", "/slope", "degrees", Factor::Slope, nullptr, &Abiotics::slopeDeg, 0, 90,
+     "terrain slope from central differences of the elevation"},
+    {"sun", "/sun", "hours/day", Factor::Sun, &Abiotics::sunHours, nullptr, 0, 24,
+     "sunlight: direct sun with terrain self-shadowing plus diffuse sky light"},
+    {"moisture", "/moisture", "mm/month", Factor::Moisture, &Abiotics::moistureMm, nullptr, 0, 1e6,
+     "soil water: the store after each month's rain, run-on, runoff and evaporation"},
+    {"temperature", "/temperature", "degC", Factor::Temperature, &Abiotics::temperatureC, nullptr, -100, 100,
+     "air temperature: the climate's sea-level temperature minus the lapse rate"},
+    {"wind", "/wind", "m/s", Factor::Wind, nullptr, &Abiotics::windMS, 0, 100,
+     "exposure to the biome's prevailing wind after the terrain upwind shelters it"},
+}};
+
+namespace detail {
+constexpr bool everyFactorHasOneMap() {
+    for (std::size_t f = 0; f < kFactorCount; ++f) {
+        int n = 0;
+        for (const AbioticMapInfo& m : kAbioticMaps) n += factorIndex(m.factor) == f ? 1 : 0;
+        if (n != 1) return false;
+    }
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        if ((m.monthly == nullptr) == (m.single == nullptr)) return false;
+    return true;
+}
+}  // namespace detail
+static_assert(detail::everyFactorHasOneMap(),
+              "kAbioticMaps: every factor needs exactly one map, monthly or static (docs/factors.md)");
+
+/// Calls fn(plane) for each plane of map m of a (12 for a monthly map, 1 for a static one),
+/// in order. A is Abiotics or const Abiotics.
+template <typename A, typename Fn>
+void forEachPlane(A& a, const AbioticMapInfo& m, Fn&& fn) {
+    if (m.isMonthly())
+        for (auto& plane : (a.*(m.monthly)).months) fn(plane);
+    else
+        fn(a.*(m.single));
+}
+
+/// The annual map of m: the mean of its planes for a monthly map, the map itself for a static one.
+Grid<float> annualMap(const Abiotics& a, const AbioticMapInfo& m);
+
 /// The annual maps of the factors (factors.h): the annual means of the monthly maps (sun,
-/// moisture, temperature), the slope and the wind, in factor order. The one place that says which
-/// abiotics map feeds which factor. `sunHoursAnnual`, when given, replaces the sun's
+/// moisture, temperature), the slope and the wind, in factor order, as kAbioticMaps says
+/// which map feeds which factor. `sunHoursAnnual`, when given, replaces the sun's
 /// annual mean (a canopy-shaded sun, as the analyser and synthesizer use).
 FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual = nullptr);
 

@@ -95,10 +95,7 @@ void writeGeoTiffs(const std::string& h5Path, const AtomicOutputSet& outputs, co
 namespace {
 
 void setCrs(Abiotics& a, const std::string& wkt) {
-    for (MonthlyGrids<float>* m : {&a.sunHours, &a.moistureMm, &a.temperatureC})
-        for (Grid<float>& g : m->months) g.setCrsWkt(wkt);
-    a.slopeDeg.setCrsWkt(wkt);
-    a.windMS.setCrsWkt(wkt);
+    for (const AbioticMapInfo& m : kAbioticMaps) forEachPlane(a, m, [&](Grid<float>& g) { g.setCrsWkt(wkt); });
     a.elevationM.setCrsWkt(wkt);
 }
 

@@ -22,21 +22,23 @@ void Simulation::Impl::setup(SimInputs&& in, const SimParams& p, std::uint64_t s
 void Simulation::Impl::validateAbiotics() {
     const Grid<float>& g = abio.slopeDeg;
     if (g.empty()) throw ValidationError("simulation: the abiotics have no slope map");
-    auto check = [&](const MonthlyGrids<float>& m, const char* what) {
-        if (m.months.size() != 12)
-            throw ValidationError(std::string("simulation: abiotic map '") + what + "' must have 12 monthly planes, has " +
-                                  std::to_string(m.months.size()));
-        for (const auto& plane : m.months)
-            if (!plane.sameGeometry(g))
-                throw ValidationError(std::string("simulation: abiotic map '") + what +
-                                      "' does not have the geometry of the slope map");
-    };
-    check(abio.sunHours, "sun");
-    check(abio.moistureMm, "moisture");
-    check(abio.temperatureC, "temperature");
-    if (abio.windMS.empty()) throw ValidationError("simulation: the abiotics have no wind map");
-    if (!abio.windMS.sameGeometry(g))
-        throw ValidationError("simulation: abiotic map 'wind' does not have the geometry of the slope map");
+    // Every map of kAbioticMaps: the monthly ones first, then the static ones (the order of
+    // the messages before the table).
+    for (const bool monthly : {true, false})
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (m.isMonthly() != monthly) continue;
+            if (monthly && (abio.*(m.monthly)).months.size() != 12)
+                throw ValidationError(std::string("simulation: abiotic map '") + m.name +
+                                      "' must have 12 monthly planes, has " +
+                                      std::to_string((abio.*(m.monthly)).months.size()));
+            if (!monthly && (abio.*(m.single)).empty())
+                throw ValidationError(std::string("simulation: the abiotics have no ") + m.name + " map");
+            forEachPlane(abio, m, [&](const Grid<float>& plane) {
+                if (!plane.sameGeometry(g))
+                    throw ValidationError(std::string("simulation: abiotic map '") + m.name +
+                                          "' does not have the geometry of the slope map");
+            });
+        }
     if (abio.elevationM.empty()) abio.elevationM = Grid<float>::like(g, 0.f);
     if (!abio.elevationM.sameGeometry(g))
         throw ValidationError("simulation: the elevation map does not have the geometry of the slope map");

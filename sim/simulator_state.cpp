@@ -39,14 +39,21 @@ std::uint64_t Simulation::Impl::computeFingerprint() const {
         h = mixStream(h, static_cast<std::uint64_t>(t.speciesId));
         h = hashBytes(h, v, sizeof v);
     }
-    for (const auto* mg : {&abio.sunHours, &abio.moistureMm, &abio.temperatureC})
-        for (const auto& g : mg->months) h = hashVector(h, g.data());
-    h = hashVector(h, abio.slopeDeg.data());
-    // The wind map only when a species responds to it: otherwise the run does not read it,
-    // and a checkpoint of a wind-indifferent biome keeps its fingerprint of before the factor.
-    bool windRead = false;
-    for (const Species& sp : biome.species) windRead = windRead || !sp.response(Factor::Wind).isIndifferent();
-    if (windRead) h = hashVector(h, abio.windMS.data());
+    // The maps of kAbioticMaps, monthly ones first, then the static ones (the order of the
+    // fingerprint before the table, so old checkpoints still resume). The map of an optional
+    // factor (FactorInfo::responseRequired false, the wind) only when a species responds to
+    // it: otherwise the run does not read it, and a checkpoint of a biome indifferent to it
+    // keeps its fingerprint of before the factor.
+    auto mapRead = [&](Factor f) {
+        if (kFactors[factorIndex(f)].responseRequired) return true;
+        for (const Species& sp : biome.species)
+            if (!sp.response(f).isIndifferent()) return true;
+        return false;
+    };
+    for (const bool monthly : {true, false})
+        for (const AbioticMapInfo& m : kAbioticMaps)
+            if (m.isMonthly() == monthly && mapRead(m.factor))
+                forEachPlane(abio, m, [&](const Grid<float>& g) { h = hashVector(h, g.data()); });
     h = hashVector(h, abio.elevationM.data());
     h = hashVector(h, chm.data());
     return h;

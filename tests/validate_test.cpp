@@ -885,3 +885,50 @@ TEST_CASE("Gap dynamics fail when undergrowth is limited only under the canopy",
     const auto [c, d] = failsWhereDefaultPasses(broken, reading, "gap_dynamics/edge_vs_deep");
     CHECK(c.value < 0.5 * d.value);  // measured: 0.27 against 1.71
 }
+
+TEST_CASE("scenario keys: every described key of every kind is required, ranged and typed as its description says", "[validate][config]") {
+    // Issue 23 item 5: a kind's numeric keys are described once (ScenarioKind::keys, the
+    // docs' generated tables) and read from that description (readScenarioParams). For each
+    // described key of each shipped configuration: removing it, giving a value below every
+    // range, or a fraction for an integer is refused with the file, the table and the key.
+    using namespace eco::validate;
+    int keys = 0;
+    for (const ScenarioKind& kind : scenarioKinds()) {
+        const std::string text = readAll(eco::test::sourcePath(std::string("configs/validation/") + kind.name + ".toml"));
+        REQUIRE_NOTHROW(parseScenarioConfig(text, "k.toml"));
+        for (const ScenarioKeyDoc& d : kind.keys()) {
+            ++keys;
+            const std::string table = d.table.substr(0, d.table.find(']') + 1);  // "[quick], [full]": the first
+            const std::size_t tableAt = text.find("\n" + table + "\n");
+            REQUIRE(tableAt != std::string::npos);
+            std::size_t lineAt = text.find("\n" + d.key + " ", tableAt + 1);
+            if (lineAt == std::string::npos || text.find("\n" + d.key + "=", tableAt + 1) < lineAt)
+                lineAt = text.find("\n" + d.key + "=", tableAt + 1);
+            REQUIRE(lineAt != std::string::npos);
+            REQUIRE(text.find("\n[", tableAt + 1) > lineAt);  // the key is in its table
+            const std::size_t lineEnd = text.find('\n', lineAt + 1);
+            auto withLine = [&](const std::string& line) {
+                return text.substr(0, lineAt + 1) + line + text.substr(lineEnd);
+            };
+            auto refused = [&](const std::string& edited, const std::string& what) {
+                INFO(kind.name << " " << d.table << " " << d.key << ": " << what);
+                try {
+                    parseScenarioConfig(edited, "k.toml");
+                    FAIL("accepted");
+                } catch (const Error& e) {
+                    const std::string m = e.what();
+                    INFO(m);
+                    CHECK(m.find("k.toml") != std::string::npos);
+                    CHECK(m.find(table) != std::string::npos);
+                    CHECK(m.find("'" + d.key + "'") != std::string::npos);
+                    CHECK(m.find(what) != std::string::npos);
+                }
+            };
+            refused(withLine("# removed"), "missing");
+            const bool integer = d.allowed.rfind("integer", 0) == 0;
+            if (integer) refused(withLine(d.key + " = 2.5"), "expected an integer");
+            if (d.allowed != "any number") refused(withLine(d.key + (integer ? " = -1000000000000" : " = -1e12")), "-1");
+        }
+    }
+    CHECK(keys >= 50);
+}

@@ -76,10 +76,22 @@ public:
 };
 
 /// A registry entry: a kind by name.
+/// One numeric key of a kind's own tables as the docs show it (eco config describe
+/// --markdown validate-KIND; scenarios/scenario_keys.h builds them from the kind's
+/// ParamDesc tables, the same tables its reader reads).
+struct ScenarioKeyDoc {
+    std::string table;    ///< "[circles]", or "[quick], [full]" for the per-size keys
+    std::string key;
+    std::string unit;     ///< "-" for none
+    std::string doc;      ///< the meaning, one line
+    std::string allowed;  ///< the allowed values ("integer, [1, 64]", "> 0")
+};
+
 struct ScenarioKind {
     const char* name;      ///< the value of [scenario] kind
     bool usesForestScene;  ///< runs the shared forest scene: [scenario] scene is required
     std::unique_ptr<Scenario> (*create)(const ScenarioParse& in);  ///< reads the kind's own tables
+    std::vector<ScenarioKeyDoc> (*keys)();  ///< its numeric keys, described (docs/validation.md)
 };
 
 /// Every kind, in the order listed in messages.

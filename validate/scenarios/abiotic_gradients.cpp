@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "image_out.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -17,6 +18,19 @@ struct GradientSettings {
     int windowYears = 25;
     int minPlants = 10;  ///< a species with fewer plants in the window makes the check not evaluable
 };
+
+/// [gradients]'s numeric keys (the species lists are read by hand).
+const std::vector<ParamDesc<GradientSettings>>& gradientFields() {
+    using P = GradientSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"window_years", "the mean site sun is taken over this many years ending at the measured year", "years", K::Integer,
+         nullptr, &P::windowYears, ParamRange::closed(1, 100000)},
+        {"min_plants", "plant-snapshots a species needs in the window (fewer: the check is not evaluable)", "", K::Integer,
+         nullptr, &P::minPlants, ParamRange::closed(1, 1000000000)},
+    };
+    return fields;
+}
 
 class AbioticGradients final : public Scenario {
 public:
@@ -40,8 +54,7 @@ AbioticGradients::AbioticGradients(const ScenarioParse& in) {
     StrictTable s(in.top.table("gradients"), in.path, "[gradients]");
     g.shadeSpecies = nonEmptyStrings(s, "shade_species");
     g.sunSpecies = nonEmptyStrings(s, "sun_species");
-    g.windowYears = yearsIn(s, "window_years", 1, 100000);
-    g.minPlants = yearsIn(s, "min_plants", 1, 1000000000);
+    readScenarioParams(s, g, gradientFields());
     s.finish();
 }
 
@@ -108,5 +121,6 @@ void AbioticGradients::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scena
 }  // namespace
 
 std::unique_ptr<Scenario> createAbioticGradients(const ScenarioParse& in) { return std::make_unique<AbioticGradients>(in); }
+std::vector<ScenarioKeyDoc> abioticGradientsKeys() { return scenarioKeyDocs("[gradients]", gradientFields()); }
 
 }  // namespace eco::validate

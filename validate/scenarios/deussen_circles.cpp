@@ -7,6 +7,7 @@
 #include "deussen_circles.h"
 #include "error.h"
 #include "plots.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -23,6 +24,46 @@ struct CirclesSettings {
     Size quick, full;
 };
 
+using K = ParamDesc<CirclesParams>::Kind;
+using R = ParamRange;
+
+/// [circles]: the circles' growth and the fit (CirclesParams::validate checks the rules
+/// between keys: max radius >= min, limit radius above the max and below half the field).
+const std::vector<ParamDesc<CirclesParams>>& circlesFields() {
+    using P = CirclesParams;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"initial_radius_min_m", "initial radii uniform in [min, max]: the smallest", "m", K::Real, &P::initialRadiusMinM,
+         nullptr, R::atLeast(0), nullptr, "must not be negative"},
+        {"initial_radius_max_m", "initial radii uniform in [min, max]: the largest (>= the smallest)", "m", K::Real,
+         &P::initialRadiusMaxM},
+        {"growth_per_step_m", "radius increment of every circle per step", "m", K::Real, &P::growthPerStepM, nullptr,
+         R::above(0), nullptr, "must be positive"},
+        {"limit_radius_m", "a circle reaching this radius is old and dies (above initial_radius_max_m, below half the field side)",
+         "m", K::Real, &P::limitRadiusM},
+        {"max_steps", "steps at most (the run stops earlier when every circle is dead)", "", K::Integer, nullptr,
+         &P::maxSteps, R::closed(1, 1e7)},
+        {"onset_killed_fraction", "the fitted thinning phase starts when this share of the circles died of competition", "",
+         K::Real, &P::onsetKilledFraction, nullptr, R{ParamRange::Bound::Closed, 0, ParamRange::Bound::Open, 1}},
+        {"min_plants_in_fit", "the fitted phase ends before the first old death or below this many circles", "",
+         K::Integer, nullptr, &P::minPlantsInFit, R::closed(2, 1e9)},
+    };
+    return fields;
+}
+
+/// [quick] and [full]: the field of each size.
+const std::vector<ParamDesc<CirclesSettings::Size>>& circlesSizeFields() {
+    using P = CirclesSettings::Size;
+    using SK = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"plant_count", "circles placed at the start (Deussen: 62,500)", "", SK::Integer, nullptr, &P::plantCount,
+         R::closed(2, 5e7)},
+        {"field_side_m", "side of the square field", "m", SK::Real, &P::fieldSideM, nullptr, R::above(0), nullptr, "must be positive"},
+        {"seed", "seed of the placement (replicate k adds k x 1000)", "", SK::Seed, nullptr, nullptr, R::any(),
+         &P::seed},
+    };
+    return fields;
+}
+
 class DeussenCircles final : public Scenario {
 public:
     explicit DeussenCircles(const ScenarioParse& in);
@@ -36,19 +77,11 @@ private:
 DeussenCircles::DeussenCircles(const ScenarioParse& in) {
     CirclesParams& p = settings_.params;
     StrictTable s(in.top.table("circles"), in.path, "[circles]");
-    p.initialRadiusMinM = s.number("initial_radius_min_m");
-    p.initialRadiusMaxM = s.number("initial_radius_max_m");
-    p.growthPerStepM = s.number("growth_per_step_m");
-    p.limitRadiusM = s.number("limit_radius_m");
-    p.maxSteps = static_cast<int>(s.numberIn("max_steps", 1, 1e7));
-    p.onsetKilledFraction = s.number("onset_killed_fraction");
-    p.minPlantsInFit = static_cast<int>(s.numberIn("min_plants_in_fit", 2, 1e9));
+    readScenarioParams(s, p, circlesFields());
     s.finish();
     in.sizes([&](Mode m, StrictTable& z) {
         auto& size = m == Mode::Quick ? settings_.quick : settings_.full;
-        size.plantCount = static_cast<int>(z.numberIn("plant_count", 2, 5e7));
-        size.fieldSideM = z.positive("field_side_m");
-        size.seed = seedOf(z, "seed");
+        readScenarioParams(z, size, circlesSizeFields());
         CirclesParams q = p;
         q.plantCount = size.plantCount;
         q.fieldSideM = size.fieldSideM;
@@ -118,5 +151,8 @@ void DeussenCircles::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scenari
 }  // namespace
 
 std::unique_ptr<Scenario> createDeussenCircles(const ScenarioParse& in) { return std::make_unique<DeussenCircles>(in); }
+std::vector<ScenarioKeyDoc> deussenCirclesKeys() {
+    return joinKeyDocs({scenarioKeyDocs("[circles]", circlesFields()), scenarioKeyDocs("[quick], [full]", circlesSizeFields())});
+}
 
 }  // namespace eco::validate

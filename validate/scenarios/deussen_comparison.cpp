@@ -10,6 +10,7 @@
 #include "point_pattern.h"
 #include "plots.h"
 #include "sim_render.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -24,6 +25,25 @@ struct DeussenComparisonSettings {
     int finalWindowYears = 25;
     double dominatedSurvival = 0.5;  ///< SimParams::deussenDominatedSurvival of the Deussen run
 };
+
+/// [comparison]'s numeric keys (late_species is read by hand).
+const std::vector<ParamDesc<DeussenComparisonSettings>>& comparisonFields() {
+    using P = DeussenComparisonSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"pcf_r_max_m", "short range: the pair correlation g is pooled over [0, pcf_r_max_m) (below 0.45 x the scene's smallest plot)",
+         "m", K::Real, &P::pcfRMaxM, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+        {"pcf_bins", "bins of g over that range listed in the report", "", K::Integer, nullptr, &P::pcfBins,
+         ParamRange::closed(1, 1000)},
+        {"early_year", "the late species' starting share is taken at this year", "years", K::Integer, nullptr, &P::earlyYear,
+         ParamRange::closed(0, 100000)},
+        {"final_window_years", "the final share is the mean over this many last censuses", "years", K::Integer, nullptr,
+         &P::finalWindowYears, ParamRange::closed(1, 100000)},
+        {"deussen_dominated_survival", "the Deussen run's deussen_dominated_survival (simulation parameter)", "", K::Real,
+         &P::dominatedSurvival, nullptr, ParamRange::closed(0.0, 1.0)},
+    };
+    return fields;
+}
 
 class DeussenComparison final : public Scenario {
 public:
@@ -52,12 +72,8 @@ private:
 DeussenComparison::DeussenComparison(const ScenarioParse& in) {
     DeussenComparisonSettings& d = settings_;
     StrictTable s(in.top.table("comparison"), in.path, "[comparison]");
-    d.pcfRMaxM = s.positive("pcf_r_max_m");
-    d.pcfBins = yearsIn(s, "pcf_bins", 1, 1000);
+    readScenarioParams(s, d, comparisonFields());
     d.lateSpecies = s.string("late_species");
-    d.earlyYear = yearsIn(s, "early_year", 0, 100000);
-    d.finalWindowYears = yearsIn(s, "final_window_years", 1, 100000);
-    d.dominatedSurvival = s.numberIn("deussen_dominated_survival", 0.0, 1.0);
     s.finish();
 }
 
@@ -151,5 +167,6 @@ void DeussenComparison::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scen
 }  // namespace
 
 std::unique_ptr<Scenario> createDeussenComparison(const ScenarioParse& in) { return std::make_unique<DeussenComparison>(in); }
+std::vector<ScenarioKeyDoc> deussenComparisonKeys() { return scenarioKeyDocs("[comparison]", comparisonFields()); }
 
 }  // namespace eco::validate

@@ -16,6 +16,7 @@
 #include "error.h"
 #include "fit.h"
 #include "sim_render.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -37,6 +38,39 @@ struct EcoModSettings {
     Size quick, full;
     sim::SimParams ecomod;  ///< [model] of the file, with kind = "ecomod"
 };
+
+/// [groups].
+const std::vector<ParamDesc<EcoModSettings>>& groupFields() {
+    using P = EcoModSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"pioneer_max_age_years", "pioneers: the species whose max age is at most this", "years", K::Real,
+         &P::pioneerMaxAgeYears, nullptr, ParamRange::closed(0.0, 10000.0)},
+        {"late_min_age_years", "late species: the species whose max age is at least this", "years", K::Real,
+         &P::lateMinAgeYears, nullptr, ParamRange::closed(0.0, 10000.0)},
+        {"stable_fraction", "stabilisation is measured over this last share of the years", "", K::Real, &P::stableFraction,
+         nullptr, ParamRange::closed(0.01, 1.0)},
+    };
+    return fields;
+}
+
+/// [quick] and [full]: the terrain, the run and the comparison plot of each size.
+const std::vector<ParamDesc<EcoModSettings::Size>>& ecomodSizeFields() {
+    using P = EcoModSettings::Size;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"terrain_cells", "square terrain of this many cells a side", "", K::Integer, nullptr, &P::terrainCells,
+         ParamRange::closed(8, 4096)},
+        {"terrain_cell_m", "cell size of the terrain", "m", K::Real, &P::terrainCellM, nullptr, ParamRange::closed(0.1, 100.0)},
+        {"years", "years simulated", "years", K::Integer, nullptr, &P::years, ParamRange::closed(10, 100000)},
+        {"comparison_plot_m", "side of the plot run with both models for the comparison", "m", K::Real, &P::comparisonPlotM,
+         nullptr, ParamRange::closed(1.0, 1000.0)},
+        {"comparison_years", "years of the comparison runs", "years", K::Integer, nullptr, &P::comparisonYears, ParamRange::closed(1, 100000)},
+        {"seed", "seed of the terrain and the runs (replicate k adds k x 1000)", "", K::Seed, nullptr, nullptr,
+         ParamRange::any(), &P::seed},
+    };
+    return fields;
+}
 
 struct Run {
     std::vector<sim::YearRecord> timeseries;
@@ -151,18 +185,11 @@ private:
 EcoModScenario::EcoModScenario(const ScenarioParse& in) {
     EcoModSettings& st = settings_;
     StrictTable g(in.top.table("groups"), in.path, "[groups]");
-    st.pioneerMaxAgeYears = g.numberIn("pioneer_max_age_years", 0.0, 10000.0);
-    st.lateMinAgeYears = g.numberIn("late_min_age_years", 0.0, 10000.0);
-    st.stableFraction = g.numberIn("stable_fraction", 0.01, 1.0);
+    readScenarioParams(g, st, groupFields());
     g.finish();
     in.sizes([&](Mode m, StrictTable& z) {
         auto& size = m == Mode::Quick ? st.quick : st.full;
-        size.terrainCells = static_cast<int>(z.numberIn("terrain_cells", 8, 4096));
-        size.terrainCellM = z.numberIn("terrain_cell_m", 0.1, 100.0);
-        size.years = yearsIn(z, "years", 10, 100000);
-        size.comparisonPlotM = z.numberIn("comparison_plot_m", 1.0, 1000.0);
-        size.comparisonYears = yearsIn(z, "comparison_years", 1, 100000);
-        size.seed = seedOf(z, "seed");
+        readScenarioParams(z, size, ecomodSizeFields());
     });
     st.ecomod = in.model();
     st.ecomod.kind = sim::ModelKind::EcoMod;
@@ -342,5 +369,8 @@ void EcoModScenario::run(const ScenarioConfig& sc, ScenarioContext& ctx, Scenari
 }  // namespace
 
 std::unique_ptr<Scenario> createEcoMod(const ScenarioParse& in) { return std::make_unique<EcoModScenario>(in); }
+std::vector<ScenarioKeyDoc> ecomodKeys() {
+    return joinKeyDocs({scenarioKeyDocs("[groups]", groupFields()), scenarioKeyDocs("[quick], [full]", ecomodSizeFields())});
+}
 
 }  // namespace eco::validate

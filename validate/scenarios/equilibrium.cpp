@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -16,6 +17,19 @@ struct EquilibriumSettings {
     int windowYears = 25;
     double leadingMinShare = 0.1;  ///< species with at least this share of the plants are "leading"
 };
+
+/// [equilibrium].
+const std::vector<ParamDesc<EquilibriumSettings>>& equilibriumFields() {
+    using P = EquilibriumSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"window_years", "the census is measured over this many years ending at the measured year", "years", K::Integer,
+         nullptr, &P::windowYears, ParamRange::closed(2, 100000)},
+        {"leading_min_share", "species with at least this share of the plants over the window are leading", "", K::Real,
+         &P::leadingMinShare, nullptr, ParamRange::closed(0.0, 1.0)},
+    };
+    return fields;
+}
 
 /// Coefficients of variation of the yearly census over the `windowYears` ending at year Y.
 struct EquilibriumCvs {
@@ -60,8 +74,7 @@ private:
 
 Equilibrium::Equilibrium(const ScenarioParse& in) {
     StrictTable s(in.top.table("equilibrium"), in.path, "[equilibrium]");
-    settings_.windowYears = yearsIn(s, "window_years", 2, 100000);
-    settings_.leadingMinShare = s.numberIn("leading_min_share", 0.0, 1.0);
+    readScenarioParams(s, settings_, equilibriumFields());
     s.finish();
 }
 
@@ -108,5 +121,6 @@ void Equilibrium::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRe
 }  // namespace
 
 std::unique_ptr<Scenario> createEquilibrium(const ScenarioParse& in) { return std::make_unique<Equilibrium>(in); }
+std::vector<ScenarioKeyDoc> equilibriumKeys() { return scenarioKeyDocs("[equilibrium]", equilibriumFields()); }
 
 }  // namespace eco::validate

@@ -23,6 +23,7 @@
 #include "html_report.h"
 #include "plots.h"
 #include "species_map.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 #include "undergrowth.h"
 
@@ -60,6 +61,49 @@ struct FidelitySettings {
     Size quick, full;
     sim::SimParams params;  ///< [model]
 };
+
+using FsK = ParamDesc<FidelitySettings>::Kind;
+using FsP = FidelitySettings;
+
+/// [protocol]'s numeric keys (the canopy targets are read by hand; seed_b != seed_a is
+/// checked after them).
+const std::vector<ParamDesc<FsP>>& protocolFields() {
+    auto seed = [](const char* key, const char* doc, std::uint64_t FsP::*member) {
+        return ParamDesc<FsP>{key, doc, "", FsK::Seed, nullptr, nullptr, ParamRange::any(), member};
+    };
+    static const std::vector<ParamDesc<FsP>> fields = {
+        seed("terrain_seed", "seed of the terrain, the CHM trees and the canopy placement", &FsP::terrainSeed),
+        {"cell_size_m", "cell size of the generated terrain", "m", FsK::Real, &FsP::cellSizeM, nullptr,
+         ParamRange::closed(0.05, 100.0)},
+        {"sun_step_minutes", "sampling interval of the sun path (eco abiotics --sun-step)", "minutes", FsK::Real,
+         &FsP::sunStepMinutes, nullptr, ParamRange::closed(1.0, 120.0)},
+        seed("seed_a", "seed of simulation A, the database's source", &FsP::seedA),
+        seed("seed_b", "seed of simulation B, held out (not seed_a)", &FsP::seedB),
+        seed("analysis_seed", "seed of the analysis (eco analyse --seed)", &FsP::analysisSeed),
+        {"kmax", "regions at most (eco analyse --kmax)", "", FsK::Integer, nullptr, &FsP::kMax, ParamRange::closed(1, 64)},
+        seed("synth_seed", "seed of the synthesis (eco synth)", &FsP::synthSeed),
+        seed("csr_seed", "seed of the CSR reference pattern (eco fidelity --csr-seed)", &FsP::csrSeed),
+        {"edge_band_m", "light classes: the gap-edge band either side of the crown-cover edge (eco fidelity --edge-band)",
+         "m", FsK::Real, &FsP::edgeBandM, nullptr, ParamRange::closed(0.2, 50.0)},
+        {"under_crown_replicate_factor", "the under-crown check's bound is at least this x d(A, B)", "", FsK::Real,
+         &FsP::underCrownReplicateFactor, nullptr, ParamRange::closed(0.0, 100.0)},
+        {"density_replicate_factor", "the density check's bound is at least this x d(A, B)", "", FsK::Real,
+         &FsP::densityReplicateFactor, nullptr, ParamRange::closed(0.0, 100.0)},
+    };
+    return fields;
+}
+
+/// [quick] and [full]'s numeric keys (the plot window is read by hand).
+const std::vector<ParamDesc<FsP::Size>>& fidelitySizeFields() {
+    using P = FsP::Size;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"terrain_cells", "square terrain of this many cells a side (cell_size_m each)", "", K::Integer, nullptr,
+         &P::terrainCells, ParamRange::closed(16, 8192)},
+        {"years", "years simulated", "years", K::Integer, nullptr, &P::years, ParamRange::closed(1, 100000)},
+    };
+    return fields;
+}
 
 /// The figures the checks read, of one synthesized scene (structured or darts).
 struct CheckedFigures {
@@ -236,9 +280,7 @@ private:
 Fidelity::Fidelity(const ScenarioParse& in) {
     FidelitySettings& st = settings_;
     StrictTable s(in.top.table("protocol"), in.path, "[protocol]");
-    st.terrainSeed = seedOf(s, "terrain_seed");
-    st.cellSizeM = s.numberIn("cell_size_m", 0.05, 100.0);
-    st.sunStepMinutes = s.numberIn("sun_step_minutes", 1.0, 120.0);
+    readScenarioParams(s, st, protocolFields());
     st.canopyTargetSpecies = s.strings("canopy_target_species");
     st.canopyTargetFractions = s.numbers("canopy_target_fractions", st.canopyTargetSpecies.size());
     double total = 0;
@@ -247,20 +289,11 @@ Fidelity::Fidelity(const ScenarioParse& in) {
         total += f;
     }
     if (total > 1 + 1e-9) s.fail("canopy_target_fractions", "fractions sum to " + num(total) + ", more than 1");
-    st.seedA = seedOf(s, "seed_a");
-    st.seedB = seedOf(s, "seed_b");
     if (st.seedA == st.seedB) s.fail("seed_b", "equals seed_a (" + std::to_string(st.seedA) + "): the replicate must be another seed");
-    st.analysisSeed = seedOf(s, "analysis_seed");
-    st.kMax = yearsIn(s, "kmax", 1, 64);
-    st.synthSeed = seedOf(s, "synth_seed");
-    st.csrSeed = seedOf(s, "csr_seed");
-    st.edgeBandM = s.numberIn("edge_band_m", 0.2, 50.0);
-    st.underCrownReplicateFactor = s.numberIn("under_crown_replicate_factor", 0.0, 100.0);
-    st.densityReplicateFactor = s.numberIn("density_replicate_factor", 0.0, 100.0);
     s.finish();
     in.sizes([&](Mode m, StrictTable& z) {
         auto& size = m == Mode::Quick ? st.quick : st.full;
-        size.terrainCells = yearsIn(z, "terrain_cells", 16, 8192);  // yearsIn: any integer in a range
+        readScenarioParams(z, size, fidelitySizeFields());
         const auto p = z.numbers("plot", 4);
         size.plot = RectWindow{p[0], p[1], p[2], p[3]};
         const double extentM = size.terrainCells * st.cellSizeM;
@@ -270,7 +303,6 @@ Fidelity::Fidelity(const ScenarioParse& in) {
                                num(kMinPlotSideM) + " m");
         if (p[0] < 0 || p[1] < 0 || p[2] > extentM || p[3] > extentM)
             z.fail("plot", "[" + plotText(size.plot) + "] is not inside the terrain, 0 .. " + num(extentM, 6) + " m (terrain_cells x cell_size_m)");
-        size.years = yearsIn(z, "years", 1, 100000);
     });
     st.params = in.model();
 }
@@ -502,5 +534,8 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
 }  // namespace
 
 std::unique_ptr<Scenario> createFidelity(const ScenarioParse& in) { return std::make_unique<Fidelity>(in); }
+std::vector<ScenarioKeyDoc> fidelityKeys() {
+    return joinKeyDocs({scenarioKeyDocs("[protocol]", protocolFields()), scenarioKeyDocs("[quick], [full]", fidelitySizeFields())});
+}
 
 }  // namespace eco::validate

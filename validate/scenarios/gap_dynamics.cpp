@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "image_out.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -79,6 +80,23 @@ struct GapSettings {
     double minClassAreaM2 = 20;  ///< a class smaller than this makes the check not evaluable
 };
 
+/// [classes] (deep_min_depth_m >= edge_band_m is checked after them).
+const std::vector<ParamDesc<GapSettings>>& gapFields() {
+    using P = GapSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"edge_band_m", "cells within this distance of the canopy boundary, either side, are edge", "m", K::Real,
+         &P::edgeBandM, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+        {"deep_min_depth_m", "covered cells at least this far from open ground are deep canopy (at least edge_band_m)",
+         "m", K::Real, &P::deepMinDepthM, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+        {"window_years", "densities are averaged over the snapshots of this many last years", "years", K::Integer, nullptr,
+         &P::windowYears, ParamRange::closed(1, 100000)},
+        {"min_class_area_m2", "a class smaller than this makes the check not evaluable", "m^2", K::Real,
+         &P::minClassAreaM2, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+    };
+    return fields;
+}
+
 class GapDynamics final : public Scenario {
 public:
     explicit GapDynamics(const ScenarioParse& in);
@@ -93,11 +111,8 @@ private:
 GapDynamics::GapDynamics(const ScenarioParse& in) {
     GapSettings& g = settings_;
     StrictTable s(in.top.table("classes"), in.path, "[classes]");
-    g.edgeBandM = s.positive("edge_band_m");
-    g.deepMinDepthM = s.positive("deep_min_depth_m");
+    readScenarioParams(s, g, gapFields());
     if (g.deepMinDepthM < g.edgeBandM) s.fail("deep_min_depth_m", "must not be below edge_band_m");
-    g.windowYears = yearsIn(s, "window_years", 1, 100000);
-    g.minClassAreaM2 = s.positive("min_class_area_m2");
     s.finish();
 }
 
@@ -176,5 +191,6 @@ void GapDynamics::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRe
 }  // namespace
 
 std::unique_ptr<Scenario> createGapDynamics(const ScenarioParse& in) { return std::make_unique<GapDynamics>(in); }
+std::vector<ScenarioKeyDoc> gapDynamicsKeys() { return scenarioKeyDocs("[classes]", gapFields()); }
 
 }  // namespace eco::validate

@@ -11,6 +11,7 @@
 #include "fit.h"
 #include "plots.h"
 #include "rng.h"
+#include "scenario_keys.h"
 #include "strict_toml.h"
 #include "thinning.h"
 
@@ -38,6 +39,48 @@ struct SelfThinningSettings {
     Size quick, full;
     sim::SimParams params;
 };
+
+using StK = ParamDesc<SelfThinningSettings>::Kind;
+using StP = SelfThinningSettings;
+
+/// [stand]'s numeric keys (species is read by hand; max >= min is checked after them).
+const std::vector<ParamDesc<StP>>& standFields() {
+    static const std::vector<ParamDesc<StP>> fields = {
+        {"density_per_m2", "initial plants per m^2", "1/m^2", StK::Real, &StP::densityPerM2, nullptr,
+         ParamRange::closed(0.01, 25.0)},
+        {"initial_height_min_m", "initial heights uniform in [min, max]: the smallest", "m", StK::Real,
+         &StP::initialHeightMinM, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+        {"initial_height_max_m", "initial heights uniform in [min, max]: the largest", "m", StK::Real,
+         &StP::initialHeightMaxM, nullptr, ParamRange::above(0), nullptr, "must be positive"},
+    };
+    return fields;
+}
+
+/// [thinning].
+const std::vector<ParamDesc<StP>>& thinningFields() {
+    static const std::vector<ParamDesc<StP>> fields = {
+        {"onset_cover_fraction", "the thinning phase starts once crown cover (crown areas over plot area) reaches this", "",
+         StK::Real, &StP::onsetCoverFraction, nullptr, ParamRange::closed(0.0, 10.0)},
+        {"onset_mortality_factor", "... and the yearly mortality exceeds this x the background rate", "", StK::Real,
+         &StP::onsetMortalityFactor, nullptr, ParamRange::closed(1.0, 1000.0)},
+        {"min_plants_in_fit", "the fitted phase ends while at least this many plants live", "", StK::Integer, nullptr,
+         &StP::minPlantsInFit, ParamRange::closed(3, 1e9)},
+    };
+    return fields;
+}
+
+/// [quick] and [full]: the plot and run of each size.
+const std::vector<ParamDesc<StP::Size>>& standSizeFields() {
+    using K = ParamDesc<StP::Size>::Kind;
+    using P = StP::Size;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"plot_size_m", "side of the square plot", "m", K::Real, &P::plotSizeM, nullptr, ParamRange::closed(1.0, 1000.0)},
+        {"years", "years simulated", "years", K::Integer, nullptr, &P::years, ParamRange::closed(2, 100000)},
+        {"seed", "seed of the stand and the run (replicate k adds k x 1000)", "", K::Seed, nullptr, nullptr,
+         ParamRange::any(), &P::seed},
+    };
+    return fields;
+}
 
 /// A simulated stand: its census of every year (0 = the initial stand) and every plant's
 /// (id, height) in every year, for the ranks of the dying.
@@ -202,21 +245,15 @@ SelfThinning::SelfThinning(const ScenarioParse& in) {
     SelfThinningSettings& st = settings_;
     StrictTable s(in.top.table("stand"), in.path, "[stand]");
     st.species = s.string("species");
-    st.densityPerM2 = s.numberIn("density_per_m2", 0.01, 25.0);
-    st.initialHeightMinM = s.positive("initial_height_min_m");
-    st.initialHeightMaxM = s.positive("initial_height_max_m");
+    readScenarioParams(s, st, standFields());
     if (st.initialHeightMaxM < st.initialHeightMinM) s.fail("initial_height_max_m", "must not be below initial_height_min_m");
     s.finish();
     StrictTable t(in.top.table("thinning"), in.path, "[thinning]");
-    st.onsetCoverFraction = t.numberIn("onset_cover_fraction", 0.0, 10.0);
-    st.onsetMortalityFactor = t.numberIn("onset_mortality_factor", 1.0, 1000.0);
-    st.minPlantsInFit = static_cast<int>(t.numberIn("min_plants_in_fit", 3, 1e9));
+    readScenarioParams(t, st, thinningFields());
     t.finish();
     in.sizes([&](Mode m, StrictTable& z) {
         auto& size = m == Mode::Quick ? st.quick : st.full;
-        size.plotSizeM = z.numberIn("plot_size_m", 1.0, 1000.0);
-        size.years = yearsIn(z, "years", 2, 100000);
-        size.seed = seedOf(z, "seed");
+        readScenarioParams(z, size, standSizeFields());
     });
     st.params = in.model();
 }
@@ -333,5 +370,9 @@ void SelfThinning::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioR
 }  // namespace
 
 std::unique_ptr<Scenario> createSelfThinning(const ScenarioParse& in) { return std::make_unique<SelfThinning>(in); }
+std::vector<ScenarioKeyDoc> selfThinningKeys() {
+    return joinKeyDocs({scenarioKeyDocs("[stand]", standFields()), scenarioKeyDocs("[thinning]", thinningFields()),
+                        scenarioKeyDocs("[quick], [full]", standSizeFields())});
+}
 
 }  // namespace eco::validate

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "scenario_keys.h"
 #include "strict_toml.h"
 
 namespace eco::validate {
@@ -21,6 +22,21 @@ struct SuccessionSettings {
     /// "Where suited": cells where the late species' Eq. 1 fitness (vigour / alpha) is at least this.
     double suitedMinFitness = 0.9;
 };
+
+/// [succession]'s numeric keys (the species are read by hand).
+const std::vector<ParamDesc<SuccessionSettings>>& successionFields() {
+    using P = SuccessionSettings;
+    using K = ParamDesc<P>::Kind;
+    static const std::vector<ParamDesc<P>> fields = {
+        {"early_year", "the late species' starting share is taken at this year", "years", K::Integer, nullptr, &P::earlyYear,
+         ParamRange::closed(0, 100000)},
+        {"final_window_years", "the final share is the mean over this many last censuses", "years", K::Integer, nullptr,
+         &P::finalWindowYears, ParamRange::closed(1, 100000)},
+        {"suited_min_fitness", "cells where the late species' Eq. 1 fitness (vigour / alpha) is at least this are suited", "",
+         K::Real, &P::suitedMinFitness, nullptr, ParamRange::closed(-1.0, 1.0)},
+    };
+    return fields;
+}
 
 /// "Where it is suited": cells in which the late species' Eq. 1 fitness min(f_t, f_m, f_e,
 /// f_g) (its vigour without the alpha scale) on the annual-mean site conditions is at least
@@ -189,9 +205,7 @@ Succession::Succession(const ScenarioParse& in) {
     StrictTable s(in.top.table("succession"), in.path, "[succession]");
     st.lateSpecies = s.string("late_species");
     st.earlySpecies = nonEmptyStrings(s, "early_species");
-    st.earlyYear = yearsIn(s, "early_year", 0, 100000);
-    st.finalWindowYears = yearsIn(s, "final_window_years", 1, 100000);
-    st.suitedMinFitness = s.numberIn("suited_min_fitness", -1.0, 1.0);
+    readScenarioParams(s, st, successionFields());
     s.finish();
 }
 
@@ -334,5 +348,6 @@ void Succession::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioRes
 }  // namespace
 
 std::unique_ptr<Scenario> createSuccession(const ScenarioParse& in) { return std::make_unique<Succession>(in); }
+std::vector<ScenarioKeyDoc> successionKeys() { return scenarioKeyDocs("[succession]", successionFields()); }
 
 }  // namespace eco::validate
