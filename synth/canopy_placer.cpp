@@ -259,10 +259,21 @@ void measure(const Frame& f, const Grid<float>& chm, double thresholdM, double t
 /// results come in index order (deterministic).
 class PointGrid {
 public:
+    /// A point as stored, in bucket order beside its id: the queries read these packed
+    /// copies rather than the caller's array (at 3072^2 cells, 700k trees, reading the trees
+    /// at random was most of the ring's time: cache misses).
+    struct Point {
+        double x, y, r;
+    };
     /// Points 0..n-1 at (xOf(i), yOf(i)); buckets of at least bucketM metres over the extent.
     template <typename XOf, typename YOf>
     PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
               YOf&& yOf)
+        : PointGrid(originX, originY, extentX, extentY, bucketM, n, xOf, yOf, [](std::size_t) { return 0.0; }) {}
+    /// Same, each point with a radius rOf(i) (Point::r).
+    template <typename XOf, typename YOf, typename ROf>
+    PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
+              YOf&& yOf, ROf&& rOf)
         : ox_(originX), oy_(originY), s_(std::max(bucketM, std::max(extentX, extentY) / 4096.0)) {
         nx_ = std::max(1, static_cast<int>(std::ceil(extentX / s_)) + 1);
         ny_ = std::max(1, static_cast<int>(std::ceil(extentY / s_)) + 1);
@@ -274,8 +285,37 @@ public:
         for (std::size_t i = 0; i < n; ++i) ++start_[bucket[i] + 1];
         for (std::size_t b = 1; b < start_.size(); ++b) start_[b] += start_[b - 1];
         ids_.resize(n);
-        std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
-        for (std::size_t i = 0; i < n; ++i) ids_[fill[bucket[i]]++] = static_cast<std::int32_t>(i);
+        {
+            std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+            for (std::size_t i = 0; i < n; ++i) ids_[fill[bucket[i]]++] = static_cast<std::int32_t>(i);
+        }
+        points_.resize(n);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t e = 0; e < static_cast<std::ptrdiff_t>(n); ++e) {
+            const std::size_t i = static_cast<std::size_t>(ids_[static_cast<std::size_t>(e)]);
+            points_[static_cast<std::size_t>(e)] = {xOf(i), yOf(i), rOf(i)};
+        }
+    }
+    /// The point ids in bucket order (rows of buckets south to north, west to east, index
+    /// order inside a bucket): a spatially coherent order of all points.
+    const std::vector<std::int32_t>& bucketOrder() const { return ids_; }
+    /// Calls fn(id, point) for every point whose bucket lies within `radius` of (x, y), in
+    /// index order per bucket; stops early when fn returns true (and then returns true).
+    template <typename Fn>
+    bool anyPoint(double x, double y, double radius, Fn&& fn) const {
+        const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
+        const int bx1 = clampX(static_cast<int>(std::floor((x + radius - ox_) / s_)));
+        const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
+        const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
+        for (int by = by0; by <= by1; ++by) {
+            const std::size_t row = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_);
+            // The buckets bx0..bx1 of a row are contiguous in the arrays.
+            const std::uint32_t e0 = start_[row + static_cast<std::size_t>(bx0)];
+            const std::uint32_t e1 = start_[row + static_cast<std::size_t>(bx1) + 1];
+            for (std::uint32_t e = e0; e < e1; ++e)
+                if (fn(ids_[e], points_[e])) return true;
+        }
+        return false;
     }
     /// Calls fn(id) for every point whose bucket lies within `radius` of (x, y), in index
     /// order per bucket; stops early when fn returns true (and then returns true).
@@ -306,6 +346,7 @@ private:
     int nx_ = 1, ny_ = 1;
     std::vector<std::uint32_t> start_;
     std::vector<std::int32_t> ids_;
+    std::vector<Point> points_;
 };
 
 /// Greedy selection in a fixed priority order, computed in parallel with the serial result:
@@ -899,7 +940,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         // Trunks of the trees so far (rebuilt after the residual apices for the ring).
         auto trunkGrid = [&](const std::vector<Tree>& ts) {
             return PointGrid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius, ts.size(),
-                             [&](std::size_t i) { return ts[i].x; }, [&](std::size_t i) { return ts[i].y; });
+                             [&](std::size_t i) { return ts[i].x; }, [&](std::size_t i) { return ts[i].y; },
+                             [&](std::size_t i) { return ts[i].radiusM; });
         };
         if (params.residualApices != 0) {
             // Residual apices: strict maxima of the CHM among the footprint cells that no
@@ -986,21 +1028,31 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             const int K = params.ringSamples;
             std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
             for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
-            // Candidates of fixed blocks of trees (independent of the thread count), each block's
-            // list in (tree, direction) order: their concatenation is that order.
+            // Candidates of fixed blocks of trees (independent of the thread count) taken in
+            // the trunk grid's bucket order, so that neighbouring trees are visited together
+            // (trees appended by earlier iterations lie anywhere in the list: in list order
+            // every lookup of the render, the CHM and the trunks missed the cache at 3072^2).
+            // Each block lists (tree, candidate) in that order; the lists are then gathered in
+            // (tree, direction) order, the order of acceptance.
             const PointGrid trunks = trunkGrid(trees);
+            const std::vector<std::int32_t>& visit = trunks.bucketOrder();
             constexpr std::size_t kRingBlock = 1024;
             const std::size_t nBlocks = (trees.size() + kRingBlock - 1) / kRingBlock;
             std::vector<std::vector<Tree>> blockCand(nBlocks);
+            std::vector<std::vector<std::int32_t>> blockOwner(nBlocks);
+            std::vector<std::uint32_t> candStart(trees.size() + 1, 0);  // first the count per tree
 #pragma omp parallel for schedule(dynamic, 1)
             for (std::ptrdiff_t bb = 0; bb < static_cast<std::ptrdiff_t>(nBlocks); ++bb) {
               auto& out = blockCand[static_cast<std::size_t>(bb)];
+              auto& owner = blockOwner[static_cast<std::size_t>(bb)];
               const std::size_t t0 = static_cast<std::size_t>(bb) * kRingBlock, t1 = std::min(trees.size(), t0 + kRingBlock);
-              for (std::size_t tt = t0; tt < t1; ++tt) {
-                const Tree& tr = trees[tt];
+              for (std::size_t v = t0; v < t1; ++v) {
+                const std::int32_t tt = visit[v];
+                const Tree& tr = trees[static_cast<std::size_t>(tt)];
                 RandomStream rng(params.seed, mixStream(mixStream(kStreamRing, static_cast<std::uint64_t>(it)), tr.uid));
                 const double phase = rng.uniform() * kTwoPi / K;
                 const double cp = std::cos(phase), sp = std::sin(phase);
+                std::uint32_t made = 0;
                 for (int k = 0; k < K; ++k) {
                     // Direction: the k-th of K evenly spaced ones, rotated by the tree's phase.
                     const double ux = ring[static_cast<std::size_t>(k)][0] * cp - ring[static_cast<std::size_t>(k)][1] * sp;
@@ -1023,27 +1075,33 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     if (!vis.open[ci]) continue;
                     const double hNew = scene.heightAt(x, y);
                     if (hNew < params.minSeedHeightM) continue;
-                    const bool inCrown = trunks.any(x, y, maxRadius, [&](std::int32_t j) {
-                        const Tree& o = trees[static_cast<std::size_t>(j)];
+                    const bool inCrown = trunks.anyPoint(x, y, maxRadius, [&](std::int32_t, const PointGrid::Point& o) {
                         const double dx = o.x - x, dy = o.y - y;
-                        return dx * dx + dy * dy < o.radiusM * o.radiusM;
+                        return dx * dx + dy * dy < o.r * o.r;
                     });
                     if (inCrown) continue;
                     const Tree c = scene.makeTree(x, y, hNew, 0);
                     if (!supported(chmM.cellX(x), chmM.cellY(y), c.radiusM)) continue;
                     out.push_back(c);
+                    owner.push_back(tt);
+                    ++made;
                 }
+                candStart[static_cast<std::size_t>(tt) + 1] = made;  // each tree is in one block only
               }
             }
-            std::vector<Tree> cands;
-            {
-                std::size_t total = 0;
-                for (const auto& bc : blockCand) total += bc.size();
-                cands.reserve(total);
-                for (auto& bc : blockCand) {
-                    cands.insert(cands.end(), bc.begin(), bc.end());
-                    std::vector<Tree>().swap(bc);
+            for (std::size_t t = 0; t < trees.size(); ++t) candStart[t + 1] += candStart[t];
+            std::vector<Tree> cands(candStart.back());
+#pragma omp parallel for schedule(dynamic, 1)
+            for (std::ptrdiff_t bb = 0; bb < static_cast<std::ptrdiff_t>(nBlocks); ++bb) {
+                auto& out = blockCand[static_cast<std::size_t>(bb)];
+                const auto& owner = blockOwner[static_cast<std::size_t>(bb)];
+                // A tree's candidates are consecutive in its block's list, in direction order.
+                for (std::size_t e = 0; e < out.size();) {
+                    const std::size_t t = static_cast<std::size_t>(owner[e]);
+                    for (std::uint32_t pos = candStart[t]; e < out.size() && static_cast<std::size_t>(owner[e]) == t; ++e, ++pos)
+                        cands[pos] = out[e];
                 }
+                std::vector<Tree>().swap(out);
             }
             // Accept in order: a candidate whose trunk lies in an accepted new crown, or whose
             // crown holds an accepted new trunk, is dropped.
