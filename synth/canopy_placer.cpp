@@ -8,10 +8,15 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <type_traits>
+#include <utility>
 #include <sstream>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
+#include <mutex>
 #include <new>
+#include <unordered_map>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -29,33 +34,119 @@ namespace eco::synth {
 
 namespace {
 
-/// Allocator of the placer's large buffers (grids of the render, tree lists, point grids):
-/// blocks of 2 MiB and more are aligned to 2 MiB and marked for transparent huge pages
-/// (madvise; Linux, when the kernel's THP mode is "madvise" or "always"). At 3072^2 cells a
-/// placement touched about 500 MB of fresh memory in 4 KiB pages: 127k page faults, a
-/// quarter of its CPU time on this VM; with huge pages they are about 500 times fewer.
-/// Only where memory comes from changes, never a result.
+/// Blocks of the placer's large buffers: 2 MiB-aligned, marked for transparent huge pages
+/// (madvise; Linux, when the kernel's THP mode is "madvise" or "always"). During a placement
+/// (a HugeBlockScope) a freed block is kept and handed to a later buffer that fits in it, so
+/// that the iterations reuse memory already mapped rather than fault and zero fresh pages.
+/// At 3072^2 cells a placement touched about 500 MB of fresh memory in 4 KiB pages: 127k
+/// page faults and about a quarter of its CPU time on this VM. Only where memory comes
+/// from changes, never a result.
+class HugeBlocks {
+public:
+    static constexpr std::size_t kHuge = std::size_t{2} << 20;
+    static constexpr std::size_t kMaxSpare = std::size_t{4} << 30;  ///< kept blocks at most (bytes)
+    static HugeBlocks& instance() {
+        static HugeBlocks blocks;
+        return blocks;
+    }
+    void* take(std::size_t bytes) {
+        const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            const auto it = spare_.lower_bound(rounded);  // the smallest kept block that fits
+            if (it != spare_.end()) {
+                void* p = it->second;
+                live_[p] = it->first;
+                spareBytes_ -= it->first;
+                spare_.erase(it);
+                return p;
+            }
+        }
+        void* p = std::aligned_alloc(kHuge, rounded);
+        if (p == nullptr) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+        madvise(p, rounded, MADV_HUGEPAGE);  // advice only: a refusal changes nothing
+#endif
+        std::lock_guard<std::mutex> lock(mutex_);
+        live_[p] = rounded;
+        return p;
+    }
+    void give(void* p) noexcept {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            const auto it = live_.find(p);
+            const std::size_t size = it->second;
+            live_.erase(it);
+            if (scopes_ > 0 && spareBytes_ + size <= kMaxSpare) {
+                spare_.emplace(size, p);
+                spareBytes_ += size;
+                return;
+            }
+        }
+        std::free(p);
+    }
+    void enter() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++scopes_;
+    }
+    void leave() noexcept {
+        std::multimap<std::size_t, void*> release;
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            if (--scopes_ > 0) return;
+            release.swap(spare_);
+            spareBytes_ = 0;
+        }
+        for (const auto& b : release) std::free(b.second);
+    }
+
+private:
+    std::mutex mutex_;
+    int scopes_ = 0;
+    std::unordered_map<void*, std::size_t> live_;  ///< blocks in use and their sizes
+    std::multimap<std::size_t, void*> spare_;      ///< freed blocks kept for reuse, by size
+    std::size_t spareBytes_ = 0;
+};
+
+/// Freed huge blocks are kept for reuse while a scope is open (one placement).
+struct HugeBlockScope {
+    HugeBlockScope() { HugeBlocks::instance().enter(); }
+    ~HugeBlockScope() { HugeBlocks::instance().leave(); }
+    HugeBlockScope(const HugeBlockScope&) = delete;
+    HugeBlockScope& operator=(const HugeBlockScope&) = delete;
+};
+
+/// Allocator of the placer's large buffers (render and visibility grids, tree lists, point
+/// grids, the greedy acceptance's arrays): HugeBlocks from 2 MiB up, operator new below.
+/// Elements made without a value are default-initialised (left unwritten for plain types):
+/// every such buffer is filled before it is read, the big ones in parallel loops, which
+/// then take the first-touch page faults on all threads instead of a serial memset.
 template <typename T>
 struct HugePageAllocator {
     using value_type = T;
     HugePageAllocator() = default;
     template <typename U>
     HugePageAllocator(const HugePageAllocator<U>&) noexcept {}
-    static constexpr std::size_t kHuge = std::size_t{2} << 20;
+    template <typename U>
+    struct rebind {
+        using other = HugePageAllocator<U>;
+    };
+    template <typename U>
+    void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <typename U, typename... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
     T* allocate(std::size_t n) {
         const std::size_t bytes = n * sizeof(T);
-        if (bytes < kHuge) return static_cast<T*>(::operator new(bytes));
-        const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
-        void* p = std::aligned_alloc(kHuge, rounded);
-        if (p == nullptr) throw std::bad_alloc();
-#ifdef MADV_HUGEPAGE
-        madvise(p, rounded, MADV_HUGEPAGE);  // advice only: a refusal changes nothing
-#endif
-        return static_cast<T*>(p);
+        if (bytes < HugeBlocks::kHuge) return static_cast<T*>(::operator new(bytes));
+        return static_cast<T*>(HugeBlocks::instance().take(bytes));
     }
     void deallocate(T* p, std::size_t n) noexcept {
-        if (n * sizeof(T) < kHuge) ::operator delete(p);
-        else std::free(p);
+        if (n * sizeof(T) < HugeBlocks::kHuge) ::operator delete(p);
+        else HugeBlocks::instance().give(p);
     }
     template <typename U>
     bool operator==(const HugePageAllocator<U>&) const noexcept { return true; }
@@ -541,10 +632,10 @@ struct Tree {
     double x, y;     ///< trunk, world metres
     double heightM;  ///< apex above ground
     double radiusM;  ///< crown radius
-    std::int32_t species;
     std::uint64_t uid;  ///< creation order; keys the tree's random stream
+    std::int32_t species;
     bool apex = false;  ///< at a maximum of the CHM or of its unexplained cells: stays there
-};
+};  // 48 bytes: the lists of 700k trees at 3072^2 are read at every step
 
 /// Read-only lookups of the placer: CHM heights, species, crown radii.
 class Scene {
@@ -607,7 +698,7 @@ public:
     /// A tree at (x, y) with the CHM's height there.
     Tree makeTree(double x, double y, double heightM, std::uint64_t uid) const {
         const int s = speciesAt(x, y);
-        return {x, y, heightM, radiusFor(s, heightM), s, uid};
+        return {x, y, heightM, radiusFor(s, heightM), uid, s};
     }
 
 private:
@@ -861,6 +952,7 @@ CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& li
 CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
                          const Biome& biome, const CanopyParams& params, const CanopyProgress& progress) {
     const auto tStart = Clock::now();
+    const HugeBlockScope hugeBlocks;  // first: every buffer of the placement is released before it closes
     validateCanopyParams(params);
     if (chmM.empty()) throw ValidationError("canopy placer: the CHM is empty");
     auto geom = [](const auto& g) {
@@ -918,10 +1010,19 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     result.stopReason = params.maxIterations == 0 ? "iteration cap" : "";
     // The best state so far (highest coverage; the stop rule returns to it when the last
     // iterations lost coverage).
-    Buf<Tree> bestTrees = trees;
+    // Room for the trees the iterations add, reserved once (4 x the seeds; more when needed):
+    // growing the lists by doubling left the memory of each smaller copy behind, and
+    // capacity never written costs nothing (pages are mapped when first touched).
+    const std::size_t roomFor = std::max<std::size_t>(4 * trees.size(), 1024);
+    trees.reserve(roomFor);
+    Buf<Tree> bestTrees;
+    bestTrees.reserve(roomFor);
+    bestTrees.assign(trees.begin(), trees.end());
     std::size_t bestIteration = 0;
     Buf<Tree> next;
-    Buf<std::size_t> from;
+    next.reserve(roomFor);
+    Buf<std::uint32_t> from;
+    from.reserve(roomFor);
     for (int it = 1; it <= params.maxIterations; ++it) {
         tIter = Clock::now();
         IterationStats s;
@@ -937,7 +1038,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) {
                 next.push_back(trees[t]);
-                from.push_back(t);
+                from.push_back(static_cast<std::uint32_t>(t));
             }
         s.removed = trees.size() - next.size();
 #pragma omp parallel for schedule(static)
