@@ -235,9 +235,14 @@ void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, doub
     // Bucket crowns by band (counting sort keeps index order inside a band).
     Buf<std::size_t> start(static_cast<std::size_t>(nBands) + 1, 0);
     Buf<int> rowLo(crowns.size()), rowHi(crowns.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t t = 0; t < static_cast<std::ptrdiff_t>(crowns.size()); ++t) {
+        const std::size_t k = static_cast<std::size_t>(t);
+        crownRows(crowns[k], oy, cell, h, rowLo[k], rowHi[k]);
+        if (!(crowns[k].r > 0)) rowHi[k] = rowLo[k] - 1;  // no disc: in no band
+    }
     for (std::size_t t = 0; t < crowns.size(); ++t) {
-        crownRows(crowns[t], oy, cell, h, rowLo[t], rowHi[t]);
-        if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+        if (rowLo[t] > rowHi[t]) continue;
         for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b) ++start[static_cast<std::size_t>(b) + 1];
     }
     for (int b = 0; b < nBands; ++b) start[static_cast<std::size_t>(b) + 1] += start[static_cast<std::size_t>(b)];
@@ -246,7 +251,7 @@ void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, doub
     {
         Buf<std::size_t> fill(start.begin(), start.end() - 1);
         for (std::size_t t = 0; t < crowns.size(); ++t) {
-            if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+            if (rowLo[t] > rowHi[t]) continue;
             for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b)
                 entries[fill[static_cast<std::size_t>(b)]++] = static_cast<std::int32_t>(t);
         }
@@ -470,17 +475,7 @@ public:
     /// order per bucket; stops early when fn returns true (and then returns true).
     template <typename Fn>
     bool any(double x, double y, double radius, Fn&& fn) const {
-        const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
-        const int bx1 = clampX(static_cast<int>(std::floor((x + radius - ox_) / s_)));
-        const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
-        const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
-        for (int by = by0; by <= by1; ++by)
-            for (int bx = bx0; bx <= bx1; ++bx) {
-                const std::size_t b = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(bx);
-                for (std::uint32_t e = start_[b]; e < start_[b + 1]; ++e)
-                    if (fn(ids_[e])) return true;
-            }
-        return false;
+        return anyPoint(x, y, radius, [&](std::int32_t id, const Point&) { return fn(id); });
     }
 
 private:
@@ -993,7 +988,20 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     if (!chmM.sameGeometry(speciesMap))
         throw ValidationError("canopy placer: the CHM (" + geom(chmM) + ") and the species map (" + geom(speciesMap) +
                               ") differ in geometry");
-    for (int iy = 0; iy < chmM.height(); ++iy)
+    // The grids are checked in parallel; the serial scans below only run to name the first
+    // offending cell.
+    bool badChm = false, badMap = false;
+    const auto badSpecies = [&](int s) {
+        return s < -1 || s >= static_cast<int>(biome.species.size()) ||
+               (s >= 0 && !biome.species[static_cast<std::size_t>(s)].canopy);
+    };
+#pragma omp parallel for schedule(static) reduction(|| : badChm, badMap)
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(chmM.size()); ++i) {
+        const float v = chmM.data()[static_cast<std::size_t>(i)];
+        badChm = badChm || !std::isfinite(v) || v < 0;
+        badMap = badMap || badSpecies(speciesMap.data()[static_cast<std::size_t>(i)]);
+    }
+    for (int iy = 0; iy < chmM.height() && badChm; ++iy)
         for (int ix = 0; ix < chmM.width(); ++ix) {
             const float v = chmM(ix, iy);
             if (!std::isfinite(v) || v < 0)
@@ -1003,10 +1011,9 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     bool anyCanopy = false;
     for (const auto& s : biome.species) anyCanopy = anyCanopy || s.canopy;
     if (!anyCanopy) throw ValidationError("canopy placer: biome '" + biome.name + "' has no canopy species");
-    for (std::size_t i = 0; i < speciesMap.size(); ++i) {
+    for (std::size_t i = 0; i < speciesMap.size() && badMap; ++i) {
         const int s = speciesMap.data()[i];
-        if (s < -1 || s >= static_cast<int>(biome.species.size()) ||
-            (s >= 0 && !biome.species[static_cast<std::size_t>(s)].canopy))
+        if (badSpecies(s))
             throw ValidationError("canopy placer: species map value " + std::to_string(s) + " at cell (" +
                                   std::to_string(i % static_cast<std::size_t>(speciesMap.width())) + ", " +
                                   std::to_string(i / static_cast<std::size_t>(speciesMap.width())) +
@@ -1373,17 +1380,20 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     if (progress) progress(fin);
 
     result.trees.resize(trees.size());
-    for (std::size_t i = 0; i < trees.size(); ++i) {
-        const Tree& t = trees[i];
-        Plant& p = result.trees[i];
+    std::size_t fallbackTrees = 0;
+#pragma omp parallel for schedule(static) reduction(+ : fallbackTrees)
+    for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+        const Tree& t = trees[static_cast<std::size_t>(k)];
+        Plant& p = result.trees[static_cast<std::size_t>(k)];
         p.speciesId = t.species;
         p.xM = t.x;
         p.yM = t.y;
         p.groundZM = terrainM.sampleBilinear(t.x, t.y);
         p.heightM = t.heightM;
         p.crownRadiusM = t.radiusM;
-        if (!scene.mapped(t.x, t.y)) ++result.fallbackTrees;
+        if (!scene.mapped(t.x, t.y)) ++fallbackTrees;
     }
+    result.fallbackTrees = fallbackTrees;
     result.seconds = secondsSince(tStart);
     return result;
 }
