@@ -8,8 +8,19 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <type_traits>
+#include <utility>
 #include <sstream>
 #include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <mutex>
+#include <new>
+#include <unordered_map>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "error.h"
 #include "h5io.h"
@@ -23,11 +34,141 @@ namespace eco::synth {
 
 namespace {
 
+/// Blocks of the placer's large buffers: 2 MiB-aligned, marked for transparent huge pages
+/// (madvise; Linux, when the kernel's THP mode is "madvise" or "always"). During a placement
+/// (a HugeBlockScope) a freed block is kept and handed to a later buffer that fits in it, so
+/// that the iterations reuse memory already mapped rather than fault and zero fresh pages.
+/// At 3072^2 cells a placement touched about 500 MB of fresh memory in 4 KiB pages: 127k
+/// page faults and about a quarter of its CPU time on this VM. Only where memory comes
+/// from changes, never a result.
+class HugeBlocks {
+public:
+    static constexpr std::size_t kHuge = std::size_t{2} << 20;
+    /// Smaller buffers come from operator new: at 1024^2 (buffers of 1-6 MB) the heap often
+    /// hands back memory already mapped by earlier work (bench_canopy: the abiotics), which
+    /// fresh huge blocks would have to fault and zero (0.80 -> 0.93-1.00 s CPU there).
+    static constexpr std::size_t kMinBytes = std::size_t{8} << 20;
+    static constexpr std::size_t kMaxSpare = std::size_t{4} << 30;  ///< kept blocks at most (bytes)
+    static HugeBlocks& instance() {
+        static HugeBlocks blocks;
+        return blocks;
+    }
+    void* take(std::size_t bytes) {
+        const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            const auto it = spare_.lower_bound(rounded);  // the smallest kept block that fits
+            if (it != spare_.end()) {
+                void* p = it->second;
+                live_[p] = it->first;
+                spareBytes_ -= it->first;
+                spare_.erase(it);
+                return p;
+            }
+        }
+        void* p = std::aligned_alloc(kHuge, rounded);
+        if (p == nullptr) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+        madvise(p, rounded, MADV_HUGEPAGE);  // advice only: a refusal changes nothing
+#endif
+        std::lock_guard<std::mutex> lock(mutex_);
+        live_[p] = rounded;
+        return p;
+    }
+    void give(void* p) noexcept {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            const auto it = live_.find(p);
+            const std::size_t size = it->second;
+            live_.erase(it);
+            if (scopes_ > 0 && spareBytes_ + size <= kMaxSpare) {
+                spare_.emplace(size, p);
+                spareBytes_ += size;
+                return;
+            }
+        }
+        std::free(p);
+    }
+    void enter() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++scopes_;
+    }
+    void leave() noexcept {
+        std::multimap<std::size_t, void*> release;
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            if (--scopes_ > 0) return;
+            release.swap(spare_);
+            spareBytes_ = 0;
+        }
+        for (const auto& b : release) std::free(b.second);
+    }
+
+private:
+    std::mutex mutex_;
+    int scopes_ = 0;
+    std::unordered_map<void*, std::size_t> live_;  ///< blocks in use and their sizes
+    std::multimap<std::size_t, void*> spare_;      ///< freed blocks kept for reuse, by size
+    std::size_t spareBytes_ = 0;
+};
+
+/// Freed huge blocks are kept for reuse while a scope is open (one placement).
+struct HugeBlockScope {
+    HugeBlockScope() { HugeBlocks::instance().enter(); }
+    ~HugeBlockScope() { HugeBlocks::instance().leave(); }
+    HugeBlockScope(const HugeBlockScope&) = delete;
+    HugeBlockScope& operator=(const HugeBlockScope&) = delete;
+};
+
+/// Allocator of the placer's large buffers (render and visibility grids, tree lists, point
+/// grids, the greedy acceptance's arrays): HugeBlocks from kMinBytes up, operator new below.
+/// Elements made without a value are default-initialised (left unwritten for plain types):
+/// every such buffer is filled before it is read, the big ones in parallel loops, which
+/// then take the first-touch page faults on all threads instead of a serial memset.
+template <typename T>
+struct HugePageAllocator {
+    using value_type = T;
+    HugePageAllocator() = default;
+    template <typename U>
+    HugePageAllocator(const HugePageAllocator<U>&) noexcept {}
+    template <typename U>
+    struct rebind {
+        using other = HugePageAllocator<U>;
+    };
+    template <typename U>
+    void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <typename U, typename... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+    T* allocate(std::size_t n) {
+        const std::size_t bytes = n * sizeof(T);
+        if (bytes < HugeBlocks::kMinBytes) return static_cast<T*>(::operator new(bytes));
+        return static_cast<T*>(HugeBlocks::instance().take(bytes));
+    }
+    void deallocate(T* p, std::size_t n) noexcept {
+        if (n * sizeof(T) < HugeBlocks::kMinBytes) ::operator delete(p);
+        else HugeBlocks::instance().give(p);
+    }
+    template <typename U>
+    bool operator==(const HugePageAllocator<U>&) const noexcept { return true; }
+    template <typename U>
+    bool operator!=(const HugePageAllocator<U>&) const noexcept { return false; }
+};
+template <typename T>
+using Buf = std::vector<T, HugePageAllocator<T>>;
+
 constexpr double kTwoPi = 6.283185307179586;
 constexpr std::uint64_t kStreamRing = 0x63616e6f70790001ull;  // ring sampling, per (iteration, tree id)
 /// Rows per render band: small enough to balance two to a few dozen threads, large enough
 /// that a crown rarely spans many bands. Only performance depends on it, never results.
 constexpr int kBandRows = 16;
+/// Light per-item loops (a copy, a bound) run in parallel only from this many items: below,
+/// the fork and the barrier cost more than the loop, and on a loaded machine a thread that
+/// waits at a barrier spins on CPU time (bench_canopy 1024^2: 0.81 -> 0.88-1.02 s CPU).
+constexpr std::size_t kParallelItems = std::size_t{1} << 18;
 
 std::string num(double v) { return formatNumber(v, 6); }
 
@@ -38,9 +179,9 @@ double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(
 /// inSet(index) holds (cells outside the set neither are maxima nor compete); a plateau goes
 /// to its cell of lowest index. Cell indices in row order.
 template <typename InSet>
-std::vector<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, int radiusCells, InSet&& inSet) {
+Buf<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, int radiusCells, InSet&& inSet) {
     const int w = chm.width(), h = chm.height(), R = std::max(1, radiusCells);
-    std::vector<std::vector<std::size_t>> rows(static_cast<std::size_t>(h));
+    Buf<Buf<std::size_t>> rows(static_cast<std::size_t>(h));
 #pragma omp parallel for schedule(dynamic, 16)
     for (int iy = 0; iy < h; ++iy) {
         for (int ix = 0; ix < w; ++ix) {
@@ -62,7 +203,7 @@ std::vector<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, 
             if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
         }
     }
-    std::vector<std::size_t> out;
+    Buf<std::size_t> out;
     for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
     return out;
 }
@@ -76,10 +217,10 @@ struct Crown {
 
 /// Depth and id buffers plus, per crown, the number of cells of its disc.
 struct Frame {
-    std::vector<float> depth;        ///< crown surface above ground; lowest() where uncovered
-    std::vector<std::int32_t> id;    ///< top crown, -1 where none
-    std::vector<std::int32_t> disc;  ///< per crown: cells whose centre lies inside its disc
-    std::vector<Crown> crowns;       ///< the crowns rendered (kept as a buffer between renders)
+    Buf<float> depth;        ///< crown surface above ground; lowest() where uncovered
+    Buf<std::int32_t> id;    ///< top crown, -1 where none
+    Buf<std::int32_t> disc;  ///< per crown: cells whose centre lies inside its disc
+    Buf<Crown> crowns;       ///< the crowns rendered (kept as a buffer between renders)
 };
 
 /// Rows [y0, y1] whose cell centres can lie inside the crown's disc (y0 > y1: none).
@@ -91,7 +232,7 @@ inline void crownRows(const Crown& c, double originY, double cell, int height, i
 /// Render crowns top-down. Each band of kBandRows rows is written by one thread, its crowns
 /// visited in index order with a strict depth test, so a tie goes to the lower index and
 /// the buffers do not depend on the number of threads.
-void render(const std::vector<Crown>& crowns, int w, int h, double cell, double ox, double oy, Frame& f) {
+void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, double oy, Frame& f) {
     const std::size_t nCells = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // Cleared band by band in the parallel loop below (two grids of 4 bytes a cell: on one
     // thread their fill was a serial part of every render).
@@ -100,20 +241,25 @@ void render(const std::vector<Crown>& crowns, int w, int h, double cell, double 
     f.disc.assign(crowns.size(), 0);
     const int nBands = (h + kBandRows - 1) / kBandRows;
     // Bucket crowns by band (counting sort keeps index order inside a band).
-    std::vector<std::size_t> start(static_cast<std::size_t>(nBands) + 1, 0);
-    std::vector<int> rowLo(crowns.size()), rowHi(crowns.size());
+    Buf<std::size_t> start(static_cast<std::size_t>(nBands) + 1, 0);
+    Buf<int> rowLo(crowns.size()), rowHi(crowns.size());
+#pragma omp parallel for schedule(static) if (crowns.size() >= kParallelItems)
+    for (std::ptrdiff_t t = 0; t < static_cast<std::ptrdiff_t>(crowns.size()); ++t) {
+        const std::size_t k = static_cast<std::size_t>(t);
+        crownRows(crowns[k], oy, cell, h, rowLo[k], rowHi[k]);
+        if (!(crowns[k].r > 0)) rowHi[k] = rowLo[k] - 1;  // no disc: in no band
+    }
     for (std::size_t t = 0; t < crowns.size(); ++t) {
-        crownRows(crowns[t], oy, cell, h, rowLo[t], rowHi[t]);
-        if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+        if (rowLo[t] > rowHi[t]) continue;
         for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b) ++start[static_cast<std::size_t>(b) + 1];
     }
     for (int b = 0; b < nBands; ++b) start[static_cast<std::size_t>(b) + 1] += start[static_cast<std::size_t>(b)];
-    std::vector<std::int32_t> entries(start.back());
-    std::vector<std::int32_t> entryDisc(start.back(), 0);
+    Buf<std::int32_t> entries(start.back());
+    Buf<std::int32_t> entryDisc(start.back(), 0);
     {
-        std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+        Buf<std::size_t> fill(start.begin(), start.end() - 1);
         for (std::size_t t = 0; t < crowns.size(); ++t) {
-            if (rowLo[t] > rowHi[t] || !(crowns[t].r > 0)) continue;
+            if (rowLo[t] > rowHi[t]) continue;
             for (int b = rowLo[t] / kBandRows; b <= rowHi[t] / kBandRows; ++b)
                 entries[fill[static_cast<std::size_t>(b)]++] = static_cast<std::int32_t>(t);
         }
@@ -128,7 +274,18 @@ void render(const std::vector<Crown>& crowns, int w, int h, double cell, double 
                       std::numeric_limits<float>::lowest());
             std::fill(f.id.begin() + static_cast<std::ptrdiff_t>(lo), f.id.begin() + static_cast<std::ptrdiff_t>(hi), -1);
         }
-        for (std::size_t e = start[static_cast<std::size_t>(b)]; e < start[static_cast<std::size_t>(b) + 1]; ++e) {
+        const std::size_t eEnd = start[static_cast<std::size_t>(b) + 1];
+        for (std::size_t e = start[static_cast<std::size_t>(b)]; e < eEnd; ++e) {
+            // The crowns of a band come in index order, spread over the whole list once
+            // iterations have appended trees: fetch a few entries ahead (at 3072^2 the load
+            // of the crown was a quarter of the render's time, waiting on memory).
+            constexpr std::size_t kAhead = 8;
+            if (e + kAhead < eEnd) {
+                const std::size_t ahead = static_cast<std::size_t>(entries[e + kAhead]);
+                __builtin_prefetch(&crowns[ahead]);
+                __builtin_prefetch(&rowLo[ahead]);
+                __builtin_prefetch(&rowHi[ahead]);
+            }
             const std::int32_t t = entries[e];
             const Crown& c = crowns[static_cast<std::size_t>(t)];
             const double r2 = c.r * c.r, base = c.h - c.r;
@@ -171,13 +328,13 @@ void render(const std::vector<Crown>& crowns, int w, int h, double cell, double 
 
 /// What a render says about the CHM footprint and each crown's visible part of it.
 struct Visibility {
-    std::vector<std::int64_t> visible;  ///< footprint cells where the crown is on top
-    std::vector<std::int64_t> sumX;     ///< sum of their column indices
-    std::vector<std::int64_t> sumY;     ///< sum of their row indices
-    std::vector<std::uint8_t> open;     ///< per cell: on the footprint and uncovered
+    Buf<std::int64_t> visible;  ///< footprint cells where the crown is on top
+    Buf<std::int64_t> sumX;     ///< sum of their column indices
+    Buf<std::int64_t> sumY;     ///< sum of their row indices
+    Buf<std::uint8_t> open;     ///< per cell: on the footprint and uncovered
     /// per cell: on the footprint and uncovered, or above the crown surface by more than the
     /// tolerance (no crown explains it)
-    std::vector<std::uint8_t> unexplained;
+    Buf<std::uint8_t> unexplained;
     std::int64_t footprint = 0;
     std::int64_t covered = 0;
     double sumSquaredErrorM2 = 0;
@@ -259,39 +416,74 @@ void measure(const Frame& f, const Grid<float>& chm, double thresholdM, double t
 /// results come in index order (deterministic).
 class PointGrid {
 public:
+    /// A point as stored, in bucket order beside its id: the queries read these packed
+    /// copies rather than the caller's array (at 3072^2 cells, 700k trees, reading the trees
+    /// at random was most of the ring's time: cache misses).
+    struct Point {
+        double x, y, r, h;
+    };
     /// Points 0..n-1 at (xOf(i), yOf(i)); buckets of at least bucketM metres over the extent.
     template <typename XOf, typename YOf>
     PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
               YOf&& yOf)
+        : PointGrid(originX, originY, extentX, extentY, bucketM, n, xOf, yOf, [](std::size_t) { return 0.0; }) {}
+    /// Same, each point with a radius rOf(i) (Point::r).
+    template <typename XOf, typename YOf, typename ROf>
+    PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
+              YOf&& yOf, ROf&& rOf)
+        : PointGrid(originX, originY, extentX, extentY, bucketM, n, xOf, yOf, rOf, [](std::size_t) { return 0.0; }) {}
+    /// Same, each point with a radius rOf(i) and a height hOf(i) (Point::r, Point::h).
+    template <typename XOf, typename YOf, typename ROf, typename HOf>
+    PointGrid(double originX, double originY, double extentX, double extentY, double bucketM, std::size_t n, XOf&& xOf,
+              YOf&& yOf, ROf&& rOf, HOf&& hOf)
         : ox_(originX), oy_(originY), s_(std::max(bucketM, std::max(extentX, extentY) / 4096.0)) {
         nx_ = std::max(1, static_cast<int>(std::ceil(extentX / s_)) + 1);
         ny_ = std::max(1, static_cast<int>(std::ceil(extentY / s_)) + 1);
         start_.assign(static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_) + 1, 0);
-        std::vector<std::uint32_t> bucket(n);
+        Buf<std::uint32_t> bucket(n);
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i)
             bucket[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(bucketOf(xOf(static_cast<std::size_t>(i)), yOf(static_cast<std::size_t>(i))));
         for (std::size_t i = 0; i < n; ++i) ++start_[bucket[i] + 1];
         for (std::size_t b = 1; b < start_.size(); ++b) start_[b] += start_[b - 1];
         ids_.resize(n);
-        std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
-        for (std::size_t i = 0; i < n; ++i) ids_[fill[bucket[i]]++] = static_cast<std::int32_t>(i);
+        {
+            Buf<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+            for (std::size_t i = 0; i < n; ++i) ids_[fill[bucket[i]]++] = static_cast<std::int32_t>(i);
+        }
+        points_.resize(n);
+#pragma omp parallel for schedule(static) if (n >= kParallelItems)
+        for (std::ptrdiff_t e = 0; e < static_cast<std::ptrdiff_t>(n); ++e) {
+            const std::size_t i = static_cast<std::size_t>(ids_[static_cast<std::size_t>(e)]);
+            points_[static_cast<std::size_t>(e)] = {xOf(i), yOf(i), rOf(i), hOf(i)};
+        }
+    }
+    /// The point ids in bucket order (rows of buckets south to north, west to east, index
+    /// order inside a bucket): a spatially coherent order of all points.
+    const Buf<std::int32_t>& bucketOrder() const { return ids_; }
+    /// Calls fn(id, point) for every point whose bucket lies within `radius` of (x, y), in
+    /// index order per bucket; stops early when fn returns true (and then returns true).
+    template <typename Fn>
+    bool anyPoint(double x, double y, double radius, Fn&& fn) const {
+        const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
+        const int bx1 = clampX(static_cast<int>(std::floor((x + radius - ox_) / s_)));
+        const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
+        const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
+        for (int by = by0; by <= by1; ++by) {
+            const std::size_t row = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_);
+            // The buckets bx0..bx1 of a row are contiguous in the arrays.
+            const std::uint32_t e0 = start_[row + static_cast<std::size_t>(bx0)];
+            const std::uint32_t e1 = start_[row + static_cast<std::size_t>(bx1) + 1];
+            for (std::uint32_t e = e0; e < e1; ++e)
+                if (fn(ids_[e], points_[e])) return true;
+        }
+        return false;
     }
     /// Calls fn(id) for every point whose bucket lies within `radius` of (x, y), in index
     /// order per bucket; stops early when fn returns true (and then returns true).
     template <typename Fn>
     bool any(double x, double y, double radius, Fn&& fn) const {
-        const int bx0 = clampX(static_cast<int>(std::floor((x - radius - ox_) / s_)));
-        const int bx1 = clampX(static_cast<int>(std::floor((x + radius - ox_) / s_)));
-        const int by0 = clampY(static_cast<int>(std::floor((y - radius - oy_) / s_)));
-        const int by1 = clampY(static_cast<int>(std::floor((y + radius - oy_) / s_)));
-        for (int by = by0; by <= by1; ++by)
-            for (int bx = bx0; bx <= bx1; ++bx) {
-                const std::size_t b = static_cast<std::size_t>(by) * static_cast<std::size_t>(nx_) + static_cast<std::size_t>(bx);
-                for (std::uint32_t e = start_[b]; e < start_[b + 1]; ++e)
-                    if (fn(ids_[e])) return true;
-            }
-        return false;
+        return anyPoint(x, y, radius, [&](std::int32_t id, const Point&) { return fn(id); });
     }
 
 private:
@@ -304,8 +496,9 @@ private:
     }
     double ox_, oy_, s_;
     int nx_ = 1, ny_ = 1;
-    std::vector<std::uint32_t> start_;
-    std::vector<std::int32_t> ids_;
+    Buf<std::uint32_t> start_;
+    Buf<std::int32_t> ids_;
+    Buf<Point> points_;
 };
 
 /// Greedy selection in a fixed priority order, computed in parallel with the serial result:
@@ -316,16 +509,16 @@ private:
 /// functions of the inputs), then one serial pass in order decides: the same result as
 /// accepting one by one, for any number of threads.
 template <typename Blocked, typename Neighbours, typename Conflict>
-std::vector<char> greedyAccept(const std::vector<std::size_t>& order, std::size_t nItems, Blocked&& blocked,
+Buf<char> greedyAccept(const Buf<std::size_t>& order, std::size_t nItems, Blocked&& blocked,
                                Neighbours&& neighbours, Conflict&& conflict) {
-    std::vector<std::uint32_t> rank(nItems, std::numeric_limits<std::uint32_t>::max());
+    Buf<std::uint32_t> rank(nItems, std::numeric_limits<std::uint32_t>::max());
     for (std::size_t k = 0; k < order.size(); ++k) rank[order[k]] = static_cast<std::uint32_t>(k);
     // Fixed blocks of the order (independent of the thread count), each with its own list
     // of (position, earlier conflicting item) pairs.
     constexpr std::size_t kBlock = 4096;
     const std::size_t nBlocks = (order.size() + kBlock - 1) / kBlock;
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edges(nBlocks);
-    std::vector<char> isBlocked(order.size(), 0);
+    Buf<Buf<std::pair<std::uint32_t, std::uint32_t>>> edges(nBlocks);
+    Buf<char> isBlocked(order.size(), 0);
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nBlocks); ++b) {
         auto& out = edges[static_cast<std::size_t>(b)];
@@ -341,7 +534,7 @@ std::vector<char> greedyAccept(const std::vector<std::size_t>& order, std::size_
             });
         }
     }
-    std::vector<char> acceptedAt(order.size(), 0);  // by position in the order
+    Buf<char> acceptedAt(order.size(), 0);  // by position in the order
     for (std::size_t b = 0; b < nBlocks; ++b) {
         const auto& list = edges[b];
         std::size_t e = 0;
@@ -353,7 +546,7 @@ std::vector<char> greedyAccept(const std::vector<std::size_t>& order, std::size_
             acceptedAt[k] = ok;
         }
     }
-    std::vector<char> accepted(nItems, 0);
+    Buf<char> accepted(nItems, 0);
     for (std::size_t k = 0; k < order.size(); ++k) accepted[order[k]] = acceptedAt[k];
     return accepted;
 }
@@ -458,10 +651,10 @@ struct Tree {
     double x, y;     ///< trunk, world metres
     double heightM;  ///< apex above ground
     double radiusM;  ///< crown radius
-    std::int32_t species;
     std::uint64_t uid;  ///< creation order; keys the tree's random stream
+    std::int32_t species;
     bool apex = false;  ///< at a maximum of the CHM or of its unexplained cells: stays there
-};
+};  // 48 bytes: the lists of 700k trees at 3072^2 are read at every step
 
 /// Read-only lookups of the placer: CHM heights, species, crown radii.
 class Scene {
@@ -524,7 +717,7 @@ public:
     /// A tree at (x, y) with the CHM's height there.
     Tree makeTree(double x, double y, double heightM, std::uint64_t uid) const {
         const int s = speciesAt(x, y);
-        return {x, y, heightM, radiusFor(s, heightM), s, uid};
+        return {x, y, heightM, radiusFor(s, heightM), uid, s};
     }
 
 private:
@@ -535,16 +728,16 @@ private:
     const CanopyParams& p_;
 };
 
-std::vector<Crown> crownsOf(const std::vector<Tree>& trees) {
-    std::vector<Crown> c(trees.size());
+Buf<Crown> crownsOf(const Buf<Tree>& trees) {
+    Buf<Crown> c(trees.size());
     for (std::size_t i = 0; i < trees.size(); ++i) c[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
     return c;
 }
 
 /// Render the trees and measure them against the CHM.
-void renderAndMeasure(const std::vector<Tree>& trees, const Grid<float>& chm, const CanopyParams& p, Frame& frame,
+void renderAndMeasure(const Buf<Tree>& trees, const Grid<float>& chm, const CanopyParams& p, Frame& frame,
                       Visibility& vis) {
-    std::vector<Crown>& cr = frame.crowns;
+    Buf<Crown>& cr = frame.crowns;
     cr.resize(trees.size());
     for (std::size_t i = 0; i < trees.size(); ++i) cr[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
     render(cr, chm.width(), chm.height(), chm.cellSizeM(), chm.originX(), chm.originY(), frame);
@@ -610,9 +803,9 @@ double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, d
 /// them, so two maxima of one crown top's noise, not two tops.
 constexpr double kSeedMergeCells = 2.0;
 template <typename Eligible>
-std::vector<char> seedMergeKeepFlags(const std::vector<Tree>& trees, const Grid<float>& chm, double saddleM,
+Buf<char> seedMergeKeepFlags(const Buf<Tree>& trees, const Grid<float>& chm, double saddleM,
                                      Eligible&& eligible) {
-    std::vector<std::size_t> order;
+    Buf<std::size_t> order;
     for (std::size_t i = 0; i < trees.size(); ++i)
         if (eligible(i)) order.push_back(i);
     std::stable_sort(order.begin(), order.end(),
@@ -620,7 +813,7 @@ std::vector<char> seedMergeKeepFlags(const std::vector<Tree>& trees, const Grid<
     const double reach = kSeedMergeCells * chm.cellSizeM();
     const PointGrid grid(chm.originX(), chm.originY(), chm.extentX(), chm.extentY(), reach, trees.size(),
                          [&](std::size_t i) { return trees[i].x; }, [&](std::size_t i) { return trees[i].y; });
-    std::vector<char> keep = greedyAccept(
+    Buf<char> keep = greedyAccept(
         order, trees.size(), [](std::size_t) { return false; },
         [&](std::size_t i, auto&& fn) {
             grid.any(trees[i].x, trees[i].y, reach, [&](std::int32_t j) {
@@ -641,10 +834,10 @@ std::vector<char> seedMergeKeepFlags(const std::vector<Tree>& trees, const Grid<
 }
 
 /// Initial seeds at the CHM maxima.
-std::vector<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
+Buf<Tree> initialSeeds(const Scene& scene, const CanopyParams& p) {
     const Grid<float>& chm = scene.chm();
     const auto maxima = chmLocalMaxima(chm, p.minSeedHeightM, p.localMaximumRadiusCells);
-    std::vector<Tree> trees(maxima.size());
+    Buf<Tree> trees(maxima.size());
     const std::size_t w = static_cast<std::size_t>(chm.width());
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(maxima.size()); ++k) {
@@ -667,39 +860,51 @@ double largestRadius(const Biome& biome, double maxHeightM) {
 /// Keep flags of the duplicate removal (see removeDuplicateTrees): tallest first, ties to the
 /// larger crown then the lower index; a crown goes when its trunk is within minTrunkDistanceM
 /// of a kept trunk or its sphere lies inside a kept sphere (centres at apex - radius).
-std::vector<char> duplicateKeepFlags(const std::vector<Crown>& c, double minTrunkDistanceM, double originX,
+Buf<char> duplicateKeepFlags(const Buf<Crown>& c, double minTrunkDistanceM, double originX,
                                      double originY, double extentX, double extentY) {
     double maxR = 0;
     for (const auto& k : c) maxR = std::max(maxR, k.r);
-    std::vector<std::size_t> order(c.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-        if (c[a].h != c[b].h) return c[a].h > c[b].h;
-        if (c[a].r != c[b].r) return c[a].r > c[b].r;
-        return a < b;
+    // Sorted on packed keys (the comparison read the crowns at random); a strict total
+    // order, so the same order as any other sort.
+    struct Key {
+        double h, r;
+        std::size_t i;
+    };
+    Buf<Key> keys(c.size());
+#pragma omp parallel for schedule(static) if (c.size() >= kParallelItems)
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(c.size()); ++i)
+        keys[static_cast<std::size_t>(i)] = {c[static_cast<std::size_t>(i)].h, c[static_cast<std::size_t>(i)].r, static_cast<std::size_t>(i)};
+    std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
+        if (a.h != b.h) return a.h > b.h;
+        if (a.r != b.r) return a.r > b.r;
+        return a.i < b.i;
     });
+    Buf<std::size_t> order(c.size());
+    for (std::size_t k = 0; k < keys.size(); ++k) order[k] = keys[k].i;
     const double reach = std::max({minTrunkDistanceM, maxR, 1e-6});
     const PointGrid all(originX, originY, extentX, extentY, reach, c.size(), [&](std::size_t i) { return c[i].x; },
-                        [&](std::size_t i) { return c[i].y; });
+                        [&](std::size_t i) { return c[i].y; }, [&](std::size_t i) { return c[i].r; },
+                        [&](std::size_t i) { return c[i].h; });
     const double minD2 = minTrunkDistanceM * minTrunkDistanceM;
-    // A crown goes when a kept crown earlier in the order (at least as tall) holds it.
+    // A crown goes when a kept crown earlier in the order (at least as tall) holds it. The
+    // test reads the grid's packed copies (b), not the crowns at random.
     return greedyAccept(
         order, c.size(), [](std::size_t) { return false; },
         [&](std::size_t i, auto&& fn) {
-            all.any(c[i].x, c[i].y, reach, [&](std::int32_t j) {
-                fn(static_cast<std::size_t>(j));
+            const Crown& a = c[i];
+            all.anyPoint(a.x, a.y, reach, [&](std::int32_t j, const PointGrid::Point& b) {
+                const double dx = b.x - a.x, dy = b.y - a.y;
+                const double d2 = dx * dx + dy * dy;
+                bool holds = d2 < minD2;
+                if (!holds) {
+                    const double dz = (b.h - b.r) - (a.h - a.r);
+                    holds = std::sqrt(d2 + dz * dz) + a.r <= b.r;
+                }
+                if (holds) fn(static_cast<std::size_t>(j));
                 return false;
             });
         },
-        [&](std::size_t i, std::size_t j) {
-            const Crown& a = c[i];
-            const Crown& b = c[j];
-            const double dx = b.x - a.x, dy = b.y - a.y;
-            const double d2 = dx * dx + dy * dy;
-            if (d2 < minD2) return true;
-            const double dz = (b.h - b.r) - (a.h - a.r);
-            return std::sqrt(d2 + dz * dz) + a.r <= b.r;
-        });
+        [](std::size_t, std::size_t) { return true; });
 }
 
 }  // namespace
@@ -757,11 +962,12 @@ void validateCanopyParams(const CanopyParams& p) { validateParams(p, canopyParam
 // ------------------------------------------------------------------------- public functions
 
 std::vector<std::size_t> chmLocalMaxima(const Grid<float>& chm, double minHeightM, int radiusCells) {
-    return localMaxima(chm, minHeightM, radiusCells, [](std::size_t) { return true; });
+    const auto m = localMaxima(chm, minHeightM, radiusCells, [](std::size_t) { return true; });
+    return std::vector<std::size_t>(m.begin(), m.end());
 }
 
 CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& like) {
-    std::vector<Crown> crowns(plants.size());
+    Buf<Crown> crowns(plants.size());
     for (std::size_t i = 0; i < plants.size(); ++i)
         crowns[i] = {plants[i].xM, plants[i].yM, plants[i].heightM, plants[i].crownRadiusM};
     Frame f;
@@ -777,6 +983,7 @@ CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& li
 CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
                          const Biome& biome, const CanopyParams& params, const CanopyProgress& progress) {
     const auto tStart = Clock::now();
+    const HugeBlockScope hugeBlocks;  // first: every buffer of the placement is released before it closes
     validateCanopyParams(params);
     if (chmM.empty()) throw ValidationError("canopy placer: the CHM is empty");
     auto geom = [](const auto& g) {
@@ -789,7 +996,20 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     if (!chmM.sameGeometry(speciesMap))
         throw ValidationError("canopy placer: the CHM (" + geom(chmM) + ") and the species map (" + geom(speciesMap) +
                               ") differ in geometry");
-    for (int iy = 0; iy < chmM.height(); ++iy)
+    // The grids are checked in parallel; the serial scans below only run to name the first
+    // offending cell.
+    bool badChm = false, badMap = false;
+    const auto badSpecies = [&](int s) {
+        return s < -1 || s >= static_cast<int>(biome.species.size()) ||
+               (s >= 0 && !biome.species[static_cast<std::size_t>(s)].canopy);
+    };
+#pragma omp parallel for schedule(static) reduction(|| : badChm, badMap) if (chmM.size() >= 16 * kParallelItems)
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(chmM.size()); ++i) {
+        const float v = chmM.data()[static_cast<std::size_t>(i)];
+        badChm = badChm || !std::isfinite(v) || v < 0;
+        badMap = badMap || badSpecies(speciesMap.data()[static_cast<std::size_t>(i)]);
+    }
+    for (int iy = 0; iy < chmM.height() && badChm; ++iy)
         for (int ix = 0; ix < chmM.width(); ++ix) {
             const float v = chmM(ix, iy);
             if (!std::isfinite(v) || v < 0)
@@ -799,10 +1019,9 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     bool anyCanopy = false;
     for (const auto& s : biome.species) anyCanopy = anyCanopy || s.canopy;
     if (!anyCanopy) throw ValidationError("canopy placer: biome '" + biome.name + "' has no canopy species");
-    for (std::size_t i = 0; i < speciesMap.size(); ++i) {
+    for (std::size_t i = 0; i < speciesMap.size() && badMap; ++i) {
         const int s = speciesMap.data()[i];
-        if (s < -1 || s >= static_cast<int>(biome.species.size()) ||
-            (s >= 0 && !biome.species[static_cast<std::size_t>(s)].canopy))
+        if (badSpecies(s))
             throw ValidationError("canopy placer: species map value " + std::to_string(s) + " at cell (" +
                                   std::to_string(i % static_cast<std::size_t>(speciesMap.width())) + ", " +
                                   std::to_string(i / static_cast<std::size_t>(speciesMap.width())) +
@@ -815,7 +1034,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
 
     // Initial seeding.
     auto tIter = Clock::now();
-    std::vector<Tree> trees = initialSeeds(scene, params);
+    Buf<Tree> trees = initialSeeds(scene, params);
     std::uint64_t nextUid = trees.size();
     result.initialSeeds = trees.size();
     Frame frame;
@@ -834,10 +1053,19 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     result.stopReason = params.maxIterations == 0 ? "iteration cap" : "";
     // The best state so far (highest coverage; the stop rule returns to it when the last
     // iterations lost coverage).
-    std::vector<Tree> bestTrees = trees;
+    // Room for the trees the iterations add, reserved once (4 x the seeds; more when needed):
+    // growing the lists by doubling left the memory of each smaller copy behind, and
+    // capacity never written costs nothing (pages are mapped when first touched).
+    const std::size_t roomFor = std::max<std::size_t>(4 * trees.size(), 1024);
+    trees.reserve(roomFor);
+    Buf<Tree> bestTrees;
+    bestTrees.reserve(roomFor);
+    bestTrees.assign(trees.begin(), trees.end());
     std::size_t bestIteration = 0;
-    std::vector<Tree> next;
-    std::vector<std::size_t> from;
+    Buf<Tree> next;
+    next.reserve(roomFor);
+    Buf<std::uint32_t> from;
+    from.reserve(roomFor);
     for (int it = 1; it <= params.maxIterations; ++it) {
         tIter = Clock::now();
         IterationStats s;
@@ -853,7 +1081,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) {
                 next.push_back(trees[t]);
-                from.push_back(t);
+                from.push_back(static_cast<std::uint32_t>(t));
             }
         s.removed = trees.size() - next.size();
 #pragma omp parallel for schedule(static)
@@ -897,9 +1125,10 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             return static_cast<double>(open) >= params.supportFraction * static_cast<double>(disc);
         };
         // Trunks of the trees so far (rebuilt after the residual apices for the ring).
-        auto trunkGrid = [&](const std::vector<Tree>& ts) {
+        auto trunkGrid = [&](const Buf<Tree>& ts) {
             return PointGrid(chmM.originX(), chmM.originY(), chmM.extentX(), chmM.extentY(), maxRadius, ts.size(),
-                             [&](std::size_t i) { return ts[i].x; }, [&](std::size_t i) { return ts[i].y; });
+                             [&](std::size_t i) { return ts[i].x; }, [&](std::size_t i) { return ts[i].y; },
+                             [&](std::size_t i) { return ts[i].radiusM; });
         };
         if (params.residualApices != 0) {
             // Residual apices: strict maxima of the CHM among the footprint cells that no
@@ -909,8 +1138,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             const auto apices = localMaxima(chmM, params.minSeedHeightM, 1, unexplained);
             // Support and the candidate trees depend on the last render only: in parallel.
             const std::size_t w = static_cast<std::size_t>(chmM.width());
-            std::vector<Tree> cand(apices.size());
-            std::vector<std::uint8_t> candSupported(apices.size());
+            Buf<Tree> cand(apices.size());
+            Buf<std::uint8_t> candSupported(apices.size());
 #pragma omp parallel for schedule(dynamic, 64)
             for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(apices.size()); ++k) {
                 const std::size_t i = apices[static_cast<std::size_t>(k)];
@@ -922,7 +1151,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             }
             // Tallest first: a lower candidate inside an accepted one's crown and below its
             // surface is explained by it (one uncovered crown gives one tree, not one per bump).
-            std::vector<std::size_t> order;
+            Buf<std::size_t> order;
             for (std::size_t k = 0; k < apices.size(); ++k)
                 if (candSupported[k]) order.push_back(k);
             std::stable_sort(order.begin(), order.end(),
@@ -942,7 +1171,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             // A candidate is explained by an existing trunk closer than minTrunkDistanceM, or
             // by an accepted candidate earlier in the order: its trunk that close, or its
             // crown above the candidate's cell.
-            const std::vector<char> accept = greedyAccept(
+            const Buf<char> accept = greedyAccept(
                 order, apices.size(),
                 [&](std::size_t k) {
                     double x, y;
@@ -986,21 +1215,31 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             const int K = params.ringSamples;
             std::vector<std::array<double, 2>> ring(static_cast<std::size_t>(K));
             for (int k = 0; k < K; ++k) ring[static_cast<std::size_t>(k)] = {std::cos(kTwoPi * k / K), std::sin(kTwoPi * k / K)};
-            // Candidates of fixed blocks of trees (independent of the thread count), each block's
-            // list in (tree, direction) order: their concatenation is that order.
+            // Candidates of fixed blocks of trees (independent of the thread count) taken in
+            // the trunk grid's bucket order, so that neighbouring trees are visited together
+            // (trees appended by earlier iterations lie anywhere in the list: in list order
+            // every lookup of the render, the CHM and the trunks missed the cache at 3072^2).
+            // Each block lists (tree, candidate) in that order; the lists are then gathered in
+            // (tree, direction) order, the order of acceptance.
             const PointGrid trunks = trunkGrid(trees);
+            const Buf<std::int32_t>& visit = trunks.bucketOrder();
             constexpr std::size_t kRingBlock = 1024;
             const std::size_t nBlocks = (trees.size() + kRingBlock - 1) / kRingBlock;
-            std::vector<std::vector<Tree>> blockCand(nBlocks);
+            Buf<Buf<Tree>> blockCand(nBlocks);
+            Buf<Buf<std::int32_t>> blockOwner(nBlocks);
+            Buf<std::uint32_t> candStart(trees.size() + 1, 0);  // first the count per tree
 #pragma omp parallel for schedule(dynamic, 1)
             for (std::ptrdiff_t bb = 0; bb < static_cast<std::ptrdiff_t>(nBlocks); ++bb) {
               auto& out = blockCand[static_cast<std::size_t>(bb)];
+              auto& owner = blockOwner[static_cast<std::size_t>(bb)];
               const std::size_t t0 = static_cast<std::size_t>(bb) * kRingBlock, t1 = std::min(trees.size(), t0 + kRingBlock);
-              for (std::size_t tt = t0; tt < t1; ++tt) {
-                const Tree& tr = trees[tt];
+              for (std::size_t v = t0; v < t1; ++v) {
+                const std::int32_t tt = visit[v];
+                const Tree& tr = trees[static_cast<std::size_t>(tt)];
                 RandomStream rng(params.seed, mixStream(mixStream(kStreamRing, static_cast<std::uint64_t>(it)), tr.uid));
                 const double phase = rng.uniform() * kTwoPi / K;
                 const double cp = std::cos(phase), sp = std::sin(phase);
+                std::uint32_t made = 0;
                 for (int k = 0; k < K; ++k) {
                     // Direction: the k-th of K evenly spaced ones, rotated by the tree's phase.
                     const double ux = ring[static_cast<std::size_t>(k)][0] * cp - ring[static_cast<std::size_t>(k)][1] * sp;
@@ -1023,34 +1262,40 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     if (!vis.open[ci]) continue;
                     const double hNew = scene.heightAt(x, y);
                     if (hNew < params.minSeedHeightM) continue;
-                    const bool inCrown = trunks.any(x, y, maxRadius, [&](std::int32_t j) {
-                        const Tree& o = trees[static_cast<std::size_t>(j)];
+                    const bool inCrown = trunks.anyPoint(x, y, maxRadius, [&](std::int32_t, const PointGrid::Point& o) {
                         const double dx = o.x - x, dy = o.y - y;
-                        return dx * dx + dy * dy < o.radiusM * o.radiusM;
+                        return dx * dx + dy * dy < o.r * o.r;
                     });
                     if (inCrown) continue;
                     const Tree c = scene.makeTree(x, y, hNew, 0);
                     if (!supported(chmM.cellX(x), chmM.cellY(y), c.radiusM)) continue;
                     out.push_back(c);
+                    owner.push_back(tt);
+                    ++made;
                 }
+                candStart[static_cast<std::size_t>(tt) + 1] = made;  // each tree is in one block only
               }
             }
-            std::vector<Tree> cands;
-            {
-                std::size_t total = 0;
-                for (const auto& bc : blockCand) total += bc.size();
-                cands.reserve(total);
-                for (auto& bc : blockCand) {
-                    cands.insert(cands.end(), bc.begin(), bc.end());
-                    std::vector<Tree>().swap(bc);
+            for (std::size_t t = 0; t < trees.size(); ++t) candStart[t + 1] += candStart[t];
+            Buf<Tree> cands(candStart.back());
+#pragma omp parallel for schedule(dynamic, 1)
+            for (std::ptrdiff_t bb = 0; bb < static_cast<std::ptrdiff_t>(nBlocks); ++bb) {
+                auto& out = blockCand[static_cast<std::size_t>(bb)];
+                const auto& owner = blockOwner[static_cast<std::size_t>(bb)];
+                // A tree's candidates are consecutive in its block's list, in direction order.
+                for (std::size_t e = 0; e < out.size();) {
+                    const std::size_t t = static_cast<std::size_t>(owner[e]);
+                    for (std::uint32_t pos = candStart[t]; e < out.size() && static_cast<std::size_t>(owner[e]) == t; ++e, ++pos)
+                        cands[pos] = out[e];
                 }
+                Buf<Tree>().swap(out);
             }
             // Accept in order: a candidate whose trunk lies in an accepted new crown, or whose
             // crown holds an accepted new trunk, is dropped.
             const PointGrid candTrunks = trunkGrid(cands);
-            std::vector<std::size_t> inOrder(cands.size());
+            Buf<std::size_t> inOrder(cands.size());
             std::iota(inOrder.begin(), inOrder.end(), 0);
-            const std::vector<char> accept = greedyAccept(
+            const Buf<char> accept = greedyAccept(
                 inOrder, cands.size(), [](std::size_t) { return false; },
                 [&](std::size_t i, auto&& fn) {
                     candTrunks.any(cands[i].x, cands[i].y, maxRadius, [&](std::int32_t j) {
@@ -1065,7 +1310,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                     const double rr = std::max(o.radiusM, c.radiusM);
                     return dx * dx + dy * dy < rr * rr;
                 });
-            std::vector<Tree> fresh;
+            Buf<Tree> fresh;
             for (std::size_t i = 0; i < cands.size(); ++i) {
                 if (!accept[i]) continue;
                 fresh.push_back(cands[i]);
@@ -1104,7 +1349,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     IterationStats fin;
     fin.iteration = -1;
     {
-        std::vector<Tree>& kept = next;
+        Buf<Tree>& kept = next;
         kept.clear();
         kept.reserve(trees.size());
         for (std::size_t t = 0; t < trees.size(); ++t)
@@ -1119,7 +1364,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         const std::uint64_t seeds = result.initialSeeds;
         const auto keep = seedMergeKeepFlags(trees, chmM, params.seedMergeSaddleM,
                                              [&](std::size_t i) { return trees[i].apex && trees[i].uid < seeds; });
-        std::vector<Tree>& kept = next;
+        Buf<Tree>& kept = next;
         kept.clear();
         for (std::size_t i = 0; i < trees.size(); ++i)
             if (keep[i]) kept.push_back(trees[i]);
@@ -1129,7 +1374,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     {
         const auto keep = duplicateKeepFlags(crownsOf(trees), params.minTrunkDistanceM, chmM.originX(), chmM.originY(),
                                              chmM.extentX(), chmM.extentY());
-        std::vector<Tree>& kept = next;
+        Buf<Tree>& kept = next;
         kept.clear();
         for (std::size_t i = 0; i < trees.size(); ++i)
             if (keep[i]) kept.push_back(trees[i]);
@@ -1143,17 +1388,20 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     if (progress) progress(fin);
 
     result.trees.resize(trees.size());
-    for (std::size_t i = 0; i < trees.size(); ++i) {
-        const Tree& t = trees[i];
-        Plant& p = result.trees[i];
+    std::size_t fallbackTrees = 0;
+#pragma omp parallel for schedule(static) reduction(+ : fallbackTrees) if (trees.size() >= kParallelItems)
+    for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+        const Tree& t = trees[static_cast<std::size_t>(k)];
+        Plant& p = result.trees[static_cast<std::size_t>(k)];
         p.speciesId = t.species;
         p.xM = t.x;
         p.yM = t.y;
         p.groundZM = terrainM.sampleBilinear(t.x, t.y);
         p.heightM = t.heightM;
         p.crownRadiusM = t.radiusM;
-        if (!scene.mapped(t.x, t.y)) ++result.fallbackTrees;
+        if (!scene.mapped(t.x, t.y)) ++fallbackTrees;
     }
+    result.fallbackTrees = fallbackTrees;
     result.seconds = secondsSince(tStart);
     return result;
 }
@@ -1162,7 +1410,7 @@ std::size_t removeDuplicateTrees(std::vector<Plant>& plants, double minTrunkDist
     if (!std::isfinite(minTrunkDistanceM) || minTrunkDistanceM < 0)
         throw ValidationError("removeDuplicateTrees: minimum trunk distance must be >= 0, got " + num(minTrunkDistanceM));
     if (plants.empty()) return 0;
-    std::vector<Crown> crowns(plants.size());
+    Buf<Crown> crowns(plants.size());
     double x0 = plants[0].xM, x1 = x0, y0 = plants[0].yM, y1 = y0;
     for (std::size_t i = 0; i < plants.size(); ++i) {
         const Plant& p = plants[i];
