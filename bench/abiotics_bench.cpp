@@ -19,6 +19,7 @@
 #include "eco_version.h"
 #include "generate.h"
 #include "bench_common.h"
+#include "memory.h"
 
 namespace {
 

@@ -30,6 +30,7 @@
 #include "rng.h"
 #include "sim_input.h"
 #include "bench_common.h"
+#include "memory.h"
 
 using namespace eco;
 

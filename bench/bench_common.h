@@ -11,8 +11,6 @@
 #include <string>
 #include <vector>
 
-#include "memory.h"
-
 namespace eco::bench {
 
 using Clock = std::chrono::steady_clock;

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "memory.h"
 #include "biome.h"
 #include "canopy_placer.h"
 #include "eco_version.h"

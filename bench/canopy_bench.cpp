@@ -31,6 +31,7 @@
 #include "generate.h"
 #include "species_map.h"
 #include "bench_common.h"
+#include "memory.h"
 
 namespace {
 

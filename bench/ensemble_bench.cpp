@@ -82,7 +82,6 @@ std::map<std::string, std::string> h5Files(const fs::path& dir) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     if (wantsUsage(argc, argv, "Usage: bench_ensemble [OUT (default bench/results/ensemble.txt)] [--full | --full-only]\n")) return 0;
     const std::string out = argc > 1 ? argv[1] : "bench/results/ensemble.txt";
     bool full = false, scaling = true;

@@ -22,6 +22,7 @@
 
 #include "atomic_file.h"
 #include "bench_common.h"
+#include "memory.h"
 #include "demo_scene.h"
 #include "disturbance.h"
 #include "simulator.h"

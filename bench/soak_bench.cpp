@@ -33,6 +33,7 @@
 
 #include "abiotics.h"
 #include "bench_common.h"
+#include "memory.h"
 #include "biome_db.h"
 #include "canopy_file.h"
 #include "error.h"

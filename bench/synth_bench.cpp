@@ -55,6 +55,7 @@
 #include "species_map.h"
 #include "undergrowth.h"
 #include "bench_common.h"
+#include "memory.h"
 
 namespace {
 
