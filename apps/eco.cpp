@@ -8,7 +8,6 @@
 #include "cli_common.h"
 #include "eco_version.h"
 #include "error.h"
-#include "memory.h"
 #include "provenance.h"
 
 namespace eco::cli {
@@ -77,7 +76,6 @@ constexpr int kExitInternal = 4;  // 3 is eco validate's "a check failed" (cmd_v
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     eco::setCommandLine(argc, argv);  // recorded in every output's /provenance
     auto app = eco::cli::makeApp();
     try {

@@ -19,7 +19,6 @@
 #include "eco_version.h"
 #include "generate.h"
 #include "bench_common.h"
-#include "memory.h"
 
 namespace {
 
@@ -28,7 +27,6 @@ using namespace eco::bench;
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     if (eco::bench::wantsUsage(argc, argv, "usage: bench_abiotics [OUT]\nTimes the abiotic maps of a generated 1024 x 1024 terrain; writes OUT (default bench/results/abiotics.txt).\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/abiotics.txt";
     try {

@@ -30,7 +30,6 @@
 #include "rng.h"
 #include "sim_input.h"
 #include "bench_common.h"
-#include "memory.h"
 
 using namespace eco;
 
@@ -122,7 +121,6 @@ double totalPairs(const BiomeDatabase& db) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/analysis_bench.txt";
     bool quick = false;
     std::vector<std::string> sims;

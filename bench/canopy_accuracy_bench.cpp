@@ -40,7 +40,6 @@
 #include <vector>
 
 #include "bench_common.h"
-#include "memory.h"
 #include "biome.h"
 #include "canopy_placer.h"
 #include "eco_version.h"
@@ -276,7 +275,6 @@ std::vector<Top> placerTops(const eco::synth::CanopyResult& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy_accuracy [OUT [SIZE [KEY=VALUE ...]]]\nPrecision and recall of tree tops on lidar-like CHMs of SIZE x SIZE cells (default 256): the canopy placer against a variable-window filter; writes OUT (default bench/results/canopy_accuracy.txt). KEY=VALUE pairs (canopy parameters, docs/canopy.md) change the placer's first row; scene_seed_offset=N makes the scenes with seeds 1+N .. 4+N.\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/canopy_accuracy.txt";
     const int n = argc > 2 ? std::max(32, std::atoi(argv[2])) : 256;

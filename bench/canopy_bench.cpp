@@ -31,7 +31,6 @@
 #include "generate.h"
 #include "species_map.h"
 #include "bench_common.h"
-#include "memory.h"
 
 namespace {
 
@@ -40,7 +39,6 @@ using namespace eco::bench;
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy [OUT [SIZES]]\nTimes species map and canopy placement on generated CHMs of SIZES cells square (default 1024,2048,3072) beside the paper's; writes OUT (default bench/results/canopy.txt).\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/canopy.txt";
     const std::vector<int> sizes = parseSizes(argc > 2 ? argv[2] : "1024,2048,3072");

@@ -22,7 +22,6 @@
 
 #include "atomic_file.h"
 #include "bench_common.h"
-#include "memory.h"
 #include "demo_scene.h"
 #include "disturbance.h"
 #include "simulator.h"
@@ -109,7 +108,6 @@ std::string fmtCi(const std::vector<double>& v, int digits) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/fire_edge.txt";
     int fireYear = 20, fires = 8;
     double spread = 0.45;

@@ -27,7 +27,6 @@
 #include <string>
 #include <vector>
 
-#include "memory.h"
 #include "atomic_file.h"
 #include "canopy_file.h"
 #include "demo_scene.h"
@@ -227,7 +226,6 @@ long positiveInteger(const std::string& flag, const std::string& text, long maxV
 }
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     std::string outPath = "bench/results/sim_bench.txt", sceneDir;
     bool outGiven = false;
     bool quick = false, hectareOnly = false;

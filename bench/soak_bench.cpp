@@ -33,7 +33,6 @@
 
 #include "abiotics.h"
 #include "bench_common.h"
-#include "memory.h"
 #include "biome_db.h"
 #include "canopy_file.h"
 #include "error.h"
@@ -150,7 +149,6 @@ int badInputs(const std::string& dir, const std::string& goodDb) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    eco::keepFreedMemory();  // large buffers reused between phases (core/memory.h)
     if (wantsUsage(argc, argv, kUsage)) return 0;
     const std::string results = argc > 1 ? argv[1] : "bench/results/soak.txt";
     const int iterations = argc > 2 ? std::stoi(argv[2]) : 30;

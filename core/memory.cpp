@@ -2,9 +2,6 @@
 #include "memory.h"
 
 #include <sys/mman.h>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -74,18 +71,6 @@ void prepareLargeBuffer(void* p, std::size_t bytes) {
         const std::size_t at = static_cast<std::size_t>(k) * kBlock;
         std::memset(base + at, 0, std::min(kBlock, bytes - at));
     }
-}
-
-bool keepFreedMemory() {
-    if (const char* env = std::getenv("ECO_KEEP_FREED_MEMORY"); env != nullptr && std::strcmp(env, "0") == 0) return false;
-#if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
-    constexpr int kLimit = 1 << 30;
-    const bool mmapSet = mallopt(M_MMAP_THRESHOLD, kLimit) == 1;
-    const bool trimSet = mallopt(M_TRIM_THRESHOLD, kLimit) == 1;
-    return mmapSet && trimSet;
-#else
-    return false;
-#endif
 }
 
 }  // namespace eco

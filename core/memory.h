@@ -32,15 +32,4 @@ void requireMemory(double bytes, const std::string& what, const std::string& hin
 inline constexpr std::size_t kLargeBufferBytes = std::size_t{16} << 20;
 void prepareLargeBuffer(void* p, std::size_t bytes);
 
-/// Makes the C library (glibc) serve allocations of up to 1 GB from its heap and keep up to
-/// 1 GB of freed memory for later ones, instead of mapping fresh pages for every allocation
-/// above 32 MB and returning them when freed. A synthesis makes and frees many such buffers
-/// (grids, candidate arrays, the output plants); on a virtual machine every first touch of a
-/// fresh page is a page fault costing microseconds, so a buffer reused from an earlier phase
-/// is filled faster. Call once at the start of `main`, before other threads exist. Peak
-/// memory stays the same (measured: `eco run configs/demo.toml`); memory freed late is kept
-/// until the process ends. ECO_KEEP_FREED_MEMORY=0 in the environment leaves the C
-/// library's defaults. Nothing happens on other C libraries. Returns whether it was applied.
-bool keepFreedMemory();
-
 }  // namespace eco
