@@ -160,8 +160,9 @@ TEST_CASE("eco calibrate: the global search is recorded, a bad setting is refuse
 // bytes the test "eco ensemble: members in child processes and under MPI..." compares.)
 TEST_CASE("eco calibrate: parallel starts over two MPI ranks give the history of one process", "[calibrate][mpi][cli]") {
     test::TempDir dir("calibrate_procs");
-    // 2 starts side by side, 2 evaluations each (2 rounds), 2 replicates: 4 simulations a round.
-    const std::string settings = "global = \"multistart\"\nstarts = 2\nparallel_starts = true\nseed = 7\nmax_evaluations = 4\nreplicates = 2\n";
+    // 2 starts side by side, 2 evaluations each (2 rounds), 1 replicate: 2 simulations a round,
+    // one per rank under MPI (the test's cost is its simulations; CI time is bounded).
+    const std::string settings = "global = \"multistart\"\nstarts = 2\nparallel_starts = true\nseed = 7\nmax_evaluations = 4\nreplicates = 1\n";
     const std::string spec = writeTinyCalibrationSpec(dir, "calibrate.toml", settings);
     const auto ref = test::runEco("--no-provenance --threads 1 calibrate " + spec + " --out-dir " + dir.file("ref"));
     INFO(ref.output);
