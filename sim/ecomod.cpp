@@ -1085,6 +1085,7 @@ const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return im
 
 int EcoModel::yearsDone() const { return impl_->year; }
 std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive; }
+std::size_t EcoModel::setAsideCount() const { return impl_->sleepersLive; }
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;

@@ -82,6 +82,9 @@ public:
     void stepYear();
     int yearsDone() const;
     std::size_t plantCount() const;
+    /// How many of them are set aside (suppressed seedlings out of the yearly passes until an
+    /// event of theirs; docs/ecomod.md "Speed"). Diagnostic: no result depends on it.
+    std::size_t setAsideCount() const;
     /// The living trees, in creation order. vigour = suitability v, pool = competitive ability a.
     std::vector<UndergrowthPlant> plants() const;
     YearRecord census() const;
