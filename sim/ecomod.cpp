@@ -263,6 +263,11 @@ struct EcoModel::Impl {
     std::vector<Sleeper> newSleepers;
     std::vector<std::uint32_t> newSleeperWitness;
     static constexpr int kSleepHorizon = 256;       // years drawn ahead at most, then again
+    std::vector<std::uint64_t> dominatedKeys;       // per year: the key of the dominated trees' survival draws
+    void keysThrough(int lastYear) {
+        for (int y = static_cast<int>(dominatedKeys.size()); y <= lastYear; ++y)
+            dominatedKeys.push_back(mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(y)));
+    }
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
     // The event of a sleeper whose age after year y0 is a0 and that lives through y0: the first
     // later year in which it dies (a dominated tree's survival draw, else its death age), or the
@@ -276,7 +281,7 @@ struct EcoModel::Impl {
                 event = y - 1;
                 return;
             }
-            const std::uint64_t key = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(y));
+            const std::uint64_t key = dominatedKeys[static_cast<std::size_t>(y)];  // mixStream(seed, kStreamDominated ^ y)
             if (static_cast<double>(mixStream(key, s.id) >> 11) * 0x1.0p-53 >= ps.dominatedSurvival) {
                 s.kind = Wake::DiesDominated;
                 event = y;
@@ -720,6 +725,7 @@ void EcoModel::Impl::growYear() {
     // dominated by theirs); a dominated one meets its planned event if this is its year; one
     // that nobody dominates grows and rejoins the store, as does one about to mature.
     woken.clear();
+    keysThrough(year + kSleepHorizon);  // planSleep's draws
     const std::size_t k0 = sleepers.size();
     std::size_t dead = k0 - sleepersLive;
     // A tombstone has event year kTombstone and a canopy witness, so that the common case (a
