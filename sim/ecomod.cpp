@@ -227,6 +227,100 @@ struct EcoModel::Impl {
         float v;
         std::uint32_t parent;
     };
+    // Sleeping seedlings, set aside from the store's yearly passes (docs/ecomod.md "Speed"): a
+    // tree of height and crown 0 whose species gains no growth age when dominated, found
+    // dominated by its witness W, stays dominated while W lives with a crown at least as
+    // large (its own ability and crown are 0; W's ability stays > 0), so its years until its
+    // death, its maturity or a horizon are known from its draws (keyed by seed, year and id:
+    // drawn ahead, the same values). It rejoins the store when it matures (a parent must be in
+    // the store's pass of seedYear), when W dies or shrinks and no other tree dominates it
+    // (it then grows), and before a disturbance, removeTrees or a checkpoint's arrays need
+    // every tree; views that list the trees (plants, census, saveState) merge the two by id,
+    // which is creation order, the store's order. Sorted by id; the dead stay as tombstones
+    // (event year -1) until they are more than the living.
+    enum class Wake : std::uint8_t { DiesDominated, DiesNatural, Matures, Horizon };
+    struct Sleeper {
+        std::uint64_t id;
+        double x, y, growthAge, deathAge;
+        float v;
+        std::int32_t species;
+        std::int32_t ageBase;  // age = ageBase + years completed (between years), ageBase + Y at the start of year Y
+        Wake kind;             // what happens in its event year
+    };
+    std::vector<Sleeper> sleepers;
+    std::vector<std::int32_t> sleepEvent;     // per sleeper: the year of its event, -1 for a tombstone
+    std::vector<std::uint32_t> sleepWitness;  // per sleeper: its witness (store index, canopy, or kNoWitness: test it)
+    std::size_t sleepersLive = 0;
+    struct Woken {  // a tree rejoining the store: its state at the end of a year, its witness (store index after compaction)
+        std::uint64_t id;
+        std::int32_t species, age;
+        double x, y, height, radius, growthAge, deathAge;
+        float v;
+        std::uint32_t witness;
+    };
+    std::vector<Woken> woken;
+    std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
+    std::vector<Sleeper> newSleepers;
+    std::vector<std::uint32_t> newSleeperWitness;
+    static constexpr int kSleepHorizon = 256;       // years drawn ahead at most, then again
+    std::vector<std::uint64_t> dominatedKeys;       // per year: the key of the dominated trees' survival draws
+    void keysThrough(int lastYear) {
+        for (int y = static_cast<int>(dominatedKeys.size()); y <= lastYear; ++y)
+            dominatedKeys.push_back(mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(y)));
+    }
+    static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
+    // The event of a sleeper whose age after year y0 is a0 and that lives through y0: the first
+    // later year in which it dies (a dominated tree's survival draw, else its death age), or the
+    // year before it starts mature, or y0 + kSleepHorizon (Horizon: planned again then).
+    void planSleep(Sleeper& s, std::int32_t& event, int y0) const {
+        const EcoModSpeciesParams& ps = sp[static_cast<std::size_t>(s.species)];
+        for (int y = y0 + 1; y <= y0 + kSleepHorizon; ++y) {
+            const std::int32_t ageStart = s.ageBase + y;
+            if (ageStart >= ps.maturityAgeYears) {
+                s.kind = Wake::Matures;
+                event = y - 1;
+                return;
+            }
+            const std::uint64_t key = dominatedKeys[static_cast<std::size_t>(y)];  // mixStream(seed, kStreamDominated ^ y)
+            if (static_cast<double>(mixStream(key, s.id) >> 11) * 0x1.0p-53 >= ps.dominatedSurvival) {
+                s.kind = Wake::DiesDominated;
+                event = y;
+                return;
+            }
+            if (ageStart + 1 >= s.deathAge) {
+                s.kind = Wake::DiesNatural;
+                event = y;
+                return;
+            }
+        }
+        s.kind = Wake::Horizon;
+        event = y0 + kSleepHorizon;
+    }
+    Woken wake(const Sleeper& s, int yearsCompleted, std::uint32_t w) const {
+        return Woken{s.id, s.species, s.ageBase + yearsCompleted, s.x, s.y, 0.0, 0.0, s.growthAge, s.deathAge, s.v, w};
+    }
+    // Visits every tree in creation order (the store's trees and the sleepers, merged by id)
+    // as f(id, species, x, y, height, radius, growthAge, age, deathAge, v).
+    template <class F>
+    void forEachTree(F&& f) const {
+        const std::size_t n = size(), k = sleepers.size();
+        std::size_t a = 0, b = 0;
+        for (;;) {
+            while (b < k && sleepEvent[b] < 0) ++b;
+            if (a < n && (b == k || id[a] < sleepers[b].id)) {
+                f(id[a], species[a], x[a], y[a], height[a], radius[a], growthAge[a], age[a], deathAge[a], v[a]);
+                ++a;
+            } else if (b < k) {
+                const Sleeper& s = sleepers[b];
+                f(s.id, s.species, s.x, s.y, 0.0, 0.0, s.growthAge, s.ageBase + year, s.deathAge, s.v);
+                ++b;
+            } else {
+                break;
+            }
+        }
+    }
+    void mergeWoken();                    // woken (sorted by id) into the store
+    void wakeAll(int yearsCompleted);     // every sleeper into the store
     std::vector<std::vector<Seed>> seedsOf;       // per species (seedYear)
     std::vector<std::vector<Sapling>> born;       // per species (seedYear)
     std::vector<std::int64_t> attempts;
@@ -411,7 +505,7 @@ void EcoModel::Impl::seedYear() {
 void EcoModel::Impl::growYear() {
     constexpr int kMaxLevels = 24;
     const std::size_t n = size(), nc = canopy.size(), total = n + nc;
-    counters.plantMonths += 12 * static_cast<std::int64_t>(n);
+    counters.plantMonths += 12 * static_cast<std::int64_t>(n + sleepersLive);
     ability.resize(total);  // the first `rated` from seedYear, with `able` among them
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
@@ -486,16 +580,16 @@ void EcoModel::Impl::growYear() {
         slot[able[i]] = k;
     }
 
-    // Is tree p (position, radius and ability `me` at the start of the year) dominated? Reads
-    // only the start-of-year entries; writes only p's witness.
-    auto isDominated = [&](std::size_t p, const Entry& me) {
+    // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
+    // dominated? Reads only the start-of-year entries; writes only its witness.
+    auto isDominated = [&](const Entry& me, std::uint32_t& wit) {
         const double px = me.x, py = me.y, pr = me.r, pa = me.a;
         // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
         auto overlaps = [px, py, pr](const Entry& q) {
             const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
             return dx * dx + dy * dy < rr * rr;
         };
-        const std::uint32_t w = witness[p];
+        const std::uint32_t w = wit;
         if (w != kNoWitness) {
             const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
             if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
@@ -523,14 +617,14 @@ void EcoModel::Impl::growYear() {
                         const Entry& q = packed[k];
                         if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
                             const std::uint32_t e = packedItem[k];
-                            witness[p] = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                            wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
                             return true;
                         }
                     }
                 }
             }
         }
-        witness[p] = kNoWitness;
+        wit = kNoWitness;
         return false;
     };
 
@@ -540,17 +634,22 @@ void EcoModel::Impl::growYear() {
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p < n) dominated[p] = isDominated(p, packed[k]) ? 1 : 0;  // canopy trees: static, never dominated
+        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated  // canopy trees: static, never dominated
     }
 
     // Every tree in the store's order: the others' test, growth, survival, natural death, and
-    // compaction in place (the dead out, the order kept; witnesses renumbered after).
+    // compaction in place (the dead out, the order kept; witnesses renumbered after). A
+    // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
+    // the store for the sleepers) with its witness.
     const std::uint64_t dominatedKey = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(year));
-    newIndex.resize(n);
+    newIndex.resize(n + 1);  // one more: the sleepers' pass reads entry 0 even for an empty store
     fixup.clear();
+    newSleepers.clear();
+    newSleeperWitness.clear();
+    bool anyShrunk = false;  // a tree whose crown or height fell (an initial plant above its polyline)
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
-        const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(p, Entry{x[p], y[p], radius[p], ability[p]});
+        const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(Entry{x[p], y[p], radius[p], ability[p]}, witness[p]);
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
         const double before = growthAge[p];
@@ -577,6 +676,15 @@ void EcoModel::Impl::growYear() {
         if (g != before && before < sps.fullGrownAgeYears) {
             h = ecomodPolylineHeightM(sps, g);
             r = crown(s, h);
+            if (h < height[p] || r < radius[p]) anyShrunk = true;
+        }
+        if (dom && h == 0.0 && r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
+            witness[p] != kNoWitness) {
+            // To sleep: dominated by its witness in the years to come (see Sleeper).
+            newSleepers.push_back(Sleeper{id[p], x[p], y[p], g, deathAge[p], v[p], s, ageYears - year - 1, Wake::Horizon});
+            newSleeperWitness.push_back(witness[p]);
+            newIndex[p] = kNoWitness;  // nobody's witness: its ability is 0
+            continue;
         }
         newIndex[p] = static_cast<std::uint32_t>(w);
         // The witness follows its tree to its new place: now if it was before (its new index
@@ -608,6 +716,193 @@ void EcoModel::Impl::growYear() {
     }
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
+    auto follow = [&](std::uint32_t q) {  // a witness's index after the compaction (kNoWitness if it died)
+        if (q == kNoWitness || (q & kWitnessCanopy)) return q;
+        return anyShrunk ? kNoWitness : newIndex[q];
+    };
+
+    // The sleepers' year: those whose witness died or shrank are tested (the others are
+    // dominated by theirs); a dominated one meets its planned event if this is its year; one
+    // that nobody dominates grows and rejoins the store, as does one about to mature.
+    woken.clear();
+    keysThrough(year + kSleepHorizon);  // planSleep's draws
+    const std::size_t k0 = sleepers.size();
+    std::size_t dead = k0 - sleepersLive;
+    // A tombstone has event year kTombstone and a canopy witness, so that the common case (a
+    // living witness, not this year's event) takes no branch that depends on the sleeper.
+    const std::uint32_t* renumber = newIndex.data();
+    for (std::size_t i = 0; i < k0; ++i) {
+        const std::int32_t ev = sleepEvent[i];
+        std::uint32_t q = sleepWitness[i];
+        if (ev != year && q != kNoWitness && !anyShrunk) {
+            const bool keep = (q & kWitnessCanopy) != 0;
+            const std::uint32_t moved = renumber[keep ? 0 : q];
+            sleepWitness[i] = keep ? q : moved;
+            continue;
+        }
+        if (ev < 0) continue;
+        Sleeper& sl = sleepers[i];
+        if (q == kNoWitness) {
+            if (!isDominated(Entry{sl.x, sl.y, 0.0, 0.0}, q)) {
+                // Free: it grows this year as a tree of the store would (no survival draw).
+                const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(sl.species)];
+                const std::int32_t ageYears = sl.ageBase + year + 1;
+                sleepEvent[i] = kTombstone;
+                sleepWitness[i] = kWitnessCanopy;
+                --sleepersLive;
+                ++dead;
+                if (ageYears >= sl.deathAge) {
+                    ++counters.diedBackgroundOrStress;
+                    continue;
+                }
+                const double g = sl.growthAge + 1.0;
+                double h = 0.0, r = 0.0;
+                if (sl.growthAge < sps.fullGrownAgeYears) {
+                    h = ecomodPolylineHeightM(sps, g);
+                    r = crown(sl.species, h);
+                }
+                woken.push_back(Woken{sl.id, sl.species, ageYears, sl.x, sl.y, h, r, g, sl.deathAge, sl.v, kNoWitness});
+                continue;
+            }
+        }
+        if (ev == year) {
+            switch (sl.kind) {
+                case Wake::DiesDominated:
+                    ++counters.diedDominated;
+                    break;
+                case Wake::DiesNatural:
+                    ++counters.diedBackgroundOrStress;
+                    break;
+                case Wake::Matures:
+                    woken.push_back(wake(sl, year + 1, follow(q)));
+                    break;
+                case Wake::Horizon:
+                    planSleep(sl, sleepEvent[i], year);
+                    if (sleepEvent[i] != year) {  // asleep for more years
+                        sleepWitness[i] = follow(q);
+                        continue;
+                    }
+                    woken.push_back(wake(sl, year + 1, follow(q)));  // mature from next year on
+                    break;
+            }
+            sleepEvent[i] = kTombstone;
+            sleepWitness[i] = kWitnessCanopy;
+            --sleepersLive;
+            ++dead;
+            continue;
+        }
+        sleepWitness[i] = follow(q);
+    }
+    // The new sleepers, after the others (their ids in order; usually beyond every sleeper's).
+    if (!newSleepers.empty()) {
+        std::vector<std::int32_t> events(newSleepers.size());
+        for (std::size_t i = 0; i < newSleepers.size(); ++i) {
+            planSleep(newSleepers[i], events[i], year);
+            newSleeperWitness[i] = follow(newSleeperWitness[i]);
+        }
+        if (sleepers.empty() || sleepers.back().id < newSleepers.front().id) {
+            sleepers.insert(sleepers.end(), newSleepers.begin(), newSleepers.end());
+            sleepEvent.insert(sleepEvent.end(), events.begin(), events.end());
+            sleepWitness.insert(sleepWitness.end(), newSleeperWitness.begin(), newSleeperWitness.end());
+        } else {  // merge by id
+            std::vector<Sleeper> ms;
+            std::vector<std::int32_t> me;
+            std::vector<std::uint32_t> mw;
+            const std::size_t total2 = sleepers.size() + newSleepers.size();
+            ms.reserve(total2);
+            me.reserve(total2);
+            mw.reserve(total2);
+            std::size_t a = 0, b = 0;
+            while (a < sleepers.size() || b < newSleepers.size()) {
+                if (b == newSleepers.size() || (a < sleepers.size() && sleepers[a].id < newSleepers[b].id)) {
+                    ms.push_back(sleepers[a]);
+                    me.push_back(sleepEvent[a]);
+                    mw.push_back(sleepWitness[a]);
+                    ++a;
+                } else {
+                    ms.push_back(newSleepers[b]);
+                    me.push_back(events[b]);
+                    mw.push_back(newSleeperWitness[b]);
+                    ++b;
+                }
+            }
+            sleepers.swap(ms);
+            sleepEvent.swap(me);
+            sleepWitness.swap(mw);
+        }
+        sleepersLive += newSleepers.size();
+    }
+    // Tombstones out once they outnumber the living (the order kept).
+    if (dead > sleepersLive && dead > 64) {
+        std::size_t o = 0;
+        for (std::size_t i = 0; i < sleepers.size(); ++i)
+            if (sleepEvent[i] >= 0) {
+                sleepers[o] = sleepers[i];
+                sleepEvent[o] = sleepEvent[i];
+                sleepWitness[o] = sleepWitness[i];
+                ++o;
+            }
+        sleepers.resize(o);
+        sleepEvent.resize(o);
+        sleepWitness.resize(o);
+    }
+    if (!woken.empty()) mergeWoken();
+}
+
+// The woken (in id order; witnesses as store indices) into the store, by id, in place: each
+// array grows by their number and its trees move back by the number of woken before them
+// (a few per year: block moves); the store's and the sleepers' witnesses renumbered.
+void EcoModel::Impl::mergeWoken() {
+    const std::size_t n = size(), nw = woken.size(), total = n + nw;
+    // at[j]: the store index before which woken j goes (ids ascending in both).
+    mergeAt.resize(nw);
+    for (std::size_t j = 0; j < nw; ++j)
+        mergeAt[j] = static_cast<std::uint32_t>(std::lower_bound(id.begin(), id.end(), woken[j].id) - id.begin());
+    auto spread = [&](auto& a, auto field) {
+        a.resize(total);
+        std::size_t end = n;  // trees [at[j], end) move back by j + 1
+        for (std::size_t j = nw; j-- > 0;) {
+            const std::size_t from = mergeAt[j];
+            std::move_backward(a.begin() + static_cast<std::ptrdiff_t>(from), a.begin() + static_cast<std::ptrdiff_t>(end),
+                               a.begin() + static_cast<std::ptrdiff_t>(end + j + 1));
+            a[from + j] = field(woken[j]);
+            end = from;
+        }
+    };
+    spread(id, [](const Woken& t) { return t.id; });
+    spread(species, [](const Woken& t) { return t.species; });
+    spread(age, [](const Woken& t) { return t.age; });
+    spread(x, [](const Woken& t) { return t.x; });
+    spread(y, [](const Woken& t) { return t.y; });
+    spread(height, [](const Woken& t) { return t.height; });
+    spread(radius, [](const Woken& t) { return t.radius; });
+    spread(growthAge, [](const Woken& t) { return t.growthAge; });
+    spread(deathAge, [](const Woken& t) { return t.deathAge; });
+    spread(v, [](const Woken& t) { return t.v; });
+    spread(witness, [](const Woken& t) { return t.witness; });
+    // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
+    mergeShift.resize(n + 1);
+    for (std::size_t j = 0, q = 0; q <= n; ++q) {
+        while (j < nw && mergeAt[j] <= q) ++j;
+        mergeShift[q] = static_cast<std::uint32_t>(j);
+    }
+    auto remap = [&](std::uint32_t q) {
+        return q == kNoWitness || (q & kWitnessCanopy) ? q : q + mergeShift[q];
+    };
+    for (auto& q : witness) q = remap(q);
+    for (std::size_t i = 0; i < sleepers.size(); ++i) sleepWitness[i] = remap(sleepWitness[i]);
+    woken.clear();
+}
+
+void EcoModel::Impl::wakeAll(int yearsCompleted) {
+    woken.clear();
+    for (std::size_t i = 0; i < sleepers.size(); ++i)
+        if (sleepEvent[i] >= 0) woken.push_back(wake(sleepers[i], yearsCompleted, sleepWitness[i]));
+    sleepers.clear();
+    sleepEvent.clear();
+    sleepWitness.clear();
+    sleepersLive = 0;
+    if (!woken.empty()) mergeWoken();
 }
 
 std::uint64_t EcoModel::Impl::computeFingerprint() const {
@@ -764,6 +1059,7 @@ void EcoModel::Impl::disturbYear() {
     if (!disturbanceOn) return;
     const std::vector<PlannedEvent> events = eventsOfYear(disturbance, seed, year);
     if (events.empty()) return;
+    wakeAll(year + 1);  // the events see every tree, in creation order
     std::vector<double> tolerance(sp.size());
     for (std::size_t s = 0; s < sp.size(); ++s)
         tolerance[s] = std::isnan(fireTolerance[s]) ? disturbance.fire.defaultTolerance : fireTolerance[s];
@@ -794,28 +1090,31 @@ const DisturbanceSettings& EcoModel::disturbance() const { return impl_->disturb
 const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return impl_->disturbanceEvents; }
 
 int EcoModel::yearsDone() const { return impl_->year; }
-std::size_t EcoModel::plantCount() const { return impl_->size(); }
+std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive; }
+std::size_t EcoModel::setAsideCount() const { return impl_->sleepersLive; }
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;
-    std::vector<UndergrowthPlant> out(m.size());
-    for (std::size_t p = 0; p < out.size(); ++p) {
-        UndergrowthPlant& u = out[p];
-        u.id = m.id[p];
-        u.speciesId = m.species[p];
-        u.xM = m.x[p];
-        u.yM = m.y[p];
-        u.groundZM = m.elevation.sampleBilinear(m.x[p], m.y[p]);
-        u.heightM = m.height[p];
-        u.crownRadiusM = m.radius[p];
-        u.ageYears = m.age[p];
-        u.growthAgeYears = m.growthAge[p];
-        u.vigour = m.v[p];
-        u.pool = m.height[p] / m.hRef * m.sp[static_cast<std::size_t>(m.species[p])].persistence * m.v[p];
-        const std::size_t cell = m.cellOf(m.x[p], m.y[p]);
+    std::vector<UndergrowthPlant> out;
+    out.reserve(m.size() + m.sleepersLive);
+    m.forEachTree([&](std::uint64_t pid, std::int32_t s, double px, double py, double h, double r, double g, std::int32_t ageYears,
+                      double, float vv) {
+        UndergrowthPlant& u = out.emplace_back();
+        u.id = pid;
+        u.speciesId = s;
+        u.xM = px;
+        u.yM = py;
+        u.groundZM = m.elevation.sampleBilinear(px, py);
+        u.heightM = h;
+        u.crownRadiusM = r;
+        u.ageYears = ageYears;
+        u.growthAgeYears = g;
+        u.vigour = vv;
+        u.pool = h / m.hRef * m.sp[static_cast<std::size_t>(s)].persistence * vv;
+        const std::size_t cell = m.cellOf(px, py);
         u.sunShare = m.cellSun[cell];
         u.waterShare = m.cellMoisture[cell];
-    }
+    });
     return out;
 }
 
@@ -828,13 +1127,13 @@ YearRecord EcoModel::census() const {
     r.meanHeightM.assign(ns, 0);
     r.meanVigour.assign(ns, 0);
     r.crownAreaM2.assign(ns, 0);
-    for (std::size_t p = 0; p < m.size(); ++p) {
-        const std::size_t s = static_cast<std::size_t>(m.species[p]);
+    m.forEachTree([&](std::uint64_t, std::int32_t sid, double, double, double h, double rad, double, std::int32_t, double, float vv) {
+        const std::size_t s = static_cast<std::size_t>(sid);
         ++r.count[s];
-        r.meanHeightM[s] += m.height[p];
-        r.meanVigour[s] += m.v[p];
-        r.crownAreaM2[s] += kPi * m.radius[p] * m.radius[p];
-    }
+        r.meanHeightM[s] += h;
+        r.meanVigour[s] += vv;
+        r.crownAreaM2[s] += kPi * rad * rad;
+    });
     for (std::size_t s = 0; s < ns; ++s)
         if (r.count[s] > 0) {
             r.meanHeightM[s] /= r.count[s];
@@ -859,6 +1158,7 @@ double EcoModel::suitability(int s, double xM, double yM) const {
 std::uint64_t EcoModel::fingerprint() const { return impl_->fingerprintValue; }
 std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
     Impl& m = *impl_;
+    m.wakeAll(m.year);  // `dead` is indexed as plants()
     if (dead.size() != m.size())
         throw ValidationError("removeTrees: " + std::to_string(dead.size()) + " flags for " + std::to_string(m.size()) + " trees");
     std::size_t removed = 0;
@@ -880,7 +1180,7 @@ std::size_t EcoModel::bytesPerPlant() const {
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
     const Impl& m = *impl_;
-    const hsize_t n = m.size();
+    const hsize_t n = m.size() + m.sleepersLive;
     f.ensureGroup(group);
     f.setAttr(group, "model", std::string("ecomod"));
     f.setAttr(group, "fingerprint", hex64(fingerprint()));
@@ -895,20 +1195,32 @@ void EcoModel::saveState(h5::File& f, const std::string& group) const {
         f.setAttr(group, "died_disturbance", static_cast<std::int64_t>(m.counters.diedDisturbance));
         writeDisturbanceTable(f, group + "/disturbance", m.disturbanceEvents, m.biome);
     }
-    std::vector<std::int32_t> idLo(n), idHi(n);
-    for (std::size_t p = 0; p < n; ++p) {
-        idLo[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(m.id[p]));
-        idHi[p] = static_cast<std::int32_t>(static_cast<std::uint32_t>(m.id[p] >> 32));
-    }
+    // Every tree in creation order (the store and the sleepers merged).
+    std::vector<std::int32_t> idLo, idHi, sps, ages;
+    std::vector<double> xs, ys, hs, gs, ds;
+    for (auto* a : {&idLo, &idHi, &sps, &ages}) a->reserve(n);
+    for (auto* a : {&xs, &ys, &hs, &gs, &ds}) a->reserve(n);
+    m.forEachTree([&](std::uint64_t pid, std::int32_t s, double px, double py, double h, double, double g, std::int32_t ageYears,
+                      double dAge, float) {
+        idLo.push_back(static_cast<std::int32_t>(static_cast<std::uint32_t>(pid)));
+        idHi.push_back(static_cast<std::int32_t>(static_cast<std::uint32_t>(pid >> 32)));
+        sps.push_back(s);
+        xs.push_back(px);
+        ys.push_back(py);
+        hs.push_back(h);
+        gs.push_back(g);
+        ds.push_back(dAge);
+        ages.push_back(ageYears);
+    });
     f.writeI32(group + "/id_lo", idLo, {n}, "1");
     f.writeI32(group + "/id_hi", idHi, {n}, "1");
-    f.writeI32(group + "/species", m.species, {n}, "1");
-    f.writeF64(group + "/x", m.x, {n}, "m");
-    f.writeF64(group + "/y", m.y, {n}, "m");
-    f.writeF64(group + "/height", m.height, {n}, "m");
-    f.writeF64(group + "/growth_age", m.growthAge, {n}, "years");
-    f.writeF64(group + "/death_age", m.deathAge, {n}, "years");
-    f.writeI32(group + "/age", m.age, {n}, "years");
+    f.writeI32(group + "/species", sps, {n}, "1");
+    f.writeF64(group + "/x", xs, {n}, "m");
+    f.writeF64(group + "/y", ys, {n}, "m");
+    f.writeF64(group + "/height", hs, {n}, "m");
+    f.writeF64(group + "/growth_age", gs, {n}, "years");
+    f.writeF64(group + "/death_age", ds, {n}, "years");
+    f.writeI32(group + "/age", ages, {n}, "years");
 }
 
 void EcoModel::loadState(const h5::File& f, const std::string& group) {
@@ -939,6 +1251,10 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.age.clear();
     m.v.clear();
     m.witness.clear();
+    m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
+    m.sleepEvent.clear();
+    m.sleepWitness.clear();
+    m.sleepersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
         const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |

@@ -15,7 +15,9 @@
 //
 // The plant state is a structure of arrays of positions, heights, species and ages; the
 // Simulation front (simulator.h) delegates to EcoModel when the model kind is "ecomod", so
-// the run loop, outputs, checkpoints and resume are those of the monthly model. Results are
+// the run loop, outputs, checkpoints and resume are those of the monthly model. Suppressed
+// seedlings are set aside from the yearly passes with their draws made ahead (sleepers;
+// merged back by id wherever the trees are listed: the same results). Results are
 // bit-identical for any thread count: every random draw comes from a stream keyed by (seed,
 // year, species or plant id), and parallel loops only write per-plant results.
 #pragma once
@@ -82,6 +84,9 @@ public:
     void stepYear();
     int yearsDone() const;
     std::size_t plantCount() const;
+    /// How many of them are set aside (suppressed seedlings out of the yearly passes until an
+    /// event of theirs; docs/ecomod.md "Speed"). Diagnostic: no result depends on it.
+    std::size_t setAsideCount() const;
     /// The living trees, in creation order. vigour = suitability v, pool = competitive ability a.
     std::vector<UndergrowthPlant> plants() const;
     YearRecord census() const;

@@ -397,6 +397,37 @@ TEST_CASE("ecomod: the same bytes for any thread count and after a checkpoint an
     CHECK_THROWS_WITH(monthly.loadState(f, "/state"), Catch::Contains("ecomod"));
 }
 
+TEST_CASE("ecomod: setting the suppressed seedlings aside changes no tree, census or counter", "[sim][ecomod]") {
+    // The same run twice: once as it is, once with every set-aside seedling brought back into
+    // the store after each year (removeTrees of nothing), so that each is tested, drawn and
+    // aged by the store's pass every year instead of from its draws made ahead.
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    Simulation asleep(in, params, 7), awake(in, params, 7);
+    REQUIRE(asleep.ecomod() != nullptr);
+    REQUIRE(awake.ecomod() != nullptr);
+    std::size_t maxAside = 0;
+    bool same = true;
+    for (int y = 0; y < 40 && same; ++y) {
+        asleep.stepYear();
+        awake.stepYear();
+        maxAside = std::max(maxAside, asleep.ecomod()->setAsideCount());
+        awake.ecomod()->removeTrees(std::vector<std::uint8_t>(awake.plantCount(), 0));
+        CHECK(awake.ecomod()->setAsideCount() == 0);
+        const YearRecord a = asleep.census(), b = awake.census();
+        same = samePlants(asleep.plants(), awake.plants()) && a.count == b.count &&
+               std::memcmp(a.meanVigour.data(), b.meanVigour.data(), a.meanVigour.size() * sizeof(double)) == 0 &&
+               std::memcmp(a.meanHeightM.data(), b.meanHeightM.data(), a.meanHeightM.size() * sizeof(double)) == 0 &&
+               asleep.counters().diedDominated == awake.counters().diedDominated &&
+               asleep.counters().diedBackgroundOrStress == awake.counters().diedBackgroundOrStress &&
+               asleep.counters().plantMonths == awake.counters().plantMonths;
+        INFO("year " << y + 1);
+        CHECK(same);
+    }
+    CHECK(maxAside > 50);  // the set-aside was exercised
+    CHECK(asleep.plantCount() > 100);
+}
+
 TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
     Biome b = quietBiome();
     const int s = b.speciesIndex("Toyon");
