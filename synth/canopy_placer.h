@@ -85,6 +85,10 @@ struct CanopyParams {
     /// apart and between which the CHM never drops more than this (metres) below the lower
     /// one, the lower goes: one crown top, two maxima of its lidar noise. 0: off.
     double seedMergeSaddleM = 0.5;
+    /// The seed merge also needs the two trunks closer than this fraction of the taller
+    /// tree's crown radius: two maxima of one top's noise lie well inside its crown, two
+    /// small crowns side by side (a noise-free CHM) about a radius apart. 10: no such limit.
+    double seedMergeRadiusFraction = 0.6;
     /// 1: each iteration also adds a tree at every residual apex: a strict 3 x 3 maximum of
     /// the CHM among the footprint cells no crown explains (see residualToleranceM), with
     /// the CHM's height there, anchored like a seed. The top of a tree beside a taller
