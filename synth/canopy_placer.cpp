@@ -798,9 +798,10 @@ double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, d
 
 /// Keep flags of the seed merge among the trees with eligible(i) (the others are kept):
 /// tallest first (ties to the lower index), a tree goes when a kept one earlier in the order
-/// has its trunk less than kSeedMergeCells cells away and the CHM on the segment between the
-/// two trunks never drops more than saddleM below the lower tree's height: no saddle between
-/// them, so two maxima of one crown top's noise, not two tops.
+/// has its trunk less than kSeedMergeCells cells and radiusFraction x its crown radius away
+/// and the CHM on the segment between the two trunks never drops more than saddleM below the
+/// lower tree's height: no saddle between them, well inside one crown, so two maxima of one
+/// crown top's noise, not two tops (two small noise-free crowns stand about a radius apart).
 constexpr double kSeedMergeCells = 2.0;
 template <typename Eligible>
 Buf<char> seedMergeKeepFlags(const Buf<Tree>& trees, const Grid<float>& chm, double saddleM, double radiusFraction,

@@ -10,7 +10,8 @@
 //      cells. Stop when the coverage of the CHM footprint gains less than coverageEpsilon, or
 //      after maxIterations.
 //   3. Remove starved trees of the last render, seeded trees without a saddle between them
-//      and a taller one (seedMergeSaddleM), and duplicates (trunks closer than
+//      and a taller one close to its trunk (seedMergeSaddleM, seedMergeRadiusFraction), and
+//      duplicates (trunks closer than
 //      minTrunkDistanceM; crowns whose sphere lies entirely inside a larger one).
 //
 // A tree is a sphere of crown radius r (species allometry, Eq. 2) with its apex at the

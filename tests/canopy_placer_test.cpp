@@ -563,21 +563,12 @@ TEST_CASE("the seed merge keeps two small noise-free crowns about a radius apart
     const double y = chm.cellCentreY(20);
     const double xs[2] = {chm.cellCentreX(18) + 0.05, chm.cellCentreX(18) + 1.75};
     const double hs[2] = {7.0, 6.9};
-    for (int k = 0; k < 2; ++k) {
-        const double r = allo.crownRadiusM(hs[k]);
-        for (int iy = 0; iy < n; ++iy)
-            for (int ix = 0; ix < n; ++ix) {
-                const double d = std::hypot(chm.cellCentreX(ix) - xs[k], chm.cellCentreY(iy) - y);
-                if (d < r) chm(ix, iy) = std::max(chm(ix, iy), static_cast<float>(hs[k] - r + std::sqrt(r * r - d * d)));
-            }
-    }
+    rasterizeCrowns({{xs[0], y, hs[0], allo.crownRadiusM(hs[0])}, {xs[1], y, hs[1], allo.crownRadiusM(hs[1])}}, chm);
     REQUIRE(synth::chmLocalMaxima(chm, 3.0, 1).size() == 2);
     REQUIRE(chm(19, 20) > 6.9f - 0.5f);  // no saddle deeper than seed_merge_saddle_m
+    synth::CanopyParams p;  // the seeds as they are, then the final clean-up
+    p.ringSamples = p.residualApices = p.maxIterations = 0;
     const Grid<float> terrain = Grid<float>::like(chm, 0.f);
-    synth::CanopyParams p;
-    p.ringSamples = 0;
-    p.residualApices = 0;
-    p.maxIterations = 0;
     const synth::CanopyResult kept = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     CHECK(kept.seedsMerged == 0);
     REQUIRE(kept.trees.size() == 2);
