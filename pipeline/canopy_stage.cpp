@@ -259,6 +259,7 @@ const std::vector<ParamFlagName>& canopyParamFlags() {
         {"--coverage-epsilon", "coverage_epsilon"},
         {"--canopy-threshold", "canopy_threshold_m"},
         {"--min-seed-height", "min_seed_height_m"},
+        {"--seed-merge-radius-fraction", "seed_merge_radius_fraction"},
     };
     return flags;
 }

@@ -798,12 +798,13 @@ double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, d
 
 /// Keep flags of the seed merge among the trees with eligible(i) (the others are kept):
 /// tallest first (ties to the lower index), a tree goes when a kept one earlier in the order
-/// has its trunk less than kSeedMergeCells cells away and the CHM on the segment between the
-/// two trunks never drops more than saddleM below the lower tree's height: no saddle between
-/// them, so two maxima of one crown top's noise, not two tops.
+/// has its trunk less than kSeedMergeCells cells and radiusFraction x its crown radius away
+/// and the CHM on the segment between the two trunks never drops more than saddleM below the
+/// lower tree's height: no saddle between them, well inside one crown, so two maxima of one
+/// crown top's noise, not two tops (two small noise-free crowns stand about a radius apart).
 constexpr double kSeedMergeCells = 2.0;
 template <typename Eligible>
-Buf<char> seedMergeKeepFlags(const Buf<Tree>& trees, const Grid<float>& chm, double saddleM,
+Buf<char> seedMergeKeepFlags(const Buf<Tree>& trees, const Grid<float>& chm, double saddleM, double radiusFraction,
                                      Eligible&& eligible) {
     Buf<std::size_t> order;
     for (std::size_t i = 0; i < trees.size(); ++i)
@@ -826,6 +827,9 @@ Buf<char> seedMergeKeepFlags(const Buf<Tree>& trees, const Grid<float>& chm, dou
             const Tree& b = trees[j];
             const double dx = b.x - a.x, dy = b.y - a.y;
             if (dx * dx + dy * dy >= reach * reach) return false;
+            // b is the taller (earlier in the order): within a fraction of its crown radius.
+            const double near = radiusFraction * b.radiusM;
+            if (dx * dx + dy * dy >= near * near) return false;
             return segmentMinimum(chm, a.x, a.y, b.x, b.y) >= a.heightM - saddleM;
         });
     for (std::size_t i = 0; i < trees.size(); ++i)
@@ -934,6 +938,8 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          nullptr, &CanopyParams::anchorApexTrees, R::closed(0, 1)},
         {"seed_merge_saddle_m", "final: of two seeded trees < 2 cells apart with no CHM saddle deeper than this between them the lower goes; 0 = off",
          "m", K::Real, &CanopyParams::seedMergeSaddleM, nullptr, R::atLeast(0)},
+        {"seed_merge_radius_fraction", "final seed merge: only trunks closer than this fraction of the taller crown's radius; 10 = no limit",
+         "", K::Real, &CanopyParams::seedMergeRadiusFraction, nullptr, R::openClosed(0, 10)},
         {"residual_apices", "each iteration adds trees at maxima of the CHM cells no crown explains; 0 = ring only", "",
          K::Integer, nullptr, &CanopyParams::residualApices, R::closed(0, 1)},
         {"residual_tolerance_m", "a covered cell more than this above the crowns is unexplained", "m", K::Real,
@@ -1362,7 +1368,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         // than at the seeding: removing seeds there changed the iterations' additions and
         // cost recall (docs/canopy.md, "One top, one seed").
         const std::uint64_t seeds = result.initialSeeds;
-        const auto keep = seedMergeKeepFlags(trees, chmM, params.seedMergeSaddleM,
+        const auto keep = seedMergeKeepFlags(trees, chmM, params.seedMergeSaddleM, params.seedMergeRadiusFraction,
                                              [&](std::size_t i) { return trees[i].apex && trees[i].uid < seeds; });
         Buf<Tree>& kept = next;
         kept.clear();

@@ -10,7 +10,8 @@
 //      cells. Stop when the coverage of the CHM footprint gains less than coverageEpsilon, or
 //      after maxIterations.
 //   3. Remove starved trees of the last render, seeded trees without a saddle between them
-//      and a taller one (seedMergeSaddleM), and duplicates (trunks closer than
+//      and a taller one close to its trunk (seedMergeSaddleM, seedMergeRadiusFraction), and
+//      duplicates (trunks closer than
 //      minTrunkDistanceM; crowns whose sphere lies entirely inside a larger one).
 //
 // A tree is a sphere of crown radius r (species allometry, Eq. 2) with its apex at the
@@ -85,6 +86,10 @@ struct CanopyParams {
     /// apart and between which the CHM never drops more than this (metres) below the lower
     /// one, the lower goes: one crown top, two maxima of its lidar noise. 0: off.
     double seedMergeSaddleM = 0.5;
+    /// The seed merge also needs the two trunks closer than this fraction of the taller
+    /// tree's crown radius: two maxima of one top's noise lie well inside its crown, two
+    /// small crowns side by side (a noise-free CHM) about a radius apart. 10: no such limit.
+    double seedMergeRadiusFraction = 0.6;
     /// 1: each iteration also adds a tree at every residual apex: a strict 3 x 3 maximum of
     /// the CHM among the footprint cells no crown explains (see residualToleranceM), with
     /// the CHM's height there, anchored like a seed. The top of a tree beside a taller

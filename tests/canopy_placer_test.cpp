@@ -548,3 +548,33 @@ TEST_CASE("two noise maxima of one crown top give one tree, two close tops with 
     CHECK(two.seedsMerged == 0);
     CHECK(near(two) == 2);
 }
+
+TEST_CASE("the seed merge keeps two small noise-free crowns about a radius apart", "[canopy]") {
+    // Two spheres of the placer's own model (Douglas-Fir, 7.0 and 6.9 m, radius about 1.7 m),
+    // trunks 1.7 m apart (< 2 cells): the CHM between them drops only about 0.22 m, less than
+    // seed_merge_saddle_m, so the saddle alone takes them for one top. Their trunks are about
+    // one crown radius apart, beyond seed_merge_radius_fraction (0.6) of it: two trees stay.
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const Allometry& allo = b.species[static_cast<std::size_t>(df)].allometry;
+    const double cell = 0.914;
+    const int n = 40;
+    Grid<float> chm(n, n, cell, 0, 0, 0.f);
+    const double y = chm.cellCentreY(20);
+    const double xs[2] = {chm.cellCentreX(18) + 0.05, chm.cellCentreX(18) + 1.75};
+    const double hs[2] = {7.0, 6.9};
+    rasterizeCrowns({{xs[0], y, hs[0], allo.crownRadiusM(hs[0])}, {xs[1], y, hs[1], allo.crownRadiusM(hs[1])}}, chm);
+    REQUIRE(synth::chmLocalMaxima(chm, 3.0, 1).size() == 2);
+    REQUIRE(chm(19, 20) > 6.9f - 0.5f);  // no saddle deeper than seed_merge_saddle_m
+    synth::CanopyParams p;  // the seeds as they are, then the final clean-up
+    p.ringSamples = p.residualApices = p.maxIterations = 0;
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    const synth::CanopyResult kept = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    CHECK(kept.seedsMerged == 0);
+    REQUIRE(kept.trees.size() == 2);
+    for (int k = 0; k < 2; ++k) CHECK(nearestDistance(kept.trees, xs[k], y) < 0.3);
+    p.seedMergeRadiusFraction = 10;  // the saddle alone decides: one tree
+    const synth::CanopyResult merged = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    CHECK(merged.seedsMerged == 1);
+    CHECK(merged.trees.size() == 1);
+}
