@@ -424,34 +424,6 @@ class TestFormatChecks(unittest.TestCase):
                     f.attrs[k] = v
         return target
 
-    def test_a_database_before_the_wind_column_is_still_read_by_eco(self):
-        # Schema 4 had four feature columns and no /features/weights: made here from the
-        # schema 5 database, eco must read it with the wind left out (weight 0) and find the
-        # same regions, so the same scene comes out of it (docs/database.md, "Versions").
-        target = self.copy_with("db.h5", "db-v4.h5", schema_version=np.int64(4))
-        with h5py.File(target, "r+") as f:
-            last = f["features/names"][()][-1]
-            self.assertEqual(last.decode() if isinstance(last, bytes) else last, "wind")
-            del f["features/weights"]
-            for name in ("features/names", "features/units", "combinations/feature_mean", "combinations/feature_std",
-                         "regions/centroid_normalised", "regions/centroid_raw"):
-                old = f[name]
-                data, dtype, attrs = old[()], old.dtype, dict(old.attrs)
-                del f[name]
-                new = f.create_dataset(name, data=data[..., :4], dtype=dtype)
-                for k, v in attrs.items():
-                    new.attrs[k] = v
-        listing = run_eco("inspect-v4", "inspect", "db-v4.h5")
-        self.assertIn("schema 4", listing)
-        strip = lambda text: [re.sub(r", wind [-0-9.e+]+ m/s", "", line) for line in text.splitlines()
-                              if "centroid" in line]
-        self.assertTrue(strip(LOG["inspect"]))
-        self.assertEqual(strip(listing), strip(LOG["inspect"]))
-        run_eco("synth-v4", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db-v4.h5",
-                "--abiotics", "abiotics.h5", "--out", "scene-v4.h5", "--csv", "scene-v4.csv")
-        with open(path("scene.csv")) as a, open(path("scene-v4.csv")) as b:
-            self.assertEqual(a.read(), b.read())
-
     def truncate_features(self, target, keep):
         # The feature columns of a database cut to the first `keep` factors (as a database
         # written before the others existed would have them).
@@ -467,6 +439,26 @@ class TestFormatChecks(unittest.TestCase):
                 for k, v in attrs.items():
                     new.attrs[k] = v
 
+    def test_a_database_before_the_wind_column_is_still_read_by_eco(self):
+        # Schema 4 had four feature columns and no /features/weights: made here from the
+        # schema 5 database, eco must read it with the wind left out (weight 0) and find the
+        # same regions, so the same scene comes out of it (docs/database.md, "Versions").
+        target = self.copy_with("db.h5", "db-v4.h5", schema_version=np.int64(4))
+        with h5py.File(target, "r") as f:
+            last = f["features/names"][()][-1]
+            self.assertEqual(last.decode() if isinstance(last, bytes) else last, "wind")
+        self.truncate_features(target, 4)
+        listing = run_eco("inspect-v4", "inspect", "db-v4.h5")
+        self.assertIn("schema 4", listing)
+        strip = lambda text: [re.sub(r", wind [-0-9.e+]+ m/s", "", line) for line in text.splitlines()
+                              if "centroid" in line]
+        self.assertTrue(strip(LOG["inspect"]))
+        self.assertEqual(strip(listing), strip(LOG["inspect"]))
+        run_eco("synth-v4", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db-v4.h5",
+                "--abiotics", "abiotics.h5", "--out", "scene-v4.h5", "--csv", "scene-v4.csv")
+        with open(path("scene.csv")) as a, open(path("scene-v4.csv")) as b:
+            self.assertEqual(a.read(), b.read())
+
     def test_a_database_without_a_required_factor_is_refused_by_eco_naming_it(self):
         # A required factor added after a database was written is not guessed (docs/database.md
         # "Versions"): eco refuses the file, naming the factor it lacks, whatever its version.
@@ -477,6 +469,10 @@ class TestFormatChecks(unittest.TestCase):
         for part in ("db-three.h5", "/features/names", "no feature 'slope'", "before the factor slope existed",
                      "re-run eco analyse"):
             self.assertIn(part, r.stderr)
+        # By name, not by version: a version 5 file without the (optional) wind is read.
+        target = self.copy_with("db.h5", "db-v5-no-wind.h5")
+        self.truncate_features(target, 4)
+        self.assertIn("schema 5", run_eco("inspect-v5-no-wind", "inspect", "db-v5-no-wind.h5"))
 
     def test_a_map_added_later_is_read_by_name_and_eco_reads_the_maps_it_knows(self):
         # A factor added to eco is one more grid dataset of the abiotics file, in the same
