@@ -633,7 +633,7 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
     REQUIRE_THROWS_AS(readAbiotics(dir.file("nonexistent.h5")), IoError);
 }
 
-TEST_CASE("abiotics: a file without a map of the table is refused naming it; an extra map is left alone",
+TEST_CASE("abiotics: a file without a map of the table is refused naming it, an extra map is left alone",
           "[abiotics][factors]") {
     // A factor added later adds its row to kAbioticMaps without a new schema version: the
     // reader looks for every map by its dataset, so a file written before the map existed

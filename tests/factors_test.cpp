@@ -163,7 +163,7 @@ std::array<T, N + 1> withSixth(const std::array<T, N>& five, const T& sixth) {
 
 }  // namespace
 
-TEST_CASE("a sixth factor nobody responds to leaves every vigour bit for bit; one that responds can win the min",
+TEST_CASE("a sixth factor nobody responds to leaves every vigour bit for bit, one that responds can win the min",
           "[factors][vigour]") {
     // A factor added to the table is one more entry of every Features and Responses: the
     // kernels, instantiated on six factors, must give the five-factor results bit for bit
@@ -213,7 +213,7 @@ TEST_CASE("responsesFor gives the factors named and leaves every other indiffere
     CHECK(r[factorIndex(Factor::Slope)].r == 50.0);
 }
 
-TEST_CASE("every factor has one map; the simulator's static planes are the table's static maps", "[factors][abiotics]") {
+TEST_CASE("every factor has one map, and the simulator's static planes are the table's static maps", "[factors][abiotics]") {
     // The simulator reads the plant's sun and water from its sweep and the temperature from
     // the month's map; every other factor from a static map, in kStaticMaps' order
     // (sim/simulator_impl.h SitePlanes). A new static factor is one more row of
