@@ -1017,7 +1017,10 @@ namespace {
 
 constexpr const char* kFormat = "eco-abiotics";
 // 2: the wind map /wind and its wind_* attributes (version 1 files have no wind and are
-// refused with a message saying so).
+// refused with a message saying so). A map added later (a new row of kAbioticMaps) does not
+// change the version: the reader looks for each map of the table by its dataset and refuses
+// a file without one, naming the map and saying the file was written before it existed;
+// older code reads the maps it knows from a newer file (docs/factors.md).
 constexpr std::int64_t kSchemaVersion = 2;
 
 std::vector<double> toVector(const std::array<double, 12>& a) { return std::vector<double>(a.begin(), a.end()); }
@@ -1116,7 +1119,11 @@ Abiotics readAbiotics(const std::string& path) {
         if (!f.exists(name)) throw IoError(path + ": dataset " + name + " is missing");
     };
     require("/elevation");
-    for (const AbioticMapInfo& m : kAbioticMaps) require(m.dataset);
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        if (!f.exists(m.dataset))
+            throw IoError(path + ": dataset " + m.dataset + " is missing: no " + m.name +
+                          " map (a file written before the " + m.name +
+                          " map existed, or a damaged one); re-run eco abiotics with this version");
 
     Abiotics a;
     // Files written before the attribute existed hold the terrain's own sun.

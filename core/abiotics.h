@@ -192,12 +192,12 @@ struct AbioticMapInfo {
     double lo, hi;            ///< the values a file may hold (readAbiotics refuses others)
     const char* description;  ///< one line, what the map is (docs/abiotics.md)
 
-    bool isMonthly() const { return monthly != nullptr; }
+    constexpr bool isMonthly() const { return monthly != nullptr; }
 };
 
 /// The maps of Abiotics, in the order of the abiotics file's datasets. A new abiotic factor
 /// adds its member to Abiotics and its row here (docs/factors.md "Adding a factor").
-inline constexpr std::array<AbioticMapInfo, 5> kAbioticMaps = {{
+inline constexpr std::array<AbioticMapInfo, kFactorCount> kAbioticMaps = {{
     {"slope", "/slope", "degrees", Factor::Slope, nullptr, &Abiotics::slopeDeg, 0, 90,
      "terrain slope from central differences of the elevation"},
     {"sun", "/sun", "hours/day", Factor::Sun, &Abiotics::sunHours, nullptr, 0, 24,
@@ -224,6 +224,33 @@ constexpr bool everyFactorHasOneMap() {
 }  // namespace detail
 static_assert(detail::everyFactorHasOneMap(),
               "kAbioticMaps: every factor needs exactly one map, monthly or static (docs/factors.md)");
+
+namespace detail {
+constexpr std::size_t countStaticMaps() {
+    std::size_t n = 0;
+    for (const AbioticMapInfo& m : kAbioticMaps) n += m.isMonthly() ? 0 : 1;
+    return n;
+}
+constexpr bool isMonthlyFactor(Factor f) {
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        if (m.factor == f) return m.isMonthly();
+    return false;
+}
+}  // namespace detail
+
+/// The number of static maps of kAbioticMaps (one plane each: slope, wind).
+inline constexpr std::size_t kStaticMapCount = detail::countStaticMaps();
+
+/// The static maps of kAbioticMaps, in table order: the simulator reads a plant's static
+/// factors from them (sim/simulator_impl.h SitePlanes), so a new static factor needs no line
+/// there.
+inline constexpr std::array<AbioticMapInfo, kStaticMapCount> kStaticMaps = [] {
+    std::array<AbioticMapInfo, kStaticMapCount> out{};
+    std::size_t n = 0;
+    for (const AbioticMapInfo& m : kAbioticMaps)
+        if (!m.isMonthly()) out[n++] = m;
+    return out;
+}();
 
 /// Calls fn(plane) for each plane of map m of a (12 for a monthly map, 1 for a static one),
 /// in order. A is Abiotics or const Abiotics.

@@ -248,9 +248,9 @@ void writeBiomeDatabase(const std::string& path, const BiomeDatabase& db) {
         f.setAttr("/", "code_version", db.codeVersion);
         f.setAttr("/", "biome_name", db.biomeName);
         f.setAttr("/", "biome_toml", db.biomeToml);
-        f.setAttr("/", "units",
-                  std::string("lengths m, areas m2, densities plants/m2, sun hours/day, moisture mm, "
-                              "temperature degC, slope degrees, wind m/s"));
+        std::string units = "lengths m, areas m2, densities plants/m2";
+        for (const FactorInfo& fi : kFactors) units += std::string(", ") + fi.key + " " + fi.unit;
+        f.setAttr("/", "units", units);
         f.setAttr("/", "seeding_radius_factor", db.seedingRadiusFactor);
 
         f.writeStrings("/species/names", db.speciesNames);
@@ -530,19 +530,25 @@ BiomeDatabase readBiomeDatabase(const std::string& path) {
     const auto masks = rd.i32("/species/canopy_subbiome_mask", {ns});
     db.canopySubBiomeMask.assign(masks.begin(), masks.end());
     db.subBiomeNames = rd.strings("/sub_biomes/names", Reader::kAny);
-    // Files before schema 5 have the four factors before wind; their regions were found
-    // without it, so it gets weight 0 (and mean 0, std 1, centroid 0 below).
+    // The features are read by name, not by schema version (docs/factors.md): a file holds
+    // the first nf factors of kFactors, in order. A factor it lacks was added after the file
+    // was written: an optional one (files before schema 5 have no wind) gets weight 0 (and
+    // mean 0, std 1, centroid 0 below), since the file's regions were found without it; a
+    // required one is refused, naming it.
     const auto featureNames = rd.strings("/features/names", Reader::kAny);
     const std::size_t nf = featureNames.size();
-    std::size_t nRequired = 0;
-    while (nRequired < kFactorCount && kFactors[nRequired].responseRequired) ++nRequired;
-    if (nf < nRequired || nf > kFactorCount)
-        throw IoError(path + ": /features/names: " + std::to_string(nf) + " features, expected " +
-                      std::to_string(kFactorCount) + " (or " + std::to_string(nRequired) + " before schema 5)");
+    if (nf > kFactorCount)
+        throw IoError(path + ": /features/names: " + std::to_string(nf) + " features, this version knows " +
+                      std::to_string(kFactorCount) + " (written by a newer eco analyse?)");
     for (std::size_t i = 0; i < nf; ++i)
         if (featureNames[i] != kFactors[i].key)
             throw IoError(path + ": /features/names: feature " + std::to_string(i) + " is '" + featureNames[i] +
                           "', expected '" + kFactors[i].key + "'");
+    for (std::size_t i = nf; i < kFactorCount; ++i)
+        if (kFactors[i].responseRequired)
+            throw IoError(path + ": /features/names: no feature '" + kFactors[i].key + "' (" + std::to_string(nf) +
+                          " features): the database was written before the factor " + kFactors[i].label +
+                          " existed; re-run eco analyse with this version");
     db.featureWeights.fill(0.0);
     if (f.exists("/features/weights")) {
         const auto w = rd.f64("/features/weights", {nf});

@@ -36,6 +36,10 @@ namespace eco {
 /// Version 2, 3 and 4 files are still read (version 2 without the context statistics:
 /// hasContext() false; before 5 with four feature columns: the wind gets weight 0, mean 0,
 /// std 1, so that their regions are found as before).
+/// A factor added later (a row of kFactors) does not change the version: the feature
+/// columns are read by their names (/features/names); a file without an optional factor
+/// gets it with weight 0 as above, one without a required factor is refused naming it
+/// (docs/factors.md).
 constexpr int kBiomeDbSchemaVersion = 5;
 constexpr int kBiomeDbOldestReadableVersion = 2;
 constexpr const char* kBiomeDbFormat = "eco-biome-db";

@@ -14,7 +14,9 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <initializer_list>
 #include <limits>
+#include <utility>
 
 #include "factors.h"
 
@@ -46,6 +48,16 @@ inline Responses defaultResponses() {
     Responses r{};
     for (std::size_t f = 0; f < kFactorCount; ++f)
         if (!kFactors[f].responseRequired) r[f] = Response::indifferent();
+    return r;
+}
+
+/// Responses given for some factors, indifferent() for every other: the forest floor's
+/// grass, whose defaults name the paper's four factors, so that a factor added later
+/// leaves the grass indifferent to it with no line of its own (docs/factors.md).
+inline Responses responsesFor(std::initializer_list<std::pair<Factor, Response>> given) {
+    Responses r;
+    r.fill(Response::indifferent());
+    for (const auto& [f, response] : given) r[factorIndex(f)] = response;
     return r;
 }
 

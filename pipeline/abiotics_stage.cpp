@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cstdio>
+#include <limits>
 #include <ostream>
 
 #include "atomic_file.h"
@@ -35,41 +37,76 @@ std::string monthlyName(const std::string& dir, const std::string& map, int m) {
     return dir + "/" + buf;
 }
 
+/// A picture's title, colour map and colour range (vmin >= vmax: the data's own).
+struct PictureStyle {
+    std::string title;
+    Colormap cmap;
+    double vmin = 0, vmax = 0;
+};
+
+/// The picture of map m of kAbioticMaps. The sun, moisture and wind have ranges of their own
+/// (fixed, so that months and biomes compare); every other map, a map added later too, is
+/// drawn in Viridis with its factor's label as the title over the range of its values (for
+/// a monthly map, over all its months, so that months compare), with no line here.
+PictureStyle pictureStyle(const AbioticMapInfo& m, const Abiotics& a, const Biome& biome) {
+    const std::string name = m.name;
+    if (name == "sun") return {"Sunlight", Colormap::Heat, 0.0, kSunPngMaxHours};
+    if (name == "moisture") return {"Soil moisture", Colormap::Blues, 0.0, biome.soil.saturationMm};
+    // Wind: 0 (sheltered) .. the biome's strength (open ground), so that biomes compare.
+    if (name == "wind") return {"Wind exposure", Colormap::Blues, 0.0, std::max(biome.wind.strengthMS, 1e-3)};
+    std::string title = kFactors[factorIndex(m.factor)].label;
+    if (!title.empty()) title[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(title[0])));
+    if (!m.isMonthly()) return {title, Colormap::Viridis};
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    forEachPlane(a, m, [&](const Grid<float>& g) {
+        lo = std::min<double>(lo, g.minValue());
+        hi = std::max<double>(hi, g.maxValue());
+    });
+    return {title, Colormap::Viridis, lo, hi};
+}
+
+/// The elevation, then each static map, then each month's monthly maps, in kAbioticMaps order.
 void writePictures(const std::string& dir, const Abiotics& a, const Biome& biome, Reporter& reporter,
                    std::vector<std::string>& written) {
     ensureDirectory(dir);
-    double tMin = a.temperatureC[0].minValue(), tMax = a.temperatureC[0].maxValue();
-    for (const auto& g : a.temperatureC.months) {
-        tMin = std::min<double>(tMin, g.minValue());
-        tMax = std::max<double>(tMax, g.maxValue());
-    }
-    auto bar = reporter.progress("abiotics pictures", 3 + 3 * 12);
+    std::size_t monthlyMaps = 0;
+    for (const AbioticMapInfo& m : kAbioticMaps) monthlyMaps += m.isMonthly() ? 1 : 0;
+    auto bar = reporter.progress("abiotics pictures",
+                                 static_cast<long>(1 + kStaticMapCount + monthlyMaps * 12));
     long done = 0;
+    std::string listed = "elevation.png";
     writeMapPng(dir + "/elevation.png", a.elevationM, "Elevation", "m", Colormap::Terrain);
+    written.push_back(dir + "/elevation.png");
     bar->update(++done);
-    writeMapPng(dir + "/slope.png", a.slopeDeg, "Slope", "degrees", Colormap::Viridis);
-    bar->update(++done);
-    // Wind: 0 (sheltered) .. the biome's strength (open ground), so that biomes compare.
-    writeMapPng(dir + "/wind.png", a.windMS, "Wind exposure", "m/s", Colormap::Blues, 0.0,
-                std::max(biome.wind.strengthMS, 1e-3));
-    bar->update(++done);
-    written.insert(written.end(), {dir + "/elevation.png", dir + "/slope.png", dir + "/wind.png"});
-    for (int m = 0; m < 12; ++m) {
-        const std::string month = kMonthLong[static_cast<std::size_t>(m)];
-        writeMapPng(monthlyName(dir, "sun", m), a.sunHours[m], "Sunlight, " + month, "hours/day", Colormap::Heat, 0.0,
-                    kSunPngMaxHours);
-        writeMapPng(monthlyName(dir, "moisture", m), a.moistureMm[m], "Soil moisture, " + month, "mm/month",
-                    Colormap::Blues, 0.0, biome.soil.saturationMm);
-        writeMapPng(monthlyName(dir, "temperature", m), a.temperatureC[m], "Temperature, " + month, "degC",
-                    Colormap::Viridis, tMin, tMax);
-        written.insert(written.end(), {monthlyName(dir, "sun", m), monthlyName(dir, "moisture", m),
-                                       monthlyName(dir, "temperature", m)});
-        done += 3;
+    for (const AbioticMapInfo& m : kStaticMaps) {
+        const PictureStyle style = pictureStyle(m, a, biome);
+        const std::string path = dir + "/" + m.name + ".png";
+        writeMapPng(path, a.*(m.single), style.title, m.unit, style.cmap, style.vmin, style.vmax);
+        written.push_back(path);
+        listed += std::string(", ") + m.name + ".png";
+        bar->update(++done);
+    }
+    std::vector<PictureStyle> styles(kAbioticMaps.size());
+    for (std::size_t i = 0; i < kAbioticMaps.size(); ++i)
+        if (kAbioticMaps[i].isMonthly()) {
+            styles[i] = pictureStyle(kAbioticMaps[i], a, biome);
+            listed += std::string(", ") + kAbioticMaps[i].name + "_MM_mon.png";
+        }
+    for (int month = 0; month < 12; ++month) {
+        const std::string monthName = kMonthLong[static_cast<std::size_t>(month)];
+        for (std::size_t i = 0; i < kAbioticMaps.size(); ++i) {
+            const AbioticMapInfo& m = kAbioticMaps[i];
+            if (!m.isMonthly()) continue;
+            const std::string path = monthlyName(dir, m.name, month);
+            writeMapPng(path, (a.*(m.monthly))[month], styles[i].title + ", " + monthName, m.unit, styles[i].cmap,
+                        styles[i].vmin, styles[i].vmax);
+            written.push_back(path);
+            ++done;
+        }
         bar->update(done);
     }
     bar->finish();
-    reporter.out() << "wrote pictures: " << dir << "/ (elevation.png, slope.png, wind.png, sun_MM_mon.png, moisture_MM_mon.png, "
-                   << "temperature_MM_mon.png for 12 months)\n";
+    reporter.out() << "wrote pictures: " << dir << "/ (" << listed << " for 12 months)\n";
 }
 
 }  // namespace
@@ -115,9 +152,16 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
     AtomicOutputSet outputs;  // the abiotics file, GeoTIFFs and pictures together
     writeAbiotics(args.out, maps, biome, params);
     result.written.push_back(args.out);
-    reporter.out() << "wrote abiotics: " << args.out << " (/elevation, /slope, /sun [12][" << terrain.height() << "]["
-                   << terrain.width() << "] hours/day" << (args.canopy.empty() ? "" : " under the canopy")
-                   << ", /moisture mm, /temperature degC, /wind m/s)\n";
+    // "/elevation m, /slope degrees, /sun [12][H][W] hours/day, ...": every map of the file.
+    std::string listed = "/elevation m";
+    for (const AbioticMapInfo& m : kAbioticMaps) {
+        listed += std::string(", ") + m.dataset;
+        if (m.isMonthly())
+            listed += " [12][" + std::to_string(terrain.height()) + "][" + std::to_string(terrain.width()) + "]";
+        listed += std::string(" ") + m.unit;
+        if (m.factor == Factor::Sun && !args.canopy.empty()) listed += " under the canopy";
+    }
+    reporter.out() << "wrote abiotics: " << args.out << " (" << listed << ")\n";
     if (!args.geotiffDir.empty()) writeGeoTiffs(args.out, outputs, args.geotiffDir, reporter, result.written);
     if (!args.pngDir.empty()) writePictures(args.pngDir, maps, biome, reporter, result.written);
     outputs.commit();

@@ -22,17 +22,32 @@ SimInputs makeDemoScene(const DemoSceneParams& p, const Biome& biome) {
     SimInputs in;
     in.biome = biome;
     if (p.uniformAbiotics) {
+        // Every map of kAbioticMaps first takes its model's value on open flat ground at 100 m
+        // (3 x 3 cells, the biome's climate), uniform: the wind is the biome's full strength.
+        // A map added later thus needs no line here. Then the demo's own constant climate
+        // replaces the sun, moisture and temperature, and its slope the flat ground's.
+        AbioticParams flatParams;
+        flatParams.sun.stepMinutes = 60;
+        flatParams.moistureSpinUpYears = 0;
+        const Abiotics flat =
+            computeAbiotics(Grid<float>(3, 3, elevation.cellSizeM(), 0.0, 0.0, 100.f), biome, flatParams);
         in.abiotics.elevationM = Grid<float>::like(elevation, 100.f);
+        for (const AbioticMapInfo& map : kAbioticMaps) {
+            if (map.isMonthly())
+                for (const Grid<float>& plane : (flat.*(map.monthly)).months)
+                    (in.abiotics.*(map.monthly)).months.push_back(Grid<float>::like(elevation, plane(1, 1)));
+            else
+                in.abiotics.*(map.single) = Grid<float>::like(elevation, (flat.*(map.single))(1, 1));
+        }
         in.abiotics.slopeDeg = Grid<float>::like(elevation, 5.f);
-        in.abiotics.windMS = Grid<float>::like(elevation, static_cast<float>(biome.wind.strengthMS));  // open ground
         for (int m = 0; m < 12; ++m) {
             // Day length at the biome's latitude; soil water following the rain, lagged.
             const double day = 12.0 + 2.4 * std::cos((m - 5.5) / 12.0 * 2.0 * M_PI);
-            in.abiotics.sunHours.months.push_back(Grid<float>::like(elevation, static_cast<float>(day)));
+            in.abiotics.sunHours[m] = Grid<float>::like(elevation, static_cast<float>(day));
             const double water = std::min(180.0, 0.8 * biome.climate.rainfallMm[static_cast<std::size_t>(m)] + 30.0);
-            in.abiotics.moistureMm.months.push_back(Grid<float>::like(elevation, static_cast<float>(water)));
+            in.abiotics.moistureMm[m] = Grid<float>::like(elevation, static_cast<float>(water));
             const double t = biome.climate.temperatureC[static_cast<std::size_t>(m)] - 100.0 * biome.climate.lapseRateCPerKm / 1000.0;
-            in.abiotics.temperatureC.months.push_back(Grid<float>::like(elevation, static_cast<float>(t)));
+            in.abiotics.temperatureC[m] = Grid<float>::like(elevation, static_cast<float>(t));
         }
     } else {
         AbioticParams ap;

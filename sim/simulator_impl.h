@@ -294,24 +294,31 @@ struct Simulation::Impl : CellGrid {
     BatchVigourShape vigourShape() const { return BatchVigourShape{vigPIsFourAndHalf, vigP, vigLnQ, vigA}; }
     // A plant's features (factors.h order): its sun and water shares (the resources the sweep
     // shares out), the month's temperature (germination: its season mean) and the static
-    // factors of the abiotics cell of its root, read from the planes held here. A new static
-    // factor is one more plane in SitePlanes and one line in features() (docs/factors.md).
-    // Held by value, so that the monthly update and germination keep it in locals.
+    // factors of the abiotics cell of its root, read from the static maps of kAbioticMaps
+    // (core/abiotics.h) held here, one plane per static map. A new static factor needs no
+    // line here (docs/factors.md); a new monthly one does (the static_assert says so).
+    // Held by value, so that the monthly update and germination keep it in locals; the
+    // loop over the planes has a length and factor indices known at compile time, so it
+    // unrolls into the loads of the named planes before.
     struct SitePlanes {
-        const float* slope;
-        const float* wind;
+        std::array<const float*, kStaticMapCount> plane;
         Features features(double sun, double water, double temp, std::size_t coarseCell) const {
-            static_assert(kFactorCount == 5, "a new factor: give the plant's value here (docs/factors.md)");
+            static_assert(kStaticMapCount + 3 == kFactorCount && detail::isMonthlyFactor(Factor::Sun) &&
+                              detail::isMonthlyFactor(Factor::Moisture) && detail::isMonthlyFactor(Factor::Temperature),
+                          "a new monthly factor: give the plant's value here (docs/factors.md)");
             Features x{};
             x[factorIndex(Factor::Sun)] = sun;
             x[factorIndex(Factor::Moisture)] = water;
             x[factorIndex(Factor::Temperature)] = temp;
-            x[factorIndex(Factor::Slope)] = slope[coarseCell];
-            x[factorIndex(Factor::Wind)] = wind[coarseCell];
+            for (std::size_t i = 0; i < kStaticMapCount; ++i) x[factorIndex(kStaticMaps[i].factor)] = plane[i][coarseCell];
             return x;
         }
     };
-    SitePlanes sitePlanes() const { return SitePlanes{abio.slopeDeg.data().data(), abio.windMS.data().data()}; }
+    SitePlanes sitePlanes() const {
+        SitePlanes site{};
+        for (std::size_t i = 0; i < kStaticMapCount; ++i) site.plane[i] = (abio.*(kStaticMaps[i].single)).data().data();
+        return site;
+    }
 
     // Crown radius of species s at height h: the allometry of Table 3 (core/biome.h), r = f h
     // or r = exp(a + b ln h), with batch_math.h's log and exp. Every radius of the simulator

@@ -27,10 +27,12 @@ namespace eco::synth {
 struct ForestFloorParams {
     /// Per factor (factors.h order; parameters grass_<factor>_c / _r): sun 11.5 / 7 hours/day
     /// (open, sunny ground suits grass best), moisture 76 / 128 mm, temperature 13.5 / 43 degC,
-    /// slope 0 / 50 degrees (flat ground holds soil and grass); indifferent to wind (an
-    /// indifferent response is neither checked nor recorded).
-    Responses grass = {{{11.5, 7.0}, {76.0, 128.0}, {13.5, 43.0}, {0.0, 50.0}, Response::indifferent()}};
-    static_assert(kFactorCount == 5, "a new factor: give the grass's response to it here (docs/factors.md)");
+    /// slope 0 / 50 degrees (flat ground holds soil and grass); indifferent to wind and to any
+    /// factor not named here (an indifferent response is neither checked nor recorded).
+    Responses grass = responsesFor({{Factor::Sun, {11.5, 7.0}},
+                                    {Factor::Moisture, {76.0, 128.0}},
+                                    {Factor::Temperature, {13.5, 43.0}},
+                                    {Factor::Slope, {0.0, 50.0}}});
     Response& grassResponse(Factor f) { return grass[factorIndex(f)]; }
     const Response& grassResponse(Factor f) const { return grass[factorIndex(f)]; }
     bool undergrowthShades = true;          ///< undergrowth crowns shade grass and drop litter too

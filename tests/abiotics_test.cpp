@@ -633,6 +633,49 @@ TEST_CASE("abiotics: reading a broken abiotics file names the file and the datas
     REQUIRE_THROWS_AS(readAbiotics(dir.file("nonexistent.h5")), IoError);
 }
 
+TEST_CASE("abiotics: a file without a map of the table is refused naming it, an extra map is left alone",
+          "[abiotics][factors]") {
+    // A factor added later adds its row to kAbioticMaps without a new schema version: the
+    // reader looks for every map by its dataset, so a file written before the map existed
+    // is refused naming it, and a file written by a later version (a map this version does
+    // not know) is read for the maps it knows (docs/factors.md).
+    test::TempDir dir("abiotics_maps");
+    const Grid<float> z = roughTerrain(10, 8, 1.0);
+    AbioticParams params;
+    params.sun.stepMinutes = 60;
+    const Abiotics a = computeAbiotics(z, testBiome(), params);
+    auto write = [&](const std::string& path, const AbioticMapInfo* left, bool extra) {
+        h5::File f = h5::File::create(path);
+        f.writeGrid("/elevation", a.elevationM, "m");
+        for (const AbioticMapInfo& m : kAbioticMaps) {
+            if (&m == left) continue;
+            if (m.isMonthly()) f.writeStack(m.dataset, (a.*(m.monthly)).months, m.unit);
+            else f.writeGrid(m.dataset, a.*(m.single), m.unit);
+        }
+        if (extra) f.writeGrid("/soil_depth", a.slopeDeg, "m");
+        f.setAttr("/", "format", std::string("eco-abiotics"));
+        f.setAttr("/", "schema_version", static_cast<std::int64_t>(2));
+    };
+    for (const AbioticMapInfo& m : kAbioticMaps) {
+        INFO(m.name);
+        const std::string path = dir.file(std::string("without_") + m.name + ".h5");
+        write(path, &m, false);
+        REQUIRE_THROWS_AS(readAbiotics(path), IoError);
+        REQUIRE_THROWS_WITH(readAbiotics(path), Catch::Contains(path) && Catch::Contains(std::string("dataset ") + m.dataset) &&
+                                                    Catch::Contains(std::string("written before the ") + m.name + " map") &&
+                                                    Catch::Contains("re-run eco abiotics"));
+    }
+    const std::string newer = dir.file("newer.h5");
+    write(newer, nullptr, true);
+    const Abiotics b = readAbiotics(newer);
+    for (const AbioticMapInfo& m : kAbioticMaps) {
+        INFO(m.name);
+        const Grid<float> want = annualMap(a, m), got = annualMap(b, m);
+        REQUIRE(got.sameGeometry(want));
+        CHECK(got.data() == want.data());
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Wind (EcoMod's wind shelter)
 

@@ -1,12 +1,16 @@
 // The factor axis (core/factors.h) and the vigour kernel (core/vigour.h), including the
 // fifth factor, wind exposure (Zamuda & Brest's EcoMod): a species without a wind response
 // is indifferent and keeps the vigour of the paper's four factors bit for bit (both
-// kernels, against the kernels instantiated on four factors); docs/factors.md.
+// kernels, against the kernels instantiated on four factors); and a test-only sixth factor,
+// what the next factor does to Eq. 1, with the tables it is read from; docs/factors.md.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <limits>
+#include <string>
 
+#include "abiotics.h"
 #include "biome.h"
 #include "factors.h"
 #include "rng.h"
@@ -139,4 +143,99 @@ TEST_CASE("a wind response enters the min of Eq. 1 when it is the lowest", "[fac
     CHECK(rw.alpha * minResponse(g, rw.responses, opt) == Approx(-g.a * rw.alpha));
     opt[factorIndex(Factor::Wind)] = 2.0;
     CHECK(rw.alpha * minResponse(g, rw.responses, opt) == Approx(rw.alpha));
+}
+
+// ---------------------------------------------------------------------------------------
+// A test-only sixth factor: what a factor added after the wind does to Eq. 1, and the
+// tables a new factor is read from (docs/factors.md "Adding a factor").
+
+namespace {
+
+constexpr std::size_t kSix = kFactorCount + 1;  // today's factors and one more
+
+template <std::size_t N, typename T>
+std::array<T, N + 1> withSixth(const std::array<T, N>& five, const T& sixth) {
+    std::array<T, N + 1> out{};
+    for (std::size_t f = 0; f < N; ++f) out[f] = five[f];
+    out[N] = sixth;
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("a sixth factor nobody responds to leaves every vigour bit for bit, one that responds can win the min",
+          "[factors][vigour]") {
+    // A factor added to the table is one more entry of every Features and Responses: the
+    // kernels, instantiated on six factors, must give the five-factor results bit for bit
+    // when every species is indifferent to it (as responsesFor and defaultResponses leave
+    // a species or the grass), whatever its value, and must let it win the min when the
+    // species responds to it most strongly.
+    const Biome b = defaultBiome();
+    const VigourShape& g = b.vigour;
+    const BatchVigourShape batch = BatchVigourShape::from(g);
+    const double lnQ = std::log(g.q);
+    RandomStream rng(23, 7);
+    for (int k = 0; k < 300; ++k) {
+        const Features x5 = randomFeatures(rng);
+        const double sixth = k % 5 == 0 ? 0.0 : k % 13 == 0 ? -1e9 : rng.uniform(-50, 500);
+        const FeaturesOf<kSix> x6 = withSixth(x5, sixth);
+        for (const Species& s : b.species) {
+            const ResponsesOf<kSix> r6 = withSixth(s.responses, Response::indifferent());
+            REQUIRE(minResponse(g, r6, x6) == minResponse(g, s.responses, x5));
+            REQUIRE(maxNormalisedDistance(r6, x6) == maxNormalisedDistance(s.responses, x5));
+            REQUIRE(vigourAtDistance(s.alpha, maxNormalisedDistance(r6, x6), g.a, g.p, lnQ) ==
+                    vigourAtDistance(s.alpha, maxNormalisedDistance(s.responses, x5), g.a, g.p, lnQ));
+            const VigourCoeffsOf<kSix> k6 = VigourCoeffsOf<kSix>::from(s.alpha, r6);
+            REQUIRE(k6.invR[kFactorCount] == 0.0);
+            REQUIRE(batch.exponent(k6, x6) == batch.exponent(VigourCoeffs::from(s.alpha, s.responses), x5));
+            // Responding: the min of the five and the sixth's own g, in both forms.
+            const ResponsesOf<kSix> responding = withSixth(s.responses, Response{100.0, 80.0});
+            const double five = minResponse(g, s.responses, x5);
+            const double six = minResponse(g, responding, x6);
+            REQUIRE(six == std::min(five, g.g(sixth - 100.0, 80.0)));
+            const VigourCoeffsOf<kSix> kr = VigourCoeffsOf<kSix>::from(s.alpha, responding);
+            REQUIRE(batch.fromExp(s.alpha, std::exp(batch.exponent(kr, x6))) == Approx(s.alpha * six).margin(1e-12));
+        }
+    }
+}
+
+TEST_CASE("responsesFor gives the factors named and leaves every other indifferent", "[factors][vigour]") {
+    // The forest floor's grass is built so (synth/forest_floor.h): a factor added later
+    // finds the grass indifferent to it with no line of its own.
+    const Responses r = responsesFor({{Factor::Moisture, {76.0, 128.0}}, {Factor::Slope, {0.0, 50.0}}});
+    for (std::size_t f = 0; f < kFactorCount; ++f) {
+        INFO(kFactors[f].key);
+        const bool named = f == factorIndex(Factor::Moisture) || f == factorIndex(Factor::Slope);
+        CHECK(r[f].isIndifferent() == !named);
+    }
+    CHECK(r[factorIndex(Factor::Moisture)].c == 76.0);
+    CHECK(r[factorIndex(Factor::Moisture)].r == 128.0);
+    CHECK(r[factorIndex(Factor::Slope)].r == 50.0);
+}
+
+TEST_CASE("every factor has one map, and the simulator's static planes are the table's static maps", "[factors][abiotics]") {
+    // The simulator reads the plant's sun and water from its sweep and the temperature from
+    // the month's map; every other factor from a static map, in kStaticMaps' order
+    // (sim/simulator_impl.h SitePlanes). A new static factor is one more row of
+    // kAbioticMaps and thus one more plane there.
+    std::array<int, kFactorCount> maps{};
+    for (const AbioticMapInfo& m : kAbioticMaps) {
+        INFO(m.name);
+        ++maps[factorIndex(m.factor)];
+        CHECK(std::string(m.dataset) == std::string("/") + m.name);
+        CHECK(m.lo < m.hi);
+    }
+    for (std::size_t f = 0; f < kFactorCount; ++f) CHECK(maps[f] == 1);
+    std::size_t next = 0;
+    for (const AbioticMapInfo& m : kAbioticMaps) {
+        if (m.isMonthly()) continue;
+        REQUIRE(next < kStaticMapCount);
+        CHECK(std::string(kStaticMaps[next].name) == m.name);
+        CHECK(kStaticMaps[next].single == m.single);
+        ++next;
+    }
+    CHECK(next == kStaticMapCount);
+    for (const Factor f : {Factor::Sun, Factor::Moisture, Factor::Temperature}) CHECK(detail::isMonthlyFactor(f));
+    CHECK_FALSE(detail::isMonthlyFactor(Factor::Slope));
+    CHECK_FALSE(detail::isMonthlyFactor(Factor::Wind));
 }

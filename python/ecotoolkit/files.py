@@ -1,5 +1,6 @@
 """Readers for every HDF5 file eco writes (docs/hdf5.md "The files")."""
 
+import h5py
 import numpy as np
 
 from ._h5 import (EcoFormatError, attrs_of, decode, is_dimension_scale, open_checked, read_strings, sniff_format,
@@ -77,25 +78,40 @@ def read_chm(path):
 # ------------------------------------------------------------------------------- abiotics
 
 class Abiotics(EcoFile):
-    """``elevation`` (m), ``slope`` (degrees) and ``wind`` (m/s, schema 2; None in a
-    schema 1 file): 2-D Grids; ``sun`` (hours/day), ``moisture`` (mm/month), ``temperature``
-    (degC): monthly Grids ``[12][y][x]`` with ``months`` 1..12. ``grids``: all by name. Climate and model parameters are in
-    ``attrs`` (e.g. ``attrs["climate_rainfall_mm"]``, 12 values)."""
+    """One Grid per map of the file, by its dataset's name: ``elevation`` (m), ``slope``
+    (degrees), ``wind`` (m/s, schema 2; None in a schema 1 file): 2-D Grids; ``sun``
+    (hours/day), ``moisture`` (mm/month), ``temperature`` (degC): monthly Grids
+    ``[12][y][x]`` with ``months`` 1..12. ``grids``: all by name. The maps are the grid
+    datasets the file holds (a 3-D one is monthly), so a map added to eco later is read
+    with no change here. Climate and model parameters are in ``attrs`` (e.g.
+    ``attrs["climate_rainfall_mm"]``, 12 values)."""
+
+    wind = None
+
+
+#: The maps every eco-abiotics file has (the paper's four factors and the terrain).
+_ABIOTICS_REQUIRED = ("elevation", "slope", "sun", "moisture", "temperature")
 
 
 def read_abiotics(path):
-    """Abiotic maps (``eco abiotics``, format eco-abiotics)."""
+    """Abiotic maps (``eco abiotics``, format eco-abiotics): every grid dataset at the
+    file's root (one with a cell size, not a coordinate scale), by name."""
     f, fmt, version = open_checked(path, "eco-abiotics")
     with f:
         a = Abiotics(path, fmt, version, f)
         a.grids = {}
-        for name, monthly in (("elevation", False), ("slope", False), ("sun", True), ("moisture", True),
-                              ("temperature", True)):
-            a.grids[name] = read_grid(f, "/" + name, path, monthly=monthly)
-            setattr(a, name, a.grids[name])
-        a.wind = None
-        if version >= 2:
-            a.grids["wind"] = a.wind = read_grid(f, "/wind", path, monthly=False)
+        for name in _ABIOTICS_REQUIRED:
+            if name not in f:
+                raise EcoFormatError(f"{path}: dataset /{name} is missing")
+        for name, obj in f.items():
+            if not isinstance(obj, h5py.Dataset) or is_dimension_scale(obj) or "cell_size_m" not in obj.attrs:
+                continue
+            grid = read_grid(f, "/" + name, path)
+            if grid.values.ndim == 3 and grid.values.shape[0] != 12:
+                raise EcoFormatError(f"{path}: /{name}: {grid.values.shape[0]} planes, expected 12 (one per month)")
+            a.grids[name] = grid
+            if name not in vars(a):
+                setattr(a, name, grid)
     return a
 
 

@@ -424,23 +424,30 @@ class TestFormatChecks(unittest.TestCase):
                     f.attrs[k] = v
         return target
 
-    def test_a_database_before_the_wind_column_is_still_read_by_eco(self):
-        # Schema 4 had four feature columns and no /features/weights: made here from the
-        # schema 5 database, eco must read it with the wind left out (weight 0) and find the
-        # same regions, so the same scene comes out of it (docs/database.md, "Versions").
-        target = self.copy_with("db.h5", "db-v4.h5", schema_version=np.int64(4))
+    def truncate_features(self, target, keep):
+        # The feature columns of a database cut to the first `keep` factors (as a database
+        # written before the others existed would have them).
         with h5py.File(target, "r+") as f:
-            last = f["features/names"][()][-1]
-            self.assertEqual(last.decode() if isinstance(last, bytes) else last, "wind")
-            del f["features/weights"]
+            if "features/weights" in f:
+                del f["features/weights"]
             for name in ("features/names", "features/units", "combinations/feature_mean", "combinations/feature_std",
                          "regions/centroid_normalised", "regions/centroid_raw"):
                 old = f[name]
                 data, dtype, attrs = old[()], old.dtype, dict(old.attrs)
                 del f[name]
-                new = f.create_dataset(name, data=data[..., :4], dtype=dtype)
+                new = f.create_dataset(name, data=data[..., :keep], dtype=dtype)
                 for k, v in attrs.items():
                     new.attrs[k] = v
+
+    def test_a_database_before_the_wind_column_is_still_read_by_eco(self):
+        # Schema 4 had four feature columns and no /features/weights: made here from the
+        # schema 5 database, eco must read it with the wind left out (weight 0) and find the
+        # same regions, so the same scene comes out of it (docs/database.md, "Versions").
+        target = self.copy_with("db.h5", "db-v4.h5", schema_version=np.int64(4))
+        with h5py.File(target, "r") as f:
+            last = f["features/names"][()][-1]
+            self.assertEqual(last.decode() if isinstance(last, bytes) else last, "wind")
+        self.truncate_features(target, 4)
         listing = run_eco("inspect-v4", "inspect", "db-v4.h5")
         self.assertIn("schema 4", listing)
         strip = lambda text: [re.sub(r", wind [-0-9.e+]+ m/s", "", line) for line in text.splitlines()
@@ -451,6 +458,55 @@ class TestFormatChecks(unittest.TestCase):
                 "--abiotics", "abiotics.h5", "--out", "scene-v4.h5", "--csv", "scene-v4.csv")
         with open(path("scene.csv")) as a, open(path("scene-v4.csv")) as b:
             self.assertEqual(a.read(), b.read())
+
+    def test_a_database_without_a_required_factor_is_refused_by_eco_naming_it(self):
+        # A required factor added after a database was written is not guessed (docs/database.md
+        # "Versions"): eco refuses the file, naming the factor it lacks, whatever its version.
+        target = self.copy_with("db.h5", "db-three.h5")
+        self.truncate_features(target, 3)
+        r = subprocess.run([ECO, "inspect", "db-three.h5"], cwd=D, capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        for part in ("db-three.h5", "/features/names", "no feature 'slope'", "before the factor slope existed",
+                     "re-run eco analyse"):
+            self.assertIn(part, r.stderr)
+        # By name, not by version: a version 5 file without the (optional) wind is read.
+        target = self.copy_with("db.h5", "db-v5-no-wind.h5")
+        self.truncate_features(target, 4)
+        self.assertIn("schema 5", run_eco("inspect-v5-no-wind", "inspect", "db-v5-no-wind.h5"))
+
+    def test_a_map_added_later_is_read_by_name_and_eco_reads_the_maps_it_knows(self):
+        # A factor added to eco is one more grid dataset of the abiotics file, in the same
+        # schema version (docs/factors.md): read_abiotics reads it by its name with no change
+        # here, and eco reads such a file (written by a later eco) for the maps it knows.
+        target = self.copy_with("abiotics.h5", "abiotics-more.h5")
+        with h5py.File(target, "r+") as f:
+            for name, source in (("soil_depth", "slope"), ("humidity", "moisture")):
+                f.create_dataset(name, data=f[source][()] + 1)
+                for k in ("cell_size_m", "origin_x_m", "origin_y_m"):
+                    f[name].attrs[k] = f[source].attrs[k]
+                f[name].attrs["units"] = "test units"
+        a = eco.read_abiotics(target)
+        ref = eco.read_abiotics(path("abiotics.h5"))
+        self.assertEqual(set(a.grids), set(ref.grids) | {"soil_depth", "humidity"})
+        np.testing.assert_array_equal(a.soil_depth.values, ref.slope.values + 1)
+        self.assertIsNone(a.soil_depth.months)
+        np.testing.assert_array_equal(a.humidity.months, np.arange(1, 13))
+        np.testing.assert_array_equal(a.humidity.values, ref.moisture.values + 1)
+        self.assertEqual(a.humidity.units, "test units")
+        run_eco("synth-more", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db.h5",
+                "--abiotics", "abiotics-more.h5", "--out", "scene-more.h5", "--csv", "scene-more.csv")
+        with open(path("scene.csv")) as x, open(path("scene-more.csv")) as y:
+            self.assertEqual(x.read(), y.read())
+        # A file without one of the maps eco knows is refused naming it.
+        target = self.copy_with("abiotics.h5", "abiotics-less.h5")
+        with h5py.File(target, "r+") as f:
+            del f["wind"]
+        r = subprocess.run([ECO, "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db.h5",
+                            "--abiotics", "abiotics-less.h5", "--out", "scene-less.h5"], cwd=D, capture_output=True,
+                           text=True, timeout=120)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        for part in ("abiotics-less.h5", "dataset /wind is missing", "written before the wind map existed"):
+            self.assertIn(part, r.stderr)
 
     def test_every_output_opens_by_its_format(self):
         kinds = {"terrain.h5": eco.Terrain, "chm.h5": eco.Chm, "abiotics.h5": eco.Abiotics, "canopy.h5": eco.Canopy,
