@@ -646,6 +646,62 @@ struct HeightDraw {
     }
 };
 
+/// Random blocks made in one batch (randomBlocksBatch): requests (stream, counter) added in
+/// order, then made at once; word k of request i is word[k][i].
+struct BlockBatch {
+    std::vector<std::uint64_t> stream, counter;
+    std::vector<std::uint32_t> word[4];
+    void clear() {
+        stream.clear();
+        counter.clear();
+    }
+    void add(std::uint64_t s, std::uint64_t c) {
+        stream.push_back(s);
+        counter.push_back(c);
+    }
+    void make(std::uint64_t seed) {
+        const std::size_t n = stream.size();
+        for (auto& v : word)
+            if (v.size() < n) v.resize(std::max(n, 2 * v.size()));
+        randomBlocksBatch(seed, stream.data(), counter.data(), n, word[0].data(), word[1].data(), word[2].data(), word[3].data());
+    }
+    /// The uniform of words k, k + 1 of request i (RandomStream::uniform's bits).
+    double unit(std::size_t i, int k) const { return bitsToUnit(word[k][i], word[k + 1][i]); }
+};
+
+/// A cell of a row that throws free darts (the structured sampler's candidates).
+struct DartCell {
+    int ix;
+    std::uint32_t cell;
+    int region;
+    std::uint32_t mask, ctx;
+    double lambda;        ///< expected darts
+    double total;         ///< later passes: the sum of the species' rates
+    double expNeg;        ///< exp(-lambda) when lambda <= 100, else -1 (a count of several pieces)
+    std::size_t rates;    ///< later passes: where its cumulative species rates start in RowScratch::rates
+    std::uint64_t stream; ///< its darts' stream
+    int n = 0;            ///< darts
+};
+
+/// A cluster parent's offspring of one species.
+struct Brood {
+    double px, py, sigma, lmax, lambda;
+    std::uint32_t species;
+    int n;                     ///< offspring
+    int lead;                  ///< words of the count's block left after the count
+    std::uint32_t leadWord[4];
+    std::size_t firstBlock;    ///< its first block in RowScratch::blocks
+};
+
+/// A thread's scratch for the rows it makes.
+struct RowScratch {
+    std::vector<Candidate> cand;
+    std::vector<DartCell> cells;
+    std::vector<double> rates, cum;
+    std::vector<Brood> broods;
+    BlockBatch counts, blocks;
+};
+
 /// Random sequential adsorption with hard cores: in ascending key order, a candidate of a
 /// pass is dropped when a plant already placed (earlier passes, or this pass's admitted
 /// candidates of lower key) is nearer than their pair's hard-core distance (the matrix of
@@ -1151,11 +1207,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         std::vector<const Candidate*> rowPtr(static_cast<std::size_t>(h), nullptr);
         std::vector<std::size_t> rowCount(static_cast<std::size_t>(h), 0);
         std::vector<CandidateArena> arenas(maxThreads);
-        std::vector<std::vector<Candidate>> rowBuffer(maxThreads);
+        std::vector<RowScratch> scratch(maxThreads);
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
-        auto rowBody = [&](const int iy, std::vector<Candidate>& cand) {
-            std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
+        // The row's random blocks are made in batches (randomBlocksBatch, eight at a time:
+        // the same bits as the streams' one block at a time): first every dart count of the
+        // row, then every dart's two blocks, then the same for the cluster offspring.
+        auto rowBody = [&](const int iy, RowScratch& sc) {
+            std::vector<Candidate>& cand = sc.cand;
             // A candidate off the trunks joins the row's list.
             auto keep = [&](double x, double y, std::size_t cell, std::size_t s, std::uint64_t key) {
                 if (onTrunk(cell, x, y)) {
@@ -1165,6 +1224,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy), static_cast<std::uint32_t>(cell),
                                          static_cast<std::uint16_t>(s), static_cast<std::uint16_t>(pass)});
             };
+            // Free darts. The cells that throw them: pass 0 at the model's free rate (table by
+            // region, mask, context); later passes at each (region, species, tile)'s own missing
+            // share, in the tiles that still miss plants (a few per cent of the plants; the
+            // tiles' quotas keep the density where it is due), the species' cumulative rates kept.
+            sc.cells.clear();
+            sc.rates.clear();
+            sc.counts.clear();
             for (int ix = 0; ix < w; ++ix) {
                 const int r = map.region(ix, iy);
                 if (r < 0) continue;
@@ -1172,59 +1238,76 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const float wgt = map.seedWeight.data()[cell];
                 if (!(wgt > 0)) continue;
                 const std::size_t m = maskIdx.data()[cell], c = ctx.data()[cell];
+                DartCell dc{ix, static_cast<std::uint32_t>(cell), r, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(c), 0, 0, -1, 0, 0};
                 if (pass == 0) {
-                    // Free darts at the model's free rate (table by region, mask, context).
-                    const double lambdaFree = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
-                    if (lambdaFree > 0) {
-                        const std::uint64_t stream = mixStream(freeStream, cell);
-                        RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                        const int n = poissonCount(counter, lambdaFree, 65535,
-                                                   lambdaFree <= 100 ? expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c] : -1.0);
-                        for (int j = 0; j < n; ++j) {
-                            // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
-                            RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
-                            const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
-                            const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
-                            const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
-                            ++rowThrown[static_cast<std::size_t>(iy)];
-                            if (s >= 0) keep(x, y, cell, static_cast<std::size_t>(s), key);
-                        }
+                    dc.lambda = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
+                    if (!(dc.lambda > 0)) continue;
+                    if (dc.lambda <= 100) dc.expNeg = expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c];
+                } else {
+                    const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
+                                             static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
+                    if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
+                    const std::size_t at = sc.rates.size();
+                    double total = 0;
+                    for (std::size_t s = 0; s < nS; ++s) {
+                        const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
+                        const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
+                        total += f;
+                        sc.rates.push_back(total);
                     }
-                    continue;
+                    if (!(total > 0)) {
+                        sc.rates.resize(at);
+                        continue;
+                    }
+                    dc.total = total;
+                    dc.lambda = total * cellArea;
+                    if (dc.lambda <= 100) dc.expNeg = std::exp(-dc.lambda);
+                    dc.rates = at;
                 }
-                // Later passes: free darts only, at each (region, species, tile)'s own missing
-                // share, in the tiles that still miss plants (a few per cent of the plants; the
-                // tiles' quotas keep the density where it is due).
-                const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
-                                         static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
-                if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
-                double total = 0;
-                for (std::size_t s = 0; s < nS; ++s) {
-                    const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
-                    const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
-                    total += f;
-                    rates[s] = total;
+                dc.stream = mixStream(freeStream, cell);
+                sc.counts.add(mixStream(dc.stream, kParentStream), 0);  // the cell's count: block 0 of its own stream
+                sc.cells.push_back(dc);
+            }
+            sc.counts.make(params.seed);
+            sc.blocks.clear();
+            for (std::size_t i = 0; i < sc.cells.size(); ++i) {
+                DartCell& dc = sc.cells[i];
+                if (dc.expNeg >= 0) {
+                    dc.n = poissonInvert(sc.counts.unit(i, 0), dc.lambda, dc.expNeg, 65535);
+                } else {
+                    RandomStream counter(params.seed, sc.counts.stream[i], 0);
+                    dc.n = poissonCount(counter, dc.lambda, 65535);
                 }
-                if (!(total > 0)) continue;
-                const std::uint64_t stream = mixStream(freeStream, cell);
-                RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                const int n = poissonCount(counter, total * cellArea, 65535);
-                for (int j = 0; j < n; ++j) {
-                    RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
-                    const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
-                    const double u = rs.uniform() * total;
-                    std::size_t s = 0;
-                    while (s + 1 < nS && rates[s] <= u) ++s;
-                    const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
-                    ++rowThrown[static_cast<std::size_t>(iy)];
-                    keep(x, y, cell, s, key);
+                // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
+                for (int j = 0; j < dc.n; ++j) {
+                    sc.blocks.add(dc.stream, 2 * static_cast<std::uint64_t>(j));
+                    sc.blocks.add(dc.stream, 2 * static_cast<std::uint64_t>(j) + 1);
                 }
             }
+            sc.blocks.make(params.seed);
+            std::size_t q = 0;
+            for (const DartCell& dc : sc.cells)
+                for (int j = 0; j < dc.n; ++j, q += 2) {
+                    const double x = ox + (dc.ix + sc.blocks.unit(q, 0)) * cs, y = oy + (iy + sc.blocks.unit(q, 2)) * cs;
+                    const std::uint64_t key = (static_cast<std::uint64_t>(sc.blocks.word[2][q + 1]) << 32) | sc.blocks.word[3][q + 1];
+                    ++rowThrown[static_cast<std::size_t>(iy)];
+                    if (pass == 0) {
+                        const int s = table.pick(static_cast<std::size_t>(dc.region), dc.mask, dc.ctx, sc.blocks.unit(q + 1, 0));
+                        if (s >= 0) keep(x, y, dc.cell, static_cast<std::size_t>(s), key);
+                    } else {
+                        const double u = sc.blocks.unit(q + 1, 0) * dc.total;
+                        const double* rates = sc.rates.data() + dc.rates;
+                        std::size_t s = 0;
+                        while (s + 1 < nS && rates[s] <= u) ++s;
+                        keep(x, y, dc.cell, s, key);
+                    }
+                }
             if (pass != 0) return;
             // Cluster parents of each field (the same in every pass): per row a Poisson number
             // at the row's total rate kappa x area, each in a cell drawn by its rate; then
             // their offspring of each attached species.
-            std::vector<double> cum(static_cast<std::size_t>(w));
+            std::vector<double>& cum = sc.cum;
+            cum.resize(static_cast<std::size_t>(w));
             for (int k = 0; k < 2; ++k) {
                 double total = 0;
                 for (int ix = 0; ix < w; ++ix) {
@@ -1236,6 +1319,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 if (!(total > 0)) continue;
                 RandomStream prs(params.seed, mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(iy)), 0);
                 const int nParents = poissonCount(prs, total, 1 << 30);
+                // The broods (a parent's offspring of one species) in order, each with its
+                // count drawn from block 0 of its stream.
+                sc.broods.clear();
+                sc.counts.clear();
                 for (int j = 0; j < nParents; ++j) {
                     const double u = prs.uniform() * total;
                     int ix = static_cast<int>(std::upper_bound(cum.begin(), cum.end(), u) - cum.begin());
@@ -1253,21 +1340,63 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                             mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
                                       static_cast<std::uint64_t>(iy)),
                             static_cast<std::uint64_t>(j) * nS + s);
+                        Brood br{};
+                        br.px = px;
+                        br.py = py;
+                        br.sigma = st.sigmaM[k];
+                        br.lmax = lmax;
+                        br.lambda = passFactor[i] * a * lmax / st.parentsPerM2[k];
+                        br.species = static_cast<std::uint32_t>(s);
+                        sc.counts.add(oStream, 0);
+                        sc.broods.push_back(br);
+                    }
+                }
+                sc.counts.make(params.seed);
+                // Offspring o of a brood: its stream's words 8o .. 8o + 7 after the count
+                // (the count's block's words left over, then the blocks after it).
+                sc.blocks.clear();
+                for (std::size_t g = 0; g < sc.broods.size(); ++g) {
+                    Brood& br = sc.broods[g];
+                    const std::uint64_t oStream = sc.counts.stream[g];
+                    std::uint64_t nextBlock;
+                    if (br.lambda > 0 && br.lambda <= 100) {
+                        br.n = poissonInvert(sc.counts.unit(g, 0), br.lambda, std::exp(-br.lambda), 65535);
+                        br.lead = 2;
+                        br.leadWord[0] = sc.counts.word[2][g];
+                        br.leadWord[1] = sc.counts.word[3][g];
+                        nextBlock = 1;
+                    } else {
                         RandomStream ors(params.seed, oStream, 0);
-                        const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
-                        for (int o = 0; o < n; ++o) {
-                            // Gaussian displacement: both coordinates of one Box-Muller pair.
-                            const double u1 = 1.0 - ors.uniform(), u2 = ors.uniform();
-                            const double radius = st.sigmaM[k] * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
-                            const double x = px + radius * std::cos(angle), y = py + radius * std::sin(angle);
-                            const double uThin = ors.uniform();
-                            const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
-                            ++rowThrown[static_cast<std::size_t>(iy)];
-                            const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
-                            if (!terrainM.inside(cx, cy)) continue;
-                            const std::size_t oc = terrainM.index(cx, cy);
-                            if (uThin * lmax < intensity(oc, s)) keep(x, y, oc, s, key);
-                        }
+                        br.n = poissonCount(ors, br.lambda, 65535);
+                        br.lead = 0;
+                        for (int u = ors.usedWords(); u < 4; ++u) br.leadWord[br.lead++] = ors.buffered()[static_cast<std::size_t>(u)];
+                        nextBlock = ors.nextBlock();
+                    }
+                    br.firstBlock = sc.blocks.stream.size();
+                    const std::int64_t words = 8 * static_cast<std::int64_t>(br.n) - br.lead;
+                    for (std::int64_t b = 0; b < (words + 3) / 4; ++b) sc.blocks.add(oStream, nextBlock + static_cast<std::uint64_t>(b));
+                }
+                sc.blocks.make(params.seed);
+                for (const Brood& br : sc.broods) {
+                    auto word = [&](std::size_t t) -> std::uint32_t {
+                        if (t < static_cast<std::size_t>(br.lead)) return br.leadWord[t];
+                        const std::size_t v = t - static_cast<std::size_t>(br.lead);
+                        return sc.blocks.word[v % 4][br.firstBlock + v / 4];
+                    };
+                    const std::size_t s = br.species;
+                    for (std::size_t o = 0; o < static_cast<std::size_t>(br.n); ++o) {
+                        const std::size_t t = 8 * o;
+                        // Gaussian displacement: both coordinates of one Box-Muller pair.
+                        const double u1 = 1.0 - bitsToUnit(word(t), word(t + 1)), u2 = bitsToUnit(word(t + 2), word(t + 3));
+                        const double radius = br.sigma * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
+                        const double x = br.px + radius * std::cos(angle), y = br.py + radius * std::sin(angle);
+                        const double uThin = bitsToUnit(word(t + 4), word(t + 5));
+                        const std::uint64_t key = (static_cast<std::uint64_t>(word(t + 6)) << 32) | word(t + 7);
+                        ++rowThrown[static_cast<std::size_t>(iy)];
+                        const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
+                        if (!terrainM.inside(cx, cy)) continue;
+                        const std::size_t oc = terrainM.index(cx, cy);
+                        if (uThin * br.lmax < intensity(oc, s)) keep(x, y, oc, s, key);
                     }
                 }
             }
@@ -1275,13 +1404,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 #pragma omp parallel for schedule(dynamic, 8)
         for (int iy = 0; iy < h; ++iy) {
             const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
-            std::vector<Candidate>& cand = rowBuffer[t];
-            cand.clear();
-            rowBody(iy, cand);
-            rowCount[static_cast<std::size_t>(iy)] = cand.size();
-            rowPtr[static_cast<std::size_t>(iy)] = arenas[t].append(cand.data(), cand.size());
+            RowScratch& sc = scratch[t];
+            sc.cand.clear();
+            rowBody(iy, sc);
+            rowCount[static_cast<std::size_t>(iy)] = sc.cand.size();
+            rowPtr[static_cast<std::size_t>(iy)] = arenas[t].append(sc.cand.data(), sc.cand.size());
         }
-        std::vector<std::vector<Candidate>>().swap(rowBuffer);
+        std::vector<RowScratch>().swap(scratch);
         phase("candidates");
         std::vector<std::size_t> rowStart(static_cast<std::size_t>(h) + 1, 0);
         for (int iy = 0; iy < h; ++iy) {
