@@ -679,6 +679,7 @@ struct DartCell {
     double total;         ///< later passes: the sum of the species' rates
     double expNeg;        ///< exp(-lambda) when lambda <= 100, else -1 (a count of several pieces)
     std::size_t rates;    ///< later passes: where its cumulative species rates start in RowScratch::rates
+    std::uint32_t nRates; ///< later passes: how many (the species still missing plants in its tile)
     std::uint64_t stream; ///< its darts' stream
     int n = 0;            ///< darts
 };
@@ -690,7 +691,7 @@ struct Brood {
     int n;                     ///< offspring
     int lead;                  ///< words of the count's block left after the count
     std::uint32_t leadWord[4];
-    std::size_t firstBlock;    ///< its first block in RowScratch::blocks
+    std::size_t firstBlock;    ///< its first block in RowScratch::blocks, then its first word in RowScratch::words
 };
 
 /// A thread's scratch for the rows it makes.
@@ -698,6 +699,8 @@ struct RowScratch {
     std::vector<Candidate> cand;
     std::vector<DartCell> cells;
     std::vector<double> rates, cum;
+    std::vector<std::uint16_t> rateSpecies;  ///< the species of each entry of rates
+    std::vector<std::uint32_t> words;        ///< the broods' words, each brood's in order
     std::vector<Brood> broods;
     BlockBatch counts, blocks;
 };
@@ -954,47 +957,62 @@ void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::v
     out.plants.resize(count);
     out.plantRegion.resize(count);
     std::int64_t limited = 0;
-#pragma omp parallel for schedule(static) reduction(+ : limited)
-    for (std::int64_t i = 0; i < nPlants; ++i) {
-        // The plants come in cell order, read through the permutation from the pass order:
-        // the candidate some plants ahead fetched early (its cache miss was a quarter of
-        // this loop).
-        constexpr std::int64_t kAhead = 16;
-        if (order != nullptr && i + kAhead < nPlants) __builtin_prefetch(&accepted[order[i + kAhead]]);
-        const Candidate& cnd = accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)];
-        const std::size_t s = cnd.species;
-        const int r = map.region.data()[cnd.cell];
-        Plant p;
-        p.speciesId = static_cast<int>(s);
-        p.xM = ox + static_cast<double>(cnd.dx);
-        p.yM = oy + static_cast<double>(cnd.dy);
-        p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
-        const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
-        const bool covered = limit < CanopyCover::kNone;
-        const int d = drawOf[(static_cast<std::size_t>(r) * nS + s) * 2 + (covered ? 1 : 0)];
-        RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
-        const double u = rs.uniform();
-        double height;
-        if (d >= 0) {
-            const HeightDraw& draw = draws[static_cast<std::size_t>(d)];
-            const double top = covered ? draw.height.below(limit) : 1.0;
-            if (top > 0) {
-                height = draw.quantile(u * top);
-                if (covered && !(height < limit)) height = draw.height.quantile(u * top);
-                if (covered && top < 1.0) ++limited;
-            } else {
-                height = u * limit;  // the species never grew this low: below the crown, uniformly
-                ++limited;
+    // Chunks of plants, each plant's size uniform (block 0 of its key's stream) made for the
+    // whole chunk at once (randomBitsBatch: the same bits as RandomStream::uniform).
+    constexpr std::int64_t kChunk = 256;
+    const std::int64_t nChunks = (nPlants + kChunk - 1) / kChunk;
+#pragma omp parallel reduction(+ : limited)
+    {
+        std::uint64_t sizeStream[kChunk];
+        std::uint32_t w0[kChunk], w1[kChunk];
+#pragma omp for schedule(static)
+        for (std::int64_t chunk = 0; chunk < nChunks; ++chunk) {
+            const std::int64_t lo = chunk * kChunk, hi = std::min(nPlants, lo + kChunk);
+            for (std::int64_t i = lo; i < hi; ++i) {
+                // The plants come in cell order, read through the permutation from the pass
+                // order: the candidate some plants ahead fetched early (its cache miss was a
+                // quarter of this loop). The second loop finds the chunk's candidates in cache.
+                constexpr std::int64_t kAhead = 16;
+                if (order != nullptr && i + kAhead < nPlants) __builtin_prefetch(&accepted[order[i + kAhead]]);
+                sizeStream[i - lo] = mixStream(kSizeStream, accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)].key);
             }
-        } else {
-            height = 0.5 * biome.species[s].maxHeightM;
-            if (covered) height = std::min(height, u * limit);
+            randomBitsBatch(params.seed, sizeStream, 0, static_cast<std::size_t>(hi - lo), w0, w1);
+            for (std::int64_t i = lo; i < hi; ++i) {
+                const Candidate& cnd = accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)];
+                const std::size_t s = cnd.species;
+                const int r = map.region.data()[cnd.cell];
+                Plant p;
+                p.speciesId = static_cast<int>(s);
+                p.xM = ox + static_cast<double>(cnd.dx);
+                p.yM = oy + static_cast<double>(cnd.dy);
+                p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
+                const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
+                const bool covered = limit < CanopyCover::kNone;
+                const int d = drawOf[(static_cast<std::size_t>(r) * nS + s) * 2 + (covered ? 1 : 0)];
+                const double u = bitsToUnit(w0[i - lo], w1[i - lo]);
+                double height;
+                if (d >= 0) {
+                    const HeightDraw& draw = draws[static_cast<std::size_t>(d)];
+                    const double top = covered ? draw.height.below(limit) : 1.0;
+                    if (top > 0) {
+                        height = draw.quantile(u * top);
+                        if (covered && !(height < limit)) height = draw.height.quantile(u * top);
+                        if (covered && top < 1.0) ++limited;
+                    } else {
+                        height = u * limit;  // the species never grew this low: below the crown, uniformly
+                        ++limited;
+                    }
+                } else {
+                    height = 0.5 * biome.species[s].maxHeightM;
+                    if (covered) height = std::min(height, u * limit);
+                }
+                if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
+                p.heightM = std::max(0.0, height);
+                p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
+                out.plants[static_cast<std::size_t>(i)] = p;
+                out.plantRegion[static_cast<std::size_t>(i)] = r;
+            }
         }
-        if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
-        p.heightM = std::max(0.0, height);
-        p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
-        out.plants[static_cast<std::size_t>(i)] = p;
-        out.plantRegion[static_cast<std::size_t>(i)] = r;
     }
     out.heightsLimitedByCrown = limited;
 }
@@ -1162,6 +1180,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         out.passes = pass + 1;
         std::vector<double> groupFactor;
         std::vector<char> tileActive;
+        std::vector<std::uint16_t> tileSpecies;
+        std::vector<std::uint32_t> tileSpeciesStart;
         if (pass > 0) {
             groupFactor.assign(nGroups, 0.0);
             tileActive.assign(nR * nTiles, 0);
@@ -1173,6 +1193,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 groupFactor[g] = boost * scale[i] * double(missing) / std::max(1e-300, expectedG[g]);
                 tileActive[(i / nS) * nTiles + g % nTiles] = 1;
             }
+            // Per (region, tile): its species with a rate factor, ascending.
+            tileSpeciesStart.assign(nR * nTiles + 1, 0);
+            for (std::size_t r = 0; r < nR; ++r)
+                for (std::size_t t = 0; t < nTiles; ++t) {
+                    for (std::size_t sp = 0; sp < nS; ++sp)
+                        if (groupFactor[(r * nS + sp) * nTiles + t] > 0) tileSpecies.push_back(static_cast<std::uint16_t>(sp));
+                    tileSpeciesStart[r * nTiles + t + 1] = static_cast<std::uint32_t>(tileSpecies.size());
+                }
         }
         std::vector<char> activeRegion(nR, 0);
         for (std::size_t i = 0; i < nR * nS; ++i)
@@ -1230,6 +1258,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
             // tiles' quotas keep the density where it is due), the species' cumulative rates kept.
             sc.cells.clear();
             sc.rates.clear();
+            sc.rateSpecies.clear();
             sc.counts.clear();
             for (int ix = 0; ix < w; ++ix) {
                 const int r = map.region(ix, iy);
@@ -1238,7 +1267,7 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const float wgt = map.seedWeight.data()[cell];
                 if (!(wgt > 0)) continue;
                 const std::size_t m = maskIdx.data()[cell], c = ctx.data()[cell];
-                DartCell dc{ix, static_cast<std::uint32_t>(cell), r, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(c), 0, 0, -1, 0, 0};
+                DartCell dc{ix, static_cast<std::uint32_t>(cell), r, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(c), 0, 0, -1, 0, 0, 0};
                 if (pass == 0) {
                     dc.lambda = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
                     if (!(dc.lambda > 0)) continue;
@@ -1247,22 +1276,30 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
                                              static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
                     if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
+                    // The species' rates added in species order; those of a species that no
+                    // longer misses plants in the tile are 0 and leave the sums as they are, so
+                    // only the tile's missing species are listed (with their cumulative rate).
                     const std::size_t at = sc.rates.size();
+                    const std::size_t rt = static_cast<std::size_t>(r) * nTiles + tile;
                     double total = 0;
-                    for (std::size_t s = 0; s < nS; ++s) {
+                    for (std::uint32_t k = tileSpeciesStart[rt]; k < tileSpeciesStart[rt + 1]; ++k) {
+                        const std::size_t s = tileSpecies[k];
                         const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
                         const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
                         total += f;
                         sc.rates.push_back(total);
+                        sc.rateSpecies.push_back(static_cast<std::uint16_t>(s));
                     }
                     if (!(total > 0)) {
                         sc.rates.resize(at);
+                        sc.rateSpecies.resize(at);
                         continue;
                     }
                     dc.total = total;
                     dc.lambda = total * cellArea;
                     if (dc.lambda <= 100) dc.expNeg = std::exp(-dc.lambda);
                     dc.rates = at;
+                    dc.nRates = static_cast<std::uint32_t>(sc.rates.size() - at);
                 }
                 dc.stream = mixStream(freeStream, cell);
                 sc.counts.add(mixStream(dc.stream, kParentStream), 0);  // the cell's count: block 0 of its own stream
@@ -1295,11 +1332,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                         const int s = table.pick(static_cast<std::size_t>(dc.region), dc.mask, dc.ctx, sc.blocks.unit(q + 1, 0));
                         if (s >= 0) keep(x, y, dc.cell, static_cast<std::size_t>(s), key);
                     } else {
+                        // The first species whose cumulative rate exceeds u; the last one when
+                        // none does (the linear search over all species, which stopped there).
                         const double u = sc.blocks.unit(q + 1, 0) * dc.total;
                         const double* rates = sc.rates.data() + dc.rates;
-                        std::size_t s = 0;
-                        while (s + 1 < nS && rates[s] <= u) ++s;
-                        keep(x, y, dc.cell, s, key);
+                        std::size_t k = 0;
+                        while (k < dc.nRates && rates[k] <= u) ++k;
+                        keep(x, y, dc.cell, k < dc.nRates ? sc.rateSpecies[dc.rates + k] : nS - 1, key);
                     }
                 }
             if (pass != 0) return;
@@ -1377,12 +1416,19 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                     for (std::int64_t b = 0; b < (words + 3) / 4; ++b) sc.blocks.add(oStream, nextBlock + static_cast<std::uint64_t>(b));
                 }
                 sc.blocks.make(params.seed);
+                // Each brood's words in stream order (its count's leftovers, then its blocks).
+                sc.words.clear();
+                for (Brood& br : sc.broods) {
+                    const std::size_t begin = sc.words.size();
+                    for (int u = 0; u < br.lead; ++u) sc.words.push_back(br.leadWord[u]);
+                    const std::size_t nWords = 8 * static_cast<std::size_t>(br.n);
+                    for (std::size_t b = br.firstBlock; sc.words.size() - begin < nWords; ++b)
+                        for (int k = 0; k < 4; ++k) sc.words.push_back(sc.blocks.word[k][b]);
+                    br.firstBlock = begin;  // now: where its words start in sc.words
+                }
                 for (const Brood& br : sc.broods) {
-                    auto word = [&](std::size_t t) -> std::uint32_t {
-                        if (t < static_cast<std::size_t>(br.lead)) return br.leadWord[t];
-                        const std::size_t v = t - static_cast<std::size_t>(br.lead);
-                        return sc.blocks.word[v % 4][br.firstBlock + v / 4];
-                    };
+                    const std::uint32_t* wd = sc.words.data() + br.firstBlock;
+                    auto word = [&](std::size_t t) { return wd[t]; };
                     const std::size_t s = br.species;
                     for (std::size_t o = 0; o < static_cast<std::size_t>(br.n); ++o) {
                         const std::size_t t = 8 * o;
