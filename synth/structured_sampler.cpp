@@ -1062,6 +1062,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) maskIdx(ix, iy) = static_cast<std::uint16_t>(maskIndex(map.combination(ix, iy)));
     auto admits = [&](std::size_t m, std::size_t s) { return (subMask[s] & masks[m]) != 0; };
+    // Per mask index: the species it admits, ascending.
+    std::vector<std::uint16_t> maskSpecies;
+    std::vector<std::uint32_t> maskSpeciesStart(masks.size() + 1, 0);
+    for (std::size_t m = 0; m < masks.size(); ++m) {
+        for (std::size_t s = 0; s < nS; ++s)
+            if (admits(m, s)) maskSpecies.push_back(static_cast<std::uint16_t>(s));
+        maskSpeciesStart[m + 1] = static_cast<std::uint32_t>(maskSpecies.size());
+    }
 
     // Cells of each region; rows in parallel, added in row order.
     std::vector<std::int64_t> rowCells(static_cast<std::size_t>(h) * nR, 0);
@@ -1103,9 +1111,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 if (r < 0 || static_cast<std::size_t>(r) >= nR || !(map.seedWeight(ix, iy) > 0)) continue;
                 const std::size_t cell = terrainM.index(ix, iy), m = maskIdx.data()[cell], c = ctx.data()[cell];
                 const std::size_t tile = tileOfCell[cell];
-                for (std::size_t s = 0; s < nS; ++s)
-                    if (admits(m, s))
-                        expectedG[(static_cast<std::size_t>(r) * nS + s) * nTiles + tile] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+                for (std::uint32_t k = maskSpeciesStart[m]; k < maskSpeciesStart[m + 1]; ++k) {
+                    const std::size_t s = maskSpecies[k];
+                    expectedG[(static_cast<std::size_t>(r) * nS + s) * nTiles + tile] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+                }
             }
         }
     std::vector<std::int64_t> quotaG(nGroups, 0), placedG(nGroups, 0);
