@@ -83,6 +83,13 @@ public:
         const double u2 = uniform();
         return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
     }
+    /// Where the stream stands, for callers that make its later blocks in a batch
+    /// (randomBlocksBatch): the words of the current block not yet used are
+    /// buffered()[usedWords() .. 3], then come blocks nextBlock(), nextBlock() + 1, ...
+    int usedWords() const { return used_; }
+    const std::array<std::uint32_t, 4>& buffered() const { return buf_; }
+    std::uint64_t nextBlock() const { return block_; }
+    std::uint64_t streamId() const { return stream_; }
 
 private:
     std::uint64_t seed_, stream_, block_;
@@ -98,21 +105,32 @@ inline std::uint64_t mixStream(std::uint64_t a, std::uint64_t b) {
     return z ^ (z >> 31);
 }
 
+/// Philox blocks of many (stream, counter) pairs at once: the kernels behind randomBitsBatch
+/// (one counter for every stream) and randomBlocksBatch (a counter per stream). kPerLane:
+/// counter[i] for stream i, else counter[0] for all. word2 / word3 may be null (not wanted).
+namespace detail {
+
 #ifdef ECO_HAVE_AVX2_KERNELS
-/// randomBitsBatch's SSE2 loop on eight streams at a time (AVX2, chosen at run time:
+/// The SSE2 loop of philoxBatch on eight streams at a time (AVX2, chosen at run time:
 /// core/cpu.h): the same layout in each 128-bit half (streams i, i + 2 | i + 4, i + 6 in
 /// register A, i + 1, i + 3 | i + 5, i + 7 in B), so that the in-half shuffles pack them in
 /// stream order. Returns how many leading streams it did (n rounded down to a multiple of 8).
-ECO_TARGET_AVX2 inline std::size_t randomBitsBatchAvx2(std::uint64_t seed, const std::uint64_t* stream,
-                                                       std::uint64_t counter, std::size_t n, std::uint32_t* word0,
-                                                       std::uint32_t* word1) {
+template <bool kPerLane>
+ECO_TARGET_AVX2 inline std::size_t philoxBatchAvx2(std::uint64_t seed, const std::uint64_t* stream,
+                                                   const std::uint64_t* counter, std::size_t n, std::uint32_t* word0,
+                                                   std::uint32_t* word1, std::uint32_t* word2, std::uint32_t* word3) {
     const __m256i mul0 = _mm256_set1_epi64x(0xD2511F53), mul1 = _mm256_set1_epi64x(0xCD9E8D57);
     auto ll = [](std::uint64_t v) { return static_cast<long long>(v); };
     std::size_t i = 0;
     for (; i + 8 <= n; i += 8) {
-        const __m256i ctr0 = _mm256_set1_epi64x(static_cast<std::uint32_t>(counter));
-        const __m256i ctr1 = _mm256_set1_epi64x(static_cast<std::uint32_t>(counter >> 32));
-        __m256i c0a = ctr0, c0b = ctr0, c1a = ctr1, c1b = ctr1;
+        __m256i c0a, c0b;
+        if (kPerLane) {
+            c0a = _mm256_set_epi64x(ll(counter[i + 6]), ll(counter[i + 4]), ll(counter[i + 2]), ll(counter[i]));
+            c0b = _mm256_set_epi64x(ll(counter[i + 7]), ll(counter[i + 5]), ll(counter[i + 3]), ll(counter[i + 1]));
+        } else {
+            c0a = c0b = _mm256_set1_epi64x(ll(counter[0]));
+        }
+        __m256i c1a = _mm256_srli_epi64(c0a, 32), c1b = _mm256_srli_epi64(c0b, 32);
         __m256i c2a = _mm256_set_epi64x(ll(stream[i + 6]), ll(stream[i + 4]), ll(stream[i + 2]), ll(stream[i]));
         __m256i c2b = _mm256_set_epi64x(ll(stream[i + 7]), ll(stream[i + 5]), ll(stream[i + 3]), ll(stream[i + 1]));
         __m256i c3a = _mm256_srli_epi64(c2a, 32), c3b = _mm256_srli_epi64(c2b, 32);
@@ -132,27 +150,31 @@ ECO_TARGET_AVX2 inline std::size_t randomBitsBatchAvx2(std::uint64_t seed, const
             key0 += 0x9E3779B9u;
             key1 += 0xBB67AE85u;
         }
-        // Low halves of a (lanes 0, 2 of each half) and b (1, 3) in stream order.
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word0 + i),
-                            _mm256_unpacklo_epi32(_mm256_shuffle_epi32(c0a, 0x08), _mm256_shuffle_epi32(c0b, 0x08)));
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word1 + i),
-                            _mm256_unpacklo_epi32(_mm256_shuffle_epi32(c1a, 0x08), _mm256_shuffle_epi32(c1b, 0x08)));
+        // Low halves of a (lanes 0, 2 of each half) and b (1, 3) in stream order (no lambda:
+        // it would not inherit the target attribute).
+#define ECO_PHILOX_PACK256(a, b) _mm256_unpacklo_epi32(_mm256_shuffle_epi32(a, 0x08), _mm256_shuffle_epi32(b, 0x08))
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word0 + i), ECO_PHILOX_PACK256(c0a, c0b));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(word1 + i), ECO_PHILOX_PACK256(c1a, c1b));
+        if (word2 != nullptr) _mm256_storeu_si256(reinterpret_cast<__m256i*>(word2 + i), ECO_PHILOX_PACK256(c2a, c2b));
+        if (word3 != nullptr) _mm256_storeu_si256(reinterpret_cast<__m256i*>(word3 + i), ECO_PHILOX_PACK256(c3a, c3b));
+#undef ECO_PHILOX_PACK256
     }
     return i;
 }
 #endif
 
-/// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
-/// counter, eight at a time with AVX2 (chosen at run time), four with SSE2 (integer
-/// arithmetic: the same bits as randomBits, which tests/rng_test.cpp checks for both forms).
-/// The AVX2 loop is the SSE2 one at double width; the two are kept side by side rather than
-/// behind a shared template, whose intrinsics would need GCC to inline across target
-/// attributes in a fixed order.
-inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std::uint64_t counter, std::size_t n,
-                            std::uint32_t* word0, std::uint32_t* word1) {
+/// Words of philox(seed, stream[i], counter) for i < n (see the namespace comment): eight
+/// streams at a time with AVX2 (chosen at run time), four with SSE2 (integer arithmetic: the
+/// same bits as randomBits, which tests/rng_test.cpp checks for both forms). The AVX2 loop is
+/// the SSE2 one at double width; the two are kept side by side rather than behind a shared
+/// template, whose intrinsics would need GCC to inline across target attributes in a fixed
+/// order.
+template <bool kPerLane>
+inline void philoxBatch(std::uint64_t seed, const std::uint64_t* stream, const std::uint64_t* counter, std::size_t n,
+                        std::uint32_t* word0, std::uint32_t* word1, std::uint32_t* word2, std::uint32_t* word3) {
     std::size_t i = 0;
 #ifdef ECO_HAVE_AVX2_KERNELS
-    if (avx2Kernels()) i = randomBitsBatchAvx2(seed, stream, counter, n, word0, word1);
+    if (avx2Kernels()) i = philoxBatchAvx2<kPerLane>(seed, stream, counter, n, word0, word1, word2, word3);
 #endif
 #ifdef __SSE2__
     // Each 32-bit word of the state is kept in the low half of a 64-bit lane, streams (i, i + 2)
@@ -161,15 +183,21 @@ inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std
     // of the lanes hold garbage (products, XORs of them) that no later step reads: PMULUDQ
     // reads low halves only, and the results are packed from the low halves.
     const __m128i mul0 = _mm_set1_epi64x(0xD2511F53), mul1 = _mm_set1_epi64x(0xCD9E8D57);
+    auto ll = [](std::uint64_t v) { return static_cast<long long>(v); };
     auto pack = [](__m128i a, __m128i b) {  // low halves of a (lanes 0, 2) and b (1, 3) in stream order
         return _mm_unpacklo_epi32(_mm_shuffle_epi32(a, 0x08), _mm_shuffle_epi32(b, 0x08));
     };
     for (; i + 4 <= n; i += 4) {
-        const __m128i ctr0 = _mm_set1_epi64x(static_cast<std::uint32_t>(counter));
-        const __m128i ctr1 = _mm_set1_epi64x(static_cast<std::uint32_t>(counter >> 32));
-        __m128i c0a = ctr0, c0b = ctr0, c1a = ctr1, c1b = ctr1;
-        __m128i c2a = _mm_set_epi64x(static_cast<long long>(stream[i + 2]), static_cast<long long>(stream[i]));
-        __m128i c2b = _mm_set_epi64x(static_cast<long long>(stream[i + 3]), static_cast<long long>(stream[i + 1]));
+        __m128i c0a, c0b;
+        if (kPerLane) {
+            c0a = _mm_set_epi64x(ll(counter[i + 2]), ll(counter[i]));
+            c0b = _mm_set_epi64x(ll(counter[i + 3]), ll(counter[i + 1]));
+        } else {
+            c0a = c0b = _mm_set1_epi64x(ll(counter[0]));
+        }
+        __m128i c1a = _mm_srli_epi64(c0a, 32), c1b = _mm_srli_epi64(c0b, 32);
+        __m128i c2a = _mm_set_epi64x(ll(stream[i + 2]), ll(stream[i]));
+        __m128i c2b = _mm_set_epi64x(ll(stream[i + 3]), ll(stream[i + 1]));
         __m128i c3a = _mm_srli_epi64(c2a, 32), c3b = _mm_srli_epi64(c2b, 32);
         std::uint32_t key0 = static_cast<std::uint32_t>(seed), key1 = static_cast<std::uint32_t>(seed >> 32);
         for (int round = 0; round < 10; ++round) {
@@ -189,13 +217,34 @@ inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std
         }
         _mm_storeu_si128(reinterpret_cast<__m128i*>(word0 + i), pack(c0a, c0b));
         _mm_storeu_si128(reinterpret_cast<__m128i*>(word1 + i), pack(c1a, c1b));
+        if (word2 != nullptr) _mm_storeu_si128(reinterpret_cast<__m128i*>(word2 + i), pack(c2a, c2b));
+        if (word3 != nullptr) _mm_storeu_si128(reinterpret_cast<__m128i*>(word3 + i), pack(c3a, c3b));
     }
 #endif
     for (; i < n; ++i) {
-        const auto b = randomBits(seed, stream[i], counter);
+        const auto b = randomBits(seed, stream[i], kPerLane ? counter[i] : counter[0]);
         word0[i] = b[0];
         word1[i] = b[1];
+        if (word2 != nullptr) word2[i] = b[2];
+        if (word3 != nullptr) word3[i] = b[3];
     }
+}
+
+}  // namespace detail
+
+/// Words 0 and 1 of randomBits(seed, stream[i], counter) for i < n: many streams at one
+/// counter, eight at a time with AVX2 (chosen at run time), four with SSE2.
+inline void randomBitsBatch(std::uint64_t seed, const std::uint64_t* stream, std::uint64_t counter, std::size_t n,
+                            std::uint32_t* word0, std::uint32_t* word1) {
+    detail::philoxBatch<false>(seed, stream, &counter, n, word0, word1, nullptr, nullptr);
+}
+
+/// The four words of randomBits(seed, stream[i], counter[i]) for i < n (word k of block i in
+/// word[k][i]): a block per (stream, counter) pair, eight at a time with AVX2, four with SSE2.
+inline void randomBlocksBatch(std::uint64_t seed, const std::uint64_t* stream, const std::uint64_t* counter,
+                              std::size_t n, std::uint32_t* word0, std::uint32_t* word1, std::uint32_t* word2,
+                              std::uint32_t* word3) {
+    detail::philoxBatch<true>(seed, stream, counter, n, word0, word1, word2, word3);
 }
 
 }  // namespace eco

@@ -178,35 +178,32 @@ struct TrunkIndex {
     }
 };
 
+/// Poisson(lambda) for lambda <= 100 by inversion of the uniform u, given exp(-lambda);
+/// at most `cap`. poissonCount's step, also for callers that draw u in a batch: for
+/// 0 < lambda <= 100, poissonInvert(u, lambda, std::exp(-lambda), cap) with u the stream's
+/// next uniform is poissonCount(stream, lambda, cap) (and uses that one uniform only).
+inline int poissonInvert(double u, double lambda, double expNegLambda, int cap) {
+    double p = expNegLambda, cdf = p;
+    int k = 0;
+    while (u > cdf && k < cap) {
+        ++k;
+        p *= lambda / k;
+        cdf += p;
+        if (p < 1e-300 && k > lambda) break;  // numerically exhausted
+    }
+    return k;
+}
+
 /// Poisson(lambda) by inversion, one uniform per piece of at most 100 of the mean (so that
 /// exp(-lambda) never underflows); capped at `cap`.
 inline int poissonCount(RandomStream& rs, double lambda, int cap, double expNegLambda = -1) {
-    if (expNegLambda >= 0 && lambda <= 100.0) {  // one piece, exp(-lambda) given
-        const double u = rs.uniform();
-        double p = expNegLambda, cdf = p;
-        int k = 0;
-        while (u > cdf && k < cap) {
-            ++k;
-            p *= lambda / k;
-            cdf += p;
-            if (p < 1e-300 && k > lambda) break;
-        }
-        return k;
-    }
+    if (expNegLambda >= 0 && lambda <= 100.0) return poissonInvert(rs.uniform(), lambda, expNegLambda, cap);  // exp(-lambda) given
     int n = 0;
     while (lambda > 0 && n < cap) {
         const double piece = std::min(lambda, 100.0);
         lambda -= piece;
         const double u = rs.uniform();
-        double p = std::exp(-piece), cdf = p;
-        int k = 0;
-        while (u > cdf && k < cap) {
-            ++k;
-            p *= piece / k;
-            cdf += p;
-            if (p < 1e-300 && k > piece) break;  // numerically exhausted
-        }
-        n += k;
+        n += poissonInvert(u, piece, std::exp(-piece), cap);
     }
     return std::min(n, cap);
 }

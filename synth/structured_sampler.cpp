@@ -646,6 +646,65 @@ struct HeightDraw {
     }
 };
 
+/// Random blocks made in one batch (randomBlocksBatch): requests (stream, counter) added in
+/// order, then made at once; word k of request i is word[k][i].
+struct BlockBatch {
+    std::vector<std::uint64_t> stream, counter;
+    std::vector<std::uint32_t> word[4];
+    void clear() {
+        stream.clear();
+        counter.clear();
+    }
+    void add(std::uint64_t s, std::uint64_t c) {
+        stream.push_back(s);
+        counter.push_back(c);
+    }
+    void make(std::uint64_t seed) {
+        const std::size_t n = stream.size();
+        for (auto& v : word)
+            if (v.size() < n) v.resize(std::max(n, 2 * v.size()));
+        randomBlocksBatch(seed, stream.data(), counter.data(), n, word[0].data(), word[1].data(), word[2].data(), word[3].data());
+    }
+    /// The uniform of words k, k + 1 of request i (RandomStream::uniform's bits).
+    double unit(std::size_t i, int k) const { return bitsToUnit(word[k][i], word[k + 1][i]); }
+};
+
+/// A cell of a row that throws free darts (the structured sampler's candidates).
+struct DartCell {
+    int ix;
+    std::uint32_t cell;
+    int region;
+    std::uint32_t mask, ctx;
+    double lambda;        ///< expected darts
+    double total;         ///< later passes: the sum of the species' rates
+    double expNeg;        ///< exp(-lambda) when lambda <= 100, else -1 (a count of several pieces)
+    std::size_t rates;    ///< later passes: where its cumulative species rates start in RowScratch::rates
+    std::uint32_t nRates; ///< later passes: how many (the species still missing plants in its tile)
+    std::uint64_t stream; ///< its darts' stream
+    int n = 0;            ///< darts
+};
+
+/// A cluster parent's offspring of one species.
+struct Brood {
+    double px, py, sigma, lmax, lambda;
+    std::uint32_t species;
+    int n;                     ///< offspring
+    int lead;                  ///< words of the count's block left after the count
+    std::uint32_t leadWord[4];
+    std::size_t firstBlock;    ///< its first block in RowScratch::blocks, then its first word in RowScratch::words
+};
+
+/// A thread's scratch for the rows it makes.
+struct RowScratch {
+    std::vector<Candidate> cand;
+    std::vector<DartCell> cells;
+    std::vector<double> rates, cum;
+    std::vector<std::uint16_t> rateSpecies;  ///< the species of each entry of rates
+    std::vector<std::uint32_t> words;        ///< the broods' words, each brood's in order
+    std::vector<Brood> broods;
+    BlockBatch counts, blocks;
+};
+
 /// Random sequential adsorption with hard cores: in ascending key order, a candidate of a
 /// pass is dropped when a plant already placed (earlier passes, or this pass's admitted
 /// candidates of lower key) is nearer than their pair's hard-core distance (the matrix of
@@ -898,47 +957,62 @@ void detail::drawSizes(const BiomeDatabase& db, const Biome& biome, const std::v
     out.plants.resize(count);
     out.plantRegion.resize(count);
     std::int64_t limited = 0;
-#pragma omp parallel for schedule(static) reduction(+ : limited)
-    for (std::int64_t i = 0; i < nPlants; ++i) {
-        // The plants come in cell order, read through the permutation from the pass order:
-        // the candidate some plants ahead fetched early (its cache miss was a quarter of
-        // this loop).
-        constexpr std::int64_t kAhead = 16;
-        if (order != nullptr && i + kAhead < nPlants) __builtin_prefetch(&accepted[order[i + kAhead]]);
-        const Candidate& cnd = accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)];
-        const std::size_t s = cnd.species;
-        const int r = map.region.data()[cnd.cell];
-        Plant p;
-        p.speciesId = static_cast<int>(s);
-        p.xM = ox + static_cast<double>(cnd.dx);
-        p.yM = oy + static_cast<double>(cnd.dy);
-        p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
-        const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
-        const bool covered = limit < CanopyCover::kNone;
-        const int d = drawOf[(static_cast<std::size_t>(r) * nS + s) * 2 + (covered ? 1 : 0)];
-        RandomStream rs(params.seed, mixStream(kSizeStream, cnd.key), 0);
-        const double u = rs.uniform();
-        double height;
-        if (d >= 0) {
-            const HeightDraw& draw = draws[static_cast<std::size_t>(d)];
-            const double top = covered ? draw.height.below(limit) : 1.0;
-            if (top > 0) {
-                height = draw.quantile(u * top);
-                if (covered && !(height < limit)) height = draw.height.quantile(u * top);
-                if (covered && top < 1.0) ++limited;
-            } else {
-                height = u * limit;  // the species never grew this low: below the crown, uniformly
-                ++limited;
+    // Chunks of plants, each plant's size uniform (block 0 of its key's stream) made for the
+    // whole chunk at once (randomBitsBatch: the same bits as RandomStream::uniform).
+    constexpr std::int64_t kChunk = 256;
+    const std::int64_t nChunks = (nPlants + kChunk - 1) / kChunk;
+#pragma omp parallel reduction(+ : limited)
+    {
+        std::uint64_t sizeStream[kChunk];
+        std::uint32_t w0[kChunk], w1[kChunk];
+#pragma omp for schedule(static)
+        for (std::int64_t chunk = 0; chunk < nChunks; ++chunk) {
+            const std::int64_t lo = chunk * kChunk, hi = std::min(nPlants, lo + kChunk);
+            for (std::int64_t i = lo; i < hi; ++i) {
+                // The plants come in cell order, read through the permutation from the pass
+                // order: the candidate some plants ahead fetched early (its cache miss was a
+                // quarter of this loop). The second loop finds the chunk's candidates in cache.
+                constexpr std::int64_t kAhead = 16;
+                if (order != nullptr && i + kAhead < nPlants) __builtin_prefetch(&accepted[order[i + kAhead]]);
+                sizeStream[i - lo] = mixStream(kSizeStream, accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)].key);
             }
-        } else {
-            height = 0.5 * biome.species[s].maxHeightM;
-            if (covered) height = std::min(height, u * limit);
+            randomBitsBatch(params.seed, sizeStream, 0, static_cast<std::size_t>(hi - lo), w0, w1);
+            for (std::int64_t i = lo; i < hi; ++i) {
+                const Candidate& cnd = accepted[order != nullptr ? order[i] : static_cast<std::size_t>(i)];
+                const std::size_t s = cnd.species;
+                const int r = map.region.data()[cnd.cell];
+                Plant p;
+                p.speciesId = static_cast<int>(s);
+                p.xM = ox + static_cast<double>(cnd.dx);
+                p.yM = oy + static_cast<double>(cnd.dy);
+                p.groundZM = terrainM.sampleBilinear(p.xM, p.yM);
+                const double limit = cover.lowestCrownAboveM(p.xM, p.yM);
+                const bool covered = limit < CanopyCover::kNone;
+                const int d = drawOf[(static_cast<std::size_t>(r) * nS + s) * 2 + (covered ? 1 : 0)];
+                const double u = bitsToUnit(w0[i - lo], w1[i - lo]);
+                double height;
+                if (d >= 0) {
+                    const HeightDraw& draw = draws[static_cast<std::size_t>(d)];
+                    const double top = covered ? draw.height.below(limit) : 1.0;
+                    if (top > 0) {
+                        height = draw.quantile(u * top);
+                        if (covered && !(height < limit)) height = draw.height.quantile(u * top);
+                        if (covered && top < 1.0) ++limited;
+                    } else {
+                        height = u * limit;  // the species never grew this low: below the crown, uniformly
+                        ++limited;
+                    }
+                } else {
+                    height = 0.5 * biome.species[s].maxHeightM;
+                    if (covered) height = std::min(height, u * limit);
+                }
+                if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
+                p.heightM = std::max(0.0, height);
+                p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
+                out.plants[static_cast<std::size_t>(i)] = p;
+                out.plantRegion[static_cast<std::size_t>(i)] = r;
+            }
         }
-        if (covered && !(height < limit)) height = std::nextafter(limit, 0.0);
-        p.heightM = std::max(0.0, height);
-        p.crownRadiusM = biome.species[s].allometry.crownRadiusM(p.heightM);
-        out.plants[static_cast<std::size_t>(i)] = p;
-        out.plantRegion[static_cast<std::size_t>(i)] = r;
     }
     out.heightsLimitedByCrown = limited;
 }
@@ -988,6 +1062,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
     for (int iy = 0; iy < h; ++iy)
         for (int ix = 0; ix < w; ++ix) maskIdx(ix, iy) = static_cast<std::uint16_t>(maskIndex(map.combination(ix, iy)));
     auto admits = [&](std::size_t m, std::size_t s) { return (subMask[s] & masks[m]) != 0; };
+    // Per mask index: the species it admits, ascending.
+    std::vector<std::uint16_t> maskSpecies;
+    std::vector<std::uint32_t> maskSpeciesStart(masks.size() + 1, 0);
+    for (std::size_t m = 0; m < masks.size(); ++m) {
+        for (std::size_t s = 0; s < nS; ++s)
+            if (admits(m, s)) maskSpecies.push_back(static_cast<std::uint16_t>(s));
+        maskSpeciesStart[m + 1] = static_cast<std::uint32_t>(maskSpecies.size());
+    }
 
     // Cells of each region; rows in parallel, added in row order.
     std::vector<std::int64_t> rowCells(static_cast<std::size_t>(h) * nR, 0);
@@ -1029,9 +1111,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 if (r < 0 || static_cast<std::size_t>(r) >= nR || !(map.seedWeight(ix, iy) > 0)) continue;
                 const std::size_t cell = terrainM.index(ix, iy), m = maskIdx.data()[cell], c = ctx.data()[cell];
                 const std::size_t tile = tileOfCell[cell];
-                for (std::size_t s = 0; s < nS; ++s)
-                    if (admits(m, s))
-                        expectedG[(static_cast<std::size_t>(r) * nS + s) * nTiles + tile] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+                for (std::uint32_t k = maskSpeciesStart[m]; k < maskSpeciesStart[m + 1]; ++k) {
+                    const std::size_t s = maskSpecies[k];
+                    expectedG[(static_cast<std::size_t>(r) * nS + s) * nTiles + tile] += rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] * cellArea;
+                }
             }
         }
     std::vector<std::int64_t> quotaG(nGroups, 0), placedG(nGroups, 0);
@@ -1106,6 +1189,8 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         out.passes = pass + 1;
         std::vector<double> groupFactor;
         std::vector<char> tileActive;
+        std::vector<std::uint16_t> tileSpecies;
+        std::vector<std::uint32_t> tileSpeciesStart;
         if (pass > 0) {
             groupFactor.assign(nGroups, 0.0);
             tileActive.assign(nR * nTiles, 0);
@@ -1117,6 +1202,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 groupFactor[g] = boost * scale[i] * double(missing) / std::max(1e-300, expectedG[g]);
                 tileActive[(i / nS) * nTiles + g % nTiles] = 1;
             }
+            // Per (region, tile): its species with a rate factor, ascending.
+            tileSpeciesStart.assign(nR * nTiles + 1, 0);
+            for (std::size_t r = 0; r < nR; ++r)
+                for (std::size_t t = 0; t < nTiles; ++t) {
+                    for (std::size_t sp = 0; sp < nS; ++sp)
+                        if (groupFactor[(r * nS + sp) * nTiles + t] > 0) tileSpecies.push_back(static_cast<std::uint16_t>(sp));
+                    tileSpeciesStart[r * nTiles + t + 1] = static_cast<std::uint32_t>(tileSpecies.size());
+                }
         }
         std::vector<char> activeRegion(nR, 0);
         for (std::size_t i = 0; i < nR * nS; ++i)
@@ -1151,11 +1244,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
         std::vector<const Candidate*> rowPtr(static_cast<std::size_t>(h), nullptr);
         std::vector<std::size_t> rowCount(static_cast<std::size_t>(h), 0);
         std::vector<CandidateArena> arenas(maxThreads);
-        std::vector<std::vector<Candidate>> rowBuffer(maxThreads);
+        std::vector<RowScratch> scratch(maxThreads);
         std::vector<std::int64_t> rowThrown(static_cast<std::size_t>(h), 0), rowOnTrunk(static_cast<std::size_t>(h), 0);
         const std::uint64_t freeStream = mixStream(kFreeStream, static_cast<std::uint64_t>(pass));
-        auto rowBody = [&](const int iy, std::vector<Candidate>& cand) {
-            std::vector<double> rates(nS);  // later passes: cumulative species rates of a cell
+        // The row's random blocks are made in batches (randomBlocksBatch, eight at a time:
+        // the same bits as the streams' one block at a time): first every dart count of the
+        // row, then every dart's two blocks, then the same for the cluster offspring.
+        auto rowBody = [&](const int iy, RowScratch& sc) {
+            std::vector<Candidate>& cand = sc.cand;
             // A candidate off the trunks joins the row's list.
             auto keep = [&](double x, double y, std::size_t cell, std::size_t s, std::uint64_t key) {
                 if (onTrunk(cell, x, y)) {
@@ -1165,6 +1261,14 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 cand.push_back(Candidate{key, static_cast<float>(x - ox), static_cast<float>(y - oy), static_cast<std::uint32_t>(cell),
                                          static_cast<std::uint16_t>(s), static_cast<std::uint16_t>(pass)});
             };
+            // Free darts. The cells that throw them: pass 0 at the model's free rate (table by
+            // region, mask, context); later passes at each (region, species, tile)'s own missing
+            // share, in the tiles that still miss plants (a few per cent of the plants; the
+            // tiles' quotas keep the density where it is due), the species' cumulative rates kept.
+            sc.cells.clear();
+            sc.rates.clear();
+            sc.rateSpecies.clear();
+            sc.counts.clear();
             for (int ix = 0; ix < w; ++ix) {
                 const int r = map.region(ix, iy);
                 if (r < 0) continue;
@@ -1172,59 +1276,86 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 const float wgt = map.seedWeight.data()[cell];
                 if (!(wgt > 0)) continue;
                 const std::size_t m = maskIdx.data()[cell], c = ctx.data()[cell];
+                DartCell dc{ix, static_cast<std::uint32_t>(cell), r, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(c), 0, 0, -1, 0, 0, 0};
                 if (pass == 0) {
-                    // Free darts at the model's free rate (table by region, mask, context).
-                    const double lambdaFree = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
-                    if (lambdaFree > 0) {
-                        const std::uint64_t stream = mixStream(freeStream, cell);
-                        RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                        const int n = poissonCount(counter, lambdaFree, 65535,
-                                                   lambdaFree <= 100 ? expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c] : -1.0);
-                        for (int j = 0; j < n; ++j) {
-                            // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
-                            RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
-                            const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
-                            const int s = table.pick(static_cast<std::size_t>(r), m, c, rs.uniform());
-                            const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
-                            ++rowThrown[static_cast<std::size_t>(iy)];
-                            if (s >= 0) keep(x, y, cell, static_cast<std::size_t>(s), key);
-                        }
+                    dc.lambda = table.total(static_cast<std::size_t>(r), m, c) * cellArea;
+                    if (!(dc.lambda > 0)) continue;
+                    if (dc.lambda <= 100) dc.expNeg = expFree[(static_cast<std::size_t>(r) * masks.size() + m) * nCtx + c];
+                } else {
+                    const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
+                                             static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
+                    if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
+                    // The species' rates added in species order; those of a species that no
+                    // longer misses plants in the tile are 0 and leave the sums as they are, so
+                    // only the tile's missing species are listed (with their cumulative rate).
+                    const std::size_t at = sc.rates.size();
+                    const std::size_t rt = static_cast<std::size_t>(r) * nTiles + tile;
+                    double total = 0;
+                    for (std::uint32_t k = tileSpeciesStart[rt]; k < tileSpeciesStart[rt + 1]; ++k) {
+                        const std::size_t s = tileSpecies[k];
+                        const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
+                        const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
+                        total += f;
+                        sc.rates.push_back(total);
+                        sc.rateSpecies.push_back(static_cast<std::uint16_t>(s));
                     }
-                    continue;
+                    if (!(total > 0)) {
+                        sc.rates.resize(at);
+                        sc.rateSpecies.resize(at);
+                        continue;
+                    }
+                    dc.total = total;
+                    dc.lambda = total * cellArea;
+                    if (dc.lambda <= 100) dc.expNeg = std::exp(-dc.lambda);
+                    dc.rates = at;
+                    dc.nRates = static_cast<std::uint32_t>(sc.rates.size() - at);
                 }
-                // Later passes: free darts only, at each (region, species, tile)'s own missing
-                // share, in the tiles that still miss plants (a few per cent of the plants; the
-                // tiles' quotas keep the density where it is due).
-                const std::size_t tile = static_cast<std::size_t>(tileY[static_cast<std::size_t>(iy)]) * static_cast<std::size_t>(nTx) +
-                                         static_cast<std::size_t>(tileX[static_cast<std::size_t>(ix)]);
-                if (!tileActive[static_cast<std::size_t>(r) * nTiles + tile]) continue;
-                double total = 0;
-                for (std::size_t s = 0; s < nS; ++s) {
-                    const std::size_t g = (static_cast<std::size_t>(r) * nS + s) * nTiles + tile;
-                    const double f = admits(m, s) ? groupFactor[g] * rho[(static_cast<std::size_t>(r) * nS + s) * nCtx + c] : 0.0;
-                    total += f;
-                    rates[s] = total;
+                dc.stream = mixStream(freeStream, cell);
+                sc.counts.add(mixStream(dc.stream, kParentStream), 0);  // the cell's count: block 0 of its own stream
+                sc.cells.push_back(dc);
+            }
+            sc.counts.make(params.seed);
+            sc.blocks.clear();
+            for (std::size_t i = 0; i < sc.cells.size(); ++i) {
+                DartCell& dc = sc.cells[i];
+                if (dc.expNeg >= 0) {
+                    dc.n = poissonInvert(sc.counts.unit(i, 0), dc.lambda, dc.expNeg, 65535);
+                } else {
+                    RandomStream counter(params.seed, sc.counts.stream[i], 0);
+                    dc.n = poissonCount(counter, dc.lambda, 65535);
                 }
-                if (!(total > 0)) continue;
-                const std::uint64_t stream = mixStream(freeStream, cell);
-                RandomStream counter(params.seed, mixStream(stream, kParentStream), 0);
-                const int n = poissonCount(counter, total * cellArea, 65535);
-                for (int j = 0; j < n; ++j) {
-                    RandomStream rs(params.seed, stream, 2 * static_cast<std::uint64_t>(j));
-                    const double x = ox + (ix + rs.uniform()) * cs, y = oy + (iy + rs.uniform()) * cs;
-                    const double u = rs.uniform() * total;
-                    std::size_t s = 0;
-                    while (s + 1 < nS && rates[s] <= u) ++s;
-                    const std::uint64_t key = (static_cast<std::uint64_t>(rs.nextU32()) << 32) | rs.nextU32();
-                    ++rowThrown[static_cast<std::size_t>(iy)];
-                    keep(x, y, cell, s, key);
+                // Dart j: blocks 2j and 2j + 1 of the cell's stream (8 words).
+                for (int j = 0; j < dc.n; ++j) {
+                    sc.blocks.add(dc.stream, 2 * static_cast<std::uint64_t>(j));
+                    sc.blocks.add(dc.stream, 2 * static_cast<std::uint64_t>(j) + 1);
                 }
             }
+            sc.blocks.make(params.seed);
+            std::size_t q = 0;
+            for (const DartCell& dc : sc.cells)
+                for (int j = 0; j < dc.n; ++j, q += 2) {
+                    const double x = ox + (dc.ix + sc.blocks.unit(q, 0)) * cs, y = oy + (iy + sc.blocks.unit(q, 2)) * cs;
+                    const std::uint64_t key = (static_cast<std::uint64_t>(sc.blocks.word[2][q + 1]) << 32) | sc.blocks.word[3][q + 1];
+                    ++rowThrown[static_cast<std::size_t>(iy)];
+                    if (pass == 0) {
+                        const int s = table.pick(static_cast<std::size_t>(dc.region), dc.mask, dc.ctx, sc.blocks.unit(q + 1, 0));
+                        if (s >= 0) keep(x, y, dc.cell, static_cast<std::size_t>(s), key);
+                    } else {
+                        // The first species whose cumulative rate exceeds u; the last one when
+                        // none does (the linear search over all species, which stopped there).
+                        const double u = sc.blocks.unit(q + 1, 0) * dc.total;
+                        const double* rates = sc.rates.data() + dc.rates;
+                        std::size_t k = 0;
+                        while (k < dc.nRates && rates[k] <= u) ++k;
+                        keep(x, y, dc.cell, k < dc.nRates ? sc.rateSpecies[dc.rates + k] : nS - 1, key);
+                    }
+                }
             if (pass != 0) return;
             // Cluster parents of each field (the same in every pass): per row a Poisson number
             // at the row's total rate kappa x area, each in a cell drawn by its rate; then
             // their offspring of each attached species.
-            std::vector<double> cum(static_cast<std::size_t>(w));
+            std::vector<double>& cum = sc.cum;
+            cum.resize(static_cast<std::size_t>(w));
             for (int k = 0; k < 2; ++k) {
                 double total = 0;
                 for (int ix = 0; ix < w; ++ix) {
@@ -1236,6 +1367,10 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                 if (!(total > 0)) continue;
                 RandomStream prs(params.seed, mixStream(mixStream(kParentStream, static_cast<std::uint64_t>(k)), static_cast<std::uint64_t>(iy)), 0);
                 const int nParents = poissonCount(prs, total, 1 << 30);
+                // The broods (a parent's offspring of one species) in order, each with its
+                // count drawn from block 0 of its stream.
+                sc.broods.clear();
+                sc.counts.clear();
                 for (int j = 0; j < nParents; ++j) {
                     const double u = prs.uniform() * total;
                     int ix = static_cast<int>(std::upper_bound(cum.begin(), cum.end(), u) - cum.begin());
@@ -1253,21 +1388,70 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
                             mixStream(mixStream(mixStream(kOffspringStream, static_cast<std::uint64_t>(pass)), static_cast<std::uint64_t>(k)),
                                       static_cast<std::uint64_t>(iy)),
                             static_cast<std::uint64_t>(j) * nS + s);
+                        Brood br{};
+                        br.px = px;
+                        br.py = py;
+                        br.sigma = st.sigmaM[k];
+                        br.lmax = lmax;
+                        br.lambda = passFactor[i] * a * lmax / st.parentsPerM2[k];
+                        br.species = static_cast<std::uint32_t>(s);
+                        sc.counts.add(oStream, 0);
+                        sc.broods.push_back(br);
+                    }
+                }
+                sc.counts.make(params.seed);
+                // Offspring o of a brood: its stream's words 8o .. 8o + 7 after the count
+                // (the count's block's words left over, then the blocks after it).
+                sc.blocks.clear();
+                for (std::size_t g = 0; g < sc.broods.size(); ++g) {
+                    Brood& br = sc.broods[g];
+                    const std::uint64_t oStream = sc.counts.stream[g];
+                    std::uint64_t nextBlock;
+                    if (br.lambda > 0 && br.lambda <= 100) {
+                        br.n = poissonInvert(sc.counts.unit(g, 0), br.lambda, std::exp(-br.lambda), 65535);
+                        br.lead = 2;
+                        br.leadWord[0] = sc.counts.word[2][g];
+                        br.leadWord[1] = sc.counts.word[3][g];
+                        nextBlock = 1;
+                    } else {
                         RandomStream ors(params.seed, oStream, 0);
-                        const int n = poissonCount(ors, passFactor[i] * a * lmax / st.parentsPerM2[k], 65535);
-                        for (int o = 0; o < n; ++o) {
-                            // Gaussian displacement: both coordinates of one Box-Muller pair.
-                            const double u1 = 1.0 - ors.uniform(), u2 = ors.uniform();
-                            const double radius = st.sigmaM[k] * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
-                            const double x = px + radius * std::cos(angle), y = py + radius * std::sin(angle);
-                            const double uThin = ors.uniform();
-                            const std::uint64_t key = (static_cast<std::uint64_t>(ors.nextU32()) << 32) | ors.nextU32();
-                            ++rowThrown[static_cast<std::size_t>(iy)];
-                            const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
-                            if (!terrainM.inside(cx, cy)) continue;
-                            const std::size_t oc = terrainM.index(cx, cy);
-                            if (uThin * lmax < intensity(oc, s)) keep(x, y, oc, s, key);
-                        }
+                        br.n = poissonCount(ors, br.lambda, 65535);
+                        br.lead = 0;
+                        for (int u = ors.usedWords(); u < 4; ++u) br.leadWord[br.lead++] = ors.buffered()[static_cast<std::size_t>(u)];
+                        nextBlock = ors.nextBlock();
+                    }
+                    br.firstBlock = sc.blocks.stream.size();
+                    const std::int64_t words = 8 * static_cast<std::int64_t>(br.n) - br.lead;
+                    for (std::int64_t b = 0; b < (words + 3) / 4; ++b) sc.blocks.add(oStream, nextBlock + static_cast<std::uint64_t>(b));
+                }
+                sc.blocks.make(params.seed);
+                // Each brood's words in stream order (its count's leftovers, then its blocks).
+                sc.words.clear();
+                for (Brood& br : sc.broods) {
+                    const std::size_t begin = sc.words.size();
+                    for (int u = 0; u < br.lead; ++u) sc.words.push_back(br.leadWord[u]);
+                    const std::size_t nWords = 8 * static_cast<std::size_t>(br.n);
+                    for (std::size_t b = br.firstBlock; sc.words.size() - begin < nWords; ++b)
+                        for (int k = 0; k < 4; ++k) sc.words.push_back(sc.blocks.word[k][b]);
+                    br.firstBlock = begin;  // now: where its words start in sc.words
+                }
+                for (const Brood& br : sc.broods) {
+                    const std::uint32_t* wd = sc.words.data() + br.firstBlock;
+                    auto word = [&](std::size_t t) { return wd[t]; };
+                    const std::size_t s = br.species;
+                    for (std::size_t o = 0; o < static_cast<std::size_t>(br.n); ++o) {
+                        const std::size_t t = 8 * o;
+                        // Gaussian displacement: both coordinates of one Box-Muller pair.
+                        const double u1 = 1.0 - bitsToUnit(word(t), word(t + 1)), u2 = bitsToUnit(word(t + 2), word(t + 3));
+                        const double radius = br.sigma * std::sqrt(-2.0 * std::log(u1)), angle = 2.0 * kPi * u2;
+                        const double x = br.px + radius * std::cos(angle), y = br.py + radius * std::sin(angle);
+                        const double uThin = bitsToUnit(word(t + 4), word(t + 5));
+                        const std::uint64_t key = (static_cast<std::uint64_t>(word(t + 6)) << 32) | word(t + 7);
+                        ++rowThrown[static_cast<std::size_t>(iy)];
+                        const int cx = terrainM.cellX(x), cy = terrainM.cellY(y);
+                        if (!terrainM.inside(cx, cy)) continue;
+                        const std::size_t oc = terrainM.index(cx, cy);
+                        if (uThin * br.lmax < intensity(oc, s)) keep(x, y, oc, s, key);
                     }
                 }
             }
@@ -1275,13 +1459,13 @@ UndergrowthSample sampleStructured(const BiomeDatabase& db, const Biome& biome, 
 #pragma omp parallel for schedule(dynamic, 8)
         for (int iy = 0; iy < h; ++iy) {
             const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
-            std::vector<Candidate>& cand = rowBuffer[t];
-            cand.clear();
-            rowBody(iy, cand);
-            rowCount[static_cast<std::size_t>(iy)] = cand.size();
-            rowPtr[static_cast<std::size_t>(iy)] = arenas[t].append(cand.data(), cand.size());
+            RowScratch& sc = scratch[t];
+            sc.cand.clear();
+            rowBody(iy, sc);
+            rowCount[static_cast<std::size_t>(iy)] = sc.cand.size();
+            rowPtr[static_cast<std::size_t>(iy)] = arenas[t].append(sc.cand.data(), sc.cand.size());
         }
-        std::vector<std::vector<Candidate>>().swap(rowBuffer);
+        std::vector<RowScratch>().swap(scratch);
         phase("candidates");
         std::vector<std::size_t> rowStart(static_cast<std::size_t>(h) + 1, 0);
         for (int iy = 0; iy < h; ++iy) {

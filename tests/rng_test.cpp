@@ -54,6 +54,43 @@ TEST_CASE("rng: randomBitsBatch gives randomBits' words for every stream, at any
     eco::setAvx2Kernels(true);  // back to the default
 }
 
+TEST_CASE("rng: randomBlocksBatch gives randomBits' four words for every (stream, counter), at any batch length", "[rng]") {
+    const std::uint64_t seed = 0x0f1e2d3c4b5a6978ull;
+    std::vector<std::uint64_t> streams, counters;
+    for (std::uint64_t i = 0; i < 29; ++i) {
+        streams.push_back(eco::mixStream(i / 3, 5) ^ (i << 59));                    // repeated streams, high words set
+        counters.push_back(i % 3 == 0 ? i : eco::mixStream(i, 11) >> (i % 2 ? 0 : 40));  // small and full-width counters
+    }
+    for (bool avx2 : {false, true}) {
+        if (eco::setAvx2Kernels(avx2) != avx2) WARN("no AVX2 on this processor: its form of randomBlocksBatch is not checked");
+        for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{3}, std::size_t{4}, std::size_t{8}, std::size_t{11},
+                              std::size_t{16}, streams.size()}) {
+            std::vector<std::uint32_t> w[4];
+            for (auto& v : w) v.assign(n + 1, 0xDEADBEEFu);
+            eco::randomBlocksBatch(seed, streams.data(), counters.data(), n, w[0].data(), w[1].data(), w[2].data(), w[3].data());
+            for (std::size_t i = 0; i < n; ++i) {
+                const auto b = eco::randomBits(seed, streams[i], counters[i]);
+                for (int k = 0; k < 4; ++k) CHECK(w[k][i] == b[static_cast<std::size_t>(k)]);
+            }
+            for (const auto& v : w) CHECK(v[n] == 0xDEADBEEFu);  // nothing written past n
+        }
+    }
+    eco::setAvx2Kernels(true);  // back to the default
+}
+
+TEST_CASE("rng: a stream's position (usedWords, buffered, nextBlock) continues it", "[rng]") {
+    for (int skip : {0, 1, 2, 3, 4, 5, 7, 8, 13}) {
+        RandomStream a(9, 1234, 5), b(9, 1234, 5);
+        for (int i = 0; i < skip; ++i) a.nextU32(), b.nextU32();
+        // The next 20 words from the position, against the stream itself.
+        std::vector<std::uint32_t> words;
+        for (int k = a.usedWords(); k < 4; ++k) words.push_back(a.buffered()[static_cast<std::size_t>(k)]);
+        for (std::uint64_t blk = a.nextBlock(); words.size() < 20; ++blk)
+            for (std::uint32_t x : eco::randomBits(9, a.streamId(), blk)) words.push_back(x);
+        for (std::size_t i = 0; i < 20; ++i) CHECK(words[i] == b.nextU32());
+    }
+}
+
 TEST_CASE("rng: streams are deterministic and block-addressable", "[rng]") {
     RandomStream a(42, 7), b(42, 7);
     std::vector<std::uint32_t> first;
