@@ -303,8 +303,8 @@ struct Simulation::Impl : CellGrid {
     struct SitePlanes {
         std::array<const float*, kStaticMapCount> plane;
         Features features(double sun, double water, double temp, std::size_t coarseCell) const {
-            static_assert(kStaticMapCount + 3 == kFactorCount && detail::isMonthlyFactor(Factor::Sun) &&
-                              detail::isMonthlyFactor(Factor::Moisture) && detail::isMonthlyFactor(Factor::Temperature),
+            static_assert(kStaticMapCount + 3 == kFactorCount && eco::detail::isMonthlyFactor(Factor::Sun) &&
+                              eco::detail::isMonthlyFactor(Factor::Moisture) && eco::detail::isMonthlyFactor(Factor::Temperature),
                           "a new monthly factor: give the plant's value here (docs/factors.md)");
             Features x{};
             x[factorIndex(Factor::Sun)] = sun;
