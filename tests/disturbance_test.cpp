@@ -10,6 +10,7 @@
 #include <set>
 #include <cstring>
 
+#include "abiotics_fixture.h"
 #include "disturbance.h"
 #include "ecomod.h"
 #include "error.h"
@@ -363,19 +364,16 @@ SimInputs ecomodFireScene(int w, int h, double wetFromM) {
         e.immigrantsPerHaYear = 10;  // a quick start from empty ground
     }
     const Grid<float> like(w, h, 1.0, 0, 0, 0.f);
-    Abiotics& a = in.abiotics;
-    a.elevationM = Grid<float>::like(like, 50.f);
-    a.slopeDeg = Grid<float>::like(like, 0.f);
-    a.windMS = Grid<float>::like(like, 4.f);  // exposure for storms (no species responds to it here)
-    for (int m = 0; m < 12; ++m) {
-        a.sunHours.months.push_back(Grid<float>::like(like, 8.f));
-        Grid<float> moist = Grid<float>::like(like, 60.f);
-        if (m == 7)  // August: bone dry (fire passes with the spread probability itself) or wet
-            for (int y = 0; y < h; ++y)
-                for (int x = 0; x < w; ++x) moist(x, y) = x < wetFromM ? 0.f : 1000.f;
-        a.moistureMm.months.push_back(moist);
-        a.temperatureC.months.push_back(Grid<float>::like(like, 15.f));
-    }
+    in.abiotics = test::uniformAbiotics(like, 50,
+                                        {{Factor::Sun, 8},
+                                         {Factor::Moisture, 60},
+                                         {Factor::Temperature, 15},
+                                         {Factor::Slope, 0},
+                                         {Factor::Wind, 4}});  // exposure for storms (no species responds to it here)
+    // August: bone dry (fire passes with the spread probability itself) or wet.
+    Grid<float>& august = in.abiotics.moistureMm[7];
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) august(x, y) = x < wetFromM ? 0.f : 1000.f;
     return in;
 }
 

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 
+#include "abiotics_fixture.h"
 #include "ecomod.h"
 #include "error.h"
 #include "sim_config.h"
@@ -24,17 +25,12 @@ namespace {
 
 // A flat, uniform scene of `sizeM` metres in 1 m cells (the suitability is the same everywhere).
 Abiotics flatAbiotics(int sizeM) {
-    Abiotics a;
-    const Grid<float> like(sizeM, sizeM, 1.0, 0, 0, 0.f);
-    a.elevationM = Grid<float>::like(like, 50.f);
-    a.slopeDeg = Grid<float>::like(like, 0.f);
-    a.windMS = Grid<float>::like(like, 3.f);
-    for (int m = 0; m < 12; ++m) {
-        a.sunHours.months.push_back(Grid<float>::like(like, 8.f));
-        a.moistureMm.months.push_back(Grid<float>::like(like, 60.f));
-        a.temperatureC.months.push_back(Grid<float>::like(like, 15.f));
-    }
-    return a;
+    return test::uniformAbiotics(Grid<float>(sizeM, sizeM, 1.0, 0, 0, 0.f), 50,
+                                 {{Factor::Sun, 8},
+                                  {Factor::Moisture, 60},
+                                  {Factor::Temperature, 15},
+                                  {Factor::Slope, 0},
+                                  {Factor::Wind, 3}});
 }
 
 // The Sonoma biome with every species made indifferent to the site (v = 1 everywhere), no

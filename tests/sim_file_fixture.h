@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "abiotics.h"
+#include "abiotics_fixture.h"
 #include "biome.h"
 #include "h5io.h"
 #include "plants.h"
@@ -30,19 +31,13 @@ inline void writeFakeSimulation(const std::string& simPath, const std::string& a
         p.crownRadiusM = rM;
         return p;
     };
-    Abiotics ab;
     const int w = 50, h = 40;
-    ab.elevationM = Grid<float>(w, h, 1.0, 1000, 2000, 100.f);
-    ab.slopeDeg = Grid<float>(w, h, 1.0, 1000, 2000, 3.f);
-    ab.windMS = Grid<float>(w, h, 1.0, 1000, 2000, 4.f);
+    Abiotics ab = uniformAbiotics(Grid<float>(w, h, 1.0, 1000, 2000, 0.f), 100,
+                                  {{Factor::Temperature, 15}, {Factor::Slope, 3}, {Factor::Wind, 4}});
     for (int m = 0; m < 12; ++m) {
-        Grid<float> sun(w, h, 1.0, 1000, 2000, static_cast<float>(8 + m % 3));
-        Grid<float> moist(w, h, 1.0, 1000, 2000, 0.f);
+        ab.sunHours[m].fill(static_cast<float>(8 + m % 3));
         for (int iy = 0; iy < h; ++iy)
-            for (int ix = 0; ix < w; ++ix) moist(ix, iy) = ix < 25 ? 160.f : 60.f;
-        ab.sunHours.months.push_back(sun);
-        ab.moistureMm.months.push_back(moist);
-        ab.temperatureC.months.push_back(Grid<float>(w, h, 1.0, 1000, 2000, 15.f));
+            for (int ix = 0; ix < w; ++ix) ab.moistureMm[m](ix, iy) = ix < 25 ? 160.f : 60.f;
     }
     writeAbiotics(abioticsPath, ab, biome, AbioticParams{});
 

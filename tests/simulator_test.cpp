@@ -15,6 +15,7 @@
 #include <random>
 #include <sstream>
 
+#include "abiotics_fixture.h"
 #include "atomic_file.h"
 #include "canopy_file.h"
 #include "demo_scene.h"
@@ -36,17 +37,12 @@ namespace {
 
 // Abiotics that are the same everywhere and every month.
 Abiotics uniformAbiotics(int cells, double cellM, double sun, double water, double temp, double slope) {
-    Abiotics a;
-    const Grid<float> like(cells, cells, cellM, 0, 0, 0.f);
-    a.elevationM = Grid<float>::like(like, 50.f);
-    a.slopeDeg = Grid<float>::like(like, static_cast<float>(slope));
-    a.windMS = Grid<float>::like(like, 5.f);  // no test species responds to wind
-    for (int m = 0; m < 12; ++m) {
-        a.sunHours.months.push_back(Grid<float>::like(like, static_cast<float>(sun)));
-        a.moistureMm.months.push_back(Grid<float>::like(like, static_cast<float>(water)));
-        a.temperatureC.months.push_back(Grid<float>::like(like, static_cast<float>(temp)));
-    }
-    return a;
+    return test::uniformAbiotics(Grid<float>(cells, cells, cellM, 0, 0, 0.f), 50,
+                                 {{Factor::Sun, sun},
+                                  {Factor::Moisture, water},
+                                  {Factor::Temperature, temp},
+                                  {Factor::Slope, slope},
+                                  {Factor::Wind, 5}});  // no test species responds to wind
 }
 
 // A biome whose crowns are tiny (r = 1 mm per metre of height): every plant covers its own

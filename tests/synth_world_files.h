@@ -5,6 +5,7 @@
 #include <string>
 
 #include "abiotics.h"
+#include "abiotics_fixture.h"
 #include "biome_db.h"
 #include "canopy_placer.h"
 #include "synth_world_fixture.h"
@@ -28,16 +29,7 @@ inline WorldFiles writeWorld(const World& w, const TempDir& dir) {
     rec.terrainM = w.terrain;
     rec.terrainSource = f.terrain;
     synth::writeCanopyFile(f.canopy, rec, w.biome);
-    Abiotics ab;
-    for (int m = 0; m < 12; ++m) {
-        ab.sunHours.months.push_back(w.features[Factor::Sun]);
-        ab.moistureMm.months.push_back(w.features[Factor::Moisture]);
-        ab.temperatureC.months.push_back(w.features[Factor::Temperature]);
-    }
-    ab.slopeDeg = w.features[Factor::Slope];
-    ab.windMS = w.features[Factor::Wind];
-    ab.elevationM = w.terrain;
-    writeAbiotics(f.abiotics, ab, w.biome, AbioticParams{});
+    writeAbiotics(f.abiotics, abioticsFrom(w.terrain, w.features), w.biome, AbioticParams{});
     writeBiomeDatabase(f.db, w.db);
     return f;
 }
