@@ -212,6 +212,9 @@ struct EcoModel::Impl {
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
+    std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
+    int maxLevel = 0;               // the grids' top level
+    bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
     std::vector<Entry> packed;      // the able in bucket order
     struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
         double x, y;
@@ -371,7 +374,22 @@ struct EcoModel::Impl {
     }
     void compact();
     void seedYear();
+    // growYear's phases, in order (see growYear).
     void growYear();
+    void rateYear();
+    void buildGrids();
+    bool isDominated(const Entry& me, std::uint32_t& wit) const;
+    void testAble();
+    void growStore();
+    void sleepersYear();
+    void admitSleepers();
+    void dropTombstones();
+    // A witness's store index after growStore's compaction (kNoWitness if it died, or if any
+    // tree shrank: then every witness is tested again).
+    std::uint32_t follow(std::uint32_t q) const {
+        if (q == kNoWitness || (q & kWitnessCanopy)) return q;
+        return anyShrunk ? kNoWitness : newIndex[q];
+    }
     void disturbYear();
     std::uint64_t computeFingerprint() const;
 };
@@ -503,10 +521,22 @@ void EcoModel::Impl::seedYear() {
 // parallel on large scenes); then one pass in the store's order tests the others, grows
 // every tree, draws the dominated trees' survival and compacts the store (the dead out).
 void EcoModel::Impl::growYear() {
-    constexpr int kMaxLevels = 24;
-    const std::size_t n = size(), nc = canopy.size(), total = n + nc;
-    counters.plantMonths += 12 * static_cast<std::int64_t>(n + sleepersLive);
-    ability.resize(total);  // the first `rated` from seedYear, with `able` among them
+    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive);
+    rateYear();
+    buildGrids();
+    testAble();
+    growStore();
+    sleepersYear();
+    admitSleepers();
+    dropTombstones();
+    if (!woken.empty()) mergeWoken();
+}
+
+// The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
+// `able` completed with them.
+void EcoModel::Impl::rateYear() {
+    const std::size_t n = size(), nc = canopy.size();
+    ability.resize(n + nc);  // the first `rated` from seedYear, with `able` among them
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
@@ -518,6 +548,13 @@ void EcoModel::Impl::growYear() {
         ability[n + c] = a;
         if (a > 0) able.push_back(static_cast<std::uint32_t>(n + c));
     }
+}
+
+// The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
+void EcoModel::Impl::buildGrids() {
+    constexpr int kMaxLevels = 24;
+    const std::size_t n = size(), total = n + canopy.size();
+    searchN = n;
     const std::size_t m = able.size();
     auto entryOf = [&](std::size_t e) {
         if (e < n) return Entry{x[e], y[e], radius[e], ability[e]};
@@ -528,7 +565,7 @@ void EcoModel::Impl::growYear() {
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     levelOf.resize(m);
-    int maxLevel = 0;
+    maxLevel = 0;
     for (std::size_t i = 0; i < m; ++i) {
         const std::size_t e = able[i];
         const double r = e < n ? radius[e] : canopy[e - n].crownRadiusM;
@@ -579,74 +616,81 @@ void EcoModel::Impl::growYear() {
         packedItem[k] = able[i];
         slot[able[i]] = k;
     }
+}
 
-    // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
-    // dominated? Reads only the start-of-year entries; writes only its witness.
-    auto isDominated = [&](const Entry& me, std::uint32_t& wit) {
-        const double px = me.x, py = me.y, pr = me.r, pa = me.a;
-        // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
-        auto overlaps = [px, py, pr](const Entry& q) {
-            const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
-            return dx * dx + dy * dy < rr * rr;
-        };
-        const std::uint32_t w = wit;
-        if (w != kNoWitness) {
-            const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
-            if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
-                const Entry& q = packed[slot[e]];
-                if (pa < q.a && overlaps(q)) return true;
-            }
+// Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
+// dominated? Reads only the start-of-year entries (buildGrids'); writes only its witness.
+inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) const {
+    const std::size_t n = searchN;
+    const double px = me.x, py = me.y, pr = me.r, pa = me.a;
+    // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
+    auto overlaps = [px, py, pr](const Entry& q) {
+        const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
+        return dx * dx + dy * dy < rr * rr;
+    };
+    const std::uint32_t w = wit;
+    if (w != kNoWitness) {
+        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
+            const Entry& q = packed[slot[e]];
+            if (pa < q.a && overlaps(q)) return true;
         }
-        // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
-        // clamps to bucket 0 as its floor would.
-        const double ox = px - area.x0, oy = py - area.y0;
-        for (int L = maxLevel; L >= 0; --L) {
-            const Level& lv = levels[static_cast<std::size_t>(L)];
-            if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
-            const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
-            const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
-            const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
-            const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
-            const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
-            for (int by = by0; by <= by1; ++by) {
-                const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-                for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
-                    if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
-                    const std::uint32_t end = start[bk + 1];
-                    for (std::uint32_t k = start[bk]; k < end; ++k) {
-                        const Entry& q = packed[k];
-                        if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                            const std::uint32_t e = packedItem[k];
-                            wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
-                            return true;
-                        }
+    }
+    // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
+    // clamps to bucket 0 as its floor would.
+    const double ox = px - area.x0, oy = py - area.y0;
+    for (int L = maxLevel; L >= 0; --L) {
+        const Level& lv = levels[static_cast<std::size_t>(L)];
+        if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
+        const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
+        const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
+        const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
+        const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
+        const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+        for (int by = by0; by <= by1; ++by) {
+            const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
+            for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
+                if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
+                const std::uint32_t end = start[bk + 1];
+                for (std::uint32_t k = start[bk]; k < end; ++k) {
+                    const Entry& q = packed[k];
+                    if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                        const std::uint32_t e = packedItem[k];
+                        wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                        return true;
                     }
                 }
             }
         }
-        wit = kNoWitness;
-        return false;
-    };
+    }
+    wit = kNoWitness;
+    return false;
+}
 
-    // The able trees, in bucket order; each writes only its own flag and witness.
+// The able trees' test, in bucket order; each writes only its own flag and witness.
+void EcoModel::Impl::testAble() {
+    const std::size_t n = searchN, m = able.size();
     dominated.resize(n);
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated  // canopy trees: static, never dominated
+        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated
     }
+}
 
-    // Every tree in the store's order: the others' test, growth, survival, natural death, and
-    // compaction in place (the dead out, the order kept; witnesses renumbered after). A
-    // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
-    // the store for the sleepers) with its witness.
+// Every tree in the store's order: the others' test, growth, survival, natural death, and
+// compaction in place (the dead out, the order kept; witnesses renumbered after). A
+// dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
+// the store for the sleepers) with its witness.
+void EcoModel::Impl::growStore() {
+    const std::size_t n = size();
     const std::uint64_t dominatedKey = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(year));
     newIndex.resize(n + 1);  // one more: the sleepers' pass reads entry 0 even for an empty store
     fixup.clear();
     newSleepers.clear();
     newSleeperWitness.clear();
-    bool anyShrunk = false;  // a tree whose crown or height fell (an initial plant above its polyline)
+    anyShrunk = false;
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(Entry{x[p], y[p], radius[p], ability[p]}, witness[p]);
@@ -716,18 +760,15 @@ void EcoModel::Impl::growYear() {
     }
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
-    auto follow = [&](std::uint32_t q) {  // a witness's index after the compaction (kNoWitness if it died)
-        if (q == kNoWitness || (q & kWitnessCanopy)) return q;
-        return anyShrunk ? kNoWitness : newIndex[q];
-    };
+}
 
-    // The sleepers' year: those whose witness died or shrank are tested (the others are
-    // dominated by theirs); a dominated one meets its planned event if this is its year; one
-    // that nobody dominates grows and rejoins the store, as does one about to mature.
+// The sleepers' year: those whose witness died or shrank are tested (the others are
+// dominated by theirs); a dominated one meets its planned event if this is its year; one
+// that nobody dominates grows and rejoins the store, as does one about to mature.
+void EcoModel::Impl::sleepersYear() {
     woken.clear();
     keysThrough(year + kSleepHorizon);  // planSleep's draws
     const std::size_t k0 = sleepers.size();
-    std::size_t dead = k0 - sleepersLive;
     // A tombstone has event year kTombstone and a canopy witness, so that the common case (a
     // living witness, not this year's event) takes no branch that depends on the sleeper.
     const std::uint32_t* renumber = newIndex.data();
@@ -750,7 +791,6 @@ void EcoModel::Impl::growYear() {
                 sleepEvent[i] = kTombstone;
                 sleepWitness[i] = kWitnessCanopy;
                 --sleepersLive;
-                ++dead;
                 if (ageYears >= sl.deathAge) {
                     ++counters.diedBackgroundOrStress;
                     continue;
@@ -788,12 +828,15 @@ void EcoModel::Impl::growYear() {
             sleepEvent[i] = kTombstone;
             sleepWitness[i] = kWitnessCanopy;
             --sleepersLive;
-            ++dead;
             continue;
         }
         sleepWitness[i] = follow(q);
     }
-    // The new sleepers, after the others (their ids in order; usually beyond every sleeper's).
+}
+
+// The year's new sleepers (growStore's), their events planned, after the others (their ids
+// in order; usually beyond every sleeper's).
+void EcoModel::Impl::admitSleepers() {
     if (!newSleepers.empty()) {
         std::vector<std::int32_t> events(newSleepers.size());
         for (std::size_t i = 0; i < newSleepers.size(); ++i) {
@@ -832,7 +875,11 @@ void EcoModel::Impl::growYear() {
         }
         sleepersLive += newSleepers.size();
     }
-    // Tombstones out once they outnumber the living (the order kept).
+}
+
+// Tombstones out once they outnumber the living (the order kept).
+void EcoModel::Impl::dropTombstones() {
+    const std::size_t dead = sleepers.size() - sleepersLive;
     if (dead > sleepersLive && dead > 64) {
         std::size_t o = 0;
         for (std::size_t i = 0; i < sleepers.size(); ++i)
@@ -846,7 +893,6 @@ void EcoModel::Impl::growYear() {
         sleepEvent.resize(o);
         sleepWitness.resize(o);
     }
-    if (!woken.empty()) mergeWoken();
 }
 
 // The woken (in id order; witnesses as store indices) into the store, by id, in place: each
