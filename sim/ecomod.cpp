@@ -155,6 +155,7 @@ struct EcoModel::Impl {
     std::uint64_t seed = 0;
     Biome biome;
     std::vector<EcoModSpeciesParams> sp;
+    std::vector<double> logSurvival;  // per species: log(dominated_survival) (drawLives)
     SimArea area;
     Grid<float> geom;              // abiotics cells covering the area (values unused)
     std::vector<float> suit;       // [species][cell of geom]: v
@@ -359,7 +360,7 @@ struct EcoModel::Impl {
         if (!(survival < 1.0)) return kInfiniteLives;
         if (!(survival > 0.0)) return 0;
         const double u = 1.0 - unitDraw(seed, kStreamLives, plantId);  // (0, 1]
-        const double k = std::floor(std::log(u) / std::log(survival));
+        const double k = std::floor(std::log(u) / logSurvival[static_cast<std::size_t>(s)]);
         return k >= static_cast<double>(kInfiniteLives) ? kInfiniteLives : static_cast<std::int32_t>(k);
     }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
@@ -457,15 +458,18 @@ void EcoModel::Impl::seedYear() {
     // in between; the year's new trees, appended below, are rated there).
     rated = size();
     ability.resize(rated);
-    able.clear();
+    able.resize(std::max(able.size(), rated + 1));  // written in place (no push_back per tree), then cut
+    std::size_t na = 0;
     for (std::size_t t = 0; t < rated; ++t) {
         const std::size_t s = static_cast<std::size_t>(species[t]);
         const EcoModSpeciesParams& ps = sp[s];
         const double a = height[t] / hRef * ps.persistence * v[t];
         ability[t] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
+        able[na] = static_cast<std::uint32_t>(t);
+        na += a > 0 ? 1 : 0;
         if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
+    able.resize(na);
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
@@ -557,17 +561,22 @@ void EcoModel::Impl::growYear() {
 void EcoModel::Impl::rateYear() {
     const std::size_t n = size(), nc = canopy.size();
     ability.resize(n + nc);  // the first `rated` from seedYear, with `able` among them
+    std::size_t na = able.size();
+    able.resize(na + (n - rated) + nc + 1);  // written in place, then cut
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(p));
+        able[na] = static_cast<std::uint32_t>(p);
+        na += a > 0 ? 1 : 0;
     }
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
         const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
         ability[n + c] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(n + c));
+        able[na] = static_cast<std::uint32_t>(n + c);
+        na += a > 0 ? 1 : 0;
     }
+    able.resize(na);
 }
 
 // The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
@@ -1006,6 +1015,7 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
     if (m.biome.species.empty()) throw ValidationError("simulation: the biome has no species");
     const std::string source = m.biome.sourcePath.empty() ? std::string("biome '") + m.biome.name + "'" : m.biome.sourcePath;
     for (const Species& s : m.biome.species) m.sp.push_back(resolveEcoModSpecies(s, source));
+    for (const auto& p : m.sp) m.logSurvival.push_back(std::log(p.dominatedSurvival));
     m.hRef = 0;
     for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
 
