@@ -273,6 +273,7 @@ struct EcoModel::Impl {
     std::vector<Woken> woken;
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
     std::vector<std::uint32_t> newSleeperWitness;
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
     static constexpr std::int32_t kNeverYear = std::numeric_limits<std::int32_t>::max();
@@ -800,19 +801,32 @@ void EcoModel::Impl::growStore() {
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     const std::size_t k0 = sleepers.size();
-    // A tombstone has event year kTombstone and a canopy witness, so that the common case (a
-    // living witness, not this year's event) takes no branch that depends on the sleeper.
-    const std::uint32_t* renumber = newIndex.data();
-    for (std::size_t i = 0; i < k0; ++i) {
-        const std::int32_t ev = sleepEvent[i];
-        std::uint32_t q = sleepWitness[i];
-        if (ev != year && q != kNoWitness && !anyShrunk) {
+    // First every witness renumbered to the store's new indices, in a tight loop (a canopy
+    // witness, kNoWitness and a tombstone's kWitnessCanopy have the canopy bit: kept), the
+    // few sleepers with work this year (their event, or no witness) listed with their witness
+    // before it; after a shrink every living sleeper is listed (follow forgets the witnesses).
+    slowSleepers.clear();
+    if (!anyShrunk) {
+        const std::uint32_t* renumber = newIndex.data();
+        const std::int32_t* events = sleepEvent.data();
+        std::uint32_t* witnesses = sleepWitness.data();
+        const std::int32_t now = year;
+        for (std::size_t i = 0; i < k0; ++i) {
+            const std::uint32_t q = witnesses[i];
             const bool keep = (q & kWitnessCanopy) != 0;
             const std::uint32_t moved = renumber[keep ? 0 : q];
-            sleepWitness[i] = keep ? q : moved;
-            continue;
+            witnesses[i] = keep ? q : moved;
+            if (events[i] == now || q == kNoWitness) slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
         }
-        if (ev < 0) continue;
+    } else {
+        for (std::size_t i = 0; i < k0; ++i)
+            if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
+    }
+    // Then their year, with the witness they had at its start.
+    for (const auto& [slow, witnessBefore] : slowSleepers) {
+        const std::size_t i = slow;
+        const std::int32_t ev = sleepEvent[i];
+        std::uint32_t q = witnessBefore;
         Sleeper& sl = sleepers[i];
         if (q == kNoWitness) {
             if (!isDominated(Entry{sl.x, sl.y, 0.0, 0.0}, q)) {
