@@ -28,7 +28,7 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // Stream tags of the model's random draws (mixed with seed-independent identifiers).
 constexpr std::uint64_t kStreamSeeding = 0x65636F2D73656564ull;   // per (year, species)
 constexpr std::uint64_t kStreamDeathAge = 0x65636F2D64656174ull;  // per plant id
-constexpr std::uint64_t kStreamDominated = 0x65636F2D646F6D69ull;  // per (year, plant id)
+constexpr std::uint64_t kStreamLives = 0x65636F2D6C697665ull;      // per plant id: its dominated years survived
 
 std::string num(double v) { return formatNumber(v, 6); }
 
@@ -155,6 +155,7 @@ struct EcoModel::Impl {
     std::uint64_t seed = 0;
     Biome biome;
     std::vector<EcoModSpeciesParams> sp;
+    std::vector<double> logSurvival;  // per species: log(dominated_survival) (drawLives)
     SimArea area;
     Grid<float> geom;              // abiotics cells covering the area (values unused)
     std::vector<float> suit;       // [species][cell of geom]: v
@@ -180,6 +181,12 @@ struct EcoModel::Impl {
     std::vector<double> x, y, height, radius, growthAge, deathAge;  // ground z: from `elevation` when written
     std::vector<std::int32_t> age;
     std::vector<float> v;
+    // The dominated years each tree survives from now on (kInfiniteLives: every one): drawn
+    // once at its creation (drawLives), one spent in each year it is dominated; it dies in a
+    // dominated year with none left. The same law as a survival draw of probability
+    // dominated_survival in each dominated year (geometric), without a draw per year.
+    static constexpr std::int32_t kInfiniteLives = 1 << 30;
+    std::vector<std::int32_t> lives;
 
     int year = 0;
     std::uint64_t nextId = 1;
@@ -212,6 +219,9 @@ struct EcoModel::Impl {
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
+    std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
+    int maxLevel = 0;               // the grids' top level
+    bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
     std::vector<Entry> packed;      // the able in bucket order
     struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
         double x, y;
@@ -230,22 +240,23 @@ struct EcoModel::Impl {
     // Sleeping seedlings, set aside from the store's yearly passes (docs/ecomod.md "Speed"): a
     // tree of height and crown 0 whose species gains no growth age when dominated, found
     // dominated by its witness W, stays dominated while W lives with a crown at least as
-    // large (its own ability and crown are 0; W's ability stays > 0), so its years until its
-    // death, its maturity or a horizon are known from its draws (keyed by seed, year and id:
-    // drawn ahead, the same values). It rejoins the store when it matures (a parent must be in
+    // large (its own ability and crown are 0; W's ability stays > 0), so the year of its
+    // event (its death, dominated or of age, or its maturity) is known from its lives and
+    // ages (planSleep, in closed form: no yearly work). It rejoins the store when it matures (a parent must be in
     // the store's pass of seedYear), when W dies or shrinks and no other tree dominates it
     // (it then grows), and before a disturbance, removeTrees or a checkpoint's arrays need
     // every tree; views that list the trees (plants, census, saveState) merge the two by id,
     // which is creation order, the store's order. Sorted by id; the dead stay as tombstones
     // (event year -1) until they are more than the living.
-    enum class Wake : std::uint8_t { DiesDominated, DiesNatural, Matures, Horizon };
+    enum class Wake : std::uint8_t { DiesDominated, DiesNatural, Matures };
     struct Sleeper {
         std::uint64_t id;
         double x, y, growthAge, deathAge;
         float v;
         std::int32_t species;
         std::int32_t ageBase;  // age = ageBase + years completed (between years), ageBase + Y at the start of year Y
-        Wake kind;             // what happens in its event year
+        std::int32_t domDeathYear;  // the year it dies if dominated in every year until then (kNeverYear: never)
+        Wake kind;                  // what happens in its event year
     };
     std::vector<Sleeper> sleepers;
     std::vector<std::int32_t> sleepEvent;     // per sleeper: the year of its event, -1 for a tombstone
@@ -257,50 +268,52 @@ struct EcoModel::Impl {
         double x, y, height, radius, growthAge, deathAge;
         float v;
         std::uint32_t witness;
+        std::int32_t lives;
     };
     std::vector<Woken> woken;
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
     std::vector<std::uint32_t> newSleeperWitness;
-    static constexpr int kSleepHorizon = 256;       // years drawn ahead at most, then again
-    std::vector<std::uint64_t> dominatedKeys;       // per year: the key of the dominated trees' survival draws
-    void keysThrough(int lastYear) {
-        for (int y = static_cast<int>(dominatedKeys.size()); y <= lastYear; ++y)
-            dominatedKeys.push_back(mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(y)));
-    }
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
-    // The event of a sleeper whose age after year y0 is a0 and that lives through y0: the first
-    // later year in which it dies (a dominated tree's survival draw, else its death age), or the
-    // year before it starts mature, or y0 + kSleepHorizon (Horizon: planned again then).
+    static constexpr std::int32_t kNeverYear = std::numeric_limits<std::int32_t>::max();
+    // The event of a sleeper that lives through year y0 (its age after y0: ageBase + y0 + 1),
+    // in closed form: the first later year in which it dies (its dominated years run out, or
+    // its death age), or the year before it starts mature, the earliest of them; in a year
+    // of several, maturity first, then domination, then age, as in the store's pass.
     void planSleep(Sleeper& s, std::int32_t& event, int y0) const {
         const EcoModSpeciesParams& ps = sp[static_cast<std::size_t>(s.species)];
-        for (int y = y0 + 1; y <= y0 + kSleepHorizon; ++y) {
-            const std::int32_t ageStart = s.ageBase + y;
-            if (ageStart >= ps.maturityAgeYears) {
-                s.kind = Wake::Matures;
-                event = y - 1;
-                return;
-            }
-            const std::uint64_t key = dominatedKeys[static_cast<std::size_t>(y)];  // mixStream(seed, kStreamDominated ^ y)
-            if (static_cast<double>(mixStream(key, s.id) >> 11) * 0x1.0p-53 >= ps.dominatedSurvival) {
-                s.kind = Wake::DiesDominated;
-                event = y;
-                return;
-            }
-            if (ageStart + 1 >= s.deathAge) {
-                s.kind = Wake::DiesNatural;
-                event = y;
-                return;
-            }
+        // ageBase + y is whole: ageBase + y >= t_m from y = ceil(t_m) - ageBase on, and
+        // ageBase + y + 1 >= death age from y = ceil(death age) - 1 - ageBase on.
+        const std::int64_t first = static_cast<std::int64_t>(y0) + 1;
+        const std::int64_t mature = std::max(first, static_cast<std::int64_t>(std::ceil(ps.maturityAgeYears)) - s.ageBase);
+        const std::int64_t natural = std::max(first, static_cast<std::int64_t>(std::ceil(s.deathAge)) - 1 - s.ageBase);
+        const std::int64_t dominated = s.domDeathYear;
+        if (mature <= dominated && mature <= natural) {
+            s.kind = Wake::Matures;
+            event = static_cast<std::int32_t>(mature - 1);
+        } else if (dominated <= natural) {
+            s.kind = Wake::DiesDominated;
+            event = static_cast<std::int32_t>(dominated);
+        } else {
+            s.kind = Wake::DiesNatural;
+            event = static_cast<std::int32_t>(natural);
         }
-        s.kind = Wake::Horizon;
-        event = y0 + kSleepHorizon;
+    }
+    // A sleeper's dominated years left (lives) when it has been dominated through the year
+    // before `yearsCompleted`.
+    static std::int32_t livesAfter(const Sleeper& s, int yearsCompleted) {
+        return s.domDeathYear == kNeverYear ? kInfiniteLives : s.domDeathYear - yearsCompleted;
+    }
+    static std::int32_t domDeathYearOf(std::int32_t livesLeft, int yearDone) {  // lives left after year `yearDone`
+        return livesLeft >= kInfiniteLives ? kNeverYear : yearDone + livesLeft + 1;
     }
     Woken wake(const Sleeper& s, int yearsCompleted, std::uint32_t w) const {
-        return Woken{s.id, s.species, s.ageBase + yearsCompleted, s.x, s.y, 0.0, 0.0, s.growthAge, s.deathAge, s.v, w};
+        return Woken{s.id,        s.species, s.ageBase + yearsCompleted, s.x, s.y, 0.0, 0.0, s.growthAge, s.deathAge, s.v, w,
+                     livesAfter(s, yearsCompleted)};
     }
     // Visits every tree in creation order (the store's trees and the sleepers, merged by id)
-    // as f(id, species, x, y, height, radius, growthAge, age, deathAge, v).
+    // as f(id, species, x, y, height, radius, growthAge, age, deathAge, v, lives).
     template <class F>
     void forEachTree(F&& f) const {
         const std::size_t n = size(), k = sleepers.size();
@@ -308,11 +321,11 @@ struct EcoModel::Impl {
         for (;;) {
             while (b < k && sleepEvent[b] < 0) ++b;
             if (a < n && (b == k || id[a] < sleepers[b].id)) {
-                f(id[a], species[a], x[a], y[a], height[a], radius[a], growthAge[a], age[a], deathAge[a], v[a]);
+                f(id[a], species[a], x[a], y[a], height[a], radius[a], growthAge[a], age[a], deathAge[a], v[a], lives[a]);
                 ++a;
             } else if (b < k) {
                 const Sleeper& s = sleepers[b];
-                f(s.id, s.species, s.x, s.y, 0.0, 0.0, s.growthAge, s.ageBase + year, s.deathAge, s.v);
+                f(s.id, s.species, s.x, s.y, 0.0, 0.0, s.growthAge, s.ageBase + year, s.deathAge, s.v, livesAfter(s, year));
                 ++b;
             } else {
                 break;
@@ -342,6 +355,15 @@ struct EcoModel::Impl {
         const double lo = std::max(p.fullGrownAgeYears, minAge), hi = std::max(p.maxAgeYears, lo);
         return lo + (hi - lo) * unitDraw(seed, kStreamDeathAge, plantId);
     }
+    // K with P(K >= k) = dominated_survival^k: floor(log u / log survival) for u uniform in (0, 1].
+    std::int32_t drawLives(int s, std::uint64_t plantId) const {
+        const double survival = sp[static_cast<std::size_t>(s)].dominatedSurvival;
+        if (!(survival < 1.0)) return kInfiniteLives;
+        if (!(survival > 0.0)) return 0;
+        const double u = 1.0 - unitDraw(seed, kStreamLives, plantId);  // (0, 1]
+        const double k = std::floor(std::log(u) / logSurvival[static_cast<std::size_t>(s)]);
+        return k >= static_cast<double>(kInfiniteLives) ? kInfiniteLives : static_cast<std::int32_t>(k);
+    }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
         push(pid, s, px, py, h, gAge, ageYears, dAge, suitAt(s, px, py));
     }
@@ -359,6 +381,7 @@ struct EcoModel::Impl {
         deathAge.push_back(dAge);
         v.push_back(vv);
         witness.push_back(guess);
+        lives.push_back(drawLives(s, pid));
     }
     std::size_t size() const { return id.size(); }
     void truncate(std::size_t w) {  // the store keeps its first w trees
@@ -368,10 +391,26 @@ struct EcoModel::Impl {
         age.resize(w);
         v.resize(w);
         witness.resize(w);
+        lives.resize(w);
     }
     void compact();
     void seedYear();
+    // growYear's phases, in order (see growYear).
     void growYear();
+    void rateYear();
+    void buildGrids();
+    bool isDominated(const Entry& me, std::uint32_t& wit) const;
+    void testAble();
+    void growStore();
+    void sleepersYear();
+    void admitSleepers();
+    void dropTombstones();
+    // A witness's store index after growStore's compaction (kNoWitness if it died, or if any
+    // tree shrank: then every witness is tested again).
+    std::uint32_t follow(std::uint32_t q) const {
+        if (q == kNoWitness || (q & kWitnessCanopy)) return q;
+        return anyShrunk ? kNoWitness : newIndex[q];
+    }
     void disturbYear();
     std::uint64_t computeFingerprint() const;
 };
@@ -394,6 +433,7 @@ void EcoModel::Impl::compact() {
             age[w] = age[p];
             deathAge[w] = deathAge[p];
             v[w] = v[p];
+            lives[w] = lives[p];
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
@@ -419,15 +459,18 @@ void EcoModel::Impl::seedYear() {
     // in between; the year's new trees, appended below, are rated there).
     rated = size();
     ability.resize(rated);
-    able.clear();
+    able.resize(std::max(able.size(), rated + 1));  // written in place (no push_back per tree), then cut
+    std::size_t na = 0;
     for (std::size_t t = 0; t < rated; ++t) {
         const std::size_t s = static_cast<std::size_t>(species[t]);
         const EcoModSpeciesParams& ps = sp[s];
         const double a = height[t] / hRef * ps.persistence * v[t];
         ability[t] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(t));
+        able[na] = static_cast<std::uint32_t>(t);
+        na += a > 0 ? 1 : 0;
         if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
+    able.resize(na);
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
@@ -503,21 +546,45 @@ void EcoModel::Impl::seedYear() {
 // parallel on large scenes); then one pass in the store's order tests the others, grows
 // every tree, draws the dominated trees' survival and compacts the store (the dead out).
 void EcoModel::Impl::growYear() {
-    constexpr int kMaxLevels = 24;
-    const std::size_t n = size(), nc = canopy.size(), total = n + nc;
-    counters.plantMonths += 12 * static_cast<std::int64_t>(n + sleepersLive);
-    ability.resize(total);  // the first `rated` from seedYear, with `able` among them
+    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive);
+    rateYear();
+    buildGrids();
+    testAble();
+    growStore();
+    sleepersYear();
+    admitSleepers();
+    dropTombstones();
+    if (!woken.empty()) mergeWoken();
+}
+
+// The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
+// `able` completed with them.
+void EcoModel::Impl::rateYear() {
+    const std::size_t n = size(), nc = canopy.size();
+    ability.resize(n + nc);  // the first `rated` from seedYear, with `able` among them
+    std::size_t na = able.size();
+    able.resize(na + (n - rated) + nc + 1);  // written in place, then cut
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(p));
+        able[na] = static_cast<std::uint32_t>(p);
+        na += a > 0 ? 1 : 0;
     }
     for (std::size_t c = 0; c < nc; ++c) {
         const Plant& t = canopy[c];
         const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
         ability[n + c] = a;
-        if (a > 0) able.push_back(static_cast<std::uint32_t>(n + c));
+        able[na] = static_cast<std::uint32_t>(n + c);
+        na += a > 0 ? 1 : 0;
     }
+    able.resize(na);
+}
+
+// The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
+void EcoModel::Impl::buildGrids() {
+    constexpr int kMaxLevels = 24;
+    const std::size_t n = size(), total = n + canopy.size();
+    searchN = n;
     const std::size_t m = able.size();
     auto entryOf = [&](std::size_t e) {
         if (e < n) return Entry{x[e], y[e], radius[e], ability[e]};
@@ -528,7 +595,7 @@ void EcoModel::Impl::growYear() {
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     levelOf.resize(m);
-    int maxLevel = 0;
+    maxLevel = 0;
     for (std::size_t i = 0; i < m; ++i) {
         const std::size_t e = able[i];
         const double r = e < n ? radius[e] : canopy[e - n].crownRadiusM;
@@ -579,74 +646,80 @@ void EcoModel::Impl::growYear() {
         packedItem[k] = able[i];
         slot[able[i]] = k;
     }
+}
 
-    // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
-    // dominated? Reads only the start-of-year entries; writes only its witness.
-    auto isDominated = [&](const Entry& me, std::uint32_t& wit) {
-        const double px = me.x, py = me.y, pr = me.r, pa = me.a;
-        // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
-        auto overlaps = [px, py, pr](const Entry& q) {
-            const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
-            return dx * dx + dy * dy < rr * rr;
-        };
-        const std::uint32_t w = wit;
-        if (w != kNoWitness) {
-            const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
-            if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
-                const Entry& q = packed[slot[e]];
-                if (pa < q.a && overlaps(q)) return true;
-            }
+// Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
+// dominated? Reads only the start-of-year entries (buildGrids'); writes only its witness.
+inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) const {
+    const std::size_t n = searchN;
+    const double px = me.x, py = me.y, pr = me.r, pa = me.a;
+    // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
+    auto overlaps = [px, py, pr](const Entry& q) {
+        const double dx = px - q.x, dy = py - q.y, rr = pr + q.r;
+        return dx * dx + dy * dy < rr * rr;
+    };
+    const std::uint32_t w = wit;
+    if (w != kNoWitness) {
+        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
+            const Entry& q = packed[slot[e]];
+            if (pa < q.a && overlaps(q)) return true;
         }
-        // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
-        // clamps to bucket 0 as its floor would.
-        const double ox = px - area.x0, oy = py - area.y0;
-        for (int L = maxLevel; L >= 0; --L) {
-            const Level& lv = levels[static_cast<std::size_t>(L)];
-            if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
-            const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
-            const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
-            const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
-            const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
-            const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
-            for (int by = by0; by <= by1; ++by) {
-                const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-                for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
-                    if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
-                    const std::uint32_t end = start[bk + 1];
-                    for (std::uint32_t k = start[bk]; k < end; ++k) {
-                        const Entry& q = packed[k];
-                        if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                            const std::uint32_t e = packedItem[k];
-                            wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
-                            return true;
-                        }
+    }
+    // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
+    // clamps to bucket 0 as its floor would.
+    const double ox = px - area.x0, oy = py - area.y0;
+    for (int L = maxLevel; L >= 0; --L) {
+        const Level& lv = levels[static_cast<std::size_t>(L)];
+        if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
+        const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
+        const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
+        const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
+        const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
+        const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+        for (int by = by0; by <= by1; ++by) {
+            const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
+            for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
+                if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
+                const std::uint32_t end = start[bk + 1];
+                for (std::uint32_t k = start[bk]; k < end; ++k) {
+                    const Entry& q = packed[k];
+                    if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                        const std::uint32_t e = packedItem[k];
+                        wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                        return true;
                     }
                 }
             }
         }
-        wit = kNoWitness;
-        return false;
-    };
+    }
+    wit = kNoWitness;
+    return false;
+}
 
-    // The able trees, in bucket order; each writes only its own flag and witness.
+// The able trees' test, in bucket order; each writes only its own flag and witness.
+void EcoModel::Impl::testAble() {
+    const std::size_t n = searchN, m = able.size();
     dominated.resize(n);
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated  // canopy trees: static, never dominated
+        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated
     }
+}
 
-    // Every tree in the store's order: the others' test, growth, survival, natural death, and
-    // compaction in place (the dead out, the order kept; witnesses renumbered after). A
-    // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
-    // the store for the sleepers) with its witness.
-    const std::uint64_t dominatedKey = mixStream(seed, kStreamDominated ^ static_cast<std::uint64_t>(year));
+// Every tree in the store's order: the others' test, growth, survival, natural death, and
+// compaction in place (the dead out, the order kept; witnesses renumbered after). A
+// dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
+// the store for the sleepers) with its witness.
+void EcoModel::Impl::growStore() {
+    const std::size_t n = size();
     newIndex.resize(n + 1);  // one more: the sleepers' pass reads entry 0 even for an empty store
     fixup.clear();
     newSleepers.clear();
     newSleeperWitness.clear();
-    bool anyShrunk = false;  // a tree whose crown or height fell (an initial plant above its polyline)
+    anyShrunk = false;
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(Entry{x[p], y[p], radius[p], ability[p]}, witness[p]);
@@ -654,13 +727,15 @@ void EcoModel::Impl::growYear() {
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
         const double before = growthAge[p];
         double g = before;
+        std::int32_t lv = lives[p];
         if (dom) {
             g += sps.dominatedGrowth;
-            if (static_cast<double>(mixStream(dominatedKey, id[p]) >> 11) * 0x1.0p-53 >= sps.dominatedSurvival) {
+            if (lv == 0) {
                 ++counters.diedDominated;  // suffocation
                 newIndex[p] = kNoWitness;
                 continue;
             }
+            if (lv != kInfiniteLives) --lv;
         } else {
             g += 1.0;
         }
@@ -681,7 +756,8 @@ void EcoModel::Impl::growYear() {
         if (dom && h == 0.0 && r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
             witness[p] != kNoWitness) {
             // To sleep: dominated by its witness in the years to come (see Sleeper).
-            newSleepers.push_back(Sleeper{id[p], x[p], y[p], g, deathAge[p], v[p], s, ageYears - year - 1, Wake::Horizon});
+            newSleepers.push_back(Sleeper{id[p], x[p], y[p], g, deathAge[p], v[p], s, ageYears - year - 1, domDeathYearOf(lv, year),
+                                          Wake::DiesDominated});
             newSleeperWitness.push_back(witness[p]);
             newIndex[p] = kNoWitness;  // nobody's witness: its ability is 0
             continue;
@@ -708,6 +784,7 @@ void EcoModel::Impl::growYear() {
             deathAge[w] = deathAge[p];
             v[w] = v[p];
         }
+        lives[w] = lv;
         height[w] = h;
         radius[w] = r;
         growthAge[w] = g;
@@ -716,31 +793,40 @@ void EcoModel::Impl::growYear() {
     }
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
-    auto follow = [&](std::uint32_t q) {  // a witness's index after the compaction (kNoWitness if it died)
-        if (q == kNoWitness || (q & kWitnessCanopy)) return q;
-        return anyShrunk ? kNoWitness : newIndex[q];
-    };
+}
 
-    // The sleepers' year: those whose witness died or shrank are tested (the others are
-    // dominated by theirs); a dominated one meets its planned event if this is its year; one
-    // that nobody dominates grows and rejoins the store, as does one about to mature.
+// The sleepers' year: those whose witness died or shrank are tested (the others are
+// dominated by theirs); a dominated one meets its planned event if this is its year; one
+// that nobody dominates grows and rejoins the store, as does one about to mature.
+void EcoModel::Impl::sleepersYear() {
     woken.clear();
-    keysThrough(year + kSleepHorizon);  // planSleep's draws
     const std::size_t k0 = sleepers.size();
-    std::size_t dead = k0 - sleepersLive;
-    // A tombstone has event year kTombstone and a canopy witness, so that the common case (a
-    // living witness, not this year's event) takes no branch that depends on the sleeper.
-    const std::uint32_t* renumber = newIndex.data();
-    for (std::size_t i = 0; i < k0; ++i) {
-        const std::int32_t ev = sleepEvent[i];
-        std::uint32_t q = sleepWitness[i];
-        if (ev != year && q != kNoWitness && !anyShrunk) {
+    // First every witness renumbered to the store's new indices, in a tight loop (a canopy
+    // witness, kNoWitness and a tombstone's kWitnessCanopy have the canopy bit: kept), the
+    // few sleepers with work this year (their event, or no witness) listed with their witness
+    // before it; after a shrink every living sleeper is listed (follow forgets the witnesses).
+    slowSleepers.clear();
+    if (!anyShrunk) {
+        const std::uint32_t* renumber = newIndex.data();
+        const std::int32_t* events = sleepEvent.data();
+        std::uint32_t* witnesses = sleepWitness.data();
+        const std::int32_t now = year;
+        for (std::size_t i = 0; i < k0; ++i) {
+            const std::uint32_t q = witnesses[i];
             const bool keep = (q & kWitnessCanopy) != 0;
             const std::uint32_t moved = renumber[keep ? 0 : q];
-            sleepWitness[i] = keep ? q : moved;
-            continue;
+            witnesses[i] = keep ? q : moved;
+            if (events[i] == now || q == kNoWitness) slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
         }
-        if (ev < 0) continue;
+    } else {
+        for (std::size_t i = 0; i < k0; ++i)
+            if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
+    }
+    // Then their year, with the witness they had at its start.
+    for (const auto& [slow, witnessBefore] : slowSleepers) {
+        const std::size_t i = slow;
+        const std::int32_t ev = sleepEvent[i];
+        std::uint32_t q = witnessBefore;
         Sleeper& sl = sleepers[i];
         if (q == kNoWitness) {
             if (!isDominated(Entry{sl.x, sl.y, 0.0, 0.0}, q)) {
@@ -750,7 +836,6 @@ void EcoModel::Impl::growYear() {
                 sleepEvent[i] = kTombstone;
                 sleepWitness[i] = kWitnessCanopy;
                 --sleepersLive;
-                ++dead;
                 if (ageYears >= sl.deathAge) {
                     ++counters.diedBackgroundOrStress;
                     continue;
@@ -761,7 +846,8 @@ void EcoModel::Impl::growYear() {
                     h = ecomodPolylineHeightM(sps, g);
                     r = crown(sl.species, h);
                 }
-                woken.push_back(Woken{sl.id, sl.species, ageYears, sl.x, sl.y, h, r, g, sl.deathAge, sl.v, kNoWitness});
+                woken.push_back(
+                    Woken{sl.id, sl.species, ageYears, sl.x, sl.y, h, r, g, sl.deathAge, sl.v, kNoWitness, livesAfter(sl, year)});
                 continue;
             }
         }
@@ -773,27 +859,22 @@ void EcoModel::Impl::growYear() {
                 case Wake::DiesNatural:
                     ++counters.diedBackgroundOrStress;
                     break;
-                case Wake::Matures:
+                case Wake::Matures:  // mature from next year on
                     woken.push_back(wake(sl, year + 1, follow(q)));
-                    break;
-                case Wake::Horizon:
-                    planSleep(sl, sleepEvent[i], year);
-                    if (sleepEvent[i] != year) {  // asleep for more years
-                        sleepWitness[i] = follow(q);
-                        continue;
-                    }
-                    woken.push_back(wake(sl, year + 1, follow(q)));  // mature from next year on
                     break;
             }
             sleepEvent[i] = kTombstone;
             sleepWitness[i] = kWitnessCanopy;
             --sleepersLive;
-            ++dead;
             continue;
         }
         sleepWitness[i] = follow(q);
     }
-    // The new sleepers, after the others (their ids in order; usually beyond every sleeper's).
+}
+
+// The year's new sleepers (growStore's), their events planned, after the others (their ids
+// in order; usually beyond every sleeper's).
+void EcoModel::Impl::admitSleepers() {
     if (!newSleepers.empty()) {
         std::vector<std::int32_t> events(newSleepers.size());
         for (std::size_t i = 0; i < newSleepers.size(); ++i) {
@@ -832,7 +913,11 @@ void EcoModel::Impl::growYear() {
         }
         sleepersLive += newSleepers.size();
     }
-    // Tombstones out once they outnumber the living (the order kept).
+}
+
+// Tombstones out once they outnumber the living (the order kept).
+void EcoModel::Impl::dropTombstones() {
+    const std::size_t dead = sleepers.size() - sleepersLive;
     if (dead > sleepersLive && dead > 64) {
         std::size_t o = 0;
         for (std::size_t i = 0; i < sleepers.size(); ++i)
@@ -846,7 +931,6 @@ void EcoModel::Impl::growYear() {
         sleepEvent.resize(o);
         sleepWitness.resize(o);
     }
-    if (!woken.empty()) mergeWoken();
 }
 
 // The woken (in id order; witnesses as store indices) into the store, by id, in place: each
@@ -880,6 +964,7 @@ void EcoModel::Impl::mergeWoken() {
     spread(deathAge, [](const Woken& t) { return t.deathAge; });
     spread(v, [](const Woken& t) { return t.v; });
     spread(witness, [](const Woken& t) { return t.witness; });
+    spread(lives, [](const Woken& t) { return t.lives; });
     // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
     mergeShift.resize(n + 1);
     for (std::size_t j = 0, q = 0; q <= n; ++q) {
@@ -906,7 +991,7 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
 }
 
 std::uint64_t EcoModel::Impl::computeFingerprint() const {
-    std::uint64_t h = 0x65636F6D6F643031ull;
+    std::uint64_t h = 0x65636F6D6F643032ull;  // "ecomod02": the dominated trees' lives (checkpoints of 01 differ)
     for (const auto& [k, val] : params.namedValues()) {
         h = hashBytes(h, k.data(), k.size());
         h = hashBytes(h, &val, sizeof val);
@@ -944,6 +1029,7 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
     if (m.biome.species.empty()) throw ValidationError("simulation: the biome has no species");
     const std::string source = m.biome.sourcePath.empty() ? std::string("biome '") + m.biome.name + "'" : m.biome.sourcePath;
     for (const Species& s : m.biome.species) m.sp.push_back(resolveEcoModSpecies(s, source));
+    for (const auto& p : m.sp) m.logSurvival.push_back(std::log(p.dominatedSurvival));
     m.hRef = 0;
     for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
 
@@ -1098,7 +1184,7 @@ std::vector<UndergrowthPlant> EcoModel::plants() const {
     std::vector<UndergrowthPlant> out;
     out.reserve(m.size() + m.sleepersLive);
     m.forEachTree([&](std::uint64_t pid, std::int32_t s, double px, double py, double h, double r, double g, std::int32_t ageYears,
-                      double, float vv) {
+                      double, float vv, std::int32_t) {
         UndergrowthPlant& u = out.emplace_back();
         u.id = pid;
         u.speciesId = s;
@@ -1127,7 +1213,8 @@ YearRecord EcoModel::census() const {
     r.meanHeightM.assign(ns, 0);
     r.meanVigour.assign(ns, 0);
     r.crownAreaM2.assign(ns, 0);
-    m.forEachTree([&](std::uint64_t, std::int32_t sid, double, double, double h, double rad, double, std::int32_t, double, float vv) {
+    m.forEachTree([&](std::uint64_t, std::int32_t sid, double, double, double h, double rad, double, std::int32_t, double, float vv,
+                      std::int32_t) {
         const std::size_t s = static_cast<std::size_t>(sid);
         ++r.count[s];
         r.meanHeightM[s] += h;
@@ -1172,7 +1259,7 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
     return removed;
 }
 std::size_t EcoModel::bytesPerPlant() const {
-    return sizeof(std::uint64_t) + 2 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
+    return sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
            /* witness */ sizeof(std::uint32_t) +
            /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
            sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
@@ -1196,12 +1283,12 @@ void EcoModel::saveState(h5::File& f, const std::string& group) const {
         writeDisturbanceTable(f, group + "/disturbance", m.disturbanceEvents, m.biome);
     }
     // Every tree in creation order (the store and the sleepers merged).
-    std::vector<std::int32_t> idLo, idHi, sps, ages;
+    std::vector<std::int32_t> idLo, idHi, sps, ages, livesLeft;
     std::vector<double> xs, ys, hs, gs, ds;
-    for (auto* a : {&idLo, &idHi, &sps, &ages}) a->reserve(n);
+    for (auto* a : {&idLo, &idHi, &sps, &ages, &livesLeft}) a->reserve(n);
     for (auto* a : {&xs, &ys, &hs, &gs, &ds}) a->reserve(n);
     m.forEachTree([&](std::uint64_t pid, std::int32_t s, double px, double py, double h, double, double g, std::int32_t ageYears,
-                      double dAge, float) {
+                      double dAge, float, std::int32_t lv) {
         idLo.push_back(static_cast<std::int32_t>(static_cast<std::uint32_t>(pid)));
         idHi.push_back(static_cast<std::int32_t>(static_cast<std::uint32_t>(pid >> 32)));
         sps.push_back(s);
@@ -1211,6 +1298,7 @@ void EcoModel::saveState(h5::File& f, const std::string& group) const {
         gs.push_back(g);
         ds.push_back(dAge);
         ages.push_back(ageYears);
+        livesLeft.push_back(lv);
     });
     f.writeI32(group + "/id_lo", idLo, {n}, "1");
     f.writeI32(group + "/id_hi", idHi, {n}, "1");
@@ -1221,6 +1309,7 @@ void EcoModel::saveState(h5::File& f, const std::string& group) const {
     f.writeF64(group + "/growth_age", gs, {n}, "years");
     f.writeF64(group + "/death_age", ds, {n}, "years");
     f.writeI32(group + "/age", ages, {n}, "years");
+    f.writeI32(group + "/dominated_lives", livesLeft, {n}, "years");  // dominated years still survived (2^30: every one)
 }
 
 void EcoModel::loadState(const h5::File& f, const std::string& group) {
@@ -1242,8 +1331,10 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     const auto gs = f.readF64(group + "/growth_age");
     const auto ds = f.readF64(group + "/death_age");
     const auto as = f.readI32(group + "/age");
+    if (!f.exists(group + "/dominated_lives")) throw IoError(where + ": no dominated_lives (a checkpoint of an older EcoMod)");
+    const auto ls = f.readI32(group + "/dominated_lives");
     const std::size_t n = sps.size();
-    for (std::size_t len : {idLo.size(), idHi.size(), xs.size(), ys.size(), hs.size(), gs.size(), ds.size(), as.size()})
+    for (std::size_t len : {idLo.size(), idHi.size(), xs.size(), ys.size(), hs.size(), gs.size(), ds.size(), as.size(), ls.size()})
         if (len != n) throw IoError(where + ": plant arrays differ in length");
     m.id.clear();
     m.species.clear();
@@ -1251,6 +1342,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.age.clear();
     m.v.clear();
     m.witness.clear();
+    m.lives.clear();
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
     m.sleepWitness.clear();
@@ -1259,7 +1351,9 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
         const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |
                                   static_cast<std::uint32_t>(idLo[p]);
+        if (ls[p] < 0 || ls[p] > Impl::kInfiniteLives) throw IoError(where + ": plant " + std::to_string(p) + " has bad dominated_lives");
         m.push(pid, sps[p], xs[p], ys[p], hs[p], gs[p], as[p], ds[p]);
+        m.lives.back() = ls[p];
     }
     m.fate.assign(n, 0);
     m.year = static_cast<int>(f.attrInt(group, "years_done"));

@@ -8,15 +8,17 @@
 // through (0, 0), (t_m, h_m), (t_a, h_full), (t_f, h_full), unless a neighbour whose
 // ecological neighbourhood (crown circle) overlaps its own has a higher competitive ability
 // a = (h / h_max of the biome) x p_persist x v (Eq. 1); then it is dominated: it gains
-// dominated_growth years of growth age and dies with probability 1 - dominated_survival;
-// deaths at an age drawn uniformly in [t_a, t_f] at birth. v = k_y m l w s (Eq. 2): the
+// dominated_growth years of growth age and dies with probability 1 - dominated_survival
+// (each tree draws at birth how many dominated years it survives, geometric with that
+// survival: the same law as a draw per dominated year); natural deaths at an age drawn
+// uniformly in [t_a, t_f] at birth. v = k_y m l w s (Eq. 2): the
 // suitabilities of normalised elevation, moisture, sun, wind (Eqs. 4-7) and slope (Eq. 3),
 // from the annual maps of the abiotics file.
 //
 // The plant state is a structure of arrays of positions, heights, species and ages; the
 // Simulation front (simulator.h) delegates to EcoModel when the model kind is "ecomod", so
 // the run loop, outputs, checkpoints and resume are those of the monthly model. Suppressed
-// seedlings are set aside from the yearly passes with their draws made ahead (sleepers;
+// seedlings are set aside from the yearly passes with their event year planned (sleepers;
 // merged back by id wherever the trees are listed: the same results). Results are
 // bit-identical for any thread count: every random draw comes from a stream keyed by (seed,
 // year, species or plant id), and parallel loops only write per-plant results.

@@ -379,17 +379,11 @@ SimInputs ecomodFireScene(int w, int h, double wetFromM) {
 
 }  // namespace
 
-TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt part, and pioneers recolonise it",
-          "[disturbance][sim][ecomod]") {
-    // 150 years of afforestation of empty ground, a fire at the end of year 150 that burns
-    // the dry west part (x < 50 m of 80 m) and kills every tree there, then 25 more years;
-    // compared with the same run without the fire.
-    constexpr double kWet = 50.0;
-    constexpr int kFireYear = 150, kAfter = 25;
-    const SimInputs in = ecomodFireScene(80, 40, kWet);
-    const Biome& b = in.biome;
-    SimParams params;
-    params.kind = ModelKind::EcoMod;
+// The forced fire of the EcoMod test below: it burns the dry west part (x < kFireWetM) and
+// scorches every tree there whole.
+constexpr double kFireWetM = 50.0;
+constexpr int kFireYear = 150, kFireAfter = 25;
+DisturbanceSettings westFire() {
     DisturbanceSettings d;
     d.fire.enabled = true;
     d.fire.timing.forcedYears = {kFireYear};
@@ -398,6 +392,52 @@ TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt par
     d.fire.windFactor = 0;
     d.fire.severity = 1.0;
     d.fire.scorchHeightM = 1000.0;  // scorches every tree whole
+    return d;
+}
+
+// Trees, and pioneers (max age <= 100 years, as in the ecomod validation scenario), west of
+// the wet edge.
+struct WestCount {
+    std::size_t all = 0, pioneers = 0;
+};
+WestCount westCount(const Simulation& sim) {
+    WestCount c;
+    for (const auto& p : sim.plants())
+        if (p.xM < kFireWetM) {
+            ++c.all;
+            c.pioneers += sim.ecomod()->speciesParams()[static_cast<std::size_t>(p.speciesId)].maxAgeYears <= 100 ? 1 : 0;
+        }
+    return c;
+}
+
+// The fire scenario of another seed, for the recolonisation's share pooled over seeds: the
+// west's counts kFireAfter years after the fire, with it and without it.
+std::pair<WestCount, WestCount> westAfterFire(const SimInputs& in, std::uint64_t seed) {
+    SimParams params;
+    params.kind = ModelKind::EcoMod;
+    Simulation burnt(in, params, seed), unburnt(in, params, seed);
+    burnt.setDisturbance(westFire());
+    for (int y = 0; y < kFireYear + 1 + kFireAfter; ++y) {  // as the test below: the fire at the end of year kFireYear
+        burnt.stepYear();
+        unburnt.stepYear();
+    }
+    REQUIRE(burnt.disturbances().size() == 1);
+    REQUIRE(burnt.disturbances()[0].xM < kFireWetM);  // the ignition falls in the dry part
+    return {westCount(burnt), westCount(unburnt)};
+}
+
+TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt part, and pioneers recolonise it",
+          "[disturbance][sim][ecomod]") {
+    // 150 years of afforestation of empty ground, a fire at the end of year 150 that burns
+    // the dry west part (x < 50 m of 80 m) and kills every tree there, then 25 more years;
+    // compared with the same run without the fire.
+    constexpr double kWet = kFireWetM;
+    constexpr int kAfter = kFireAfter;
+    const SimInputs in = ecomodFireScene(80, 40, kWet);
+    const Biome& b = in.biome;
+    SimParams params;
+    params.kind = ModelKind::EcoMod;
+    const DisturbanceSettings d = westFire();
     constexpr std::uint64_t kSeed = 4;  // its ignition falls in the dry part (checked below)
     Simulation burnt(in, params, kSeed), unburnt(in, params, kSeed);
     burnt.setDisturbance(d);
@@ -434,27 +474,28 @@ TEST_CASE("disturbance in EcoMod: a forced fire kills the trees of the burnt par
     CHECK(killed == static_cast<std::int64_t>(westKilled));
     CHECK(burnt.counters().diedDisturbance == killed);
     // Recolonisation: pioneers (max age <= 100 years, as in the ecomod validation scenario)
-    // take the burnt ground first, far above their share of the mature stand.
-    auto pioneer = [&](int s) { return burnt.ecomod()->speciesParams()[static_cast<std::size_t>(s)].maxAgeYears <= 100; };
-    auto westShare = [&](const Simulation& sim) {
-        std::size_t all = 0, pio = 0;
-        for (const auto& p : sim.plants())
-            if (p.xM < kWet) {
-                ++all;
-                pio += pioneer(p.speciesId) ? 1 : 0;
-            }
-        return std::make_pair(all, all ? static_cast<double>(pio) / all : 0.0);
-    };
+    // take the burnt ground first, far above their share of the mature stand. Their share
+    // varies from seed to seed (1.35 - 3.5 x the unburnt share in single runs of seeds 2 -
+    // 14), so it is pooled over this seed and two more whose ignition is in the dry part.
     for (int y = 0; y < kAfter; ++y) {
         burnt.stepYear();
         unburnt.stepYear();
     }
-    const auto [westAfter, pioneerShareBurnt] = westShare(burnt);
-    const auto [westControl, pioneerShareUnburnt] = westShare(unburnt);
-    INFO("killed " << killed << "; west trees: " << westAfter << " after the fire, " << westControl << " without it; pioneer share "
-                        << pioneerShareBurnt << " against " << pioneerShareUnburnt);
+    WestCount after = westCount(burnt), control = westCount(unburnt);
+    const std::size_t westAfter = after.all;
+    for (std::uint64_t seed : {2, 3}) {
+        const auto [withFire, without] = westAfterFire(in, seed);
+        after.all += withFire.all;
+        after.pioneers += withFire.pioneers;
+        control.all += without.all;
+        control.pioneers += without.pioneers;
+    }
+    const double pioneerShareBurnt = static_cast<double>(after.pioneers) / std::max<std::size_t>(after.all, 1);
+    const double pioneerShareUnburnt = static_cast<double>(control.pioneers) / std::max<std::size_t>(control.all, 1);
+    INFO("killed " << killed << "; west trees: " << westAfter << " after the fire; pioneer share over 3 seeds "
+                        << pioneerShareBurnt << " against " << pioneerShareUnburnt << " without the fire");
     CHECK(westAfter > westKilled / 4);
-    CHECK(pioneerShareBurnt > 2 * pioneerShareUnburnt);
+    CHECK(pioneerShareBurnt > 1.5 * pioneerShareUnburnt);
     CHECK(pioneerShareBurnt > 0.2);
     (void)b;
 }

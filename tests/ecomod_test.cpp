@@ -206,6 +206,38 @@ TEST_CASE("ecomod: of two overlapping trees the more able dominates the other", 
     }
 }
 
+TEST_CASE("ecomod: dominated seedlings survive each year with probability dominated_survival", "[sim][ecomod]") {
+    // 2025 seedlings of height 0 under one full-grown oak: dominated every year, they die at
+    // the rate of dominated_survival = 0.8 a year (the first year in the store's pass, the
+    // next ones set aside): after k years N 0.8^k of them are left, within 4 binomial SDs.
+    Biome b = quietBiome();
+    const int oak = b.speciesIndex("Coast Live Oak"), toyon = b.speciesIndex("Toyon");
+    EcoModSpecies& o = b.species[static_cast<std::size_t>(oak)].ecomod;
+    o.fullHeightM = 20;
+    o.maxAgeYears = 1000;  // no death of age here
+    EcoModSpecies& t = b.species[static_cast<std::size_t>(toyon)].ecomod;
+    t.dominatedSurvival = 0.8;
+    t.dominatedGrowth = 0;
+    t.maturityAgeYears = 50;  // neither mature nor dead of age within the test
+    t.fullGrownAgeYears = 60;
+    t.maxAgeYears = 200;
+    std::vector<UndergrowthPlant> initial{tree(oak, 20, 20, 20)};
+    for (int i = 0; i < 45; ++i)
+        for (int j = 0; j < 45; ++j) initial.push_back(tree(toyon, 19.56 + 0.02 * i, 19.56 + 0.02 * j, 0));
+    const double n = 45 * 45;
+    Simulation sim(flatScene(b, 40), ecomodParams(), 3, initial);
+    for (int k = 1; k <= 8; ++k) {
+        sim.stepYear();
+        const double p = std::pow(0.8, k), left = static_cast<double>(sim.plantCount()) - 1;
+        INFO("year " << k << ": " << left << " seedlings left, expected " << n * p);
+        CHECK(std::abs(left - n * p) < 4 * std::sqrt(n * p * (1 - p)));
+        CHECK(sim.counters().diedDominated == static_cast<std::int64_t>(n - left));
+    }
+    REQUIRE(sim.ecomod() != nullptr);
+    CHECK(sim.ecomod()->setAsideCount() > 0);  // the set-aside path was taken
+    CHECK(sim.plants()[0].speciesId == oak);
+}
+
 TEST_CASE("ecomod: the domination test agrees with a brute-force search over every pair", "[sim][ecomod]") {
     // Hundreds of trees of several species, many of height 0 (seedlings, which cannot dominate),
     // crowds and gaps, and static canopy trees; nobody dies of domination, so that each year's
