@@ -785,13 +785,14 @@ Tree apexTree(const Scene& scene, int ix, int iy, std::uint64_t uid, bool anchor
 /// The residual apex fit (CanopyParams::residualApexFit). The tree t made at the residual
 /// apex cell (ix, iy) is replaced by the sphere of the crown model that stays under the CHM
 /// and touches (within fitTolM) the most unexplained cells of its disc, the apex cell among
-/// them: apex positions within 2 cells of the cell's centre in half-cell steps, each as high
-/// as the CHM allows (no cell of the inner 0.7 of its disc below the sphere), the radius that of the CHM's
-/// height at the cell, then of the fitted height. It is tried only where a higher 8-neighbour
-/// of the cell is explained by another crown (the cell may be the top of the crescent that
-/// crown leaves of a lower one), and kept only when it touches more cells than the sphere
-/// at t's own position does. t.hidden: the CHM at the fitted apex's cell stands more than
-/// hiddenTolM above the sphere (the apex is under another crown).
+/// them: apex positions within 2 cells of the cell's centre (whole cells, then the half cells
+/// around the best), each as high as the CHM allows (no cell of the inner 0.7 of its disc
+/// below the sphere), of t's radius (the CHM's height at the cell); the best one then takes
+/// the radius of its own height. It is tried only where a higher 8-neighbour of the cell is
+/// explained by another crown (the cell may be the top of the crescent that crown leaves of
+/// a lower one), and kept only when it touches more cells than the sphere at t's own
+/// position does. t.hidden: the CHM at the fitted apex's cell stands more than hiddenTolM
+/// above the sphere (the apex is under another crown).
 constexpr double kApexFitCore = 0.7;
 template <typename InSet>
 void fitResidualApex(const Scene& scene, int ix, int iy, double fitTolM, double hiddenTolM, InSet&& unexplained, Tree& t) {
@@ -841,34 +842,39 @@ void fitResidualApex(const Scene& scene, int ix, int iy, double fitTolM, double 
         hOut = top;
         return touched;
     };
-    // The sphere at (x0, y0): first of the radius at the cell's height, then of the height
-    // found (a hidden apex stands above the cell, its crown is wider).
-    const int species = t.species;
-    auto fit = [&](double x0, double y0, double& top) {
-        double top0 = c;  // the first sphere's height when it touches the cell, else the cell's
-        evaluate(x0, y0, t.radiusM, top0);
-        return evaluate(x0, y0, scene.radiusFor(species, std::max(top0, c)), top);
-    };
     double hOwn = 0;
-    const int own = fit(t.x, t.y, hOwn);
+    const int own = evaluate(t.x, t.y, t.radiusM, hOwn);
     const double half = 0.5 * chm.cellSizeM();
-    int best = -1, bestOff = 0;
+    int best = -1, bestOff = 0, bestX = 0, bestY = 0;
     double bx = 0, by = 0, top = 0;
-    for (int oy = -4; oy <= 4; ++oy)
-        for (int ox = -4; ox <= 4; ++ox) {
-            const double x0 = chm.cellCentreX(ix) + ox * half, y0 = chm.cellCentreY(iy) + oy * half;
-            double h0 = 0;
-            const int n = fit(x0, y0, h0);
-            const int off = ox * ox + oy * oy;
-            if (n > best || (n == best && off < bestOff)) {
-                best = n;
-                bestOff = off;
-                bx = x0;
-                by = y0;
-                top = h0;
-            }
+    auto consider = [&](int ox, int oy) {  // offsets in half cells
+        const double x0 = chm.cellCentreX(ix) + ox * half, y0 = chm.cellCentreY(iy) + oy * half;
+        double h0 = 0;
+        const int n = evaluate(x0, y0, t.radiusM, h0);
+        const int off = ox * ox + oy * oy;
+        if (n > best || (n == best && off < bestOff)) {
+            best = n;
+            bestOff = off;
+            bestX = ox;
+            bestY = oy;
+            bx = x0;
+            by = y0;
+            top = h0;
         }
+    };
+    // Whole cells first (up to 2 away), then the half cells around the best of them.
+    for (int oy = -4; oy <= 4; oy += 2)
+        for (int ox = -4; ox <= 4; ox += 2) consider(ox, oy);
+    const int sx = bestX, sy = bestY;
+    for (int oy = sy - 1; oy <= sy + 1; ++oy)
+        for (int ox = sx - 1; ox <= sx + 1; ++ox)
+            if ((ox != sx || oy != sy) && std::abs(ox) <= 4 && std::abs(oy) <= 4) consider(ox, oy);
     if (best <= own) return;
+    {
+        // The radius of the height found (a hidden apex stands above the cell: a wider crown).
+        double top2 = 0;
+        if (evaluate(bx, by, scene.radiusFor(t.species, top), top2) >= 0) top = top2;
+    }
     const bool anchored = t.apex;
     const std::uint64_t uid = t.uid;
     t = scene.makeTree(bx, by, top, uid);
@@ -1385,33 +1391,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                         return dx * dx + dy * dy < o.r * o.r;
                     });
                     if (inCrown) continue;
-                    Tree c = scene.makeTree(x, y, hNew, 0);
+                    const Tree c = scene.makeTree(x, y, hNew, 0);
                     if (!supported(chmM.cellX(x), chmM.cellY(y), c.radiusM)) continue;
-                    if (params.residualApexFit != 0) {
-                        // To the highest unexplained cell within half the crown radius (on
-                        // it, the ring's random spot of the gap moved to a crown's top, and
-                        // fitted there as a residual apex is).
-                        const double reach = 0.5 * c.radiusM;
-                        const int cx0 = std::max(0, chmM.cellX(x - reach)), cx1 = std::min(chmM.width() - 1, chmM.cellX(x + reach));
-                        const int cy0 = std::max(0, chmM.cellY(y - reach)), cy1 = std::min(chmM.height() - 1, chmM.cellY(y + reach));
-                        int bx = -1, by = -1;
-                        float bz = -1;
-                        for (int jy = cy0; jy <= cy1; ++jy)
-                            for (int jx = cx0; jx <= cx1; ++jx) {
-                                const double dx = chmM.cellCentreX(jx) - x, dy = chmM.cellCentreY(jy) - y;
-                                if (dx * dx + dy * dy > reach * reach) continue;
-                                const std::size_t j = chmM.index(jx, jy);
-                                if (!unexplained(j) || !(chmData[j] > bz)) continue;
-                                bz = chmData[j];
-                                bx = jx;
-                                by = jy;
-                            }
-                        if (bx >= 0 && bz >= params.minSeedHeightM) {
-                            c = apexTree(scene, bx, by, 0, false, unexplained);
-                            fitResidualApex(scene, bx, by, params.residualApexFitToleranceM, params.residualToleranceM,
-                                            unexplained, c);
-                        }
-                    }
                     out.push_back(c);
                     owner.push_back(tt);
                     ++made;
@@ -1458,6 +1439,33 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 if (!accept[i]) continue;
                 fresh.push_back(cands[i]);
                 fresh.back().uid = nextUid++;
+            }
+            if (params.residualApexFit != 0) {
+                // Each new tree to the highest unexplained cell within half its crown radius
+                // (the ring's random spot of the gap moved to a crown's top), fitted there as a
+                // residual apex is; it still moves in later iterations. Per tree, in parallel.
+#pragma omp parallel for schedule(dynamic, 64)
+                for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(fresh.size()); ++k) {
+                    Tree& c = fresh[static_cast<std::size_t>(k)];
+                    const double x = c.x, y = c.y, reach = 0.5 * c.radiusM;
+                    const int cx0 = std::max(0, chmM.cellX(x - reach)), cx1 = std::min(chmM.width() - 1, chmM.cellX(x + reach));
+                    const int cy0 = std::max(0, chmM.cellY(y - reach)), cy1 = std::min(chmM.height() - 1, chmM.cellY(y + reach));
+                    int bx = -1, by = -1;
+                    float bz = -1;
+                    for (int jy = cy0; jy <= cy1; ++jy)
+                        for (int jx = cx0; jx <= cx1; ++jx) {
+                            const double dx = chmM.cellCentreX(jx) - x, dy = chmM.cellCentreY(jy) - y;
+                            if (dx * dx + dy * dy > reach * reach) continue;
+                            const std::size_t j = chmM.index(jx, jy);
+                            if (!unexplained(j) || !(chmData[j] > bz)) continue;
+                            bz = chmData[j];
+                            bx = jx;
+                            by = jy;
+                        }
+                    if (bx < 0 || !(bz >= params.minSeedHeightM)) continue;
+                    c = apexTree(scene, bx, by, c.uid, false, unexplained);
+                    fitResidualApex(scene, bx, by, params.residualApexFitToleranceM, params.residualToleranceM, unexplained, c);
+                }
             }
             s.added += fresh.size();
             trees.insert(trees.end(), fresh.begin(), fresh.end());
