@@ -603,6 +603,7 @@ TEST_CASE("the crescent of a crown whose apex is hidden under a taller one gives
     const Grid<float> terrain = Grid<float>::like(chm, 0.f);
     synth::CanopyParams p;
     p.ringSamples = 0;  // trees come from the seeding and the residual apices only
+    p.residualApexFit = 1;
     const synth::CanopyResult fitted = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     std::ostringstream where;
     for (const Plant& t : fitted.trees) where << " (" << t.xM - x0 << ", " << t.yM - y0 << ", " << t.heightM << ")";
