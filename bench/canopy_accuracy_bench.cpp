@@ -352,8 +352,8 @@ int main(int argc, char** argv) {
                 }
                 std::snprintf(line, sizeof line,
                               "    its detections: %zu within 1 m of a visible top, %zu within 1 m of a tree with a hidden top, "
-                              "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged\n",
-                              nearTop, nearHidden, offset, other, full.seedsMerged);
+                              "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged, %zu hidden apices not output\n",
+                              nearTop, nearHidden, offset, other, full.seedsMerged, full.hiddenApexTrees);
                 sec << line;
             }
             eco::synth::CanopyParams paper;

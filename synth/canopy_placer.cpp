@@ -654,6 +654,7 @@ struct Tree {
     std::uint64_t uid;  ///< creation order; keys the tree's random stream
     std::int32_t species;
     bool apex = false;  ///< at a maximum of the CHM or of its unexplained cells: stays there
+    bool hidden = false;  ///< fitted apex under another crown: explains the CHM, not output
 };  // 48 bytes: the lists of 700k trees at 3072^2 are read at every step
 
 /// Read-only lookups of the placer: CHM heights, species, crown radii.
@@ -779,6 +780,109 @@ Tree apexTree(const Scene& scene, int ix, int iy, std::uint64_t uid, bool anchor
     Tree t = scene.makeTree(x, y, height, uid);
     t.apex = anchored;
     return t;
+}
+
+/// The residual apex fit (CanopyParams::residualApexFit). The tree t made at the residual
+/// apex cell (ix, iy) is replaced by the sphere of the crown model that stays under the CHM
+/// and touches (within fitTolM) the most unexplained cells of its disc, the apex cell among
+/// them: apex positions within 2 cells of the cell's centre (whole cells, then the half cells
+/// around the best), each as high as the CHM allows (no cell of the inner 0.7 of its disc
+/// below the sphere), of t's radius (the CHM's height at the cell); the best one then takes
+/// the radius of its own height. It is tried only where a higher 8-neighbour of the cell is
+/// explained by another crown (the cell may be the top of the crescent that crown leaves of
+/// a lower one), and kept only when it touches more cells than the sphere at t's own
+/// position does. t.hidden: the CHM at the fitted apex's cell stands more than hiddenTolM
+/// above the sphere (the apex is under another crown).
+constexpr double kApexFitCore = 0.7;
+template <typename InSet>
+void fitResidualApex(const Scene& scene, int ix, int iy, double fitTolM, double hiddenTolM, InSet&& unexplained, Tree& t) {
+    const Grid<float>& chm = scene.chm();
+    const int w = chm.width(), h = chm.height();
+    const double c = chm(ix, iy);
+    bool besideTaller = false;
+    for (int jy = std::max(0, iy - 1); jy <= std::min(h - 1, iy + 1); ++jy)
+        for (int jx = std::max(0, ix - 1); jx <= std::min(w - 1, ix + 1); ++jx)
+            besideTaller = besideTaller || (chm(jx, jy) > c && !unexplained(chm.index(jx, jy)));
+    if (!besideTaller) return;
+    // Touched cells of the highest sphere of radius r at (x0, y0) under the CHM (-1: it does
+    // not touch the apex cell); its apex height in hOut. Only the cells within kApexFitCore x r
+    // of the apex count: near its rim a sphere is steep, and a rim a few centimetres off
+    // its true place stands above the ground beside the crown and would pull it down.
+    auto evaluate = [&](double x0, double y0, double r, double& hOut) -> int {
+        const double rc = kApexFitCore * r;
+        const int x0c = std::max(0, chm.cellX(x0 - rc)), x1c = std::min(w - 1, chm.cellX(x0 + rc));
+        const int y0c = std::max(0, chm.cellY(y0 - rc)), y1c = std::min(h - 1, chm.cellY(y0 + rc));
+        const double r2 = r * r, rc2 = rc * rc;
+        double top = std::numeric_limits<double>::infinity();
+        for (int jy = y0c; jy <= y1c; ++jy) {
+            const double dy = chm.cellCentreY(jy) - y0;
+            for (int jx = x0c; jx <= x1c; ++jx) {
+                const double dx = chm.cellCentreX(jx) - x0;
+                const double d2 = dx * dx + dy * dy;
+                if (d2 >= rc2) continue;
+                top = std::min(top, static_cast<double>(chm(jx, jy)) + r - std::sqrt(r2 - d2));
+            }
+        }
+        if (!std::isfinite(top)) return -1;
+        {
+            const double dx = chm.cellCentreX(ix) - x0, dy = chm.cellCentreY(iy) - y0;
+            const double d2 = dx * dx + dy * dy;
+            if (d2 >= rc2 || c - (top - r + std::sqrt(r2 - d2)) > fitTolM) return -1;
+        }
+        int touched = 0;
+        for (int jy = y0c; jy <= y1c; ++jy) {
+            const double dy = chm.cellCentreY(jy) - y0;
+            for (int jx = x0c; jx <= x1c; ++jx) {
+                const double dx = chm.cellCentreX(jx) - x0;
+                const double d2 = dx * dx + dy * dy;
+                if (d2 >= rc2 || !unexplained(chm.index(jx, jy))) continue;
+                touched += chm(jx, jy) - (top - r + std::sqrt(r2 - d2)) <= fitTolM;
+            }
+        }
+        hOut = top;
+        return touched;
+    };
+    double hOwn = 0;
+    const int own = evaluate(t.x, t.y, t.radiusM, hOwn);
+    const double half = 0.5 * chm.cellSizeM();
+    int best = -1, bestOff = 0, bestX = 0, bestY = 0;
+    double bx = 0, by = 0, top = 0;
+    auto consider = [&](int ox, int oy) {  // offsets in half cells
+        const double x0 = chm.cellCentreX(ix) + ox * half, y0 = chm.cellCentreY(iy) + oy * half;
+        double h0 = 0;
+        const int n = evaluate(x0, y0, t.radiusM, h0);
+        const int off = ox * ox + oy * oy;
+        if (n > best || (n == best && off < bestOff)) {
+            best = n;
+            bestOff = off;
+            bestX = ox;
+            bestY = oy;
+            bx = x0;
+            by = y0;
+            top = h0;
+        }
+    };
+    // Whole cells first (up to 2 away), then the half cells around the best of them.
+    for (int oy = -4; oy <= 4; oy += 2)
+        for (int ox = -4; ox <= 4; ox += 2) consider(ox, oy);
+    const int sx = bestX, sy = bestY;
+    for (int oy = sy - 1; oy <= sy + 1; ++oy)
+        for (int ox = sx - 1; ox <= sx + 1; ++ox)
+            if ((ox != sx || oy != sy) && std::abs(ox) <= 4 && std::abs(oy) <= 4) consider(ox, oy);
+    if (best <= own) return;
+    {
+        // The radius of the height found (a hidden apex stands above the cell: a wider crown).
+        double top2 = 0;
+        if (evaluate(bx, by, scene.radiusFor(t.species, top), top2) >= 0) top = top2;
+    }
+    const bool anchored = t.apex;
+    const std::uint64_t uid = t.uid;
+    t = scene.makeTree(bx, by, top, uid);
+    t.apex = anchored;
+    const int cx = std::clamp(chm.cellX(bx), 0, w - 1), cy = std::clamp(chm.cellY(by), 0, h - 1);
+    const double dx = chm.cellCentreX(cx) - bx, dy = chm.cellCentreY(cy) - by;
+    const double own2 = top - t.radiusM + std::sqrt(std::max(0.0, t.radiusM * t.radiusM - dx * dx - dy * dy));
+    t.hidden = chm(cx, cy) > own2 + hiddenTolM;
 }
 
 /// Lowest CHM cell on the segment between two trunks (cells sampled every half cell, the
@@ -946,6 +1050,10 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          &CanopyParams::residualToleranceM, nullptr, R::atLeast(0)},
         {"support_fraction", "an added tree needs this share of its disc unexplained; 0 = the paper's rule", "", K::Real,
          &CanopyParams::supportFraction, nullptr, R::closed(0, 1)},
+        {"residual_apex_fit", "added trees at residual apices take the sphere under the CHM touching most unexplained cells; hidden apices not output; 0 = at the cell",
+         "", K::Integer, nullptr, &CanopyParams::residualApexFit, R::closed(0, 1)},
+        {"residual_apex_fit_tolerance_m", "residual apex fit: a cell is touched when the sphere is at most this below the CHM", "m",
+         K::Real, &CanopyParams::residualApexFitToleranceM, nullptr, R::atLeast(0)},
         {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", "", K::Integer, nullptr,
          &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this", "m", K::Real, &CanopyParams::minTrunkDistanceM,
@@ -1152,8 +1260,13 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 const int ix = static_cast<int>(i % w), iy = static_cast<int>(i / w);
                 const double r = scene.radiusFor(scene.speciesAt(chmM.cellCentreX(ix), chmM.cellCentreY(iy)), chmData[i]);
                 candSupported[static_cast<std::size_t>(k)] = supported(ix, iy, r);
-                if (candSupported[static_cast<std::size_t>(k)])
-                    cand[static_cast<std::size_t>(k)] = apexTree(scene, ix, iy, 0, params.anchorApexTrees != 0, unexplained);
+                if (candSupported[static_cast<std::size_t>(k)]) {
+                    Tree& c = cand[static_cast<std::size_t>(k)];
+                    c = apexTree(scene, ix, iy, 0, params.anchorApexTrees != 0, unexplained);
+                    if (params.residualApexFit != 0)
+                        fitResidualApex(scene, ix, iy, params.residualApexFitToleranceM, params.residualToleranceM,
+                                        unexplained, c);
+                }
             }
             // Tallest first: a lower candidate inside an accepted one's crown and below its
             // surface is explained by it (one uncovered crown gives one tree, not one per bump).
@@ -1182,10 +1295,15 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 [&](std::size_t k) {
                     double x, y;
                     cellXY(k, x, y);
-                    return oldTrunks.any(x, y, params.minTrunkDistanceM, [&](std::int32_t j) {
-                        const Tree& o = trees[static_cast<std::size_t>(j)];
-                        return (o.x - x) * (o.x - x) + (o.y - y) * (o.y - y) < d2;
-                    });
+                    auto near = [&](double px, double py) {
+                        return oldTrunks.any(px, py, params.minTrunkDistanceM, [&](std::int32_t j) {
+                            const Tree& o = trees[static_cast<std::size_t>(j)];
+                            return (o.x - px) * (o.x - px) + (o.y - py) * (o.y - py) < d2;
+                        });
+                    };
+                    // A fitted tree (residualApexFit) moved off the cell: its trunk too.
+                    return near(x, y) || (params.residualApexFit != 0 && (cand[k].x != x || cand[k].y != y) &&
+                                          near(cand[k].x, cand[k].y));
                 },
                 [&](std::size_t k, auto&& fn) {
                     double x, y;
@@ -1322,6 +1440,33 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 fresh.push_back(cands[i]);
                 fresh.back().uid = nextUid++;
             }
+            if (params.residualApexFit != 0) {
+                // Each new tree to the highest unexplained cell within half its crown radius
+                // (the ring's random spot of the gap moved to a crown's top), fitted there as a
+                // residual apex is; it still moves in later iterations. Per tree, in parallel.
+#pragma omp parallel for schedule(dynamic, 64)
+                for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(fresh.size()); ++k) {
+                    Tree& c = fresh[static_cast<std::size_t>(k)];
+                    const double x = c.x, y = c.y, reach = 0.5 * c.radiusM;
+                    const int cx0 = std::max(0, chmM.cellX(x - reach)), cx1 = std::min(chmM.width() - 1, chmM.cellX(x + reach));
+                    const int cy0 = std::max(0, chmM.cellY(y - reach)), cy1 = std::min(chmM.height() - 1, chmM.cellY(y + reach));
+                    int bx = -1, by = -1;
+                    float bz = -1;
+                    for (int jy = cy0; jy <= cy1; ++jy)
+                        for (int jx = cx0; jx <= cx1; ++jx) {
+                            const double dx = chmM.cellCentreX(jx) - x, dy = chmM.cellCentreY(jy) - y;
+                            if (dx * dx + dy * dy > reach * reach) continue;
+                            const std::size_t j = chmM.index(jx, jy);
+                            if (!unexplained(j) || !(chmData[j] > bz)) continue;
+                            bz = chmData[j];
+                            bx = jx;
+                            by = jy;
+                        }
+                    if (bx < 0 || !(bz >= params.minSeedHeightM)) continue;
+                    c = apexTree(scene, bx, by, c.uid, false, unexplained);
+                    fitResidualApex(scene, bx, by, params.residualApexFitToleranceM, params.residualToleranceM, unexplained, c);
+                }
+            }
             s.added += fresh.size();
             trees.insert(trees.end(), fresh.begin(), fresh.end());
         }
@@ -1361,6 +1506,15 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         for (std::size_t t = 0; t < trees.size(); ++t)
             if (!starved(t, frame, vis, params.minVisibleFraction)) kept.push_back(trees[t]);
         fin.removed = trees.size() - kept.size();
+        trees.swap(kept);
+    }
+    {
+        // Trees whose fitted apex lies under another crown: their top is not in the CHM.
+        Buf<Tree>& kept = next;
+        kept.clear();
+        for (const Tree& t : trees)
+            if (!t.hidden) kept.push_back(t);
+        result.hiddenApexTrees = trees.size() - kept.size();
         trees.swap(kept);
     }
     if (params.seedMergeSaddleM > 0) {

@@ -578,3 +578,42 @@ TEST_CASE("the seed merge keeps two small noise-free crowns about a radius apart
     CHECK(merged.seedsMerged == 1);
     CHECK(merged.trees.size() == 1);
 }
+
+TEST_CASE("the crescent of a crown whose apex is hidden under a taller one gives no tree top", "[canopy]") {
+    // Two spheres of the placer's own model (Douglas-Fir): a 10 m tree and an 8 m one whose
+    // trunk stands 1.7 m away, inside the taller crown (radius 2.2 m). The lower apex lies
+    // about 1.2 m under the taller crown's surface: no top in the CHM, only a crescent of the
+    // lower crown outside the taller disc. Its highest cell is a residual apex; the residual
+    // apex fit finds the sphere that explains the crescent with its apex under the taller
+    // crown, and that tree is not output. Without the fit a tree stands on the crescent.
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    const double cell = 0.914;
+    Grid<float> chm(40, 40, cell, 0, 0, 0.f);
+    const double x0 = chm.cellCentreX(18) + 0.2, y0 = chm.cellCentreY(18) + 0.1;
+    const std::vector<GeneratedTree> trees = {{x0, y0, 10.0, a.crownRadiusM(10.0)}, {x0 + 1.7, y0 + 0.2, 8.0, a.crownRadiusM(8.0)}};
+    rasterizeCrowns(trees, chm);
+    {
+        // The lower apex is hidden: the taller sphere stands more than 0.3 m above it.
+        const double r = trees[0].crownRadiusM, d = std::hypot(trees[1].x - x0, trees[1].y - y0);
+        REQUIRE(10.0 - r + std::sqrt(r * r - d * d) > 8.0 + 0.9);
+        REQUIRE(d + trees[1].crownRadiusM > r + cell);  // a crescent of at least a cell shows
+    }
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    synth::CanopyParams p;
+    p.ringSamples = 0;  // trees come from the seeding and the residual apices only
+    p.residualApexFit = 1;
+    const synth::CanopyResult fitted = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    std::ostringstream where;
+    for (const Plant& t : fitted.trees) where << " (" << t.xM - x0 << ", " << t.yM - y0 << ", " << t.heightM << ")";
+    INFO("trees " << fitted.trees.size() << ", hidden apices " << fitted.hiddenApexTrees << ":" << where.str());
+    REQUIRE(fitted.trees.size() == 1);
+    CHECK(std::hypot(fitted.trees[0].xM - x0, fitted.trees[0].yM - y0) < 0.5);
+    CHECK(std::abs(fitted.trees[0].heightM - 10.0) < 0.3);
+    CHECK(fitted.hiddenApexTrees >= 1);
+    p.residualApexFit = 0;
+    const synth::CanopyResult plain = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    CHECK(plain.trees.size() == 2);
+    CHECK(plain.hiddenApexTrees == 0);
+}
