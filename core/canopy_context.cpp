@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "error.h"
+#include "memory.h"
 
 namespace eco {
 
@@ -237,14 +238,15 @@ CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
     };
     std::vector<Box> box(trees.size());
     {
-        std::vector<std::uint32_t> at(nCells + 1, 0);
+        std::vector<std::uint32_t> at;
+        assignFresh(at, nCells + 1, 0u);
         std::vector<std::uint32_t> trunkCell(trees.size());
         for (std::size_t t = 0; t < trees.size(); ++t) {
             trunkCell[t] = static_cast<std::uint32_t>(cellIndex(cellOf(trees[t]->xM, originX_, nx_), cellOf(trees[t]->yM, originY_, ny_)));
             ++at[trunkCell[t] + 1];
         }
         for (std::size_t c = 0; c < nCells; ++c) at[c + 1] += at[c];
-        disc_.resize(trees.size());
+        resizeFresh(disc_, trees.size());
         for (std::size_t t = 0; t < trees.size(); ++t) {
             const Plant& p = *trees[t];
             const double x = p.xM, y = p.yM, r = p.crownRadiusM;
@@ -276,12 +278,14 @@ CanopyCover::CanopyCover(const std::vector<Plant>& canopy) {
                 for (int ix = box[k].x0; ix <= box[k].x1; ++ix) f(cellIndex(ix, iy), k);
     };
     const bool parallel = nBands > 1 && box.size() >= 4096;
-    start_.assign(nCells + 1, 0);
+    assignFresh(start_, nCells + 1, 0u);
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
     for (int b = 0; b < nBands; ++b) forBandCells(b, [&](std::size_t c, std::size_t) { ++start_[c + 1]; });
     for (std::size_t c = 0; c < nCells; ++c) start_[c + 1] += start_[c];
-    crown_.resize(start_[nCells]);
-    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    resizeFresh(crown_, start_[nCells]);
+    std::vector<std::uint32_t> fill;
+    resizeFresh(fill, nCells);
+    std::copy(start_.begin(), start_.end() - 1, fill.begin());
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
     for (int b = 0; b < nBands; ++b)
         forBandCells(b, [&](std::size_t c, std::size_t k) { crown_[fill[c]++] = static_cast<std::uint32_t>(k); });

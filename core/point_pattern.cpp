@@ -14,6 +14,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "memory.h"
 #include "text_format.h"
 #include "provenance.h"
 
@@ -190,8 +191,10 @@ PointGrid::PointGrid(const std::vector<double>& x, const std::vector<double>& y,
     nx_ = static_cast<int>(std::floor((maxX - minX) * invCell_)) + 1;
     ny_ = static_cast<int>(std::floor((maxY - minY) * invCell_)) + 1;
     const std::size_t ncell = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
-    std::vector<std::uint32_t> cellOf(n);
-    start_.assign(ncell + 1, 0);
+    // Fresh pages of the large arrays faulted in by every thread (core/memory.h).
+    std::vector<std::uint32_t> cellOf;
+    resizeFresh(cellOf, n);
+    assignFresh(start_, ncell + 1, std::size_t{0});
     for (std::size_t i = 0; i < n; ++i) {
         const int cx = std::min(nx_ - 1, static_cast<int>(std::floor((x[i] - ox_) * invCell_)));
         const int cy = std::min(ny_ - 1, static_cast<int>(std::floor((y[i] - oy_) * invCell_)));
@@ -200,10 +203,12 @@ PointGrid::PointGrid(const std::vector<double>& x, const std::vector<double>& y,
         ++start_[cellOf[i] + 1];
     }
     for (std::size_t c = 0; c < ncell; ++c) start_[c + 1] += start_[c];
-    std::vector<std::size_t> fill(start_.begin(), start_.end() - 1);
-    order_.resize(n);
-    xs_.resize(n);
-    ys_.resize(n);
+    std::vector<std::size_t> fill;
+    resizeFresh(fill, ncell);
+    std::copy(start_.begin(), start_.end() - 1, fill.begin());
+    resizeFresh(order_, n);
+    resizeFresh(xs_, n);
+    resizeFresh(ys_, n);
     for (std::size_t i = 0; i < n; ++i) {  // stable counting sort: deterministic order
         const std::size_t s = fill[cellOf[i]]++;
         order_[s] = static_cast<std::uint32_t>(i);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "error.h"
 
@@ -72,6 +73,32 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
         while (xb >= e.x0 && !in(xb)) --xb;
         return xa <= xb;
     };
+    // The same span one row further from the tree's centre row: a subset of the last one
+    // (dx^2 + dy^2 grows with |dy| in double too), so only its ends move inwards.
+    auto shrink = [&](const Plant& p, double dy, double r2, int& xa, int& xb) {
+        auto in = [&](int ix) {
+            const double dx = geometry.cellCentreX(ix) - p.xM;
+            return dx * dx + dy * dy <= r2;
+        };
+        while (xa <= xb && !in(xa)) ++xa;
+        while (xb >= xa && !in(xb)) --xb;
+        return xa <= xb;
+    };
+    // The row whose centre is nearest the tree (smallest dy^2 as computed): |dy| grows from
+    // it both ways, so spans only shrink away from it.
+    auto nearestRow = [&](const Plant& p) {
+        const int guess = static_cast<int>(std::floor((p.yM - geometry.originY()) * invCs - 0.5));
+        int best = guess;
+        double bestD2 = std::numeric_limits<double>::infinity();
+        for (int iy = guess - 1; iy <= guess + 2; ++iy) {
+            const double dy = geometry.cellCentreY(iy) - p.yM;
+            if (dy * dy < bestD2) {
+                bestD2 = dy * dy;
+                best = iy;
+            }
+        }
+        return best;
+    };
     const std::size_t W1 = static_cast<std::size_t>(w) + 1;
 #pragma omp parallel
     {
@@ -80,6 +107,9 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
         std::vector<std::int32_t> diff(static_cast<std::size_t>(kBandRows) * nBits * W1);
         std::vector<std::int32_t> innerDiff(seedWeight ? static_cast<std::size_t>(kBandRows) * W1 : 0);
         std::vector<std::vector<int>> fringe(static_cast<std::size_t>(kBandRows));
+        // Per row: the number of fringe cells left of each column (a span's fringe cells in
+        // two reads instead of a binary search).
+        std::vector<std::uint32_t> fringeBefore(seedWeight ? static_cast<std::size_t>(kBandRows) * W1 : 0);
         struct Span {
             std::uint32_t tree;
             int iy, xa, xb;
@@ -91,17 +121,27 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
             std::fill(diff.begin(), diff.end(), 0);
             std::fill(innerDiff.begin(), innerDiff.end(), 0);
             spans.clear();
-            for (std::uint32_t t : bandTrees[static_cast<std::size_t>(b)]) {
+            const std::vector<std::uint32_t>& trees = bandTrees[static_cast<std::size_t>(b)];
+            for (std::size_t q = 0; q < trees.size(); ++q) {
+                // The trees of a band lie anywhere in the list: fetch a few ahead (at 3072^2
+                // the load of the crown radius was a sixth of this function's time).
+                constexpr std::size_t kAhead = 8;
+                if (q + kAhead < trees.size()) {
+                    __builtin_prefetch(&canopy[trees[q + kAhead]]);
+                    __builtin_prefetch(&extent[trees[q + kAhead]]);
+                }
+                const std::uint32_t t = trees[q];
                 const Plant& p = canopy[t];
                 const Extent& e = extent[t];
                 const int mask = speciesMask[static_cast<std::size_t>(p.speciesId)];
                 const double radius = seedingRadiusFactor * p.crownRadiusM;
                 const double r2 = radius * radius;
                 const double inner = std::min(innerFactor, seedingRadiusFactor) * p.crownRadiusM;
-                for (int iy = std::max(e.y0, by0); iy <= std::min(e.y1, by1); ++iy) {
-                    const double dy = geometry.cellCentreY(iy) - p.yM;
-                    int xa, xb;
-                    if (!span(p, e, dy, r2, xa, xb)) continue;
+                const bool withInner = seedWeight && inner > 0;
+                const double i2 = inner * inner;
+                const int yA = std::max(e.y0, by0), yB = std::min(e.y1, by1);
+                if (yA > yB) continue;
+                auto addRow = [&](int iy, int xa, int xb) {
                     if (seedWeight) spans.push_back(Span{t, iy, xa, xb});
                     const std::size_t row = static_cast<std::size_t>(iy - by0);
                     for (std::size_t k = 0; k < nBits; ++k)
@@ -110,10 +150,39 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
                             ++d[xa];
                             --d[xb + 1];
                         }
-                    if (seedWeight && inner > 0 && span(p, e, dy, inner * inner, xa, xb)) {
-                        std::int32_t* d = &innerDiff[row * W1];
-                        ++d[xa];
-                        --d[xb + 1];
+                };
+                auto addInner = [&](int iy, int xa, int xb) {
+                    std::int32_t* d = &innerDiff[static_cast<std::size_t>(iy - by0) * W1];
+                    ++d[xa];
+                    --d[xb + 1];
+                };
+                // From the band's row nearest the tree outwards, both ways: the first row of
+                // each way is found from its square root, the others by moving the last
+                // row's ends inwards (the same cells as the square root and tests per row).
+                const int mid = std::clamp(nearestRow(p), yA, yB);
+                int oa = 0, ob = -1, ia = 0, ib = -1;  // the spans of row mid
+                bool outer = false, innerOn = false;
+                {
+                    const double dy = geometry.cellCentreY(mid) - p.yM;
+                    outer = span(p, e, dy, r2, oa, ob);
+                    if (outer) {
+                        addRow(mid, oa, ob);
+                        if (withInner) innerOn = span(p, e, dy, i2, ia, ib);
+                        if (innerOn) addInner(mid, ia, ib);
+                    }
+                }
+                if (!outer) continue;  // the nearest row misses the disc: so do the others
+                for (const int step : {1, -1}) {
+                    int xa = oa, xb = ob, ja = ia, jb = ib;
+                    bool inn = innerOn;
+                    for (int iy = mid + step; iy >= yA && iy <= yB; iy += step) {
+                        const double dy = geometry.cellCentreY(iy) - p.yM;
+                        if (r2 - dy * dy < 0 || !shrink(p, dy, r2, xa, xb)) break;
+                        addRow(iy, xa, xb);
+                        if (inn) {
+                            inn = i2 - dy * dy >= 0 && shrink(p, dy, i2, ja, jb);
+                            if (inn) addInner(iy, ja, jb);
+                        }
                     }
                 }
             }
@@ -135,21 +204,25 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
                 float* wrow = &(*seedWeight)(0, iy);
                 auto& fr = fringe[row];
                 fr.clear();
+                std::uint32_t* before = &fringeBefore[row * W1];
                 std::int32_t run = 0;
                 for (int ix = 0; ix < w; ++ix) {
+                    before[ix] = static_cast<std::uint32_t>(fr.size());
                     run += innerDiff[row * W1 + static_cast<std::size_t>(ix)];
                     if (run > 0) wrow[ix] = 1.0f;
                     else if (lrow[ix] != 0) fr.push_back(ix);
                 }
+                before[w] = static_cast<std::uint32_t>(fr.size());
             }
             if (!seedWeight) continue;
             // k = (R - d) / (R - inner) in the annulus (single precision; the same arithmetic for
             // any thread count), added in tree order to the fringe cells of each row.
             for (const Span& sp : spans) {
-                const auto& fr = fringe[static_cast<std::size_t>(sp.iy - by0)];
-                if (fr.empty()) continue;
-                auto it = std::lower_bound(fr.begin(), fr.end(), sp.xa);
-                if (it == fr.end() || *it > sp.xb) continue;
+                const std::size_t row = static_cast<std::size_t>(sp.iy - by0);
+                const std::uint32_t f0 = fringeBefore[row * W1 + static_cast<std::size_t>(sp.xa)];
+                const std::uint32_t f1 = fringeBefore[row * W1 + static_cast<std::size_t>(sp.xb) + 1];
+                if (f0 == f1) continue;
+                const int* fr = fringe[row].data();
                 const Plant& p = canopy[sp.tree];
                 const double radius = seedingRadiusFactor * p.crownRadiusM;
                 const double fall = radius - std::min(innerFactor, seedingRadiusFactor) * p.crownRadiusM;
@@ -159,8 +232,10 @@ Grid<std::int32_t> seedingLabels(const Grid<float>& geometry, const std::vector<
                 const double dy = geometry.cellCentreY(sp.iy) - p.yM;
                 const float dy2 = static_cast<float>(dy * dy);
                 float* wrow = &(*seedWeight)(0, sp.iy);
-                for (; it != fr.end() && *it <= sp.xb; ++it) {
-                    const int ix = *it;
+                for (std::uint32_t f = f0; f < f1; ++f) {
+                    const int ix = fr[f];
+                    // The terms are >= 0: a sum that reached 1 ends at 1 (the cap below).
+                    if (wrow[ix] >= 1.0f) continue;
                     if (!(fall > 0)) {
                         wrow[ix] += 1.0f;
                         continue;

@@ -26,6 +26,7 @@
 #include "h5io.h"
 #include "chart.h"
 #include "image_out.h"
+#include "memory.h"
 #include "rng.h"
 #include "strict_toml.h"
 #include "text_format.h"
@@ -1547,7 +1548,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     result.final = fin;
     if (progress) progress(fin);
 
-    result.trees.resize(trees.size());
+    resizeFresh(result.trees, trees.size());  // 34 MB at 3072^2: its pages faulted in by every thread
     std::size_t fallbackTrees = 0;
 #pragma omp parallel for schedule(static) reduction(+ : fallbackTrees) if (trees.size() >= kParallelItems)
     for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {

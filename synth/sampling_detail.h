@@ -157,6 +157,9 @@ struct TrunkIndex {
     TrunkIndex(const std::vector<Plant>& canopy, double factor) {
         if (!(factor > 0) || canopy.empty()) return;
         std::vector<double> x, y, r2;
+        x.reserve(canopy.size());  // no copies left behind by growth: fresh pages cost
+        y.reserve(canopy.size());
+        r2.reserve(canopy.size());
         for (const auto& t : canopy) {
             x.push_back(t.xM);
             y.push_back(t.yM);
