@@ -562,7 +562,7 @@ SearchRun controlledRandomSearch(const BatchObjective& batch, const std::vector<
             for (std::size_t j = 0; j < draw; ++j) std::swap(others[j], others[j + rs.below(static_cast<std::uint32_t>(others.size() - j))]);
             std::vector<double> y(static_cast<std::size_t>(k));
             bool inside = false;
-            if (trial % 2 == 0) {
+            if (trial % 4 != 3) {
                 const std::vector<double>& reflected = pop[others[draw - 1]];
                 inside = true;
                 for (std::size_t i = 0; i < y.size(); ++i) {
