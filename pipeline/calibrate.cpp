@@ -354,7 +354,11 @@ SearchRun runOptimiser(const std::function<double(const std::vector<double>&)>& 
     nlopt_set_upper_bounds(opt, upper.data());
     nlopt_set_min_objective(opt, cubeObjective, &data);
     nlopt_set_maxeval(opt, maxEvaluations);
+    // The tolerance is a fraction of each range (docs/calibration.md): an absolute step in
+    // the unit cube. (xtol_rel alone is relative to |x|: near a range's lower end, where the
+    // unit coordinate is small, it asked for far smaller steps than the ranges' tolerance.)
     nlopt_set_xtol_rel(opt, s.tolerance);
+    nlopt_set_xtol_abs1(opt, s.tolerance);
     if (!global) nlopt_set_initial_step1(opt, s.initialStep);
     // The global methods draw their points from NLopt's generator: seeded, so that the same
     // settings give the same points (and a rerun replays them over finished simulations).
@@ -506,12 +510,13 @@ BatchObjective oneAfterAnother(const std::function<double(const std::vector<doub
 
 /// The global phase of global = "crs" (docs/calibration.md, "Controlled random search in
 /// rounds"): a population in the unit cube, improved a round of trial points at a time.
-/// Trial n (counted over the whole phase) is, for even n, Price's CRS2 reflection: the best
+/// Trial n (counted over the whole phase) is mostly Price's CRS2 reflection: the best
 /// point and k - 1 others drawn from the population give a centroid G, and a k-th drawn
 /// point x is reflected through it, 2 G - x; a reflection that leaves the cube, and every
-/// odd trial, is instead Kaelo and Ali's local mutation around the best b: coordinate i at
-/// (1 + w_i) b_i - w_i x_i with w_i uniform in [0, 1] and x another drawn point, clamped to
-/// the cube. The draws come from a stream seeded with settings.seed, in the minimiser's own
+/// fourth trial (n % 4 == 3), is instead Kaelo and Ali's local mutation around the best b:
+/// coordinate i at (1 + w_i) b_i - w_i x_i with w_i uniform in [0, 1] and x another drawn
+/// point, clamped to the cube; so is a trial that repeats a point of the population or of
+/// the round (drawn again, up to 8 times). The draws come from a stream seeded with settings.seed, in the minimiser's own
 /// thread, from the population as it stood at the round's start, so the rounds depend on the
 /// settings alone.
 SearchRun controlledRandomSearch(const BatchObjective& batch, const std::vector<double>& start, const SearchSettings& s, int budget) {
@@ -573,12 +578,18 @@ SearchRun controlledRandomSearch(const BatchObjective& batch, const std::vector<
                     if (y[i] < 0 || y[i] > 1) inside = false;
                 }
             }
-            if (!inside) {
-                const std::vector<double>& x = pop[others[0]];
+            // A point already in the population or in this round (two reflections of the same
+            // drawn points) would tell nothing new: a mutation instead (a few tries).
+            const auto known = [&](const std::vector<double>& p) {
+                return std::find(pop.begin(), pop.end(), p) != pop.end() || std::find(trials.begin(), trials.end(), p) != trials.end();
+            };
+            for (int attempt = 0; attempt < 8 && (!inside || known(y)); ++attempt) {
+                const std::vector<double>& x = pop[others[static_cast<std::size_t>(attempt) % draw]];
                 for (std::size_t i = 0; i < y.size(); ++i) {
                     const double w = rs.uniform();
                     y[i] = std::clamp((1 + w) * pop[b][i] - w * x[i], 0.0, 1.0);
                 }
+                inside = true;
             }
             trials.push_back(std::move(y));
         }

@@ -443,6 +443,8 @@ TEST_CASE("calibrate search: crs evaluates rounds of trial points, finds the glo
     std::size_t total = 0;
     for (std::size_t n = 1; n < rounds.size(); ++n) {
         CHECK(rounds[n].size() == 4);
+        for (std::size_t i = 0; i < rounds[n].size(); ++i)
+            for (std::size_t j = 0; j < i; ++j) CHECK(rounds[n][i] != rounds[n][j]);  // a repeated trial is drawn again
         for (const auto& x : rounds[n])
             for (double v : x) {
                 CHECK(v >= 0);
