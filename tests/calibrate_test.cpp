@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -127,6 +128,29 @@ double twoWells(const std::vector<double>& u) {
     return f;
 }
 
+/// A batch objective of twoWells that records each batch (round) it is given, and evaluates
+/// its points one after the other.
+BatchObjective roundsOfTwoWells(std::vector<std::vector<std::vector<double>>>& rounds) {
+    return [&rounds](const std::vector<std::vector<double>>& xs) {
+        rounds.push_back(xs);
+        std::vector<double> v;
+        for (const auto& x : xs) v.push_back(twoWells(x));
+        return v;
+    };
+}
+
+/// A search whose third batch (round) throws stops, and that error comes through.
+void checkFailingRoundStops(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start, const SearchSettings& s) {
+    int calls = 0;
+    CHECK_THROWS_WITH(minimiseInUnitCube(f, start, s,
+                                         [&](const std::vector<std::vector<double>>& xs) {
+                                             if (++calls == 3) throw ValidationError("round 3 failed");
+                                             return std::vector<double>(xs.size(), 1.0);
+                                         }),
+                      Catch::Contains("round 3 failed"));
+    CHECK(calls == 3);
+}
+
 }  // namespace
 
 TEST_CASE("calibrate search: on a function with several minima the local method is trapped, the global searches are not", "[calibrate]") {
@@ -212,12 +236,7 @@ TEST_CASE("calibrate search: parallel starts run in rounds, each start as it wou
     s.tolerance = 1e-4;
     s.initialStep = 0.1;
     std::vector<std::vector<std::vector<double>>> rounds;
-    const BatchObjective batch = [&](const std::vector<std::vector<double>>& xs) {
-        rounds.push_back(xs);
-        std::vector<double> v;
-        for (const auto& x : xs) v.push_back(twoWells(x));
-        return v;
-    };
+    const BatchObjective batch = roundsOfTwoWells(rounds);
     const auto unused = [](const std::vector<double>&) -> double { throw ValidationError("the batch objective is used"); };
     const SearchResult found = minimiseInUnitCube(unused, middle, s, batch);
     REQUIRE(found.runs.size() == 6);
@@ -268,14 +287,7 @@ TEST_CASE("calibrate search: parallel starts run in rounds, each start as it wou
     CHECK(serial.best == found.best);
     CHECK(serial.evaluations == found.evaluations);
     // A round that fails stops every search, and its error comes through.
-    int calls = 0;
-    CHECK_THROWS_WITH(minimiseInUnitCube(unused, middle, s,
-                                         [&](const std::vector<std::vector<double>>& xs) {
-                                             if (++calls == 3) throw ValidationError("round 3 failed");
-                                             return std::vector<double>(xs.size(), 1.0);
-                                         }),
-                      Catch::Contains("round 3 failed"));
-    CHECK(calls == 3);
+    checkFailingRoundStops(unused, middle, s);
     // Fewer than 2 evaluations per start: refused.
     s.maxEvaluations = 11;
     CHECK_THROWS_WITH(minimiseInUnitCube(twoWells, middle, s), Catch::Contains("2 x starts"));
@@ -408,13 +420,7 @@ TEST_CASE("calibrate search: crs evaluates rounds of trial points, finds the glo
     s.population = 20;
     s.batchSize = 4;
     std::vector<std::vector<std::vector<double>>> rounds;
-    // One point after the other in this thread.
-    const BatchObjective serial = [&](const std::vector<std::vector<double>>& xs) {
-        rounds.push_back(xs);
-        std::vector<double> v;
-        for (const auto& x : xs) v.push_back(twoWells(x));
-        return v;
-    };
+    const BatchObjective serial = roundsOfTwoWells(rounds);  // one point after the other in this thread
     // The global phase goes through the batch objective, the local polish through f.
     int polished = 0;
     const auto polish = [&](const std::vector<double>& x) {
@@ -490,12 +496,5 @@ TEST_CASE("calibrate search: crs evaluates rounds of trial points, finds the glo
     s.globalEvaluations = 19;
     CHECK_THROWS_WITH(minimiseInUnitCube(twoWells, middle, s), Catch::Contains("population"));
     s.globalEvaluations = 600;
-    int calls = 0;
-    CHECK_THROWS_WITH(minimiseInUnitCube(polish, middle, s,
-                                         [&](const std::vector<std::vector<double>>& xs) {
-                                             if (++calls == 3) throw ValidationError("round 3 failed");
-                                             return std::vector<double>(xs.size(), 1.0);
-                                         }),
-                      Catch::Contains("round 3 failed"));
-    CHECK(calls == 3);
+    checkFailingRoundStops(polish, middle, s);
 }
