@@ -49,7 +49,7 @@ void registerCalibrateCommand(CLI::App& app) {
         "Fit species parameters and model constants within bounds (linear, log-scaled or integer) to observations "
         "(species shares, density, mean heights, cover, height quantiles at a year; cv of the plant count; a field "
         "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt; local, or global: "
-        "multistart, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (in "
+        "multistart, our controlled random search in rounds of points evaluated together, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (in "
         "members_at_once child processes or across MPI ranks: mpirun -n N eco calibrate SPEC; the same history for any number; a killed calibration "
         "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
         "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");

@@ -88,8 +88,8 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     spec.initialStep = c.numberInOr("initial_step", 1e-3, 1.0, spec.initialStep);
     spec.uncertainty = c.booleanOr("uncertainty", spec.uncertainty);
     spec.global = c.stringOr("global", spec.global);
-    if (spec.global != "none" && spec.global != "multistart" && spec.global != "crs2" && spec.global != "isres")
-        c.fail("global", "'" + spec.global + "' is not one of none, multistart, crs2, isres");
+    if (spec.global != "none" && spec.global != "multistart" && spec.global != "crs" && spec.global != "crs2" && spec.global != "isres")
+        c.fail("global", "'" + spec.global + "' is not one of none, multistart, crs, crs2, isres");
     if (spec.global == "multistart") {
         spec.starts = count("starts", 2, 100, spec.starts);
         spec.parallelStarts = c.booleanOr("parallel_starts", spec.parallelStarts);
@@ -100,12 +100,20 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         for (const char* key : {"starts", "parallel_starts"})
             if (c.has(key)) c.fail(key, "is a key of global = \"multistart\" (global is \"" + spec.global + "\")");
     }
-    if (spec.global == "crs2" || spec.global == "isres") {
+    if (spec.global == "crs" || spec.global == "crs2" || spec.global == "isres") {
         spec.globalEvaluations = count("global_evaluations", 2, spec.maxEvaluations - 1, spec.maxEvaluations / 2);
     } else if (c.has("global_evaluations")) {
-        c.fail("global_evaluations", "is a key of global = \"crs2\" or \"isres\" (global is \"" + spec.global + "\")");
+        c.fail("global_evaluations", "is a key of global = \"crs\", \"crs2\" or \"isres\" (global is \"" + spec.global + "\")");
     }
-    if (spec.global == "none" && c.has("seed")) c.fail("seed", "is a key of a global search (global = multistart, crs2 or isres)");
+    // crs: the population and the round's size (checked against the parameters' number below).
+    if (spec.global == "crs") {
+        if (c.has("population")) spec.population = count("population", 2, 10000, 0);
+        if (c.has("batch")) spec.batchSize = count("batch", 1, 10000, 0);
+    } else {
+        for (const char* key : {"population", "batch"})
+            if (c.has(key)) c.fail(key, "is a key of global = \"crs\" (global is \"" + spec.global + "\")");
+    }
+    if (spec.global == "none" && c.has("seed")) c.fail("seed", "is a key of a global search (global = multistart, crs, crs2 or isres)");
     {
         const std::int64_t seed = c.integerOr("seed", 1);
         if (seed < 0) c.fail("seed", "must not be negative, got " + std::to_string(seed));
@@ -122,6 +130,15 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
     }
     if (spec.parameters.empty()) c.fail("parameters", "no parameter to fit");
     if (spec.parameters.size() > 50) c.fail("parameters", "more than 50 parameters");
+    if (spec.global == "crs") {
+        const int k = static_cast<int>(spec.parameters.size());
+        const int population = crsPopulation(searchSettingsOf(spec), k);
+        if (population < k + 1)
+            c.fail("population", "must be at least the number of parameters + 1 (" + std::to_string(k + 1) + "), got " + std::to_string(population));
+        if (c.has("batch") && spec.batchSize > population) c.fail("batch", "must be at most the population (" + std::to_string(population) + "), got " + std::to_string(spec.batchSize));
+        if (spec.globalEvaluations < population)
+            c.fail("global_evaluations", "must be at least the population (" + std::to_string(population) + ": its points are the first round), got " + std::to_string(spec.globalEvaluations));
+    }
     spec.base = studyBase(c.node("base"), path, path + ": [calibrate] base");
     if (const toml::table* truth = c.optionalTable("truth")) {
         StrictTable t(*truth, path, "[calibrate.truth]");
@@ -337,7 +354,11 @@ SearchRun runOptimiser(const std::function<double(const std::vector<double>&)>& 
     nlopt_set_upper_bounds(opt, upper.data());
     nlopt_set_min_objective(opt, cubeObjective, &data);
     nlopt_set_maxeval(opt, maxEvaluations);
+    // The tolerance is a fraction of each range (docs/calibration.md): an absolute step in
+    // the unit cube. (xtol_rel alone is relative to |x|: near a range's lower end, where the
+    // unit coordinate is small, it asked for far smaller steps than the ranges' tolerance.)
     nlopt_set_xtol_rel(opt, s.tolerance);
+    nlopt_set_xtol_abs1(opt, s.tolerance);
     if (!global) nlopt_set_initial_step1(opt, s.initialStep);
     // The global methods draw their points from NLopt's generator: seeded, so that the same
     // settings give the same points (and a rerun replays them over finished simulations).
@@ -477,7 +498,121 @@ std::vector<SearchRun> multistartInRounds(const BatchObjective& batch, const std
     return runs;
 }
 
+
+/// A batch objective that evaluates the points one after the other through f.
+BatchObjective oneAfterAnother(const std::function<double(const std::vector<double>&)>& f) {
+    return [&f](const std::vector<std::vector<double>>& points) {
+        std::vector<double> v;
+        for (const auto& x : points) v.push_back(f(x));
+        return v;
+    };
+}
+
+/// The global phase of global = "crs" (docs/calibration.md, "Controlled random search in
+/// rounds"): a population in the unit cube, improved a round of trial points at a time.
+/// Trial n (counted over the whole phase) is mostly Price's CRS2 reflection: the best
+/// point and k - 1 others drawn from the population give a centroid G, and a k-th drawn
+/// point x is reflected through it, 2 G - x; a reflection that leaves the cube, and every
+/// fourth trial (n % 4 == 3), is instead Kaelo and Ali's local mutation around the best b:
+/// coordinate i at (1 + w_i) b_i - w_i x_i with w_i uniform in [0, 1] and x another drawn
+/// point, clamped to the cube; so is a trial that repeats a point of the population or of
+/// the round (drawn again, up to 8 times). The draws come from a stream seeded with settings.seed, in the minimiser's own
+/// thread, from the population as it stood at the round's start, so the rounds depend on the
+/// settings alone.
+SearchRun controlledRandomSearch(const BatchObjective& batch, const std::vector<double>& start, const SearchSettings& s, int budget) {
+    const int k = static_cast<int>(start.size());
+    const int size = crsPopulation(s, k), perRound = crsBatchSize(s, k);
+    if (budget < size) throw ValidationError("calibrate: crs needs global_evaluations >= population (" + std::to_string(size) + ")");
+    const auto evaluate = [&batch](const std::vector<std::vector<double>>& points) {
+        std::vector<double> values = batch(points);
+        if (values.size() != points.size()) throw ValidationError("calibrate: a batch of " + std::to_string(points.size()) + " points gave " + std::to_string(values.size()) + " values");
+        for (double& v : values)
+            if (std::isnan(v)) v = HUGE_VAL;
+        return values;
+    };
+    std::vector<std::vector<double>> pop = multistartPoints(k, size, start, s.seed);
+    std::vector<double> value = evaluate(pop);
+    SearchRun run;
+    run.method = "crs";
+    run.start = start;
+    run.evaluations = size;
+    RandomStream rs(s.seed, 0x4372734261746368ull);  // "CrsBatch"
+    const auto bestOf = [&] { return static_cast<std::size_t>(std::min_element(value.begin(), value.end()) - value.begin()); };
+    // Contracted: every point within the tolerance of the best in every coordinate.
+    const auto contracted = [&] {
+        const std::vector<double>& b = pop[bestOf()];
+        for (const auto& x : pop)
+            for (int i = 0; i < k; ++i)
+                if (std::abs(x[static_cast<std::size_t>(i)] - b[static_cast<std::size_t>(i)]) > s.tolerance) return false;
+        return true;
+    };
+    long trial = 0;
+    run.stopReason = "global_evaluations reached";
+    while (true) {
+        if (contracted()) {
+            run.stopReason = "the population contracted within the tolerance";
+            run.converged = true;
+            break;
+        }
+        const int count = std::min(perRound, budget - run.evaluations);
+        if (count <= 0) break;
+        const std::size_t b = bestOf();
+        std::vector<std::vector<double>> trials;
+        for (int t = 0; t < count; ++t, ++trial) {
+            // k distinct points other than the best (a partial Fisher-Yates shuffle).
+            std::vector<std::size_t> others;
+            for (std::size_t j = 0; j < pop.size(); ++j)
+                if (j != b) others.push_back(j);
+            const std::size_t draw = std::min(others.size(), static_cast<std::size_t>(k));
+            for (std::size_t j = 0; j < draw; ++j) std::swap(others[j], others[j + rs.below(static_cast<std::uint32_t>(others.size() - j))]);
+            std::vector<double> y(static_cast<std::size_t>(k));
+            bool inside = false;
+            if (trial % 4 != 3) {
+                const std::vector<double>& reflected = pop[others[draw - 1]];
+                inside = true;
+                for (std::size_t i = 0; i < y.size(); ++i) {
+                    double g = pop[b][i];
+                    for (std::size_t j = 0; j + 1 < draw; ++j) g += pop[others[j]][i];
+                    g /= static_cast<double>(draw);
+                    y[i] = 2 * g - reflected[i];
+                    if (y[i] < 0 || y[i] > 1) inside = false;
+                }
+            }
+            // A point already in the population or in this round (two reflections of the same
+            // drawn points) would tell nothing new: a mutation instead (a few tries).
+            const auto known = [&](const std::vector<double>& p) {
+                return std::find(pop.begin(), pop.end(), p) != pop.end() || std::find(trials.begin(), trials.end(), p) != trials.end();
+            };
+            for (int attempt = 0; attempt < 8 && (!inside || known(y)); ++attempt) {
+                const std::vector<double>& x = pop[others[static_cast<std::size_t>(attempt) % draw]];
+                for (std::size_t i = 0; i < y.size(); ++i) {
+                    const double w = rs.uniform();
+                    y[i] = std::clamp((1 + w) * pop[b][i] - w * x[i], 0.0, 1.0);
+                }
+                inside = true;
+            }
+            trials.push_back(std::move(y));
+        }
+        const std::vector<double> got = evaluate(trials);
+        run.evaluations += count;
+        for (std::size_t t = 0; t < trials.size(); ++t) {
+            const std::size_t worst = static_cast<std::size_t>(std::max_element(value.begin(), value.end()) - value.begin());
+            if (got[t] < value[worst]) {
+                pop[worst] = trials[t];
+                value[worst] = got[t];
+            }
+        }
+    }
+    const std::size_t b = bestOf();
+    run.best = pop[b];
+    run.value = value[b];
+    return run;
+}
+
 }  // namespace
+
+int crsPopulation(const SearchSettings& settings, int k) { return settings.population > 0 ? settings.population : 10 * (k + 1); }
+int crsBatchSize(const SearchSettings& settings, int k) { return settings.batchSize > 0 ? settings.batchSize : k + 1; }
 
 SearchSettings searchSettingsOf(const CalibrationSpec& spec) {
     SearchSettings s;
@@ -486,6 +621,8 @@ SearchSettings searchSettingsOf(const CalibrationSpec& spec) {
     s.starts = spec.starts;
     s.parallelStarts = spec.parallelStarts;
     s.globalEvaluations = spec.globalEvaluations;
+    s.population = spec.population;
+    s.batchSize = spec.batchSize;
     s.seed = spec.seed;
     s.maxEvaluations = spec.maxEvaluations;
     s.tolerance = spec.tolerance;
@@ -534,12 +671,7 @@ SearchResult minimiseInUnitCube(const std::function<double(const std::vector<dou
         const std::vector<std::vector<double>> starts = multistartPoints(static_cast<int>(start.size()), settings.starts, start, settings.seed);
         if (settings.parallelStarts) {
             if (settings.maxEvaluations / settings.starts < 2) throw ValidationError("calibrate: parallel starts need max_evaluations >= 2 x starts");
-            const BatchObjective oneByOne = [&f](const std::vector<std::vector<double>>& points) {
-                std::vector<double> v;
-                for (const auto& x : points) v.push_back(f(x));
-                return v;
-            };
-            for (SearchRun& run : multistartInRounds(batch ? batch : oneByOne, starts, local, settings)) add(std::move(run));
+            for (SearchRun& run : multistartInRounds(batch ? batch : oneAfterAnother(f), starts, local, settings)) add(std::move(run));
         }
         for (std::size_t n = 0; n < starts.size() && !settings.parallelStarts; ++n) {
             const int left = settings.maxEvaluations - r.evaluations;
@@ -553,8 +685,13 @@ SearchResult minimiseInUnitCube(const std::function<double(const std::vector<dou
         const int left = settings.maxEvaluations - r.evaluations;
         // The local method polishes the global phase's best.
         if (left >= 2) add(runOptimiser(f, local, settings.algorithm, r.best, left, settings, false));
+    } else if (settings.global == "crs") {
+        const int globalBudget = settings.globalEvaluations > 0 ? settings.globalEvaluations : settings.maxEvaluations / 2;
+        add(controlledRandomSearch(batch ? batch : oneAfterAnother(f), start, settings, globalBudget));
+        const int left = settings.maxEvaluations - r.evaluations;
+        if (left >= 2) add(runOptimiser(f, local, settings.algorithm, r.best, left, settings, false));
     } else {
-        throw ValidationError("calibrate: unknown global search '" + settings.global + "' (none, multistart, crs2, isres)");
+        throw ValidationError("calibrate: unknown global search '" + settings.global + "' (none, multistart, crs, crs2, isres)");
     }
     const SearchRun& best = r.runs[r.bestRun];
     r.converged = best.converged;
@@ -689,6 +826,11 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
                                                  (spec.parallelStarts ? " side by side (parallel_starts: in rounds, one evaluation of each start per round, " + std::to_string(spec.maxEvaluations / spec.starts) + " evaluations each). "
                                                                       : " sharing the budget. ")
            : spec.global == "none" ? std::string()
+           : spec.global == "crs"
+               ? "Global search: controlled random search in rounds (crs, seed " + std::to_string(spec.seed) + "): a population of " +
+                     std::to_string(crsPopulation(searchSettingsOf(spec), static_cast<int>(k))) + " points, then rounds of " +
+                     std::to_string(crsBatchSize(searchSettingsOf(spec), static_cast<int>(k))) + " trial points evaluated together, for " +
+                     std::to_string(spec.globalEvaluations) + " evaluations, then `" + spec.algorithm + "` from its best. "
                                    : "Global search: NLopt " + std::string(spec.global == "crs2" ? "GN_CRS2_LM" : "GN_ISRES") + " (seed " + std::to_string(spec.seed) + ") for " +
                                          std::to_string(spec.globalEvaluations) + " evaluations, then `" + spec.algorithm + "` from its best. ")
        << result.history.size() << " evaluations (" << result.history.size() * static_cast<std::size_t>(spec.replicates)

@@ -48,8 +48,13 @@ struct CalibrationSpec {
     /// still searching per round, the round's simulations run together (members_at_once
     /// children or MPI ranks share them); each start gets max_evaluations / starts.
     bool parallelStarts = false;
-    int globalEvaluations = 0;   ///< crs2, isres: evaluations of the global phase (0: half of max_evaluations)
-    std::uint64_t seed = 1;      ///< multistart, crs2, isres
+    int globalEvaluations = 0;   ///< crs, crs2, isres: evaluations of the global phase (0: half of max_evaluations)
+    /// crs (our controlled random search in rounds, docs/calibration.md): the population's
+    /// size (0: 10 (k + 1)) and the trial points of a round (0: k + 1), each round's points
+    /// evaluated together (members_at_once children or MPI ranks share their simulations).
+    int population = 0;
+    int batchSize = 0;
+    std::uint64_t seed = 1;      ///< multistart, crs, crs2, isres
     int membersAtOnce = 1;
     std::vector<StudyParameter> parameters;
     std::vector<double> start;   ///< starting values (default: the middle of each range)
@@ -124,6 +129,8 @@ struct SearchSettings {
     int starts = 4;
     bool parallelStarts = false;  ///< multistart: the starts in rounds (minimiseInUnitCube's batch objective), max_evaluations / starts each
     int globalEvaluations = 0;
+    int population = 0;        ///< crs: points of the population (0: 10 (k + 1))
+    int batchSize = 0;         ///< crs: trial points per round (0: k + 1)
     std::uint64_t seed = 1;
     int maxEvaluations = 40;   ///< of the whole search (every start, both phases; multistart: an equal share of what is left per start)
     double tolerance = 1e-3;
@@ -140,6 +147,11 @@ std::vector<std::vector<double>> multistartPoints(int k, int starts, const std::
 /// Values of the objective at several points at once (in the order given).
 using BatchObjective = std::function<std::vector<double>(const std::vector<std::vector<double>>&)>;
 
+/// The population sizes of global = "crs" for k parameters: settings.population and
+/// settings.batchSize, or their defaults 10 (k + 1) and k + 1.
+int crsPopulation(const SearchSettings& settings, int k);
+int crsBatchSize(const SearchSettings& settings, int k);
+
 /// Minimises f over the unit cube [0, 1]^k from `start` as `settings` say. Deterministic: the
 /// same points in the same order for the same settings (NLopt's generator seeded with
 /// settings.seed before each global phase). An exception thrown by f stops the search and is
@@ -150,6 +162,16 @@ using BatchObjective = std::function<std::vector<double>(const std::vector<std::
 /// round n holds the n-th point of every start still searching, in the order of the starts,
 /// so the rounds depend on the settings alone; each start gets maxEvaluations / starts, and
 /// its points are those of the same local search run alone.
+///
+/// With global = "crs" (a controlled random search of our own, in rounds: Price 1983's CRS2
+/// reflection, alternating with Kaelo and Ali 2006's local mutation around the best) the
+/// population's first points (the start, then multistartPoints) form the first round, then
+/// every round holds settings.batchSize trial points drawn from the population as it stood
+/// at the round's start; each trial that beats the population's worst replaces it, in the
+/// order of the round. The rounds go to `batch` and depend on the settings alone (not on how
+/// `batch` runs them); the global phase stops when every coordinate of the population lies
+/// within settings.tolerance of the best's, or after globalEvaluations, and the local
+/// `algorithm` polishes the best with the rest of maxEvaluations.
 SearchResult minimiseInUnitCube(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start,
                                 const SearchSettings& settings, const BatchObjective& batch = {});
 

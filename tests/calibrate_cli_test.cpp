@@ -98,7 +98,10 @@ TEST_CASE("eco calibrate: the global search is recorded, a bad setting is refuse
     // Bad settings: refused before anything runs (a value in a file: exit 1, docs/robustness.md),
     // one line naming the file, the key and the value given.
     const std::vector<std::pair<std::string, std::vector<std::string>>> bad = {
-        {"global = \"anneal\"", {"field 'global'", "'anneal'", "multistart, crs2, isres"}},
+        {"global = \"anneal\"", {"field 'global'", "'anneal'", "multistart, crs, crs2, isres"}},
+        {"global = \"crs\"\nmax_evaluations = 8\nglobal_evaluations = 4\npopulation = 5", {"field 'global_evaluations'", "at least the population (5", "got 4"}},
+        {"global = \"crs\"\npopulation = 4\nbatch = 5", {"field 'batch'", "at most the population (4)", "got 5"}},
+        {"global = \"multistart\"\nbatch = 2", {"field 'batch'", "\"crs\"", "\"multistart\""}},
         {"global = \"multistart\"\nstarts = 1", {"field 'starts'", "2 .. 100", "got 1"}},
         {"global = \"multistart\"\nstarts = 101", {"field 'starts'", "got 101"}},
         {"global = \"multistart\"\nstarts = 2.5", {"field 'starts'", "integer"}},
@@ -187,6 +190,41 @@ TEST_CASE("eco calibrate: parallel starts over two MPI ranks give the history of
     CHECK(output.find("[rank 1]: member") != std::string::npos);
     CHECK(readTextFile(dir.file("mpi/history.csv")) == history);
     CHECK(body(readTextFile(dir.file("mpi/calibration.md"))) == body(report));
+#else
+    WARN("MPI part skipped: this build has no MPI (install libopenmpi-dev and configure again)");
+#endif
+}
+
+// global = "crs": a round's trial points are independent, so their simulations run side by
+// side; the history must not depend on how many run at once.
+TEST_CASE("eco calibrate: crs rounds give the same history with 1 or 2 members at once, and under MPI", "[calibrate][mpi][cli]") {
+    test::TempDir dir("calibrate_crs");
+    // A population of 2 (the start and one quasi-random point), then a round of 2 trial
+    // points: 4 evaluations of 1 replicate, no polish (max_evaluations = global_evaluations + 1).
+    const std::string settings = "global = \"crs\"\npopulation = 2\nbatch = 2\nseed = 3\nmax_evaluations = 5\nglobal_evaluations = 4\nreplicates = 1\n";
+    const std::string one = writeTinyCalibrationSpec(dir, "one.toml", settings + "members_at_once = 1\n");
+    const std::string two = writeTinyCalibrationSpec(dir, "two.toml", settings + "members_at_once = 2\n");
+    const auto ref = test::runEco("--no-provenance --threads 1 calibrate " + one + " --out-dir " + dir.file("one"));
+    INFO(ref.output);
+    REQUIRE(ref.exitCode == 0);
+    const std::string history = readTextFile(dir.file("one/history.csv"));
+    CHECK(std::count(history.begin(), history.end(), '\n') == 5);  // header and 4 evaluations
+    CHECK(history.find("\n1,search,0.00225,") != std::string::npos);  // the start: the middle of the range
+    const std::string report = readTextFile(dir.file("one/calibration.md"));
+    CHECK(report.find("Global search: controlled random search in rounds (crs, seed 3): a population of 2 points, then rounds of 2 trial points evaluated together, for 4 evaluations") != std::string::npos);
+    CHECK(report.find("| 1 | crs | 0.5 |") != std::string::npos);
+    const auto body = [](const std::string& md) { return md.substr(md.find("## Parameters")); };
+    const auto both = test::runEco("--no-provenance calibrate " + two + " --out-dir " + dir.file("two"));
+    INFO(both.output);
+    REQUIRE(both.exitCode == 0);
+    CHECK(both.output.find("2 members at once") != std::string::npos);
+    CHECK(readTextFile(dir.file("two/history.csv")) == history);
+    CHECK(body(readTextFile(dir.file("two/calibration.md"))) == body(report));
+#ifdef ECO_TEST_HAVE_MPI
+    const auto mpi = test::runEcoMpi(2, "--no-provenance calibrate " + one + " --out-dir " + dir.file("mpi"));
+    INFO(mpi.output);
+    REQUIRE(mpi.exitCode == 0);
+    CHECK(readTextFile(dir.file("mpi/history.csv")) == history);
 #else
     WARN("MPI part skipped: this build has no MPI (install libopenmpi-dev and configure again)");
 #endif

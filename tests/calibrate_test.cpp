@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "biome.h"
 #include "calibrate.h"
@@ -80,6 +82,11 @@ TEST_CASE("calibrate: a bad specification is refused with its file and key", "[c
         {{"global = \"crs2\"\nmax_evaluations = 20\nglobal_evaluations = 20", params + target}, "global_evaluations"},
         {{"global = \"multistart\"\nglobal_evaluations = 10", params + target}, "global_evaluations"},
         {{"seed = 3", params + target}, "seed"},
+        {{"global = \"crs\"\npopulation = 1", params + target}, "population"},
+        {{"global = \"crs\"\nmax_evaluations = 100\npopulation = 8\nbatch = 9", params + target}, "batch"},
+        {{"global = \"crs\"\nmax_evaluations = 30", params + target}, "global_evaluations"},  // 15 < the default population 20
+        {{"global = \"crs2\"\nbatch = 2", params + target}, "batch"},
+        {{"population = 10", params + target}, "population"},
     };
     for (const auto& [files, expect] : bad) {
         INFO(files.first << "\n" << files.second);
@@ -97,6 +104,15 @@ TEST_CASE("calibrate: a bad specification is refused with its file and key", "[c
     const auto crs = loadCalibrationSpec(write("global = \"crs2\"\nmax_evaluations = 30", params + target));
     CHECK(crs.globalEvaluations == 15);
     CHECK(searchSettingsOf(crs).global == "crs2");
+    const auto rounds = loadCalibrationSpec(write("global = \"crs\"\nmax_evaluations = 60\nglobal_evaluations = 40\npopulation = 12\nbatch = 4\nseed = 3", params + target));
+    CHECK(searchSettingsOf(rounds).global == "crs");
+    CHECK(searchSettingsOf(rounds).population == 12);
+    CHECK(searchSettingsOf(rounds).batchSize == 4);
+    CHECK(searchSettingsOf(rounds).globalEvaluations == 40);
+    // Defaults: 10 (k + 1) points, rounds of k + 1.
+    const auto defaults = loadCalibrationSpec(write("global = \"crs\"\nmax_evaluations = 60", params + target));
+    CHECK(crsPopulation(searchSettingsOf(defaults), 1) == 20);
+    CHECK(crsBatchSize(searchSettingsOf(defaults), 1) == 2);
 }
 
 namespace {
@@ -110,6 +126,29 @@ double twoWells(const std::vector<double>& u) {
     double f = 0;
     for (double x : u) f += (x - 0.6) * (x - 0.6) - 0.4 * std::exp(-std::pow((x - 0.1) / 0.1, 2));
     return f;
+}
+
+/// A batch objective of twoWells that records each batch (round) it is given, and evaluates
+/// its points one after the other.
+BatchObjective roundsOfTwoWells(std::vector<std::vector<std::vector<double>>>& rounds) {
+    return [&rounds](const std::vector<std::vector<double>>& xs) {
+        rounds.push_back(xs);
+        std::vector<double> v;
+        for (const auto& x : xs) v.push_back(twoWells(x));
+        return v;
+    };
+}
+
+/// A search whose third batch (round) throws stops, and that error comes through.
+void checkFailingRoundStops(const std::function<double(const std::vector<double>&)>& f, const std::vector<double>& start, const SearchSettings& s) {
+    int calls = 0;
+    CHECK_THROWS_WITH(minimiseInUnitCube(f, start, s,
+                                         [&](const std::vector<std::vector<double>>& xs) {
+                                             if (++calls == 3) throw ValidationError("round 3 failed");
+                                             return std::vector<double>(xs.size(), 1.0);
+                                         }),
+                      Catch::Contains("round 3 failed"));
+    CHECK(calls == 3);
 }
 
 }  // namespace
@@ -197,12 +236,7 @@ TEST_CASE("calibrate search: parallel starts run in rounds, each start as it wou
     s.tolerance = 1e-4;
     s.initialStep = 0.1;
     std::vector<std::vector<std::vector<double>>> rounds;
-    const BatchObjective batch = [&](const std::vector<std::vector<double>>& xs) {
-        rounds.push_back(xs);
-        std::vector<double> v;
-        for (const auto& x : xs) v.push_back(twoWells(x));
-        return v;
-    };
+    const BatchObjective batch = roundsOfTwoWells(rounds);
     const auto unused = [](const std::vector<double>&) -> double { throw ValidationError("the batch objective is used"); };
     const SearchResult found = minimiseInUnitCube(unused, middle, s, batch);
     REQUIRE(found.runs.size() == 6);
@@ -253,14 +287,7 @@ TEST_CASE("calibrate search: parallel starts run in rounds, each start as it wou
     CHECK(serial.best == found.best);
     CHECK(serial.evaluations == found.evaluations);
     // A round that fails stops every search, and its error comes through.
-    int calls = 0;
-    CHECK_THROWS_WITH(minimiseInUnitCube(unused, middle, s,
-                                         [&](const std::vector<std::vector<double>>& xs) {
-                                             if (++calls == 3) throw ValidationError("round 3 failed");
-                                             return std::vector<double>(xs.size(), 1.0);
-                                         }),
-                      Catch::Contains("round 3 failed"));
-    CHECK(calls == 3);
+    checkFailingRoundStops(unused, middle, s);
     // Fewer than 2 evaluations per start: refused.
     s.maxEvaluations = 11;
     CHECK_THROWS_WITH(minimiseInUnitCube(twoWells, middle, s), Catch::Contains("2 x starts"));
@@ -380,4 +407,94 @@ TEST_CASE("calibrate: a stem map's pair correlation as a target, measured agains
         INFO(target);
         CHECK_THROWS_WITH(loadCalibrationSpec(write(target)), Catch::Contains("c.toml") && Catch::Contains(expect));
     }
+}
+
+TEST_CASE("calibrate search: crs evaluates rounds of trial points, finds the global minimum, and its rounds do not depend on how they run", "[calibrate]") {
+    const std::vector<double> middle{0.5, 0.5};
+    SearchSettings s;
+    s.global = "crs";
+    s.maxEvaluations = 700;
+    s.globalEvaluations = 600;
+    s.tolerance = 1e-3;
+    s.initialStep = 0.02;  // the polish starts next to the minimum
+    s.population = 20;
+    s.batchSize = 4;
+    std::vector<std::vector<std::vector<double>>> rounds;
+    const BatchObjective serial = roundsOfTwoWells(rounds);  // one point after the other in this thread
+    // The global phase goes through the batch objective, the local polish through f.
+    int polished = 0;
+    const auto polish = [&](const std::vector<double>& x) {
+        ++polished;
+        return twoWells(x);
+    };
+    const SearchResult found = minimiseInUnitCube(polish, middle, s, serial);
+    REQUIRE(found.runs.size() == 2);
+    const SearchRun& crs = found.runs[0];
+    for (const SearchRun& r : found.runs) UNSCOPED_INFO(r.method << ": " << r.best[0] << ", " << r.best[1] << " f " << r.value << " in " << r.evaluations << " (" << r.stopReason << ")");
+    CHECK(crs.method == "crs");
+    // The global phase itself converges: its population contracts within the tolerance
+    // around the deep well (the global minimum), before its budget.
+    CHECK(crs.converged);
+    CHECK(crs.stopReason == "the population contracted within the tolerance");
+    CHECK(crs.evaluations < s.globalEvaluations);
+    CHECK(crs.best[0] == Approx(kDeepWell).margin(0.002));
+    CHECK(crs.best[1] == Approx(kDeepWell).margin(0.002));
+    CHECK(found.value < -0.312);
+    CHECK(found.converged);
+    CHECK(polished == found.runs[1].evaluations);
+    // The first round is the population (the start, then the multistart points); every later
+    // round has the batch size's trial points (the last one at most), inside the cube.
+    REQUIRE(rounds.size() > 2);
+    CHECK(rounds[0] == multistartPoints(2, 20, middle, s.seed));
+    std::size_t total = 0;
+    for (std::size_t n = 1; n < rounds.size(); ++n) {
+        CHECK(rounds[n].size() == 4);
+        for (std::size_t i = 0; i < rounds[n].size(); ++i)
+            for (std::size_t j = 0; j < i; ++j) CHECK(rounds[n][i] != rounds[n][j]);  // a repeated trial is drawn again
+        for (const auto& x : rounds[n])
+            for (double v : x) {
+                CHECK(v >= 0);
+                CHECK(v <= 1);
+            }
+        total += rounds[n].size();
+    }
+    CHECK(static_cast<int>(rounds[0].size() + total) == crs.evaluations);
+    // The rounds' points are independent of each other: two workers evaluating a round's
+    // halves side by side (as members_at_once children or MPI ranks do) give the same rounds.
+    const auto first = rounds;
+    rounds.clear();
+    const BatchObjective twoAtOnce = [&](const std::vector<std::vector<double>>& xs) {
+        rounds.push_back(xs);
+        std::vector<double> v(xs.size());
+        const std::size_t half = xs.size() / 2;
+        std::thread other([&] {
+            for (std::size_t i = half; i < xs.size(); ++i) v[i] = twoWells(xs[i]);
+        });
+        for (std::size_t i = 0; i < half; ++i) v[i] = twoWells(xs[i]);
+        other.join();
+        return v;
+    };
+    const SearchResult parallel = minimiseInUnitCube(polish, middle, s, twoAtOnce);
+    CHECK(rounds == first);
+    CHECK(parallel.best == found.best);
+    CHECK(parallel.evaluations == found.evaluations);
+    // Without a batch objective the rounds go through f one point after the other: the same.
+    std::vector<std::vector<double>> points;
+    const SearchResult oneByOne = minimiseInUnitCube([&](const std::vector<double>& x) { points.push_back(x); return twoWells(x); }, middle, s);
+    CHECK(oneByOne.best == found.best);
+    std::vector<std::vector<double>> flat;
+    for (const auto& r : first)
+        for (const auto& x : r) flat.push_back(x);
+    REQUIRE(points.size() > flat.size());  // the polish follows
+    CHECK(std::vector<std::vector<double>>(points.begin(), points.begin() + static_cast<std::ptrdiff_t>(flat.size())) == flat);
+    // Another seed: other rounds.
+    rounds.clear();
+    s.seed = 2;
+    minimiseInUnitCube(polish, middle, s, serial);
+    CHECK(rounds != first);
+    // A budget too small for the population is refused; a failing round stops the search.
+    s.globalEvaluations = 19;
+    CHECK_THROWS_WITH(minimiseInUnitCube(twoWells, middle, s), Catch::Contains("population"));
+    s.globalEvaluations = 600;
+    checkFailingRoundStops(polish, middle, s);
 }
