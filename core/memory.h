@@ -28,8 +28,9 @@ void requireMemory(double bytes, const std::string& what, const std::string& hin
 /// when it is large: advised for transparent huge pages (Linux) and first touched by all
 /// OpenMP threads in blocks of 2 MB, so that the kernel's page faults are fewer and shared
 /// between the threads instead of all taken, 4 kB at a time, by the one thread that fills it.
-/// The contents are left as zeros. Does nothing below `kLargeBufferBytes`.
-inline constexpr std::size_t kLargeBufferBytes = std::size_t{4} << 20;
+/// The contents are left as zeros. Does nothing below `kLargeBufferBytes` (16 MB: at 4 MB,
+/// tried 2026-11-27, bench_synth's 1024^2 sampling was no faster on the idle machine).
+inline constexpr std::size_t kLargeBufferBytes = std::size_t{16} << 20;
 void prepareLargeBuffer(void* p, std::size_t bytes);
 
 /// `v.assign(n, value)` for a vector without room for n items yet, its fresh memory prepared
