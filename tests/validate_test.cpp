@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "deussen_circles.h"
@@ -97,6 +99,44 @@ TEST_CASE("fitLine rejects degenerate input with a clear message", "[validate][f
     CHECK_THROWS_WITH(fitLine({1.0, 1.0, 1.0}, {1.0, 2.0, 3.0}), Catch::Contains("all x values are equal"));
     CHECK_THROWS_WITH(fitLine({1.0, 2.0}, {1.0}), Catch::Contains("1 y values"));
     CHECK_THROWS_WITH(fitLine({1.0, NAN}, {1.0, 2.0}), Catch::Contains("not finite"));
+}
+
+TEST_CASE("growthAcceleration: an exponential rise passes 1.5, a linear or slowing one does not", "[validate][fit]") {
+    // Counts drawn as Poisson-like noise around each law (normal with variance = mean), over
+    // years 1..30: the exponential rises 30-fold (e^(rW/2) = 5.5), the linear one by 7 a year as
+    // EcoMod's immigrants, the saturating one approaches 200 with a 10-year time constant.
+    const auto series = [](std::uint64_t seed, auto law) {
+        RandomStream rs(seed, 7);
+        std::vector<double> x, n;
+        for (int year = 1; year <= 30; ++year) {
+            const double mean = law(year);
+            x.push_back(year);
+            n.push_back(std::max(0.0, std::round(mean + std::sqrt(mean) * rs.normal())));
+        }
+        return std::pair{x, n};
+    };
+    for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+        INFO("seed " << seed);
+        const auto [xe, ne] = series(seed, [](int t) { return 4.0 * std::exp(0.117 * t); });
+        const auto [xl, nl] = series(seed, [](int t) { return 7.0 * t; });
+        const auto [xs, ns] = series(seed, [](int t) { return 200.0 * (1.0 - std::exp(-t / 10.0)); });
+        const GrowthAcceleration e = growthAcceleration(xe, ne);
+        const GrowthAcceleration l = growthAcceleration(xl, nl);
+        const GrowthAcceleration s = growthAcceleration(xs, ns);
+        INFO("exponential " << e.ratio << ", linear " << l.ratio << ", saturating " << s.ratio);
+        CHECK(e.ratio > 3.0);
+        CHECK(l.ratio > 0.7);
+        CHECK(l.ratio < 1.4);
+        CHECK(s.ratio < 0.5);
+        CHECK(e.ratio >= 1.5);
+        CHECK_FALSE(l.ratio >= 1.5);
+        CHECK_FALSE(s.ratio >= 1.5);
+    }
+    // Exact laws: a line gives 1, a parabola through 0 gives 3 (slopes of t^2 over [0, 2] and [2, 4]).
+    CHECK(growthAcceleration({1, 2, 3, 4, 5}, {3, 5, 7, 9, 11}).ratio == Approx(1.0).margin(1e-12));
+    CHECK(growthAcceleration({0, 1, 2, 3, 4}, {0, 1, 4, 9, 16}).ratio == Approx(3.0).margin(1e-12));
+    CHECK_THROWS_WITH(growthAcceleration({1, 2, 3, 4}, {1, 2, 3, 4}), Catch::Contains("at least 5 points"));
+    CHECK_THROWS_WITH(growthAcceleration({1, 2, 3, 4, 5}, {5, 4, 3, 4, 9}), Catch::Contains("does not rise"));
 }
 
 TEST_CASE("Deussen circles: the smaller of two intersecting circles dies", "[validate][circles]") {

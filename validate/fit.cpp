@@ -44,4 +44,25 @@ LineFit fitLine(const std::vector<double>& x, const std::vector<double>& y) {
     return f;
 }
 
+GrowthAcceleration growthAcceleration(const std::vector<double>& x, const std::vector<double>& count) {
+    if (x.size() != count.size())
+        throw ValidationError("growthAcceleration: " + std::to_string(x.size()) + " x values but " +
+                              std::to_string(count.size()) + " counts");
+    if (x.size() < 5)
+        throw ValidationError("growthAcceleration: need at least 5 points (3 per half), got " + std::to_string(x.size()));
+    const auto mid = static_cast<std::ptrdiff_t>((x.size() - 1) / 2);
+    const auto half = [&](std::ptrdiff_t from, std::ptrdiff_t to) {
+        return fitLine(std::vector<double>(x.begin() + from, x.begin() + to + 1),
+                       std::vector<double>(count.begin() + from, count.begin() + to + 1));
+    };
+    GrowthAcceleration g;
+    g.firstSlope = half(0, mid).slope;
+    g.secondSlope = half(mid, static_cast<std::ptrdiff_t>(x.size()) - 1).slope;
+    if (!(g.firstSlope > 0.0))
+        throw ValidationError("growthAcceleration: the count does not rise over the first half of the window (slope " +
+                              std::to_string(g.firstSlope) + ")");
+    g.ratio = g.secondSlope / g.firstSlope;
+    return g;
+}
+
 }  // namespace eco::validate

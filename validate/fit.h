@@ -21,4 +21,20 @@ struct LineFit {
 /// are given, a value is not finite, or all x are equal.
 LineFit fitLine(const std::vector<double>& x, const std::vector<double>& y);
 
+/// Whether a rising count accelerates, as an exponential does and a linear rise does not: the
+/// window's points are split at their middle point (shared by both halves) and a line is
+/// fitted to each half; `ratio` is the second half's slope over the first half's. An
+/// exponential N0 e^(r t) over a window of W years gives about e^(r W / 2) (5 for a 25-fold
+/// rise), a straight line 1, a rise that slows down less than 1.
+struct GrowthAcceleration {
+    double firstSlope = 0.0;   ///< count per unit of x over the first half
+    double secondSlope = 0.0;  ///< count per unit of x over the second half
+    double ratio = 0.0;        ///< secondSlope / firstSlope
+};
+
+/// ValidationError (from fitLine) for fewer than 5 points or a value that is not finite, and
+/// when the count does not rise over the first half (firstSlope <= 0: the ratio would mean
+/// nothing).
+GrowthAcceleration growthAcceleration(const std::vector<double>& x, const std::vector<double>& count);
+
 }  // namespace eco::validate
