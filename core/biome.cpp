@@ -93,7 +93,7 @@ const std::vector<ParamDesc<EcoModSpecies>>& ecomodSpeciesFields() {
         e("dispersal_radius_m", "a near seed lands within this distance of its parent", "m", &E::dispersalRadiusM, R::openClosed(0, 10000),
           "2 x the crown radius at `full_height_m`, at least 1 m"),
         e("immigrants_per_ha_year", "new trees arriving from outside per hectare and year", "1/(ha year)", &E::immigrantsPerHaYear,
-          R::closed(0, 1e6), "1"),
+          R::closed(0, 1e6), "0.1"),
         e("dominated_survival", "probability that a dominated tree survives a year", "", &E::dominatedSurvival, R::closed(0, 1),
           "`persistence`"),
         e("dominated_growth", "growth age a dominated tree gains in a year", "years", &E::dominatedGrowth, R::closed(0, 1), "0"),

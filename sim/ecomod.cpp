@@ -77,7 +77,7 @@ EcoModSpeciesParams resolveEcoModSpecies(const Species& s, const std::string& so
     p.germination = given(e.germination, 0.5);
     p.nearProbability = given(e.nearProbability, 0.9);
     p.dispersalRadiusM = given(e.dispersalRadiusM, std::max(1.0, 2.0 * s.allometry.crownRadiusM(p.fullHeightM)));
-    p.immigrantsPerHaYear = given(e.immigrantsPerHaYear, 1.0);
+    p.immigrantsPerHaYear = given(e.immigrantsPerHaYear, 0.1);
     p.dominatedSurvival = given(e.dominatedSurvival, p.persistence);
     p.dominatedGrowth = given(e.dominatedGrowth, 0.0);
     p.elevationOpt = given(e.elevationOpt, 0.5);
