@@ -218,7 +218,7 @@ struct EcoModel::Impl {
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
-    std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
+    std::vector<Entry> ableEntry;   // buildGrids: the able's entries in `able` order
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
     int maxLevel = 0;               // the grids' top level
     bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
@@ -595,12 +595,18 @@ void EcoModel::Impl::buildGrids() {
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     levelOf.resize(m);
+    ableEntry.resize(m);
     maxLevel = 0;
     for (std::size_t i = 0; i < m; ++i) {
-        const std::size_t e = able[i];
-        const double r = e < n ? radius[e] : canopy[e - n].crownRadiusM;
+        const Entry q = entryOf(able[i]);
+        ableEntry[i] = q;
+        // base x 2^L by doublings: exact, as the product was.
         int L = 0;
-        while (L < kMaxLevels - 1 && r > base * static_cast<double>(1 << L)) ++L;
+        double limit = base;
+        while (L < kMaxLevels - 1 && q.r > limit) {
+            ++L;
+            limit *= 2.0;
+        }
         levelOf[i] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
     }
@@ -624,25 +630,23 @@ void EcoModel::Impl::buildGrids() {
     // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
     // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
-    bucketMax.assign(buckets, -1.0);
     bucket.resize(m);
     packed.resize(m);
     packedItem.resize(m);
     slot.resize(total);
     for (std::size_t i = 0; i < m; ++i) {
-        const Entry q = entryOf(able[i]);
+        const Entry& q = ableEntry[i];
         Level& lv = levels[levelOf[i]];
         lv.maxAbility = std::max(lv.maxAbility, q.a);
         lv.maxRadius = std::max(lv.maxRadius, q.r);
         const std::size_t k = cellIndex(lv, q.x, q.y);
         bucket[i] = static_cast<std::uint32_t>(k);
         ++start[k];
-        bucketMax[k] = std::max(bucketMax[k], q.a);
     }
     for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
     for (std::size_t i = m; i-- > 0;) {
         const std::uint32_t k = --start[bucket[i]];
-        packed[k] = entryOf(able[i]);
+        packed[k] = ableEntry[i];
         packedItem[k] = able[i];
         slot[able[i]] = k;
     }
@@ -677,18 +681,17 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
         const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
         const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
         const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+        // The buckets bx0..bx1 of a row are consecutive in `packed` (sorted by bucket, row by
+        // row): one run of entries per row, in the order a bucket-by-bucket scan would meet them.
         for (int by = by0; by <= by1; ++by) {
             const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-            for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
-                if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
-                const std::uint32_t end = start[bk + 1];
-                for (std::uint32_t k = start[bk]; k < end; ++k) {
-                    const Entry& q = packed[k];
-                    if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                        const std::uint32_t e = packedItem[k];
-                        wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
-                        return true;
-                    }
+            const std::uint32_t end = start[row + bx1 + 1];
+            for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+                const Entry& q = packed[k];
+                if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                    const std::uint32_t e = packedItem[k];
+                    wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                    return true;
                 }
             }
         }
