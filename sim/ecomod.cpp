@@ -198,6 +198,12 @@ struct EcoModel::Impl {
     // kNoWitness. Kept in step with the store by push and compact.
     static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
     std::vector<std::uint32_t> witness;
+    // Per tree, also a cache: 1 when it was dominated last year without growing (its
+    // position, crown and ability as before) and no tree shrank; while its witness lives
+    // (witness[p] != kNoWitness: a dead witness is forgotten when the store is renumbered),
+    // the witness still dominates it (abilities and crowns never fall, places never move),
+    // so testAble takes it as dominated without testing. Kept in step with the store.
+    std::vector<std::uint8_t> sure;
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
@@ -381,6 +387,7 @@ struct EcoModel::Impl {
         deathAge.push_back(dAge);
         v.push_back(vv);
         witness.push_back(guess);
+        sure.push_back(0);
         lives.push_back(drawLives(s, pid));
     }
     std::size_t size() const { return id.size(); }
@@ -391,6 +398,7 @@ struct EcoModel::Impl {
         age.resize(w);
         v.resize(w);
         witness.resize(w);
+        sure.resize(w);
         lives.resize(w);
     }
     void compact();
@@ -437,6 +445,7 @@ void EcoModel::Impl::compact() {
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
+        sure[w] = sure[p];
         ++w;
     }
     truncate(w);
@@ -708,7 +717,8 @@ void EcoModel::Impl::testAble() {
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated
+        if (p >= n) continue;  // canopy trees: static, never dominated
+        dominated[p] = (sure[p] != 0 && witness[p] != kNoWitness) || isDominated(packed[k], witness[p]) ? 1 : 0;
     }
 }
 
@@ -788,6 +798,7 @@ void EcoModel::Impl::growStore() {
             v[w] = v[p];
         }
         lives[w] = lv;
+        sure[w] = dom && g == before ? 1 : 0;
         height[w] = h;
         radius[w] = r;
         growthAge[w] = g;
@@ -796,6 +807,7 @@ void EcoModel::Impl::growStore() {
     }
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
+    if (anyShrunk) std::fill(sure.begin(), sure.end(), std::uint8_t{0});  // a witness may have shrunk
 }
 
 // The sleepers' year: those whose witness died or shrank are tested (the others are
@@ -967,6 +979,7 @@ void EcoModel::Impl::mergeWoken() {
     spread(deathAge, [](const Woken& t) { return t.deathAge; });
     spread(v, [](const Woken& t) { return t.v; });
     spread(witness, [](const Woken& t) { return t.witness; });
+    spread(sure, [](const Woken&) { return std::uint8_t{0}; });
     spread(lives, [](const Woken& t) { return t.lives; });
     // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
     mergeShift.resize(n + 1);
@@ -1264,8 +1277,8 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
            /* witness */ sizeof(std::uint32_t) +
-           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+           /* step scratch: ability, fate, dominated, sure, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
@@ -1345,6 +1358,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.age.clear();
     m.v.clear();
     m.witness.clear();
+    m.sure.clear();
     m.lives.clear();
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
