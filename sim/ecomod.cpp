@@ -280,6 +280,17 @@ struct EcoModel::Impl {
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
+    // So that a year renumbers only the witnesses that need it: `watched` lists (a superset
+    // of) the sleepers whose witness is a store tree or kNoWitness (the others have a canopy
+    // witness, which never dies or moves: about three quarters on the demo scenes), in index
+    // order, rebuilt when the sleepers' indices change.
+    std::vector<std::uint32_t> watched;
+    static bool needsWatch(std::uint32_t q) { return q == kNoWitness || !(q & kWitnessCanopy); }
+    void rebuildWatched() {
+        watched.clear();
+        for (std::size_t i = 0; i < sleepers.size(); ++i)
+            if (sleepEvent[i] >= 0 && needsWatch(sleepWitness[i])) watched.push_back(static_cast<std::uint32_t>(i));
+    }
     std::vector<std::uint32_t> newSleeperWitness;
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
     static constexpr std::int32_t kNeverYear = std::numeric_limits<std::int32_t>::max();
@@ -816,23 +827,47 @@ void EcoModel::Impl::growStore() {
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     const std::size_t k0 = sleepers.size();
-    // First every witness renumbered to the store's new indices, in a tight loop (a canopy
-    // witness, kNoWitness and a tombstone's kWitnessCanopy have the canopy bit: kept), the
-    // few sleepers with work this year (their event, or no witness) listed with their witness
-    // before it; after a shrink every living sleeper is listed (follow forgets the witnesses).
+    // First the few sleepers with work this year (their event, or no witness) listed with
+    // their witness before it, from the watched and a scan of the event years (no pass that
+    // renumbers every witness); after a shrink every living sleeper is listed (follow forgets
+    // the witnesses).
     slowSleepers.clear();
     if (!anyShrunk) {
+        // The watched: witnesses renumbered to the store's new indices; listed with their
+        // witness before the year when it is kNoWitness or their event comes.
         const std::uint32_t* renumber = newIndex.data();
         const std::int32_t* events = sleepEvent.data();
         std::uint32_t* witnesses = sleepWitness.data();
         const std::int32_t now = year;
-        for (std::size_t i = 0; i < k0; ++i) {
+        for (const std::uint32_t i : watched) {
             const std::uint32_t q = witnesses[i];
-            const bool keep = (q & kWitnessCanopy) != 0;
-            const std::uint32_t moved = renumber[keep ? 0 : q];
-            witnesses[i] = keep ? q : moved;
-            if (events[i] == now || q == kNoWitness) slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+            if (q == kNoWitness) {
+                slowSleepers.push_back({i, q});
+                continue;
+            }
+            if (q & kWitnessCanopy) continue;  // a tombstone, or a canopy witness found since: see below
+            if (events[i] == now) slowSleepers.push_back({i, q});
+            witnesses[i] = renumber[q];
         }
+        // This year's events of the sleepers under a canopy tree (the others' are listed above):
+        // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
+        const std::size_t watchedSlow = slowSleepers.size();
+        auto eventAt = [&](std::size_t i) {
+            const std::uint32_t q = witnesses[i];
+            if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
+                slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+        };
+        std::size_t i = 0;
+        for (; i + 8 <= k0; i += 8) {
+            int hit = 0;
+            for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
+            if (hit)
+                for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
+        }
+        for (; i < k0; ++i) eventAt(i);
+        // In index (id) order, as the woken must be (two sorted runs; disjoint).
+        std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow),
+                           slowSleepers.end());
     } else {
         for (std::size_t i = 0; i < k0; ++i)
             if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
@@ -897,6 +932,8 @@ void EcoModel::Impl::admitSleepers() {
             newSleeperWitness[i] = follow(newSleeperWitness[i]);
         }
         if (sleepers.empty() || sleepers.back().id < newSleepers.front().id) {
+            for (std::size_t i = 0; i < newSleepers.size(); ++i)
+                if (needsWatch(newSleeperWitness[i])) watched.push_back(static_cast<std::uint32_t>(sleepers.size() + i));
             sleepers.insert(sleepers.end(), newSleepers.begin(), newSleepers.end());
             sleepEvent.insert(sleepEvent.end(), events.begin(), events.end());
             sleepWitness.insert(sleepWitness.end(), newSleeperWitness.begin(), newSleeperWitness.end());
@@ -925,6 +962,7 @@ void EcoModel::Impl::admitSleepers() {
             sleepers.swap(ms);
             sleepEvent.swap(me);
             sleepWitness.swap(mw);
+            rebuildWatched();
         }
         sleepersLive += newSleepers.size();
     }
@@ -945,6 +983,7 @@ void EcoModel::Impl::dropTombstones() {
         sleepers.resize(o);
         sleepEvent.resize(o);
         sleepWitness.resize(o);
+        rebuildWatched();
     }
 }
 
@@ -991,7 +1030,7 @@ void EcoModel::Impl::mergeWoken() {
         return q == kNoWitness || (q & kWitnessCanopy) ? q : q + mergeShift[q];
     };
     for (auto& q : witness) q = remap(q);
-    for (std::size_t i = 0; i < sleepers.size(); ++i) sleepWitness[i] = remap(sleepWitness[i]);
+    for (const std::uint32_t i : watched) sleepWitness[i] = remap(sleepWitness[i]);  // the others': canopy, kept
     woken.clear();
 }
 
@@ -1002,6 +1041,7 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     sleepers.clear();
     sleepEvent.clear();
     sleepWitness.clear();
+    watched.clear();
     sleepersLive = 0;
     if (!woken.empty()) mergeWoken();
 }
@@ -1363,6 +1403,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
     m.sleepWitness.clear();
+    m.watched.clear();
     m.sleepersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
