@@ -401,8 +401,25 @@ struct EcoModel::Impl {
         sure.push_back(0);
         lives.push_back(drawLives(s, pid));
     }
+    // The same as push, into place t of a store already resized (truncate) to hold it.
+    void setAt(std::size_t t, std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge,
+               float vv, std::uint32_t guess) {
+        id[t] = pid;
+        species[t] = s;
+        x[t] = px;
+        y[t] = py;
+        height[t] = h;
+        radius[t] = crown(s, h);
+        growthAge[t] = gAge;
+        age[t] = ageYears;
+        deathAge[t] = dAge;
+        v[t] = vv;
+        witness[t] = guess;
+        sure[t] = 0;
+        lives[t] = drawLives(s, pid);
+    }
     std::size_t size() const { return id.size(); }
-    void truncate(std::size_t w) {  // the store keeps its first w trees
+    void truncate(std::size_t w) {  // the store keeps its first w trees (or grows to w, for setAt)
         for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
         id.resize(w);
         species.resize(w);
@@ -541,10 +558,14 @@ void EcoModel::Impl::seedYear() {
             if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
         }
     }
+    // The new trees, appended in species order (the arrays grown once, not a push per field).
+    std::size_t t = size(), added = 0;
+    for (const auto& b : born) added += b.size();
+    truncate(t + added);
     for (int s = 0; s < ns; ++s) {
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
+            setAt(t++, pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
