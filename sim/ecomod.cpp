@@ -198,6 +198,12 @@ struct EcoModel::Impl {
     // kNoWitness. Kept in step with the store by push and compact.
     static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
     std::vector<std::uint32_t> witness;
+    // Per tree, also a cache: 1 when it was dominated last year without growing (its
+    // position, crown and ability as before) and no tree shrank; while its witness lives
+    // (witness[p] != kNoWitness: a dead witness is forgotten when the store is renumbered),
+    // the witness still dominates it (abilities and crowns never fall, places never move),
+    // so testAble takes it as dominated without testing. Kept in step with the store.
+    std::vector<std::uint8_t> sure;
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
@@ -218,7 +224,7 @@ struct EcoModel::Impl {
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
-    std::vector<double> bucketMax;  // the largest ability in each bucket (-1: empty)
+    std::vector<Entry> ableEntry;   // buildGrids: the able's entries in `able` order
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
     int maxLevel = 0;               // the grids' top level
     bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
@@ -274,6 +280,17 @@ struct EcoModel::Impl {
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
+    // So that a year renumbers only the witnesses that need it: `watched` lists (a superset
+    // of) the sleepers whose witness is a store tree or kNoWitness (the others have a canopy
+    // witness, which never dies or moves: about three quarters on the demo scenes), in index
+    // order, rebuilt when the sleepers' indices change.
+    std::vector<std::uint32_t> watched;
+    static bool needsWatch(std::uint32_t q) { return q == kNoWitness || !(q & kWitnessCanopy); }
+    void rebuildWatched() {
+        watched.clear();
+        for (std::size_t i = 0; i < sleepers.size(); ++i)
+            if (sleepEvent[i] >= 0 && needsWatch(sleepWitness[i])) watched.push_back(static_cast<std::uint32_t>(i));
+    }
     std::vector<std::uint32_t> newSleeperWitness;
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
     static constexpr std::int32_t kNeverYear = std::numeric_limits<std::int32_t>::max();
@@ -381,16 +398,35 @@ struct EcoModel::Impl {
         deathAge.push_back(dAge);
         v.push_back(vv);
         witness.push_back(guess);
+        sure.push_back(0);
         lives.push_back(drawLives(s, pid));
     }
+    // The same as push, into place t of a store already resized (truncate) to hold it.
+    void setAt(std::size_t t, std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge,
+               float vv, std::uint32_t guess) {
+        id[t] = pid;
+        species[t] = s;
+        x[t] = px;
+        y[t] = py;
+        height[t] = h;
+        radius[t] = crown(s, h);
+        growthAge[t] = gAge;
+        age[t] = ageYears;
+        deathAge[t] = dAge;
+        v[t] = vv;
+        witness[t] = guess;
+        sure[t] = 0;
+        lives[t] = drawLives(s, pid);
+    }
     std::size_t size() const { return id.size(); }
-    void truncate(std::size_t w) {  // the store keeps its first w trees
+    void truncate(std::size_t w) {  // the store keeps its first w trees (or grows to w, for setAt)
         for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(w);
         id.resize(w);
         species.resize(w);
         age.resize(w);
         v.resize(w);
         witness.resize(w);
+        sure.resize(w);
         lives.resize(w);
     }
     void compact();
@@ -437,6 +473,7 @@ void EcoModel::Impl::compact() {
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
+        sure[w] = sure[p];
         ++w;
     }
     truncate(w);
@@ -521,10 +558,14 @@ void EcoModel::Impl::seedYear() {
             if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
         }
     }
+    // The new trees, appended in species order (the arrays grown once, not a push per field).
+    std::size_t t = size(), added = 0;
+    for (const auto& b : born) added += b.size();
+    truncate(t + added);
     for (int s = 0; s < ns; ++s) {
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            push(pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
+            setAt(t++, pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
@@ -595,12 +636,18 @@ void EcoModel::Impl::buildGrids() {
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     levelOf.resize(m);
+    ableEntry.resize(m);
     maxLevel = 0;
     for (std::size_t i = 0; i < m; ++i) {
-        const std::size_t e = able[i];
-        const double r = e < n ? radius[e] : canopy[e - n].crownRadiusM;
+        const Entry q = entryOf(able[i]);
+        ableEntry[i] = q;
+        // base x 2^L by doublings: exact, as the product was.
         int L = 0;
-        while (L < kMaxLevels - 1 && r > base * static_cast<double>(1 << L)) ++L;
+        double limit = base;
+        while (L < kMaxLevels - 1 && q.r > limit) {
+            ++L;
+            limit *= 2.0;
+        }
         levelOf[i] = static_cast<std::uint8_t>(L);
         maxLevel = std::max(maxLevel, L);
     }
@@ -624,25 +671,23 @@ void EcoModel::Impl::buildGrids() {
     // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
     // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
-    bucketMax.assign(buckets, -1.0);
     bucket.resize(m);
     packed.resize(m);
     packedItem.resize(m);
     slot.resize(total);
     for (std::size_t i = 0; i < m; ++i) {
-        const Entry q = entryOf(able[i]);
+        const Entry& q = ableEntry[i];
         Level& lv = levels[levelOf[i]];
         lv.maxAbility = std::max(lv.maxAbility, q.a);
         lv.maxRadius = std::max(lv.maxRadius, q.r);
         const std::size_t k = cellIndex(lv, q.x, q.y);
         bucket[i] = static_cast<std::uint32_t>(k);
         ++start[k];
-        bucketMax[k] = std::max(bucketMax[k], q.a);
     }
     for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
     for (std::size_t i = m; i-- > 0;) {
         const std::uint32_t k = --start[bucket[i]];
-        packed[k] = entryOf(able[i]);
+        packed[k] = ableEntry[i];
         packedItem[k] = able[i];
         slot[able[i]] = k;
     }
@@ -677,18 +722,17 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
         const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
         const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
         const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+        // The buckets bx0..bx1 of a row are consecutive in `packed` (sorted by bucket, row by
+        // row): one run of entries per row, in the order a bucket-by-bucket scan would meet them.
         for (int by = by0; by <= by1; ++by) {
             const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-            for (std::size_t bk = row + bx0; bk <= row + bx1; ++bk) {
-                if (!(pa < bucketMax[bk])) continue;  // empty, or nobody more able
-                const std::uint32_t end = start[bk + 1];
-                for (std::uint32_t k = start[bk]; k < end; ++k) {
-                    const Entry& q = packed[k];
-                    if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                        const std::uint32_t e = packedItem[k];
-                        wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
-                        return true;
-                    }
+            const std::uint32_t end = start[row + bx1 + 1];
+            for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+                const Entry& q = packed[k];
+                if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                    const std::uint32_t e = packedItem[k];
+                    wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                    return true;
                 }
             }
         }
@@ -705,7 +749,8 @@ void EcoModel::Impl::testAble() {
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p < n) dominated[p] = isDominated(packed[k], witness[p]) ? 1 : 0;  // canopy trees: static, never dominated
+        if (p >= n) continue;  // canopy trees: static, never dominated
+        dominated[p] = (sure[p] != 0 && witness[p] != kNoWitness) || isDominated(packed[k], witness[p]) ? 1 : 0;
     }
 }
 
@@ -785,6 +830,7 @@ void EcoModel::Impl::growStore() {
             v[w] = v[p];
         }
         lives[w] = lv;
+        sure[w] = dom && g == before ? 1 : 0;
         height[w] = h;
         radius[w] = r;
         growthAge[w] = g;
@@ -793,6 +839,7 @@ void EcoModel::Impl::growStore() {
     }
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
+    if (anyShrunk) std::fill(sure.begin(), sure.end(), std::uint8_t{0});  // a witness may have shrunk
 }
 
 // The sleepers' year: those whose witness died or shrank are tested (the others are
@@ -801,23 +848,47 @@ void EcoModel::Impl::growStore() {
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     const std::size_t k0 = sleepers.size();
-    // First every witness renumbered to the store's new indices, in a tight loop (a canopy
-    // witness, kNoWitness and a tombstone's kWitnessCanopy have the canopy bit: kept), the
-    // few sleepers with work this year (their event, or no witness) listed with their witness
-    // before it; after a shrink every living sleeper is listed (follow forgets the witnesses).
+    // First the few sleepers with work this year (their event, or no witness) listed with
+    // their witness before it, from the watched and a scan of the event years (no pass that
+    // renumbers every witness); after a shrink every living sleeper is listed (follow forgets
+    // the witnesses).
     slowSleepers.clear();
     if (!anyShrunk) {
+        // The watched: witnesses renumbered to the store's new indices; listed with their
+        // witness before the year when it is kNoWitness or their event comes.
         const std::uint32_t* renumber = newIndex.data();
         const std::int32_t* events = sleepEvent.data();
         std::uint32_t* witnesses = sleepWitness.data();
         const std::int32_t now = year;
-        for (std::size_t i = 0; i < k0; ++i) {
+        for (const std::uint32_t i : watched) {
             const std::uint32_t q = witnesses[i];
-            const bool keep = (q & kWitnessCanopy) != 0;
-            const std::uint32_t moved = renumber[keep ? 0 : q];
-            witnesses[i] = keep ? q : moved;
-            if (events[i] == now || q == kNoWitness) slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+            if (q == kNoWitness) {
+                slowSleepers.push_back({i, q});
+                continue;
+            }
+            if (q & kWitnessCanopy) continue;  // a tombstone, or a canopy witness found since: see below
+            if (events[i] == now) slowSleepers.push_back({i, q});
+            witnesses[i] = renumber[q];
         }
+        // This year's events of the sleepers under a canopy tree (the others' are listed above):
+        // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
+        const std::size_t watchedSlow = slowSleepers.size();
+        auto eventAt = [&](std::size_t i) {
+            const std::uint32_t q = witnesses[i];
+            if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
+                slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+        };
+        std::size_t i = 0;
+        for (; i + 8 <= k0; i += 8) {
+            int hit = 0;
+            for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
+            if (hit)
+                for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
+        }
+        for (; i < k0; ++i) eventAt(i);
+        // In index (id) order, as the woken must be (two sorted runs; disjoint).
+        std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow),
+                           slowSleepers.end());
     } else {
         for (std::size_t i = 0; i < k0; ++i)
             if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
@@ -882,6 +953,8 @@ void EcoModel::Impl::admitSleepers() {
             newSleeperWitness[i] = follow(newSleeperWitness[i]);
         }
         if (sleepers.empty() || sleepers.back().id < newSleepers.front().id) {
+            for (std::size_t i = 0; i < newSleepers.size(); ++i)
+                if (needsWatch(newSleeperWitness[i])) watched.push_back(static_cast<std::uint32_t>(sleepers.size() + i));
             sleepers.insert(sleepers.end(), newSleepers.begin(), newSleepers.end());
             sleepEvent.insert(sleepEvent.end(), events.begin(), events.end());
             sleepWitness.insert(sleepWitness.end(), newSleeperWitness.begin(), newSleeperWitness.end());
@@ -910,6 +983,7 @@ void EcoModel::Impl::admitSleepers() {
             sleepers.swap(ms);
             sleepEvent.swap(me);
             sleepWitness.swap(mw);
+            rebuildWatched();
         }
         sleepersLive += newSleepers.size();
     }
@@ -930,6 +1004,7 @@ void EcoModel::Impl::dropTombstones() {
         sleepers.resize(o);
         sleepEvent.resize(o);
         sleepWitness.resize(o);
+        rebuildWatched();
     }
 }
 
@@ -964,6 +1039,7 @@ void EcoModel::Impl::mergeWoken() {
     spread(deathAge, [](const Woken& t) { return t.deathAge; });
     spread(v, [](const Woken& t) { return t.v; });
     spread(witness, [](const Woken& t) { return t.witness; });
+    spread(sure, [](const Woken&) { return std::uint8_t{0}; });
     spread(lives, [](const Woken& t) { return t.lives; });
     // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
     mergeShift.resize(n + 1);
@@ -975,7 +1051,7 @@ void EcoModel::Impl::mergeWoken() {
         return q == kNoWitness || (q & kWitnessCanopy) ? q : q + mergeShift[q];
     };
     for (auto& q : witness) q = remap(q);
-    for (std::size_t i = 0; i < sleepers.size(); ++i) sleepWitness[i] = remap(sleepWitness[i]);
+    for (const std::uint32_t i : watched) sleepWitness[i] = remap(sleepWitness[i]);  // the others': canopy, kept
     woken.clear();
 }
 
@@ -986,6 +1062,7 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     sleepers.clear();
     sleepEvent.clear();
     sleepWitness.clear();
+    watched.clear();
     sleepersLive = 0;
     if (!woken.empty()) mergeWoken();
 }
@@ -1261,8 +1338,8 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
 std::size_t EcoModel::bytesPerPlant() const {
     return sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
            /* witness */ sizeof(std::uint32_t) +
-           /* step scratch: ability, fate, dominated, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 3 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+           /* step scratch: ability, fate, dominated, sure, level, bucket, entry, new index, two packed copies */
+           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
@@ -1342,10 +1419,12 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.age.clear();
     m.v.clear();
     m.witness.clear();
+    m.sure.clear();
     m.lives.clear();
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
     m.sleepWitness.clear();
+    m.watched.clear();
     m.sleepersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
