@@ -352,8 +352,9 @@ int main(int argc, char** argv) {
                 }
                 std::snprintf(line, sizeof line,
                               "    its detections: %zu within 1 m of a visible top, %zu within 1 m of a tree with a hidden top, "
-                              "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged, %zu hidden apices not output\n",
-                              nearTop, nearHidden, offset, other, full.seedsMerged, full.hiddenApexTrees);
+                              "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged, %zu hidden apices not output, "
+                              "%zu added trees moved onto their apex\n",
+                              nearTop, nearHidden, offset, other, full.seedsMerged, full.hiddenApexTrees, full.apexSnapped);
                 sec << line;
             }
             eco::synth::CanopyParams paper;
@@ -362,6 +363,7 @@ int main(int argc, char** argv) {
             paper.residualApices = 0;
             paper.supportFraction = 0;
             paper.seedMergeSaddleM = 0;
+            paper.apexSnapRadiusM = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);
