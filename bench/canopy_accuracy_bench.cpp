@@ -20,7 +20,8 @@
 // lower index), k the best of 0.2 .. 1.0 on each scene (a strong baseline). The placer runs
 // with its defaults (apex trees anchored, the best state kept, trees added at residual apices,
 // added trees supported by CHM cells no crown explains, seeds without a saddle between them
-// merged) and with the paper's rules (all five off), as it was before issue 25.
+// merged, added trees snapped onto the CHM apex of their visible cells) and with the paper's
+// rules (all six off), as it was before issue 25.
 //
 // Usage: bench_canopy_accuracy [OUT (default bench/results/canopy_accuracy.txt)] [SIZE (256)]
 //        [KEY=VALUE ...]  (canopy parameters of the "defaults" row, e.g. ring_samples=0; and
@@ -363,7 +364,7 @@ int main(int argc, char** argv) {
             paper.residualApices = 0;
             paper.supportFraction = 0;
             paper.seedMergeSaddleM = 0;
-            paper.apexSnapRadiusM = 0;
+            paper.apexSnapRadiusFraction = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);

@@ -886,7 +886,7 @@ void fitResidualApex(const Scene& scene, int ix, int iy, double fitTolM, double 
     t.hidden = chm(cx, cy) > own2 + hiddenTolM;
 }
 
-/// The apex snap (CanopyParams::apexSnapRadiusM): tree t, index self of the render whose
+/// The apex snap (CanopyParams::apexSnapRadiusFraction): tree t, index self of the render whose
 /// top-crown ids are `owner`, moves onto the highest strict 3 x 3 maximum of the CHM among
 /// its own cells (owner == self; the others neither are maxima nor compete; a plateau goes
 /// to its cell of lowest index) that is >= minHeightM and whose centre lies within reachM of
@@ -1100,8 +1100,8 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          "", K::Integer, nullptr, &CanopyParams::residualApexFit, R::closed(0, 1)},
         {"residual_apex_fit_tolerance_m", "residual apex fit: a cell is touched when the sphere is at most this below the CHM", "m",
          K::Real, &CanopyParams::residualApexFitToleranceM, nullptr, R::atLeast(0)},
-        {"apex_snap_radius_m", "final: added trees move onto the highest CHM maximum of their own visible cells within this distance; 0 = off",
-         "m", K::Real, &CanopyParams::apexSnapRadiusM, nullptr, R::atLeast(0)},
+        {"apex_snap_radius_fraction", "final: added trees move onto the highest CHM maximum of their own visible cells within this fraction of their crown radius; 0 = off",
+         "", K::Real, &CanopyParams::apexSnapRadiusFraction, nullptr, R::closed(0, 10)},
         {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", "", K::Integer, nullptr,
          &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this", "m", K::Real, &CanopyParams::minTrunkDistanceM,
@@ -1548,7 +1548,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     tIter = Clock::now();
     IterationStats fin;
     fin.iteration = -1;
-    if (params.apexSnapRadiusM > 0) {
+    if (params.apexSnapRadiusFraction > 0) {
         // The render in `frame` is that of `trees` (the last iteration or the best state).
         const std::uint64_t seeds = result.initialSeeds;
         std::size_t snapped = 0;
@@ -1556,7 +1556,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
             Tree& t = trees[static_cast<std::size_t>(k)];
             if (t.uid < seeds || t.hidden) continue;
-            snapped += snapToOwnApex(scene, frame.id, static_cast<std::int32_t>(k), params.apexSnapRadiusM,
+            snapped += snapToOwnApex(scene, frame.id, static_cast<std::int32_t>(k), params.apexSnapRadiusFraction * t.radiusM,
                                      params.minSeedHeightM, t);
         }
         result.apexSnapped = snapped;

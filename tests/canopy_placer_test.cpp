@@ -617,3 +617,35 @@ TEST_CASE("the crescent of a crown whose apex is hidden under a taller one gives
     CHECK(plain.trees.size() == 2);
     CHECK(plain.hiddenApexTrees == 0);
 }
+
+TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]") {
+    // The flank case of the residual apex test: the lower tree's apex is no CHM maximum.
+    // Without residual apices the ring finds the lower crown and the tree then walks toward
+    // the centroid of its visible part, away from the taller neighbour and off its apex; the
+    // apex snap puts it back on the highest maximum of the CHM among its own visible cells.
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    const double rTall = a.crownRadiusM(30);
+    const std::vector<GeneratedTree> trees = {{20.25, 20.25, 30.0, rTall}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}};
+    Grid<float> chm(80, 80, 0.5, 0, 0, 0.f);
+    rasterizeCrowns(trees, chm);
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    synth::CanopyParams p;
+    p.residualApices = 0;  // the lower tree comes from the ring
+    p.apexSnapRadiusFraction = 0;
+    const synth::CanopyResult off = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    p.apexSnapRadiusFraction = 0.75;
+    const synth::CanopyResult on = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    std::ostringstream where;
+    for (const Plant& t : off.trees) where << " off (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    for (const Plant& t : on.trees) where << " on (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    INFO("snapped " << on.apexSnapped << ":" << where.str());
+    CHECK(off.apexSnapped == 0);
+    CHECK(on.apexSnapped >= 1);
+    CHECK(nearestDistance(off.trees, trees[1].x, trees[1].y) > 1.0);
+    CHECK(nearestDistance(on.trees, trees[1].x, trees[1].y) < 0.5);
+    for (const Plant& t : on.trees)
+        if (std::hypot(t.xM - trees[1].x, t.yM - trees[1].y) < 0.5) CHECK(std::abs(t.heightM - 27.0) < 0.3);
+    CHECK(nearestDistance(on.trees, trees[0].x, trees[0].y) < 0.3);  // the seeded tree stays
+}
