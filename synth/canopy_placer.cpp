@@ -176,6 +176,24 @@ std::string num(double v) { return formatNumber(v, 6); }
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+/// Whether cell (ix, iy), in the set (inSet(index)), is a strict maximum of the CHM over the
+/// (2R + 1)^2 window among the cells of the set (the others do not compete); on a plateau
+/// the cell of lowest index wins.
+template <typename InSet>
+inline bool strictMaximumIn(const Grid<float>& chm, int ix, int iy, int R, InSet&& inSet) {
+    const int w = chm.width(), h = chm.height();
+    const float v = chm(ix, iy);
+    const std::size_t i = chm.index(ix, iy);
+    for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R); ++jy)
+        for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
+            const float u = chm(jx, jy);
+            const std::size_t j = chm.index(jx, jy);
+            if (j == i || !inSet(j)) continue;
+            if (u > v || (u == v && j < i)) return false;
+        }
+    return true;
+}
+
 /// Strict maxima of the CHM >= minHeightM over a (2R + 1)^2 window among the cells for which
 /// inSet(index) holds (cells outside the set neither are maxima nor compete); a plateau goes
 /// to its cell of lowest index. Cell indices in row order.
@@ -190,18 +208,7 @@ Buf<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, int radi
             if (!(v >= minHeightM)) continue;
             const std::size_t i = chm.index(ix, iy);
             if (!inSet(i)) continue;
-            bool isMax = true;
-            for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R) && isMax; ++jy)
-                for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
-                    const float u = chm(jx, jy);
-                    const std::size_t j = chm.index(jx, jy);
-                    if (j == i || !inSet(j)) continue;
-                    if (u > v || (u == v && j < i)) {
-                        isMax = false;
-                        break;
-                    }
-                }
-            if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
+            if (strictMaximumIn(chm, ix, iy, R, inSet)) rows[static_cast<std::size_t>(iy)].push_back(i);
         }
     }
     Buf<std::size_t> out;
@@ -907,19 +914,7 @@ bool snapToOwnApex(const Scene& scene, const Buf<std::int32_t>& owner, std::int3
             const float v = chm(ix, iy);
             if (!own(i) || !(v >= minHeightM) || (bx >= 0 && !(v > best))) continue;
             const double dx = chm.cellCentreX(ix) - t.x, dy = chm.cellCentreY(iy) - t.y;
-            if (dx * dx + dy * dy > reachM * reachM) continue;
-            bool isMax = true;
-            for (int jy = std::max(0, iy - 1); jy <= std::min(h - 1, iy + 1) && isMax; ++jy)
-                for (int jx = std::max(0, ix - 1); jx <= std::min(w - 1, ix + 1); ++jx) {
-                    const std::size_t j = chm.index(jx, jy);
-                    if (j == i || !own(j)) continue;
-                    const float u = chm(jx, jy);
-                    if (u > v || (u == v && j < i)) {
-                        isMax = false;
-                        break;
-                    }
-                }
-            if (!isMax) continue;
+            if (dx * dx + dy * dy > reachM * reachM || !strictMaximumIn(chm, ix, iy, 1, own)) continue;
             bx = ix;
             by = iy;
             best = v;
