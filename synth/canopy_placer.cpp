@@ -176,6 +176,24 @@ std::string num(double v) { return formatNumber(v, 6); }
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+/// Whether cell (ix, iy), in the set (inSet(index)), is a strict maximum of the CHM over the
+/// (2R + 1)^2 window among the cells of the set (the others do not compete); on a plateau
+/// the cell of lowest index wins.
+template <typename InSet>
+inline bool strictMaximumIn(const Grid<float>& chm, int ix, int iy, int R, InSet&& inSet) {
+    const int w = chm.width(), h = chm.height();
+    const float v = chm(ix, iy);
+    const std::size_t i = chm.index(ix, iy);
+    for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R); ++jy)
+        for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
+            const float u = chm(jx, jy);
+            const std::size_t j = chm.index(jx, jy);
+            if (j == i || !inSet(j)) continue;
+            if (u > v || (u == v && j < i)) return false;
+        }
+    return true;
+}
+
 /// Strict maxima of the CHM >= minHeightM over a (2R + 1)^2 window among the cells for which
 /// inSet(index) holds (cells outside the set neither are maxima nor compete); a plateau goes
 /// to its cell of lowest index. Cell indices in row order.
@@ -190,18 +208,7 @@ Buf<std::size_t> localMaxima(const Grid<float>& chm, double minHeightM, int radi
             if (!(v >= minHeightM)) continue;
             const std::size_t i = chm.index(ix, iy);
             if (!inSet(i)) continue;
-            bool isMax = true;
-            for (int jy = std::max(0, iy - R); jy <= std::min(h - 1, iy + R) && isMax; ++jy)
-                for (int jx = std::max(0, ix - R); jx <= std::min(w - 1, ix + R); ++jx) {
-                    const float u = chm(jx, jy);
-                    const std::size_t j = chm.index(jx, jy);
-                    if (j == i || !inSet(j)) continue;
-                    if (u > v || (u == v && j < i)) {
-                        isMax = false;
-                        break;
-                    }
-                }
-            if (isMax) rows[static_cast<std::size_t>(iy)].push_back(i);
+            if (strictMaximumIn(chm, ix, iy, R, inSet)) rows[static_cast<std::size_t>(iy)].push_back(i);
         }
     }
     Buf<std::size_t> out;
@@ -886,6 +893,39 @@ void fitResidualApex(const Scene& scene, int ix, int iy, double fitTolM, double 
     t.hidden = chm(cx, cy) > own2 + hiddenTolM;
 }
 
+/// The apex snap (CanopyParams::apexSnapRadiusFraction): tree t, index self of the render whose
+/// top-crown ids are `owner`, moves onto the highest strict 3 x 3 maximum of the CHM among
+/// its own cells (owner == self; the others neither are maxima nor compete; a plateau goes
+/// to its cell of lowest index) that is >= minHeightM and whose centre lies within reachM of
+/// its trunk; apexTree refines the position and takes the CHM's height there. Returns
+/// whether t moved. Reads the CHM and the render only: trees are snapped in parallel.
+bool snapToOwnApex(const Scene& scene, const Buf<std::int32_t>& owner, std::int32_t self, double reachM,
+                   double minHeightM, Tree& t) {
+    const Grid<float>& chm = scene.chm();
+    const int w = chm.width(), h = chm.height();
+    auto own = [&](std::size_t i) { return owner[i] == self; };
+    const int x0 = std::max(0, chm.cellX(t.x - reachM)), x1 = std::min(w - 1, chm.cellX(t.x + reachM));
+    const int y0 = std::max(0, chm.cellY(t.y - reachM)), y1 = std::min(h - 1, chm.cellY(t.y + reachM));
+    int bx = -1, by = -1;
+    float best = 0;
+    for (int iy = y0; iy <= y1; ++iy)
+        for (int ix = x0; ix <= x1; ++ix) {
+            const std::size_t i = chm.index(ix, iy);
+            const float v = chm(ix, iy);
+            if (!own(i) || !(v >= minHeightM) || (bx >= 0 && !(v > best))) continue;
+            const double dx = chm.cellCentreX(ix) - t.x, dy = chm.cellCentreY(iy) - t.y;
+            if (dx * dx + dy * dy > reachM * reachM || !strictMaximumIn(chm, ix, iy, 1, own)) continue;
+            bx = ix;
+            by = iy;
+            best = v;
+        }
+    if (bx < 0) return false;
+    const Tree moved = apexTree(scene, bx, by, t.uid, t.apex, own);
+    if (moved.x == t.x && moved.y == t.y) return false;
+    t = moved;
+    return true;
+}
+
 /// Lowest CHM cell on the segment between two trunks (cells sampled every half cell, the
 /// end cells included).
 double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, double y1) {
@@ -1055,6 +1095,8 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          "", K::Integer, nullptr, &CanopyParams::residualApexFit, R::closed(0, 1)},
         {"residual_apex_fit_tolerance_m", "residual apex fit: a cell is touched when the sphere is at most this below the CHM", "m",
          K::Real, &CanopyParams::residualApexFitToleranceM, nullptr, R::atLeast(0)},
+        {"apex_snap_radius_fraction", "final: added trees move onto the highest CHM maximum of their own visible cells within this fraction of their crown radius; 0 = off",
+         "", K::Real, &CanopyParams::apexSnapRadiusFraction, nullptr, R::closed(0, 10)},
         {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", "", K::Integer, nullptr,
          &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this", "m", K::Real, &CanopyParams::minTrunkDistanceM,
@@ -1496,10 +1538,24 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         result.stopReason += "; back to iteration " + std::to_string(result.iterations[bestIteration].iteration) +
                              " (coverage " + num(result.iterations[bestIteration].coverage) + ")";
     }
-    // Final clean-up: starved trees of the last render, then duplicates, tallest first.
+    // Final clean-up: added trees onto their apex, starved trees of the last render, then
+    // duplicates, tallest first.
     tIter = Clock::now();
     IterationStats fin;
     fin.iteration = -1;
+    if (params.apexSnapRadiusFraction > 0) {
+        // The render in `frame` is that of `trees` (the last iteration or the best state).
+        const std::uint64_t seeds = result.initialSeeds;
+        std::size_t snapped = 0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : snapped)
+        for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+            Tree& t = trees[static_cast<std::size_t>(k)];
+            if (t.uid < seeds || t.hidden) continue;
+            snapped += snapToOwnApex(scene, frame.id, static_cast<std::int32_t>(k), params.apexSnapRadiusFraction * t.radiusM,
+                                     params.minSeedHeightM, t);
+        }
+        result.apexSnapped = snapped;
+    }
     {
         Buf<Tree>& kept = next;
         kept.clear();

@@ -85,6 +85,22 @@ bool sameTrees(const std::vector<Plant>& a, const std::vector<Plant>& b) {
     return true;
 }
 
+/// Two Douglas-Firs of 30 and 27 m, trunks 4.35 m apart inside the taller crown, on cells of
+/// 0.5 m: the lower tree's apex stands 0.6 m above the taller crown's surface, but a cell
+/// toward the taller trunk that surface is higher than the apex, so it is no strict maximum.
+struct FlankPair {
+    std::vector<GeneratedTree> trees;
+    Grid<float> chm;
+};
+
+FlankPair flankPair(const Biome& b, int df) {
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    FlankPair f{{{20.25, 20.25, 30.0, a.crownRadiusM(30)}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}},
+                Grid<float>(80, 80, 0.5, 0, 0, 0.f)};
+    rasterizeCrowns(f.trees, f.chm);
+    return f;
+}
+
 }  // namespace
 
 TEST_CASE("placer recovers known trees from a synthetic CHM", "[canopy]") {
@@ -472,15 +488,11 @@ TEST_CASE("apex trees stay at their CHM maximum with its height, the best state 
 TEST_CASE("a top on a taller neighbour's flank is no CHM maximum but is found as a residual apex", "[canopy]") {
     const Biome b = defaultBiome();
     const int df = b.speciesIndex("Douglas-Fir");
-    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
-    // The lower tree's apex stands 0.6 m above the taller crown's surface, a cell (0.5 m)
-    // toward the taller trunk that surface is higher than the apex: no strict maximum.
-    const double rTall = a.crownRadiusM(30);
-    const std::vector<GeneratedTree> trees = {{20.25, 20.25, 30.0, rTall}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}};
-    Grid<float> chm(80, 80, 0.5, 0, 0, 0.f);
-    rasterizeCrowns(trees, chm);
+    const FlankPair pair = flankPair(b, df);
+    const std::vector<GeneratedTree>& trees = pair.trees;
+    const Grid<float>& chm = pair.chm;
     const Grid<float> terrain = Grid<float>::like(chm, 0.f);
-    REQUIRE(4.35 < rTall);
+    REQUIRE(4.35 < trees[0].crownRadiusM);
     for (const std::size_t i : synth::chmLocalMaxima(chm, 3.0, 1))
         CHECK(std::hypot(chm.cellCentreX(static_cast<int>(i % 80)) - trees[1].x, chm.cellCentreY(static_cast<int>(i / 80)) - trees[1].y) > 1.0);
     synth::CanopyParams p;
@@ -616,4 +628,34 @@ TEST_CASE("the crescent of a crown whose apex is hidden under a taller one gives
     const synth::CanopyResult plain = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     CHECK(plain.trees.size() == 2);
     CHECK(plain.hiddenApexTrees == 0);
+}
+
+TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]") {
+    // The flank case of the residual apex test: the lower tree's apex is no CHM maximum.
+    // Without residual apices the ring finds the lower crown and the tree then walks toward
+    // the centroid of its visible part, away from the taller neighbour and off its apex; the
+    // apex snap puts it back on the highest maximum of the CHM among its own visible cells.
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const FlankPair pair = flankPair(b, df);
+    const std::vector<GeneratedTree>& trees = pair.trees;
+    const Grid<float>& chm = pair.chm;
+    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
+    synth::CanopyParams p;
+    p.residualApices = 0;  // the lower tree comes from the ring
+    p.apexSnapRadiusFraction = 0;
+    const synth::CanopyResult off = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    p.apexSnapRadiusFraction = 0.75;
+    const synth::CanopyResult on = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    std::ostringstream where;
+    for (const Plant& t : off.trees) where << " off (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    for (const Plant& t : on.trees) where << " on (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    INFO("snapped " << on.apexSnapped << ":" << where.str());
+    CHECK(off.apexSnapped == 0);
+    CHECK(on.apexSnapped >= 1);
+    CHECK(nearestDistance(off.trees, trees[1].x, trees[1].y) > 1.0);
+    CHECK(nearestDistance(on.trees, trees[1].x, trees[1].y) < 0.5);
+    for (const Plant& t : on.trees)
+        if (std::hypot(t.xM - trees[1].x, t.yM - trees[1].y) < 0.5) CHECK(std::abs(t.heightM - 27.0) < 0.3);
+    CHECK(nearestDistance(on.trees, trees[0].x, trees[0].y) < 0.3);  // the seeded tree stays
 }
