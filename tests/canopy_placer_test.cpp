@@ -89,15 +89,26 @@ bool sameTrees(const std::vector<Plant>& a, const std::vector<Plant>& b) {
 /// 0.5 m: the lower tree's apex stands 0.6 m above the taller crown's surface, but a cell
 /// toward the taller trunk that surface is higher than the apex, so it is no strict maximum.
 struct FlankPair {
+    Biome biome = defaultBiome();
+    int df = biome.speciesIndex("Douglas-Fir");
     std::vector<GeneratedTree> trees;
     Grid<float> chm;
+    Grid<float> terrain;
+
+    synth::CanopyResult place(const synth::CanopyParams& p) const {
+        return synth::placeCanopy(chm, terrain, uniformMap(chm, df), biome, p);
+    }
 };
 
-FlankPair flankPair(const Biome& b, int df) {
-    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
-    FlankPair f{{{20.25, 20.25, 30.0, a.crownRadiusM(30)}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}},
-                Grid<float>(80, 80, 0.5, 0, 0, 0.f)};
+/// Two Douglas-Firs, 30 m and 27 m tall, 4.35 m apart on flat ground: the lower one's top
+/// lies on the taller one's flank and is no CHM maximum.
+FlankPair flankPair() {
+    FlankPair f;
+    const Allometry& a = f.biome.species[static_cast<std::size_t>(f.df)].allometry;
+    f.trees = {{20.25, 20.25, 30.0, a.crownRadiusM(30)}, {20.25 + 4.35, 20.25, 27.0, a.crownRadiusM(27)}};
+    f.chm = Grid<float>(80, 80, 0.5, 0, 0, 0.f);
     rasterizeCrowns(f.trees, f.chm);
+    f.terrain = Grid<float>::like(f.chm, 0.f);
     return f;
 }
 
@@ -486,24 +497,21 @@ TEST_CASE("apex trees stay at their CHM maximum with its height, the best state 
 }
 
 TEST_CASE("a top on a taller neighbour's flank is no CHM maximum but is found as a residual apex", "[canopy]") {
-    const Biome b = defaultBiome();
-    const int df = b.speciesIndex("Douglas-Fir");
-    const FlankPair pair = flankPair(b, df);
+    const FlankPair pair = flankPair();
     const std::vector<GeneratedTree>& trees = pair.trees;
     const Grid<float>& chm = pair.chm;
-    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
     REQUIRE(4.35 < trees[0].crownRadiusM);
     for (const std::size_t i : synth::chmLocalMaxima(chm, 3.0, 1))
         CHECK(std::hypot(chm.cellCentreX(static_cast<int>(i % 80)) - trees[1].x, chm.cellCentreY(static_cast<int>(i / 80)) - trees[1].y) > 1.0);
     synth::CanopyParams p;
     p.ringSamples = 0;  // trees come from the seeding and the residual apices only
-    const synth::CanopyResult found = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult found = pair.place(p);
     INFO("trees " << found.trees.size() << ", seeds " << found.initialSeeds);
     REQUIRE(found.trees.size() == 2);
     for (const GeneratedTree& t : trees) CHECK(nearestDistance(found.trees, t.x, t.y) < 0.5);
     for (const Plant& t : found.trees) CHECK(std::abs(t.heightM - (t.xM > 22 ? 27.0 : 30.0)) < 0.3);
     p.residualApices = 0;
-    const synth::CanopyResult missed = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult missed = pair.place(p);
     CHECK(nearestDistance(missed.trees, trees[1].x, trees[1].y) > 1.0);
 }
 
@@ -635,18 +643,14 @@ TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]"
     // Without residual apices the ring finds the lower crown and the tree then walks toward
     // the centroid of its visible part, away from the taller neighbour and off its apex; the
     // apex snap puts it back on the highest maximum of the CHM among its own visible cells.
-    const Biome b = defaultBiome();
-    const int df = b.speciesIndex("Douglas-Fir");
-    const FlankPair pair = flankPair(b, df);
+    const FlankPair pair = flankPair();
     const std::vector<GeneratedTree>& trees = pair.trees;
-    const Grid<float>& chm = pair.chm;
-    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
     synth::CanopyParams p;
     p.residualApices = 0;  // the lower tree comes from the ring
     p.apexSnapRadiusFraction = 0;
-    const synth::CanopyResult off = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult off = pair.place(p);
     p.apexSnapRadiusFraction = 0.75;
-    const synth::CanopyResult on = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
+    const synth::CanopyResult on = pair.place(p);
     std::ostringstream where;
     for (const Plant& t : off.trees) where << " off (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
     for (const Plant& t : on.trees) where << " on (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
