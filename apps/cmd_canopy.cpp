@@ -10,6 +10,7 @@
 #include "canopy_stage.h"
 #include "canopy_placer.h"
 #include "cli_common.h"
+#include "memory.h"
 
 namespace eco::cli {
 
@@ -31,6 +32,7 @@ std::optional<T> given(const CLI::Option* opt, T value) {
 }
 
 void runCanopy(CanopyArgs& a) {
+    retainFreedMemory();  // the iterations and stages recycle memory (core/memory.h)
     pipeline::CanopyOptions& o = a.options;
     o.terrainRead.cellSizeM = given(a.cellOpt, a.cellSizeM);
     o.terrainRead.verticalScale = given(a.scaleOpt, a.verticalScale);

@@ -9,6 +9,7 @@
 #include "cli_common.h"
 #include "synth_stages.h"
 #include "forest_floor.h"
+#include "memory.h"
 #include "undergrowth.h"
 
 namespace eco::cli {
@@ -27,6 +28,7 @@ struct SynthArgs {
 };
 
 void runSynth(SynthArgs& a) {
+    retainFreedMemory();  // the stages recycle each other's memory (core/memory.h)
     pipeline::SynthOptions& o = a.options;
     if (a.methodOpt->count()) o.method = a.method;
     for (CLI::Option* deussenOnly : {a.lloydOpt, a.minDistanceOpt})

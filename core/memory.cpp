@@ -2,6 +2,9 @@
 #include "memory.h"
 
 #include <sys/mman.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -9,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "error.h"
@@ -54,6 +58,15 @@ void requireMemory(double bytes, const std::string& what, const std::string& hin
     if (avail == 0 || bytes <= static_cast<double>(avail)) return;
     throw ValidationError(what + " needs about " + bytesText(bytes) + " of memory but the machine has " +
                           bytesText(static_cast<double>(avail)) + " available" + (hint.empty() ? "" : " (" + hint + ")"));
+}
+
+void retainFreedMemory() {
+#if defined(__GLIBC__)
+    // Setting either also stops glibc's own adjustment of the mapping threshold (which
+    // never goes above 32 MB: the scenes' grids and lists are larger).
+    mallopt(M_MMAP_THRESHOLD, 1 << 30);
+    mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
+#endif
 }
 
 void prepareLargeBuffer(void* p, std::size_t bytes) {
