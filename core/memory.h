@@ -62,9 +62,10 @@ void resizeFresh(Vector& v, std::size_t n) {
 /// mappings of their own, and up to 2 GB of free memory kept at the heap's top). Fresh
 /// memory from the kernel must be zeroed, and on a virtual machine that reports free pages
 /// to its host (the benchmarks' machine) first be given back by the host: about 2 s of CPU
-/// time per GB there, against 0.1 s for memory the process already holds. For processes
-/// that run one large computation after another (the eco command, the benchmarks): their
-/// resident size stays near its peak. Results never change. Nothing outside glibc.
+/// time per GB there, against 0.1 s for memory the process already holds. Called by
+/// `eco synth`, `eco canopy` and bench_synth, which run one large computation after another
+/// (not by `eco run`); their resident size stays near its peak. Results never change.
+/// Nothing outside glibc.
 void retainFreedMemory();
 
 }  // namespace eco
