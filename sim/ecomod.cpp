@@ -204,6 +204,21 @@ struct EcoModel::Impl {
     // the witness still dominates it (abilities and crowns never fall, places never move),
     // so testAble takes it as dominated without testing. Kept in step with the store.
     std::vector<std::uint8_t> sure;
+    // A third cache, for the trees of ability 0 (the year's new seedlings, mostly): per cell of
+    // kCoverCellM metres over the area, the last dominator a search found for such a tree
+    // standing in it (its id, or kCoverCanopy | canopy index; 0: none), tried before a search
+    // when the tree's own witness fails. Ids, not store indices: no renumbering between years;
+    // a dead or shrunk guess fails its test (found by id, its entry re-checked), and no result
+    // depends on it (the test's outcome is the existence of a dominator).
+    static constexpr double kCoverCellM = 2.0;
+    static constexpr std::uint64_t kCoverCanopy = 1ull << 63;
+    std::vector<std::uint64_t> coverGuess;
+    int coverW = 0, coverH = 0;
+    std::size_t coverCell(double px, double py) const {
+        const int cx = std::clamp(static_cast<int>((px - area.x0) * (1.0 / kCoverCellM)), 0, coverW - 1);
+        const int cy = std::clamp(static_cast<int>((py - area.y0) * (1.0 / kCoverCellM)), 0, coverH - 1);
+        return static_cast<std::size_t>(cy) * static_cast<std::size_t>(coverW) + static_cast<std::size_t>(cx);
+    }
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
@@ -437,6 +452,7 @@ struct EcoModel::Impl {
     void buildGrids();
     bool isDominated(const Entry& me, std::uint32_t& wit) const;
     void testAble();
+    void testUnable();
     void growStore();
     void sleepersYear();
     void admitSleepers();
@@ -591,6 +607,7 @@ void EcoModel::Impl::growYear() {
     rateYear();
     buildGrids();
     testAble();
+    testUnable();
     growStore();
     sleepersYear();
     admitSleepers();
@@ -754,6 +771,70 @@ void EcoModel::Impl::testAble() {
     }
 }
 
+// The test of the store's trees of ability 0 (they cannot dominate: the year's new
+// seedlings, and the woken before they grow), in the store's order: their witness (the new
+// seedling's parent), then the cover cache's guess for their place, then the search; the
+// search's find goes into the cache. Sequential (it writes the cache).
+void EcoModel::Impl::testUnable() {
+    const std::size_t n = searchN;
+    if (coverGuess.empty()) {
+        coverW = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / kCoverCellM)));
+        coverH = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / kCoverCellM)));
+        coverGuess.assign(static_cast<std::size_t>(coverW) * static_cast<std::size_t>(coverH), 0);
+    }
+    const std::uint64_t* ids = id.data();
+    for (std::size_t p = 0; p < n; ++p) {
+        if (ability[p] > 0) continue;
+        const Entry me{x[p], y[p], radius[p], ability[p]};
+        auto overlaps = [&me](const Entry& q) {  // isDominated's test, the same expression
+            const double dx = me.x - q.x, dy = me.y - q.y, rr = me.r + q.r;
+            return dx * dx + dy * dy < rr * rr;
+        };
+        const std::uint32_t w = witness[p];
+        if (w != kNoWitness) {
+            const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+            if (ability[e] > 0) {
+                const Entry& q = packed[slot[e]];
+                if (me.a < q.a && overlaps(q)) {
+                    dominated[p] = 1;
+                    continue;
+                }
+            }
+        }
+        const std::size_t cell = coverCell(me.x, me.y);
+        const std::uint64_t guess = coverGuess[cell];
+        if (guess != 0) {
+            std::size_t e = n;
+            std::uint32_t code = kNoWitness;
+            if (guess & kCoverCanopy) {
+                const std::size_t c = static_cast<std::size_t>(guess & ~kCoverCanopy);
+                e = n + c;
+                code = kWitnessCanopy | static_cast<std::uint32_t>(c);
+            } else {
+                e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
+                if (e < n && ids[e] == guess)
+                    code = static_cast<std::uint32_t>(e);
+                else
+                    e = ability.size();  // died (or asleep)
+            }
+            if (e < ability.size() && ability[e] > 0) {
+                const Entry& q = packed[slot[e]];
+                if (me.a < q.a && overlaps(q)) {
+                    witness[p] = code;
+                    dominated[p] = 1;
+                    continue;
+                }
+            }
+        }
+        std::uint32_t found = kNoWitness;
+        const bool dom = isDominated(me, found);
+        witness[p] = found;
+        dominated[p] = dom ? 1 : 0;
+        if (dom)
+            coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
+    }
+}
+
 // Every tree in the store's order: the others' test, growth, survival, natural death, and
 // compaction in place (the dead out, the order kept; witnesses renumbered after). A
 // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
@@ -767,7 +848,7 @@ void EcoModel::Impl::growStore() {
     anyShrunk = false;
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
-        const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(Entry{x[p], y[p], radius[p], ability[p]}, witness[p]);
+        const bool dom = dominated[p] != 0;  // testAble's or testUnable's
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
         const double before = growthAge[p];
