@@ -292,6 +292,39 @@ struct EcoModel::Impl {
         std::int32_t lives;
     };
     std::vector<Woken> woken;
+    // The store's second copy, written by growStore and swapped in (its contents are scratch).
+    struct Store {
+        std::vector<std::uint64_t> id;
+        std::vector<std::int32_t> species, age, lives;
+        std::vector<double> x, y, height, radius, growthAge, deathAge;
+        std::vector<float> v;
+        std::vector<std::uint32_t> witness;
+        std::vector<std::uint8_t> sure;
+        void resize(std::size_t k) {
+            id.resize(k);
+            for (auto* a : {&species, &age, &lives}) a->resize(k);
+            for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(k);
+            v.resize(k);
+            witness.resize(k);
+            sure.resize(k);
+        }
+    };
+    Store spare;
+    void swapStore(Store& o) {
+        id.swap(o.id);
+        species.swap(o.species);
+        age.swap(o.age);
+        lives.swap(o.lives);
+        x.swap(o.x);
+        y.swap(o.y);
+        height.swap(o.height);
+        radius.swap(o.radius);
+        growthAge.swap(o.growthAge);
+        deathAge.swap(o.deathAge);
+        v.swap(o.v);
+        witness.swap(o.witness);
+        sure.swap(o.sure);
+    }
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
@@ -455,6 +488,7 @@ struct EcoModel::Impl {
     void testUnable();
     void growStore();
     void sleepersYear();
+    void sleepersFollow();
     void admitSleepers();
     void dropTombstones();
     // A witness's store index after growStore's compaction (kNoWitness if it died, or if any
@@ -608,11 +642,11 @@ void EcoModel::Impl::growYear() {
     buildGrids();
     testAble();
     testUnable();
-    growStore();
     sleepersYear();
+    growStore();
+    sleepersFollow();
     admitSleepers();
     dropTombstones();
-    if (!woken.empty()) mergeWoken();
 }
 
 // The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
@@ -840,14 +874,56 @@ void EcoModel::Impl::testUnable() {
 // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
 // the store for the sleepers) with its witness.
 void EcoModel::Impl::growStore() {
-    const std::size_t n = size();
+    const std::size_t n = size(), nw = woken.size(), cap = n + nw;
     newIndex.resize(n + 1);  // one more: the sleepers' pass reads entry 0 even for an empty store
     fixup.clear();
     newSleepers.clear();
     newSleeperWitness.clear();
     anyShrunk = false;
-    std::size_t w = 0;
+    // Written into the second copy of the arrays (swapped in at the end): the woken can go in
+    // by id during the pass (no in-place compaction could make room for them), and nearly
+    // every tree moves in a year anyway (a tree leaves the store early in the order).
+    Store& o = spare;
+    o.resize(cap);
+    std::uint64_t* const oid = o.id.data();
+    std::int32_t* const ospecies = o.species.data();
+    std::int32_t* const oage = o.age.data();
+    std::int32_t* const olives = o.lives.data();
+    double* const ox = o.x.data();
+    double* const oy = o.y.data();
+    double* const oheight = o.height.data();
+    double* const oradius = o.radius.data();
+    double* const ogrowth = o.growthAge.data();
+    double* const odeath = o.deathAge.data();
+    float* const ov = o.v.data();
+    std::uint32_t* const owitness = o.witness.data();
+    std::uint8_t* const osure = o.sure.data();
+    std::size_t w = 0, j = 0;
+    constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
+    std::uint64_t nextWoken = nw > 0 ? woken[0].id : kNone;  // the next woken's id (kNone: no more)
+    // The woken before id `upTo`, at their places (their witnesses in start-of-year indices: after the pass).
+    auto admitWoken = [&](std::uint64_t upTo) {
+        for (; j < nw && woken[j].id < upTo; ++j, ++w) {
+            const Woken& t = woken[j];
+            oid[w] = t.id;
+            ospecies[w] = t.species;
+            oage[w] = t.age;
+            olives[w] = t.lives;
+            ox[w] = t.x;
+            oy[w] = t.y;
+            oheight[w] = t.height;
+            oradius[w] = t.radius;
+            ogrowth[w] = t.growthAge;
+            odeath[w] = t.deathAge;
+            ov[w] = t.v;
+            owitness[w] = t.witness;
+            osure[w] = 0;
+            if (t.witness != kNoWitness && !(t.witness & kWitnessCanopy)) fixup.push_back(static_cast<std::uint32_t>(w));
+        }
+        nextWoken = j < nw ? woken[j].id : kNone;
+    };
     for (std::size_t p = 0; p < n; ++p) {
+        if (id[p] > nextWoken) admitWoken(id[p]);
         const bool dom = dominated[p] != 0;  // testAble's or testUnable's
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
@@ -894,86 +970,72 @@ void EcoModel::Impl::growStore() {
         const std::uint32_t q = witness[p];
         if (q != kNoWitness && !(q & kWitnessCanopy)) {
             if (q < p)
-                witness[w] = newIndex[q];
+                owitness[w] = newIndex[q];
             else {
-                witness[w] = q;
+                owitness[w] = q;
                 fixup.push_back(static_cast<std::uint32_t>(w));
             }
         } else {
-            witness[w] = q;
+            owitness[w] = q;
         }
-        if (w != p) {
-            id[w] = id[p];
-            species[w] = s;
-            x[w] = x[p];
-            y[w] = y[p];
-            deathAge[w] = deathAge[p];
-            v[w] = v[p];
-        }
-        lives[w] = lv;
-        sure[w] = dom && g == before ? 1 : 0;
-        height[w] = h;
-        radius[w] = r;
-        growthAge[w] = g;
-        age[w] = ageYears;
+        oid[w] = id[p];
+        ospecies[w] = s;
+        ox[w] = x[p];
+        oy[w] = y[p];
+        odeath[w] = deathAge[p];
+        ov[w] = v[p];
+        olives[w] = lv;
+        osure[w] = dom && g == before ? 1 : 0;
+        oheight[w] = h;
+        oradius[w] = r;
+        ogrowth[w] = g;
+        oage[w] = ageYears;
         ++w;
     }
+    admitWoken(kNone);
+    woken.clear();
+    swapStore(o);
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
     if (anyShrunk) std::fill(sure.begin(), sure.end(), std::uint8_t{0});  // a witness may have shrunk
 }
 
-// The sleepers' year: those whose witness died or shrank are tested (the others are
-// dominated by theirs); a dominated one meets its planned event if this is its year; one
-// that nobody dominates grows and rejoins the store, as does one about to mature.
+// The sleepers' year, before growStore (on the start-of-year grids): those whose witness
+// died or shrank last year (kNoWitness) are tested (the others are dominated by theirs); a
+// dominated one meets its planned event if this is its year; one that nobody dominates grows
+// and rejoins the store (woken: growStore puts it in by id), as does one about to mature.
+// Their witnesses stay in start-of-year indices until sleepersFollow.
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     const std::size_t k0 = sleepers.size();
-    // First the few sleepers with work this year (their event, or no witness) listed with
-    // their witness before it, from the watched and a scan of the event years (no pass that
-    // renumbers every witness); after a shrink every living sleeper is listed (follow forgets
-    // the witnesses).
+    // First the few sleepers with work this year (their event, or no witness), from the
+    // watched and a scan of the event years (no pass over every witness).
     slowSleepers.clear();
-    if (!anyShrunk) {
-        // The watched: witnesses renumbered to the store's new indices; listed with their
-        // witness before the year when it is kNoWitness or their event comes.
-        const std::uint32_t* renumber = newIndex.data();
-        const std::int32_t* events = sleepEvent.data();
-        std::uint32_t* witnesses = sleepWitness.data();
-        const std::int32_t now = year;
-        for (const std::uint32_t i : watched) {
-            const std::uint32_t q = witnesses[i];
-            if (q == kNoWitness) {
-                slowSleepers.push_back({i, q});
-                continue;
-            }
-            if (q & kWitnessCanopy) continue;  // a tombstone, or a canopy witness found since: see below
-            if (events[i] == now) slowSleepers.push_back({i, q});
-            witnesses[i] = renumber[q];
-        }
-        // This year's events of the sleepers under a canopy tree (the others' are listed above):
-        // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
-        const std::size_t watchedSlow = slowSleepers.size();
-        auto eventAt = [&](std::size_t i) {
-            const std::uint32_t q = witnesses[i];
-            if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
-                slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
-        };
-        std::size_t i = 0;
-        for (; i + 8 <= k0; i += 8) {
-            int hit = 0;
-            for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
-            if (hit)
-                for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
-        }
-        for (; i < k0; ++i) eventAt(i);
-        // In index (id) order, as the woken must be (two sorted runs; disjoint).
-        std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow),
-                           slowSleepers.end());
-    } else {
-        for (std::size_t i = 0; i < k0; ++i)
-            if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
+    const std::int32_t* events = sleepEvent.data();
+    const std::uint32_t* witnesses = sleepWitness.data();
+    const std::int32_t now = year;
+    for (const std::uint32_t i : watched) {
+        const std::uint32_t q = witnesses[i];
+        if (q == kNoWitness || (!(q & kWitnessCanopy) && events[i] == now)) slowSleepers.push_back({i, q});
     }
+    // This year's events of the sleepers under a canopy tree (the others' are listed above):
+    // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
+    const std::size_t watchedSlow = slowSleepers.size();
+    auto eventAt = [&](std::size_t i) {
+        const std::uint32_t q = witnesses[i];
+        if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
+            slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+    };
+    std::size_t i = 0;
+    for (; i + 8 <= k0; i += 8) {
+        int hit = 0;
+        for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
+        if (hit)
+            for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
+    }
+    for (; i < k0; ++i) eventAt(i);
+    // In index (id) order, as the woken must be (two sorted runs; disjoint).
+    std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow), slowSleepers.end());
     // Then their year, with the witness they had at its start.
     for (const auto& [slow, witnessBefore] : slowSleepers) {
         const std::size_t i = slow;
@@ -1011,8 +1073,8 @@ void EcoModel::Impl::sleepersYear() {
                 case Wake::DiesNatural:
                     ++counters.diedBackgroundOrStress;
                     break;
-                case Wake::Matures:  // mature from next year on
-                    woken.push_back(wake(sl, year + 1, follow(q)));
+                case Wake::Matures:  // mature from next year on (its witness renumbered by growStore)
+                    woken.push_back(wake(sl, year + 1, q));
                     break;
             }
             sleepEvent[i] = kTombstone;
@@ -1020,7 +1082,22 @@ void EcoModel::Impl::sleepersYear() {
             --sleepersLive;
             continue;
         }
-        sleepWitness[i] = follow(q);
+        sleepWitness[i] = q;  // a start-of-year index (or canopy): sleepersFollow renumbers it
+    }
+}
+
+// After growStore: the watched sleepers' witnesses to the store's new indices (kNoWitness for
+// a witness that died, went to sleep or, after a shrink, any store witness: tested next year).
+void EcoModel::Impl::sleepersFollow() {
+    std::uint32_t* witnesses = sleepWitness.data();
+    if (!anyShrunk) {
+        const std::uint32_t* renumber = newIndex.data();
+        for (const std::uint32_t i : watched) {
+            const std::uint32_t q = witnesses[i];
+            if (q != kNoWitness && !(q & kWitnessCanopy)) witnesses[i] = renumber[q];
+        }
+    } else {
+        for (const std::uint32_t i : watched) witnesses[i] = follow(witnesses[i]);
     }
 }
 
