@@ -204,6 +204,13 @@ struct EcoModel::Impl {
     // the witness still dominates it (abilities and crowns never fall, places never move),
     // so testAble takes it as dominated without testing. Kept in step with the store.
     std::vector<std::uint8_t> sure;
+    // And a fourth: per tree, its level and bucket in the grids (kLevelShift: level in the top
+    // bits) while the grids' base spacing (gridBase) and its crown are as when buildGrids
+    // computed them, else kNoKey; per canopy tree the same (canopyKey). Kept in step with the store.
+    static constexpr std::uint32_t kNoKey = 0xFFFFFFFFu;
+    static constexpr int kLevelShift = 27;
+    std::vector<std::uint32_t> gridKey, canopyKey;
+    double gridBase = 0;  // the base of the keys (0: none yet)
     // A third cache, for the trees of ability 0 (the year's new seedlings, mostly): per cell of
     // kCoverCellM metres over the area, the last dominator a search found for such a tree
     // standing in it (its id, or kCoverCanopy | canopy index; 0: none), tried before a search
@@ -234,7 +241,9 @@ struct EcoModel::Impl {
     std::vector<double> ability;     // per tree, then per canopy tree (the store's order)
     std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 3 disturbance (compact's input)
     std::vector<Level> levels;
-    std::vector<std::uint8_t> levelOf, dominated;
+    std::vector<Level> allLevels;  // every level's geometry at gridBase (maxAbility -1, maxRadius 0)
+    bool keysUsable = false;       // the buckets fit below 2^kLevelShift (else no key is kept)
+    std::vector<std::uint8_t> dominated;
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
@@ -298,9 +307,10 @@ struct EcoModel::Impl {
         std::vector<std::int32_t> species, age, lives;
         std::vector<double> x, y, height, radius, growthAge, deathAge;
         std::vector<float> v;
-        std::vector<std::uint32_t> witness;
+        std::vector<std::uint32_t> witness, gridKey;
         std::vector<std::uint8_t> sure;
         void resize(std::size_t k) {
+            gridKey.resize(k);
             id.resize(k);
             for (auto* a : {&species, &age, &lives}) a->resize(k);
             for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(k);
@@ -324,6 +334,7 @@ struct EcoModel::Impl {
         v.swap(o.v);
         witness.swap(o.witness);
         sure.swap(o.sure);
+        gridKey.swap(o.gridKey);
     }
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
@@ -447,6 +458,7 @@ struct EcoModel::Impl {
         v.push_back(vv);
         witness.push_back(guess);
         sure.push_back(0);
+        gridKey.push_back(kNoKey);
         lives.push_back(drawLives(s, pid));
     }
     // The same as push, into place t of a store already resized (truncate) to hold it.
@@ -464,6 +476,7 @@ struct EcoModel::Impl {
         v[t] = vv;
         witness[t] = guess;
         sure[t] = 0;
+        gridKey[t] = kNoKey;
         lives[t] = drawLives(s, pid);
     }
     std::size_t size() const { return id.size(); }
@@ -476,6 +489,7 @@ struct EcoModel::Impl {
         witness.resize(w);
         sure.resize(w);
         lives.resize(w);
+        gridKey.resize(w);
     }
     void compact();
     void seedYear();
@@ -520,6 +534,7 @@ void EcoModel::Impl::compact() {
             deathAge[w] = deathAge[p];
             v[w] = v[p];
             lives[w] = lives[p];
+            gridKey[w] = gridKey[p];
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
@@ -673,25 +688,40 @@ void EcoModel::Impl::rateYear() {
 }
 
 // The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
+// The base spacing follows the able's (about one per bucket of level 0, at least 1 m) with
+// some slack: it is kept while within a factor kBaseSlack of that, so that a tree whose crown
+// did not change keeps its level and bucket (gridKey) from one year to the next.
 void EcoModel::Impl::buildGrids() {
     constexpr int kMaxLevels = 24;
+    constexpr double kBaseSlack = 1.25;
     const std::size_t n = size(), total = n + canopy.size();
     searchN = n;
     const std::size_t m = able.size();
-    auto entryOf = [&](std::size_t e) {
-        if (e < n) return Entry{x[e], y[e], radius[e], ability[e]};
-        const Plant& t = canopy[e - n];
-        return Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
-    };
-    // The level of each able tree, and the levels' grids.
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
-    const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
-    levelOf.resize(m);
-    ableEntry.resize(m);
-    maxLevel = 0;
-    for (std::size_t i = 0; i < m; ++i) {
-        const Entry q = entryOf(able[i]);
-        ableEntry[i] = q;
+    const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
+    bool fresh = false;  // every key recomputed (a new base)
+    if (!(gridBase > 0) || wanted > gridBase * kBaseSlack || wanted * kBaseSlack < gridBase) {
+        gridBase = wanted;
+        fresh = true;
+        // Every level's geometry at this base (the keys' bucket numbers depend on nothing else).
+        allLevels.clear();
+        std::size_t buckets = 0;
+        for (int L = 0; L < kMaxLevels; ++L) {
+            Level lv;
+            lv.bucketM = gridBase * static_cast<double>(1 << L);
+            lv.inverseM = 1.0 / lv.bucketM;
+            lv.bw = std::max(1, static_cast<int>(std::ceil(areaW / lv.bucketM)));
+            lv.bh = std::max(1, static_cast<int>(std::ceil(areaH / lv.bucketM)));
+            lv.first = buckets;
+            buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
+            allLevels.push_back(lv);
+        }
+        keysUsable = buckets < (std::size_t{1} << kLevelShift);
+        canopyKey.assign(canopy.size(), kNoKey);
+        std::fill(gridKey.begin(), gridKey.end(), kNoKey);
+    }
+    const double base = gridBase;
+    auto keyOf = [&](const Entry& q) {  // level and bucket, computed
         // base x 2^L by doublings: exact, as the product was.
         int L = 0;
         double limit = base;
@@ -699,40 +729,55 @@ void EcoModel::Impl::buildGrids() {
             ++L;
             limit *= 2.0;
         }
-        levelOf[i] = static_cast<std::uint8_t>(L);
-        maxLevel = std::max(maxLevel, L);
-    }
-    levels.clear();
-    std::size_t buckets = 0;
-    for (int L = 0; L <= maxLevel; ++L) {
-        Level lv;
-        lv.bucketM = base * static_cast<double>(1 << L);
-        lv.inverseM = 1.0 / lv.bucketM;
-        lv.bw = std::max(1, static_cast<int>(std::ceil(areaW / lv.bucketM)));
-        lv.bh = std::max(1, static_cast<int>(std::ceil(areaH / lv.bucketM)));
-        lv.first = buckets;
-        buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
-        levels.push_back(lv);
-    }
-    auto cellIndex = [&](const Level& lv, double px, double py) {
-        const int bx = std::clamp(static_cast<int>((px - area.x0) * lv.inverseM), 0, lv.bw - 1);
-        const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
-        return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
+        const Level& lv = allLevels[static_cast<std::size_t>(L)];
+        const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
+        const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
+        return (static_cast<std::uint32_t>(L) << kLevelShift) |
+               static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
     };
+    constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
+    ableEntry.resize(m);
+    bucket.resize(m);
+    int top = 0;
+    std::uint32_t* const treeKey = gridKey.data();
+    for (std::size_t i = 0; i < m; ++i) {
+        const std::size_t e = able[i];
+        Entry q;
+        std::uint32_t* keyAt;
+        if (e < n) {
+            q = Entry{x[e], y[e], radius[e], ability[e]};
+            keyAt = treeKey + e;
+        } else {
+            const Plant& t = canopy[e - n];
+            q = Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
+            keyAt = canopyKey.data() + (e - n);
+        }
+        ableEntry[i] = q;
+        std::uint32_t key = *keyAt;
+        if (key == kNoKey || fresh || !keysUsable) {
+            key = keyOf(q);
+            *keyAt = keysUsable ? key : kNoKey;
+        }
+        bucket[i] = key;
+        top = std::max(top, static_cast<int>(key >> kLevelShift));
+    }
+    maxLevel = top;
+    levels.assign(allLevels.begin(), allLevels.begin() + maxLevel + 1);  // maxAbility -1, maxRadius 0
+    const std::size_t buckets = levels.back().first + static_cast<std::size_t>(levels.back().bw) * levels.back().bh;
     // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
     // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
-    bucket.resize(m);
     packed.resize(m);
     packedItem.resize(m);
     slot.resize(total);
     for (std::size_t i = 0; i < m; ++i) {
         const Entry& q = ableEntry[i];
-        Level& lv = levels[levelOf[i]];
+        const std::uint32_t key = bucket[i];
+        Level& lv = levels[key >> kLevelShift];
         lv.maxAbility = std::max(lv.maxAbility, q.a);
         lv.maxRadius = std::max(lv.maxRadius, q.r);
-        const std::size_t k = cellIndex(lv, q.x, q.y);
-        bucket[i] = static_cast<std::uint32_t>(k);
+        const std::uint32_t k = key & kBucketMask;
+        bucket[i] = k;
         ++start[k];
     }
     for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
@@ -898,6 +943,7 @@ void EcoModel::Impl::growStore() {
     float* const ov = o.v.data();
     std::uint32_t* const owitness = o.witness.data();
     std::uint8_t* const osure = o.sure.data();
+    std::uint32_t* const okey = o.gridKey.data();
     std::size_t w = 0, j = 0;
     constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
     std::uint64_t nextWoken = nw > 0 ? woken[0].id : kNone;  // the next woken's id (kNone: no more)
@@ -918,6 +964,7 @@ void EcoModel::Impl::growStore() {
             ov[w] = t.v;
             owitness[w] = t.witness;
             osure[w] = 0;
+            okey[w] = kNoKey;
             if (t.witness != kNoWitness && !(t.witness & kWitnessCanopy)) fixup.push_back(static_cast<std::uint32_t>(w));
         }
         nextWoken = j < nw ? woken[j].id : kNone;
@@ -986,6 +1033,7 @@ void EcoModel::Impl::growStore() {
         ov[w] = v[p];
         olives[w] = lv;
         osure[w] = dom && g == before ? 1 : 0;
+        okey[w] = h == height[p] && r == radius[p] ? gridKey[p] : kNoKey;  // its grid place holds while its crown does
         oheight[w] = h;
         oradius[w] = r;
         ogrowth[w] = g;
@@ -1199,6 +1247,7 @@ void EcoModel::Impl::mergeWoken() {
     spread(witness, [](const Woken& t) { return t.witness; });
     spread(sure, [](const Woken&) { return std::uint8_t{0}; });
     spread(lives, [](const Woken& t) { return t.lives; });
+    spread(gridKey, [](const Woken&) { return kNoKey; });
     // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
     mergeShift.resize(n + 1);
     for (std::size_t j = 0, q = 0; q <= n; ++q) {
@@ -1579,6 +1628,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.witness.clear();
     m.sure.clear();
     m.lives.clear();
+    m.gridKey.clear();
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
     m.sleepWitness.clear();
