@@ -211,6 +211,7 @@ struct EcoModel::Impl {
     static constexpr int kLevelShift = 27;
     std::vector<std::uint32_t> gridKey, canopyKey;
     double gridBase = 0;  // the base of the keys (0: none yet)
+    EcoModel::CacheCounts cacheCounts;  // how often the caches served (diagnostic)
     // A third cache, for the trees of ability 0 (the year's new seedlings, mostly): per cell of
     // kCoverCellM metres over the area, the last dominator a search found for such a tree
     // standing in it (its id, or kCoverCanopy | canopy index; 0: none), tried before a search
@@ -757,6 +758,8 @@ void EcoModel::Impl::buildGrids() {
         if (key == kNoKey || fresh || !keysUsable) {
             key = keyOf(q);
             *keyAt = keysUsable ? key : kNoKey;
+        } else {
+            ++cacheCounts.keysKept;
         }
         bucket[i] = key;
         top = std::max(top, static_cast<int>(key >> kLevelShift));
@@ -901,6 +904,7 @@ void EcoModel::Impl::testUnable() {
                 if (me.a < q.a && overlaps(q)) {
                     witness[p] = code;
                     dominated[p] = 1;
+                    ++cacheCounts.coverHits;
                     continue;
                 }
             }
@@ -1041,6 +1045,7 @@ void EcoModel::Impl::growStore() {
         ++w;
     }
     admitWoken(kNone);
+    cacheCounts.wokenInPass += nw;
     woken.clear();
     swapStore(o);
     truncate(w);
@@ -1462,6 +1467,16 @@ const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return im
 int EcoModel::yearsDone() const { return impl_->year; }
 std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive; }
 std::size_t EcoModel::setAsideCount() const { return impl_->sleepersLive; }
+EcoModel::CacheCounts EcoModel::cacheCounts() const { return impl_->cacheCounts; }
+void EcoModel::forgetCaches() {
+    Impl& m = *impl_;
+    m.wakeAll(m.year);
+    std::fill(m.witness.begin(), m.witness.end(), Impl::kNoWitness);
+    std::fill(m.sure.begin(), m.sure.end(), std::uint8_t{0});
+    std::fill(m.gridKey.begin(), m.gridKey.end(), Impl::kNoKey);
+    m.gridBase = 0;  // the grids' base and every key computed afresh
+    m.coverGuess.clear();
+}
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;

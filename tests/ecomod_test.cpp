@@ -456,6 +456,39 @@ TEST_CASE("ecomod: setting the suppressed seedlings aside changes no tree, censu
     CHECK(asleep.plantCount() > 100);
 }
 
+TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][ecomod]") {
+    // The same run twice: once as it is, once with every cache of the step dropped after each
+    // year (forgetCaches: the witnesses, the set-aside seedlings, the trees' grid places and
+    // base, the cover guesses), so that every tree is tested by the plain search each year.
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    Simulation cached(in, params, 9), plain(in, params, 9);
+    REQUIRE(cached.ecomod() != nullptr);
+    REQUIRE(plain.ecomod() != nullptr);
+    bool same = true;
+    for (int y = 0; y < 50 && same; ++y) {
+        cached.stepYear();
+        plain.stepYear();
+        plain.ecomod()->forgetCaches();
+        CHECK(plain.ecomod()->setAsideCount() == 0);
+        const YearRecord a = cached.census(), b = plain.census();
+        same = samePlants(cached.plants(), plain.plants()) && a.count == b.count &&
+               std::memcmp(a.meanVigour.data(), b.meanVigour.data(), a.meanVigour.size() * sizeof(double)) == 0 &&
+               std::memcmp(a.meanHeightM.data(), b.meanHeightM.data(), a.meanHeightM.size() * sizeof(double)) == 0 &&
+               cached.counters().diedDominated == plain.counters().diedDominated &&
+               cached.counters().diedBackgroundOrStress == plain.counters().diedBackgroundOrStress &&
+               cached.counters().germinated == plain.counters().germinated;
+        INFO("year " << y + 1);
+        CHECK(same);
+    }
+    // Every cache was exercised in the cached run.
+    const EcoModel::CacheCounts c = cached.ecomod()->cacheCounts();
+    CHECK(c.coverHits > 20);
+    CHECK(c.wokenInPass > 5);
+    CHECK(c.keysKept > 1000);
+    CHECK(cached.plantCount() > 100);
+}
+
 TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
     Biome b = quietBiome();
     const int s = b.speciesIndex("Toyon");
