@@ -339,6 +339,9 @@ struct EcoModel::Impl {
     }
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
+    std::vector<Sleeper> bornAsleep;  // seedYear: the year's new trees asleep at birth (their witnesses: bornAsleepWitness)
+    std::vector<std::uint32_t> bornAsleepWitness;
+    std::size_t bornOutside = 0;      // the year's new trees not in the store (asleep, or dead in their first year)
     std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
     // So that a year renumbers only the witnesses that need it: `watched` lists (a superset
     // of) the sleepers whose witness is a store tree or kNoWitness (the others have a canopy
@@ -501,6 +504,7 @@ struct EcoModel::Impl {
     bool isDominated(const Entry& me, std::uint32_t& wit) const;
     void testAble();
     void testUnable();
+    bool testPoint(const Entry& me, std::uint32_t& wit);
     void growStore();
     void sleepersYear();
     void sleepersFollow();
@@ -577,6 +581,10 @@ void EcoModel::Impl::seedYear() {
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
+    // The canopy's abilities and the grids of the start of the year: the year's new trees
+    // (height 0) are never among the able, so they are tested on these as they are born.
+    rateYear();
+    buildGrids();
 #pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
@@ -624,17 +632,51 @@ void EcoModel::Impl::seedYear() {
             if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
         }
     }
-    // The new trees, appended in species order (the arrays grown once, not a push per field).
+    // The new trees in species order, each tested at once on the grids of the start of the
+    // year (the new trees are not among the able: height 0). One found dominated that cannot
+    // grow while dominated has its first year here, as growStore would give it (its
+    // dominated death, its death of age, or its sleep: to bornAsleep, never in the store);
+    // the others are appended to the store with their test's outcome (the arrays grown once,
+    // not a push per field).
     std::size_t t = size(), added = 0;
     for (const auto& b : born) added += b.size();
     truncate(t + added);
+    dominated.resize(t + added);
+    bornAsleep.clear();
+    bornAsleepWitness.clear();
+    bornOutside = 0;
     for (int s = 0; s < ns; ++s) {
+        const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
+        const bool canSleep = sps.dominatedGrowth == 0.0 && 1.0 < sps.maturityAgeYears;
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            setAt(t++, pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
+            const double dAge = drawDeathAge(s, pid, 0.0);
+            std::uint32_t wit = b.parent;
+            const bool dom = testPoint(Entry{b.x, b.y, 0.0, 0.0}, wit);
+            if (dom && canSleep) {
+                ++bornOutside;
+                std::int32_t lv = drawLives(s, pid);
+                if (lv == 0) {
+                    ++counters.diedDominated;  // suffocation in its first year
+                    continue;
+                }
+                if (lv != kInfiniteLives) --lv;
+                if (1 >= dAge) {
+                    ++counters.diedBackgroundOrStress;
+                    continue;
+                }
+                bornAsleep.push_back(Sleeper{pid, b.x, b.y, 0.0, dAge, b.v, s, -year, domDeathYearOf(lv, year), Wake::DiesDominated});
+                bornAsleepWitness.push_back(wit);
+                continue;
+            }
+            setAt(t, pid, s, b.x, b.y, 0.0, 0.0, 0, dAge, b.v, wit);
+            dominated[t] = dom ? 1 : 0;
+            ++t;
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
+    truncate(t);
+    dominated.resize(t);
 }
 
 // Growth with domination (Algorithm 3) and the deaths of the year. A tree is dominated when
@@ -653,13 +695,14 @@ void EcoModel::Impl::seedYear() {
 // parallel on large scenes); then one pass in the store's order tests the others, grows
 // every tree, draws the dominated trees' survival and compacts the store (the dead out).
 void EcoModel::Impl::growYear() {
-    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive);
-    rateYear();
-    buildGrids();
+    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive + bornOutside);
     testAble();
     testUnable();
     sleepersYear();
     growStore();
+    // The year's new trees that fell asleep at birth, after growStore's (their ids are larger).
+    newSleepers.insert(newSleepers.end(), bornAsleep.begin(), bornAsleep.end());
+    newSleeperWitness.insert(newSleeperWitness.end(), bornAsleepWitness.begin(), bornAsleepWitness.end());
     sleepersFollow();
     admitSleepers();
     dropTombstones();
@@ -842,8 +885,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = able.size();
-    dominated.resize(n);
+    const std::size_t n = searchN, m = able.size();  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
@@ -859,63 +901,67 @@ void EcoModel::Impl::testAble() {
 // search's find goes into the cache. Sequential (it writes the cache).
 void EcoModel::Impl::testUnable() {
     const std::size_t n = searchN;
+    for (std::size_t p = 0; p < n; ++p) {
+        if (ability[p] > 0) continue;
+        std::uint32_t w = witness[p];
+        dominated[p] = testPoint(Entry{x[p], y[p], radius[p], ability[p]}, w) ? 1 : 0;
+        witness[p] = w;
+    }
+}
+
+// The test of a tree of ability 0 at `me` (start-of-year grids): its guess `wit` (a witness,
+// or a new seedling's parent), then the cover cache's guess for its place, then the search,
+// whose find goes into the cache; `wit` becomes the dominator found (kNoWitness: none).
+bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
+    const std::size_t n = searchN;
     if (coverGuess.empty()) {
         coverW = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / kCoverCellM)));
         coverH = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / kCoverCellM)));
         coverGuess.assign(static_cast<std::size_t>(coverW) * static_cast<std::size_t>(coverH), 0);
     }
-    const std::uint64_t* ids = id.data();
-    for (std::size_t p = 0; p < n; ++p) {
-        if (ability[p] > 0) continue;
-        const Entry me{x[p], y[p], radius[p], ability[p]};
-        auto overlaps = [&me](const Entry& q) {  // isDominated's test, the same expression
-            const double dx = me.x - q.x, dy = me.y - q.y, rr = me.r + q.r;
-            return dx * dx + dy * dy < rr * rr;
-        };
-        const std::uint32_t w = witness[p];
-        if (w != kNoWitness) {
-            const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
-            if (ability[e] > 0) {
-                const Entry& q = packed[slot[e]];
-                if (me.a < q.a && overlaps(q)) {
-                    dominated[p] = 1;
-                    continue;
-                }
-            }
+    auto overlaps = [&me](const Entry& q) {  // isDominated's test, the same expression
+        const double dx = me.x - q.x, dy = me.y - q.y, rr = me.r + q.r;
+        return dx * dx + dy * dy < rr * rr;
+    };
+    const std::uint32_t w = wit;
+    if (w != kNoWitness) {
+        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        if (ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) return true;
         }
-        const std::size_t cell = coverCell(me.x, me.y);
-        const std::uint64_t guess = coverGuess[cell];
-        if (guess != 0) {
-            std::size_t e = n;
-            std::uint32_t code = kNoWitness;
-            if (guess & kCoverCanopy) {
-                const std::size_t c = static_cast<std::size_t>(guess & ~kCoverCanopy);
-                e = n + c;
-                code = kWitnessCanopy | static_cast<std::uint32_t>(c);
-            } else {
-                e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
-                if (e < n && ids[e] == guess)
-                    code = static_cast<std::uint32_t>(e);
-                else
-                    e = ability.size();  // died (or asleep)
-            }
-            if (e < ability.size() && ability[e] > 0) {
-                const Entry& q = packed[slot[e]];
-                if (me.a < q.a && overlaps(q)) {
-                    witness[p] = code;
-                    dominated[p] = 1;
-                    ++cacheCounts.coverHits;
-                    continue;
-                }
-            }
-        }
-        std::uint32_t found = kNoWitness;
-        const bool dom = isDominated(me, found);
-        witness[p] = found;
-        dominated[p] = dom ? 1 : 0;
-        if (dom)
-            coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
     }
+    const std::uint64_t* ids = id.data();  // the first n: the store's at the grids (sorted)
+    const std::size_t cell = coverCell(me.x, me.y);
+    const std::uint64_t guess = coverGuess[cell];
+    if (guess != 0) {
+        std::size_t e = n;
+        std::uint32_t code = kNoWitness;
+        if (guess & kCoverCanopy) {
+            const std::size_t c = static_cast<std::size_t>(guess & ~kCoverCanopy);
+            e = n + c;
+            code = kWitnessCanopy | static_cast<std::uint32_t>(c);
+        } else {
+            e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
+            if (e < n && ids[e] == guess)
+                code = static_cast<std::uint32_t>(e);
+            else
+                e = ability.size();  // died (or asleep)
+        }
+        if (e < ability.size() && ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) {
+                wit = code;
+                ++cacheCounts.coverHits;
+                return true;
+            }
+        }
+    }
+    std::uint32_t found = kNoWitness;
+    const bool dom = isDominated(me, found);
+    wit = found;
+    if (dom) coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
+    return dom;
 }
 
 // Every tree in the store's order: the others' test, growth, survival, natural death, and
