@@ -418,9 +418,12 @@ struct EcoModel::Impl {
     std::vector<std::vector<Sapling>> born;       // per species (seedYear)
     std::vector<std::int64_t> attempts;
 
+    // geom's cell of (px, py), clamped to geom: Grid::cellX / cellY's quotient truncated
+    // instead of floored (no floor call); the same cell, as the two differ only below 0,
+    // where both clamp to 0.
     std::size_t cellOf(double px, double py) const {
-        const int ix = std::clamp(geom.cellX(px), 0, geom.width() - 1);
-        const int iy = std::clamp(geom.cellY(py), 0, geom.height() - 1);
+        const int ix = std::clamp(static_cast<int>((px - geom.originX()) / geom.cellSizeM()), 0, geom.width() - 1);
+        const int iy = std::clamp(static_cast<int>((py - geom.originY()) / geom.cellSizeM()), 0, geom.height() - 1);
         return geom.index(ix, iy);
     }
     float suitAt(int s, double px, double py) const {
