@@ -1048,15 +1048,17 @@ void EcoModel::Impl::growStore() {
             continue;
         }
         double h = height[p], r = radius[p];
+        bool moved = false;  // its height or crown changed (its grid place with it)
         // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
         // both): the allometry's exp and log are the costliest part of a growing tree's year.
         if (g != before && before < sps.fullGrownAgeYears) {
             h = ecomodPolylineHeightM(sps, g);
             r = crown(s, h);
             if (h < height[p] || r < radius[p]) anyShrunk = true;
+            moved = h != height[p] || r != radius[p];
         }
-        if (dom && h == 0.0 && r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
-            witness[p] != kNoWitness) {
+        if (dom && h == 0.0 && (r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
+                                witness[p] != kNoWitness)) {
             // To sleep: dominated by its witness in the years to come (see Sleeper).
             newSleepers.push_back(Sleeper{id[p], x[p], y[p], g, deathAge[p], v[p], s, ageYears - year - 1, domDeathYearOf(lv, year),
                                           Wake::DiesDominated});
@@ -1086,7 +1088,7 @@ void EcoModel::Impl::growStore() {
         ov[w] = v[p];
         olives[w] = lv;
         osure[w] = dom && g == before ? 1 : 0;
-        okey[w] = h == height[p] && r == radius[p] ? gridKey[p] : kNoKey;  // its grid place holds while its crown does
+        okey[w] = moved ? kNoKey : gridKey[p];  // its grid place holds while its crown does
         oheight[w] = h;
         oradius[w] = r;
         ogrowth[w] = g;
