@@ -694,9 +694,12 @@ void EcoModel::Impl::seedYear() {
 // few more) buckets round it, from the level of the largest crowns down (a seedling under a
 // large crown finds it first), skipping levels and buckets with nobody more able. The outcome
 // is the existence of a dominator, the same whichever is found first, whatever the buckets.
-// The able are tested first, in bucket order (their neighbours' buckets stay in cache; in
-// parallel on large scenes); then one pass in the store's order tests the others, grows
-// every tree, draws the dominated trees' survival and compacts the store (the dead out).
+// The grids are built in seedYear (the year's new trees, of height 0, are never among the
+// able) and each new tree is tested as it is born (testPoint). Here the able are tested
+// first, in bucket order (their neighbours' buckets stay in cache; in parallel on large
+// scenes), then the store's other trees of ability 0 (testUnable), the sleepers' year
+// (sleepersYear), and one pass in the store's order grows every tree, spends the dominated
+// trees' lives and compacts the store into its second copy (the dead out, the woken in).
 void EcoModel::Impl::growYear() {
     counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive + bornOutside);
     testAble();

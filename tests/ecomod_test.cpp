@@ -83,6 +83,17 @@ bool samePlants(const std::vector<UndergrowthPlant>& a, const std::vector<Underg
     return true;
 }
 
+// The same trees (bits), census (counts, mean heights and vigours, bits) and counters.
+bool sameRun(const Simulation& a, const Simulation& b) {
+    const YearRecord ra = a.census(), rb = b.census();
+    return samePlants(a.plants(), b.plants()) && ra.count == rb.count &&
+           std::memcmp(ra.meanVigour.data(), rb.meanVigour.data(), ra.meanVigour.size() * sizeof(double)) == 0 &&
+           std::memcmp(ra.meanHeightM.data(), rb.meanHeightM.data(), ra.meanHeightM.size() * sizeof(double)) == 0 &&
+           a.counters().diedDominated == b.counters().diedDominated &&
+           a.counters().diedBackgroundOrStress == b.counters().diedBackgroundOrStress &&
+           a.counters().plantMonths == b.counters().plantMonths && a.counters().germinated == b.counters().germinated;
+}
+
 }  // namespace
 
 TEST_CASE("ecomod: the height polyline passes through its control points", "[sim][ecomod]") {
@@ -442,13 +453,7 @@ TEST_CASE("ecomod: setting the suppressed seedlings aside changes no tree, censu
         maxAside = std::max(maxAside, asleep.ecomod()->setAsideCount());
         awake.ecomod()->removeTrees(std::vector<std::uint8_t>(awake.plantCount(), 0));
         CHECK(awake.ecomod()->setAsideCount() == 0);
-        const YearRecord a = asleep.census(), b = awake.census();
-        same = samePlants(asleep.plants(), awake.plants()) && a.count == b.count &&
-               std::memcmp(a.meanVigour.data(), b.meanVigour.data(), a.meanVigour.size() * sizeof(double)) == 0 &&
-               std::memcmp(a.meanHeightM.data(), b.meanHeightM.data(), a.meanHeightM.size() * sizeof(double)) == 0 &&
-               asleep.counters().diedDominated == awake.counters().diedDominated &&
-               asleep.counters().diedBackgroundOrStress == awake.counters().diedBackgroundOrStress &&
-               asleep.counters().plantMonths == awake.counters().plantMonths;
+        same = sameRun(asleep, awake);
         INFO("year " << y + 1);
         CHECK(same);
     }
@@ -471,13 +476,7 @@ TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][
         plain.stepYear();
         plain.ecomod()->forgetCaches();
         CHECK(plain.ecomod()->setAsideCount() == 0);
-        const YearRecord a = cached.census(), b = plain.census();
-        same = samePlants(cached.plants(), plain.plants()) && a.count == b.count &&
-               std::memcmp(a.meanVigour.data(), b.meanVigour.data(), a.meanVigour.size() * sizeof(double)) == 0 &&
-               std::memcmp(a.meanHeightM.data(), b.meanHeightM.data(), a.meanHeightM.size() * sizeof(double)) == 0 &&
-               cached.counters().diedDominated == plain.counters().diedDominated &&
-               cached.counters().diedBackgroundOrStress == plain.counters().diedBackgroundOrStress &&
-               cached.counters().germinated == plain.counters().germinated;
+        same = sameRun(cached, plain);
         INFO("year " << y + 1);
         CHECK(same);
     }
