@@ -1612,10 +1612,13 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
     return removed;
 }
 std::size_t EcoModel::bytesPerPlant() const {
-    return sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* witness */ sizeof(std::uint32_t) +
-           /* step scratch: ability, fate, dominated, sure, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+    // The store: id, species, age, lives, six doubles, v, witness, sure, grid key; twice (the
+    // second copy that growStore writes).
+    const std::size_t store = sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 6 * sizeof(double) + sizeof(float) +
+                              sizeof(std::uint32_t) + sizeof(std::uint8_t) + sizeof(std::uint32_t);
+    return 2 * store +
+           /* step scratch: ability, fate, dominated, bucket, slot, new index, two packed copies */
+           sizeof(double) + 2 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
