@@ -244,7 +244,7 @@ struct EcoModel::Impl {
     std::vector<Level> levels;
     std::vector<Level> allLevels;  // every level's geometry at gridBase (maxAbility -1, maxRadius 0)
     bool keysUsable = false;       // the buckets fit below 2^kLevelShift (else no key is kept)
-    std::vector<std::uint8_t> dominated;
+    std::vector<std::uint8_t> levelOf, dominated;  // buildGrids: each able tree's level
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
@@ -771,23 +771,10 @@ void EcoModel::Impl::buildGrids() {
         std::fill(gridKey.begin(), gridKey.end(), kNoKey);
     }
     const double base = gridBase;
-    auto keyOf = [&](const Entry& q) {  // level and bucket, computed
-        // base x 2^L by doublings: exact, as the product was.
-        int L = 0;
-        double limit = base;
-        while (L < kMaxLevels - 1 && q.r > limit) {
-            ++L;
-            limit *= 2.0;
-        }
-        const Level& lv = allLevels[static_cast<std::size_t>(L)];
-        const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
-        const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
-        return (static_cast<std::uint32_t>(L) << kLevelShift) |
-               static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
-    };
     constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
     ableEntry.resize(m);
     bucket.resize(m);
+    levelOf.resize(m);
     int top = 0;
     std::uint32_t* const treeKey = gridKey.data();
     for (std::size_t i = 0; i < m; ++i) {
@@ -803,15 +790,30 @@ void EcoModel::Impl::buildGrids() {
             keyAt = canopyKey.data() + (e - n);
         }
         ableEntry[i] = q;
-        std::uint32_t key = *keyAt;
+        const std::uint32_t key = *keyAt;
+        int L;
+        std::uint32_t k;
         if (key == kNoKey || fresh || !keysUsable) {
-            key = keyOf(q);
-            *keyAt = keysUsable ? key : kNoKey;
+            // Level: base x 2^L by doublings (exact, as the product was); then the bucket.
+            L = 0;
+            double limit = base;
+            while (L < kMaxLevels - 1 && q.r > limit) {
+                ++L;
+                limit *= 2.0;
+            }
+            const Level& lv = allLevels[static_cast<std::size_t>(L)];
+            const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
+            const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
+            k = static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
+            *keyAt = keysUsable ? (static_cast<std::uint32_t>(L) << kLevelShift) | k : kNoKey;
         } else {
+            L = static_cast<int>(key >> kLevelShift);
+            k = key & kBucketMask;
             ++cacheCounts.keysKept;
         }
-        bucket[i] = key;
-        top = std::max(top, static_cast<int>(key >> kLevelShift));
+        bucket[i] = k;
+        levelOf[i] = static_cast<std::uint8_t>(L);
+        top = std::max(top, L);
     }
     maxLevel = top;
     levels.assign(allLevels.begin(), allLevels.begin() + maxLevel + 1);  // maxAbility -1, maxRadius 0
@@ -824,13 +826,10 @@ void EcoModel::Impl::buildGrids() {
     slot.resize(total);
     for (std::size_t i = 0; i < m; ++i) {
         const Entry& q = ableEntry[i];
-        const std::uint32_t key = bucket[i];
-        Level& lv = levels[key >> kLevelShift];
+        Level& lv = levels[levelOf[i]];
         lv.maxAbility = std::max(lv.maxAbility, q.a);
         lv.maxRadius = std::max(lv.maxRadius, q.r);
-        const std::uint32_t k = key & kBucketMask;
-        bucket[i] = k;
-        ++start[k];
+        ++start[bucket[i]];
     }
     for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
     for (std::size_t i = m; i-- > 0;) {
