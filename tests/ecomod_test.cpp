@@ -1,7 +1,7 @@
 // The EcoMod model (sim/ecomod.h): the height polyline, the suitabilities, domination between
 // two constructed trees and among hundreds (against a brute-force search), under-dispersion
-// seeding statistics, determinism across thread counts and checkpoint / resume, and the
-// refusal of bad parameters.
+// seeding statistics, determinism across thread counts and checkpoint / resume, the step's
+// caches and set-aside against plain yearly runs, and the refusal of bad parameters.
 #include <catch2/catch.hpp>
 #include <omp.h>
 
