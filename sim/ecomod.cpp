@@ -204,6 +204,29 @@ struct EcoModel::Impl {
     // the witness still dominates it (abilities and crowns never fall, places never move),
     // so testAble takes it as dominated without testing. Kept in step with the store.
     std::vector<std::uint8_t> sure;
+    // And a fourth: per tree, its level and bucket in the grids (kLevelShift: level in the top
+    // bits) while the grids' base spacing (gridBase) and its crown are as when buildGrids
+    // computed them, else kNoKey; per canopy tree the same (canopyKey). Kept in step with the store.
+    static constexpr std::uint32_t kNoKey = 0xFFFFFFFFu;
+    static constexpr int kLevelShift = 27;
+    std::vector<std::uint32_t> gridKey, canopyKey;
+    double gridBase = 0;  // the base of the keys (0: none yet)
+    EcoModel::CacheCounts cacheCounts;  // how often the caches served (diagnostic)
+    // A third cache, for the trees of ability 0 (the year's new seedlings, mostly): per cell of
+    // kCoverCellM metres over the area, the last dominator a search found for such a tree
+    // standing in it (its id, or kCoverCanopy | canopy index; 0: none), tried before a search
+    // when the tree's own witness fails. Ids, not store indices: no renumbering between years;
+    // a dead or shrunk guess fails its test (found by id, its entry re-checked), and no result
+    // depends on it (the test's outcome is the existence of a dominator).
+    static constexpr double kCoverCellM = 2.0;
+    static constexpr std::uint64_t kCoverCanopy = 1ull << 63;
+    std::vector<std::uint64_t> coverGuess;
+    int coverW = 0, coverH = 0;
+    std::size_t coverCell(double px, double py) const {
+        const int cx = std::clamp(static_cast<int>((px - area.x0) * (1.0 / kCoverCellM)), 0, coverW - 1);
+        const int cy = std::clamp(static_cast<int>((py - area.y0) * (1.0 / kCoverCellM)), 0, coverH - 1);
+        return static_cast<std::size_t>(cy) * static_cast<std::size_t>(coverW) + static_cast<std::size_t>(cx);
+    }
 
     // Scratch of the step, kept between years (no allocation per year once grown).
     struct Level {
@@ -219,7 +242,9 @@ struct EcoModel::Impl {
     std::vector<double> ability;     // per tree, then per canopy tree (the store's order)
     std::vector<std::uint8_t> fate;  // 0 alive, 1 natural death, 3 disturbance (compact's input)
     std::vector<Level> levels;
-    std::vector<std::uint8_t> levelOf, dominated;
+    std::vector<Level> allLevels;  // every level's geometry at gridBase (maxAbility -1, maxRadius 0)
+    bool keysUsable = false;       // the buckets fit below 2^kLevelShift (else no key is kept)
+    std::vector<std::uint8_t> levelOf, dominated;  // buildGrids: each able tree's level
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
@@ -277,8 +302,46 @@ struct EcoModel::Impl {
         std::int32_t lives;
     };
     std::vector<Woken> woken;
+    // The store's second copy, written by growStore and swapped in (its contents are scratch).
+    struct Store {
+        std::vector<std::uint64_t> id;
+        std::vector<std::int32_t> species, age, lives;
+        std::vector<double> x, y, height, radius, growthAge, deathAge;
+        std::vector<float> v;
+        std::vector<std::uint32_t> witness, gridKey;
+        std::vector<std::uint8_t> sure;
+        void resize(std::size_t k) {
+            gridKey.resize(k);
+            id.resize(k);
+            for (auto* a : {&species, &age, &lives}) a->resize(k);
+            for (auto* a : {&x, &y, &height, &radius, &growthAge, &deathAge}) a->resize(k);
+            v.resize(k);
+            witness.resize(k);
+            sure.resize(k);
+        }
+    };
+    Store spare;
+    void swapStore(Store& o) {
+        id.swap(o.id);
+        species.swap(o.species);
+        age.swap(o.age);
+        lives.swap(o.lives);
+        x.swap(o.x);
+        y.swap(o.y);
+        height.swap(o.height);
+        radius.swap(o.radius);
+        growthAge.swap(o.growthAge);
+        deathAge.swap(o.deathAge);
+        v.swap(o.v);
+        witness.swap(o.witness);
+        sure.swap(o.sure);
+        gridKey.swap(o.gridKey);
+    }
     std::vector<std::uint32_t> mergeAt, mergeShift;  // mergeWoken's insertion points, and the shift of each old index
     std::vector<Sleeper> newSleepers;
+    std::vector<Sleeper> bornAsleep;  // seedYear: the year's new trees asleep at birth (their witnesses: bornAsleepWitness)
+    std::vector<std::uint32_t> bornAsleepWitness;
+    std::size_t bornOutside = 0;      // the year's new trees not in the store (asleep, or dead in their first year)
     std::vector<std::pair<std::uint32_t, std::uint32_t>> slowSleepers;  // sleepersYear: (sleeper, its witness before the year)
     // So that a year renumbers only the witnesses that need it: `watched` lists (a superset
     // of) the sleepers whose witness is a store tree or kNoWitness (the others have a canopy
@@ -355,9 +418,12 @@ struct EcoModel::Impl {
     std::vector<std::vector<Sapling>> born;       // per species (seedYear)
     std::vector<std::int64_t> attempts;
 
+    // geom's cell of (px, py), clamped to geom: Grid::cellX / cellY's quotient truncated
+    // instead of floored (no floor call); the same cell, as the two differ only below 0,
+    // where both clamp to 0.
     std::size_t cellOf(double px, double py) const {
-        const int ix = std::clamp(geom.cellX(px), 0, geom.width() - 1);
-        const int iy = std::clamp(geom.cellY(py), 0, geom.height() - 1);
+        const int ix = std::clamp(static_cast<int>((px - geom.originX()) / geom.cellSizeM()), 0, geom.width() - 1);
+        const int iy = std::clamp(static_cast<int>((py - geom.originY()) / geom.cellSizeM()), 0, geom.height() - 1);
         return geom.index(ix, iy);
     }
     float suitAt(int s, double px, double py) const {
@@ -399,6 +465,7 @@ struct EcoModel::Impl {
         v.push_back(vv);
         witness.push_back(guess);
         sure.push_back(0);
+        gridKey.push_back(kNoKey);
         lives.push_back(drawLives(s, pid));
     }
     // The same as push, into place t of a store already resized (truncate) to hold it.
@@ -416,6 +483,7 @@ struct EcoModel::Impl {
         v[t] = vv;
         witness[t] = guess;
         sure[t] = 0;
+        gridKey[t] = kNoKey;
         lives[t] = drawLives(s, pid);
     }
     std::size_t size() const { return id.size(); }
@@ -428,6 +496,7 @@ struct EcoModel::Impl {
         witness.resize(w);
         sure.resize(w);
         lives.resize(w);
+        gridKey.resize(w);
     }
     void compact();
     void seedYear();
@@ -437,8 +506,11 @@ struct EcoModel::Impl {
     void buildGrids();
     bool isDominated(const Entry& me, std::uint32_t& wit) const;
     void testAble();
+    void testUnable();
+    bool testPoint(const Entry& me, std::uint32_t& wit);
     void growStore();
     void sleepersYear();
+    void sleepersFollow();
     void admitSleepers();
     void dropTombstones();
     // A witness's store index after growStore's compaction (kNoWitness if it died, or if any
@@ -470,6 +542,7 @@ void EcoModel::Impl::compact() {
             deathAge[w] = deathAge[p];
             v[w] = v[p];
             lives[w] = lives[p];
+            gridKey[w] = gridKey[p];
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
         witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
@@ -511,6 +584,10 @@ void EcoModel::Impl::seedYear() {
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
+    // The canopy's abilities and the grids of the start of the year: the year's new trees
+    // (height 0) are never among the able, so they are tested on these as they are born.
+    rateYear();
+    buildGrids();
 #pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
@@ -558,17 +635,51 @@ void EcoModel::Impl::seedYear() {
             if (c.draw < vv) out.push_back({c.x, c.y, vv, c.parent});  // germinates only where suitable
         }
     }
-    // The new trees, appended in species order (the arrays grown once, not a push per field).
+    // The new trees in species order, each tested at once on the grids of the start of the
+    // year (the new trees are not among the able: height 0). One found dominated that cannot
+    // grow while dominated has its first year here, as growStore would give it (its
+    // dominated death, its death of age, or its sleep: to bornAsleep, never in the store);
+    // the others are appended to the store with their test's outcome (the arrays grown once,
+    // not a push per field).
     std::size_t t = size(), added = 0;
     for (const auto& b : born) added += b.size();
     truncate(t + added);
+    dominated.resize(t + added);
+    bornAsleep.clear();
+    bornAsleepWitness.clear();
+    bornOutside = 0;
     for (int s = 0; s < ns; ++s) {
+        const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
+        const bool canSleep = sps.dominatedGrowth == 0.0 && 1.0 < sps.maturityAgeYears;
         for (const auto& b : born[static_cast<std::size_t>(s)]) {
             const std::uint64_t pid = nextId++;
-            setAt(t++, pid, s, b.x, b.y, 0.0, 0.0, 0, drawDeathAge(s, pid, 0.0), b.v, b.parent);
+            const double dAge = drawDeathAge(s, pid, 0.0);
+            std::uint32_t wit = b.parent;
+            const bool dom = testPoint(Entry{b.x, b.y, 0.0, 0.0}, wit);
+            if (dom && canSleep) {
+                ++bornOutside;
+                std::int32_t lv = drawLives(s, pid);
+                if (lv == 0) {
+                    ++counters.diedDominated;  // suffocation in its first year
+                    continue;
+                }
+                if (lv != kInfiniteLives) --lv;
+                if (1 >= dAge) {
+                    ++counters.diedBackgroundOrStress;
+                    continue;
+                }
+                bornAsleep.push_back(Sleeper{pid, b.x, b.y, 0.0, dAge, b.v, s, -year, domDeathYearOf(lv, year), Wake::DiesDominated});
+                bornAsleepWitness.push_back(wit);
+                continue;
+            }
+            setAt(t, pid, s, b.x, b.y, 0.0, 0.0, 0, dAge, b.v, wit);
+            dominated[t] = dom ? 1 : 0;
+            ++t;
         }
         counters.germinated += static_cast<std::int64_t>(born[static_cast<std::size_t>(s)].size());
     }
+    truncate(t);
+    dominated.resize(t);
 }
 
 // Growth with domination (Algorithm 3) and the deaths of the year. A tree is dominated when
@@ -583,19 +694,24 @@ void EcoModel::Impl::seedYear() {
 // few more) buckets round it, from the level of the largest crowns down (a seedling under a
 // large crown finds it first), skipping levels and buckets with nobody more able. The outcome
 // is the existence of a dominator, the same whichever is found first, whatever the buckets.
-// The able are tested first, in bucket order (their neighbours' buckets stay in cache; in
-// parallel on large scenes); then one pass in the store's order tests the others, grows
-// every tree, draws the dominated trees' survival and compacts the store (the dead out).
+// The grids are built in seedYear (the year's new trees, of height 0, are never among the
+// able) and each new tree is tested as it is born (testPoint). Here the able are tested
+// first, in bucket order (their neighbours' buckets stay in cache; in parallel on large
+// scenes), then the store's other trees of ability 0 (testUnable), the sleepers' year
+// (sleepersYear), and one pass in the store's order grows every tree, spends the dominated
+// trees' lives and compacts the store into its second copy (the dead out, the woken in).
 void EcoModel::Impl::growYear() {
-    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive);
-    rateYear();
-    buildGrids();
+    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive + bornOutside);
     testAble();
-    growStore();
+    testUnable();
     sleepersYear();
+    growStore();
+    // The year's new trees that fell asleep at birth, after growStore's (their ids are larger).
+    newSleepers.insert(newSleepers.end(), bornAsleep.begin(), bornAsleep.end());
+    newSleeperWitness.insert(newSleeperWitness.end(), bornAsleepWitness.begin(), bornAsleepWitness.end());
+    sleepersFollow();
     admitSleepers();
     dropTombstones();
-    if (!woken.empty()) mergeWoken();
 }
 
 // The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
@@ -622,56 +738,89 @@ void EcoModel::Impl::rateYear() {
 }
 
 // The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
+// The base spacing follows the able's (about one per bucket of level 0, at least 1 m) with
+// some slack: it is kept while within a factor kBaseSlack of that, so that a tree whose crown
+// did not change keeps its level and bucket (gridKey) from one year to the next.
 void EcoModel::Impl::buildGrids() {
     constexpr int kMaxLevels = 24;
+    constexpr double kBaseSlack = 1.25;
     const std::size_t n = size(), total = n + canopy.size();
     searchN = n;
     const std::size_t m = able.size();
-    auto entryOf = [&](std::size_t e) {
-        if (e < n) return Entry{x[e], y[e], radius[e], ability[e]};
-        const Plant& t = canopy[e - n];
-        return Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
-    };
-    // The level of each able tree, and the levels' grids.
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
-    const double base = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
-    levelOf.resize(m);
-    ableEntry.resize(m);
-    maxLevel = 0;
-    for (std::size_t i = 0; i < m; ++i) {
-        const Entry q = entryOf(able[i]);
-        ableEntry[i] = q;
-        // base x 2^L by doublings: exact, as the product was.
-        int L = 0;
-        double limit = base;
-        while (L < kMaxLevels - 1 && q.r > limit) {
-            ++L;
-            limit *= 2.0;
+    const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
+    bool fresh = false;  // every key recomputed (a new base)
+    if (!(gridBase > 0) || wanted > gridBase * kBaseSlack || wanted * kBaseSlack < gridBase) {
+        gridBase = wanted;
+        fresh = true;
+        // Every level's geometry at this base (the keys' bucket numbers depend on nothing else).
+        allLevels.clear();
+        std::size_t buckets = 0;
+        for (int L = 0; L < kMaxLevels; ++L) {
+            Level lv;
+            lv.bucketM = gridBase * static_cast<double>(1 << L);
+            lv.inverseM = 1.0 / lv.bucketM;
+            lv.bw = std::max(1, static_cast<int>(std::ceil(areaW / lv.bucketM)));
+            lv.bh = std::max(1, static_cast<int>(std::ceil(areaH / lv.bucketM)));
+            lv.first = buckets;
+            buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
+            allLevels.push_back(lv);
         }
+        keysUsable = buckets < (std::size_t{1} << kLevelShift);
+        canopyKey.assign(canopy.size(), kNoKey);
+        std::fill(gridKey.begin(), gridKey.end(), kNoKey);
+    }
+    const double base = gridBase;
+    constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
+    ableEntry.resize(m);
+    bucket.resize(m);
+    levelOf.resize(m);
+    int top = 0;
+    std::uint32_t* const treeKey = gridKey.data();
+    for (std::size_t i = 0; i < m; ++i) {
+        const std::size_t e = able[i];
+        Entry q;
+        std::uint32_t* keyAt;
+        if (e < n) {
+            q = Entry{x[e], y[e], radius[e], ability[e]};
+            keyAt = treeKey + e;
+        } else {
+            const Plant& t = canopy[e - n];
+            q = Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
+            keyAt = canopyKey.data() + (e - n);
+        }
+        ableEntry[i] = q;
+        const std::uint32_t key = *keyAt;
+        int L;
+        std::uint32_t k;
+        if (key == kNoKey || fresh || !keysUsable) {
+            // Level: base x 2^L by doublings (exact, as the product was); then the bucket.
+            L = 0;
+            double limit = base;
+            while (L < kMaxLevels - 1 && q.r > limit) {
+                ++L;
+                limit *= 2.0;
+            }
+            const Level& lv = allLevels[static_cast<std::size_t>(L)];
+            const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
+            const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
+            k = static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
+            *keyAt = keysUsable ? (static_cast<std::uint32_t>(L) << kLevelShift) | k : kNoKey;
+        } else {
+            L = static_cast<int>(key >> kLevelShift);
+            k = key & kBucketMask;
+            ++cacheCounts.keysKept;
+        }
+        bucket[i] = k;
         levelOf[i] = static_cast<std::uint8_t>(L);
-        maxLevel = std::max(maxLevel, L);
+        top = std::max(top, L);
     }
-    levels.clear();
-    std::size_t buckets = 0;
-    for (int L = 0; L <= maxLevel; ++L) {
-        Level lv;
-        lv.bucketM = base * static_cast<double>(1 << L);
-        lv.inverseM = 1.0 / lv.bucketM;
-        lv.bw = std::max(1, static_cast<int>(std::ceil(areaW / lv.bucketM)));
-        lv.bh = std::max(1, static_cast<int>(std::ceil(areaH / lv.bucketM)));
-        lv.first = buckets;
-        buckets += static_cast<std::size_t>(lv.bw) * lv.bh;
-        levels.push_back(lv);
-    }
-    auto cellIndex = [&](const Level& lv, double px, double py) {
-        const int bx = std::clamp(static_cast<int>((px - area.x0) * lv.inverseM), 0, lv.bw - 1);
-        const int by = std::clamp(static_cast<int>((py - area.y0) * lv.inverseM), 0, lv.bh - 1);
-        return lv.first + static_cast<std::size_t>(by) * lv.bw + bx;
-    };
+    maxLevel = top;
+    levels.assign(allLevels.begin(), allLevels.begin() + maxLevel + 1);  // maxAbility -1, maxRadius 0
+    const std::size_t buckets = levels.back().first + static_cast<std::size_t>(levels.back().bw) * levels.back().bh;
     // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
     // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
-    bucket.resize(m);
     packed.resize(m);
     packedItem.resize(m);
     slot.resize(total);
@@ -680,9 +829,7 @@ void EcoModel::Impl::buildGrids() {
         Level& lv = levels[levelOf[i]];
         lv.maxAbility = std::max(lv.maxAbility, q.a);
         lv.maxRadius = std::max(lv.maxRadius, q.r);
-        const std::size_t k = cellIndex(lv, q.x, q.y);
-        bucket[i] = static_cast<std::uint32_t>(k);
-        ++start[k];
+        ++start[bucket[i]];
     }
     for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
     for (std::size_t i = m; i-- > 0;) {
@@ -743,8 +890,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = able.size();
-    dominated.resize(n);
+    const std::size_t n = searchN, m = able.size();  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
@@ -754,20 +900,133 @@ void EcoModel::Impl::testAble() {
     }
 }
 
+// The test of the store's trees of ability 0 (they cannot dominate: the year's new
+// seedlings, and the woken before they grow), in the store's order: their witness (the new
+// seedling's parent), then the cover cache's guess for their place, then the search; the
+// search's find goes into the cache. Sequential (it writes the cache).
+void EcoModel::Impl::testUnable() {
+    const std::size_t n = searchN;
+    for (std::size_t p = 0; p < n; ++p) {
+        if (ability[p] > 0) continue;
+        std::uint32_t w = witness[p];
+        dominated[p] = testPoint(Entry{x[p], y[p], radius[p], ability[p]}, w) ? 1 : 0;
+        witness[p] = w;
+    }
+}
+
+// The test of a tree of ability 0 at `me` (start-of-year grids): its guess `wit` (a witness,
+// or a new seedling's parent), then the cover cache's guess for its place, then the search,
+// whose find goes into the cache; `wit` becomes the dominator found (kNoWitness: none).
+bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
+    const std::size_t n = searchN;
+    if (coverGuess.empty()) {
+        coverW = std::max(1, static_cast<int>(std::ceil((area.x1 - area.x0) / kCoverCellM)));
+        coverH = std::max(1, static_cast<int>(std::ceil((area.y1 - area.y0) / kCoverCellM)));
+        coverGuess.assign(static_cast<std::size_t>(coverW) * static_cast<std::size_t>(coverH), 0);
+    }
+    auto overlaps = [&me](const Entry& q) {  // isDominated's test, the same expression
+        const double dx = me.x - q.x, dy = me.y - q.y, rr = me.r + q.r;
+        return dx * dx + dy * dy < rr * rr;
+    };
+    const std::uint32_t w = wit;
+    if (w != kNoWitness) {
+        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        if (ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) return true;
+        }
+    }
+    const std::uint64_t* ids = id.data();  // the first n: the store's at the grids (sorted)
+    const std::size_t cell = coverCell(me.x, me.y);
+    const std::uint64_t guess = coverGuess[cell];
+    if (guess != 0) {
+        std::size_t e = n;
+        std::uint32_t code = kNoWitness;
+        if (guess & kCoverCanopy) {
+            const std::size_t c = static_cast<std::size_t>(guess & ~kCoverCanopy);
+            e = n + c;
+            code = kWitnessCanopy | static_cast<std::uint32_t>(c);
+        } else {
+            e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
+            if (e < n && ids[e] == guess)
+                code = static_cast<std::uint32_t>(e);
+            else
+                e = ability.size();  // died (or asleep)
+        }
+        if (e < ability.size() && ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) {
+                wit = code;
+                ++cacheCounts.coverHits;
+                return true;
+            }
+        }
+    }
+    std::uint32_t found = kNoWitness;
+    const bool dom = isDominated(me, found);
+    wit = found;
+    if (dom) coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
+    return dom;
+}
+
 // Every tree in the store's order: the others' test, growth, survival, natural death, and
 // compaction in place (the dead out, the order kept; witnesses renumbered after). A
 // dominated seedling of height 0 that cannot grow while dominated goes to sleep (leaves
 // the store for the sleepers) with its witness.
 void EcoModel::Impl::growStore() {
-    const std::size_t n = size();
+    const std::size_t n = size(), nw = woken.size(), cap = n + nw;
     newIndex.resize(n + 1);  // one more: the sleepers' pass reads entry 0 even for an empty store
     fixup.clear();
     newSleepers.clear();
     newSleeperWitness.clear();
     anyShrunk = false;
-    std::size_t w = 0;
+    // Written into the second copy of the arrays (swapped in at the end): the woken can go in
+    // by id during the pass (no in-place compaction could make room for them), and nearly
+    // every tree moves in a year anyway (a tree leaves the store early in the order).
+    Store& o = spare;
+    o.resize(cap);
+    std::uint64_t* const oid = o.id.data();
+    std::int32_t* const ospecies = o.species.data();
+    std::int32_t* const oage = o.age.data();
+    std::int32_t* const olives = o.lives.data();
+    double* const ox = o.x.data();
+    double* const oy = o.y.data();
+    double* const oheight = o.height.data();
+    double* const oradius = o.radius.data();
+    double* const ogrowth = o.growthAge.data();
+    double* const odeath = o.deathAge.data();
+    float* const ov = o.v.data();
+    std::uint32_t* const owitness = o.witness.data();
+    std::uint8_t* const osure = o.sure.data();
+    std::uint32_t* const okey = o.gridKey.data();
+    std::size_t w = 0, j = 0;
+    constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
+    std::uint64_t nextWoken = nw > 0 ? woken[0].id : kNone;  // the next woken's id (kNone: no more)
+    // The woken before id `upTo`, at their places (their witnesses in start-of-year indices: after the pass).
+    auto admitWoken = [&](std::uint64_t upTo) {
+        for (; j < nw && woken[j].id < upTo; ++j, ++w) {
+            const Woken& t = woken[j];
+            oid[w] = t.id;
+            ospecies[w] = t.species;
+            oage[w] = t.age;
+            olives[w] = t.lives;
+            ox[w] = t.x;
+            oy[w] = t.y;
+            oheight[w] = t.height;
+            oradius[w] = t.radius;
+            ogrowth[w] = t.growthAge;
+            odeath[w] = t.deathAge;
+            ov[w] = t.v;
+            owitness[w] = t.witness;
+            osure[w] = 0;
+            okey[w] = kNoKey;
+            if (t.witness != kNoWitness && !(t.witness & kWitnessCanopy)) fixup.push_back(static_cast<std::uint32_t>(w));
+        }
+        nextWoken = j < nw ? woken[j].id : kNone;
+    };
     for (std::size_t p = 0; p < n; ++p) {
-        const bool dom = ability[p] > 0 ? dominated[p] != 0 : isDominated(Entry{x[p], y[p], radius[p], ability[p]}, witness[p]);
+        if (id[p] > nextWoken) admitWoken(id[p]);
+        const bool dom = dominated[p] != 0;  // testAble's or testUnable's
         const int s = species[p];
         const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(s)];
         const double before = growthAge[p];
@@ -791,15 +1050,17 @@ void EcoModel::Impl::growStore() {
             continue;
         }
         double h = height[p], r = radius[p];
+        bool moved = false;  // its height or crown changed (its grid place with it)
         // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
         // both): the allometry's exp and log are the costliest part of a growing tree's year.
         if (g != before && before < sps.fullGrownAgeYears) {
             h = ecomodPolylineHeightM(sps, g);
             r = crown(s, h);
             if (h < height[p] || r < radius[p]) anyShrunk = true;
+            moved = h != height[p] || r != radius[p];
         }
-        if (dom && h == 0.0 && r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
-            witness[p] != kNoWitness) {
+        if (dom && h == 0.0 && (r == 0.0 && sps.dominatedGrowth == 0.0 && ageYears < sps.maturityAgeYears &&
+                                witness[p] != kNoWitness)) {
             // To sleep: dominated by its witness in the years to come (see Sleeper).
             newSleepers.push_back(Sleeper{id[p], x[p], y[p], g, deathAge[p], v[p], s, ageYears - year - 1, domDeathYearOf(lv, year),
                                           Wake::DiesDominated});
@@ -813,86 +1074,74 @@ void EcoModel::Impl::growStore() {
         const std::uint32_t q = witness[p];
         if (q != kNoWitness && !(q & kWitnessCanopy)) {
             if (q < p)
-                witness[w] = newIndex[q];
+                owitness[w] = newIndex[q];
             else {
-                witness[w] = q;
+                owitness[w] = q;
                 fixup.push_back(static_cast<std::uint32_t>(w));
             }
         } else {
-            witness[w] = q;
+            owitness[w] = q;
         }
-        if (w != p) {
-            id[w] = id[p];
-            species[w] = s;
-            x[w] = x[p];
-            y[w] = y[p];
-            deathAge[w] = deathAge[p];
-            v[w] = v[p];
-        }
-        lives[w] = lv;
-        sure[w] = dom && g == before ? 1 : 0;
-        height[w] = h;
-        radius[w] = r;
-        growthAge[w] = g;
-        age[w] = ageYears;
+        oid[w] = id[p];
+        ospecies[w] = s;
+        ox[w] = x[p];
+        oy[w] = y[p];
+        odeath[w] = deathAge[p];
+        ov[w] = v[p];
+        olives[w] = lv;
+        osure[w] = dom && g == before ? 1 : 0;
+        okey[w] = moved ? kNoKey : gridKey[p];  // its grid place holds while its crown does
+        oheight[w] = h;
+        oradius[w] = r;
+        ogrowth[w] = g;
+        oage[w] = ageYears;
         ++w;
     }
+    admitWoken(kNone);
+    cacheCounts.wokenInPass += nw;
+    woken.clear();
+    swapStore(o);
     truncate(w);
     for (std::uint32_t k : fixup) witness[k] = newIndex[witness[k]];
     if (anyShrunk) std::fill(sure.begin(), sure.end(), std::uint8_t{0});  // a witness may have shrunk
 }
 
-// The sleepers' year: those whose witness died or shrank are tested (the others are
-// dominated by theirs); a dominated one meets its planned event if this is its year; one
-// that nobody dominates grows and rejoins the store, as does one about to mature.
+// The sleepers' year, before growStore (on the start-of-year grids): those whose witness
+// died or shrank last year (kNoWitness) are tested (the others are dominated by theirs); a
+// dominated one meets its planned event if this is its year; one that nobody dominates grows
+// and rejoins the store (woken: growStore puts it in by id), as does one about to mature.
+// Their witnesses stay in start-of-year indices until sleepersFollow.
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     const std::size_t k0 = sleepers.size();
-    // First the few sleepers with work this year (their event, or no witness) listed with
-    // their witness before it, from the watched and a scan of the event years (no pass that
-    // renumbers every witness); after a shrink every living sleeper is listed (follow forgets
-    // the witnesses).
+    // First the few sleepers with work this year (their event, or no witness), from the
+    // watched and a scan of the event years (no pass over every witness).
     slowSleepers.clear();
-    if (!anyShrunk) {
-        // The watched: witnesses renumbered to the store's new indices; listed with their
-        // witness before the year when it is kNoWitness or their event comes.
-        const std::uint32_t* renumber = newIndex.data();
-        const std::int32_t* events = sleepEvent.data();
-        std::uint32_t* witnesses = sleepWitness.data();
-        const std::int32_t now = year;
-        for (const std::uint32_t i : watched) {
-            const std::uint32_t q = witnesses[i];
-            if (q == kNoWitness) {
-                slowSleepers.push_back({i, q});
-                continue;
-            }
-            if (q & kWitnessCanopy) continue;  // a tombstone, or a canopy witness found since: see below
-            if (events[i] == now) slowSleepers.push_back({i, q});
-            witnesses[i] = renumber[q];
-        }
-        // This year's events of the sleepers under a canopy tree (the others' are listed above):
-        // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
-        const std::size_t watchedSlow = slowSleepers.size();
-        auto eventAt = [&](std::size_t i) {
-            const std::uint32_t q = witnesses[i];
-            if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
-                slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
-        };
-        std::size_t i = 0;
-        for (; i + 8 <= k0; i += 8) {
-            int hit = 0;
-            for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
-            if (hit)
-                for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
-        }
-        for (; i < k0; ++i) eventAt(i);
-        // In index (id) order, as the woken must be (two sorted runs; disjoint).
-        std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow),
-                           slowSleepers.end());
-    } else {
-        for (std::size_t i = 0; i < k0; ++i)
-            if (sleepEvent[i] >= 0) slowSleepers.push_back({static_cast<std::uint32_t>(i), sleepWitness[i]});
+    const std::int32_t* events = sleepEvent.data();
+    const std::uint32_t* witnesses = sleepWitness.data();
+    const std::int32_t now = year;
+    for (const std::uint32_t i : watched) {
+        const std::uint32_t q = witnesses[i];
+        if (q == kNoWitness || (!(q & kWitnessCanopy) && events[i] == now)) slowSleepers.push_back({i, q});
     }
+    // This year's events of the sleepers under a canopy tree (the others' are listed above):
+    // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
+    const std::size_t watchedSlow = slowSleepers.size();
+    auto eventAt = [&](std::size_t i) {
+        const std::uint32_t q = witnesses[i];
+        if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
+            slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
+    };
+    std::size_t i = 0;
+    for (; i + 8 <= k0; i += 8) {
+        int hit = 0;
+        for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
+        if (hit)
+            for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
+    }
+    for (; i < k0; ++i) eventAt(i);
+    // In index (id) order, as the woken must be (two sorted runs; disjoint).
+    std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow), slowSleepers.end());
     // Then their year, with the witness they had at its start.
     for (const auto& [slow, witnessBefore] : slowSleepers) {
         const std::size_t i = slow;
@@ -930,8 +1179,8 @@ void EcoModel::Impl::sleepersYear() {
                 case Wake::DiesNatural:
                     ++counters.diedBackgroundOrStress;
                     break;
-                case Wake::Matures:  // mature from next year on
-                    woken.push_back(wake(sl, year + 1, follow(q)));
+                case Wake::Matures:  // mature from next year on (its witness renumbered by growStore)
+                    woken.push_back(wake(sl, year + 1, q));
                     break;
             }
             sleepEvent[i] = kTombstone;
@@ -939,7 +1188,22 @@ void EcoModel::Impl::sleepersYear() {
             --sleepersLive;
             continue;
         }
-        sleepWitness[i] = follow(q);
+        sleepWitness[i] = q;  // a start-of-year index (or canopy): sleepersFollow renumbers it
+    }
+}
+
+// After growStore: the watched sleepers' witnesses to the store's new indices (kNoWitness for
+// a witness that died, went to sleep or, after a shrink, any store witness: tested next year).
+void EcoModel::Impl::sleepersFollow() {
+    std::uint32_t* witnesses = sleepWitness.data();
+    if (!anyShrunk) {
+        const std::uint32_t* renumber = newIndex.data();
+        for (const std::uint32_t i : watched) {
+            const std::uint32_t q = witnesses[i];
+            if (q != kNoWitness && !(q & kWitnessCanopy)) witnesses[i] = renumber[q];
+        }
+    } else {
+        for (const std::uint32_t i : watched) witnesses[i] = follow(witnesses[i]);
     }
 }
 
@@ -1041,6 +1305,7 @@ void EcoModel::Impl::mergeWoken() {
     spread(witness, [](const Woken& t) { return t.witness; });
     spread(sure, [](const Woken&) { return std::uint8_t{0}; });
     spread(lives, [](const Woken& t) { return t.lives; });
+    spread(gridKey, [](const Woken&) { return kNoKey; });
     // Old store index q -> q + (woken placed before it), for the witnesses (all in old indices).
     mergeShift.resize(n + 1);
     for (std::size_t j = 0, q = 0; q <= n; ++q) {
@@ -1255,6 +1520,16 @@ const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return im
 int EcoModel::yearsDone() const { return impl_->year; }
 std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive; }
 std::size_t EcoModel::setAsideCount() const { return impl_->sleepersLive; }
+EcoModel::CacheCounts EcoModel::cacheCounts() const { return impl_->cacheCounts; }
+void EcoModel::forgetCaches() {
+    Impl& m = *impl_;
+    m.wakeAll(m.year);
+    std::fill(m.witness.begin(), m.witness.end(), Impl::kNoWitness);
+    std::fill(m.sure.begin(), m.sure.end(), std::uint8_t{0});
+    std::fill(m.gridKey.begin(), m.gridKey.end(), Impl::kNoKey);
+    m.gridBase = 0;  // the grids' base and every key computed afresh
+    m.coverGuess.clear();
+}
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;
@@ -1336,10 +1611,13 @@ std::size_t EcoModel::removeTrees(const std::vector<std::uint8_t>& dead) {
     return removed;
 }
 std::size_t EcoModel::bytesPerPlant() const {
-    return sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 7 * sizeof(double) + sizeof(float) +
-           /* witness */ sizeof(std::uint32_t) +
-           /* step scratch: ability, fate, dominated, sure, level, bucket, entry, new index, two packed copies */
-           sizeof(double) + 4 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
+    // The store: id, species, age, lives, six doubles, v, witness, sure, grid key; twice (the
+    // second copy that growStore writes).
+    const std::size_t store = sizeof(std::uint64_t) + 3 * sizeof(std::int32_t) + 6 * sizeof(double) + sizeof(float) +
+                              sizeof(std::uint32_t) + sizeof(std::uint8_t) + sizeof(std::uint32_t);
+    return 2 * store +
+           /* step scratch: ability, fate, dominated, bucket, slot, new index, two packed copies */
+           sizeof(double) + 2 + 3 * sizeof(std::uint32_t) + 2 * sizeof(Impl::Entry);
 }
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
@@ -1421,6 +1699,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.witness.clear();
     m.sure.clear();
     m.lives.clear();
+    m.gridKey.clear();
     m.sleepers.clear();  // every tree in the store; the dominated seedlings go to sleep again in the next year
     m.sleepEvent.clear();
     m.sleepWitness.clear();

@@ -89,6 +89,16 @@ public:
     /// How many of them are set aside (suppressed seedlings out of the yearly passes until an
     /// event of theirs; docs/ecomod.md "Speed"). Diagnostic: no result depends on it.
     std::size_t setAsideCount() const;
+    /// How often the step's caches served since construction (diagnostic; docs/ecomod.md
+    /// "Speed"): a tree of ability 0 found dominated by the cover cache's guess, a set-aside
+    /// tree rejoining the store in growStore's pass, an able tree's grid place kept.
+    struct CacheCounts {
+        std::size_t coverHits = 0, wokenInPass = 0, keysKept = 0;
+    };
+    CacheCounts cacheCounts() const;
+    /// Drops every cache of the step (witnesses, the set-aside, grid places, cover guesses), so
+    /// that the next year tests every tree by the plain search; no result changes (tests).
+    void forgetCaches();
     /// The living trees, in creation order. vigour = suitability v, pool = competitive ability a.
     std::vector<UndergrowthPlant> plants() const;
     YearRecord census() const;

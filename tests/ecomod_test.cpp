@@ -1,7 +1,7 @@
 // The EcoMod model (sim/ecomod.h): the height polyline, the suitabilities, domination between
 // two constructed trees and among hundreds (against a brute-force search), under-dispersion
-// seeding statistics, determinism across thread counts and checkpoint / resume, and the
-// refusal of bad parameters.
+// seeding statistics, determinism across thread counts and checkpoint / resume, the step's
+// caches and set-aside against plain yearly runs, and the refusal of bad parameters.
 #include <catch2/catch.hpp>
 #include <omp.h>
 
@@ -81,6 +81,17 @@ bool samePlants(const std::vector<UndergrowthPlant>& a, const std::vector<Underg
             return false;
     }
     return true;
+}
+
+// The same trees (bits), census (counts, mean heights and vigours, bits) and counters.
+bool sameRun(const Simulation& a, const Simulation& b) {
+    const YearRecord ra = a.census(), rb = b.census();
+    return samePlants(a.plants(), b.plants()) && ra.count == rb.count &&
+           std::memcmp(ra.meanVigour.data(), rb.meanVigour.data(), ra.meanVigour.size() * sizeof(double)) == 0 &&
+           std::memcmp(ra.meanHeightM.data(), rb.meanHeightM.data(), ra.meanHeightM.size() * sizeof(double)) == 0 &&
+           a.counters().diedDominated == b.counters().diedDominated &&
+           a.counters().diedBackgroundOrStress == b.counters().diedBackgroundOrStress &&
+           a.counters().plantMonths == b.counters().plantMonths && a.counters().germinated == b.counters().germinated;
 }
 
 }  // namespace
@@ -442,18 +453,39 @@ TEST_CASE("ecomod: setting the suppressed seedlings aside changes no tree, censu
         maxAside = std::max(maxAside, asleep.ecomod()->setAsideCount());
         awake.ecomod()->removeTrees(std::vector<std::uint8_t>(awake.plantCount(), 0));
         CHECK(awake.ecomod()->setAsideCount() == 0);
-        const YearRecord a = asleep.census(), b = awake.census();
-        same = samePlants(asleep.plants(), awake.plants()) && a.count == b.count &&
-               std::memcmp(a.meanVigour.data(), b.meanVigour.data(), a.meanVigour.size() * sizeof(double)) == 0 &&
-               std::memcmp(a.meanHeightM.data(), b.meanHeightM.data(), a.meanHeightM.size() * sizeof(double)) == 0 &&
-               asleep.counters().diedDominated == awake.counters().diedDominated &&
-               asleep.counters().diedBackgroundOrStress == awake.counters().diedBackgroundOrStress &&
-               asleep.counters().plantMonths == awake.counters().plantMonths;
+        same = sameRun(asleep, awake);
         INFO("year " << y + 1);
         CHECK(same);
     }
     CHECK(maxAside > 50);  // the set-aside was exercised
     CHECK(asleep.plantCount() > 100);
+}
+
+TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][ecomod]") {
+    // The same run twice: once as it is, once with every cache of the step dropped after each
+    // year (forgetCaches: the witnesses, the set-aside seedlings, the trees' grid places and
+    // base, the cover guesses), so that every tree is tested by the plain search each year.
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    Simulation cached(in, params, 9), plain(in, params, 9);
+    REQUIRE(cached.ecomod() != nullptr);
+    REQUIRE(plain.ecomod() != nullptr);
+    bool same = true;
+    for (int y = 0; y < 50 && same; ++y) {
+        cached.stepYear();
+        plain.stepYear();
+        plain.ecomod()->forgetCaches();
+        CHECK(plain.ecomod()->setAsideCount() == 0);
+        same = sameRun(cached, plain);
+        INFO("year " << y + 1);
+        CHECK(same);
+    }
+    // Every cache was exercised in the cached run.
+    const EcoModel::CacheCounts c = cached.ecomod()->cacheCounts();
+    CHECK(c.coverHits > 20);
+    CHECK(c.wokenInPass > 5);
+    CHECK(c.keysKept > 1000);
+    CHECK(cached.plantCount() > 100);
 }
 
 TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
