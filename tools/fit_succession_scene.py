@@ -14,18 +14,22 @@ Objective (chi2-like, each term (residual / sd)^2, means over the replicates):
   * Laurel's share over the last 25 years: 0.40 +- 0.07 (comes to dominate);
   * Laurel's count at 150 / its count at 50 at least 0.8 (one-sided, sd 0.1: it holds while
     the others subside), and its count at 150 / at 25 at least 1.0 (one-sided, sd 0.15).
-Parameters (unit cube inside NLopt): California Laurel's sun optimum c, its max_age_years
-(log scale), its max_height_m, and Toyon's alpha. Everything else is the base biome.
+Parameters (unit cube inside NLopt; --params, default the first fit's four): California
+Laurel's sun optimum c (and optionally its sun range r), its max_age_years (log scale), its
+max_height_m, and Toyon's alpha; --range NAME=LOW:HIGH:START changes one's range and start.
+Everything else is the base biome (--base-biome).
 """
 import argparse, csv, math, os, re, shutil, subprocess, sys
 import nlopt
 
-PARAMS = [  # (name, species, key, low, high, log, start)
-    ("laurel_sun_c", "California Laurel", "sun_c", 2.0, 6.0, False, 4.0),
-    ("laurel_max_age", "California Laurel", "max_age_years", 150.0, 600.0, True, 400.0),
-    ("laurel_max_height", "California Laurel", "max_height_m", 10.0, 30.0, False, 20.0),
-    ("toyon_alpha", "Toyon", "alpha", 0.2, 0.7, False, 0.3),
-]
+AVAILABLE = {  # name: (species, key, low, high, log, start)
+    "laurel_sun_c": ("California Laurel", "sun_c", 2.0, 6.0, False, 4.0),
+    "laurel_sun_r": ("California Laurel", "sun_r", 3.0, 12.0, False, 8.0),
+    "laurel_max_age": ("California Laurel", "max_age_years", 150.0, 600.0, True, 400.0),
+    "laurel_max_height": ("California Laurel", "max_height_m", 10.0, 30.0, False, 20.0),
+    "toyon_alpha": ("Toyon", "alpha", 0.2, 0.7, False, 0.3),
+}
+PARAMS = []  # (name, species, key, low, high, log, start), set from --params
 
 def to_unit(p, v):
     _, _, _, lo, hi, lg, _ = p
@@ -47,8 +51,8 @@ def write_biome(base, out, values):
                 cur = m.group(1)
             if cur != sp:
                 continue
-            if key == "sun_c" and l.startswith("sun ="):
-                lines[i] = re.sub(r"c = [0-9.]+", "c = %.4f" % v, l); done = True; break
+            if key in ("sun_c", "sun_r") and l.startswith("sun ="):
+                lines[i] = re.sub(key[-1] + r" = [0-9.]+", key[-1] + " = %.4f" % v, l); done = True; break
             if key == "max_age_years" and l.startswith("max_age_years"):
                 lines[i] = "max_age_years = %d" % int(round(v)); done = True; break
             if key in ("max_height_m", "alpha") and re.match(key + r"\s*=", l):
@@ -83,7 +87,20 @@ def main():
     ap.add_argument("--max-evaluations", type=int, default=30)
     ap.add_argument("--tolerance", type=float, default=0.04)
     ap.add_argument("--initial-step", type=float, default=0.15)
+    ap.add_argument("--params", default="laurel_sun_c,laurel_max_age,laurel_max_height,toyon_alpha",
+                    help="parameters to fit, of: " + ", ".join(AVAILABLE))
+    ap.add_argument("--range", action="append", default=[], metavar="NAME=LOW:HIGH:START",
+                    help="another range and start for a parameter (repeatable)")
     a = ap.parse_args()
+    for name in a.params.split(","):
+        if name not in AVAILABLE:
+            sys.exit("unknown parameter %r (one of %s)" % (name, ", ".join(AVAILABLE)))
+        PARAMS.append((name,) + AVAILABLE[name])
+    for r in a.range:
+        name, spec = r.split("=", 1)
+        lo, hi, st = (float(x) for x in spec.split(":"))
+        k = [p[0] for p in PARAMS].index(name)
+        PARAMS[k] = PARAMS[k][:3] + (lo, hi, PARAMS[k][5], st)
     os.makedirs(a.out, exist_ok=True)
     cfgs = []
     for s in a.seeds.split(","):
