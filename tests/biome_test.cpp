@@ -343,3 +343,55 @@ TEST_CASE("the biome's [climate], [soil] and [vigour] keys: one table drives rea
     CHECK_THROWS_WITH(roundTrip([](eco::Biome& b) { b.soil.slopeMaxDeg = b.soil.slopeThresholdDeg; }),
                       Catch::Contains("'slope_max_deg'") && Catch::Contains("must exceed slope_threshold_deg"));
 }
+
+// The calibrated biomes of docs/calibration.md (configs/calibrated/) are Table 3 with a few
+// fitted values: each must still load, and differ from biomes/sonoma.toml in exactly the
+// fields its header and the docs name (a drifted or hand-edited file fails here).
+TEST_CASE("the calibrated Sonoma biomes differ from Table 3 only in their fitted fields", "[biome]") {
+    const Biome table3 = loadBiome(test::sourcePath("biomes/sonoma.toml"));
+    struct Expected {
+        const char* file;
+        std::set<std::string> changed;  // "species/field"
+    };
+    const Expected cases[] = {
+        {"configs/calibrated/laurel-150-biome.toml", {"California Laurel/alpha", "Toyon/alpha"}},
+        {"configs/calibrated/laurel-150-converged-biome.toml", {"California Laurel/alpha", "Toyon/alpha"}},
+        {"configs/calibrated/laurel-fig15-biome.toml",
+         {"California Laurel/alpha", "California Laurel/max_age_years", "California Laurel/max_height_m",
+          "California Laurel/sun.c", "Toyon/alpha"}},
+    };
+    for (const Expected& e : cases) {
+        INFO(e.file);
+        const Biome b = loadBiome(test::sourcePath(e.file));
+        REQUIRE(b.species.size() == table3.species.size());
+        std::set<std::string> changed;
+        for (std::size_t i = 0; i < b.species.size(); ++i) {
+            const Species &x = table3.species[i], &y = b.species[i];
+            REQUIRE(x.name == y.name);
+            const auto diff = [&](const char* field, bool differs) {
+                if (differs) changed.insert(x.name + "/" + field);
+            };
+            diff("max_age_years", x.maxAgeYears != y.maxAgeYears);
+            diff("max_height_m", x.maxHeightM != y.maxHeightM);
+            diff("alpha", x.alpha != y.alpha);
+            for (Factor f : {Factor::Sun, Factor::Moisture, Factor::Temperature, Factor::Slope}) {
+                const std::string name = f == Factor::Sun ? "sun" : f == Factor::Moisture ? "moisture"
+                                                                    : f == Factor::Temperature ? "temperature" : "slope";
+                diff((name + ".c").c_str(), x.response(f).c != y.response(f).c);
+                diff((name + ".r").c_str(), x.response(f).r != y.response(f).r);
+            }
+            diff("growth_period", x.growthMonths != y.growthMonths);
+            diff("sub_biomes", x.subBiomes != y.subBiomes);
+            diff("canopy", x.canopy != y.canopy);
+        }
+        CHECK(changed == e.changed);
+    }
+    // The fitted values the docs quote for the Fig. 15 fit.
+    const Biome fig15 = loadBiome(test::sourcePath("configs/calibrated/laurel-fig15-biome.toml"));
+    const Species& laurel = fig15.species[static_cast<std::size_t>(fig15.speciesIndex("California Laurel"))];
+    CHECK(laurel.maxAgeYears == 600);
+    CHECK(laurel.maxHeightM == Approx(21.5));
+    CHECK(laurel.alpha == Approx(1.0));
+    CHECK(laurel.response(Factor::Sun).c == Approx(4.9));
+    CHECK(fig15.species[static_cast<std::size_t>(fig15.speciesIndex("Toyon"))].alpha == Approx(0.30));
+}
