@@ -144,7 +144,7 @@ struct CanopyParams {
     /// crownFitHiddenM and 2 x the 90 % quantile of the same margin on every 8th seed (seeds
     /// stand on true tops: the quantile measures how far this CHM's crowns are from spheres).
     /// 0: off. 2 raised bench_canopy_accuracy's sphere scenes from precision / recall 0.803 /
-    /// 0.873 to 0.872 / 0.871 (docs/canopy.md).
+    /// 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to 0.863 / 0.859; docs/canopy.md).
     int crownFitPasses = 2;
     /// Crown fit: apex positions searched within this distance (metres) of the tree.
     double crownFitReachM = 0.5;
