@@ -1775,6 +1775,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
     // The crown fit runs on the cleaned list (two added trees on one crown would each see the
     // other explain it); then its hidden trees go, and the duplicates of trees it moved
     // onto one apex.
+    double crownFitRaiseM = 0;  // the crown fit: largest rise of a kept tree onto the CHM (below)
     if (params.crownFitPasses > 0) {
         // The crown fit: every added tree (not the seeds) takes the sphere that best explains
         // what the other crowns leave of the CHM (fitCrown), crownFitPasses times, each pass on
@@ -1815,6 +1816,7 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                                                                     static_cast<std::size_t>(kFitSeedQuantile *
                                                                                              static_cast<double>(seedMargins.size())))];
         const double hiddenMargin = std::max(params.crownFitHiddenM, kFitSeedMarginFactor * q);
+        crownFitRaiseM = kFitSeedMarginFactor * q;
         std::size_t hidden = 0;
         for (std::size_t k = 0; k < trees.size(); ++k)
             if (trees[k].uid >= seeds && !trees[k].hidden && margin[k] > hiddenMargin) {
@@ -1831,6 +1833,25 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             if (!t.hidden) kept.push_back(t);
         result.hiddenApexTrees += trees.size() - kept.size();
         trees.swap(kept);
+        // The fit's sphere is the least-squares crown: on a CHM of pointed or flat-topped
+        // crowns it stands under the top (about a metre on a conifer), so a kept tree whose
+        // CHM stands above its sphere's apex takes the CHM's height at its trunk, raised by at
+        // most what the seeds' misfit allows (2 x its 90 % quantile: about 0.1 m on a CHM of
+        // spheres, 2.6-3.8 m on lidar-like ones), since the CHM beside a small top can be a
+        // taller neighbour's flank.
+        {
+            const std::uint64_t seeds = result.initialSeeds;
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+                Tree& t = trees[static_cast<std::size_t>(k)];
+                if (t.uid < seeds) continue;
+                const double hc = std::min(scene.heightAt(t.x, t.y), t.heightM + crownFitRaiseM);
+                if (!(hc > t.heightM)) continue;
+                const bool anchored = t.apex;
+                t = scene.makeTree(t.x, t.y, hc, t.uid);
+                t.apex = anchored;
+            }
+        }
         removeDuplicates();
     }
     renderAndMeasure(trees, chmM, params, frame, vis);

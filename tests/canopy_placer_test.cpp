@@ -702,6 +702,42 @@ TEST_CASE("the crown fit drops a tree on a hidden crown's crescent and keeps a s
     }
 }
 
+TEST_CASE("after the crown fit an added tree on a conical crown keeps the CHM's height", "[canopy]") {
+    // The flank pair of the next test, drawn as lidar-like crowns, not the placer's spheres:
+    // z = h - D (d / r)^1.5 with D = 1.5 r (a pointed conifer crown), the lower trunk where
+    // the taller crown is half a metre under the lower top. The lower tree is found
+    // by the iterations (its apex is no CHM maximum); the crown fit's least-squares sphere
+    // stands about a metre under such a top, and the tree must end at the CHM's height.
+    FlankPair f = flankPair();
+    {
+        // The lower trunk where the taller cone's surface is 0.5 m under the lower top.
+        const double r0 = f.trees[0].crownRadiusM;
+        f.trees[1].x = f.trees[0].x + r0 * std::pow((30.0 - 26.5) / (1.5 * r0), 2.0 / 3.0);
+    }
+    for (int iy = 0; iy < f.chm.height(); ++iy)
+        for (int ix = 0; ix < f.chm.width(); ++ix) {
+            float z = 0;
+            for (const GeneratedTree& t : f.trees) {
+                const double d = std::hypot(f.chm.cellCentreX(ix) - t.x, f.chm.cellCentreY(iy) - t.y);
+                if (d < t.crownRadiusM)
+                    z = std::max(z, static_cast<float>(t.heightM - 1.5 * t.crownRadiusM * std::pow(d / t.crownRadiusM, 1.5)));
+            }
+            f.chm(ix, iy) = z;
+        }
+    synth::CanopyParams p;  // defaults: the crown fit on
+    REQUIRE(p.crownFitPasses > 0);
+    const synth::CanopyResult r = f.place(p);
+    std::ostringstream where;
+    for (const Plant& t : r.trees) where << " (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    INFO(r.initialSeeds << " seeds, crown fit hidden " << r.crownFitHidden << ":" << where.str());
+    REQUIRE(r.initialSeeds == 1);  // the lower top is no CHM maximum: not a seed
+    REQUIRE(nearestDistance(r.trees, f.trees[1].x, f.trees[1].y) < 1.0);
+    for (const Plant& t : r.trees) {
+        if (std::hypot(t.xM - f.trees[1].x, t.yM - f.trees[1].y) >= 1.0) continue;
+        CHECK(std::abs(t.heightM - 27.0) < 0.5);
+    }
+}
+
 TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]") {
     // The flank case of the residual apex test: the lower tree's apex is no CHM maximum.
     // Without residual apices the ring finds the lower crown and the tree then walks toward
