@@ -20,8 +20,9 @@
 // lower index), k the best of 0.2 .. 1.0 on each scene (a strong baseline). The placer runs
 // with its defaults (apex trees anchored, the best state kept, trees added at residual apices,
 // added trees supported by CHM cells no crown explains, seeds without a saddle between them
-// merged, added trees snapped onto the CHM apex of their visible cells) and with the paper's
-// rules (all six off), as it was before issue 25.
+// merged, added trees snapped onto the CHM apex of their visible cells, then fitted as the
+// sphere that best explains what the other crowns leave, hidden apices dropped) and with the
+// paper's rules (all seven off), as it was before issue 25.
 //
 // Usage: bench_canopy_accuracy [OUT (default bench/results/canopy_accuracy.txt)] [SIZE (256)]
 //        [KEY=VALUE ...]  (canopy parameters of the "defaults" row, e.g. ring_samples=0; and
@@ -354,8 +355,9 @@ int main(int argc, char** argv) {
                 std::snprintf(line, sizeof line,
                               "    its detections: %zu within 1 m of a visible top, %zu within 1 m of a tree with a hidden top, "
                               "%zu 1-2 m from a visible top, %zu elsewhere; %zu seeds merged, %zu hidden apices not output, "
-                              "%zu added trees moved onto their apex\n",
-                              nearTop, nearHidden, offset, other, full.seedsMerged, full.hiddenApexTrees, full.apexSnapped);
+                              "%zu added trees moved onto their apex, %zu hidden by the crown fit (margin %.2f m)\n",
+                              nearTop, nearHidden, offset, other, full.seedsMerged, full.hiddenApexTrees, full.apexSnapped,
+                              full.crownFitHidden, full.crownFitHiddenMarginM);
                 sec << line;
             }
             eco::synth::CanopyParams paper;
@@ -365,6 +367,7 @@ int main(int argc, char** argv) {
             paper.supportFraction = 0;
             paper.seedMergeSaddleM = 0;
             paper.apexSnapRadiusFraction = 0;
+            paper.crownFitPasses = 0;
             t0 = Clock::now();
             const eco::synth::CanopyResult old = eco::synth::placeCanopy(sc.chm, terrain, species, biome, paper);
             row("placer, paper's rules (before)", score(sc.tops, placerTops(old)), std::chrono::duration<double>(Clock::now() - t0).count(), &old.final);

@@ -229,6 +229,7 @@ struct Frame {
     Buf<std::int32_t> id;    ///< top crown, -1 where none
     Buf<std::int32_t> disc;  ///< per crown: cells whose centre lies inside its disc
     Buf<Crown> crowns;       ///< the crowns rendered (kept as a buffer between renders)
+    Buf<float> depth2;       ///< render<true> only: the second-highest crown surface, lowest() where none
 };
 
 /// Rows [y0, y1] whose cell centres can lie inside the crown's disc (y0 > y1: none).
@@ -240,12 +241,14 @@ inline void crownRows(const Crown& c, double originY, double cell, int height, i
 /// Render crowns top-down. Each band of kBandRows rows is written by one thread, its crowns
 /// visited in index order with a strict depth test, so a tie goes to the lower index and
 /// the buffers do not depend on the number of threads.
+template <bool Second = false>
 void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, double oy, Frame& f) {
     const std::size_t nCells = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // Cleared band by band in the parallel loop below (two grids of 4 bytes a cell: on one
     // thread their fill was a serial part of every render).
     f.depth.resize(nCells);
     f.id.resize(nCells);
+    if constexpr (Second) f.depth2.resize(nCells);
     f.disc.assign(crowns.size(), 0);
     const int nBands = (h + kBandRows - 1) / kBandRows;
     // Bucket crowns by band (counting sort keeps index order inside a band).
@@ -281,6 +284,9 @@ void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, doub
             std::fill(f.depth.begin() + static_cast<std::ptrdiff_t>(lo), f.depth.begin() + static_cast<std::ptrdiff_t>(hi),
                       std::numeric_limits<float>::lowest());
             std::fill(f.id.begin() + static_cast<std::ptrdiff_t>(lo), f.id.begin() + static_cast<std::ptrdiff_t>(hi), -1);
+            if constexpr (Second)
+                std::fill(f.depth2.begin() + static_cast<std::ptrdiff_t>(lo), f.depth2.begin() + static_cast<std::ptrdiff_t>(hi),
+                          std::numeric_limits<float>::lowest());
         }
         const std::size_t eEnd = start[static_cast<std::size_t>(b) + 1];
         for (std::size_t e = start[static_cast<std::size_t>(b)]; e < eEnd; ++e) {
@@ -310,6 +316,7 @@ void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, doub
                 if (xA > xB) continue;
                 float* depthRow = f.depth.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(w);
                 std::int32_t* idRow = f.id.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(w);
+                float* secondRow = Second ? f.depth2.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(w) : nullptr;
                 // Single precision inside the span (offsets of a few metres), written as
                 // branch-free selects so that the loop vectorises.
                 const float r2f = static_cast<float>(r2), dy2 = static_cast<float>(dy * dy);
@@ -323,6 +330,11 @@ void render(const Buf<Crown>& crowns, int w, int h, double cell, double ox, doub
                     const float z = basef + std::sqrt(std::max(r2f - d2, 0.0f));
                     const bool top = in & (z > depthRow[ix]);
                     n += static_cast<std::int32_t>(in);
+                    if constexpr (Second) {
+                        // The second surface: the lower of the new crown and the old top.
+                        const float zIn = in ? z : std::numeric_limits<float>::lowest();
+                        secondRow[ix] = std::max(secondRow[ix], std::min(zIn, depthRow[ix]));
+                    }
                     depthRow[ix] = top ? z : depthRow[ix];
                     idRow[ix] = top ? t : idRow[ix];
                 }
@@ -926,6 +938,161 @@ bool snapToOwnApex(const Scene& scene, const Buf<std::int32_t>& owner, std::int3
     return true;
 }
 
+/// The crown fit (CanopyParams::crownFitPasses). Tree t, index self of the render in f (made
+/// by render<true>, with the second surface), is replaced by the sphere of the crown model
+/// (apex within reachM of t, any height, the allometric radius of that height) that
+/// minimises sum (max(others, sphere) - CHM)^2 over the cells around it, where `others` is
+/// the render without t (its second surface where t is on top, else the top one; the ground,
+/// 0, where none): the sphere that explains best what the other crowns leave of the CHM, its
+/// apex under a neighbour's crown if need be. Positions: t's own, a grid of half cells
+/// within reachM, then the four quarter-cell steps around the best. Height at a position: the
+/// fixed point h = mean of (CHM - (sphere - h)) over the cells where the sphere is on top
+/// (the least-squares height of those cells), from the CHM at the position, at most
+/// kFitHeightSteps steps, the best one kept. Reads the CHM and the render only: trees are
+/// fitted in parallel, the same for any thread count. Returns the margin of the fitted tree:
+/// the CHM at its apex's cell minus its sphere there (large when the apex lies under another
+/// crown: a tree that explains the crescent of a hidden top).
+constexpr int kFitHeightSteps = 4;
+constexpr std::uint64_t kFitSeedStride = 8;    ///< every 8th seed is fitted for the hidden margin
+constexpr double kFitSeedQuantile = 0.9;      ///< of the seeds' margins
+constexpr double kFitSeedMarginFactor = 2.0;  ///< hidden margin >= this x that quantile
+constexpr double kFitConvergeM = 0.03;
+constexpr float kFitCapM = 2.0f;  ///< squared errors capped at this^2 (m^2)
+double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double reachM, double minHeightM, Tree& t) {
+    const Grid<float>& chm = scene.chm();
+    const int w = chm.width(), h = chm.height();
+    const double cell = chm.cellSizeM();
+    // The tallest CHM near the positions bounds the heights, hence the radii and the window.
+    double hMax = 0;
+    {
+        const double probe = reachM + 2.0 * cell;
+        const int x0 = std::max(0, chm.cellX(t.x - probe)), x1 = std::min(w - 1, chm.cellX(t.x + probe));
+        const int y0 = std::max(0, chm.cellY(t.y - probe)), y1 = std::min(h - 1, chm.cellY(t.y + probe));
+        for (int iy = y0; iy <= y1; ++iy)
+            for (int ix = x0; ix <= x1; ++ix) hMax = std::max(hMax, static_cast<double>(chm(ix, iy)));
+    }
+    const double hTop = hMax + 0.5;
+    const double rMax = scene.radiusFor(t.species, hTop);
+    const double reach = reachM + rMax + cell;
+    const int x0 = std::max(0, chm.cellX(t.x - reach)), x1 = std::min(w - 1, chm.cellX(t.x + reach));
+    const int y0 = std::max(0, chm.cellY(t.y - reach)), y1 = std::min(h - 1, chm.cellY(t.y + reach));
+    const int nx = x1 - x0 + 1, ny = y1 - y0 + 1;
+    if (nx <= 0 || ny <= 0) return 0.0;
+    // Per window cell: the CHM c and the surface of the other crowns o.
+    std::vector<float> cs(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
+    std::vector<float> os(cs.size());
+    for (int iy = y0; iy <= y1; ++iy)
+        for (int ix = x0; ix <= x1; ++ix) {
+            const std::size_t i = chm.index(ix, iy);
+            const std::size_t k = static_cast<std::size_t>(iy - y0) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - x0);
+            os[k] = std::max(0.0f, f.id[i] == self ? f.depth2[i] : f.depth[i]);
+            cs[k] = std::max(0.0f, chm(ix, iy));
+        }
+    const double cx0 = chm.cellCentreX(x0), cy0 = chm.cellCentreY(y0);
+    // Only the cells where the sphere rises above the others change the error: it is compared
+    // as the sum over them of (sphere - c)^2 - (o - c)^2 (0 = no better than without t).
+    constexpr int kSpan = 64;
+    float dxs[kSpan], dys[kSpan];
+    auto bestHeight = [&](double x, double y, double hStart, double& eOut) {
+        const int jy0 = std::max(0, static_cast<int>(std::floor((y - rMax - cy0) / cell)));
+        const int jy1 = std::min({ny - 1, jy0 + kSpan - 1, static_cast<int>(std::ceil((y + rMax - cy0) / cell))});
+        const int jx0 = std::max(0, static_cast<int>(std::floor((x - rMax - cx0) / cell)));
+        const int jx1 = std::min({nx - 1, jx0 + kSpan - 1, static_cast<int>(std::ceil((x + rMax - cx0) / cell))});
+        for (int jx = jx0; jx <= jx1; ++jx) {
+            const double dx = cx0 + jx * cell - x;
+            dxs[jx - jx0] = static_cast<float>(dx * dx);
+        }
+        for (int jy = jy0; jy <= jy1; ++jy) {
+            const double dy = cy0 + jy * cell - y;
+            dys[jy - jy0] = static_cast<float>(dy * dy);
+        }
+        double hCur = hStart, bestH = hStart, bestE = std::numeric_limits<double>::infinity();
+        constexpr float kCap2 = kFitCapM * kFitCapM;
+        for (int step = 0; step < kFitHeightSteps; ++step) {
+            const float r = static_cast<float>(scene.radiusFor(t.species, hCur)), r2 = r * r;
+            const float hf = static_cast<float>(hCur);
+            double e = 0, sum = 0;
+            int n = 0;
+            const int ya = std::max(jy0, static_cast<int>(std::ceil((y - r - cy0) / cell)));
+            const int yb = std::min(jy1, static_cast<int>(std::floor((y + r - cy0) / cell)));
+            const int xa = std::max(jx0, static_cast<int>(std::ceil((x - r - cx0) / cell)));
+            const int xb = std::min(jx1, static_cast<int>(std::floor((x + r - cx0) / cell)));
+            for (int jy = ya; jy <= yb; ++jy) {
+                const float dy2 = dys[jy - jy0];
+                if (!(dy2 < r2)) continue;
+                const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
+                for (int jx = xa; jx <= xb; ++jx) {
+                    const float d2 = dxs[jx - jx0] + dy2;
+                    const float g = std::sqrt(std::max(r2 - d2, 0.0f)) - r;
+                    const float z = hf + g, o = os[row + static_cast<std::size_t>(jx)], c = cs[row + static_cast<std::size_t>(jx)];
+                    const bool on = (d2 < r2) & (z > o);
+                    // Squared errors capped at kFitCapM^2 (a robust fit): a sphere a few
+                    // centimetres off its place has rim cells on the ground beside the crown,
+                    // errors of the whole crown depth that would pull it down and in.
+                    const float ez = std::min((z - c) * (z - c), kCap2), eo = std::min((o - c) * (o - c), kCap2);
+                    const bool fits = on & ((z - c) * (z - c) < kCap2);
+                    e += on ? static_cast<double>(ez - eo) : 0.0;
+                    sum += fits ? static_cast<double>(c - g) : 0.0;
+                    n += fits;
+                }
+            }
+            if (e < bestE) {
+                bestE = e;
+                bestH = hCur;
+            }
+            if (n == 0) break;
+            const double hNext = std::clamp(sum / n, minHeightM, hTop);
+            if (std::abs(hNext - hCur) < kFitConvergeM) break;
+            hCur = hNext;
+        }
+        eOut = bestE;
+        return bestH;
+    };
+    auto cellHeight = [&](double x, double y) {
+        return std::max(minHeightM, static_cast<double>(chm.clamped(chm.cellX(x), chm.cellY(y))));
+    };
+    double bx = t.x, by = t.y, be = 0;
+    double bh = bestHeight(t.x, t.y, cellHeight(t.x, t.y), be);
+    const double step = 0.25 * cell;
+    const int n = static_cast<int>(std::floor(reachM / step));
+    for (int j = -n; j <= n; j += 2)
+        for (int i = -n; i <= n; i += 2) {
+            if ((i == 0 && j == 0) || (i * i + j * j) * step * step > reachM * reachM) continue;
+            const double x = t.x + i * step, y = t.y + j * step;
+            double e = 0;
+            const double hh = bestHeight(x, y, cellHeight(x, y), e);
+            if (e < be) {
+                be = e;
+                bh = hh;
+                bx = x;
+                by = y;
+            }
+        }
+    {
+        const double cx = bx, cy = by, ch = bh;
+        for (int j = -1; j <= 1; ++j)
+            for (int i = -1; i <= 1; ++i) {
+                if ((i == 0) == (j == 0)) continue;  // the four quarter-cell steps along the axes
+                double e = 0;
+                const double hh = bestHeight(cx + i * step, cy + j * step, ch, e);
+                if (e < be) {
+                    be = e;
+                    bh = hh;
+                    bx = cx + i * step;
+                    by = cy + j * step;
+                }
+            }
+    }
+    if (!scene.inside(bx, by)) return 0.0;
+    const bool anchored = t.apex;
+    t = scene.makeTree(bx, by, bh, t.uid);
+    t.apex = anchored;
+    const int cx = std::clamp(chm.cellX(bx), 0, w - 1), cy = std::clamp(chm.cellY(by), 0, h - 1);
+    const double dx = chm.cellCentreX(cx) - bx, dy = chm.cellCentreY(cy) - by;
+    const double own = bh - t.radiusM + std::sqrt(std::max(0.0, t.radiusM * t.radiusM - dx * dx - dy * dy));
+    return chm(cx, cy) - own;
+}
+
 /// Lowest CHM cell on the segment between two trunks (cells sampled every half cell, the
 /// end cells included).
 double segmentMinimum(const Grid<float>& chm, double x0, double y0, double x1, double y1) {
@@ -1097,6 +1264,12 @@ const std::vector<CanopyParamField>& canopyParamFields() {
          K::Real, &CanopyParams::residualApexFitToleranceM, nullptr, R::atLeast(0)},
         {"apex_snap_radius_fraction", "final: added trees move onto the highest CHM maximum of their own visible cells within this fraction of their crown radius; 0 = off",
          "", K::Real, &CanopyParams::apexSnapRadiusFraction, nullptr, R::closed(0, 10)},
+        {"crown_fit_passes", "final: passes of the crown fit (added trees take the sphere that best explains what the other crowns leave of the CHM; hidden apices not output); 0 = off",
+         "", K::Integer, nullptr, &CanopyParams::crownFitPasses, R::closed(0, 10)},
+        {"crown_fit_reach_m", "crown fit: apex positions searched within this distance of the tree", "m", K::Real,
+         &CanopyParams::crownFitReachM, nullptr, R::closed(0, 5)},
+        {"crown_fit_hidden_m", "crown fit: a fitted apex this far under the CHM is hidden (at least 2 x the seeds' 90 % margin)", "m",
+         K::Real, &CanopyParams::crownFitHiddenM, nullptr, R::closed(0, 100)},
         {"keep_best_state", "end in the iteration of highest coverage; 0 = the last one", "", K::Integer, nullptr,
          &CanopyParams::keepBestState, R::closed(0, 1)},
         {"min_trunk_distance_m", "duplicates: trunks closer than this", "m", K::Real, &CanopyParams::minTrunkDistanceM,
@@ -1588,15 +1761,98 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         result.seedsMerged = trees.size() - kept.size();
         trees.swap(kept);
     }
-    {
+    auto removeDuplicates = [&] {
         const auto keep = duplicateKeepFlags(crownsOf(trees), params.minTrunkDistanceM, chmM.originX(), chmM.originY(),
                                              chmM.extentX(), chmM.extentY());
         Buf<Tree>& kept = next;
         kept.clear();
         for (std::size_t i = 0; i < trees.size(); ++i)
             if (keep[i]) kept.push_back(trees[i]);
-        result.duplicatesRemoved = trees.size() - kept.size();
+        result.duplicatesRemoved += trees.size() - kept.size();
         trees.swap(kept);
+    };
+    removeDuplicates();
+    // The crown fit runs on the cleaned list (two added trees on one crown would each see the
+    // other explain it); then its hidden trees go, and the duplicates of trees it moved
+    // onto one apex.
+    double crownFitRaiseM = 0;  // the crown fit: largest rise of a kept tree onto the CHM (below)
+    if (params.crownFitPasses > 0) {
+        // The crown fit: every added tree (not the seeds) takes the sphere that best explains
+        // what the other crowns leave of the CHM (fitCrown), crownFitPasses times, each pass on
+        // a fresh render of the last; then the trees whose fitted apex lies under another crown
+        // by more than the hidden margin are not output (their top is not in the CHM). The
+        // margin is max(crownFitHiddenM, kFitSeedMarginFactor x the kFitSeedQuantile quantile
+        // of the margins of every kFitSeedStride-th seed, fitted in the last pass but not moved):
+        // seeds stand on true tops, so their margins say how far the crowns of this CHM are
+        // from spheres (about 0.05 m on a CHM of spheres, 1.3-1.9 m on the lidar-like ones).
+        const std::uint64_t seeds = result.initialSeeds;
+        Buf<double> margin(trees.size(), 0.0);
+        Buf<Tree> fitted;
+        for (int pass = 1; pass <= params.crownFitPasses; ++pass) {
+            const bool last = pass == params.crownFitPasses;
+            Buf<Crown>& cr = frame.crowns;
+            cr.resize(trees.size());
+            for (std::size_t i = 0; i < trees.size(); ++i) cr[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
+            render<true>(cr, chmM.width(), chmM.height(), cell, chmM.originX(), chmM.originY(), frame);
+            fitted.assign(trees.begin(), trees.end());
+#pragma omp parallel for schedule(dynamic, 64)
+            for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+                Tree& t = fitted[static_cast<std::size_t>(k)];
+                const bool seed = t.uid < seeds;
+                if (t.hidden || (seed && (!last || t.uid % kFitSeedStride != 0))) continue;
+                margin[static_cast<std::size_t>(k)] =
+                    fitCrown(scene, frame, static_cast<std::int32_t>(k), params.crownFitReachM, params.minSeedHeightM, t);
+            }
+            for (std::size_t k = 0; k < trees.size(); ++k) {
+                if (trees[k].uid >= seeds && !trees[k].hidden) trees[k] = fitted[k];
+            }
+        }
+        Buf<double> seedMargins;
+        for (std::size_t k = 0; k < trees.size(); ++k)
+            if (trees[k].uid < seeds && trees[k].uid % kFitSeedStride == 0 && !trees[k].hidden) seedMargins.push_back(margin[k]);
+        std::sort(seedMargins.begin(), seedMargins.end());
+        const double q = seedMargins.empty() ? 0.0
+                                             : seedMargins[std::min(seedMargins.size() - 1,
+                                                                    static_cast<std::size_t>(kFitSeedQuantile *
+                                                                                             static_cast<double>(seedMargins.size())))];
+        const double hiddenMargin = std::max(params.crownFitHiddenM, kFitSeedMarginFactor * q);
+        crownFitRaiseM = kFitSeedMarginFactor * q;
+        std::size_t hidden = 0;
+        for (std::size_t k = 0; k < trees.size(); ++k)
+            if (trees[k].uid >= seeds && !trees[k].hidden && margin[k] > hiddenMargin) {
+                trees[k].hidden = true;
+                ++hidden;
+            }
+        result.crownFitHidden = hidden;
+        result.crownFitHiddenMarginM = hiddenMargin;
+    }
+    if (params.crownFitPasses > 0) {
+        Buf<Tree>& kept = next;
+        kept.clear();
+        for (const Tree& t : trees)
+            if (!t.hidden) kept.push_back(t);
+        result.hiddenApexTrees += trees.size() - kept.size();
+        trees.swap(kept);
+        // The fit's sphere is the least-squares crown: on a CHM of pointed or flat-topped
+        // crowns it stands under the top (about a metre on a conifer), so a kept tree whose
+        // CHM stands above its sphere's apex takes the CHM's height at its trunk, raised by at
+        // most what the seeds' misfit allows (2 x its 90 % quantile: about 0.1 m on a CHM of
+        // spheres, 2.6-3.8 m on lidar-like ones), since the CHM beside a small top can be a
+        // taller neighbour's flank.
+        {
+            const std::uint64_t seeds = result.initialSeeds;
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
+                Tree& t = trees[static_cast<std::size_t>(k)];
+                if (t.uid < seeds) continue;
+                const double hc = std::min(scene.heightAt(t.x, t.y), t.heightM + crownFitRaiseM);
+                if (!(hc > t.heightM)) continue;
+                const bool anchored = t.apex;
+                t = scene.makeTree(t.x, t.y, hc, t.uid);
+                t.apex = anchored;
+            }
+        }
+        removeDuplicates();
     }
     renderAndMeasure(trees, chmM, params, frame, vis);
     fillStats(fin, trees.size(), vis);

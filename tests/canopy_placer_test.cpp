@@ -633,9 +633,109 @@ TEST_CASE("the crescent of a crown whose apex is hidden under a taller one gives
     CHECK(std::abs(fitted.trees[0].heightM - 10.0) < 0.3);
     CHECK(fitted.hiddenApexTrees >= 1);
     p.residualApexFit = 0;
+    p.crownFitPasses = 0;  // the crown fit (next test) drops that tree too
     const synth::CanopyResult plain = synth::placeCanopy(chm, terrain, uniformMap(chm, df), b, p);
     CHECK(plain.trees.size() == 2);
     CHECK(plain.hiddenApexTrees == 0);
+}
+
+TEST_CASE("the crown fit drops a tree on a hidden crown's crescent and keeps a small visible top", "[canopy]") {
+    // Spheres of the placer's own model (Douglas-Fir) on 0.914 m cells, each pair on its own
+    // CHM. Hidden: a 10 m tree and a 7.5 m one whose trunk stands 1.5 m away, its apex about
+    // 1.6 m under the taller crown; only a crescent of the lower crown shows, and a tree
+    // added there explains it. The crown fit finds the sphere that best explains what the
+    // 10 m crown leaves (its apex under that crown) and the tree is not output; without the
+    // fit it stays. Visible: a 10 m tree and a 6 m one 2.4 m away whose apex stands above the
+    // taller crown's surface (a small tree beside a large one): kept, at its apex, with
+    // and without the fit.
+    const Biome b = defaultBiome();
+    const int df = b.speciesIndex("Douglas-Fir");
+    const Allometry& a = b.species[static_cast<std::size_t>(df)].allometry;
+    const double cell = 0.914;
+    auto pairChm = [&](double dx, double h2, std::vector<GeneratedTree>& trees) {
+        Grid<float> chm(40, 40, cell, 0, 0, 0.f);
+        const double x0 = chm.cellCentreX(18) + 0.2, y0 = chm.cellCentreY(18) + 0.1;
+        trees = {{x0, y0, 10.0, a.crownRadiusM(10.0)}, {x0 + dx, y0 + 0.2, h2, a.crownRadiusM(h2)}};
+        rasterizeCrowns(trees, chm);
+        return chm;
+    };
+    auto taller = [&](const std::vector<GeneratedTree>& trees) {  // the 10 m surface above the lower trunk
+        const double r = trees[0].crownRadiusM, d = std::hypot(trees[1].x - trees[0].x, trees[1].y - trees[0].y);
+        return d < r ? 10.0 - r + std::sqrt(r * r - d * d) : 0.0;
+    };
+    auto describe = [](const synth::CanopyResult& r, const std::vector<GeneratedTree>& trees) {
+        std::ostringstream o;
+        o << r.trees.size() << " trees, crown fit hidden " << r.crownFitHidden << " (margin " << r.crownFitHiddenMarginM << " m):";
+        for (const Plant& t : r.trees) o << " (" << t.xM - trees[0].x << ", " << t.yM - trees[0].y << ", " << t.heightM << ")";
+        return o.str();
+    };
+    synth::CanopyParams p;  // defaults: the crown fit on
+    REQUIRE(p.crownFitPasses > 0);
+
+    std::vector<GeneratedTree> hidden;
+    const Grid<float> hChm = pairChm(1.5, 7.5, hidden);
+    REQUIRE(taller(hidden) > 7.5 + 1.2);                               // the lower apex is hidden
+    REQUIRE(1.5 + hidden[1].crownRadiusM > hidden[0].crownRadiusM + cell);  // a crescent of a cell or more shows
+    const Grid<float> terrain = Grid<float>::like(hChm, 0.f);
+    const synth::CanopyResult fit = synth::placeCanopy(hChm, terrain, uniformMap(hChm, df), b, p);
+    INFO("hidden pair, fit: " << describe(fit, hidden));
+    REQUIRE(fit.trees.size() == 1);
+    CHECK(fit.crownFitHidden >= 1);
+    CHECK(nearestDistance(fit.trees, hidden[0].x, hidden[0].y) < 0.5);
+    p.crownFitPasses = 0;
+    const synth::CanopyResult noFit = synth::placeCanopy(hChm, terrain, uniformMap(hChm, df), b, p);
+    INFO("hidden pair, no fit: " << describe(noFit, hidden));
+    CHECK(noFit.trees.size() == 2);  // a tree on the crescent
+    CHECK(noFit.crownFitHidden == 0);
+
+    std::vector<GeneratedTree> visible;
+    const Grid<float> vChm = pairChm(2.4, 6.0, visible);
+    REQUIRE(taller(visible) < 6.0 - 0.3);  // the small tree's apex shows
+    for (const int passes : {0, 2}) {
+        p.crownFitPasses = passes;
+        const synth::CanopyResult r = synth::placeCanopy(vChm, terrain, uniformMap(vChm, df), b, p);
+        INFO("visible pair, passes " << passes << ": " << describe(r, visible));
+        REQUIRE(r.trees.size() == 2);
+        for (const GeneratedTree& t : visible) CHECK(nearestDistance(r.trees, t.x, t.y) < 0.5);
+        for (const Plant& t : r.trees) CHECK(std::abs(t.heightM - (t.heightM > 8 ? 10.0 : 6.0)) < 0.3);
+        CHECK(r.crownFitHidden == 0);
+    }
+}
+
+TEST_CASE("after the crown fit an added tree on a conical crown keeps the CHM's height", "[canopy]") {
+    // The flank pair of the next test, drawn as lidar-like crowns, not the placer's spheres:
+    // z = h - D (d / r)^1.5 with D = 1.5 r (a pointed conifer crown), the lower trunk where
+    // the taller crown is half a metre under the lower top. The lower tree is found
+    // by the iterations (its apex is no CHM maximum); the crown fit's least-squares sphere
+    // stands about a metre under such a top, and the tree must end at the CHM's height.
+    FlankPair f = flankPair();
+    {
+        // The lower trunk where the taller cone's surface is 0.5 m under the lower top.
+        const double r0 = f.trees[0].crownRadiusM;
+        f.trees[1].x = f.trees[0].x + r0 * std::pow((30.0 - 26.5) / (1.5 * r0), 2.0 / 3.0);
+    }
+    for (int iy = 0; iy < f.chm.height(); ++iy)
+        for (int ix = 0; ix < f.chm.width(); ++ix) {
+            float z = 0;
+            for (const GeneratedTree& t : f.trees) {
+                const double d = std::hypot(f.chm.cellCentreX(ix) - t.x, f.chm.cellCentreY(iy) - t.y);
+                if (d < t.crownRadiusM)
+                    z = std::max(z, static_cast<float>(t.heightM - 1.5 * t.crownRadiusM * std::pow(d / t.crownRadiusM, 1.5)));
+            }
+            f.chm(ix, iy) = z;
+        }
+    synth::CanopyParams p;  // defaults: the crown fit on
+    REQUIRE(p.crownFitPasses > 0);
+    const synth::CanopyResult r = f.place(p);
+    std::ostringstream where;
+    for (const Plant& t : r.trees) where << " (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
+    INFO(r.initialSeeds << " seeds, crown fit hidden " << r.crownFitHidden << ":" << where.str());
+    REQUIRE(r.initialSeeds == 1);  // the lower top is no CHM maximum: not a seed
+    REQUIRE(nearestDistance(r.trees, f.trees[1].x, f.trees[1].y) < 1.0);
+    for (const Plant& t : r.trees) {
+        if (std::hypot(t.xM - f.trees[1].x, t.yM - f.trees[1].y) >= 1.0) continue;
+        CHECK(std::abs(t.heightM - 27.0) < 0.5);
+    }
 }
 
 TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]") {
@@ -654,7 +754,7 @@ TEST_CASE("an added tree moves onto the CHM apex its crown explains", "[canopy]"
     std::ostringstream where;
     for (const Plant& t : off.trees) where << " off (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
     for (const Plant& t : on.trees) where << " on (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";
-    INFO("snapped " << on.apexSnapped << ":" << where.str());
+    INFO("snapped " << on.apexSnapped << ", crown fit hidden " << on.crownFitHidden << ":" << where.str());
     CHECK(off.apexSnapped == 0);
     CHECK(on.apexSnapped >= 1);
     CHECK(nearestDistance(off.trees, trees[1].x, trees[1].y) > 1.0);
