@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <condition_variable>
 #include <exception>
@@ -31,6 +32,15 @@ namespace eco::pipeline {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// The shortest text of a double that reads back as the same number, with a decimal point.
+std::string shortestNumber(double v) {
+    char buf[64];
+    std::string number(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+    if (number.find_first_of(".eEn") == std::string::npos) number += ".0";
+    return number;
+}
+
 
 nlopt_algorithm algorithmOf(const std::string& name) {
     if (name == "sbplx") return NLOPT_LN_SBPLX;
@@ -163,10 +173,15 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         spec.replicates = static_cast<int>(spec.scene.seeds.size());
         if (const toml::table* model = sc.optionalTable("model"))
             for (const auto& [k, v] : *model) {
-                toml::table one;
-                v.visit([&](const auto& x) { one.insert(k, x); });
                 std::ostringstream line;
-                line << one;
+                if (const auto* f = v.as_floating_point()) {
+                    // The shortest text that reads back as the same number (1.1225, not 1.1225000000000001).
+                    line << k.str() << " = " << shortestNumber(f->get());
+                } else {
+                    toml::table one;
+                    v.visit([&](const auto& x) { one.insert(k, x); });
+                    line << one;
+                }
                 spec.scene.model.push_back(line.str());
             }
         sc.finish();
@@ -386,7 +401,7 @@ private:
                 else setPath(biome, parts, 1, toml::value<double>(values[i]), where);
             } else {
                 const std::string key = p.key.substr(6);
-                m.model.push_back(key + " = " + (p.integer ? std::to_string(std::llround(values[i])) : formatNumber(values[i], 17)));
+                m.model.push_back(key + " = " + (p.integer ? std::to_string(std::llround(values[i])) : shortestNumber(values[i])));
             }
         }
         ensureDirectory(m.dir);
