@@ -54,11 +54,12 @@ void registerCalibrateCommand(CLI::App& app) {
     CLI::App* sub = app.add_subcommand(
         "calibrate",
         "Fit species parameters and model constants within bounds (linear, log-scaled or integer) to observations "
-        "(species shares, density, mean heights, cover, height quantiles at a year; cv of the plant count; a field "
+        "(species shares at a year or over a window, density, mean heights, cover, height quantiles at a year; cv of the plant count; a species' count ratio between two years; a field "
         "stem map's pair correlation g(r)), each with its sd: a derivative-free search (NLopt; local, or global: "
         "multistart, our controlled random search in rounds of points evaluated together, CRS2 or ISRES, seeded) of chi2 over simulations averaged over replicate seeds, run as an eco ensemble (in "
         "members_at_once child processes or across MPI ranks: mpirun -n N eco calibrate SPEC; the same history for any number; a killed calibration "
-        "run again continues where it stopped). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
+        "run again continues where it stopped), or over eco validate's forest scene ([calibrate.scene]: one scene seed per replicate). "
+        "Targets may be one-sided (min or max). Writes OUT/calibration.md, OUT/history.csv, OUT/best-biome.toml and "
         "OUT/best-simulate.toml, and a linearised uncertainty of each parameter (docs/calibration.md).");
     sub->add_option("spec", a->spec, "Calibration specification (TOML; configs/calibrate.toml is an example)")
         ->required()
