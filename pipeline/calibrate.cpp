@@ -33,6 +33,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/// The replicates' seeds as the report states them.
+std::string sceneOrSeeds(const CalibrationSpec& spec) {
+    if (spec.scene.file.empty()) return "run.seed 1 .. " + std::to_string(spec.replicates);
+    std::string seeds;
+    for (std::uint64_t s : spec.scene.seeds) seeds += (seeds.empty() ? "" : ", ") + std::to_string(s);
+    return "the forest scene `" + spec.scene.file + "`, " + formatNumber(spec.scene.plotSizeM, 6) + " m, " + std::to_string(spec.scene.years) +
+           " years, scene seeds " + seeds;
+}
+
+
 /// The shortest text of a double that reads back as the same number, with a decimal point.
 std::string shortestNumber(double v) {
     char buf[64];
@@ -132,9 +142,22 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         spec.seed = static_cast<std::uint64_t>(seed);
     }
     spec.membersAtOnce = count("members_at_once", 1, 256, 1);
-    for (const auto& [k, v] : c.table("parameters")) {
+    // The optimiser's coordinates: the keys in sorted order (toml++ keeps a table sorted), or
+    // as written in the file (parameters_as_written: Subplex's subspaces and first steps
+    // follow the coordinates' order, so the order changes the search's path).
+    const bool asWritten = c.booleanOr("parameters_as_written", false);
+    std::vector<std::pair<std::string, const toml::node*>> entries;
+    for (const auto& [k, v] : c.table("parameters")) entries.emplace_back(std::string(k.str()), &v);
+    if (asWritten)
+        std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
+            const auto& x = a.second->source().begin;
+            const auto& y = b.second->source().begin;
+            return x.line != y.line ? x.line < y.line : x.column < y.column;
+        });
+    for (const auto& [k, vp] : entries) {
+        const toml::node& v = *vp;
         double start = 0;
-        const StudyParameter p = parseStudyParameter(std::string(k.str()), v, path, "[calibrate.parameters]", &start);
+        const StudyParameter p = parseStudyParameter(k, v, path, "[calibrate.parameters]", &start);
         spec.parameters.push_back(p);
         // Default: the middle of the range (of its log with a log scale).
         if (std::isnan(start)) start = p.logScale || p.integer ? p.at(0.5) : 0.5 * (p.low + p.high);
@@ -925,7 +948,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << "Specification `" << spec.path << "`: " << k << " parameter" << (k > 1 ? "s" : "") << ", " << spec.targets.size() << " target"
        << (spec.targets.size() > 1 ? "s" : "") << ", NLopt `" << spec.algorithm << "` in the unit cube of the ranges (first step "
        << formatNumber(spec.initialStep, 3) << ", tolerance " << formatNumber(spec.tolerance, 3) << "), " << spec.replicates
-       << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (run.seed 1 .. " << spec.replicates << ", the same at every evaluation). "
+       << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (" << sceneOrSeeds(spec) << ", the same at every evaluation). "
        << (spec.global == "multistart" ? "Multistart: " + std::to_string(spec.starts) + " local searches (the start, then quasi-random points, seed " + std::to_string(spec.seed) + ")" +
                                                  (spec.parallelStarts ? " side by side (parallel_starts: in rounds, one evaluation of each start per round, " + std::to_string(spec.maxEvaluations / spec.starts) + " evaluations each). "
                                                                       : " sharing the budget. ")

@@ -84,7 +84,7 @@ struct CalibrationSpec {
     int batchSize = 0;
     std::uint64_t seed = 1;      ///< multistart, crs, crs2, isres
     int membersAtOnce = 1;
-    std::vector<StudyParameter> parameters;
+    std::vector<StudyParameter> parameters;  ///< sorted by key, or as written (parameters_as_written = true)
     std::vector<double> start;   ///< starting values (default: the middle of each range)
     std::vector<CalibrationTarget> targets;
     toml::table base;            ///< [calibrate.base] (not with a scene)

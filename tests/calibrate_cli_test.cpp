@@ -259,6 +259,7 @@ TEST_CASE("eco calibrate: [calibrate.scene] fits on eco validate's forest scene,
     std::getline(in, first);
     CHECK(header == "evaluation,purpose,biome.species.Toyon.alpha,share:Toyon@4,ratio:Toyon@4/2,chi2");
     CHECK(first.rfind("1,search,0.6,", 0) == 0);
+    CHECK(readTextFile(dir.file("out-c.toml/calibration.md")).find("scene seeds 11, 12") != std::string::npos);
     // The best biome holds the fitted value; a rerun replays the finished simulations.
     CHECK(readTextFile(dir.file("out-c.toml/best-biome.toml")).find("alpha") != std::string::npos);
     const std::string history = readTextFile(dir.file("out-c.toml/history.csv"));

@@ -75,6 +75,15 @@ TEST_CASE("calibrate: a [calibrate.scene] specification, and its bad keys refuse
     CHECK(spec.targets[0].side == CalibrationTarget::Side::AtLeast);
     CHECK(spec.targets[0].value == 0.8);
     CHECK(spec.targets[1].side == CalibrationTarget::Side::AtMost);
+    // The parameters in key order, or as written in the file.
+    const std::string reversed = "[calibrate.parameters]\n\"model.seeding_probability\" = [0.001, 0.006]\n\"biome.species.Toyon.alpha\" = [0.2, 0.7]\n";
+    CHECK(loadCalibrationSpec(write("", keys, reversed + target)).parameters[0].key == "biome.species.Toyon.alpha");
+    const auto written = loadCalibrationSpec(write("parameters_as_written = true", keys, reversed + target));
+    REQUIRE(written.parameters.size() == 2);
+    CHECK(written.parameters[0].key == "model.seeding_probability");
+    CHECK(written.parameters[1].key == "biome.species.Toyon.alpha");
+    CHECK(written.start[0] == Approx(0.0035));
+    CHECK(written.start[1] == Approx(0.45));
     const std::vector<std::tuple<std::string, std::string, std::string, std::string>> bad = {
         {"", "file = \"nowhere.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [1]", params + target, "nowhere.toml"},
         {"", "plot_size_m = 20\nyears = 5\nseeds = [1]", params + target, "file"},
