@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <condition_variable>
 #include <exception>
@@ -16,6 +17,8 @@
 #include <thread>
 
 #include "atomic_file.h"
+#include "biome.h"
+#include "ensemble.h"
 #include "chart.h"
 #include "error.h"
 #include "image_out.h"
@@ -29,6 +32,25 @@ namespace eco::pipeline {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// The replicates' seeds as the report states them.
+std::string sceneOrSeeds(const CalibrationSpec& spec) {
+    if (spec.scene.file.empty()) return "run.seed 1 .. " + std::to_string(spec.replicates);
+    std::string seeds;
+    for (std::uint64_t s : spec.scene.seeds) seeds += (seeds.empty() ? "" : ", ") + std::to_string(s);
+    return "the forest scene `" + spec.scene.file + "`, " + formatNumber(spec.scene.plotSizeM, 6) + " m, " + std::to_string(spec.scene.years) +
+           " years, scene seeds " + seeds;
+}
+
+
+/// The shortest text of a double that reads back as the same number, with a decimal point.
+std::string shortestNumber(double v) {
+    char buf[64];
+    std::string number(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+    if (number.find_first_of(".eEn") == std::string::npos) number += ".0";
+    return number;
+}
+
 
 nlopt_algorithm algorithmOf(const std::string& name) {
     if (name == "sbplx") return NLOPT_LN_SBPLX;
@@ -120,9 +142,22 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         spec.seed = static_cast<std::uint64_t>(seed);
     }
     spec.membersAtOnce = count("members_at_once", 1, 256, 1);
-    for (const auto& [k, v] : c.table("parameters")) {
+    // The optimiser's coordinates: the keys in sorted order (toml++ keeps a table sorted), or
+    // as written in the file (parameters_as_written: Subplex's subspaces and first steps
+    // follow the coordinates' order, so the order changes the search's path).
+    const bool asWritten = c.booleanOr("parameters_as_written", false);
+    std::vector<std::pair<std::string, const toml::node*>> entries;
+    for (const auto& [k, v] : c.table("parameters")) entries.emplace_back(std::string(k.str()), &v);
+    if (asWritten)
+        std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
+            const auto& x = a.second->source().begin;
+            const auto& y = b.second->source().begin;
+            return x.line != y.line ? x.line < y.line : x.column < y.column;
+        });
+    for (const auto& [k, vp] : entries) {
+        const toml::node& v = *vp;
         double start = 0;
-        const StudyParameter p = parseStudyParameter(std::string(k.str()), v, path, "[calibrate.parameters]", &start);
+        const StudyParameter p = parseStudyParameter(k, v, path, "[calibrate.parameters]", &start);
         spec.parameters.push_back(p);
         // Default: the middle of the range (of its log with a log scale).
         if (std::isnan(start)) start = p.logScale || p.integer ? p.at(0.5) : 0.5 * (p.low + p.high);
@@ -139,7 +174,47 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         if (spec.globalEvaluations < population)
             c.fail("global_evaluations", "must be at least the population (" + std::to_string(population) + ": its points are the first round), got " + std::to_string(spec.globalEvaluations));
     }
-    spec.base = studyBase(c.node("base"), path, path + ": [calibrate] base");
+    if (const toml::table* scene = c.optionalTable("scene")) {
+        // eco validate's forest scene instead of eco run pipelines (docs/calibration.md).
+        StrictTable sc(*scene, path, "[calibrate.scene]");
+        if (c.has("base")) c.fail("base", "is not used with [calibrate.scene] (the members simulate the scene)");
+        spec.scene.file = pathRelativeToConfig(path, sc.string("file"));
+        if (!fs::is_regular_file(spec.scene.file)) sc.fail("file", "no such file: " + spec.scene.file);
+        spec.scene.biome = sc.has("biome") ? pathRelativeToConfig(path, sc.string("biome")) : "";
+        if (!spec.scene.biome.empty() && !fs::is_regular_file(spec.scene.biome)) sc.fail("biome", "no such file: " + spec.scene.biome);
+        spec.scene.plotSizeM = sc.numberIn("plot_size_m", 8.0, 10000.0);
+        const std::int64_t years = sc.integer("years");
+        if (years < 1 || years > 100000) sc.fail("years", "must be in 1 .. 100000, got " + std::to_string(years));
+        spec.scene.years = static_cast<int>(years);
+        for (std::int64_t seed : sc.integers("seeds")) {
+            if (seed < 0) sc.fail("seeds", "must not be negative, got " + std::to_string(seed));
+            spec.scene.seeds.push_back(static_cast<std::uint64_t>(seed));
+        }
+        if (spec.scene.seeds.empty() || spec.scene.seeds.size() > 100) sc.fail("seeds", "expected 1 .. 100 scene seeds (one per replicate)");
+        if (c.has("replicates") && spec.replicates != static_cast<int>(spec.scene.seeds.size()))
+            c.fail("replicates", "is the number of [calibrate.scene] seeds (" + std::to_string(spec.scene.seeds.size()) + "), got " + std::to_string(spec.replicates));
+        spec.replicates = static_cast<int>(spec.scene.seeds.size());
+        if (const toml::table* model = sc.optionalTable("model"))
+            for (const auto& [k, v] : *model) {
+                std::ostringstream line;
+                if (const auto* f = v.as_floating_point()) {
+                    // The shortest text that reads back as the same number (1.1225, not 1.1225000000000001).
+                    line << k.str() << " = " << shortestNumber(f->get());
+                } else {
+                    toml::table one;
+                    v.visit([&](const auto& x) { one.insert(k, x); });
+                    line << one;
+                }
+                spec.scene.model.push_back(line.str());
+            }
+        sc.finish();
+        for (const StudyParameter& p : spec.parameters)
+            if (p.key.rfind("biome.", 0) != 0 && p.key.rfind("model.", 0) != 0)
+                throw ValidationError(path + ": [calibrate.parameters] '" + p.key + "': with [calibrate.scene] a parameter is a biome.* or model.* key");
+        if (!spec.truth.empty() || c.has("truth")) c.fail("truth", "is not supported with [calibrate.scene]");
+    } else {
+        spec.base = studyBase(c.node("base"), path, path + ": [calibrate] base");
+    }
     if (const toml::table* truth = c.optionalTable("truth")) {
         StrictTable t(*truth, path, "[calibrate.truth]");
         for (std::size_t i = 0; i < spec.parameters.size(); ++i) {
@@ -198,8 +273,16 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
         } else {
             for (const char* key : {"stem_map", "window", "r_max", "r_min", "bins", "min_height"})
                 if (tt.has(key)) tt.fail(key, "is a key of pcf targets (output = \"pcf[:SPECIES]@YEAR\")");
-            // Without a value only when the truth gives it.
-            target.value = spec.truth.empty() ? tt.number("value") : tt.numberOr("value", std::nan(""));
+            const int bounds = (tt.has("value") ? 1 : 0) + (tt.has("min") ? 1 : 0) + (tt.has("max") ? 1 : 0);
+            if (bounds > 1) tt.fail(tt.has("min") ? "min" : "max", "give one of value (two-sided), min or max (one-sided)");
+            if (tt.has("min") || tt.has("max")) {
+                if (!spec.truth.empty()) tt.fail(tt.has("min") ? "min" : "max", "one-sided targets are not fitted to a [calibrate.truth]");
+                target.side = tt.has("min") ? CalibrationTarget::Side::AtLeast : CalibrationTarget::Side::AtMost;
+                target.value = tt.number(tt.has("min") ? "min" : "max");
+            } else {
+                // Without a value only when the truth gives it.
+                target.value = spec.truth.empty() ? tt.number("value") : tt.numberOr("value", std::nan(""));
+            }
         }
         target.sd = tt.positive("sd");
         tt.finish();
@@ -215,10 +298,16 @@ std::string calibrationMemberName(int evaluation, int replicate) {
     return buf;
 }
 
+double CalibrationTarget::residual(double simulated) const {
+    double d = simulated - value;
+    if ((side == Side::AtLeast && d > 0) || (side == Side::AtMost && d < 0)) d = 0;
+    return d / sd;
+}
+
 double chiSquare(const std::vector<CalibrationTarget>& targets, const std::vector<double>& simulated) {
     double chi2 = 0;
     for (std::size_t t = 0; t < targets.size(); ++t) {
-        const double r = (simulated.at(t) - targets[t].value) / targets[t].sd;
+        const double r = targets[t].residual(simulated.at(t));
         chi2 += r * r;
     }
     return chi2;
@@ -249,8 +338,9 @@ namespace {
 
 class Calibrator {
 public:
-    Calibrator(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter, std::vector<StudyMember> members)
-        : spec_(spec), run_(run), reporter_(reporter), members_(std::move(members)) {}
+    Calibrator(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter, std::vector<StudyMember> members,
+               const SceneRunner& scene)
+        : spec_(spec), run_(run), scene_(scene), reporter_(reporter), members_(std::move(members)) {}
 
     /// chi2 at these parameter values (evaluated once; a repeated point is looked up).
     const Evaluation& evaluate(const std::vector<double>& values, const std::string& purpose) {
@@ -264,6 +354,7 @@ public:
     std::vector<std::size_t> evaluateAll(const std::vector<std::vector<double>>& points, const std::string& purpose) {
         std::vector<std::size_t> at;
         std::vector<std::size_t> fresh;  // history indices added now
+        std::vector<SceneMember> sceneMembers;  // with [calibrate.scene]: the new simulations
         for (const auto& values : points) {
             if (const auto it = seen_.find(values); it != seen_.end()) {
                 at.push_back(it->second);
@@ -274,12 +365,19 @@ public:
             e.purpose = purpose;
             e.values = values;
             for (int r = 0; r < spec_.replicates; ++r) members_.push_back({calibrationMemberName(e.index, r), values, r + 1});
+            if (!spec_.scene.file.empty())
+                for (int r = 0; r < spec_.replicates; ++r)
+                    sceneMembers.push_back(sceneMember(calibrationMemberName(e.index, r), values, spec_.scene.seeds[static_cast<std::size_t>(r)]));
             seen_[values] = history_.size();
             at.push_back(history_.size());
             fresh.push_back(history_.size());
             history_.push_back(std::move(e));
         }
         if (fresh.empty()) return at;
+        if (!spec_.scene.file.empty()) {
+            if (!scene_) throw ValidationError(spec_.path + ": [calibrate.scene] needs a scene runner (eco calibrate)");
+            scene_(spec_.scene, sceneMembers);
+        } else
         writer_ = run_(writeStudyEnsemble(spec_.outDir, spec_.base, spec_.membersAtOnce, spec_.parameters, members_,
                                           "# The simulations of eco calibrate " + spec_.path + ": one per evaluation and replicate\n"
                                           "# (written by eco calibrate; run.seed is the replicate).\n"));
@@ -309,8 +407,37 @@ public:
     bool writer() const { return writer_; }
 
 private:
+    /// A scene simulation's folder (where an ensemble member's would be), its biome file (the
+    /// base biome with the biome.* values) and its [model] lines (the model.* values last).
+    SceneMember sceneMember(const std::string& name, const std::vector<double>& values, std::uint64_t seed) const {
+        SceneMember m;
+        m.dir = fs::path(studySimulation(spec_.outDir, name)).parent_path().string();
+        m.seed = seed;
+        m.model = spec_.scene.model;
+        toml::table biome = spec_.scene.biome.empty() ? toml::parse(biomeToToml(defaultBiome())) : parseTomlFile(spec_.scene.biome);
+        for (std::size_t i = 0; i < spec_.parameters.size(); ++i) {
+            const StudyParameter& p = spec_.parameters[i];
+            const auto parts = splitKey(p.key);
+            const std::string where = spec_.path + ": [calibrate.parameters] '" + p.key + "'";
+            if (parts[0] == "biome") {
+                if (p.integer) setPath(biome, parts, 1, toml::value<std::int64_t>(std::llround(values[i])), where);
+                else setPath(biome, parts, 1, toml::value<double>(values[i]), where);
+            } else {
+                const std::string key = p.key.substr(6);
+                m.model.push_back(key + " = " + (p.integer ? std::to_string(std::llround(values[i])) : shortestNumber(values[i])));
+            }
+        }
+        ensureDirectory(m.dir);
+        m.biomePath = (fs::path(m.dir) / "biome.toml").string();
+        std::ostringstream text;
+        text << biome;
+        writeTextFile(m.biomePath, text.str() + "\n");
+        return m;
+    }
+
     const CalibrationSpec& spec_;
     const MemberRunner& run_;
+    const SceneRunner& scene_;
     Reporter& reporter_;
     std::vector<StudyMember> members_;
     std::vector<Evaluation> history_;
@@ -701,7 +828,7 @@ SearchResult minimiseInUnitCube(const std::function<double(const std::vector<dou
     return r;
 }
 
-CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& run, Reporter& reporter) {
+CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& run, Reporter& reporter, const SceneRunner& scene) {
     const std::size_t k = given.parameters.size();
     CalibrationSpec spec = given;
     CalibrationResult result;
@@ -724,7 +851,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         if (writer) reporter.info(line);
     }
     for (const CalibrationTarget& t : spec.targets) result.targetValues.push_back(t.value);
-    Calibrator cal(spec, run, reporter, truthMembers);
+    Calibrator cal(spec, run, reporter, truthMembers, scene);
     // The search in the unit cube: every parameter's range is [0, 1] to the optimiser.
     std::vector<double> u(k);
     for (std::size_t i = 0; i < k; ++i) {
@@ -779,7 +906,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
         for (std::size_t i = 0; i < k; ++i) {
             const Evaluation& e = cal.history()[at[i]];
             for (std::size_t t = 0; t < spec.targets.size(); ++t)
-                jac[t][i] = (e.simulated[t] - bestSearch.simulated[t]) / spec.targets[t].sd / (steps[i][i] - bestSearch.values[i]);
+                jac[t][i] = (spec.targets[t].residual(e.simulated[t]) - spec.targets[t].residual(bestSearch.simulated[t])) / (steps[i][i] - bestSearch.values[i]);
         }
         result.parameterSd = linearisedSd(jac);
     }
@@ -821,7 +948,7 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << "Specification `" << spec.path << "`: " << k << " parameter" << (k > 1 ? "s" : "") << ", " << spec.targets.size() << " target"
        << (spec.targets.size() > 1 ? "s" : "") << ", NLopt `" << spec.algorithm << "` in the unit cube of the ranges (first step "
        << formatNumber(spec.initialStep, 3) << ", tolerance " << formatNumber(spec.tolerance, 3) << "), " << spec.replicates
-       << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (run.seed 1 .. " << spec.replicates << ", the same at every evaluation). "
+       << " replicate" << (spec.replicates > 1 ? "s" : "") << " per evaluation (" << sceneOrSeeds(spec) << ", the same at every evaluation). "
        << (spec.global == "multistart" ? "Multistart: " + std::to_string(spec.starts) + " local searches (the start, then quasi-random points, seed " + std::to_string(spec.seed) + ")" +
                                                  (spec.parallelStarts ? " side by side (parallel_starts: in rounds, one evaluation of each start per round, " + std::to_string(spec.maxEvaluations / spec.starts) + " evaluations each). "
                                                                       : " sharing the budget. ")
@@ -850,9 +977,11 @@ CalibrationResult calibrate(const CalibrationSpec& given, const MemberRunner& ru
        << "## Fit (evaluation " << best.index << ", chi2 " << formatNumber(best.chi2, 5) << ")\n\n"
        << "| target | observed | sd | simulated (mean of replicates) | replicate sd | residual / sd |\n|---|---:|---:|---:|---:|---:|\n";
     for (std::size_t t = 0; t < spec.targets.size(); ++t)
-        md << "| `" << spec.targets[t].output.text << "` | " << formatNumber(spec.targets[t].value, 5) << " | " << formatNumber(spec.targets[t].sd, 3) << " | "
+        md << "| `" << spec.targets[t].output.text << "` | "
+           << (spec.targets[t].side == CalibrationTarget::Side::AtLeast ? ">= " : spec.targets[t].side == CalibrationTarget::Side::AtMost ? "<= " : "")
+           << formatNumber(spec.targets[t].value, 5) << " | " << formatNumber(spec.targets[t].sd, 3) << " | "
            << formatNumber(best.simulated[t], 5) << " | " << formatNumber(best.spread[t], 3) << " | "
-           << formatNumber((best.simulated[t] - spec.targets[t].value) / spec.targets[t].sd, 3) << " |\n";
+           << formatNumber(spec.targets[t].residual(best.simulated[t]), 3) << " |\n";
     if (result.runs.size() > 1 || spec.global != "none") {
         md << "\n## Search runs\n\n| run | method | start (unit cube) | best (unit cube) | chi2 | evaluations | stopped |\n|---:|---|---|---|---:|---:|---|\n";
         const auto unit = [](const std::vector<double>& x) {

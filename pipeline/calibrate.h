@@ -25,9 +25,37 @@ namespace eco::pipeline {
 
 struct CalibrationTarget {
     SimulationOutput output;
-    double value = 0;  ///< observed
+    double value = 0;  ///< observed (or the bound of a one-sided target)
     double sd = 1;     ///< its uncertainty: the residual's scale
+    /// Two-sided (`value`), or one-sided (`min` / `max`): no residual on the bound's good side.
+    enum class Side { Both, AtLeast, AtMost };
+    Side side = Side::Both;
+    /// (simulated - value) / sd; 0 for a one-sided target on its good side.
+    double residual(double simulated) const;
 };
+
+/// [calibrate.scene]: the members simulate eco validate's forest scene (a scene file of
+/// configs/validation) instead of running eco run pipelines. Each replicate has its own
+/// scene seed (the scene's terrain, canopy and simulation seed, as `eco validate` uses it).
+struct CalibrationScene {
+    std::string file;                 ///< the forest scene file (scene_*.toml)
+    std::string biome;                ///< the base biome file ("" = the embedded Sonoma biome)
+    double plotSizeM = 0;             ///< the plot's side
+    int years = 0;
+    std::vector<std::uint64_t> seeds; ///< one per replicate
+    std::vector<std::string> model;   ///< "KEY = VALUE" lines over the scene's [model] (as eco validate --model)
+};
+
+/// One simulation of the scene: write `dir`/simulation.h5 with the biome file `biomePath`,
+/// the scene's [model] with `model` lines over it, the scene seed `seed`.
+struct SceneMember {
+    std::string dir;
+    std::string biomePath;
+    std::vector<std::string> model;
+    std::uint64_t seed = 1;
+};
+/// Runs scene members (apps: the forest scene lives in validate, above the pipeline).
+using SceneRunner = std::function<void(const CalibrationScene& scene, const std::vector<SceneMember>& members)>;
 
 struct CalibrationSpec {
     std::string path;
@@ -56,10 +84,11 @@ struct CalibrationSpec {
     int batchSize = 0;
     std::uint64_t seed = 1;      ///< multistart, crs, crs2, isres
     int membersAtOnce = 1;
-    std::vector<StudyParameter> parameters;
+    std::vector<StudyParameter> parameters;  ///< sorted by key, or as written (parameters_as_written = true)
     std::vector<double> start;   ///< starting values (default: the middle of each range)
     std::vector<CalibrationTarget> targets;
-    toml::table base;
+    toml::table base;            ///< [calibrate.base] (not with a scene)
+    CalibrationScene scene;      ///< [calibrate.scene]: scene.file empty without one
     /// [calibrate.truth]: known values of every parameter. When given, the targets' values
     /// are replaced by the outputs of simulations at these values with other seeds (1001 ..
     /// 1000 + replicates), so that the calibration shows whether it recovers them.
@@ -188,6 +217,7 @@ std::vector<double> linearisedSd(const std::vector<std::vector<double>>& jacobia
 
 /// The whole calibration (the truth's simulations when given, search, uncertainty, outputs),
 /// running members through `run`, one line per evaluation through `reporter`.
-CalibrationResult calibrate(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter);
+/// With spec.scene, the members run through `scene` (required then) instead of `run`.
+CalibrationResult calibrate(const CalibrationSpec& spec, const MemberRunner& run, Reporter& reporter, const SceneRunner& scene = {});
 
 }  // namespace eco::pipeline

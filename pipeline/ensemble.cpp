@@ -75,44 +75,6 @@ void setNode(toml::table& t, const std::string& key, const toml::node& value) {
     value.visit([&](const auto& v) { t.insert_or_assign(key, v); });
 }
 
-std::vector<std::string> splitKey(const std::string& key) {
-    std::vector<std::string> parts;
-    std::stringstream ss(key);
-    std::string part;
-    while (std::getline(ss, part, '.')) parts.push_back(part);
-    return parts;
-}
-
-/// Sets the dotted path `parts[from..]` of `root` to `value`: missing tables are created; in
-/// an array of tables (a biome's [[species]] and [[sub_biome]]) the next part names the
-/// element by its `name`. `where` names the override in messages.
-void setPath(toml::table& root, const std::vector<std::string>& parts, std::size_t from, const toml::node& value,
-             const std::string& where) {
-    toml::table* t = &root;
-    for (std::size_t i = from; i + 1 < parts.size(); ++i) {
-        toml::node* n = t->get(parts[i]);
-        if (!n) {
-            t->insert_or_assign(parts[i], toml::table{});
-            n = t->get(parts[i]);
-        }
-        if (toml::table* sub = n->as_table()) {
-            t = sub;
-            continue;
-        }
-        toml::array* a = n->as_array();
-        if (!a || i + 2 >= parts.size())
-            throw ValidationError(where + ": '" + parts[i] + "' is not a table");
-        toml::table* found = nullptr;
-        for (auto& e : *a)
-            if (toml::table* et = e.as_table())
-                if (const auto name = (*et)["name"].value<std::string>(); name && *name == parts[i + 1]) found = et;
-        if (!found) throw ValidationError(where + ": no element named '" + parts[i + 1] + "' in '" + parts[i] + "'");
-        t = found;
-        ++i;
-    }
-    setNode(*t, parts.back(), value);
-}
-
 bool isIdentifier(const std::string& s) {
     return !s.empty() && s.size() <= 64 &&
            std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'; });
@@ -201,6 +163,45 @@ MemberFiles writeMemberFiles(const EnsembleSpec& spec, std::size_t index) {
 }
 
 }  // namespace
+
+std::vector<std::string> splitKey(const std::string& key) {
+    std::vector<std::string> parts;
+    std::stringstream ss(key);
+    std::string part;
+    while (std::getline(ss, part, '.')) parts.push_back(part);
+    return parts;
+}
+
+/// Sets the dotted path `parts[from..]` of `root` to `value`: missing tables are created; in
+/// an array of tables (a biome's [[species]] and [[sub_biome]]) the next part names the
+/// element by its `name`. `where` names the override in messages.
+void setPath(toml::table& root, const std::vector<std::string>& parts, std::size_t from, const toml::node& value,
+             const std::string& where) {
+    toml::table* t = &root;
+    for (std::size_t i = from; i + 1 < parts.size(); ++i) {
+        toml::node* n = t->get(parts[i]);
+        if (!n) {
+            t->insert_or_assign(parts[i], toml::table{});
+            n = t->get(parts[i]);
+        }
+        if (toml::table* sub = n->as_table()) {
+            t = sub;
+            continue;
+        }
+        toml::array* a = n->as_array();
+        if (!a || i + 2 >= parts.size())
+            throw ValidationError(where + ": '" + parts[i] + "' is not a table");
+        toml::table* found = nullptr;
+        for (auto& e : *a)
+            if (toml::table* et = e.as_table())
+                if (const auto name = (*et)["name"].value<std::string>(); name && *name == parts[i + 1]) found = et;
+        if (!found) throw ValidationError(where + ": no element named '" + parts[i + 1] + "' in '" + parts[i] + "'");
+        t = found;
+        ++i;
+    }
+    setNode(*t, parts.back(), value);
+}
+
 
 std::string writeMemberConfig(const EnsembleSpec& spec, std::size_t index) { return writeMemberFiles(spec, index).config; }
 

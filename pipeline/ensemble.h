@@ -50,6 +50,14 @@ struct EnsembleSpec {
 /// `outOverride` replaces [ensemble] out_dir when not empty.
 EnsembleSpec loadEnsembleSpec(const std::string& path, const std::string& outOverride = "");
 
+/// "a.b.c" -> {"a", "b", "c"}.
+std::vector<std::string> splitKey(const std::string& key);
+/// Sets the dotted path `parts[from..]` of `root` to `value`: missing tables are created; in
+/// an array of tables (a biome's [[species]] and [[sub_biome]]) the next part names the
+/// element by its `name`. `where` names the override in messages (ValidationError).
+void setPath(toml::table& root, const std::vector<std::string>& parts, std::size_t from, const toml::node& value,
+             const std::string& where);
+
 /// "terrain.seed = 2, model.seeding_probability = 0.0003" (or "the base configuration").
 std::string overridesText(const EnsembleMember& member);
 

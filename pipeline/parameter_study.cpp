@@ -184,6 +184,7 @@ std::string SimulationOutput::units() const {
         case Measure::CountCv: return "coefficient of variation";
         case Measure::HeightQuantile: return "m";
         case Measure::PairCorrelation: return "rms difference of g(r) from the stem map's";
+        case Measure::CountRatio: return "ratio of plant counts";
     }
     return "";
 }
@@ -207,6 +208,7 @@ SimulationOutput parseSimulationOutput(const std::string& text, const std::strin
     else if (head == "mean_height") o.measure = SimulationOutput::Measure::MeanHeight;
     else if (head == "cover") o.measure = SimulationOutput::Measure::Cover;
     else if (head == "cv") o.measure = SimulationOutput::Measure::CountCv;
+    else if (head == "ratio") o.measure = SimulationOutput::Measure::CountRatio;
     else if (head.rfind("height_q", 0) == 0) {
         const std::string q = head.substr(8);
         if (q.empty() || q.size() > 2 || !std::all_of(q.begin(), q.end(), [](char c) { return c >= '0' && c <= '9'; }) || std::stoi(q) < 1)
@@ -216,7 +218,7 @@ SimulationOutput parseSimulationOutput(const std::string& text, const std::strin
     } else if (head == "pcf") o.measure = SimulationOutput::Measure::PairCorrelation;
     else
         throw ValidationError(where + ": output '" + text + "': unknown measure '" + head +
-                              "' (share, density, mean_height, cover, height_qNN or cv; pcf in eco calibrate)");
+                              "' (share, density, mean_height, cover, height_qNN, cv or ratio; pcf in eco calibrate)");
     if (o.measure == SimulationOutput::Measure::Share && o.species.empty())
         throw ValidationError(where + ": output '" + text + "': share needs a species (share:SPECIES@YEAR)");
     if (o.measure == SimulationOutput::Measure::Density && !o.species.empty())
@@ -225,6 +227,18 @@ SimulationOutput parseSimulationOutput(const std::string& text, const std::strin
         if (!o.species.empty()) throw ValidationError(where + ": output '" + text + "': cv is of the total plant count (no species)");
         const auto dash = when.find('-');
         if (dash == std::string::npos) throw ValidationError(where + ": output '" + text + "': cv needs a window of years, cv@FIRST-LAST");
+        o.year = parseYear(when.substr(0, dash), where, text);
+        o.yearEnd = parseYear(when.substr(dash + 1), where, text);
+        if (o.yearEnd <= o.year) throw ValidationError(where + ": output '" + text + "': the window's last year must follow its first");
+    } else if (o.measure == SimulationOutput::Measure::CountRatio) {
+        if (o.species.empty()) throw ValidationError(where + ": output '" + text + "': ratio needs a species (ratio:SPECIES@YEAR/OTHER)");
+        const auto slash = when.find('/');
+        if (slash == std::string::npos) throw ValidationError(where + ": output '" + text + "': ratio needs two years, ratio:SPECIES@YEAR/OTHER");
+        o.year = parseYear(when.substr(0, slash), where, text);
+        o.yearEnd = parseYear(when.substr(slash + 1), where, text);
+        if (o.year == o.yearEnd) throw ValidationError(where + ": output '" + text + "': the ratio's two years must differ");
+    } else if (o.measure == SimulationOutput::Measure::Share && when.find('-') != std::string::npos) {
+        const auto dash = when.find('-');
         o.year = parseYear(when.substr(0, dash), where, text);
         o.yearEnd = parseYear(when.substr(dash + 1), where, text);
         if (o.yearEnd <= o.year) throw ValidationError(where + ": output '" + text + "': the window's last year must follow its first");
@@ -308,8 +322,21 @@ double measureOutput(const std::string& simulationPath, const SimulationOutput& 
         for (double c : counts) sq += (c - m) * (c - m);
         return m > 0 ? std::sqrt(sq / static_cast<double>(counts.size())) / m : 0.0;
     }
-    const YearRecord& r = record(output.year);
     const auto s = static_cast<std::size_t>(species);
+    if (output.measure == M::CountRatio) {
+        const double below = record(output.yearEnd).count[s];
+        return record(output.year).count[s] / std::max(1.0, below);
+    }
+    if (output.measure == M::Share && output.yearEnd > output.year) {
+        std::vector<double> shares;
+        for (int y = output.year; y <= output.yearEnd; ++y) {
+            const YearRecord& w = record(y);
+            const double n = total(w);
+            shares.push_back(n > 0 ? w.count[s] / n : 0.0);
+        }
+        return mean(shares);
+    }
+    const YearRecord& r = record(output.year);
     switch (output.measure) {
         case M::Share: {
             const double n = total(r);
@@ -328,6 +355,7 @@ double measureOutput(const std::string& simulationPath, const SimulationOutput& 
             return std::accumulate(r.crownAreaM2.begin(), r.crownAreaM2.end(), 0.0) / area;
         }
         case M::CountCv:
+        case M::CountRatio:
         case M::HeightQuantile:
         case M::PairCorrelation: break;
     }

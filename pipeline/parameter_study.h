@@ -68,7 +68,7 @@ std::vector<double> pairCorrelation(const std::vector<double>& x, const std::vec
 
 /// An output measured from a member's simulation file (its /timeseries, or a snapshot).
 struct SimulationOutput {
-    enum class Measure { Share, Density, MeanHeight, Cover, CountCv, HeightQuantile, PairCorrelation };
+    enum class Measure { Share, Density, MeanHeight, Cover, CountCv, HeightQuantile, PairCorrelation, CountRatio };
     std::string text;      ///< as written: "share:Toyon@30", "density@30", "cv@20-30"
     Measure measure = Measure::Density;
     std::string species;   ///< share (required), mean_height, cover and height_qNN (optional: all undergrowth)
@@ -76,12 +76,15 @@ struct SimulationOutput {
     /// pcf[:SPECIES]@YEAR (eco calibrate's stem-map targets): the reference g(r); the
     /// output is the rms difference of the snapshot's g(r) from it.
     std::shared_ptr<const PairCorrelationReference> pcf;
-    int year = 0;          ///< the year; for cv the first year of the window
-    int yearEnd = 0;       ///< cv: the last year of the window
+    int year = 0;          ///< the year; for cv and a share's window the first year; for ratio the numerator's year
+    int yearEnd = 0;       ///< cv, share: the last year of the window (share: = year for one year); ratio: the denominator's year
     std::string units() const;
 };
 
-/// Parses "MEASURE[:SPECIES]@YEAR" or "cv@FIRST-LAST". height_qNN[:SPECIES]@YEAR (NN in 1 ..
+/// Parses "MEASURE[:SPECIES]@YEAR" or "cv@FIRST-LAST"; share:SPECIES@FIRST-LAST is the mean of
+/// the species' yearly shares over the window (eco validate's succession "final share"), and
+/// ratio:SPECIES@YEAR/OTHER the species' plant count at YEAR over its count at OTHER (a count
+/// of 0 at OTHER counts as 1). height_qNN[:SPECIES]@YEAR (NN in 1 ..
 /// 99) is the NN % quantile of the undergrowth plants' heights in the snapshot of that year
 /// (the simulation must keep one: its snapshot_years). ValidationError naming `where`.
 SimulationOutput parseSimulationOutput(const std::string& text, const std::string& where);

@@ -229,3 +229,54 @@ TEST_CASE("eco calibrate: crs rounds give the same history with 1 or 2 members a
     WARN("MPI part skipped: this build has no MPI (install libopenmpi-dev and configure again)");
 #endif
 }
+
+TEST_CASE("eco calibrate: [calibrate.scene] fits on eco validate's forest scene, end to end, and refuses a bad scene naming it", "[calibrate][cli]") {
+    namespace fs = std::filesystem;
+    test::TempDir dir("calibrate_scene_cli");
+    const auto write = [&](const std::string& name, const std::string& scene, const std::string& model) {
+        const std::string spec = dir.file(name);
+        std::ofstream(spec) << "[calibrate]\nout_dir = \"" << dir.file("out-" + name) << "\"\nmax_evaluations = 3\nuncertainty = false\n"
+                            << "[calibrate.scene]\nfile = \"" << scene << "\"\nplot_size_m = 12\nyears = 4\nseeds = [11, 12]\n" << model
+                            << "[calibrate.parameters]\n\"biome.species.Toyon.alpha\" = { low = 0.3, high = 0.9, start = 0.6 }\n"
+                            << "[[target]]\noutput = \"share:Toyon@4\"\nvalue = 0.2\nsd = 0.1\n"
+                            << "[[target]]\noutput = \"ratio:Toyon@4/2\"\nmin = 1.0\nsd = 0.5\n";
+        return spec;
+    };
+    const std::string scene = test::sourcePath("configs/validation/scene_conifer_forest.toml");
+    const std::string spec = write("c.toml", scene, "model = { roulette_age_exponent = 1.1 }\n");
+    const auto r = test::runEco("calibrate " + spec);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    for (const char* f : {"calibration.md", "history.csv", "best-biome.toml"}) CHECK(fs::exists(dir.file(std::string("out-c.toml/") + f)));
+    // Each replicate simulates the scene with its own seed: the two differ.
+    const std::string a = dir.file("out-c.toml/ensemble/members/e0001-r01/simulation.h5"), b = dir.file("out-c.toml/ensemble/members/e0001-r02/simulation.h5");
+    REQUIRE(fs::exists(a));
+    REQUIRE(fs::exists(b));
+    CHECK(readTextFile(a) != readTextFile(b));
+    std::ifstream in(dir.file("out-c.toml/history.csv"));
+    std::string header, first;
+    std::getline(in, header);
+    std::getline(in, first);
+    CHECK(header == "evaluation,purpose,biome.species.Toyon.alpha,share:Toyon@4,ratio:Toyon@4/2,chi2");
+    CHECK(first.rfind("1,search,0.6,", 0) == 0);
+    CHECK(readTextFile(dir.file("out-c.toml/calibration.md")).find("scene seeds 11, 12") != std::string::npos);
+    // The best biome holds the fitted value; a rerun replays the finished simulations.
+    CHECK(readTextFile(dir.file("out-c.toml/best-biome.toml")).find("alpha") != std::string::npos);
+    const std::string history = readTextFile(dir.file("out-c.toml/history.csv"));
+    const auto again = test::runEco("calibrate " + spec);
+    CHECK(again.exitCode == 0);
+    CHECK(again.output.find("scene member") == std::string::npos);  // nothing simulated again
+    CHECK(readTextFile(dir.file("out-c.toml/history.csv")) == history);
+    // A scene file with an unknown key, or a [model] override the simulator does not know: refused
+    // before anything is simulated, naming the file and the key.
+    const std::string badScene = dir.file("scene_bad.toml");
+    std::ofstream(badScene) << readTextFile(scene) << "\n[extra]\nkey = 1\n";
+    const auto s = test::runEco("calibrate " + write("s.toml", badScene, ""));
+    CHECK(s.exitCode != 0);
+    CHECK(s.output.find("scene_bad.toml") != std::string::npos);
+    CHECK(s.output.find("extra") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir.file("out-s.toml/ensemble")));
+    const auto m = test::runEco("calibrate " + write("m.toml", scene, "model = { no_such_constant = 3 }\n"));
+    CHECK(m.exitCode != 0);
+    CHECK(m.output.find("no_such_constant") != std::string::npos);
+}

@@ -10,6 +10,7 @@
 #include <memory>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "biome.h"
 #include "calibrate.h"
@@ -30,6 +31,77 @@ TEST_CASE("calibrate: chi2 of simulated values against targets with their sd", "
     targets[1].sd = 2.0;
     CHECK(chiSquare(targets, {1.0, -2.0}) == 0);
     CHECK(chiSquare(targets, {2.0, 0.0}) == Approx(4.0 + 1.0));
+}
+
+TEST_CASE("calibrate: a one-sided target has no residual on its good side", "[calibrate]") {
+    std::vector<CalibrationTarget> targets(3);
+    targets[0].value = 0.8;  // at least 0.8
+    targets[0].sd = 0.1;
+    targets[0].side = CalibrationTarget::Side::AtLeast;
+    targets[1].value = 2.0;  // at most 2
+    targets[1].sd = 0.5;
+    targets[1].side = CalibrationTarget::Side::AtMost;
+    targets[2].value = 1.0;  // two-sided
+    targets[2].sd = 1.0;
+    CHECK(targets[0].residual(0.9) == 0);
+    CHECK(targets[0].residual(0.6) == Approx(-2.0));
+    CHECK(targets[1].residual(1.0) == 0);
+    CHECK(targets[1].residual(3.0) == Approx(2.0));
+    CHECK(targets[2].residual(0.0) == Approx(-1.0));
+    CHECK(chiSquare(targets, {0.9, 1.0, 1.0}) == 0);
+    CHECK(chiSquare(targets, {0.6, 3.0, 3.0}) == Approx(4.0 + 4.0 + 4.0));
+    CHECK(chiSquare(targets, {0.8, 2.0, 1.0}) == 0);
+}
+
+TEST_CASE("calibrate: a [calibrate.scene] specification, and its bad keys refused with the file, key and value", "[calibrate]") {
+    test::TempDir dir("calibrate_scene_spec");
+    const std::string scene = dir.file("scene.toml");
+    std::ofstream(scene) << "[scene]\n";  // loadCalibrationSpec checks only that it exists (eco calibrate parses it)
+    const auto write = [&](const std::string& calibrate, const std::string& sceneKeys, const std::string& rest) {
+        const std::string path = dir.file("c.toml");
+        std::ofstream(path) << "[calibrate]\nout_dir = \"" << dir.file("out") << "\"\n" << calibrate << "\n[calibrate.scene]\n" << sceneKeys << "\n" << rest;
+        return path;
+    };
+    const std::string keys = "file = \"scene.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [101, 202, 303]\nmodel = { roulette_age_exponent = 1.1225 }\n";
+    const std::string params = "[calibrate.parameters]\n\"biome.species.Toyon.alpha\" = [0.2, 0.7]\n\"model.seeding_probability\" = [0.001, 0.006]\n";
+    const std::string target = "[[target]]\noutput = \"ratio:Toyon@5/2\"\nmin = 0.8\nsd = 0.1\n[[target]]\noutput = \"share:Toyon@3-5\"\nmax = 0.4\nsd = 0.1\n";
+    const auto spec = loadCalibrationSpec(write("", keys, params + target));
+    CHECK(spec.scene.file == scene);
+    CHECK(spec.scene.plotSizeM == 20);
+    CHECK(spec.scene.years == 5);
+    CHECK(spec.scene.seeds == std::vector<std::uint64_t>{101, 202, 303});
+    CHECK(spec.replicates == 3);  // one per scene seed
+    CHECK(spec.scene.model == std::vector<std::string>{"roulette_age_exponent = 1.1225"});
+    CHECK(spec.targets[0].side == CalibrationTarget::Side::AtLeast);
+    CHECK(spec.targets[0].value == 0.8);
+    CHECK(spec.targets[1].side == CalibrationTarget::Side::AtMost);
+    // The parameters in key order, or as written in the file.
+    const std::string reversed = "[calibrate.parameters]\n\"model.seeding_probability\" = [0.001, 0.006]\n\"biome.species.Toyon.alpha\" = [0.2, 0.7]\n";
+    CHECK(loadCalibrationSpec(write("", keys, reversed + target)).parameters[0].key == "biome.species.Toyon.alpha");
+    const auto written = loadCalibrationSpec(write("parameters_as_written = true", keys, reversed + target));
+    REQUIRE(written.parameters.size() == 2);
+    CHECK(written.parameters[0].key == "model.seeding_probability");
+    CHECK(written.parameters[1].key == "biome.species.Toyon.alpha");
+    CHECK(written.start[0] == Approx(0.0035));
+    CHECK(written.start[1] == Approx(0.45));
+    const std::vector<std::tuple<std::string, std::string, std::string, std::string>> bad = {
+        {"", "file = \"nowhere.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [1]", params + target, "nowhere.toml"},
+        {"", "plot_size_m = 20\nyears = 5\nseeds = [1]", params + target, "file"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 2\nyears = 5\nseeds = [1]", params + target, "plot_size_m"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 20\nyears = 0\nseeds = [1]", params + target, "years"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 20\nyears = 5\nseeds = []", params + target, "seeds"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [-3]", params + target, "-3"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [1]\nbiome = \"nobiome.toml\"", params + target, "nobiome.toml"},
+        {"", "file = \"scene.toml\"\nplot_size_m = 20\nyears = 5\nseeds = [1]\nplot = 3", params + target, "plot"},
+        {"replicates = 2", keys, params + target, "replicates"},
+        {"", keys, "[calibrate.base.run]\nout_dir = \"x\"\n" + params + target, "base"},
+        {"", keys, "[calibrate.parameters]\n\"terrain.seed\" = [1, 9]\n" + target, "terrain.seed"},
+        {"", keys, params + "[[target]]\noutput = \"density@3\"\nvalue = 1\nmin = 0.5\nsd = 0.1\n", "min"},
+    };
+    for (const auto& [calibrate, sceneKeys, rest, expect] : bad) {
+        INFO(calibrate << "\n" << sceneKeys << "\n" << rest);
+        CHECK_THROWS_WITH(loadCalibrationSpec(write(calibrate, sceneKeys, rest)), Catch::Contains("c.toml") && Catch::Contains(expect));
+    }
 }
 
 TEST_CASE("calibrate: the linearised sd of the parameters from the Jacobian of the residuals", "[calibrate]") {

@@ -165,6 +165,21 @@ TEST_CASE("Sensitivity outputs: parsed from their text, measured from a simulati
     CHECK(measureOutput(path, parseSimulationOutput("cover:Toyon@2", "t")) == Approx(50.0 / 200));
     // Totals 40, 50, 60, 70 over years 0-3: mean 55, population sd sqrt(125).
     CHECK(measureOutput(path, parseSimulationOutput("cv@0-3", "t")) == Approx(std::sqrt(125.0) / 55));
+    // A share over a window: the mean of the yearly shares (10/40, 20/50, 30/60, 40/70 for Toyon),
+    // not the share of the summed counts (100/220).
+    CHECK(measureOutput(path, parseSimulationOutput("share:Toyon@1-3", "t")) == Approx((20.0 / 50 + 30.0 / 60 + 40.0 / 70) / 3));
+    CHECK(measureOutput(path, parseSimulationOutput("share:Toyon@0-1", "t")) == Approx((10.0 / 40 + 20.0 / 50) / 2));
+    // A species' count at one year over its count at another (either order).
+    CHECK(measureOutput(path, parseSimulationOutput("ratio:Toyon@3/1", "t")) == Approx(2.0));
+    CHECK(measureOutput(path, parseSimulationOutput("ratio:Toyon@0/3", "t")) == Approx(0.25));
+    CHECK(measureOutput(path, parseSimulationOutput("ratio:Western Swordfern@3/0", "t")) == Approx(1.0));
+    // No plants at the denominator's year: the count over 1 (here: Redwood is absent throughout).
+    CHECK(measureOutput(path, parseSimulationOutput("ratio:Redwood@3/0", "t")) == 0.0);
+    CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("ratio:Toyon@3/9", "t")), Catch::Contains("year 9"));
+    CHECK_THROWS_WITH(parseSimulationOutput("ratio@3/1", "s.toml"), Catch::Contains("s.toml") && Catch::Contains("needs a species"));
+    CHECK_THROWS_WITH(parseSimulationOutput("ratio:Toyon@3", "s.toml"), Catch::Contains("two years"));
+    CHECK_THROWS_WITH(parseSimulationOutput("ratio:Toyon@3/3", "s.toml"), Catch::Contains("must differ"));
+    CHECK_THROWS_WITH(parseSimulationOutput("share:Toyon@3-1", "s.toml"), Catch::Contains("must follow"));
     CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("density@9", "t")), Catch::Contains("year 9") && Catch::Contains("0 .. 3"));
     CHECK_THROWS_WITH(measureOutput(path, parseSimulationOutput("share:Nonesuch@1", "t")), Catch::Contains("no species 'Nonesuch'"));
 }

@@ -9,14 +9,13 @@ install_missing setup \
   cmake g++ make pkg-config \
   libeigen3-dev libhdf5-dev libopenimageio-dev openimageio-tools libflann-dev liblz4-dev \
   libglm-dev catch2 libtomlplusplus-dev libcli11-dev fonts-dejavu-core hdf5-tools libgdal-dev \
-  libopenmpi-dev openmpi-bin libnlopt-dev python3-nlopt python3-numpy python3-h5py \
+  libopenmpi-dev openmpi-bin libnlopt-dev python3-numpy python3-h5py \
   chromium groff-base r-base-core r-cran-hdf5r r-cran-spatstat.geom
 # chromium: the tests of the HTML reports load them in headless Chromium (ctest -L browser;
 # docs/report.md). groff-base: the man page test renders eco.1 with groff -ww (docs/install.md).
 # R with hdf5r and spatstat.geom: the test of the R recipe (R/ecotoolkit.R: outputs to a
 # spatstat ppp; ctest -L r; docs/r.md), about 30 s to install. None is needed to build or
-# run eco. python3-nlopt: tools/fit_succession_scene.py, the Fig. 15 fit on eco validate's
-# succession scene (docs/calibration.md); not needed to build or run eco either.
+# run eco.
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"

@@ -1,6 +1,7 @@
 #include "scenario_context.h"
 
 #include "plots.h"
+#include "calibration_scene.h"
 
 #include <algorithm>
 
@@ -11,10 +12,6 @@
 #include "sim_render.h"
 
 namespace eco::validate {
-
-namespace {
-constexpr std::uint64_t kCanopySpeciesStreamTag = 0x43414E5350454331ull;  // canopy species of the scene
-}  // namespace
 
 CheckResult makeCheck(const ScenarioConfig& sc, const std::string& id, const std::string& title, double value,
                       const std::string& note) {
@@ -98,36 +95,7 @@ void ScenarioContext::planForestRuns(const std::vector<const ScenarioConfig*>& s
 }
 
 sim::SimInputs ScenarioContext::forestInputs(const ForestSceneConfig& scene, const ForestSceneConfig::Size& size) const {
-    sim::DemoSceneParams dp;
-    dp.cells = std::max(8, static_cast<int>(std::ceil(size.plotSizeM / scene.terrainCellSizeM)));
-    dp.cellSizeM = scene.terrainCellSizeM;
-    dp.seed = seed(size.seed);
-    dp.emptyFraction = scene.emptyFraction;
-    dp.denseFraction = scene.denseFraction;
-    dp.uniformAbiotics = scene.uniformAbiotics;
-    sim::SimInputs in = sim::makeDemoScene(dp, biome_);
-    // The demo scene picks canopy species by vigour; the validation scene reassigns them
-    // by the configured weights among the listed species tall enough for the tree.
-    std::vector<int> ids;
-    for (const auto& name : scene.canopySpecies) ids.push_back(biome_.speciesIndex(name));
-    for (std::size_t i = 0; i < in.canopy.size(); ++i) {
-        Plant& t = in.canopy[i];
-        std::vector<double> w(ids.size(), 0.0);
-        for (std::size_t k = 0; k < ids.size(); ++k)
-            if (biome_.species[static_cast<std::size_t>(ids[k])].maxHeightM >= t.heightM) w[k] = scene.canopyWeights[k];
-        if (std::accumulate(w.begin(), w.end(), 0.0) <= 0) {  // taller than all: the tallest listed species
-            std::size_t tallest = 0;
-            for (std::size_t k = 1; k < ids.size(); ++k)
-                if (biome_.species[static_cast<std::size_t>(ids[k])].maxHeightM >
-                    biome_.species[static_cast<std::size_t>(ids[tallest])].maxHeightM)
-                    tallest = k;
-            w[tallest] = 1.0;
-        }
-        RandomStream rs(seed(size.seed), mixStream(i, kCanopySpeciesStreamTag));
-        const int k = sim::rouletteSelect(w.data(), static_cast<int>(w.size()), rs.uniform());
-        t.speciesId = ids[static_cast<std::size_t>(k)];
-    }
-    return in;
+    return forestSceneInputs(scene, size.plotSizeM, seed(size.seed), biome_);
 }
 
 const ForestRun& ScenarioContext::forest(const std::string& sceneFile, sim::CompetitionMode mode, double dominatedSurvival) {
