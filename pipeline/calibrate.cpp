@@ -202,7 +202,8 @@ CalibrationSpec loadCalibrationSpec(const std::string& path, const std::string& 
                     line << k.str() << " = " << shortestNumber(f->get());
                 } else {
                     toml::table one;
-                    v.visit([&](const auto& x) { one.insert(k, x); });
+                    const toml::key& key = k;  // a lambda cannot capture a structured binding (C++17, clang)
+                    v.visit([&](const auto& x) { one.insert(key, x); });
                     line << one;
                 }
                 spec.scene.model.push_back(line.str());
