@@ -143,6 +143,30 @@ double ecomodDeviationSuitability(double x, double opt, double tol, double harm)
     return 1.0 - std::min(1.0, d * harm);
 }
 
+std::vector<double> ecomodLivesPowers(double survival) {
+    std::vector<double> t;
+    if (!(survival > 0 && survival < 1)) return t;
+    const double logSurvival = std::log(survival);
+    for (int j = 1; j <= 64; ++j) {
+        const double pw = std::exp(j * logSurvival);
+        if (pw < 1e-3) break;
+        t.push_back(pw);
+    }
+    return t;
+}
+
+double ecomodLivesFloor(double u, double logSurvival, const std::vector<double>& powers) {
+    // k is the number of j >= 1 with u <= survival^j (log u <= j log survival): counted on the
+    // table where u is not within a relative 1e-9 of a power; near one, or past the table,
+    // the formula decides. Either way the formula's value (tests: ecomod_tests.cpp).
+    const std::size_t j = static_cast<std::size_t>(
+        std::partition_point(powers.begin(), powers.end(), [u](double pw) { return u <= pw; }) - powers.begin());
+    if (j < powers.size() && std::fabs(u - powers[j]) > 1e-9 * powers[j] &&
+        (j == 0 || std::fabs(u - powers[j - 1]) > 1e-9 * powers[j - 1]))
+        return static_cast<double>(j);
+    return std::floor(std::log(u) / logSurvival);
+}
+
 double ecomodSlopeSuitability(double slopeDeg, double harm) {
     const double s = harm * (1.0 - std::cos(slopeDeg * kPi / 180.0));
     return std::max(0.0, 1.0 - s * s);
@@ -156,6 +180,7 @@ struct EcoModel::Impl {
     Biome biome;
     std::vector<EcoModSpeciesParams> sp;
     std::vector<double> logSurvival;  // per species: log(dominated_survival) (drawLives)
+    std::vector<std::vector<double>> livesTable;  // per species: survival^1, survival^2, ... down to 1e-3 (drawLives)
     SimArea area;
     Grid<float> geom;              // abiotics cells covering the area (values unused)
     std::vector<float> suit;       // [species][cell of geom]: v
@@ -433,6 +458,34 @@ struct EcoModel::Impl {
     double crown(int s, double h) const {
         return h > 0 ? biome.species[static_cast<std::size_t>(s)].allometry.crownRadiusM(h) : 0.0;
     }
+    // Per species, height and crown at the whole growth ages 0, 1, ..., up to the first at or
+    // past t_a (a tree born in the run has a whole growth age unless dominated_growth is
+    // fractional): the polyline's and the allometry's values, computed once, so that a
+    // growing tree's year needs no exp or log. growthShape gives the same numbers as the two
+    // functions for any growth age.
+    struct Shape {
+        double h, r;
+    };
+    std::vector<std::vector<Shape>> shapeOf;
+    void buildShapes() {
+        shapeOf.assign(sp.size(), {});
+        for (std::size_t s = 0; s < sp.size(); ++s) {
+            const double last = std::min(std::ceil(sp[s].fullGrownAgeYears), 100000.0);
+            for (double g = 0; g <= last; g += 1.0) {
+                const double h = ecomodPolylineHeightM(sp[s], g);
+                shapeOf[s].push_back({h, crown(static_cast<int>(s), h)});
+            }
+        }
+    }
+    Shape growthShape(int s, double g) const {
+        const std::vector<Shape>& t = shapeOf[static_cast<std::size_t>(s)];
+        if (g >= 0 && g < static_cast<double>(t.size())) {
+            const std::size_t i = static_cast<std::size_t>(g);
+            if (static_cast<double>(i) == g) return t[i];
+        }
+        const double h = ecomodPolylineHeightM(sp[static_cast<std::size_t>(s)], g);
+        return {h, crown(s, h)};
+    }
     double drawDeathAge(int s, std::uint64_t plantId, double minAge) const {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
         const double lo = std::max(p.fullGrownAgeYears, minAge), hi = std::max(p.maxAgeYears, lo);
@@ -444,7 +497,7 @@ struct EcoModel::Impl {
         if (!(survival < 1.0)) return kInfiniteLives;
         if (!(survival > 0.0)) return 0;
         const double u = 1.0 - unitDraw(seed, kStreamLives, plantId);  // (0, 1]
-        const double k = std::floor(std::log(u) / logSurvival[static_cast<std::size_t>(s)]);
+        const double k = ecomodLivesFloor(u, logSurvival[static_cast<std::size_t>(s)], livesTable[static_cast<std::size_t>(s)]);
         return k >= static_cast<double>(kInfiniteLives) ? kInfiniteLives : static_cast<std::int32_t>(k);
     }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
@@ -1054,8 +1107,9 @@ void EcoModel::Impl::growStore() {
         // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
         // both): the allometry's exp and log are the costliest part of a growing tree's year.
         if (g != before && before < sps.fullGrownAgeYears) {
-            h = ecomodPolylineHeightM(sps, g);
-            r = crown(s, h);
+            const Shape sh = growthShape(s, g);
+            h = sh.h;
+            r = sh.r;
             if (h < height[p] || r < radius[p]) anyShrunk = true;
             moved = h != height[p] || r != radius[p];
         }
@@ -1163,8 +1217,9 @@ void EcoModel::Impl::sleepersYear() {
                 const double g = sl.growthAge + 1.0;
                 double h = 0.0, r = 0.0;
                 if (sl.growthAge < sps.fullGrownAgeYears) {
-                    h = ecomodPolylineHeightM(sps, g);
-                    r = crown(sl.species, h);
+                    const Shape sh = growthShape(sl.species, g);
+                    h = sh.h;
+                    r = sh.r;
                 }
                 woken.push_back(
                     Woken{sl.id, sl.species, ageYears, sl.x, sl.y, h, r, g, sl.deathAge, sl.v, kNoWitness, livesAfter(sl, year)});
@@ -1371,9 +1426,13 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
     if (m.biome.species.empty()) throw ValidationError("simulation: the biome has no species");
     const std::string source = m.biome.sourcePath.empty() ? std::string("biome '") + m.biome.name + "'" : m.biome.sourcePath;
     for (const Species& s : m.biome.species) m.sp.push_back(resolveEcoModSpecies(s, source));
-    for (const auto& p : m.sp) m.logSurvival.push_back(std::log(p.dominatedSurvival));
+    for (const auto& p : m.sp) {
+        m.logSurvival.push_back(std::log(p.dominatedSurvival));
+        m.livesTable.push_back(ecomodLivesPowers(p.dominatedSurvival));
+    }
     m.hRef = 0;
     for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
+    m.buildShapes();
 
     Abiotics& abio = in.abiotics;
     const Grid<float>& g = abio.slopeDeg;
