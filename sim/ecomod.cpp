@@ -143,30 +143,6 @@ double ecomodDeviationSuitability(double x, double opt, double tol, double harm)
     return 1.0 - std::min(1.0, d * harm);
 }
 
-std::vector<double> ecomodLivesPowers(double survival) {
-    std::vector<double> t;
-    if (!(survival > 0 && survival < 1)) return t;
-    const double logSurvival = std::log(survival);
-    for (int j = 1; j <= 64; ++j) {
-        const double pw = std::exp(j * logSurvival);
-        if (pw < 1e-3) break;
-        t.push_back(pw);
-    }
-    return t;
-}
-
-double ecomodLivesFloor(double u, double logSurvival, const std::vector<double>& powers) {
-    // k is the number of j >= 1 with u <= survival^j (log u <= j log survival): counted on the
-    // table where u is not within a relative 1e-9 of a power; near one, or past the table,
-    // the formula decides. Either way the formula's value (tests: ecomod_tests.cpp).
-    const std::size_t j = static_cast<std::size_t>(
-        std::partition_point(powers.begin(), powers.end(), [u](double pw) { return u <= pw; }) - powers.begin());
-    if (j < powers.size() && std::fabs(u - powers[j]) > 1e-9 * powers[j] &&
-        (j == 0 || std::fabs(u - powers[j - 1]) > 1e-9 * powers[j - 1]))
-        return static_cast<double>(j);
-    return std::floor(std::log(u) / logSurvival);
-}
-
 double ecomodSlopeSuitability(double slopeDeg, double harm) {
     const double s = harm * (1.0 - std::cos(slopeDeg * kPi / 180.0));
     return std::max(0.0, 1.0 - s * s);
@@ -180,7 +156,6 @@ struct EcoModel::Impl {
     Biome biome;
     std::vector<EcoModSpeciesParams> sp;
     std::vector<double> logSurvival;  // per species: log(dominated_survival) (drawLives)
-    std::vector<std::vector<double>> livesTable;  // per species: survival^1, survival^2, ... down to 1e-3 (drawLives)
     SimArea area;
     Grid<float> geom;              // abiotics cells covering the area (values unused)
     std::vector<float> suit;       // [species][cell of geom]: v
@@ -497,7 +472,7 @@ struct EcoModel::Impl {
         if (!(survival < 1.0)) return kInfiniteLives;
         if (!(survival > 0.0)) return 0;
         const double u = 1.0 - unitDraw(seed, kStreamLives, plantId);  // (0, 1]
-        const double k = ecomodLivesFloor(u, logSurvival[static_cast<std::size_t>(s)], livesTable[static_cast<std::size_t>(s)]);
+        const double k = std::floor(std::log(u) / logSurvival[static_cast<std::size_t>(s)]);
         return k >= static_cast<double>(kInfiniteLives) ? kInfiniteLives : static_cast<std::int32_t>(k);
     }
     void push(std::uint64_t pid, int s, double px, double py, double h, double gAge, int ageYears, double dAge) {
@@ -1426,10 +1401,7 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
     if (m.biome.species.empty()) throw ValidationError("simulation: the biome has no species");
     const std::string source = m.biome.sourcePath.empty() ? std::string("biome '") + m.biome.name + "'" : m.biome.sourcePath;
     for (const Species& s : m.biome.species) m.sp.push_back(resolveEcoModSpecies(s, source));
-    for (const auto& p : m.sp) {
-        m.logSurvival.push_back(std::log(p.dominatedSurvival));
-        m.livesTable.push_back(ecomodLivesPowers(p.dominatedSurvival));
-    }
+    for (const auto& p : m.sp) m.logSurvival.push_back(std::log(p.dominatedSurvival));
     m.hRef = 0;
     for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
     m.buildShapes();

@@ -68,13 +68,6 @@ double ecomodPolylineAgeYears(const EcoModSpeciesParams& p, double heightM);
 /// Eqs. 4-7: 1 within the tolerated deviation `tol` of the optimum `opt`, else
 /// 1 - min(1, |x - opt| harm) (the paper prints max, which would make it <= 0 everywhere).
 double ecomodDeviationSuitability(double x, double opt, double tol, double harm);
-/// The powers survival^1, survival^2, ... while at least 1e-3 (at most 64; none unless
-/// 0 < survival < 1): the table of ecomodLivesFloor.
-std::vector<double> ecomodLivesPowers(double survival);
-/// floor(log(u) / logSurvival) for u in (0, 1] (a dominated tree's lives, geometric), with
-/// `powers` = ecomodLivesPowers(survival): the same value, found on the table without a
-/// logarithm when u is not within a relative 1e-9 of one of the powers.
-double ecomodLivesFloor(double u, double logSurvival, const std::vector<double>& powers);
 /// Eq. 3 with the paper's slope 1 - n_y = 1 - cos(slope): 1 - (harm (1 - cos slope))^2, >= 0.
 double ecomodSlopeSuitability(double slopeDeg, double harm);
 

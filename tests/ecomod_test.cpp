@@ -1,13 +1,11 @@
 // The EcoMod model (sim/ecomod.h): the height polyline, the suitabilities, domination between
 // two constructed trees and among hundreds (against a brute-force search), under-dispersion
 // seeding statistics, determinism across thread counts and checkpoint / resume, the step's
-// caches and set-aside against plain yearly runs, the lives' table against its formula, and
-// the refusal of bad parameters.
+// caches and set-aside against plain yearly runs, and the refusal of bad parameters.
 #include <catch2/catch.hpp>
 #include <omp.h>
 
 #include <cmath>
-#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -125,42 +123,6 @@ TEST_CASE("ecomod: suitabilities of Eqs. 3-7", "[sim][ecomod]") {
     CHECK(ecomodSlopeSuitability(0, 2) == 1.0);
     CHECK(ecomodSlopeSuitability(60, 1) == Approx(0.75));  // 1 - (1 - cos 60)^2
     CHECK(ecomodSlopeSuitability(90, 2) == 0.0);
-}
-
-TEST_CASE("ecomod: the lives' table gives floor(log u / log survival) exactly, also at the powers' edges", "[sim][ecomod]") {
-    for (const double survival : {0.05, 0.5, 0.8, 0.889, 0.95, 0.99, 0.999}) {
-        const std::vector<double> powers = ecomodLivesPowers(survival);
-        REQUIRE(!powers.empty());
-        const double logS = std::log(survival);
-        auto check = [&](double u) {
-            if (!(u > 0 && u <= 1)) return;
-            const double want = std::floor(std::log(u) / logS);
-            const double got = ecomodLivesFloor(u, logS, powers);
-            if (got != want) FAIL("survival " << survival << " u " << u << ": " << got << " instead of " << want);
-        };
-        std::uint64_t z = 12345;
-        for (int i = 0; i < 200000; ++i) {  // uniform u, as drawLives draws it
-            z = z * 6364136223846793005ull + 1442695040888963407ull;
-            check(1.0 - static_cast<double>(z >> 11) * 0x1.0p-53);
-        }
-        for (const double pw : powers) {  // at every power of the table and 8 doubles either side
-            double below = pw, above = pw;
-            for (int k = 0; k < 8; ++k, below = std::nextafter(below, 0.0), above = std::nextafter(above, 1.0)) {
-                check(below);
-                check(above);
-            }
-        }
-        for (int j = 1; j < 80; ++j) {
-            const double u = std::exp(j * logS);
-            check(u);
-            check(std::nextafter(u, 0.0));
-            check(std::nextafter(u, 1.0));
-        }
-        check(1.0);
-        check(1e-300);
-    }
-    CHECK(ecomodLivesPowers(1.0).empty());
-    CHECK(ecomodLivesPowers(0.0).empty());
 }
 
 TEST_CASE("ecomod: a lone tree follows its polyline and dies between full-grown and maximum age", "[sim][ecomod]") {
