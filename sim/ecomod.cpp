@@ -433,6 +433,34 @@ struct EcoModel::Impl {
     double crown(int s, double h) const {
         return h > 0 ? biome.species[static_cast<std::size_t>(s)].allometry.crownRadiusM(h) : 0.0;
     }
+    // Per species, height and crown at the whole growth ages 0, 1, ..., up to the first at or
+    // past t_a (a tree born in the run has a whole growth age unless dominated_growth is
+    // fractional): the polyline's and the allometry's values, computed once, so that a
+    // growing tree's year needs no exp or log. growthShape gives the same numbers as the two
+    // functions for any growth age.
+    struct Shape {
+        double h, r;
+    };
+    std::vector<std::vector<Shape>> shapeOf;
+    void buildShapes() {
+        shapeOf.assign(sp.size(), {});
+        for (std::size_t s = 0; s < sp.size(); ++s) {
+            const double last = std::min(std::ceil(sp[s].fullGrownAgeYears), 100000.0);
+            for (double g = 0; g <= last; g += 1.0) {
+                const double h = ecomodPolylineHeightM(sp[s], g);
+                shapeOf[s].push_back({h, crown(static_cast<int>(s), h)});
+            }
+        }
+    }
+    Shape growthShape(int s, double g) const {
+        const std::vector<Shape>& t = shapeOf[static_cast<std::size_t>(s)];
+        if (g >= 0 && g < static_cast<double>(t.size())) {
+            const std::size_t i = static_cast<std::size_t>(g);
+            if (static_cast<double>(i) == g) return t[i];
+        }
+        const double h = ecomodPolylineHeightM(sp[static_cast<std::size_t>(s)], g);
+        return {h, crown(s, h)};
+    }
     double drawDeathAge(int s, std::uint64_t plantId, double minAge) const {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
         const double lo = std::max(p.fullGrownAgeYears, minAge), hi = std::max(p.maxAgeYears, lo);
@@ -1054,8 +1082,9 @@ void EcoModel::Impl::growStore() {
         // Height and crown only where the polyline moved (a full-grown or obstructed tree keeps
         // both): the allometry's exp and log are the costliest part of a growing tree's year.
         if (g != before && before < sps.fullGrownAgeYears) {
-            h = ecomodPolylineHeightM(sps, g);
-            r = crown(s, h);
+            const Shape sh = growthShape(s, g);
+            h = sh.h;
+            r = sh.r;
             if (h < height[p] || r < radius[p]) anyShrunk = true;
             moved = h != height[p] || r != radius[p];
         }
@@ -1163,8 +1192,9 @@ void EcoModel::Impl::sleepersYear() {
                 const double g = sl.growthAge + 1.0;
                 double h = 0.0, r = 0.0;
                 if (sl.growthAge < sps.fullGrownAgeYears) {
-                    h = ecomodPolylineHeightM(sps, g);
-                    r = crown(sl.species, h);
+                    const Shape sh = growthShape(sl.species, g);
+                    h = sh.h;
+                    r = sh.r;
                 }
                 woken.push_back(
                     Woken{sl.id, sl.species, ageYears, sl.x, sl.y, h, r, g, sl.deathAge, sl.v, kNoWitness, livesAfter(sl, year)});
@@ -1374,6 +1404,7 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
     for (const auto& p : m.sp) m.logSurvival.push_back(std::log(p.dominatedSurvival));
     m.hRef = 0;
     for (const auto& p : m.sp) m.hRef = std::max(m.hRef, p.fullHeightM);
+    m.buildShapes();
 
     Abiotics& abio = in.abiotics;
     const Grid<float>& g = abio.slopeDeg;
