@@ -10,7 +10,8 @@
 // placement per iteration. Wall time and process CPU time are both recorded: on a shared
 // machine CPU time / threads is what the run would take on idle cores.
 //
-// Usage: bench_canopy [OUT (default bench/results/canopy.txt)] [SIZES, e.g. 1024,2048]
+// Usage: bench_canopy [OUT (default bench/results/canopy.txt)] [SIZES, e.g. 1024,2048] [KEY=VALUE ...]
+// (KEY=VALUE: canopy parameters, docs/canopy.md, over the defaults)
 // Goal (issue 3): 1024^2 with ~70k trees placed in <= 1 s on 2 cores.
 #include <omp.h>
 
@@ -21,6 +22,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -39,18 +41,28 @@ using namespace eco::bench;
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy [OUT [SIZES]]\nTimes species map and canopy placement on generated CHMs of SIZES cells square (default 1024,2048,3072) beside the paper's; writes OUT (default bench/results/canopy.txt).\n")) return 0;
+    if (eco::bench::wantsUsage(argc, argv, "usage: bench_canopy [OUT [SIZES [KEY=VALUE ...]]]\nTimes species map and canopy placement on generated CHMs of SIZES cells square (default 1024,2048,3072) beside the paper's; writes OUT (default bench/results/canopy.txt). KEY=VALUE pairs (canopy parameters, docs/canopy.md) change the placer's defaults.\n")) return 0;
     const std::string outPath = argc > 1 ? argv[1] : "bench/results/canopy.txt";
     const std::vector<int> sizes = parseSizes(argc > 2 ? argv[2] : "1024,2048,3072");
     const double paperSeconds[] = {2.51, 11.6, 58.98};
     std::ostringstream report;
     try {
+        eco::synth::CanopyParams params;
+        std::string overrides;
+        for (int a = 3; a < argc; ++a) {
+            const std::string kv = argv[a];
+            const auto eq = kv.find('=');
+            if (eq == std::string::npos) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
+            eco::synth::setCanopyParam(params, kv.substr(0, eq), std::stod(kv.substr(eq + 1)));
+            overrides += (overrides.empty() ? "" : ", ") + kv;
+        }
+        eco::synth::validateCanopyParams(params);
         const eco::Biome biome = eco::defaultBiome();
         report << "canopy benchmark (eco " << ECO_VERSION_STRING << ")\n"
                << "OpenMP threads: " << omp_get_max_threads() << ", load average at start: " << loadAverage() << "\n"
                << "CHM: generateChm, dense spacing 2.0 m, sparse 5 m, heights 3.5..11 m, sketch 20 % empty / 50 % "
                   "dense; cells of 0.914 m\n"
-               << "placer: default CanopyParams (docs/canopy.md)\n\n";
+               << "placer: default CanopyParams (docs/canopy.md)" << (overrides.empty() ? "" : ", with " + overrides) << "\n\n";
         std::cout << report.str() << std::flush;
         for (const int n : sizes) {
             std::ostringstream sec;
@@ -85,7 +97,7 @@ int main(int argc, char** argv) {
 
             t = Clock::now();
             cpu = processCpuSeconds();
-            const eco::synth::CanopyResult r = eco::synth::placeCanopy(chm, terrain, map, biome, eco::synth::CanopyParams{});
+            const eco::synth::CanopyResult r = eco::synth::placeCanopy(chm, terrain, map, biome, params);
             const double placeS = secondsSince(t), placeCpu = processCpuSeconds() - cpu;
 
             char line[256];

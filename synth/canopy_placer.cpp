@@ -978,15 +978,23 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
     const int y0 = std::max(0, chm.cellY(t.y - reach)), y1 = std::min(h - 1, chm.cellY(t.y + reach));
     const int nx = x1 - x0 + 1, ny = y1 - y0 + 1;
     if (nx <= 0 || ny <= 0) return 0.0;
-    // Per window cell: the CHM c and the surface of the other crowns o.
-    std::vector<float> cs(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
-    std::vector<float> os(cs.size());
+    // Per window cell: the CHM c, the surface of the other crowns o and the capped squared
+    // error of the others alone eo (buffers kept per thread: no allocation per tree).
+    constexpr float kCap2 = kFitCapM * kFitCapM;
+    thread_local std::vector<float> cs, os, eos;
+    const std::size_t nWin = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
+    cs.resize(nWin);
+    os.resize(nWin);
+    eos.resize(nWin);
     for (int iy = y0; iy <= y1; ++iy)
         for (int ix = x0; ix <= x1; ++ix) {
             const std::size_t i = chm.index(ix, iy);
             const std::size_t k = static_cast<std::size_t>(iy - y0) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix - x0);
-            os[k] = std::max(0.0f, f.id[i] == self ? f.depth2[i] : f.depth[i]);
-            cs[k] = std::max(0.0f, chm(ix, iy));
+            const float o = std::max(0.0f, f.id[i] == self ? f.depth2[i] : f.depth[i]);
+            const float c = std::max(0.0f, chm(ix, iy));
+            os[k] = o;
+            cs[k] = c;
+            eos[k] = std::min((o - c) * (o - c), kCap2);
         }
     const double cx0 = chm.cellCentreX(x0), cy0 = chm.cellCentreY(y0);
     // Only the cells where the sphere rises above the others change the error: it is compared
@@ -1007,7 +1015,6 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
             dys[jy - jy0] = static_cast<float>(dy * dy);
         }
         double hCur = hStart, bestH = hStart, bestE = std::numeric_limits<double>::infinity();
-        constexpr float kCap2 = kFitCapM * kFitCapM;
         for (int step = 0; step < kFitHeightSteps; ++step) {
             const float r = static_cast<float>(scene.radiusFor(t.species, hCur)), r2 = r * r;
             const float hf = static_cast<float>(hCur);
@@ -1024,12 +1031,13 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
                 for (int jx = xa; jx <= xb; ++jx) {
                     const float d2 = dxs[jx - jx0] + dy2;
                     const float g = std::sqrt(std::max(r2 - d2, 0.0f)) - r;
-                    const float z = hf + g, o = os[row + static_cast<std::size_t>(jx)], c = cs[row + static_cast<std::size_t>(jx)];
+                    const std::size_t k = row + static_cast<std::size_t>(jx);
+                    const float z = hf + g, o = os[k], c = cs[k];
                     const bool on = (d2 < r2) & (z > o);
                     // Squared errors capped at kFitCapM^2 (a robust fit): a sphere a few
                     // centimetres off its place has rim cells on the ground beside the crown,
                     // errors of the whole crown depth that would pull it down and in.
-                    const float ez = std::min((z - c) * (z - c), kCap2), eo = std::min((o - c) * (o - c), kCap2);
+                    const float ez = std::min((z - c) * (z - c), kCap2), eo = eos[k];
                     const bool fits = on & ((z - c) * (z - c) < kCap2);
                     e += on ? static_cast<double>(ez - eo) : 0.0;
                     sum += fits ? static_cast<double>(c - g) : 0.0;
@@ -1788,6 +1796,8 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         const std::uint64_t seeds = result.initialSeeds;
         Buf<double> margin(trees.size(), 0.0);
         Buf<Tree> fitted;
+        Buf<std::pair<std::uint64_t, std::uint32_t>> order;
+        constexpr int kFitBandRows = 8;
         for (int pass = 1; pass <= params.crownFitPasses; ++pass) {
             const bool last = pass == params.crownFitPasses;
             Buf<Crown>& cr = frame.crowns;
@@ -1795,13 +1805,27 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             for (std::size_t i = 0; i < trees.size(); ++i) cr[i] = {trees[i].x, trees[i].y, trees[i].heightM, trees[i].radiusM};
             render<true>(cr, chmM.width(), chmM.height(), cell, chmM.originX(), chmM.originY(), frame);
             fitted.assign(trees.begin(), trees.end());
-#pragma omp parallel for schedule(dynamic, 64)
-            for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(trees.size()); ++k) {
-                Tree& t = fitted[static_cast<std::size_t>(k)];
+            // The trees to fit, in raster order of bands of kFitBandRows rows (x inside a
+            // band): each fit reads a window of the CHM and of the render around its tree,
+            // and in list order (trees appended by the iterations, spread over the map)
+            // neighbouring fits rarely share those cache lines. Each fit reads only the CHM
+            // and the render, so the order does not change the result.
+            order.clear();
+            for (std::size_t k = 0; k < trees.size(); ++k) {
+                const Tree& t = trees[k];
                 const bool seed = t.uid < seeds;
                 if (t.hidden || (seed && (!last || t.uid % kFitSeedStride != 0))) continue;
-                margin[static_cast<std::size_t>(k)] =
-                    fitCrown(scene, frame, static_cast<std::int32_t>(k), params.crownFitReachM, params.minSeedHeightM, t);
+                const int cx = std::clamp(chmM.cellX(t.x), 0, chmM.width() - 1);
+                const int cy = std::clamp(chmM.cellY(t.y), 0, chmM.height() - 1);
+                const std::uint64_t key = (static_cast<std::uint64_t>(cy / kFitBandRows) << 40) |
+                                          (static_cast<std::uint64_t>(cx) << 20) | static_cast<std::uint64_t>(cy % kFitBandRows);
+                order.push_back({key, static_cast<std::uint32_t>(k)});
+            }
+            std::sort(order.begin(), order.end());
+#pragma omp parallel for schedule(dynamic, 64)
+            for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(order.size()); ++j) {
+                const std::size_t k = order[static_cast<std::size_t>(j)].second;
+                margin[k] = fitCrown(scene, frame, static_cast<std::int32_t>(k), params.crownFitReachM, params.minSeedHeightM, fitted[k]);
             }
             for (std::size_t k = 0; k < trees.size(); ++k) {
                 if (trees[k].uid >= seeds && !trees[k].hidden) trees[k] = fitted[k];
