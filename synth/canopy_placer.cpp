@@ -956,6 +956,16 @@ bool snapToOwnApex(const Scene& scene, const Buf<std::int32_t>& owner, std::int3
 /// fitted in parallel, the same for any thread count. Returns the margin of the fitted tree:
 /// the CHM at its apex's cell minus its sphere there (large when the apex lies under another
 /// crown: a tree that explains the crescent of a hidden top).
+/// static_cast<int>(std::floor(v)) and ...(std::ceil(v)) for v well inside the int range,
+/// without the library's rounding (at baseline x86-64 a long sequence).
+inline int floorToInt(double v) {
+    const int t = static_cast<int>(v);
+    return t - (static_cast<double>(t) > v);
+}
+inline int ceilToInt(double v) {
+    const int t = static_cast<int>(v);
+    return t + (static_cast<double>(t) < v);
+}
 constexpr int kFitHeightSteps = 4;
 constexpr std::uint64_t kFitSeedStride = 8;    ///< every 8th seed is fitted for the hidden margin
 constexpr double kFitSeedQuantile = 0.9;      ///< of the seeds' margins
@@ -1016,16 +1026,23 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
         int jx0, jx1, jy0, jy1;  // the rMax window
         int xa, xb, ya, yb;      // the cells of the sphere of radius r in it
     };
-    auto footprint = [&](double x, double y, double r) {
+    auto window = [&](double x, double y) {
         Footprint q;
-        q.jy0 = std::max(0, static_cast<int>(std::floor((y - rMax - cy0) / cell)));
-        q.jy1 = std::min({ny - 1, q.jy0 + kSpan - 1, static_cast<int>(std::ceil((y + rMax - cy0) / cell))});
-        q.jx0 = std::max(0, static_cast<int>(std::floor((x - rMax - cx0) / cell)));
-        q.jx1 = std::min({nx - 1, q.jx0 + kSpan - 1, static_cast<int>(std::ceil((x + rMax - cx0) / cell))});
-        q.ya = std::max(q.jy0, static_cast<int>(std::ceil((y - r - cy0) / cell)));
-        q.yb = std::min(q.jy1, static_cast<int>(std::floor((y + r - cy0) / cell)));
-        q.xa = std::max(q.jx0, static_cast<int>(std::ceil((x - r - cx0) / cell)));
-        q.xb = std::min(q.jx1, static_cast<int>(std::floor((x + r - cx0) / cell)));
+        q.jy0 = std::max(0, floorToInt((y - rMax - cy0) / cell));
+        q.jy1 = std::min({ny - 1, q.jy0 + kSpan - 1, ceilToInt((y + rMax - cy0) / cell)});
+        q.jx0 = std::max(0, floorToInt((x - rMax - cx0) / cell));
+        q.jx1 = std::min({nx - 1, q.jx0 + kSpan - 1, ceilToInt((x + rMax - cx0) / cell)});
+        return q;
+    };
+    auto clip = [&](Footprint& q, double x, double y, double r) {
+        q.ya = std::max(q.jy0, ceilToInt((y - r - cy0) / cell));
+        q.yb = std::min(q.jy1, floorToInt((y + r - cy0) / cell));
+        q.xa = std::max(q.jx0, ceilToInt((x - r - cx0) / cell));
+        q.xb = std::min(q.jx1, floorToInt((x + r - cx0) / cell));
+    };
+    auto footprint = [&](double x, double y, double r) {
+        Footprint q = window(x, y);
+        clip(q, x, y, r);
         return q;
     };
     // One height step at one position (hf the apex height, r its radius).
@@ -1057,46 +1074,82 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
         }
         return s;
     };
-    // A height step at four positions in one sweep over the union of their
-    // footprints, the four in the lanes of one vector: per position the same operations on
-    // the same cells in the same order as stepAt (a cell outside a position's footprint has
-    // its squared distance infinite there and adds +0 to its sums), hence the same sums.
-    // Lanes with active[p] false are not evaluated.
-    thread_local std::vector<float> dxq, dyq;
-    auto stepAt4 = [&](const double* xs, const double* ys, const float* hfs, const float* rs, const bool* active,
-                       StepSums* out) {
+    // A height step at four positions in one sweep over the union of their footprints, the
+    // four in the lanes of one vector: per position the same operations on the same cells in
+    // the same order as stepAt (a cell outside a position's footprint has its squared
+    // distance infinite there and adds +0 to its sums), hence the same sums. A Quad holds
+    // the positions' windows and their squared distances per column and row (computed once
+    // for the steps of the fixed point; a step's footprints lie inside the windows).
+    struct Quad {
+        double xs[4], ys[4];
         Footprint q[4];
+        int ux0, ux1, uy0, uy1;  // the union of the windows
+    };
+    thread_local std::vector<float> rawx, rawy, dxq, dyq;
+    auto prepare = [&](Quad& g) {
+        g.ux0 = g.uy0 = std::numeric_limits<int>::max();
+        g.ux1 = g.uy1 = -1;
+        for (int p = 0; p < 4; ++p) {
+            g.q[p] = window(g.xs[p], g.ys[p]);
+            g.ux0 = std::min(g.ux0, g.q[p].jx0);
+            g.ux1 = std::max(g.ux1, g.q[p].jx1);
+            g.uy0 = std::min(g.uy0, g.q[p].jy0);
+            g.uy1 = std::max(g.uy1, g.q[p].jy1);
+        }
+        if (g.ux1 < g.ux0 || g.uy1 < g.uy0) return;
+        rawx.resize(4 * static_cast<std::size_t>(g.ux1 - g.ux0 + 1));
+        rawy.resize(4 * static_cast<std::size_t>(g.uy1 - g.uy0 + 1));
+        for (int p = 0; p < 4; ++p) {
+            for (int jx = g.ux0; jx <= g.ux1; ++jx) {
+                const double dx = cx0 + jx * cell - g.xs[p];
+                rawx[4 * static_cast<std::size_t>(jx - g.ux0) + p] = static_cast<float>(dx * dx);
+            }
+            for (int jy = g.uy0; jy <= g.uy1; ++jy) {
+                const double dy = cy0 + jy * cell - g.ys[p];
+                rawy[4 * static_cast<std::size_t>(jy - g.uy0) + p] = static_cast<float>(dy * dy);
+            }
+        }
+    };
+    // Lanes with active[p] false are not evaluated (their sums 0).
+    auto stepAt4 = [&](Quad& g, const float* hfs, const float* rs, const bool* active, StepSums* out) {
         int ux0 = std::numeric_limits<int>::max(), ux1 = -1, uy0 = std::numeric_limits<int>::max(), uy1 = -1;
         for (int p = 0; p < 4; ++p) {
             out[p] = StepSums{};
-            q[p] = footprint(xs[p], ys[p], rs[p]);
-            if (!active[p] || q[p].xa > q[p].xb || q[p].ya > q[p].yb) {
-                q[p].xa = q[p].ya = 1;  // empty
-                q[p].xb = q[p].yb = 0;
+            Footprint& q = g.q[p];
+            clip(q, g.xs[p], g.ys[p], rs[p]);
+            if (!active[p] || q.xa > q.xb || q.ya > q.yb) {
+                q.xa = q.ya = 1;  // empty
+                q.xb = q.yb = 0;
                 continue;
             }
-            ux0 = std::min(ux0, q[p].xa);
-            ux1 = std::max(ux1, q[p].xb);
-            uy0 = std::min(uy0, q[p].ya);
-            uy1 = std::max(uy1, q[p].yb);
+            ux0 = std::min(ux0, q.xa);
+            ux1 = std::max(ux1, q.xb);
+            uy0 = std::min(uy0, q.ya);
+            uy1 = std::max(uy1, q.yb);
         }
         if (ux1 < ux0) return;
-        const int wx = ux1 - ux0 + 1, wy = uy1 - uy0 + 1;
-        dxq.resize(4 * static_cast<std::size_t>(wx));
-        dyq.resize(4 * static_cast<std::size_t>(wy));
-        for (int p = 0; p < 4; ++p) {
+        dxq.resize(4 * static_cast<std::size_t>(ux1 - ux0 + 1));
+        dyq.resize(4 * static_cast<std::size_t>(uy1 - uy0 + 1));
+#ifdef __SSE2__
+        {
+            const __m128 inf = _mm_set1_ps(kInf);
+            const __m128i xa = _mm_setr_epi32(g.q[0].xa, g.q[1].xa, g.q[2].xa, g.q[3].xa);
+            const __m128i xb = _mm_setr_epi32(g.q[0].xb, g.q[1].xb, g.q[2].xb, g.q[3].xb);
+            const __m128i ya = _mm_setr_epi32(g.q[0].ya, g.q[1].ya, g.q[2].ya, g.q[3].ya);
+            const __m128i yb = _mm_setr_epi32(g.q[0].yb, g.q[1].yb, g.q[2].yb, g.q[3].yb);
             for (int jx = ux0; jx <= ux1; ++jx) {
-                const double dx = cx0 + jx * cell - xs[p];
-                dxq[4 * static_cast<std::size_t>(jx - ux0) + p] =
-                    jx >= q[p].xa && jx <= q[p].xb ? static_cast<float>(dx * dx) : kInf;
+                const __m128i j = _mm_set1_epi32(jx);
+                const __m128 out = _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(xa, j), _mm_cmpgt_epi32(j, xb)));
+                const __m128 raw = _mm_loadu_ps(&rawx[4 * static_cast<std::size_t>(jx - g.ux0)]);
+                _mm_storeu_ps(&dxq[4 * static_cast<std::size_t>(jx - ux0)], _mm_or_ps(_mm_andnot_ps(out, raw), _mm_and_ps(out, inf)));
             }
             for (int jy = uy0; jy <= uy1; ++jy) {
-                const double dy = cy0 + jy * cell - ys[p];
-                dyq[4 * static_cast<std::size_t>(jy - uy0) + p] =
-                    jy >= q[p].ya && jy <= q[p].yb ? static_cast<float>(dy * dy) : kInf;
+                const __m128i j = _mm_set1_epi32(jy);
+                const __m128 out = _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(ya, j), _mm_cmpgt_epi32(j, yb)));
+                const __m128 raw = _mm_loadu_ps(&rawy[4 * static_cast<std::size_t>(jy - g.uy0)]);
+                _mm_storeu_ps(&dyq[4 * static_cast<std::size_t>(jy - uy0)], _mm_or_ps(_mm_andnot_ps(out, raw), _mm_and_ps(out, inf)));
             }
         }
-#ifdef __SSE2__
         const __m128 r = _mm_setr_ps(rs[0], rs[1], rs[2], rs[3]);
         const __m128 r2 = _mm_mul_ps(r, r);
         const __m128 hf = _mm_setr_ps(hfs[0], hfs[1], hfs[2], hfs[3]);
@@ -1134,6 +1187,14 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
         _mm_storeu_si128(reinterpret_cast<__m128i*>(nn), cnt);
         for (int p = 0; p < 4; ++p) out[p] = {e[p], sm[p], nn[p]};
 #else
+        for (int jx = ux0; jx <= ux1; ++jx)
+            for (int p = 0; p < 4; ++p)
+                dxq[4 * static_cast<std::size_t>(jx - ux0) + p] =
+                    jx >= g.q[p].xa && jx <= g.q[p].xb ? rawx[4 * static_cast<std::size_t>(jx - g.ux0) + p] : kInf;
+        for (int jy = uy0; jy <= uy1; ++jy)
+            for (int p = 0; p < 4; ++p)
+                dyq[4 * static_cast<std::size_t>(jy - uy0) + p] =
+                    jy >= g.q[p].ya && jy <= g.q[p].yb ? rawy[4 * static_cast<std::size_t>(jy - g.uy0) + p] : kInf;
         for (int jy = uy0; jy <= uy1; ++jy) {
             const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
             for (int jx = ux0; jx <= ux1; ++jx) {
@@ -1185,17 +1246,19 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
                 cd.h = bestHeight(cd.x, cd.y, cd.hStart, cd.e);
                 continue;
             }
-            double xs[4], ys[4], hCur[4], bestH[4], bestE[4];
+            Quad g;
+            double hCur[4], bestH[4], bestE[4];
             float hfs[4] = {0, 0, 0, 0}, rs[4] = {0, 0, 0, 0};
             bool active[4];
             for (int p = 0; p < 4; ++p) {
                 const Candidate& cd = cands[base + std::min(p, m - 1)];
-                xs[p] = cd.x;
-                ys[p] = cd.y;
+                g.xs[p] = cd.x;
+                g.ys[p] = cd.y;
                 hCur[p] = bestH[p] = cd.hStart;
                 bestE[p] = std::numeric_limits<double>::infinity();
                 active[p] = p < m;
             }
+            prepare(g);
             for (int step = 0; step < kFitHeightSteps; ++step) {
                 bool any = false;
                 for (int p = 0; p < 4; ++p) {
@@ -1206,7 +1269,7 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
                 }
                 if (!any) break;
                 StepSums s[4];
-                stepAt4(xs, ys, hfs, rs, active, s);
+                stepAt4(g, hfs, rs, active, s);
                 for (int p = 0; p < 4; ++p) {
                     if (!active[p]) continue;
                     if (s[p].e < bestE[p]) {
