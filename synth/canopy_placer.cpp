@@ -18,6 +18,10 @@
 #include <new>
 #include <unordered_map>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -952,6 +956,16 @@ bool snapToOwnApex(const Scene& scene, const Buf<std::int32_t>& owner, std::int3
 /// fitted in parallel, the same for any thread count. Returns the margin of the fitted tree:
 /// the CHM at its apex's cell minus its sphere there (large when the apex lies under another
 /// crown: a tree that explains the crescent of a hidden top).
+/// static_cast<int>(std::floor(v)) and ...(std::ceil(v)) for v well inside the int range,
+/// without the library's rounding (at baseline x86-64 a long sequence).
+inline int floorToInt(double v) {
+    const int t = static_cast<int>(v);
+    return t - (static_cast<double>(t) > v);
+}
+inline int ceilToInt(double v) {
+    const int t = static_cast<int>(v);
+    return t + (static_cast<double>(t) < v);
+}
 constexpr int kFitHeightSteps = 4;
 constexpr std::uint64_t kFitSeedStride = 8;    ///< every 8th seed is fitted for the hidden margin
 constexpr double kFitSeedQuantile = 0.9;      ///< of the seeds' margins
@@ -999,62 +1013,286 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
     const double cx0 = chm.cellCentreX(x0), cy0 = chm.cellCentreY(y0);
     // Only the cells where the sphere rises above the others change the error: it is compared
     // as the sum over them of (sphere - c)^2 - (o - c)^2 (0 = no better than without t).
+    // A height step at a position sums over the cells of its sphere's footprint, within the
+    // window of radius rMax around the position (at most kSpan cells a side):
+    // StepSums of the error, of (c - g) and of the count over the fitting cells.
     constexpr int kSpan = 64;
-    float dxs[kSpan], dys[kSpan];
-    auto bestHeight = [&](double x, double y, double hStart, double& eOut) {
-        const int jy0 = std::max(0, static_cast<int>(std::floor((y - rMax - cy0) / cell)));
-        const int jy1 = std::min({ny - 1, jy0 + kSpan - 1, static_cast<int>(std::ceil((y + rMax - cy0) / cell))});
-        const int jx0 = std::max(0, static_cast<int>(std::floor((x - rMax - cx0) / cell)));
-        const int jx1 = std::min({nx - 1, jx0 + kSpan - 1, static_cast<int>(std::ceil((x + rMax - cx0) / cell))});
-        for (int jx = jx0; jx <= jx1; ++jx) {
-            const double dx = cx0 + jx * cell - x;
-            dxs[jx - jx0] = static_cast<float>(dx * dx);
-        }
-        for (int jy = jy0; jy <= jy1; ++jy) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    struct StepSums {
+        double e = 0, sum = 0;
+        int n = 0;
+    };
+    struct Footprint {
+        int jx0, jx1, jy0, jy1;  // the rMax window
+        int xa, xb, ya, yb;      // the cells of the sphere of radius r in it
+    };
+    auto window = [&](double x, double y) {
+        Footprint q;
+        q.jy0 = std::max(0, floorToInt((y - rMax - cy0) / cell));
+        q.jy1 = std::min({ny - 1, q.jy0 + kSpan - 1, ceilToInt((y + rMax - cy0) / cell)});
+        q.jx0 = std::max(0, floorToInt((x - rMax - cx0) / cell));
+        q.jx1 = std::min({nx - 1, q.jx0 + kSpan - 1, ceilToInt((x + rMax - cx0) / cell)});
+        return q;
+    };
+    auto clip = [&](Footprint& q, double x, double y, double r) {
+        q.ya = std::max(q.jy0, ceilToInt((y - r - cy0) / cell));
+        q.yb = std::min(q.jy1, floorToInt((y + r - cy0) / cell));
+        q.xa = std::max(q.jx0, ceilToInt((x - r - cx0) / cell));
+        q.xb = std::min(q.jx1, floorToInt((x + r - cx0) / cell));
+    };
+    auto footprint = [&](double x, double y, double r) {
+        Footprint q = window(x, y);
+        clip(q, x, y, r);
+        return q;
+    };
+    // One height step at one position (hf the apex height, r its radius).
+    auto stepAt = [&](double x, double y, float hf, float r) {
+        const float r2 = r * r;
+        const Footprint q = footprint(x, y, r);
+        StepSums s;
+        for (int jy = q.ya; jy <= q.yb; ++jy) {
             const double dy = cy0 + jy * cell - y;
-            dys[jy - jy0] = static_cast<float>(dy * dy);
+            const float dy2 = static_cast<float>(dy * dy);
+            if (!(dy2 < r2)) continue;
+            const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
+            for (int jx = q.xa; jx <= q.xb; ++jx) {
+                const double dx = cx0 + jx * cell - x;
+                const float d2 = static_cast<float>(dx * dx) + dy2;
+                const float g = std::sqrt(std::max(r2 - d2, 0.0f)) - r;
+                const std::size_t k = row + static_cast<std::size_t>(jx);
+                const float z = hf + g, o = os[k], c = cs[k];
+                const bool on = (d2 < r2) & (z > o);
+                // Squared errors capped at kFitCapM^2 (a robust fit): a sphere a few
+                // centimetres off its place has rim cells on the ground beside the crown,
+                // errors of the whole crown depth that would pull it down and in.
+                const float ez = std::min((z - c) * (z - c), kCap2), eo = eos[k];
+                const bool fits = on & ((z - c) * (z - c) < kCap2);
+                s.e += on ? static_cast<double>(ez - eo) : 0.0;
+                s.sum += fits ? static_cast<double>(c - g) : 0.0;
+                s.n += fits;
+            }
         }
-        double hCur = hStart, bestH = hStart, bestE = std::numeric_limits<double>::infinity();
-        for (int step = 0; step < kFitHeightSteps; ++step) {
-            const float r = static_cast<float>(scene.radiusFor(t.species, hCur)), r2 = r * r;
-            const float hf = static_cast<float>(hCur);
-            double e = 0, sum = 0;
-            int n = 0;
-            const int ya = std::max(jy0, static_cast<int>(std::ceil((y - r - cy0) / cell)));
-            const int yb = std::min(jy1, static_cast<int>(std::floor((y + r - cy0) / cell)));
-            const int xa = std::max(jx0, static_cast<int>(std::ceil((x - r - cx0) / cell)));
-            const int xb = std::min(jx1, static_cast<int>(std::floor((x + r - cx0) / cell)));
-            for (int jy = ya; jy <= yb; ++jy) {
-                const float dy2 = dys[jy - jy0];
-                if (!(dy2 < r2)) continue;
-                const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
-                for (int jx = xa; jx <= xb; ++jx) {
-                    const float d2 = dxs[jx - jx0] + dy2;
+        return s;
+    };
+    // A height step at four positions in one sweep over the union of their footprints, the
+    // four in the lanes of one vector: per position the same operations on the same cells in
+    // the same order as stepAt (a cell outside a position's footprint has its squared
+    // distance infinite there and adds +0 to its sums), hence the same sums. A Quad holds
+    // the positions' windows and their squared distances per column and row (computed once
+    // for the steps of the fixed point; a step's footprints lie inside the windows).
+    struct Quad {
+        double xs[4], ys[4];
+        Footprint q[4];
+        int ux0, ux1, uy0, uy1;  // the union of the windows
+    };
+    thread_local std::vector<float> rawx, rawy, dxq, dyq;
+    auto prepare = [&](Quad& g) {
+        g.ux0 = g.uy0 = std::numeric_limits<int>::max();
+        g.ux1 = g.uy1 = -1;
+        for (int p = 0; p < 4; ++p) {
+            g.q[p] = window(g.xs[p], g.ys[p]);
+            g.ux0 = std::min(g.ux0, g.q[p].jx0);
+            g.ux1 = std::max(g.ux1, g.q[p].jx1);
+            g.uy0 = std::min(g.uy0, g.q[p].jy0);
+            g.uy1 = std::max(g.uy1, g.q[p].jy1);
+        }
+        if (g.ux1 < g.ux0 || g.uy1 < g.uy0) return;
+        rawx.resize(4 * static_cast<std::size_t>(g.ux1 - g.ux0 + 1));
+        rawy.resize(4 * static_cast<std::size_t>(g.uy1 - g.uy0 + 1));
+        for (int p = 0; p < 4; ++p) {
+            for (int jx = g.ux0; jx <= g.ux1; ++jx) {
+                const double dx = cx0 + jx * cell - g.xs[p];
+                rawx[4 * static_cast<std::size_t>(jx - g.ux0) + p] = static_cast<float>(dx * dx);
+            }
+            for (int jy = g.uy0; jy <= g.uy1; ++jy) {
+                const double dy = cy0 + jy * cell - g.ys[p];
+                rawy[4 * static_cast<std::size_t>(jy - g.uy0) + p] = static_cast<float>(dy * dy);
+            }
+        }
+    };
+    // Lanes with active[p] false are not evaluated (their sums 0).
+    auto stepAt4 = [&](Quad& g, const float* hfs, const float* rs, const bool* active, StepSums* out) {
+        int ux0 = std::numeric_limits<int>::max(), ux1 = -1, uy0 = std::numeric_limits<int>::max(), uy1 = -1;
+        for (int p = 0; p < 4; ++p) {
+            out[p] = StepSums{};
+            Footprint& q = g.q[p];
+            clip(q, g.xs[p], g.ys[p], rs[p]);
+            if (!active[p] || q.xa > q.xb || q.ya > q.yb) {
+                q.xa = q.ya = 1;  // empty
+                q.xb = q.yb = 0;
+                continue;
+            }
+            ux0 = std::min(ux0, q.xa);
+            ux1 = std::max(ux1, q.xb);
+            uy0 = std::min(uy0, q.ya);
+            uy1 = std::max(uy1, q.yb);
+        }
+        if (ux1 < ux0) return;
+        dxq.resize(4 * static_cast<std::size_t>(ux1 - ux0 + 1));
+        dyq.resize(4 * static_cast<std::size_t>(uy1 - uy0 + 1));
+#ifdef __SSE2__
+        {
+            const __m128 inf = _mm_set1_ps(kInf);
+            const __m128i xa = _mm_setr_epi32(g.q[0].xa, g.q[1].xa, g.q[2].xa, g.q[3].xa);
+            const __m128i xb = _mm_setr_epi32(g.q[0].xb, g.q[1].xb, g.q[2].xb, g.q[3].xb);
+            const __m128i ya = _mm_setr_epi32(g.q[0].ya, g.q[1].ya, g.q[2].ya, g.q[3].ya);
+            const __m128i yb = _mm_setr_epi32(g.q[0].yb, g.q[1].yb, g.q[2].yb, g.q[3].yb);
+            for (int jx = ux0; jx <= ux1; ++jx) {
+                const __m128i j = _mm_set1_epi32(jx);
+                const __m128 out = _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(xa, j), _mm_cmpgt_epi32(j, xb)));
+                const __m128 raw = _mm_loadu_ps(&rawx[4 * static_cast<std::size_t>(jx - g.ux0)]);
+                _mm_storeu_ps(&dxq[4 * static_cast<std::size_t>(jx - ux0)], _mm_or_ps(_mm_andnot_ps(out, raw), _mm_and_ps(out, inf)));
+            }
+            for (int jy = uy0; jy <= uy1; ++jy) {
+                const __m128i j = _mm_set1_epi32(jy);
+                const __m128 out = _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(ya, j), _mm_cmpgt_epi32(j, yb)));
+                const __m128 raw = _mm_loadu_ps(&rawy[4 * static_cast<std::size_t>(jy - g.uy0)]);
+                _mm_storeu_ps(&dyq[4 * static_cast<std::size_t>(jy - uy0)], _mm_or_ps(_mm_andnot_ps(out, raw), _mm_and_ps(out, inf)));
+            }
+        }
+        const __m128 r = _mm_setr_ps(rs[0], rs[1], rs[2], rs[3]);
+        const __m128 r2 = _mm_mul_ps(r, r);
+        const __m128 hf = _mm_setr_ps(hfs[0], hfs[1], hfs[2], hfs[3]);
+        const __m128 cap2 = _mm_set1_ps(kCap2), zero = _mm_setzero_ps();
+        __m128d eLo = _mm_setzero_pd(), eHi = _mm_setzero_pd(), sLo = _mm_setzero_pd(), sHi = _mm_setzero_pd();
+        __m128i cnt = _mm_setzero_si128();
+        for (int jy = uy0; jy <= uy1; ++jy) {
+            const __m128 dy2 = _mm_loadu_ps(&dyq[4 * static_cast<std::size_t>(jy - uy0)]);
+            if (_mm_movemask_ps(_mm_cmplt_ps(dy2, r2)) == 0) continue;
+            const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
+            for (int jx = ux0; jx <= ux1; ++jx) {
+                const __m128 d2 = _mm_add_ps(_mm_loadu_ps(&dxq[4 * static_cast<std::size_t>(jx - ux0)]), dy2);
+                const __m128 g = _mm_sub_ps(_mm_sqrt_ps(_mm_max_ps(_mm_sub_ps(r2, d2), zero)), r);
+                const std::size_t k = row + static_cast<std::size_t>(jx);
+                const __m128 z = _mm_add_ps(hf, g), o = _mm_set1_ps(os[k]), c = _mm_set1_ps(cs[k]);
+                const __m128 on = _mm_and_ps(_mm_cmplt_ps(d2, r2), _mm_cmpgt_ps(z, o));
+                const __m128 dz = _mm_sub_ps(z, c);
+                const __m128 sq = _mm_mul_ps(dz, dz);
+                const __m128 fits = _mm_and_ps(on, _mm_cmplt_ps(sq, cap2));
+                const __m128 de = _mm_and_ps(on, _mm_sub_ps(_mm_min_ps(sq, cap2), _mm_set1_ps(eos[k])));
+                const __m128 ds = _mm_and_ps(fits, _mm_sub_ps(c, g));
+                eLo = _mm_add_pd(eLo, _mm_cvtps_pd(de));
+                eHi = _mm_add_pd(eHi, _mm_cvtps_pd(_mm_movehl_ps(de, de)));
+                sLo = _mm_add_pd(sLo, _mm_cvtps_pd(ds));
+                sHi = _mm_add_pd(sHi, _mm_cvtps_pd(_mm_movehl_ps(ds, ds)));
+                cnt = _mm_sub_epi32(cnt, _mm_castps_si128(fits));
+            }
+        }
+        double e[4], sm[4];
+        std::int32_t nn[4];
+        _mm_storeu_pd(e, eLo);
+        _mm_storeu_pd(e + 2, eHi);
+        _mm_storeu_pd(sm, sLo);
+        _mm_storeu_pd(sm + 2, sHi);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(nn), cnt);
+        for (int p = 0; p < 4; ++p) out[p] = {e[p], sm[p], nn[p]};
+#else
+        for (int jx = ux0; jx <= ux1; ++jx)
+            for (int p = 0; p < 4; ++p)
+                dxq[4 * static_cast<std::size_t>(jx - ux0) + p] =
+                    jx >= g.q[p].xa && jx <= g.q[p].xb ? rawx[4 * static_cast<std::size_t>(jx - g.ux0) + p] : kInf;
+        for (int jy = uy0; jy <= uy1; ++jy)
+            for (int p = 0; p < 4; ++p)
+                dyq[4 * static_cast<std::size_t>(jy - uy0) + p] =
+                    jy >= g.q[p].ya && jy <= g.q[p].yb ? rawy[4 * static_cast<std::size_t>(jy - g.uy0) + p] : kInf;
+        for (int jy = uy0; jy <= uy1; ++jy) {
+            const std::size_t row = static_cast<std::size_t>(jy) * static_cast<std::size_t>(nx);
+            for (int jx = ux0; jx <= ux1; ++jx) {
+                const std::size_t k = row + static_cast<std::size_t>(jx);
+                for (int p = 0; p < 4; ++p) {
+                    const float r = rs[p], r2 = r * r;
+                    const float d2 = dxq[4 * static_cast<std::size_t>(jx - ux0) + p] + dyq[4 * static_cast<std::size_t>(jy - uy0) + p];
                     const float g = std::sqrt(std::max(r2 - d2, 0.0f)) - r;
-                    const std::size_t k = row + static_cast<std::size_t>(jx);
-                    const float z = hf + g, o = os[k], c = cs[k];
-                    const bool on = (d2 < r2) & (z > o);
-                    // Squared errors capped at kFitCapM^2 (a robust fit): a sphere a few
-                    // centimetres off its place has rim cells on the ground beside the crown,
-                    // errors of the whole crown depth that would pull it down and in.
-                    const float ez = std::min((z - c) * (z - c), kCap2), eo = eos[k];
+                    const float z = hfs[p] + g, c = cs[k];
+                    const bool on = (d2 < r2) & (z > os[k]);
                     const bool fits = on & ((z - c) * (z - c) < kCap2);
-                    e += on ? static_cast<double>(ez - eo) : 0.0;
-                    sum += fits ? static_cast<double>(c - g) : 0.0;
-                    n += fits;
+                    out[p].e += on ? static_cast<double>(std::min((z - c) * (z - c), kCap2) - eos[k]) : 0.0;
+                    out[p].sum += fits ? static_cast<double>(c - g) : 0.0;
+                    out[p].n += fits;
                 }
             }
-            if (e < bestE) {
-                bestE = e;
+        }
+#endif
+    };
+    // The fixed point of the height at a position from hStart, at most kFitHeightSteps steps,
+    // the best kept.
+    auto bestHeight = [&](double x, double y, double hStart, double& eOut) {
+        double hCur = hStart, bestH = hStart, bestE = std::numeric_limits<double>::infinity();
+        for (int step = 0; step < kFitHeightSteps; ++step) {
+            const StepSums s = stepAt(x, y, static_cast<float>(hCur), static_cast<float>(scene.radiusFor(t.species, hCur)));
+            if (s.e < bestE) {
+                bestE = s.e;
                 bestH = hCur;
             }
-            if (n == 0) break;
-            const double hNext = std::clamp(sum / n, minHeightM, hTop);
+            if (s.n == 0) break;
+            const double hNext = std::clamp(s.sum / s.n, minHeightM, hTop);
             if (std::abs(hNext - hCur) < kFitConvergeM) break;
             hCur = hNext;
         }
         eOut = bestE;
         return bestH;
+    };
+    // Positions evaluated four at a time: bestHeight in the four lanes of stepAt4, a lane
+    // leaving the sweeps when its fixed point ends; the same steps, hence the same heights
+    // and errors, as bestHeight one position at a time.
+    struct Candidate {
+        double x, y, hStart, h = 0, e = 0;
+    };
+    auto evaluate = [&](Candidate* cands, int count) {
+        for (int base = 0; base < count; base += 4) {
+            const int m = std::min(4, count - base);
+            if (m == 1) {
+                Candidate& cd = cands[base];
+                cd.h = bestHeight(cd.x, cd.y, cd.hStart, cd.e);
+                continue;
+            }
+            Quad g;
+            double hCur[4], bestH[4], bestE[4];
+            float hfs[4] = {0, 0, 0, 0}, rs[4] = {0, 0, 0, 0};
+            bool active[4];
+            for (int p = 0; p < 4; ++p) {
+                const Candidate& cd = cands[base + std::min(p, m - 1)];
+                g.xs[p] = cd.x;
+                g.ys[p] = cd.y;
+                hCur[p] = bestH[p] = cd.hStart;
+                bestE[p] = std::numeric_limits<double>::infinity();
+                active[p] = p < m;
+            }
+            prepare(g);
+            for (int step = 0; step < kFitHeightSteps; ++step) {
+                bool any = false;
+                for (int p = 0; p < 4; ++p) {
+                    any = any || active[p];
+                    if (!active[p]) continue;
+                    hfs[p] = static_cast<float>(hCur[p]);
+                    rs[p] = static_cast<float>(scene.radiusFor(t.species, hCur[p]));
+                }
+                if (!any) break;
+                StepSums s[4];
+                stepAt4(g, hfs, rs, active, s);
+                for (int p = 0; p < 4; ++p) {
+                    if (!active[p]) continue;
+                    if (s[p].e < bestE[p]) {
+                        bestE[p] = s[p].e;
+                        bestH[p] = hCur[p];
+                    }
+                    if (s[p].n == 0) {
+                        active[p] = false;
+                        continue;
+                    }
+                    const double hNext = std::clamp(s[p].sum / s[p].n, minHeightM, hTop);
+                    if (std::abs(hNext - hCur[p]) < kFitConvergeM) {
+                        active[p] = false;
+                        continue;
+                    }
+                    hCur[p] = hNext;
+                }
+            }
+            for (int p = 0; p < m; ++p) {
+                cands[base + p].h = bestH[p];
+                cands[base + p].e = bestE[p];
+            }
+        }
     };
     auto cellHeight = [&](double x, double y) {
         return std::max(minHeightM, static_cast<double>(chm.clamped(chm.cellX(x), chm.cellY(y))));
@@ -1063,32 +1301,38 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
     double bh = bestHeight(t.x, t.y, cellHeight(t.x, t.y), be);
     const double step = 0.25 * cell;
     const int n = static_cast<int>(std::floor(reachM / step));
+    thread_local std::vector<Candidate> grid;
+    grid.clear();
     for (int j = -n; j <= n; j += 2)
         for (int i = -n; i <= n; i += 2) {
             if ((i == 0 && j == 0) || (i * i + j * j) * step * step > reachM * reachM) continue;
             const double x = t.x + i * step, y = t.y + j * step;
-            double e = 0;
-            const double hh = bestHeight(x, y, cellHeight(x, y), e);
-            if (e < be) {
-                be = e;
-                bh = hh;
-                bx = x;
-                by = y;
-            }
+            grid.push_back({x, y, cellHeight(x, y)});
+        }
+    evaluate(grid.data(), static_cast<int>(grid.size()));
+    for (const Candidate& cd : grid)
+        if (cd.e < be) {
+            be = cd.e;
+            bh = cd.h;
+            bx = cd.x;
+            by = cd.y;
         }
     {
         const double cx = bx, cy = by, ch = bh;
+        Candidate quarter[4];
+        int m = 0;
         for (int j = -1; j <= 1; ++j)
             for (int i = -1; i <= 1; ++i) {
                 if ((i == 0) == (j == 0)) continue;  // the four quarter-cell steps along the axes
-                double e = 0;
-                const double hh = bestHeight(cx + i * step, cy + j * step, ch, e);
-                if (e < be) {
-                    be = e;
-                    bh = hh;
-                    bx = cx + i * step;
-                    by = cy + j * step;
-                }
+                quarter[m++] = {cx + i * step, cy + j * step, ch};
+            }
+        evaluate(quarter, m);
+        for (int p = 0; p < m; ++p)
+            if (quarter[p].e < be) {
+                be = quarter[p].e;
+                bh = quarter[p].h;
+                bx = quarter[p].x;
+                by = quarter[p].y;
             }
     }
     if (!scene.inside(bx, by)) return 0.0;
