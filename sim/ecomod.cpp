@@ -349,10 +349,27 @@ struct EcoModel::Impl {
     // order, rebuilt when the sleepers' indices change.
     std::vector<std::uint32_t> watched;
     static bool needsWatch(std::uint32_t q) { return q == kNoWitness || !(q & kWitnessCanopy); }
+    // And a calendar of the events: per year modulo kCalendarYears, the sleepers (indices)
+    // whose event falls in it, so that a year looks only at its own (a stale index, of a
+    // tombstone, is dropped when its year comes; one of a later turn stays). Rebuilt with
+    // `watched`, cleared with the sleepers.
+    static constexpr std::size_t kCalendarYears = 1024;
+    bool checkCalendar = false;  // test mode: each year's calendar entry against a scan (cacheCounts.calendarMismatches)
+    std::vector<std::vector<std::uint32_t>> calendar;
+    void calendarAdd(std::uint32_t i, std::int32_t event) {
+        if (calendar.empty()) calendar.resize(kCalendarYears);
+        calendar[static_cast<std::size_t>(event) % kCalendarYears].push_back(i);
+    }
+    void clearCalendar() {
+        for (auto& b : calendar) b.clear();
+    }
     void rebuildWatched() {
         watched.clear();
-        for (std::size_t i = 0; i < sleepers.size(); ++i)
+        clearCalendar();
+        for (std::size_t i = 0; i < sleepers.size(); ++i) {
             if (sleepEvent[i] >= 0 && needsWatch(sleepWitness[i])) watched.push_back(static_cast<std::uint32_t>(i));
+            if (sleepEvent[i] >= 0) calendarAdd(static_cast<std::uint32_t>(i), sleepEvent[i]);
+        }
     }
     std::vector<std::uint32_t> newSleeperWitness;
     static constexpr std::int32_t kTombstone = -1;  // a dead sleeper's event year (its witness: kWitnessCanopy)
@@ -1142,7 +1159,6 @@ void EcoModel::Impl::growStore() {
 // Their witnesses stay in start-of-year indices until sleepersFollow.
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
-    const std::size_t k0 = sleepers.size();
     // First the few sleepers with work this year (their event, or no witness), from the
     // watched and a scan of the event years (no pass over every witness).
     slowSleepers.clear();
@@ -1154,21 +1170,32 @@ void EcoModel::Impl::sleepersYear() {
         if (q == kNoWitness || (!(q & kWitnessCanopy) && events[i] == now)) slowSleepers.push_back({i, q});
     }
     // This year's events of the sleepers under a canopy tree (the others' are listed above):
-    // a scan of the event years in blocks of 8 (vectorised), looked into where one matches.
+    // the calendar's entry of the year (the tombstones' out, a later turn's kept), sorted.
     const std::size_t watchedSlow = slowSleepers.size();
-    auto eventAt = [&](std::size_t i) {
-        const std::uint32_t q = witnesses[i];
-        if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy))
-            slowSleepers.push_back({static_cast<std::uint32_t>(i), q});
-    };
-    std::size_t i = 0;
-    for (; i + 8 <= k0; i += 8) {
-        int hit = 0;
-        for (std::size_t j = 0; j < 8; ++j) hit |= events[i + j] == now ? 1 : 0;
-        if (hit)
-            for (std::size_t j = 0; j < 8; ++j) eventAt(i + j);
+    if (!calendar.empty()) {
+        std::vector<std::uint32_t>& due = calendar[static_cast<std::size_t>(now) % kCalendarYears];
+        std::size_t kept = 0;
+        for (const std::uint32_t i : due) {
+            const std::int32_t ev = events[i];
+            if (ev > now) {
+                due[kept++] = i;
+                continue;
+            }
+            const std::uint32_t q = witnesses[i];
+            if (ev == now && q != kNoWitness && (q & kWitnessCanopy)) slowSleepers.push_back({i, q});
+        }
+        due.resize(kept);  // in index order already: a year's entries are appended in index order, rebuilt in it
     }
-    for (; i < k0; ++i) eventAt(i);
+    cacheCounts.calendarEvents += slowSleepers.size() - watchedSlow;
+    if (checkCalendar) {  // test mode: the same sleepers as a scan of every event year would list
+        std::vector<std::pair<std::uint32_t, std::uint32_t>> scan;
+        for (std::size_t i = 0; i < sleepers.size(); ++i) {
+            const std::uint32_t q = witnesses[i];
+            if (events[i] == now && q != kNoWitness && (q & kWitnessCanopy)) scan.push_back({static_cast<std::uint32_t>(i), q});
+        }
+        if (!std::equal(scan.begin(), scan.end(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow), slowSleepers.end()))
+            ++cacheCounts.calendarMismatches;
+    }
     // In index (id) order, as the woken must be (two sorted runs; disjoint).
     std::inplace_merge(slowSleepers.begin(), slowSleepers.begin() + static_cast<std::ptrdiff_t>(watchedSlow), slowSleepers.end());
     // Then their year, with the witness they had at its start.
@@ -1247,8 +1274,10 @@ void EcoModel::Impl::admitSleepers() {
             newSleeperWitness[i] = follow(newSleeperWitness[i]);
         }
         if (sleepers.empty() || sleepers.back().id < newSleepers.front().id) {
-            for (std::size_t i = 0; i < newSleepers.size(); ++i)
+            for (std::size_t i = 0; i < newSleepers.size(); ++i) {
                 if (needsWatch(newSleeperWitness[i])) watched.push_back(static_cast<std::uint32_t>(sleepers.size() + i));
+                calendarAdd(static_cast<std::uint32_t>(sleepers.size() + i), events[i]);
+            }
             sleepers.insert(sleepers.end(), newSleepers.begin(), newSleepers.end());
             sleepEvent.insert(sleepEvent.end(), events.begin(), events.end());
             sleepWitness.insert(sleepWitness.end(), newSleeperWitness.begin(), newSleeperWitness.end());
@@ -1358,6 +1387,7 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     sleepEvent.clear();
     sleepWitness.clear();
     watched.clear();
+    clearCalendar();
     sleepersLive = 0;
     if (!woken.empty()) mergeWoken();
 }
@@ -1561,6 +1591,7 @@ void EcoModel::forgetCaches() {
     m.gridBase = 0;  // the grids' base and every key computed afresh
     m.coverGuess.clear();
 }
+void EcoModel::checkSleeperCalendar(bool on) { impl_->checkCalendar = on; }
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;
@@ -1735,6 +1766,7 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.sleepEvent.clear();
     m.sleepWitness.clear();
     m.watched.clear();
+    m.clearCalendar();
     m.sleepersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");

@@ -91,11 +91,16 @@ public:
     std::size_t setAsideCount() const;
     /// How often the step's caches served since construction (diagnostic; docs/ecomod.md
     /// "Speed"): a tree of ability 0 found dominated by the cover cache's guess, a set-aside
-    /// tree rejoining the store in growStore's pass, an able tree's grid place kept.
+    /// tree rejoining the store in growStore's pass, an able tree's grid place kept, a
+    /// set-aside tree under a canopy tree met by the events' calendar in its event year, and
+    /// (checkSleeperCalendar on) a year whose calendar entry differed from a scan.
     struct CacheCounts {
-        std::size_t coverHits = 0, wokenInPass = 0, keysKept = 0;
+        std::size_t coverHits = 0, wokenInPass = 0, keysKept = 0, calendarEvents = 0, calendarMismatches = 0;
     };
     CacheCounts cacheCounts() const;
+    /// Test mode: each year the set-aside trees that the events' calendar gives are compared
+    /// with a scan of every set-aside tree's event year (cacheCounts().calendarMismatches).
+    void checkSleeperCalendar(bool on);
     /// Drops every cache of the step (witnesses, the set-aside, grid places, cover guesses), so
     /// that the next year tests every tree by the plain search; no result changes (tests).
     void forgetCaches();

@@ -488,6 +488,30 @@ TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][
     CHECK(cached.plantCount() > 100);
 }
 
+TEST_CASE("ecomod: the set-aside events' calendar lists what a scan of the event years lists", "[sim][ecomod]") {
+    // Each year the set-aside trees under a canopy tree whose event falls in it, as the
+    // calendar gives them (an entry per year modulo its length, kept in index order), are
+    // compared with a scan of every set-aside tree's event year (checkSleeperCalendar).
+    // Every tree brought back in year 20 (removeTrees of nothing: the calendar cleared), and
+    // set aside again after.
+    SimInputs in = test::smallDemoScene();
+    Simulation sim(in, ecomodParams(), 9);
+    REQUIRE(sim.ecomod() != nullptr);
+    EcoModel& eco = *sim.ecomod();
+    eco.checkSleeperCalendar(true);
+    for (int y = 0; y < 60; ++y) {
+        sim.stepYear();
+        if (y == 19) {
+            eco.removeTrees(std::vector<std::uint8_t>(sim.plantCount(), 0));
+            CHECK(eco.setAsideCount() == 0);
+        }
+    }
+    const EcoModel::CacheCounts c = eco.cacheCounts();
+    CHECK(c.calendarEvents > 20);
+    CHECK(c.calendarMismatches == 0);
+    CHECK(eco.setAsideCount() > 50);
+}
+
 TEST_CASE("ecomod: the disturbance hook removes exactly the flagged trees", "[sim][ecomod]") {
     Biome b = quietBiome();
     const int s = b.speciesIndex("Toyon");
