@@ -4,10 +4,12 @@
 #include <time.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -48,6 +50,23 @@ inline std::vector<int> parseSizes(const std::string& s) {
     std::string item;
     while (std::getline(ss, item, ',')) out.push_back(std::stoi(item));
     return out;
+}
+
+/// A KEY=VALUE argument with a number as its value; anything else is refused with the
+/// argument named.
+struct KeyValue {
+    std::string key;
+    double value = 0;
+};
+inline KeyValue parseKeyValue(const std::string& kv) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
+    const std::string text = kv.substr(eq + 1);
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size())
+        throw std::runtime_error("argument '" + kv + "': value '" + text + "' is not a number");
+    return {kv.substr(0, eq), v};
 }
 
 /// Write the report to `path` (creating its folder) and say so on stdout.

@@ -287,13 +287,14 @@ int main(int argc, char** argv) {
         std::uint64_t sceneSeedOffset = 0;
         for (int a = 3; a < argc; ++a) {
             const std::string kv = argv[a];
-            const auto eq = kv.find('=');
-            if (eq == std::string::npos) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
-            if (kv.substr(0, eq) == "scene_seed_offset") {
-                sceneSeedOffset = std::stoull(kv.substr(eq + 1));
+            const eco::bench::KeyValue p = eco::bench::parseKeyValue(kv);
+            if (p.key == "scene_seed_offset") {
+                if (!(p.value >= 0 && p.value <= 1e9 && p.value == static_cast<double>(static_cast<std::uint64_t>(p.value))))
+                    throw std::runtime_error("argument '" + kv + "': scene_seed_offset must be a whole number >= 0");
+                sceneSeedOffset = static_cast<std::uint64_t>(p.value);
                 continue;
             }
-            eco::synth::setCanopyParam(tuned, kv.substr(0, eq), std::stod(kv.substr(eq + 1)));
+            eco::synth::setCanopyParam(tuned, p.key, p.value);
             overrides += (overrides.empty() ? "" : ", ") + kv;
         }
         eco::synth::validateCanopyParams(tuned);

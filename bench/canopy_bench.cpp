@@ -51,9 +51,8 @@ int main(int argc, char** argv) {
         std::string overrides;
         for (int a = 3; a < argc; ++a) {
             const std::string kv = argv[a];
-            const auto eq = kv.find('=');
-            if (eq == std::string::npos) throw std::runtime_error("expected KEY=VALUE, got '" + kv + "'");
-            eco::synth::setCanopyParam(params, kv.substr(0, eq), std::stod(kv.substr(eq + 1)));
+            const eco::bench::KeyValue p = eco::bench::parseKeyValue(kv);
+            eco::synth::setCanopyParam(params, p.key, p.value);
             overrides += (overrides.empty() ? "" : ", ") + kv;
         }
         eco::synth::validateCanopyParams(params);

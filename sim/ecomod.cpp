@@ -1160,7 +1160,7 @@ void EcoModel::Impl::growStore() {
 void EcoModel::Impl::sleepersYear() {
     woken.clear();
     // First the few sleepers with work this year (their event, or no witness), from the
-    // watched and a scan of the event years (no pass over every witness).
+    // watched and the events' calendar (no pass over every witness).
     slowSleepers.clear();
     const std::int32_t* events = sleepEvent.data();
     const std::uint32_t* witnesses = sleepWitness.data();
