@@ -251,7 +251,9 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> levelOf, dominated;  // buildGrids: each able tree's level
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
+    // `able` holds ableN entries (a buffer that never shrinks: no refill of its tail each year).
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
+    std::size_t ableN = 0;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<Entry> ableEntry;   // buildGrids: the able's entries in `able` order
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
@@ -334,6 +336,8 @@ struct EcoModel::Impl {
     std::vector<std::uint32_t> dozerWitness;  // per dozer: its witness (a code, kNoWitness: test it)
     std::vector<std::uint32_t> dozerKey;      // per dozer: its grid key (as gridKey)
     std::vector<std::uint32_t> dozerOrder;    // the dozers' indices by id
+    std::vector<double> dozerAbility;         // per dozer: its ability (0 for a tombstone), dense for rateYear
+    std::vector<std::uint32_t> dozerDue;      // the dozers with work next year (no witness, or their event): dozersFollow, admitDozers
     std::size_t dozersLive = 0;
     bool dozing = true;  // test mode off: no tree dozes
     std::vector<Dozer> newDozers;
@@ -686,8 +690,8 @@ void EcoModel::Impl::seedYear() {
     // same pass rates every tree's competitive ability for growYear (heights do not change
     // in between; the year's new trees, appended below, are rated there).
     rated = size();
-    ability.resize(rated);
-    able.resize(std::max(able.size(), rated + 1));  // written in place (no push_back per tree), then cut
+    if (ability.size() < rated) ability.resize(rated);  // never shrunk (no refill of its tail)
+    if (able.size() < rated + 1) able.resize(rated + 1);  // written in place (no push_back per tree), then cut
     std::size_t na = 0;
     // The mature dozers among the store's parents, by id.
     constexpr std::uint64_t kNoId = std::numeric_limits<std::uint64_t>::max();
@@ -714,7 +718,7 @@ void EcoModel::Impl::seedYear() {
         if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
     dozerParents(kNoId);
-    able.resize(na);
+    ableN = na;
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
@@ -856,9 +860,9 @@ void EcoModel::Impl::growYear() {
 // `able` completed with them.
 void EcoModel::Impl::rateYear() {
     const std::size_t n = size(), nc = canopy.size(), nd = dozers.size();
-    ability.resize(n + nc + nd);  // the first `rated` from seedYear, with `able` among them
-    std::size_t na = able.size();
-    able.resize(na + (n - rated) + nc + nd + 1);  // written in place, then cut
+    if (ability.size() < n + nc + nd) ability.resize(n + nc + nd);  // the first `rated` from seedYear, with `able` among them
+    std::size_t na = ableN;
+    if (able.size() < na + (n - rated) + nc + nd + 1) able.resize(na + (n - rated) + nc + nd + 1);  // written in place
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
@@ -872,13 +876,14 @@ void EcoModel::Impl::rateYear() {
         able[na] = static_cast<std::uint32_t>(n + c);
         na += a > 0 ? 1 : 0;
     }
+    const double* za = dozerAbility.data();
     for (std::size_t d = 0; d < nd; ++d) {  // a tombstone: 0
-        const double a = dozerEvent[d] >= 0 ? dozers[d].ability : 0.0;
+        const double a = za[d];
         ability[n + nc + d] = a;
         able[na] = static_cast<std::uint32_t>(n + nc + d);
         na += a > 0 ? 1 : 0;
     }
-    able.resize(na);
+    ableN = na;
 }
 
 // The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
@@ -890,7 +895,7 @@ void EcoModel::Impl::buildGrids() {
     constexpr double kBaseSlack = 1.25;
     const std::size_t n = size(), nc = canopy.size(), total = n + nc + dozers.size();
     searchN = n;
-    const std::size_t m = able.size();
+    const std::size_t m = ableN;
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     bool fresh = false;  // every key recomputed (a new base)
@@ -1037,7 +1042,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = able.size();  // dominated: sized by seedYear
+    const std::size_t n = searchN, m = ableN;  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
@@ -1098,7 +1103,7 @@ bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
             if (e < n && ids[e] == guess)
                 code = static_cast<std::uint32_t>(e);
             else
-                e = ability.size();  // died (or asleep)
+                e = ability.size();  // died (or asleep): past every index
         }
         if (e < ability.size() && ability[e] > 0) {
             const Entry& q = packed[slot[e]];
@@ -1463,17 +1468,17 @@ void EcoModel::Impl::dropTombstones() {
 void EcoModel::Impl::dozersYear() {
     dozerWoken.clear();
     const std::int32_t now = year;
-    const std::size_t nd = dozers.size();
-    for (std::size_t d = 0; d < nd; ++d) {
+    for (const std::uint32_t d : dozerDue) {  // the others are dominated by their witness, and live on
         const std::int32_t ev = dozerEvent[d];
         std::uint32_t q = dozerWitness[d];
-        if (ev < 0 || (q != kNoWitness && ev != now)) continue;  // a tombstone, or dominated by its witness
+        if (ev < 0 || (q != kNoWitness && ev != now)) continue;  // a guard: the list has only those with work
         const Dozer& z = dozers[d];
         if (q == kNoWitness) {
             if (!isDominated(Entry{z.x, z.y, z.radius, z.ability}, q)) {
                 const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(z.species)];
                 const std::int32_t ageYears = z.ageBase + now + 1;
                 dozerEvent[d] = kTombstone;
+                dozerAbility[d] = 0.0;
                 --dozersLive;
                 if (ageYears >= z.deathAge) {
                     ++counters.diedBackgroundOrStress;
@@ -1499,6 +1504,7 @@ void EcoModel::Impl::dozersYear() {
             else
                 ++counters.diedBackgroundOrStress;
             dozerEvent[d] = kTombstone;
+            dozerAbility[d] = 0.0;
             --dozersLive;
         }
     }
@@ -1513,11 +1519,24 @@ void EcoModel::Impl::dozersYear() {
 
 // After growStore: the dozers' witnesses to the store's new indices (kNoWitness for a witness
 // that died or woke, or any store witness after a shrink).
+// The same pass lists next year's dozers with work (dozerDue): no witness, or their event.
 void EcoModel::Impl::dozersFollow() {
     const std::size_t nd = dozers.size();
+    const std::int32_t next = year + 1;
+    const std::int32_t* events = dozerEvent.data();
+    std::uint32_t* witnesses = dozerWitness.data();
+    const std::uint32_t* renumber = newIndex.data();
+    const bool shrunk = anyShrunk;
+    dozerDue.clear();
     for (std::size_t d = 0; d < nd; ++d) {
-        const std::uint32_t q = dozerWitness[d];
-        if (dozerEvent[d] >= 0 && q != kNoWitness && !(q & kWitnessCanopy)) dozerWitness[d] = follow(q);
+        const std::int32_t ev = events[d];
+        if (ev < 0) continue;
+        std::uint32_t q = witnesses[d];
+        if (isStoreCode(q))
+            witnesses[d] = q = shrunk ? kNoWitness : renumber[q];
+        else if (isDozerCode(q) && events[q & kDozerMask] < 0)
+            witnesses[d] = q = kNoWitness;
+        if (q == kNoWitness || ev == next) dozerDue.push_back(static_cast<std::uint32_t>(d));
     }
 }
 
@@ -1531,20 +1550,35 @@ void EcoModel::Impl::admitDozers() {
         const std::int32_t ev = planDoze(z, year);
         dozers.push_back(z);
         dozerEvent.push_back(ev);
-        dozerWitness.push_back(follow(newDozerWitness[i]));
+        const std::uint32_t q = follow(newDozerWitness[i]);
+        dozerWitness.push_back(q);
         dozerKey.push_back(newDozerKey[i]);
+        dozerAbility.push_back(z.ability);
+        if (q == kNoWitness || ev == year + 1) dozerDue.push_back(static_cast<std::uint32_t>(first + i));
     }
-    const std::size_t before = dozerOrder.size();
-    for (std::size_t i = 0; i < k; ++i) dozerOrder.push_back(static_cast<std::uint32_t>(first + i));
-    std::inplace_merge(dozerOrder.begin(), dozerOrder.begin() + static_cast<std::ptrdiff_t>(before), dozerOrder.end(),
-                       [this](std::uint32_t a, std::uint32_t b) { return dozers[a].id < dozers[b].id; });
+    // Into dozerOrder by id from the back (block moves), as mergeWoken spreads the store.
+    std::size_t end = dozerOrder.size();
+    dozerOrder.resize(end + k);
+    const auto o = dozerOrder.begin();
+    for (std::size_t j = k; j-- > 0;) {
+        const std::uint64_t nid = dozers[first + j].id;
+        const std::size_t at = static_cast<std::size_t>(
+            std::upper_bound(o, o + static_cast<std::ptrdiff_t>(end), nid,
+                             [this](std::uint64_t v, std::uint32_t d) { return v < dozers[d].id; }) -
+            o);
+        std::move_backward(o + static_cast<std::ptrdiff_t>(at), o + static_cast<std::ptrdiff_t>(end),
+                           o + static_cast<std::ptrdiff_t>(end + j + 1));
+        dozerOrder[at + j] = static_cast<std::uint32_t>(first + j);
+        end = at;
+    }
     dozersLive += k;
 }
 
-// The dozers' tombstones out once they outnumber the living; every dozer code renumbered.
+// The dozers' tombstones out once they are more than half the living (every yearly
+// pass reads them); every dozer code renumbered.
 void EcoModel::Impl::dropDozerTombstones() {
     const std::size_t nd = dozers.size(), dead = nd - dozersLive;
-    if (!(dead > dozersLive && dead > 64)) return;
+    if (!(2 * dead > dozersLive && dead > 64)) return;
     dozerRemap.assign(nd, kNoWitness);
     std::size_t o = 0;
     for (std::size_t d = 0; d < nd; ++d) {
@@ -1554,19 +1588,25 @@ void EcoModel::Impl::dropDozerTombstones() {
         dozerEvent[o] = dozerEvent[d];
         dozerWitness[o] = dozerWitness[d];
         dozerKey[o] = dozerKey[d];
+        dozerAbility[o] = dozerAbility[d];
         ++o;
     }
     dozers.resize(o);
     dozerEvent.resize(o);
     dozerWitness.resize(o);
     dozerKey.resize(o);
+    dozerAbility.resize(o);
+    std::size_t kept = 0;
+    for (const std::uint32_t d : dozerDue)
+        if (dozerRemap[d] != kNoWitness) dozerDue[kept++] = dozerRemap[d];
+    dozerDue.resize(kept);
     auto remap = [this](std::uint32_t& q) {
         if (!isDozerCode(q)) return;
         const std::uint32_t to = dozerRemap[q & kDozerMask];
         q = to == kNoWitness ? kNoWitness : kWitnessDozer | to;
     };
     for (auto& q : witness) remap(q);
-    for (auto& q : sleepWitness) remap(q);
+    for (const std::uint32_t i : watched) remap(sleepWitness[i]);  // the others' witnesses: canopy trees
     for (auto& q : dozerWitness) remap(q);
     std::size_t w = 0;
     for (const std::uint32_t d : dozerOrder)
@@ -1648,6 +1688,8 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     dozerWitness.clear();
     dozerKey.clear();
     dozerOrder.clear();
+    dozerAbility.clear();
+    dozerDue.clear();
     dozersLive = 0;
     sleepers.clear();
     sleepEvent.clear();
@@ -2044,6 +2086,8 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.dozerWitness.clear();
     m.dozerKey.clear();
     m.dozerOrder.clear();
+    m.dozerAbility.clear();
+    m.dozerDue.clear();
     m.dozersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
