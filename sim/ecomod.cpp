@@ -648,9 +648,11 @@ struct EcoModel::Impl {
 void EcoModel::Impl::compact() {
     const std::size_t n = size();
     newIndex.resize(n);
+    // Every new index first: a witness may stand later in the store than its tree (reading
+    // growStore's stale newIndex there would give a wrong tree, or a dozer's code).
+    for (std::size_t p = 0, k = 0; p < n; ++p) newIndex[p] = fate[p] != 0 ? kNoWitness : static_cast<std::uint32_t>(k++);
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
-        newIndex[p] = fate[p] != 0 ? kNoWitness : static_cast<std::uint32_t>(w);
         if (fate[p] != 0) continue;
         if (w != p) {
             id[w] = id[p];
