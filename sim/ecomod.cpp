@@ -197,6 +197,10 @@ struct EcoModel::Impl {
     // (index) or canopy tree (kWitnessCanopy | its index) that dominated it last time, or
     // kNoWitness. Kept in step with the store by push and compact.
     static constexpr std::uint32_t kNoWitness = 0xFFFFFFFFu, kWitnessCanopy = 0x80000000u;
+    // A dozer (see Dozer) as witness: kWitnessDozer | its index (store indices stay below it).
+    static constexpr std::uint32_t kWitnessDozer = 0x40000000u, kDozerMask = kWitnessDozer - 1;
+    static bool isStoreCode(std::uint32_t q) { return q < kWitnessDozer; }
+    static bool isDozerCode(std::uint32_t q) { return q != kNoWitness && (q & (kWitnessCanopy | kWitnessDozer)) == kWitnessDozer; }
     std::vector<std::uint32_t> witness;
     // Per tree, also a cache: 1 when it was dominated last year without growing (its
     // position, crown and ability as before) and no tree shrank; while its witness lives
@@ -247,7 +251,9 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> levelOf, dominated;  // buildGrids: each able tree's level
     // The able (ability > 0, the only possible dominators): their store indices (n + c for
     // canopy tree c), their buckets; `slot` maps a store index to its place in `packed`.
+    // `able` holds ableN entries (a buffer that never shrinks: no refill of its tail each year).
     std::vector<std::uint32_t> able, bucket, start, packedItem, slot, newIndex, fixup;
+    std::size_t ableN = 0;
     std::size_t rated = 0;  // trees whose ability seedYear computed (those before the year's new ones)
     std::vector<Entry> ableEntry;   // buildGrids: the able's entries in `able` order
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
@@ -302,6 +308,55 @@ struct EcoModel::Impl {
         std::int32_t lives;
     };
     std::vector<Woken> woken;
+    // Dozers: trees of height > 0 set aside from the store's yearly passes, as the sleepers
+    // are. A store tree found dominated in a species with dominated_growth 0 neither grows nor
+    // changes its crown or ability while dominated, and it stays dominated while its witness
+    // W lives (W's ability and crown never fall, places never move; a shrink anywhere drops
+    // the witnesses of the store): its next event, its dominated death or its death of age,
+    // is known in closed form. Unlike a sleeper it is able (ability > 0): it stays among the
+    // dominators of the grids (rateYear lists it, able index n + canopy + d) and can be a
+    // witness (kWitnessDozer | d), and a mature one is a parent (seedYear merges the dozers
+    // into the store's parents by id). Stored in arrival order (indices stable; tombstones:
+    // dozerEvent -1, dropped when they outnumber the living, every code renumbered), with
+    // dozerOrder listing them by id. Each year (dozersYear) one pass looks at each dozer's
+    // witness and event year; one without a witness is tested, and a free one grows and
+    // rejoins the store (woken). Every dozer rejoins the store before a disturbance,
+    // removeTrees or forgetCaches (wakeAll).
+    struct Dozer {
+        std::uint64_t id;
+        double x, y, height, radius, growthAge, deathAge, ability;
+        float v;
+        std::int32_t species;
+        std::int32_t ageBase;       // age at the start of year Y: ageBase + Y
+        std::int32_t domDeathYear;  // the year it dies if dominated in every year until then (kNeverYear: never)
+        bool diesDominated;         // its event: the dominated death (else its death of age)
+    };
+    std::vector<Dozer> dozers;
+    std::vector<std::int32_t> dozerEvent;     // per dozer: the year of its event, -1 for a tombstone
+    std::vector<std::uint32_t> dozerWitness;  // per dozer: its witness (a code, kNoWitness: test it)
+    std::vector<std::uint32_t> dozerKey;      // per dozer: its grid key (as gridKey)
+    std::vector<std::uint32_t> dozerOrder;    // the dozers' indices by id
+    std::vector<double> dozerAbility;         // per dozer: its ability (0 for a tombstone), dense for rateYear
+    std::vector<std::uint32_t> dozerDue;      // the dozers with work next year (no witness, or their event): dozersFollow, admitDozers
+    std::size_t dozersLive = 0;
+    bool dozing = true;  // test mode off: no tree dozes
+    std::vector<Dozer> newDozers;
+    std::vector<std::uint32_t> newDozerWitness, newDozerKey, dozerRemap;
+    std::vector<Woken> dozerWoken;
+    bool shrunkOutside = false;  // dozersYear: a woken dozer's crown or height fell (growStore's anyShrunk)
+    bool dozerAlive(std::uint32_t q) const { return dozerEvent[q & kDozerMask] >= 0; }
+    // The event of a dozer dominated from year y0 + 1 on: its dominated death or its death of
+    // age, the earlier (the dominated first in a tie, as in growStore).
+    std::int32_t planDoze(Dozer& d, int y0) const {
+        const std::int64_t natural =
+            std::max(static_cast<std::int64_t>(y0) + 1, static_cast<std::int64_t>(std::ceil(d.deathAge)) - 1 - d.ageBase);
+        d.diesDominated = d.domDeathYear <= natural;
+        return static_cast<std::int32_t>(d.diesDominated ? d.domDeathYear : natural);
+    }
+    void dozersYear();
+    void dozersFollow();
+    void admitDozers();
+    void dropDozerTombstones();
     // The store's second copy, written by growStore and swapped in (its contents are scratch).
     struct Store {
         std::vector<std::uint64_t> id;
@@ -413,19 +468,27 @@ struct EcoModel::Impl {
     // as f(id, species, x, y, height, radius, growthAge, age, deathAge, v, lives).
     template <class F>
     void forEachTree(F&& f) const {
-        const std::size_t n = size(), k = sleepers.size();
-        std::size_t a = 0, b = 0;
+        const std::size_t n = size(), k = sleepers.size(), nd = dozerOrder.size();
+        constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
+        std::size_t a = 0, b = 0, c = 0;
         for (;;) {
             while (b < k && sleepEvent[b] < 0) ++b;
-            if (a < n && (b == k || id[a] < sleepers[b].id)) {
+            while (c < nd && dozerEvent[dozerOrder[c]] < 0) ++c;
+            const std::uint64_t ia = a < n ? id[a] : kNone, ib = b < k ? sleepers[b].id : kNone,
+                                ic = c < nd ? dozers[dozerOrder[c]].id : kNone;
+            if (ia == kNone && ib == kNone && ic == kNone) break;
+            if (ia < ib && ia < ic) {
                 f(id[a], species[a], x[a], y[a], height[a], radius[a], growthAge[a], age[a], deathAge[a], v[a], lives[a]);
                 ++a;
-            } else if (b < k) {
+            } else if (ib < ic) {
                 const Sleeper& s = sleepers[b];
                 f(s.id, s.species, s.x, s.y, 0.0, 0.0, s.growthAge, s.ageBase + year, s.deathAge, s.v, livesAfter(s, year));
                 ++b;
             } else {
-                break;
+                const Dozer& z = dozers[dozerOrder[c]];
+                f(z.id, z.species, z.x, z.y, z.height, z.radius, z.growthAge, z.ageBase + year, z.deathAge, z.v,
+                  z.domDeathYear == kNeverYear ? kInfiniteLives : z.domDeathYear - year);
+                ++c;
             }
         }
     }
@@ -560,9 +623,23 @@ struct EcoModel::Impl {
     void dropTombstones();
     // A witness's store index after growStore's compaction (kNoWitness if it died, or if any
     // tree shrank: then every witness is tested again).
+    // A dozer witness: itself while it dozes (dozers never shrink), else kNoWitness.
     std::uint32_t follow(std::uint32_t q) const {
         if (q == kNoWitness || (q & kWitnessCanopy)) return q;
+        if (!isStoreCode(q)) return dozerAlive(q) ? q : kNoWitness;
         return anyShrunk ? kNoWitness : newIndex[q];
+    }
+    // A witness code's index in `ability` and `slot` (store, then canopy, then dozers), and back.
+    std::size_t codeIndex(std::uint32_t w) const {
+        if (w & kWitnessCanopy) return searchN + (w & ~kWitnessCanopy);
+        if (w & kWitnessDozer) return searchN + canopy.size() + (w & kDozerMask);
+        return w;
+    }
+    std::uint32_t codeOf(std::size_t e) const {
+        const std::size_t n = searchN, nc = canopy.size();
+        if (e < n) return static_cast<std::uint32_t>(e);
+        if (e < n + nc) return kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+        return kWitnessDozer | static_cast<std::uint32_t>(e - n - nc);
     }
     void disturbYear();
     std::uint64_t computeFingerprint() const;
@@ -571,9 +648,11 @@ struct EcoModel::Impl {
 void EcoModel::Impl::compact() {
     const std::size_t n = size();
     newIndex.resize(n);
+    // Every new index first: a witness may stand later in the store than its tree (reading
+    // growStore's stale newIndex there would give a wrong tree, or a dozer's code).
+    for (std::size_t p = 0, k = 0; p < n; ++p) newIndex[p] = fate[p] != 0 ? kNoWitness : static_cast<std::uint32_t>(k++);
     std::size_t w = 0;
     for (std::size_t p = 0; p < n; ++p) {
-        newIndex[p] = fate[p] != 0 ? kNoWitness : static_cast<std::uint32_t>(w);
         if (fate[p] != 0) continue;
         if (w != p) {
             id[w] = id[p];
@@ -590,7 +669,7 @@ void EcoModel::Impl::compact() {
             gridKey[w] = gridKey[p];
         }
         const std::uint32_t q = witness[p];  // follows its dominator to its new place (or forgets it)
-        witness[w] = q == kNoWitness || (q & kWitnessCanopy) ? q : newIndex[q];
+        witness[w] = isStoreCode(q) ? newIndex[q] : q;  // no dozer codes here (compact follows wakeAll)
         sure[w] = sure[p];
         ++w;
     }
@@ -613,10 +692,25 @@ void EcoModel::Impl::seedYear() {
     // same pass rates every tree's competitive ability for growYear (heights do not change
     // in between; the year's new trees, appended below, are rated there).
     rated = size();
-    ability.resize(rated);
-    able.resize(std::max(able.size(), rated + 1));  // written in place (no push_back per tree), then cut
+    if (ability.size() < rated) ability.resize(rated);  // never shrunk (no refill of its tail)
+    if (able.size() < rated + 1) able.resize(rated + 1);  // written in place (no push_back per tree), then cut
     std::size_t na = 0;
+    // The mature dozers among the store's parents, by id.
+    constexpr std::uint64_t kNoId = std::numeric_limits<std::uint64_t>::max();
+    std::size_t od = 0;
+    std::uint64_t nextDozer = dozerOrder.empty() ? kNoId : dozers[dozerOrder[0]].id;
+    auto dozerParents = [&](std::uint64_t upTo) {
+        for (; od < dozerOrder.size() && dozers[dozerOrder[od]].id < upTo; ++od) {
+            const std::uint32_t d = dozerOrder[od];
+            if (dozerEvent[d] < 0) continue;
+            const Dozer& z = dozers[d];
+            const std::size_t s = static_cast<std::size_t>(z.species);
+            if (z.ageBase + year >= sp[s].maturityAgeYears) parentsOf[s].push_back({z.x, z.y, kWitnessDozer | d});
+        }
+        nextDozer = od < dozerOrder.size() ? dozers[dozerOrder[od]].id : kNoId;
+    };
     for (std::size_t t = 0; t < rated; ++t) {
+        if (id[t] > nextDozer) dozerParents(id[t]);
         const std::size_t s = static_cast<std::size_t>(species[t]);
         const EcoModSpeciesParams& ps = sp[s];
         const double a = height[t] / hRef * ps.persistence * v[t];
@@ -625,7 +719,8 @@ void EcoModel::Impl::seedYear() {
         na += a > 0 ? 1 : 0;
         if (age[t] >= ps.maturityAgeYears) parentsOf[s].push_back({x[t], y[t], static_cast<std::uint32_t>(t)});
     }
-    able.resize(na);
+    dozerParents(kNoId);
+    ableN = na;
     for (std::size_t c = 0; c < canopy.size(); ++c)
         parentsOf[static_cast<std::size_t>(canopy[c].speciesId)].push_back(
             {canopy[c].xM, canopy[c].yM, kWitnessCanopy | static_cast<std::uint32_t>(c)});
@@ -746,26 +841,30 @@ void EcoModel::Impl::seedYear() {
 // (sleepersYear), and one pass in the store's order grows every tree, spends the dominated
 // trees' lives and compacts the store into its second copy (the dead out, the woken in).
 void EcoModel::Impl::growYear() {
-    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive + bornOutside);
+    counters.plantMonths += 12 * static_cast<std::int64_t>(size() + sleepersLive + dozersLive + bornOutside);
     testAble();
     testUnable();
     sleepersYear();
+    dozersYear();
     growStore();
+    dozersFollow();
+    admitDozers();
     // The year's new trees that fell asleep at birth, after growStore's (their ids are larger).
     newSleepers.insert(newSleepers.end(), bornAsleep.begin(), bornAsleep.end());
     newSleeperWitness.insert(newSleeperWitness.end(), bornAsleepWitness.begin(), bornAsleepWitness.end());
     sleepersFollow();
     admitSleepers();
     dropTombstones();
+    dropDozerTombstones();
 }
 
 // The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
 // `able` completed with them.
 void EcoModel::Impl::rateYear() {
-    const std::size_t n = size(), nc = canopy.size();
-    ability.resize(n + nc);  // the first `rated` from seedYear, with `able` among them
-    std::size_t na = able.size();
-    able.resize(na + (n - rated) + nc + 1);  // written in place, then cut
+    const std::size_t n = size(), nc = canopy.size(), nd = dozers.size();
+    if (ability.size() < n + nc + nd) ability.resize(n + nc + nd);  // the first `rated` from seedYear, with `able` among them
+    std::size_t na = ableN;
+    if (able.size() < na + (n - rated) + nc + nd + 1) able.resize(na + (n - rated) + nc + nd + 1);  // written in place
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
@@ -779,7 +878,14 @@ void EcoModel::Impl::rateYear() {
         able[na] = static_cast<std::uint32_t>(n + c);
         na += a > 0 ? 1 : 0;
     }
-    able.resize(na);
+    const double* za = dozerAbility.data();
+    for (std::size_t d = 0; d < nd; ++d) {  // a tombstone: 0
+        const double a = za[d];
+        ability[n + nc + d] = a;
+        able[na] = static_cast<std::uint32_t>(n + nc + d);
+        na += a > 0 ? 1 : 0;
+    }
+    ableN = na;
 }
 
 // The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
@@ -789,9 +895,9 @@ void EcoModel::Impl::rateYear() {
 void EcoModel::Impl::buildGrids() {
     constexpr int kMaxLevels = 24;
     constexpr double kBaseSlack = 1.25;
-    const std::size_t n = size(), total = n + canopy.size();
+    const std::size_t n = size(), nc = canopy.size(), total = n + nc + dozers.size();
     searchN = n;
-    const std::size_t m = able.size();
+    const std::size_t m = ableN;
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
     const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     bool fresh = false;  // every key recomputed (a new base)
@@ -814,6 +920,7 @@ void EcoModel::Impl::buildGrids() {
         keysUsable = buckets < (std::size_t{1} << kLevelShift);
         canopyKey.assign(canopy.size(), kNoKey);
         std::fill(gridKey.begin(), gridKey.end(), kNoKey);
+        std::fill(dozerKey.begin(), dozerKey.end(), kNoKey);
     }
     const double base = gridBase;
     constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
@@ -829,10 +936,14 @@ void EcoModel::Impl::buildGrids() {
         if (e < n) {
             q = Entry{x[e], y[e], radius[e], ability[e]};
             keyAt = treeKey + e;
-        } else {
+        } else if (e < n + nc) {
             const Plant& t = canopy[e - n];
             q = Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
             keyAt = canopyKey.data() + (e - n);
+        } else {
+            const Dozer& z = dozers[e - n - nc];
+            q = Entry{z.x, z.y, z.radius, ability[e]};
+            keyAt = dozerKey.data() + (e - n - nc);
         }
         ableEntry[i] = q;
         const std::uint32_t key = *keyAt;
@@ -888,7 +999,6 @@ void EcoModel::Impl::buildGrids() {
 // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
 // dominated? Reads only the start-of-year entries (buildGrids'); writes only its witness.
 inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) const {
-    const std::size_t n = searchN;
     const double px = me.x, py = me.y, pr = me.r, pa = me.a;
     // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
     auto overlaps = [px, py, pr](const Entry& q) {
@@ -897,7 +1007,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
     };
     const std::uint32_t w = wit;
     if (w != kNoWitness) {
-        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        const std::size_t e = codeIndex(w);
         if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
             const Entry& q = packed[slot[e]];
             if (pa < q.a && overlaps(q)) return true;
@@ -922,8 +1032,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
             for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
                 const Entry& q = packed[k];
                 if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                    const std::uint32_t e = packedItem[k];
-                    wit = e < n ? e : kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+                    wit = codeOf(packedItem[k]);
                     return true;
                 }
             }
@@ -935,7 +1044,7 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = able.size();  // dominated: sized by seedYear
+    const std::size_t n = searchN, m = ableN;  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
@@ -975,7 +1084,7 @@ bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
     };
     const std::uint32_t w = wit;
     if (w != kNoWitness) {
-        const std::size_t e = (w & kWitnessCanopy) ? n + (w & ~kWitnessCanopy) : w;
+        const std::size_t e = codeIndex(w);
         if (ability[e] > 0) {
             const Entry& q = packed[slot[e]];
             if (me.a < q.a && overlaps(q)) return true;
@@ -996,7 +1105,7 @@ bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
             if (e < n && ids[e] == guess)
                 code = static_cast<std::uint32_t>(e);
             else
-                e = ability.size();  // died (or asleep)
+                e = ability.size();  // died (or asleep): past every index
         }
         if (e < ability.size() && ability[e] > 0) {
             const Entry& q = packed[slot[e]];
@@ -1010,7 +1119,8 @@ bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
     std::uint32_t found = kNoWitness;
     const bool dom = isDominated(me, found);
     wit = found;
-    if (dom) coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
+    if (dom && !isDozerCode(found))
+        coverGuess[cell] = (found & kWitnessCanopy) ? kCoverCanopy | (found & ~kWitnessCanopy) : ids[found];
     return dom;
 }
 
@@ -1024,7 +1134,11 @@ void EcoModel::Impl::growStore() {
     fixup.clear();
     newSleepers.clear();
     newSleeperWitness.clear();
-    anyShrunk = false;
+    newDozers.clear();
+    newDozerWitness.clear();
+    newDozerKey.clear();
+    anyShrunk = shrunkOutside;  // a woken dozer's shrink (dozersYear)
+    shrunkOutside = false;
     // Written into the second copy of the arrays (swapped in at the end): the woken can go in
     // by id during the pass (no in-place compaction could make room for them), and nearly
     // every tree moves in a year anyway (a tree leaves the store early in the order).
@@ -1065,7 +1179,10 @@ void EcoModel::Impl::growStore() {
             owitness[w] = t.witness;
             osure[w] = 0;
             okey[w] = kNoKey;
-            if (t.witness != kNoWitness && !(t.witness & kWitnessCanopy)) fixup.push_back(static_cast<std::uint32_t>(w));
+            if (isStoreCode(t.witness))
+                fixup.push_back(static_cast<std::uint32_t>(w));
+            else if (isDozerCode(t.witness) && !dozerAlive(t.witness))
+                owitness[w] = kNoWitness;
         }
         nextWoken = j < nw ? woken[j].id : kNone;
     };
@@ -1114,17 +1231,29 @@ void EcoModel::Impl::growStore() {
             newIndex[p] = kNoWitness;  // nobody's witness: its ability is 0
             continue;
         }
+        if (dom && dozing && g == before && sps.dominatedGrowth == 0.0 && h > 0.0 && witness[p] != kNoWitness) {
+            // To doze: dominated by its witness in the years to come, unchanged (see Dozer).
+            const std::uint32_t d = static_cast<std::uint32_t>(dozers.size() + newDozers.size());
+            newDozers.push_back(Dozer{id[p], x[p], y[p], h, r, g, deathAge[p], h / hRef * sps.persistence * v[p], v[p], s,
+                                      ageYears - year - 1, domDeathYearOf(lv, year), true});
+            newDozerWitness.push_back(witness[p]);
+            newDozerKey.push_back(gridKey[p]);
+            newIndex[p] = kWitnessDozer | d;  // its watchers follow it
+            continue;
+        }
         newIndex[p] = static_cast<std::uint32_t>(w);
         // The witness follows its tree to its new place: now if it was before (its new index
-        // is known), after the pass otherwise.
+        // is known), after the pass otherwise; a dozer witness stays while it dozes.
         const std::uint32_t q = witness[p];
-        if (q != kNoWitness && !(q & kWitnessCanopy)) {
+        if (isStoreCode(q)) {
             if (q < p)
                 owitness[w] = newIndex[q];
             else {
                 owitness[w] = q;
                 fixup.push_back(static_cast<std::uint32_t>(w));
             }
+        } else if (isDozerCode(q) && !dozerAlive(q)) {
+            owitness[w] = kNoWitness;
         } else {
             owitness[w] = q;
         }
@@ -1257,7 +1386,10 @@ void EcoModel::Impl::sleepersFollow() {
         const std::uint32_t* renumber = newIndex.data();
         for (const std::uint32_t i : watched) {
             const std::uint32_t q = witnesses[i];
-            if (q != kNoWitness && !(q & kWitnessCanopy)) witnesses[i] = renumber[q];
+            if (isStoreCode(q))
+                witnesses[i] = renumber[q];
+            else if (isDozerCode(q) && !dozerAlive(q))
+                witnesses[i] = kNoWitness;
         }
     } else {
         for (const std::uint32_t i : watched) witnesses[i] = follow(witnesses[i]);
@@ -1331,6 +1463,159 @@ void EcoModel::Impl::dropTombstones() {
     }
 }
 
+// The dozers' year, before growStore (on the start-of-year grids; after sleepersYear, whose
+// woken it completes by id): a dozer whose witness is gone (kNoWitness) is tested; one that
+// nobody dominates grows and rejoins the store, as a store tree would (no life spent); the
+// others are dominated this year, and one whose event falls in it dies.
+void EcoModel::Impl::dozersYear() {
+    dozerWoken.clear();
+    const std::int32_t now = year;
+    for (const std::uint32_t d : dozerDue) {  // the others are dominated by their witness, and live on
+        const std::int32_t ev = dozerEvent[d];
+        std::uint32_t q = dozerWitness[d];
+        if (ev < 0 || (q != kNoWitness && ev != now)) continue;  // a guard: the list has only those with work
+        const Dozer& z = dozers[d];
+        if (q == kNoWitness) {
+            if (!isDominated(Entry{z.x, z.y, z.radius, z.ability}, q)) {
+                const EcoModSpeciesParams& sps = sp[static_cast<std::size_t>(z.species)];
+                const std::int32_t ageYears = z.ageBase + now + 1;
+                dozerEvent[d] = kTombstone;
+                dozerAbility[d] = 0.0;
+                --dozersLive;
+                if (ageYears >= z.deathAge) {
+                    ++counters.diedBackgroundOrStress;
+                    continue;
+                }
+                const double g = z.growthAge + 1.0;
+                double h = z.height, r = z.radius;
+                if (z.growthAge < sps.fullGrownAgeYears) {
+                    const Shape sh = growthShape(z.species, g);
+                    h = sh.h;
+                    r = sh.r;
+                    if (h < z.height || r < z.radius) shrunkOutside = true;
+                }
+                dozerWoken.push_back(Woken{z.id, z.species, ageYears, z.x, z.y, h, r, g, z.deathAge, z.v, kNoWitness,
+                                           z.domDeathYear == kNeverYear ? kInfiniteLives : z.domDeathYear - now});
+                continue;
+            }
+            dozerWitness[d] = q;
+        }
+        if (ev == now) {
+            if (z.diesDominated)
+                ++counters.diedDominated;
+            else
+                ++counters.diedBackgroundOrStress;
+            dozerEvent[d] = kTombstone;
+            dozerAbility[d] = 0.0;
+            --dozersLive;
+        }
+    }
+    if (!dozerWoken.empty()) {
+        auto byId = [](const Woken& a, const Woken& b) { return a.id < b.id; };
+        std::sort(dozerWoken.begin(), dozerWoken.end(), byId);
+        const std::size_t k = woken.size();
+        woken.insert(woken.end(), dozerWoken.begin(), dozerWoken.end());
+        std::inplace_merge(woken.begin(), woken.begin() + static_cast<std::ptrdiff_t>(k), woken.end(), byId);
+    }
+}
+
+// After growStore: the dozers' witnesses to the store's new indices (kNoWitness for a witness
+// that died or woke, or any store witness after a shrink).
+// The same pass lists next year's dozers with work (dozerDue): no witness, or their event.
+void EcoModel::Impl::dozersFollow() {
+    const std::size_t nd = dozers.size();
+    const std::int32_t next = year + 1;
+    const std::int32_t* events = dozerEvent.data();
+    std::uint32_t* witnesses = dozerWitness.data();
+    const std::uint32_t* renumber = newIndex.data();
+    const bool shrunk = anyShrunk;
+    dozerDue.clear();
+    for (std::size_t d = 0; d < nd; ++d) {
+        const std::int32_t ev = events[d];
+        if (ev < 0) continue;
+        std::uint32_t q = witnesses[d];
+        if (isStoreCode(q))
+            witnesses[d] = q = shrunk ? kNoWitness : renumber[q];
+        else if (isDozerCode(q) && events[q & kDozerMask] < 0)
+            witnesses[d] = q = kNoWitness;
+        if (q == kNoWitness || ev == next) dozerDue.push_back(static_cast<std::uint32_t>(d));
+    }
+}
+
+// The year's new dozers (growStore's, in id order) after the others, their events planned;
+// dozerOrder merged with them by id.
+void EcoModel::Impl::admitDozers() {
+    if (newDozers.empty()) return;
+    const std::size_t first = dozers.size(), k = newDozers.size();
+    for (std::size_t i = 0; i < k; ++i) {
+        Dozer z = newDozers[i];
+        const std::int32_t ev = planDoze(z, year);
+        dozers.push_back(z);
+        dozerEvent.push_back(ev);
+        const std::uint32_t q = follow(newDozerWitness[i]);
+        dozerWitness.push_back(q);
+        dozerKey.push_back(newDozerKey[i]);
+        dozerAbility.push_back(z.ability);
+        if (q == kNoWitness || ev == year + 1) dozerDue.push_back(static_cast<std::uint32_t>(first + i));
+    }
+    // Into dozerOrder by id from the back (block moves), as mergeWoken spreads the store.
+    std::size_t end = dozerOrder.size();
+    dozerOrder.resize(end + k);
+    const auto o = dozerOrder.begin();
+    for (std::size_t j = k; j-- > 0;) {
+        const std::uint64_t nid = dozers[first + j].id;
+        const std::size_t at = static_cast<std::size_t>(
+            std::upper_bound(o, o + static_cast<std::ptrdiff_t>(end), nid,
+                             [this](std::uint64_t v, std::uint32_t d) { return v < dozers[d].id; }) -
+            o);
+        std::move_backward(o + static_cast<std::ptrdiff_t>(at), o + static_cast<std::ptrdiff_t>(end),
+                           o + static_cast<std::ptrdiff_t>(end + j + 1));
+        dozerOrder[at + j] = static_cast<std::uint32_t>(first + j);
+        end = at;
+    }
+    dozersLive += k;
+}
+
+// The dozers' tombstones out once they are more than half the living (every yearly
+// pass reads them); every dozer code renumbered.
+void EcoModel::Impl::dropDozerTombstones() {
+    const std::size_t nd = dozers.size(), dead = nd - dozersLive;
+    if (!(2 * dead > dozersLive && dead > 64)) return;
+    dozerRemap.assign(nd, kNoWitness);
+    std::size_t o = 0;
+    for (std::size_t d = 0; d < nd; ++d) {
+        if (dozerEvent[d] < 0) continue;
+        dozerRemap[d] = static_cast<std::uint32_t>(o);
+        dozers[o] = dozers[d];
+        dozerEvent[o] = dozerEvent[d];
+        dozerWitness[o] = dozerWitness[d];
+        dozerKey[o] = dozerKey[d];
+        dozerAbility[o] = dozerAbility[d];
+        ++o;
+    }
+    dozers.resize(o);
+    dozerEvent.resize(o);
+    dozerWitness.resize(o);
+    dozerKey.resize(o);
+    dozerAbility.resize(o);
+    std::size_t kept = 0;
+    for (const std::uint32_t d : dozerDue)
+        if (dozerRemap[d] != kNoWitness) dozerDue[kept++] = dozerRemap[d];
+    dozerDue.resize(kept);
+    auto remap = [this](std::uint32_t& q) {
+        if (!isDozerCode(q)) return;
+        const std::uint32_t to = dozerRemap[q & kDozerMask];
+        q = to == kNoWitness ? kNoWitness : kWitnessDozer | to;
+    };
+    for (auto& q : witness) remap(q);
+    for (const std::uint32_t i : watched) remap(sleepWitness[i]);  // the others' witnesses: canopy trees
+    for (auto& q : dozerWitness) remap(q);
+    std::size_t w = 0;
+    for (const std::uint32_t d : dozerOrder)
+        if (dozerRemap[d] != kNoWitness) dozerOrder[w++] = dozerRemap[d];
+    dozerOrder.resize(w);
+}
+
 // The woken (in id order; witnesses as store indices) into the store, by id, in place: each
 // array grows by their number and its trees move back by the number of woken before them
 // (a few per year: block moves); the store's and the sleepers' witnesses renumbered.
@@ -1372,7 +1657,7 @@ void EcoModel::Impl::mergeWoken() {
         mergeShift[q] = static_cast<std::uint32_t>(j);
     }
     auto remap = [&](std::uint32_t q) {
-        return q == kNoWitness || (q & kWitnessCanopy) ? q : q + mergeShift[q];
+        return isStoreCode(q) ? q + mergeShift[q] : q;
     };
     for (auto& q : witness) q = remap(q);
     for (const std::uint32_t i : watched) sleepWitness[i] = remap(sleepWitness[i]);  // the others': canopy, kept
@@ -1383,6 +1668,31 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     woken.clear();
     for (std::size_t i = 0; i < sleepers.size(); ++i)
         if (sleepEvent[i] >= 0) woken.push_back(wake(sleepers[i], yearsCompleted, sleepWitness[i]));
+    // The dozers too, by id (their codes forgotten: the dozers' indices end here).
+    const std::size_t fromSleepers = woken.size();
+    for (const std::uint32_t d : dozerOrder) {
+        if (dozerEvent[d] < 0) continue;
+        const Dozer& z = dozers[d];
+        woken.push_back(Woken{z.id, z.species, z.ageBase + yearsCompleted, z.x, z.y, z.height, z.radius, z.growthAge, z.deathAge,
+                              z.v, dozerWitness[d],
+                              z.domDeathYear == kNeverYear ? kInfiniteLives : z.domDeathYear - yearsCompleted});
+    }
+    if (!dozerOrder.empty()) {
+        std::inplace_merge(woken.begin(), woken.begin() + static_cast<std::ptrdiff_t>(fromSleepers), woken.end(),
+                           [](const Woken& a, const Woken& b) { return a.id < b.id; });
+        for (Woken& t : woken)
+            if (isDozerCode(t.witness)) t.witness = kNoWitness;
+        for (auto& q : witness)
+            if (isDozerCode(q)) q = kNoWitness;
+    }
+    dozers.clear();
+    dozerEvent.clear();
+    dozerWitness.clear();
+    dozerKey.clear();
+    dozerOrder.clear();
+    dozerAbility.clear();
+    dozerDue.clear();
+    dozersLive = 0;
     sleepers.clear();
     sleepEvent.clear();
     sleepWitness.clear();
@@ -1579,7 +1889,7 @@ const DisturbanceSettings& EcoModel::disturbance() const { return impl_->disturb
 const std::vector<DisturbanceRecord>& EcoModel::disturbances() const { return impl_->disturbanceEvents; }
 
 int EcoModel::yearsDone() const { return impl_->year; }
-std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive; }
+std::size_t EcoModel::plantCount() const { return impl_->size() + impl_->sleepersLive + impl_->dozersLive; }
 std::size_t EcoModel::setAsideCount() const { return impl_->sleepersLive; }
 EcoModel::CacheCounts EcoModel::cacheCounts() const { return impl_->cacheCounts; }
 void EcoModel::forgetCaches() {
@@ -1592,11 +1902,16 @@ void EcoModel::forgetCaches() {
     m.coverGuess.clear();
 }
 void EcoModel::checkSleeperCalendar(bool on) { impl_->checkCalendar = on; }
+std::size_t EcoModel::dozingCount() const { return impl_->dozersLive; }
+void EcoModel::setDozing(bool on) {
+    impl_->dozing = on;
+    if (!on) impl_->wakeAll(impl_->year);
+}
 
 std::vector<UndergrowthPlant> EcoModel::plants() const {
     const Impl& m = *impl_;
     std::vector<UndergrowthPlant> out;
-    out.reserve(m.size() + m.sleepersLive);
+    out.reserve(m.size() + m.sleepersLive + m.dozersLive);
     m.forEachTree([&](std::uint64_t pid, std::int32_t s, double px, double py, double h, double r, double g, std::int32_t ageYears,
                       double, float vv, std::int32_t) {
         UndergrowthPlant& u = out.emplace_back();
@@ -1684,7 +1999,7 @@ std::size_t EcoModel::bytesPerPlant() const {
 
 void EcoModel::saveState(h5::File& f, const std::string& group) const {
     const Impl& m = *impl_;
-    const hsize_t n = m.size() + m.sleepersLive;
+    const hsize_t n = m.size() + m.sleepersLive + m.dozersLive;
     f.ensureGroup(group);
     f.setAttr(group, "model", std::string("ecomod"));
     f.setAttr(group, "fingerprint", hex64(fingerprint()));
@@ -1768,6 +2083,14 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.watched.clear();
     m.clearCalendar();
     m.sleepersLive = 0;
+    m.dozers.clear();  // and the dozers: they doze again from the next year on
+    m.dozerEvent.clear();
+    m.dozerWitness.clear();
+    m.dozerKey.clear();
+    m.dozerOrder.clear();
+    m.dozerAbility.clear();
+    m.dozerDue.clear();
+    m.dozersLive = 0;
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
         const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |

@@ -101,6 +101,11 @@ public:
     /// Test mode: each year the set-aside trees that the events' calendar gives are compared
     /// with a scan of every set-aside tree's event year (cacheCounts().calendarMismatches).
     void checkSleeperCalendar(bool on);
+    /// How many dominated trees of height > 0 doze (set aside from the store's yearly passes,
+    /// among the dominators; docs/ecomod.md "Dozing dominated trees").
+    std::size_t dozingCount() const;
+    /// Test mode: with dozing off no tree dozes (the trees are the same; tests).
+    void setDozing(bool on);
     /// Drops every cache of the step (witnesses, the set-aside, grid places, cover guesses), so
     /// that the next year tests every tree by the plain search; no result changes (tests).
     void forgetCaches();

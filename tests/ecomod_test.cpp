@@ -461,6 +461,32 @@ TEST_CASE("ecomod: setting the suppressed seedlings aside changes no tree, censu
     CHECK(asleep.plantCount() > 100);
 }
 
+TEST_CASE("ecomod: dozing dominated trees change no tree, census or counter", "[sim][ecomod]") {
+    // The same run twice: once as it is, once with dozing off (every dominated tree of height
+    // > 0 in the store's passes each year). Over 80 years trees doze, their witnesses die,
+    // they are tested again, wake and grow, die of their lives or age, and dozers are the
+    // witnesses and parents of others.
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    Simulation dozing(in, params, 11), awake(in, params, 11);
+    REQUIRE(dozing.ecomod() != nullptr);
+    REQUIRE(awake.ecomod() != nullptr);
+    awake.ecomod()->setDozing(false);
+    std::size_t maxDozing = 0;
+    bool same = true;
+    for (int y = 0; y < 80 && same; ++y) {
+        dozing.stepYear();
+        awake.stepYear();
+        maxDozing = std::max(maxDozing, dozing.ecomod()->dozingCount());
+        CHECK(awake.ecomod()->dozingCount() == 0);
+        same = sameRun(dozing, awake);
+        INFO("year " << y + 1);
+        CHECK(same);
+    }
+    CHECK(maxDozing > 50);  // dozing was exercised
+    CHECK(dozing.plantCount() > 100);
+}
+
 TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][ecomod]") {
     // The same run twice: once as it is, once with every cache of the step dropped after each
     // year (forgetCaches: the witnesses, the set-aside seedlings, the trees' grid places and
