@@ -317,7 +317,7 @@ struct EcoModel::Impl {
     // dominators of the grids (rateYear lists it, able index n + canopy + d) and can be a
     // witness (kWitnessDozer | d), and a mature one is a parent (seedYear merges the dozers
     // into the store's parents by id). Stored in arrival order (indices stable; tombstones:
-    // dozerEvent -1, dropped when they outnumber the living, every code renumbered), with
+    // dozerEvent -1, dropped when they are more than half the living, every code renumbered), with
     // dozerOrder listing them by id. Each year (dozersYear) one pass looks at each dozer's
     // witness and event year; one without a witness is tested, and a free one grows and
     // rejoins the store (woken). Every dozer rejoins the store before a disturbance,
@@ -1231,7 +1231,8 @@ void EcoModel::Impl::growStore() {
             newIndex[p] = kNoWitness;  // nobody's witness: its ability is 0
             continue;
         }
-        if (dom && dozing && g == before && sps.dominatedGrowth == 0.0 && h > 0.0 && witness[p] != kNoWitness) {
+        if (dom && dozing && g == before && sps.dominatedGrowth == 0.0 && h > 0.0 && witness[p] != kNoWitness &&
+            dozers.size() + newDozers.size() < kDozerMask) {  // a dozer's index must fit its code (else it stays awake)
             // To doze: dominated by its witness in the years to come, unchanged (see Dozer).
             const std::uint32_t d = static_cast<std::uint32_t>(dozers.size() + newDozers.size());
             newDozers.push_back(Dozer{id[p], x[p], y[p], h, r, g, deathAge[p], h / hRef * sps.persistence * v[p], v[p], s,
@@ -1846,6 +1847,11 @@ EcoModel::EcoModel(SimInputs in, const SimParams& params, std::uint64_t seed, co
 EcoModel::~EcoModel() = default;
 
 void EcoModel::stepYear() {
+    // Store indices share the witness codes with the dozers' (kWitnessDozer | d): a store of
+    // 2^30 trees (about 100 GB) would read as dozers, so it is refused rather than misread.
+    if (impl_->id.size() >= Impl::kWitnessDozer)
+        throw Error("simulation: EcoMod's store holds " + std::to_string(impl_->id.size()) + " trees, more than its limit of " +
+                    std::to_string(Impl::kWitnessDozer - 1));
     impl_->seedYear();
     impl_->growYear();
     impl_->disturbYear();
