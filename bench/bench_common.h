@@ -4,6 +4,7 @@
 #include <time.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -75,6 +76,24 @@ inline void writeReport(const std::string& path, const std::string& text) {
     if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
     std::ofstream(path) << text;
     std::cout << "wrote " << path << "\n";
+}
+
+/// FNV-1a over the bits of every plant's species, position, ground z, height and crown radius:
+/// equal hashes = the same scene or placement (an optimisation of the sampler or the placer
+/// must keep it).
+/// (A template on eco::Plant, so that this header needs no library of the project.)
+template <class PlantT>
+std::uint64_t plantsHash(const std::vector<PlantT>& plants) {
+    std::uint64_t h = 1469598103934665603ULL;
+    auto add = [&](const void* p, std::size_t n) {
+        const unsigned char* b = static_cast<const unsigned char*>(p);
+        for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+    };
+    for (const PlantT& p : plants) {
+        add(&p.speciesId, sizeof p.speciesId);
+        for (const double v : {p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM}) add(&v, sizeof v);
+    }
+    return h;
 }
 
 }  // namespace eco::bench

@@ -39,20 +39,6 @@ namespace {
 
 using namespace eco::bench;
 
-/// FNV-1a over the bits of every placed tree's species, position, ground z, height and crown
-/// radius: equal hashes = the same placement (a speed-up of the placer must keep it).
-std::uint64_t treesHash(const std::vector<eco::Plant>& trees) {
-    std::uint64_t h = 1469598103934665603ULL;
-    auto add = [&](const void* p, std::size_t n) {
-        const unsigned char* b = static_cast<const unsigned char*>(p);
-        for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
-    };
-    for (const eco::Plant& p : trees) {
-        add(&p.speciesId, sizeof p.speciesId);
-        for (const double v : {p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM}) add(&v, sizeof v);
-    }
-    return h;
-}
 
 }  // namespace
 
@@ -150,7 +136,7 @@ int main(int argc, char** argv) {
                           r.final.rmseM, r.stopReason.c_str());
             sec << line;
             std::snprintf(line, sizeof line, "trees hash        %016llx (species, x, y, ground z, height, crown radius)\n",
-                          static_cast<unsigned long long>(treesHash(r.trees)));
+                          static_cast<unsigned long long>(plantsHash(r.trees)));
             sec << line;
             if (paper > 0) {
                 std::snprintf(line, sizeof line, "paper (GTX 1070)  %7.3f s canopy placement\n", paper);

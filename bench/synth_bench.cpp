@@ -73,20 +73,6 @@ Timing timed(F&& f) {
     return Timing{secondsSince(t), processCpuSeconds() - c};
 }
 
-/// FNV-1a over the bits of every plant's species, position and sizes: equal hashes = the
-/// same scene (an optimisation of the sampler must keep it).
-std::uint64_t plantsHash(const std::vector<eco::Plant>& plants) {
-    std::uint64_t h = 1469598103934665603ULL;
-    auto add = [&](const void* p, std::size_t n) {
-        const unsigned char* b = static_cast<const unsigned char*>(p);
-        for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
-    };
-    for (const eco::Plant& p : plants) {
-        add(&p.speciesId, sizeof p.speciesId);
-        for (const double v : {p.xM, p.yM, p.groundZM, p.heightM, p.crownRadiusM}) add(&v, sizeof v);
-    }
-    return h;
-}
 
 /// The fastest of `repeats` runs of f (each run redoes the work).
 template <typename F>
