@@ -568,10 +568,10 @@ TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bi
     CHECK(scenes == 3);
 }
 
-TEST_CASE("The fidelity scenario's [protocol] canopy_config reaches the canopy placer; bad placer files are refused",
+TEST_CASE("The fidelity scenario's canopy_config key reaches the canopy placer and bad placer files are refused",
           "[validate][config][fidelity]") {
     // The shipped file with a tiny quick scene (as the test above, 2 years) and, optionally, a
-    // placer configuration fit.toml beside it.
+    // placer configuration canopy/fit.toml.
     std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
     const auto swap = [&](const std::string& from, const std::string& to) {
         const auto at = text.find(from);
@@ -582,11 +582,12 @@ TEST_CASE("The fidelity scenario's [protocol] canopy_config reaches the canopy p
     swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
     swap("years = 150", "years = 2");
     const std::string plain = text;
-    swap("[protocol]\n", "[protocol]\ncanopy_config = \"fit.toml\"\n");
+    // In a subfolder: every *.toml of the configurations' folder is a scenario.
+    swap("[protocol]\n", "[protocol]\ncanopy_config = \"canopy/fit.toml\"\n");
     const std::string withConfig = text;
     TempDir dir("fidelity_canopy_config");
     std::filesystem::create_directories(dir.file("off"));
-    std::filesystem::create_directories(dir.file("on"));
+    std::filesystem::create_directories(dir.file("on/canopy"));
     const auto write = [](const std::string& path, const std::string& body) {
         std::ofstream out(path);
         out << body;
@@ -599,8 +600,8 @@ TEST_CASE("The fidelity scenario's [protocol] canopy_config reaches the canopy p
     // scenario, the placer file, the key and the value.
     const auto fails = [&](const std::string& placer, const std::vector<std::string>& words) {
         INFO(placer);
-        if (!placer.empty()) write(dir.file("on/fit.toml"), placer);
-        else std::filesystem::remove(dir.file("on/fit.toml"));
+        if (!placer.empty()) write(dir.file("on/canopy/fit.toml"), placer);
+        else std::filesystem::remove(dir.file("on/canopy/fit.toml"));
         try {
             parseScenarioConfig(withConfig, scenarioPath);
             FAIL("no error");
@@ -621,7 +622,7 @@ TEST_CASE("The fidelity scenario's [protocol] canopy_config reaches the canopy p
 
     // The key reaches the placement: the crown fit changes the canopy, and the details name
     // the setting; without the key the scene is the placer's defaults.
-    write(dir.file("on/fit.toml"), "# eco run's [canopy] config file\n[canopy]\ncrown_fit_passes = 2\n");
+    write(dir.file("on/canopy/fit.toml"), "# eco run's [canopy] config file\n[canopy]\ncrown_fit_passes = 2\n");
     CHECK_NOTHROW(parseScenarioConfig(withConfig, scenarioPath));
     const auto run = [&](const std::string& cfg) {
         SuiteOptions o;
@@ -650,7 +651,7 @@ TEST_CASE("The fidelity scenario's [protocol] canopy_config reaches the canopy p
     std::string detailsOn, detailsOff;
     for (const auto& d : on.details) detailsOn += d + "\n";
     for (const auto& d : off.details) detailsOff += d + "\n";
-    CHECK(detailsOn.find("Canopy placer configuration `fit.toml` ([protocol] canopy_config): crown_fit_passes = 2.") !=
+    CHECK(detailsOn.find("Canopy placer configuration `canopy/fit.toml` ([protocol] canopy_config): crown_fit_passes = 2.") !=
           std::string::npos);
     CHECK(detailsOff.find("canopy_config") == std::string::npos);
 }
