@@ -568,6 +568,94 @@ TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bi
     CHECK(scenes == 3);
 }
 
+TEST_CASE("The fidelity scenario's canopy_config key reaches the canopy placer and bad placer files are refused",
+          "[validate][config][fidelity]") {
+    // The shipped file with a tiny quick scene (as the test above, 2 years) and, optionally, a
+    // placer configuration canopy/fit.toml.
+    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
+    const auto swap = [&](const std::string& from, const std::string& to) {
+        const auto at = text.find(from);
+        REQUIRE(at != std::string::npos);
+        text.replace(at, from.size(), to);
+    };
+    swap("terrain_cells = 512", "terrain_cells = 64");
+    swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
+    swap("years = 150", "years = 2");
+    const std::string plain = text;
+    // In a subfolder: every *.toml of the configurations' folder is a scenario.
+    swap("[protocol]\n", "[protocol]\ncanopy_config = \"canopy/fit.toml\"\n");
+    const std::string withConfig = text;
+    TempDir dir("fidelity_canopy_config");
+    std::filesystem::create_directories(dir.file("off"));
+    std::filesystem::create_directories(dir.file("on/canopy"));
+    const auto write = [](const std::string& path, const std::string& body) {
+        std::ofstream out(path);
+        out << body;
+    };
+    write(dir.file("off/fidelity.toml"), plain);
+    write(dir.file("on/fidelity.toml"), withConfig);
+    const std::string scenarioPath = dir.file("on/fidelity.toml");
+
+    // Strict: the placer file's unknown keys, bad values and its seed are errors naming the
+    // scenario, the placer file, the key and the value.
+    const auto fails = [&](const std::string& placer, const std::vector<std::string>& words) {
+        INFO(placer);
+        if (!placer.empty()) write(dir.file("on/canopy/fit.toml"), placer);
+        else std::filesystem::remove(dir.file("on/canopy/fit.toml"));
+        try {
+            parseScenarioConfig(withConfig, scenarioPath);
+            FAIL("no error");
+        } catch (const Error& e) {
+            const std::string m = e.what();
+            INFO(m);
+            CHECK(m.find(scenarioPath) != std::string::npos);
+            CHECK(m.find("canopy_config") != std::string::npos);
+            for (const auto& w : words) CHECK(m.find(w) != std::string::npos);
+        }
+    };
+    fails("[canopy]\ncrown_fit_pases = 2\n", {"fit.toml", "crown_fit_pases", "unknown key"});
+    fails("[canopy]\ncrown_fit_passes = -1\n", {"fit.toml", "crown_fit_passes", "-1"});
+    fails("[canopy]\ncrown_fit_passes = \"two\"\n", {"fit.toml", "crown_fit_passes"});
+    fails("crown_fit_passes = 2\nseed = 7\n", {"fit.toml", "seed", "terrain_seed"});
+    fails("[canopy\n", {"fit.toml"});
+    fails("", {"fit.toml", "no such file"});
+
+    // The key reaches the placement: the crown fit changes the canopy, and the details name
+    // the setting; without the key the scene is the placer's defaults.
+    write(dir.file("on/canopy/fit.toml"), "# eco run's [canopy] config file\n[canopy]\ncrown_fit_passes = 2\n");
+    CHECK_NOTHROW(parseScenarioConfig(withConfig, scenarioPath));
+    const auto run = [&](const std::string& cfg) {
+        SuiteOptions o;
+        o.mode = Mode::Quick;
+        o.configs.directory = dir.file(cfg);
+        o.outDir = dir.file(cfg + "-out");
+        o.replicates = 1;
+        const SuiteResult r = runSuite(o);
+        REQUIRE(r.scenarios.size() == 1);
+        return r.scenarios[0];
+    };
+    const ScenarioResult off = run("off");
+    const ScenarioResult on = run("on");
+    const auto canopyOf = [](const ScenarioResult& s) {
+        for (const Figure& f : s.figures)
+            if (f.scene) return f.scene->canopy;  // the first view: the whole synthesized scene
+        return std::vector<Plant>{};
+    };
+    const std::vector<Plant> a = canopyOf(off), b = canopyOf(on);
+    REQUIRE_FALSE(a.empty());
+    REQUIRE_FALSE(b.empty());
+    bool same = a.size() == b.size();
+    for (std::size_t i = 0; same && i < a.size(); ++i)
+        same = a[i].xM == b[i].xM && a[i].yM == b[i].yM && a[i].heightM == b[i].heightM;
+    CHECK_FALSE(same);
+    std::string detailsOn, detailsOff;
+    for (const auto& d : on.details) detailsOn += d + "\n";
+    for (const auto& d : off.details) detailsOff += d + "\n";
+    CHECK(detailsOn.find("Canopy placer configuration `canopy/fit.toml` ([protocol] canopy_config): crown_fit_passes = 2.") !=
+          std::string::npos);
+    CHECK(detailsOff.find("canopy_config") == std::string::npos);
+}
+
 TEST_CASE("The shipped configurations load and every scenario has its checks", "[validate][config]") {
     ConfigSource src;
     src.directory = eco::test::sourcePath("configs/validation");

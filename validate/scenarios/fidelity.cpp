@@ -11,6 +11,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <set>
+#include <type_traits>
 
 #include "abiotics.h"
 #include "analysis.h"
@@ -60,6 +63,13 @@ struct FidelitySettings {
     };
     Size quick, full;
     sim::SimParams params;  ///< [model]
+    /// [protocol] canopy_config: a canopy placer configuration (as eco canopy --config and
+    /// eco run's [canopy] config read it) for the scene's canopy placement; "" = the placer's
+    /// defaults. The placement's seed stays terrain_seed.
+    std::string canopyConfig;      ///< as the scenario file writes it
+    std::string canopyConfigPath;  ///< relative to the scenario file's directory
+    synth::CanopyParams canopyParams;
+    synth::SpeciesMapParams speciesParams;
 };
 
 using FsK = ParamDesc<FidelitySettings>::Kind;
@@ -91,6 +101,44 @@ const std::vector<ParamDesc<FsP>>& protocolFields() {
          &FsP::densityReplicateFactor, nullptr, ParamRange::closed(0.0, 100.0)},
     };
     return fields;
+}
+
+/// Reads the placer configuration `path` into `st` ([canopy] table when there is one, else
+/// the top level, as loadCanopyConfig). Strict: unknown keys and bad values are errors naming
+/// the file, key and value; `seed` is refused (the scenario's terrain_seed, and each
+/// replicate's, seeds the placement).
+void readPlacerConfig(const std::string& path, FidelitySettings& st) {
+    const toml::table root = parseTomlFile(path);
+    const toml::table* t = &root;
+    std::string context;
+    if (const toml::node* n = root.get("canopy")) {
+        t = n->as_table();
+        if (!t) throw ValidationError(path + ": 'canopy' must be a table");
+        context = "[canopy]";
+    }
+    StrictTable table(*t, path, context);
+    if (table.has("seed"))
+        table.fail("seed", "the canopy placement's seed is the scenario's [protocol] terrain_seed; remove it here");
+    readCanopyConfig(table, st.canopyParams, st.speciesParams);
+    table.finish();
+}
+
+/// The placer settings that differ from the defaults, "key = value, ..." ("" = none).
+std::string placerSettingsText(const synth::CanopyParams& canopy, const synth::SpeciesMapParams& speciesMap) {
+    std::string out;
+    std::set<std::string> listed;  // canopy_threshold_m is a key of both tables
+    const auto add = [&](const auto& p, const auto& fields) {
+        using S = std::decay_t<decltype(p)>;
+        static const S defaults{};  // static: every byte initialised (as paramDocRow)
+        for (const auto& f : fields) {
+            const std::string v = paramText(f, p, 17);
+            if (v == paramText(f, defaults, 17) || !listed.insert(f.key).second) continue;
+            out += (out.empty() ? "" : ", ") + std::string(f.key) + " = " + v;
+        }
+    };
+    add(canopy, synth::canopyParamFields());
+    add(speciesMap, synth::speciesMapParamFields());
+    return out;
 }
 
 /// [quick] and [full]'s numeric keys (the plot window is read by hand).
@@ -156,10 +204,10 @@ SceneInputs makeSceneInputs(const FidelitySettings& st, const FidelitySettings::
     AbioticParams ap;
     ap.sun.stepMinutes = st.sunStepMinutes;
     in.abiotics = computeAbiotics(in.terrainM, biome, ap);
-    // As `eco canopy --seed S --target ...`.
-    synth::CanopyParams canopyParams;
+    // As `eco canopy [--config canopy_config] --seed S --target ...`.
+    synth::CanopyParams canopyParams = st.canopyParams;
     canopyParams.seed = st.terrainSeed;
-    synth::SpeciesMapParams speciesParams;
+    synth::SpeciesMapParams speciesParams = st.speciesParams;
     speciesParams.canopyThresholdM = canopyParams.canopyThresholdM;
     synth::validateCanopyParams(canopyParams);
     std::vector<synth::SpeciesTarget> targets;
@@ -290,6 +338,19 @@ Fidelity::Fidelity(const ScenarioParse& in) {
     }
     if (total > 1 + 1e-9) s.fail("canopy_target_fractions", "fractions sum to " + num(total) + ", more than 1");
     if (st.seedA == st.seedB) s.fail("seed_b", "equals seed_a (" + std::to_string(st.seedA) + "): the replicate must be another seed");
+    if (s.has("canopy_config")) {
+        st.canopyConfig = s.string("canopy_config");
+        st.canopyConfigPath = pathRelativeToConfig(in.path, st.canopyConfig);
+        if (!std::filesystem::is_regular_file(st.canopyConfigPath))
+            s.fail("canopy_config", "'" + st.canopyConfigPath + "': no such file (a path relative to this file's directory)");
+        try {
+            readPlacerConfig(st.canopyConfigPath, st);
+        } catch (const IoError& e) {
+            throw IoError(in.path + ": [protocol] canopy_config: " + e.what());
+        } catch (const ValidationError& e) {
+            throw ValidationError(in.path + ": [protocol] canopy_config: " + e.what());
+        }
+    }
     s.finish();
     in.sizes([&](Mode m, StrictTable& z) {
         auto& size = m == Mode::Quick ? st.quick : st.full;
@@ -416,7 +477,14 @@ void Fidelity::run(const ScenarioConfig& sc, ScenarioContext& ctx, ScenarioResul
                         " cells of " + num(st.cellSizeM) + " m (seed " + std::to_string(st.terrainSeed) + "), CHM and canopy "
                         "(seed " + std::to_string(st.terrainSeed) + (targets.empty() ? "" : "; " + targets) + "): " +
                         std::to_string(scene.canopy.size()) + " canopy trees; abiotics with a " + num(st.sunStepMinutes) +
-                        "-minute sun step. Built in " + fixed(inputsS, 1) + " s.");
+                        "-minute sun step. Built in " + fixed(inputsS, 1) + " s." +
+                        (st.canopyConfig.empty()
+                             ? std::string()
+                             : " Canopy placer configuration `" + st.canopyConfig + "` ([protocol] canopy_config): " +
+                                   [&] {
+                                       const std::string t = placerSettingsText(st.canopyParams, st.speciesParams);
+                                       return t.empty() ? std::string("the defaults") : t;
+                                   }() + "."));
     r.details.push_back("- Plot " + plotText(size.plot) + " (" + num(size.plot.widthM()) + " m x " + num(size.plot.heightM()) +
                         " m), simulated for " + std::to_string(size.years) + " years with seed " + std::to_string(st.seedA) +
                         " (A: " + std::to_string(A.undergrowth.size()) + " plants at the end, " + fixed(A.seconds, 1) +
