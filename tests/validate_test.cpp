@@ -481,18 +481,30 @@ TEST_CASE("The fidelity scenario's configuration is read strictly", "[validate][
     CHECK_THROWS_WITH(loadSuiteConfig(bad, defaultBiome()), Catch::Contains("Douglas Fir") && Catch::Contains("canopy_target_species"));
 }
 
+namespace {
+
+// `from` replaced by `to` at its first place in `text` (the test fails if it is missing).
+void replaceOnce(std::string& text, const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    text.replace(at, from.size(), to);
+}
+
+// The shipped fidelity.toml with a tiny quick scene: 64 x 64 cells (58.5 m), a 22 m plot.
+std::string tinyFidelityText(int years) {
+    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
+    replaceOnce(text, "terrain_cells = 512", "terrain_cells = 64");
+    replaceOnce(text, "plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
+    replaceOnce(text, "years = 150", "years = " + std::to_string(years));
+    return text;
+}
+
+}  // namespace
+
 TEST_CASE("The fidelity scenario runs on a tiny scene: control reported, same bits for 1 and 2 threads",
           "[validate][fidelity]") {
-    // The shipped file with a tiny quick scene: 64 x 64 cells (58.5 m), a 22 m plot, 12 years.
-    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
-    const auto swap = [&](const std::string& from, const std::string& to) {
-        const auto at = text.find(from);
-        REQUIRE(at != std::string::npos);
-        text.replace(at, from.size(), to);
-    };
-    swap("terrain_cells = 512", "terrain_cells = 64");
-    swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
-    swap("years = 150", "years = 12");
+    // The shipped file with a tiny quick scene, 12 years.
+    const std::string text = tinyFidelityText(12);
     TempDir dir("fidelity_tiny");
     std::filesystem::create_directories(dir.file("cfg"));
     {
@@ -572,18 +584,10 @@ TEST_CASE("The fidelity scenario's canopy_config key reaches the canopy placer a
           "[validate][config][fidelity]") {
     // The shipped file with a tiny quick scene (as the test above, 2 years) and, optionally, a
     // placer configuration canopy/fit.toml.
-    std::string text = readAll(eco::test::sourcePath("configs/validation/fidelity.toml"));
-    const auto swap = [&](const std::string& from, const std::string& to) {
-        const auto at = text.find(from);
-        REQUIRE(at != std::string::npos);
-        text.replace(at, from.size(), to);
-    };
-    swap("terrain_cells = 512", "terrain_cells = 64");
-    swap("plot = [130.0, 90.0, 190.0, 150.0]", "plot = [18.0, 18.0, 40.0, 40.0]");
-    swap("years = 150", "years = 2");
+    std::string text = tinyFidelityText(2);
     const std::string plain = text;
     // In a subfolder: every *.toml of the configurations' folder is a scenario.
-    swap("[protocol]\n", "[protocol]\ncanopy_config = \"canopy/fit.toml\"\n");
+    replaceOnce(text, "[protocol]\n", "[protocol]\ncanopy_config = \"canopy/fit.toml\"\n");
     const std::string withConfig = text;
     TempDir dir("fidelity_canopy_config");
     std::filesystem::create_directories(dir.file("off"));
