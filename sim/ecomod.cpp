@@ -260,8 +260,8 @@ struct EcoModel::Impl {
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
     int maxLevel = 0;               // the grids' top level
     bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
-    std::vector<Entry> packed;      // the store's able in bucket order
-    std::vector<std::uint32_t> packedBucket;  // the bucket of each entry of `packed`
+    std::vector<Entry> packed;      // every able tree in bucket order (buildGrids: the store's, then the fixed grid's, per bucket)
+    std::vector<std::uint32_t> aEnd;  // buildGrids' scratch: per bucket, the end of the store's part
     // The fixed grid: the able canopy trees and dozers, which neither move nor change while
     // they are there, in a grid of their own kept between years (same levels and buckets as
     // the store's grid, every level of allLevels). In a bucket the canopy trees come first,
@@ -1141,12 +1141,21 @@ void EcoModel::Impl::buildGrids() {
     maxLevel = top;
     levels.assign(allLevels.begin(), allLevels.begin() + maxLevel + 1);  // maxAbility -1, maxRadius 0
     const std::size_t buckets = levels.back().first + static_cast<std::size_t>(levels.back().bw) * levels.back().bh;
-    // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
-    // back) the first entry of bucket k; start[buckets] = m.
+    // The searched grid: per bucket the store's able (in `able` order), then the fixed grid's
+    // entries of the bucket (its order): one grid of every able tree, as before the fixed
+    // grid. Counting sort of the store's able (start[k] counts them), the fixed grid's runs
+    // copied in between: start[k] = the store's able in the buckets before k + fixedStart[k].
+    for (int L = 0; L <= maxLevel; ++L) {
+        Level& lv = levels[static_cast<std::size_t>(L)];
+        lv.maxAbility = fixedLevels[static_cast<std::size_t>(L)].maxAbility;
+        lv.maxRadius = fixedLevels[static_cast<std::size_t>(L)].maxRadius;
+    }
+    const std::uint32_t* const fs = fixedStart.data();  // every fixed entry lies below `buckets` (its levels <= maxLevel)
+    const std::size_t total = m + fs[buckets];
     start.assign(buckets + 1, 0);
-    packed.resize(m);
-    packedItem.resize(m);
-    packedBucket.resize(m);
+    aEnd.resize(buckets);
+    packed.resize(total);
+    packedItem.resize(total);
     slot.resize(n);
     for (std::size_t i = 0; i < m; ++i) {
         const Entry& q = ableEntry[i];
@@ -1155,21 +1164,34 @@ void EcoModel::Impl::buildGrids() {
         lv.maxRadius = std::max(lv.maxRadius, q.r);
         ++start[bucket[i]];
     }
-    for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
+    std::uint32_t run = 0;  // the store's able in the buckets before k
+    for (std::size_t k = 0; k < buckets; ++k) {
+        const std::uint32_t c = start[k];
+        start[k] = run + fs[k];
+        run += c;
+        aEnd[k] = run + fs[k];  // the end of the store's part of bucket k
+    }
+    start[buckets] = static_cast<std::uint32_t>(total);
+    const Entry* const fp = fixedPacked.data();
+    const std::uint32_t* const fi = fixedItem.data();
+    for (std::size_t k = 0; k < buckets; ++k) {  // the fixed grid's run of bucket k after the store's
+        const std::uint32_t f0 = fs[k], f1 = fs[k + 1], at = aEnd[k];
+        for (std::uint32_t e = f0; e < f1; ++e) {
+            packed[at + (e - f0)] = fp[e];
+            packedItem[at + (e - f0)] = fi[e];
+        }
+    }
     for (std::size_t i = m; i-- > 0;) {
-        const std::uint32_t k = --start[bucket[i]];
+        const std::uint32_t k = --aEnd[bucket[i]];
         packed[k] = ableEntry[i];
         packedItem[k] = able[i];
-        packedBucket[k] = bucket[i];
         slot[able[i]] = k;
     }
 }
 
 // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
 // dominated? Reads only the start-of-year entries (buildGrids'); writes only its witness.
-// The first dominator in the order of one grid of every able tree: level from the top, then
-// bucket (row by row), then in a bucket the store's trees, the canopy trees, the dozers.
-[[gnu::always_inline]] inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) const {
+inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) const {
     const double px = me.x, py = me.y, pr = me.r, pa = me.a;
     // Eq. 8: the neighbourhoods intersect (the same expression for the witness and the search).
     auto overlaps = [px, py, pr](const Entry& q) {
@@ -1184,48 +1206,25 @@ void EcoModel::Impl::buildGrids() {
     // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
     // clamps to bucket 0 as its floor would.
     const double ox = px - area.x0, oy = py - area.y0;
-    constexpr std::uint32_t kNone = 0xFFFFFFFFu;
     for (int L = maxLevel; L >= 0; --L) {
         const Level& lv = levels[static_cast<std::size_t>(L)];
-        const Level& lf = fixedLevels[static_cast<std::size_t>(L)];
-        const bool inStore = pa < lv.maxAbility, inFixed = pa < lf.maxAbility;
-        if (!inStore && !inFixed) continue;  // nobody there is more able
-        // every tree of level L has r <= maxRadius (of its grid)
-        const double reach = pr + std::max(inStore ? lv.maxRadius : 0.0, inFixed ? lf.maxRadius : 0.0);
+        if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
+        const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
         const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
         const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
         const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
         const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
         // The buckets bx0..bx1 of a row are consecutive in `packed` (sorted by bucket, row by
-        // row): one run of entries per row and grid. The store's first hit in the row, then the
-        // fixed grid's entries of the row's buckets before the hit's (those of its bucket come
-        // after the store's).
+        // row): one run of entries per row, in the order a bucket-by-bucket scan would meet them.
         for (int by = by0; by <= by1; ++by) {
             const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-            std::uint32_t hit = kNone;
-            if (inStore) {
-                const std::uint32_t end = start[row + bx1 + 1];
-                for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
-                    const Entry& q = packed[k];
-                    if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
-                        hit = k;
-                        break;
-                    }
+            const std::uint32_t end = start[row + bx1 + 1];
+            for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+                const Entry& q = packed[k];
+                if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never; an unable fixed entry never)
+                    wit = packedItem[k];  // a store index, or a canopy tree's or dozer's code
+                    return true;
                 }
-            }
-            if (inFixed) {
-                const std::uint32_t end = fixedStart[hit == kNone ? row + bx1 + 1 : packedBucket[hit]];
-                for (std::uint32_t k = fixedStart[row + bx0]; k < end; ++k) {
-                    const Entry& q = fixedPacked[k];
-                    if (pa < q.a && overlaps(q)) {
-                        wit = fixedItem[k];
-                        return true;
-                    }
-                }
-            }
-            if (hit != kNone) {
-                wit = packedItem[hit];
-                return true;
             }
         }
     }
@@ -1282,12 +1281,12 @@ bool EcoModel::Impl::isDominatedBrute(const Entry& me, std::uint32_t& wit) const
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = ableN;  // dominated: sized by seedYear
+    const std::size_t n = searchN, m = packed.size();  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p >= n) continue;  // canopy trees: static, never dominated
+        if (p >= n) continue;  // canopy trees and dozers (their codes): not tested here
         dominated[p] = (sure[p] != 0 && witness[p] != kNoWitness) || isDominated(packed[k], witness[p]) ? 1 : 0;
     }
 }
