@@ -210,10 +210,10 @@ struct EcoModel::Impl {
     std::vector<std::uint8_t> sure;
     // And a fourth: per tree, its level and bucket in the grids (kLevelShift: level in the top
     // bits) while the grids' base spacing (gridBase) and its crown are as when buildGrids
-    // computed them, else kNoKey; per dozer the same (dozerKey). Kept in step with the store.
+    // computed them, else kNoKey; per canopy tree the same (canopyKey). Kept in step with the store.
     static constexpr std::uint32_t kNoKey = 0xFFFFFFFFu;
     static constexpr int kLevelShift = 27;
-    std::vector<std::uint32_t> gridKey;
+    std::vector<std::uint32_t> gridKey, canopyKey;
     double gridBase = 0;  // the base of the keys (0: none yet)
     EcoModel::CacheCounts cacheCounts;  // how often the caches served (diagnostic)
     // A third cache, for the trees of ability 0 (the year's new seedlings, mostly): per cell of
@@ -233,7 +233,6 @@ struct EcoModel::Impl {
     }
 
     // Scratch of the step, kept between years (no allocation per year once grown).
-    static constexpr int kMaxLevels = 24;
     struct Level {
         double bucketM = 1, inverseM = 1;
         double maxAbility = -1;  // of its trees (-1: none): a tree at least this able skips the level
@@ -260,67 +259,7 @@ struct EcoModel::Impl {
     std::size_t searchN = 0;        // the store's size when the grids were built (store index < searchN, else canopy)
     int maxLevel = 0;               // the grids' top level
     bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
-    std::vector<Entry> packed;      // every able tree in bucket order (buildGrids: the store's, then the fixed grid's, per bucket)
-    std::vector<std::uint32_t> aEnd;  // buildGrids' scratch: per bucket, the end of the store's part
-    // The fixed grid: the able canopy trees and dozers, which neither move nor change while
-    // they are there, in a grid of their own kept between years (same levels and buckets as
-    // the store's grid, every level of allLevels). In a bucket the canopy trees come first,
-    // by index, then the dozers, by index: the order the single grid of all the able had
-    // after the store's trees (a search meets, per bucket, the store's entries, then these:
-    // the same first dominator). A dozer that dies or wakes keeps its entry until the next
-    // buildGrids, which makes it unable (ability 0: it dominates nobody); the year's new
-    // dozers (the highest indices) go to the end of their buckets; rebuilt on a new base or
-    // when the dozers are renumbered (dropDozerTombstones, wakeAll, loadState).
-    std::vector<Entry> fixedPacked;
-    std::vector<std::uint32_t> fixedItem, fixedStart;  // witness codes; bucket starts (every level)
-    std::vector<Level> fixedLevels;  // every level: the maxima of its entries (upper bounds once some are unable)
-    int fixedTop = 0;                // its top level with entries
-    bool fixedValid = false;
-    std::size_t fixedDozers = 0;     // the dozers the fixed grid has seen (indices below it)
-    std::vector<Entry> canopyEntry, dozerEntry;  // per canopy tree, per dozer: its entry at the grids (a 0: not able)
-    std::size_t canopyAble = 0;
-    std::vector<std::uint32_t> dozerBucket;      // per dozer seen: its bucket in the fixed grid
-    std::vector<std::uint32_t> dozerGone;        // dozers that died or woke since the last buildGrids
-    struct Placed {  // a new entry of the fixed grid
-        std::uint32_t bucket, code;
-        Entry q;
-    };
-    std::vector<Placed> placedScratch;
-    bool checkGrids = false;  // test mode: each search against a brute-force search of both grids (cacheCounts.gridMismatches)
-    void rebuildFixed(bool fresh);
-    void updateFixed(bool fresh);
-    // The level of a crown of radius r: base x 2^L by doublings (exact, as the product was).
-    int levelOfRadius(double r) const {
-        int L = 0;
-        double limit = gridBase;
-        while (L < kMaxLevels - 1 && r > limit) {
-            ++L;
-            limit *= 2.0;
-        }
-        return L;
-    }
-    std::uint32_t bucketOf(const Entry& q, int L) const {
-        const Level& lv = allLevels[static_cast<std::size_t>(L)];
-        const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
-        const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
-        return static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
-    }
-    std::vector<std::uint32_t> canopyBucket;  // per canopy tree: its bucket at gridBase (kNoKey: not yet)
-    void compactFixed(std::size_t synced);
-    bool isDominatedBrute(const Entry& me, std::uint32_t& wit) const;
-    void checkSearches();
-    // The entry of a witness code at the grids (nullptr: not able).
-    const Entry* witnessEntry(std::uint32_t w) const {
-        if (w & kWitnessCanopy) {
-            const Entry& q = canopyEntry[w & ~kWitnessCanopy];
-            return q.a > 0 ? &q : nullptr;
-        }
-        if (w & kWitnessDozer) {
-            const Entry& q = dozerEntry[w & kDozerMask];
-            return q.a > 0 ? &q : nullptr;
-        }
-        return ability[w] > 0 ? &packed[slot[w]] : nullptr;  // always, as abilities never fall; a guard all the same
-    }
+    std::vector<Entry> packed;      // the able in bucket order
     struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
         double x, y;
         std::uint32_t self;
@@ -690,6 +629,18 @@ struct EcoModel::Impl {
         if (!isStoreCode(q)) return dozerAlive(q) ? q : kNoWitness;
         return anyShrunk ? kNoWitness : newIndex[q];
     }
+    // A witness code's index in `ability` and `slot` (store, then canopy, then dozers), and back.
+    std::size_t codeIndex(std::uint32_t w) const {
+        if (w & kWitnessCanopy) return searchN + (w & ~kWitnessCanopy);
+        if (w & kWitnessDozer) return searchN + canopy.size() + (w & kDozerMask);
+        return w;
+    }
+    std::uint32_t codeOf(std::size_t e) const {
+        const std::size_t n = searchN, nc = canopy.size();
+        if (e < n) return static_cast<std::uint32_t>(e);
+        if (e < n + nc) return kWitnessCanopy | static_cast<std::uint32_t>(e - n);
+        return kWitnessDozer | static_cast<std::uint32_t>(e - n - nc);
+    }
     void disturbYear();
     std::uint64_t computeFingerprint() const;
 };
@@ -777,7 +728,6 @@ void EcoModel::Impl::seedYear() {
     // (height 0) are never among the able, so they are tested on these as they are born.
     rateYear();
     buildGrids();
-    if (checkGrids) checkSearches();
 #pragma omp parallel for schedule(dynamic, 1) if (parallelLoop(size()))
     for (int s = 0; s < ns; ++s) {
         const EcoModSpeciesParams& p = sp[static_cast<std::size_t>(s)];
@@ -908,187 +858,48 @@ void EcoModel::Impl::growYear() {
     dropDozerTombstones();
 }
 
-// The abilities of the year's new trees (the others' are seedYear's), `able` completed with
-// them. The canopy trees and the dozers are in the fixed grid (buildGrids).
+// The abilities of the year's new trees and of the canopy trees (the others' are seedYear's),
+// `able` completed with them.
 void EcoModel::Impl::rateYear() {
-    const std::size_t n = size();
-    if (ability.size() < n) ability.resize(n);  // the first `rated` from seedYear, with `able` among them
+    const std::size_t n = size(), nc = canopy.size(), nd = dozers.size();
+    if (ability.size() < n + nc + nd) ability.resize(n + nc + nd);  // the first `rated` from seedYear, with `able` among them
     std::size_t na = ableN;
-    if (able.size() < na + (n - rated) + 1) able.resize(na + (n - rated) + 1);  // written in place
+    if (able.size() < na + (n - rated) + nc + nd + 1) able.resize(na + (n - rated) + nc + nd + 1);  // written in place
     for (std::size_t p = rated; p < n; ++p) {
         const double a = height[p] / hRef * sp[static_cast<std::size_t>(species[p])].persistence * v[p];
         ability[p] = a;
         able[na] = static_cast<std::uint32_t>(p);
         na += a > 0 ? 1 : 0;
     }
-    ableN = na;
-    if (canopyEntry.size() != canopy.size()) {  // static: rated once
-        canopyEntry.resize(canopy.size());
-        canopyAble = 0;
-        for (std::size_t c = 0; c < canopy.size(); ++c) {
-            const Plant& t = canopy[c];
-            const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
-            canopyEntry[c] = Entry{t.xM, t.yM, t.crownRadiusM, a};
-            canopyAble += a > 0 ? 1 : 0;
-        }
-    }
-}
-
-// The fixed grid from scratch: the able canopy trees, then the living able dozers (the
-// counting sort keeps that order in each bucket).
-void EcoModel::Impl::rebuildFixed(bool fresh) {
-    const std::size_t nc = canopy.size(), nd = dozers.size();
-    constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
-    dozerEntry.resize(nd);
-    dozerBucket.assign(nd, kNoKey);
-    placedScratch.clear();
-    if (fresh || canopyBucket.size() != nc) canopyBucket.assign(nc, kNoKey);
     for (std::size_t c = 0; c < nc; ++c) {
-        const Entry& q = canopyEntry[c];
-        if (!(q.a > 0)) continue;
-        if (canopyBucket[c] == kNoKey) canopyBucket[c] = bucketOf(q, levelOfRadius(q.r));
-        placedScratch.push_back({canopyBucket[c], kWitnessCanopy | static_cast<std::uint32_t>(c), q});
+        const Plant& t = canopy[c];
+        const double a = t.heightM / hRef * sp[static_cast<std::size_t>(t.speciesId)].persistence * canopyV[c];
+        ability[n + c] = a;
+        able[na] = static_cast<std::uint32_t>(n + c);
+        na += a > 0 ? 1 : 0;
     }
-    for (std::size_t d = 0; d < nd; ++d) {
-        const Dozer& z = dozers[d];
-        const Entry q{z.x, z.y, z.radius, dozerAbility[d]};  // 0 for a tombstone
-        dozerEntry[d] = q;
-        if (!(q.a > 0)) continue;
-        std::uint32_t& key = dozerKey[d];
-        std::uint32_t k;
-        if (key == kNoKey || fresh || !keysUsable) {
-            const int L = levelOfRadius(q.r);
-            k = bucketOf(q, L);
-            key = keysUsable ? (static_cast<std::uint32_t>(L) << kLevelShift) | k : kNoKey;
-        } else {
-            k = key & kBucketMask;
-        }
-        dozerBucket[d] = k;
-        placedScratch.push_back({k, kWitnessDozer | static_cast<std::uint32_t>(d), q});
+    const double* za = dozerAbility.data();
+    for (std::size_t d = 0; d < nd; ++d) {  // a tombstone: 0
+        const double a = za[d];
+        ability[n + nc + d] = a;
+        able[na] = static_cast<std::uint32_t>(n + nc + d);
+        na += a > 0 ? 1 : 0;
     }
-    const std::size_t buckets = allLevels.back().first + static_cast<std::size_t>(allLevels.back().bw) * allLevels.back().bh;
-    fixedLevels = allLevels;
-    fixedTop = 0;
-    fixedStart.assign(buckets + 1, 0);
-    const std::size_t m = placedScratch.size();
-    fixedPacked.resize(m);
-    fixedItem.resize(m);
-    for (const Placed& pl : placedScratch) ++fixedStart[pl.bucket];
-    for (std::size_t k = 1; k <= buckets; ++k) fixedStart[k] += fixedStart[k - 1];
-    for (std::size_t i = m; i-- > 0;) {
-        const Placed& pl = placedScratch[i];
-        const std::uint32_t k = --fixedStart[pl.bucket];
-        fixedPacked[k] = pl.q;
-        fixedItem[k] = pl.code;
-    }
-    std::size_t L = 0;
-    for (std::size_t k = 0; k < m; ++k) {  // the levels' maxima (entries in level order)
-        while (fixedStart[allLevels[L].first + static_cast<std::size_t>(allLevels[L].bw) * allLevels[L].bh] <= k) ++L;
-        Level& lv = fixedLevels[L];
-        lv.maxAbility = std::max(lv.maxAbility, fixedPacked[k].a);
-        lv.maxRadius = std::max(lv.maxRadius, fixedPacked[k].r);
-        fixedTop = std::max(fixedTop, static_cast<int>(L));
-    }
-    fixedDozers = nd;
-    dozerGone.clear();
-    fixedValid = true;
+    ableN = na;
 }
 
-// The fixed grid brought to this year: the dozers gone since the last buildGrids made
-// unable, the new ones (indices from fixedDozers on) at the end of their buckets.
-void EcoModel::Impl::updateFixed(bool fresh) {
-    if (fresh || !fixedValid) {
-        rebuildFixed(fresh);
-        return;
-    }
-    constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
-    for (const std::uint32_t d : dozerGone) {
-        dozerEntry[d].a = 0.0;
-        const std::uint32_t k = dozerBucket[d];
-        if (k == kNoKey) continue;  // was not able
-        const std::uint32_t code = kWitnessDozer | d;
-        for (std::uint32_t e = fixedStart[k]; e < fixedStart[k + 1]; ++e)
-            if (fixedItem[e] == code) {
-                fixedPacked[e].a = 0.0;
-                break;
-            }
-    }
-    dozerGone.clear();
-    const std::size_t nd = dozers.size();
-    if (fixedDozers == nd) return;
-    dozerEntry.resize(nd);
-    dozerBucket.resize(nd, kNoKey);
-    placedScratch.clear();
-    for (std::size_t d = fixedDozers; d < nd; ++d) {
-        const Dozer& z = dozers[d];
-        const Entry q{z.x, z.y, z.radius, dozerAbility[d]};
-        dozerEntry[d] = q;
-        if (!(q.a > 0)) continue;
-        std::uint32_t& key = dozerKey[d];
-        int L;
-        std::uint32_t k;
-        if (key == kNoKey || !keysUsable) {
-            L = levelOfRadius(q.r);
-            k = bucketOf(q, L);
-            key = keysUsable ? (static_cast<std::uint32_t>(L) << kLevelShift) | k : kNoKey;
-        } else {
-            L = static_cast<int>(key >> kLevelShift);
-            k = key & kBucketMask;
-            ++cacheCounts.keysKept;
-        }
-        dozerBucket[d] = k;
-        Level& lv = fixedLevels[static_cast<std::size_t>(L)];
-        lv.maxAbility = std::max(lv.maxAbility, q.a);
-        lv.maxRadius = std::max(lv.maxRadius, q.r);
-        fixedTop = std::max(fixedTop, L);
-        placedScratch.push_back({k, kWitnessDozer | static_cast<std::uint32_t>(d), q});
-    }
-    fixedDozers = nd;
-    const std::size_t add = placedScratch.size();
-    if (add == 0) return;
-    std::sort(placedScratch.begin(), placedScratch.end(), [](const Placed& a, const Placed& b) {
-        return a.bucket < b.bucket || (a.bucket == b.bucket && a.code < b.code);  // index order in a bucket
-    });
-    // Into place from the back (block moves), each after its bucket's entries.
-    std::size_t end = fixedPacked.size();
-    fixedPacked.resize(end + add);
-    fixedItem.resize(end + add);
-    for (std::size_t j = add; j-- > 0;) {
-        const std::size_t at = fixedStart[placedScratch[j].bucket + 1];
-        std::move_backward(fixedPacked.begin() + static_cast<std::ptrdiff_t>(at), fixedPacked.begin() + static_cast<std::ptrdiff_t>(end),
-                           fixedPacked.begin() + static_cast<std::ptrdiff_t>(end + j + 1));
-        std::move_backward(fixedItem.begin() + static_cast<std::ptrdiff_t>(at), fixedItem.begin() + static_cast<std::ptrdiff_t>(end),
-                           fixedItem.begin() + static_cast<std::ptrdiff_t>(end + j + 1));
-        fixedPacked[at + j] = placedScratch[j].q;
-        fixedItem[at + j] = placedScratch[j].code;
-        end = at;
-    }
-    // Bucket starts: each shifted by the new entries of the buckets before it (a run of
-    // buckets per new entry, one add each).
-    const std::size_t buckets = fixedStart.size() - 1;
-    std::uint32_t* const st = fixedStart.data();
-    for (std::size_t j = 0; j < add; ++j) {
-        const std::size_t from = placedScratch[j].bucket + 1, to = j + 1 < add ? placedScratch[j + 1].bucket + 1 : buckets + 1;
-        const std::uint32_t shift = static_cast<std::uint32_t>(j + 1);
-        for (std::size_t k = from; k < to; ++k) st[k] += shift;
-    }
-}
-
-// The level of each able tree of the store, the levels' grids, and those able sorted by
-// bucket (packed); the fixed grid brought to the year (updateFixed). The base spacing follows
-// the able's (every able tree, canopy and dozers too: about one per bucket of level 0, at
-// least 1 m) with some slack: it is kept while within a factor kBaseSlack of that, so that a
-// tree whose crown did not change keeps its level and bucket (gridKey) from one year to the next.
+// The level of each able tree, the levels' grids, and the able sorted by bucket (packed).
+// The base spacing follows the able's (about one per bucket of level 0, at least 1 m) with
+// some slack: it is kept while within a factor kBaseSlack of that, so that a tree whose crown
+// did not change keeps its level and bucket (gridKey) from one year to the next.
 void EcoModel::Impl::buildGrids() {
+    constexpr int kMaxLevels = 24;
     constexpr double kBaseSlack = 1.25;
-    const std::size_t n = size();
+    const std::size_t n = size(), nc = canopy.size(), total = n + nc + dozers.size();
     searchN = n;
     const std::size_t m = ableN;
-    std::size_t dozersAble = 0;
-    for (const double a : dozerAbility) dozersAble += a > 0 ? 1 : 0;
-    const std::size_t allAble = m + canopyAble + dozersAble;
     const double areaW = area.x1 - area.x0, areaH = area.y1 - area.y0;
-    const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(allAble, 1))));
+    const double wanted = std::max(1.0, std::sqrt(areaW * areaH / static_cast<double>(std::max<std::size_t>(m, 1))));
     bool fresh = false;  // every key recomputed (a new base)
     if (!(gridBase > 0) || wanted > gridBase * kBaseSlack || wanted * kBaseSlack < gridBase) {
         gridBase = wanted;
@@ -1107,27 +918,49 @@ void EcoModel::Impl::buildGrids() {
             allLevels.push_back(lv);
         }
         keysUsable = buckets < (std::size_t{1} << kLevelShift);
+        canopyKey.assign(canopy.size(), kNoKey);
         std::fill(gridKey.begin(), gridKey.end(), kNoKey);
         std::fill(dozerKey.begin(), dozerKey.end(), kNoKey);
     }
-    updateFixed(fresh);
+    const double base = gridBase;
     constexpr std::uint32_t kBucketMask = (1u << kLevelShift) - 1;
     ableEntry.resize(m);
     bucket.resize(m);
     levelOf.resize(m);
-    int top = fixedTop;
+    int top = 0;
     std::uint32_t* const treeKey = gridKey.data();
     for (std::size_t i = 0; i < m; ++i) {
         const std::size_t e = able[i];
-        const Entry q{x[e], y[e], radius[e], ability[e]};
-        std::uint32_t* const keyAt = treeKey + e;
+        Entry q;
+        std::uint32_t* keyAt;
+        if (e < n) {
+            q = Entry{x[e], y[e], radius[e], ability[e]};
+            keyAt = treeKey + e;
+        } else if (e < n + nc) {
+            const Plant& t = canopy[e - n];
+            q = Entry{t.xM, t.yM, t.crownRadiusM, ability[e]};
+            keyAt = canopyKey.data() + (e - n);
+        } else {
+            const Dozer& z = dozers[e - n - nc];
+            q = Entry{z.x, z.y, z.radius, ability[e]};
+            keyAt = dozerKey.data() + (e - n - nc);
+        }
         ableEntry[i] = q;
         const std::uint32_t key = *keyAt;
         int L;
         std::uint32_t k;
         if (key == kNoKey || fresh || !keysUsable) {
-            L = levelOfRadius(q.r);
-            k = bucketOf(q, L);
+            // Level: base x 2^L by doublings (exact, as the product was); then the bucket.
+            L = 0;
+            double limit = base;
+            while (L < kMaxLevels - 1 && q.r > limit) {
+                ++L;
+                limit *= 2.0;
+            }
+            const Level& lv = allLevels[static_cast<std::size_t>(L)];
+            const int bx = std::clamp(static_cast<int>((q.x - area.x0) * lv.inverseM), 0, lv.bw - 1);
+            const int by = std::clamp(static_cast<int>((q.y - area.y0) * lv.inverseM), 0, lv.bh - 1);
+            k = static_cast<std::uint32_t>(lv.first + static_cast<std::size_t>(by) * lv.bw + bx);
             *keyAt = keysUsable ? (static_cast<std::uint32_t>(L) << kLevelShift) | k : kNoKey;
         } else {
             L = static_cast<int>(key >> kLevelShift);
@@ -1141,22 +974,12 @@ void EcoModel::Impl::buildGrids() {
     maxLevel = top;
     levels.assign(allLevels.begin(), allLevels.begin() + maxLevel + 1);  // maxAbility -1, maxRadius 0
     const std::size_t buckets = levels.back().first + static_cast<std::size_t>(levels.back().bw) * levels.back().bh;
-    // The searched grid: per bucket the store's able (in `able` order), then the fixed grid's
-    // entries of the bucket (its order): one grid of every able tree, as before the fixed
-    // grid. Counting sort of the store's able (start[k] counts them), the fixed grid's runs
-    // copied in between: start[k] = the store's able in the buckets before k + fixedStart[k].
-    for (int L = 0; L <= maxLevel; ++L) {
-        Level& lv = levels[static_cast<std::size_t>(L)];
-        lv.maxAbility = fixedLevels[static_cast<std::size_t>(L)].maxAbility;
-        lv.maxRadius = fixedLevels[static_cast<std::size_t>(L)].maxRadius;
-    }
-    const std::uint32_t* const fs = fixedStart.data();  // every fixed entry lies below `buckets` (its levels <= maxLevel)
-    const std::size_t total = m + fs[buckets];
+    // Counting sort of the able by bucket: start[k] counts, then ends, then (filled from the
+    // back) the first entry of bucket k; start[buckets] = m.
     start.assign(buckets + 1, 0);
-    aEnd.resize(buckets);
-    packed.resize(total);
-    packedItem.resize(total);
-    slot.resize(n);
+    packed.resize(m);
+    packedItem.resize(m);
+    slot.resize(total);
     for (std::size_t i = 0; i < m; ++i) {
         const Entry& q = ableEntry[i];
         Level& lv = levels[levelOf[i]];
@@ -1164,25 +987,9 @@ void EcoModel::Impl::buildGrids() {
         lv.maxRadius = std::max(lv.maxRadius, q.r);
         ++start[bucket[i]];
     }
-    std::uint32_t run = 0;  // the store's able in the buckets before k
-    for (std::size_t k = 0; k < buckets; ++k) {
-        const std::uint32_t c = start[k];
-        start[k] = run + fs[k];
-        run += c;
-        aEnd[k] = run + fs[k];  // the end of the store's part of bucket k
-    }
-    start[buckets] = static_cast<std::uint32_t>(total);
-    const Entry* const fp = fixedPacked.data();
-    const std::uint32_t* const fi = fixedItem.data();
-    for (std::size_t k = 0; k < buckets; ++k) {  // the fixed grid's run of bucket k after the store's
-        const std::uint32_t f0 = fs[k], f1 = fs[k + 1], at = aEnd[k];
-        for (std::uint32_t e = f0; e < f1; ++e) {
-            packed[at + (e - f0)] = fp[e];
-            packedItem[at + (e - f0)] = fi[e];
-        }
-    }
+    for (std::size_t k = 1; k <= buckets; ++k) start[k] += start[k - 1];
     for (std::size_t i = m; i-- > 0;) {
-        const std::uint32_t k = --aEnd[bucket[i]];
+        const std::uint32_t k = --start[bucket[i]];
         packed[k] = ableEntry[i];
         packedItem[k] = able[i];
         slot[able[i]] = k;
@@ -1200,8 +1007,11 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
     };
     const std::uint32_t w = wit;
     if (w != kNoWitness) {
-        const Entry* q = witnessEntry(w);
-        if (q != nullptr && pa < q->a && overlaps(*q)) return true;
+        const std::size_t e = codeIndex(w);
+        if (ability[e] > 0) {  // always, as abilities never fall; a guard all the same
+            const Entry& q = packed[slot[e]];
+            if (pa < q.a && overlaps(q)) return true;
+        }
     }
     // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
     // clamps to bucket 0 as its floor would.
@@ -1221,8 +1031,8 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
             const std::uint32_t end = start[row + bx1 + 1];
             for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
                 const Entry& q = packed[k];
-                if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never; an unable fixed entry never)
-                    wit = packedItem[k];  // a store index, or a canopy tree's or dozer's code
+                if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
+                    wit = codeOf(packedItem[k]);
                     return true;
                 }
             }
@@ -1232,61 +1042,14 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
     return false;
 }
 
-// Test mode: the searches of the year's grids against isDominatedBrute, from every able
-// tree, every set-aside tree's place and the points of a 1 m lattice over the area (crowns
-// of 0 and 2 m, abilities 0 and 0.3).
-void EcoModel::Impl::checkSearches() {
-    auto check = [this](const Entry& me) {
-        std::uint32_t a = kNoWitness, b = kNoWitness;
-        const bool da = isDominated(me, a), db = isDominatedBrute(me, b);
-        if (da != db || a != b) ++cacheCounts.gridMismatches;
-        ++cacheCounts.gridChecks;
-    };
-    for (std::size_t i = 0; i < ableN; ++i) check(ableEntry[i]);
-    for (std::size_t d = 0; d < fixedDozers; ++d)
-        if (dozerEntry[d].a > 0) check(dozerEntry[d]);
-    for (const Entry& q : canopyEntry) check(q);
-    for (std::size_t i = 0; i < sleepers.size(); ++i)
-        if (sleepEvent[i] >= 0) check(Entry{sleepers[i].x, sleepers[i].y, 0.0, 0.0});
-    for (double py = area.y0 + 0.5; py < area.y1; py += 1.0)
-        for (double px = area.x0 + 0.5; px < area.x1; px += 1.0) {
-            check(Entry{px, py, 0.0, 0.0});
-            check(Entry{px, py, 2.0, 0.3});
-        }
-}
-
-// Test mode: the first dominator in the single grid's order (level from the top, bucket,
-// then the store's trees, the canopy trees, the dozers, each by index) by a pass over every
-// able tree, the levels and buckets computed afresh.
-bool EcoModel::Impl::isDominatedBrute(const Entry& me, std::uint32_t& wit) const {
-    std::uint64_t best = ~std::uint64_t{0};
-    std::uint32_t bestCode = kNoWitness;
-    auto consider = [&](const Entry& q, std::uint32_t code, std::uint64_t kind, std::uint64_t index) {
-        const double dx = me.x - q.x, dy = me.y - q.y, rr = me.r + q.r;
-        if (!(me.a < q.a && dx * dx + dy * dy < rr * rr)) return;
-        const int L = levelOfRadius(q.r);
-        const std::uint64_t rank = (static_cast<std::uint64_t>(23 - L) << 58) | (static_cast<std::uint64_t>(bucketOf(q, L)) << 30) |
-                                   (kind << 28) | index;
-        if (rank < best) {
-            best = rank;
-            bestCode = code;
-        }
-    };
-    for (std::size_t i = 0; i < ableN; ++i) consider(ableEntry[i], able[i], 0, able[i]);
-    for (std::size_t c = 0; c < canopyEntry.size(); ++c) consider(canopyEntry[c], kWitnessCanopy | static_cast<std::uint32_t>(c), 1, c);
-    for (std::size_t d = 0; d < fixedDozers; ++d) consider(dozerEntry[d], kWitnessDozer | static_cast<std::uint32_t>(d), 2, d);
-    wit = bestCode;
-    return bestCode != kNoWitness;
-}
-
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
-    const std::size_t n = searchN, m = packed.size();  // dominated: sized by seedYear
+    const std::size_t n = searchN, m = ableN;  // dominated: sized by seedYear
 #pragma omp parallel for schedule(dynamic, 1024) if (parallelLoop(m))
     for (std::int64_t ki = 0; ki < static_cast<std::int64_t>(m); ++ki) {
         const std::size_t k = static_cast<std::size_t>(ki);
         const std::size_t p = packedItem[k];
-        if (p >= n) continue;  // canopy trees and dozers (their codes): not tested here
+        if (p >= n) continue;  // canopy trees: static, never dominated
         dominated[p] = (sure[p] != 0 && witness[p] != kNoWitness) || isDominated(packed[k], witness[p]) ? 1 : 0;
     }
 }
@@ -1321,25 +1084,36 @@ bool EcoModel::Impl::testPoint(const Entry& me, std::uint32_t& wit) {
     };
     const std::uint32_t w = wit;
     if (w != kNoWitness) {
-        const Entry* q = witnessEntry(w);
-        if (q != nullptr && me.a < q->a && overlaps(*q)) return true;
+        const std::size_t e = codeIndex(w);
+        if (ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) return true;
+        }
     }
     const std::uint64_t* ids = id.data();  // the first n: the store's at the grids (sorted)
     const std::size_t cell = coverCell(me.x, me.y);
     const std::uint64_t guess = coverGuess[cell];
     if (guess != 0) {
+        std::size_t e = n;
         std::uint32_t code = kNoWitness;
         if (guess & kCoverCanopy) {
-            code = kWitnessCanopy | static_cast<std::uint32_t>(guess & ~kCoverCanopy);
+            const std::size_t c = static_cast<std::size_t>(guess & ~kCoverCanopy);
+            e = n + c;
+            code = kWitnessCanopy | static_cast<std::uint32_t>(c);
         } else {
-            const std::size_t e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
-            if (e < n && ids[e] == guess) code = static_cast<std::uint32_t>(e);  // else died (or asleep)
+            e = static_cast<std::size_t>(std::lower_bound(ids, ids + n, guess) - ids);
+            if (e < n && ids[e] == guess)
+                code = static_cast<std::uint32_t>(e);
+            else
+                e = ability.size();  // died (or asleep): past every index
         }
-        const Entry* q = code == kNoWitness ? nullptr : witnessEntry(code);
-        if (q != nullptr && me.a < q->a && overlaps(*q)) {
-            wit = code;
-            ++cacheCounts.coverHits;
-            return true;
+        if (e < ability.size() && ability[e] > 0) {
+            const Entry& q = packed[slot[e]];
+            if (me.a < q.a && overlaps(q)) {
+                wit = code;
+                ++cacheCounts.coverHits;
+                return true;
+            }
         }
     }
     std::uint32_t found = kNoWitness;
@@ -1708,7 +1482,6 @@ void EcoModel::Impl::dozersYear() {
                 const std::int32_t ageYears = z.ageBase + now + 1;
                 dozerEvent[d] = kTombstone;
                 dozerAbility[d] = 0.0;
-                dozerGone.push_back(d);
                 --dozersLive;
                 if (ageYears >= z.deathAge) {
                     ++counters.diedBackgroundOrStress;
@@ -1735,7 +1508,6 @@ void EcoModel::Impl::dozersYear() {
                 ++counters.diedBackgroundOrStress;
             dozerEvent[d] = kTombstone;
             dozerAbility[d] = 0.0;
-            dozerGone.push_back(d);
             --dozersLive;
         }
     }
@@ -1811,16 +1583,10 @@ void EcoModel::Impl::dropDozerTombstones() {
     const std::size_t nd = dozers.size(), dead = nd - dozersLive;
     if (!(2 * dead > dozersLive && dead > 64)) return;
     dozerRemap.assign(nd, kNoWitness);
-    std::size_t o = 0, synced = 0;
-    const std::size_t seen = fixedValid ? fixedDozers : 0;
+    std::size_t o = 0;
     for (std::size_t d = 0; d < nd; ++d) {
         if (dozerEvent[d] < 0) continue;
         dozerRemap[d] = static_cast<std::uint32_t>(o);
-        if (d < seen) {  // the fixed grid's view of it
-            dozerEntry[o] = dozerEntry[d];
-            dozerBucket[o] = dozerBucket[d];
-            synced = o + 1;
-        }
         dozers[o] = dozers[d];
         dozerEvent[o] = dozerEvent[d];
         dozerWitness[o] = dozerWitness[d];
@@ -1828,7 +1594,6 @@ void EcoModel::Impl::dropDozerTombstones() {
         dozerAbility[o] = dozerAbility[d];
         ++o;
     }
-    compactFixed(synced);
     dozers.resize(o);
     dozerEvent.resize(o);
     dozerWitness.resize(o);
@@ -1850,37 +1615,6 @@ void EcoModel::Impl::dropDozerTombstones() {
     for (const std::uint32_t d : dozerOrder)
         if (dozerRemap[d] != kNoWitness) dozerOrder[w++] = dozerRemap[d];
     dozerOrder.resize(w);
-}
-
-// The fixed grid after dropDozerTombstones (dozerRemap): the tombstones' entries out (those
-// that died this year too), the others' codes renumbered (in the same order); the dozers it
-// has seen are the first `synced` now.
-void EcoModel::Impl::compactFixed(std::size_t synced) {
-    dozerGone.clear();
-    if (!fixedValid) return;
-    const std::size_t buckets = fixedStart.size() - 1;
-    std::uint32_t w = 0, e = 0;
-    for (std::size_t k = 0; k < buckets; ++k) {
-        const std::uint32_t end = fixedStart[k + 1];
-        fixedStart[k] = w;
-        for (; e < end; ++e) {
-            std::uint32_t code = fixedItem[e];
-            if (isDozerCode(code)) {
-                const std::uint32_t to = dozerRemap[code & kDozerMask];
-                if (to == kNoWitness) continue;
-                code = kWitnessDozer | to;
-            }
-            fixedPacked[w] = fixedPacked[e];
-            fixedItem[w] = code;
-            ++w;
-        }
-    }
-    fixedStart[buckets] = w;
-    fixedPacked.resize(w);
-    fixedItem.resize(w);
-    fixedDozers = synced;
-    dozerEntry.resize(synced);
-    dozerBucket.resize(synced);
 }
 
 // The woken (in id order; witnesses as store indices) into the store, by id, in place: each
@@ -1960,8 +1694,6 @@ void EcoModel::Impl::wakeAll(int yearsCompleted) {
     dozerAbility.clear();
     dozerDue.clear();
     dozersLive = 0;
-    fixedValid = false;
-    dozerGone.clear();
     sleepers.clear();
     sleepEvent.clear();
     sleepWitness.clear();
@@ -2176,7 +1908,6 @@ void EcoModel::forgetCaches() {
     m.coverGuess.clear();
 }
 void EcoModel::checkSleeperCalendar(bool on) { impl_->checkCalendar = on; }
-void EcoModel::checkGridSearches(bool on) { impl_->checkGrids = on; }
 std::size_t EcoModel::dozingCount() const { return impl_->dozersLive; }
 void EcoModel::setDozing(bool on) {
     impl_->dozing = on;
@@ -2366,8 +2097,6 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
     m.dozerAbility.clear();
     m.dozerDue.clear();
     m.dozersLive = 0;
-    m.fixedValid = false;
-    m.dozerGone.clear();
     for (std::size_t p = 0; p < n; ++p) {
         if (sps[p] < 0 || static_cast<std::size_t>(sps[p]) >= m.sp.size()) throw IoError(where + ": plant " + std::to_string(p) + " has a bad species");
         const std::uint64_t pid = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(idHi[p])) << 32) |

@@ -92,23 +92,15 @@ public:
     /// How often the step's caches served since construction (diagnostic; docs/ecomod.md
     /// "Speed"): a tree of ability 0 found dominated by the cover cache's guess, a set-aside
     /// tree rejoining the store in growStore's pass, an able tree's grid place kept, a
-    /// set-aside tree under a canopy tree met by the events' calendar in its event year,
-    /// (checkSleeperCalendar on) a year whose calendar entry differed from a scan, and
-    /// (checkGridSearches on) the searches compared and those that differed.
+    /// set-aside tree under a canopy tree met by the events' calendar in its event year, and
+    /// (checkSleeperCalendar on) a year whose calendar entry differed from a scan.
     struct CacheCounts {
         std::size_t coverHits = 0, wokenInPass = 0, keysKept = 0, calendarEvents = 0, calendarMismatches = 0;
-        std::size_t gridChecks = 0, gridMismatches = 0;
     };
     CacheCounts cacheCounts() const;
     /// Test mode: each year the set-aside trees that the events' calendar gives are compared
     /// with a scan of every set-aside tree's event year (cacheCounts().calendarMismatches).
     void checkSleeperCalendar(bool on);
-    /// Test mode: each year, searches of the two grids (the store's able trees; the canopy
-    /// trees and dozers, kept between years) from every able tree, every set-aside tree and
-    /// the points of a 1 m lattice are compared with a pass over every able tree that takes
-    /// the first dominator in the order of one grid of them all (level from the top, bucket,
-    /// store before canopy before dozers, index): cacheCounts().gridMismatches.
-    void checkGridSearches(bool on);
     /// How many dominated trees of height > 0 doze (set aside from the store's yearly passes,
     /// among the dominators; docs/ecomod.md "Dozing dominated trees").
     std::size_t dozingCount() const;
