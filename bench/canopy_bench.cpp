@@ -138,11 +138,6 @@ int main(int argc, char** argv) {
             std::snprintf(line, sizeof line, "trees hash        %016llx (species, x, y, ground z, height, crown radius)\n",
                           static_cast<unsigned long long>(plantsHash(r.trees)));
             sec << line;
-            if (params.crownFitPasses > 0) {
-                std::snprintf(line, sizeof line, "crown fit         %d passes, %zu hidden (margin %.3f m), %zu fits reused from the pass before\n",
-                              params.crownFitPasses, r.crownFitHidden, r.crownFitHiddenMarginM, r.crownFitReused);
-                sec << line;
-            }
             if (paper > 0) {
                 std::snprintf(line, sizeof line, "paper (GTX 1070)  %7.3f s canopy placement\n", paper);
                 sec << line;

@@ -972,24 +972,7 @@ constexpr double kFitSeedQuantile = 0.9;      ///< of the seeds' margins
 constexpr double kFitSeedMarginFactor = 2.0;  ///< hidden margin >= this x that quantile
 constexpr double kFitConvergeM = 0.03;
 constexpr float kFitCapM = 2.0f;  ///< squared errors capped at this^2 (m^2)
-/// What one tree's crown fit read and returned, kept for the next pass when the fit left
-/// the tree in place (position, species, anchor: everything fitCrown reads of it). In that
-/// pass the fit reads the same tree, the same CHM and, when the other crowns' surface over
-/// its window (`others`) is unchanged, the same render values: it would compute the same
-/// margin and leave the tree where it is, so it is taken from here instead.
-struct FitMemo {
-    int pass = 0;  ///< the pass this fit is of (0: none kept)
-    int x0 = 0, x1 = -1, y0 = 0, y1 = -1;  ///< the window (CHM cells)
-    double margin = 0;
-    std::vector<float> others;  ///< the other crowns' surface over the window, row by row
-};
-/// memo (may be null): the tree's FitMemo; the fit of pass `pass` is taken from it when it
-/// holds the fit of pass - 1 over the same window and others' surface, and when keep is set
-/// a fit that leaves the tree in place is recorded in it for pass + 1. reused: set when the
-/// fit was taken from the memo.
-double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double reachM, double minHeightM, Tree& t,
-                FitMemo* memo, int pass, bool keep, bool& reused) {
-    reused = false;
+double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double reachM, double minHeightM, Tree& t) {
     const Grid<float>& chm = scene.chm();
     const int w = chm.width(), h = chm.height();
     const double cell = chm.cellSizeM();
@@ -1008,10 +991,7 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
     const int x0 = std::max(0, chm.cellX(t.x - reach)), x1 = std::min(w - 1, chm.cellX(t.x + reach));
     const int y0 = std::max(0, chm.cellY(t.y - reach)), y1 = std::min(h - 1, chm.cellY(t.y + reach));
     const int nx = x1 - x0 + 1, ny = y1 - y0 + 1;
-    if (nx <= 0 || ny <= 0) {
-        if (memo != nullptr) memo->pass = 0;
-        return 0.0;
-    }
+    if (nx <= 0 || ny <= 0) return 0.0;
     // Per window cell: the CHM c, the surface of the other crowns o and the capped squared
     // error of the others alone eo (buffers kept per thread: no allocation per tree).
     constexpr float kCap2 = kFitCapM * kFitCapM;
@@ -1030,27 +1010,6 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
             cs[k] = c;
             eos[k] = std::min((o - c) * (o - c), kCap2);
         }
-    if (memo != nullptr && memo->pass == pass - 1 && pass > 1 && memo->x0 == x0 && memo->x1 == x1 && memo->y0 == y0 &&
-        memo->y1 == y1 && memo->others.size() == nWin && std::equal(os.begin(), os.begin() + static_cast<std::ptrdiff_t>(nWin), memo->others.begin())) {
-        memo->pass = pass;
-        reused = true;
-        return memo->margin;
-    }
-    // Records the fit for the next pass when it leaves t where it was (tree: the fit's result).
-    auto remember = [&](const Tree& fittedTree, double margin) {
-        if (memo == nullptr) return;
-        memo->pass = 0;
-        if (!keep || fittedTree.x != t.x || fittedTree.y != t.y || fittedTree.species != t.species ||
-            fittedTree.apex != t.apex)
-            return;
-        memo->pass = pass;
-        memo->x0 = x0;
-        memo->x1 = x1;
-        memo->y0 = y0;
-        memo->y1 = y1;
-        memo->margin = margin;
-        memo->others.assign(os.begin(), os.begin() + static_cast<std::ptrdiff_t>(nWin));
-    };
     const double cx0 = chm.cellCentreX(x0), cy0 = chm.cellCentreY(y0);
     // Only the cells where the sphere rises above the others change the error: it is compared
     // as the sum over them of (sphere - c)^2 - (o - c)^2 (0 = no better than without t).
@@ -1376,19 +1335,14 @@ double fitCrown(const Scene& scene, const Frame& f, std::int32_t self, double re
                 by = quarter[p].y;
             }
     }
-    if (!scene.inside(bx, by)) {
-        remember(t, 0.0);
-        return 0.0;
-    }
-    Tree out = scene.makeTree(bx, by, bh, t.uid);
-    out.apex = t.apex;
+    if (!scene.inside(bx, by)) return 0.0;
+    const bool anchored = t.apex;
+    t = scene.makeTree(bx, by, bh, t.uid);
+    t.apex = anchored;
     const int cx = std::clamp(chm.cellX(bx), 0, w - 1), cy = std::clamp(chm.cellY(by), 0, h - 1);
     const double dx = chm.cellCentreX(cx) - bx, dy = chm.cellCentreY(cy) - by;
-    const double own = bh - out.radiusM + std::sqrt(std::max(0.0, out.radiusM * out.radiusM - dx * dx - dy * dy));
-    const double margin = chm(cx, cy) - own;
-    remember(out, margin);
-    t = out;
-    return margin;
+    const double own = bh - t.radiusM + std::sqrt(std::max(0.0, t.radiusM * t.radiusM - dx * dx - dy * dy));
+    return chm(cx, cy) - own;
 }
 
 /// Lowest CHM cell on the segment between two trunks (cells sampled every half cell, the
@@ -1610,12 +1564,6 @@ CrownRender renderCrowns(const std::vector<Plant>& plants, const Grid<float>& li
 
 CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
                          const Biome& biome, const CanopyParams& params, const CanopyProgress& progress) {
-    return placeCanopy(chmM, terrainM, speciesMap, biome, params, progress, CanopyCheckOptions{});
-}
-
-CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
-                         const Biome& biome, const CanopyParams& params, const CanopyProgress& progress,
-                         const CanopyCheckOptions& check) {
     const auto tStart = Clock::now();
     const HugeBlockScope hugeBlocks;  // first: every buffer of the placement is released before it closes
     validateCanopyParams(params);
@@ -2094,10 +2042,6 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
         Buf<Tree> fitted;
         Buf<std::pair<std::uint64_t, std::uint32_t>> order;
         constexpr int kFitBandRows = 8;
-        // Fits that left their tree in place, for the next pass (FitMemo): there a tree whose
-        // window of the render did not change takes its fit from here.
-        std::vector<FitMemo> memos(params.crownFitPasses > 1 && check.reuseCrownFits ? trees.size() : 0);
-        std::size_t reusedFits = 0;
         for (int pass = 1; pass <= params.crownFitPasses; ++pass) {
             const bool last = pass == params.crownFitPasses;
             Buf<Crown>& cr = frame.crowns;
@@ -2122,13 +2066,10 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
                 order.push_back({key, static_cast<std::uint32_t>(k)});
             }
             std::sort(order.begin(), order.end());
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : reusedFits)
+#pragma omp parallel for schedule(dynamic, 64)
             for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(order.size()); ++j) {
                 const std::size_t k = order[static_cast<std::size_t>(j)].second;
-                bool reused = false;
-                margin[k] = fitCrown(scene, frame, static_cast<std::int32_t>(k), params.crownFitReachM, params.minSeedHeightM,
-                                     fitted[k], memos.empty() ? nullptr : &memos[k], pass, !last, reused);
-                reusedFits += reused;
+                margin[k] = fitCrown(scene, frame, static_cast<std::int32_t>(k), params.crownFitReachM, params.minSeedHeightM, fitted[k]);
             }
             for (std::size_t k = 0; k < trees.size(); ++k) {
                 if (trees[k].uid >= seeds && !trees[k].hidden) trees[k] = fitted[k];
@@ -2152,7 +2093,6 @@ CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, c
             }
         result.crownFitHidden = hidden;
         result.crownFitHiddenMarginM = hiddenMargin;
-        result.crownFitReused = reusedFits;
     }
     if (params.crownFitPasses > 0) {
         Buf<Tree>& kept = next;

@@ -192,7 +192,6 @@ struct CanopyResult {
     std::size_t hiddenApexTrees = 0;     ///< fitted trees with their apex under another crown, not output (residualApexFit, crownFitPasses)
     std::size_t crownFitHidden = 0;      ///< added trees whose crown-fit apex is hidden, not output (crownFitPasses)
     double crownFitHiddenMarginM = 0;    ///< the crown fit's hidden margin on this CHM (metres)
-    std::size_t crownFitReused = 0;      ///< crown fits of passes 2 on taken from the pass before (inputs unchanged)
     std::size_t fallbackTrees = 0;       ///< final trees whose cell has no species (nearest mapped)
     std::string stopReason;      ///< "coverage gain below epsilon" or "iteration cap"
     double seconds = 0;          ///< whole placement, wall time
@@ -208,18 +207,6 @@ using CanopyProgress = std::function<void(const IterationStats&)>;
 /// finite and >= 0; species ids must be canopy species of `biome` or -1.
 CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
                          const Biome& biome, const CanopyParams& params, const CanopyProgress& progress = {});
-
-/// Switches of placeCanopy's exact shortcuts, for tests that compare a shortcut with the
-/// work it saves: the trees never depend on them.
-struct CanopyCheckOptions {
-    /// Crown fit, passes 2 on: a tree left in place by the previous pass whose window of the
-    /// other crowns' render is unchanged takes that pass's fit instead of fitting again.
-    bool reuseCrownFits = true;
-};
-/// placeCanopy with its shortcuts switched as `check` says (tests).
-CanopyResult placeCanopy(const Grid<float>& chmM, const Grid<float>& terrainM, const Grid<std::int32_t>& speciesMap,
-                         const Biome& biome, const CanopyParams& params, const CanopyProgress& progress,
-                         const CanopyCheckOptions& check);
 
 /// A top-down render of crowns (spheres) at the resolution of `like`.
 struct CrownRender {

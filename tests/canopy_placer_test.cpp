@@ -702,41 +702,6 @@ TEST_CASE("the crown fit drops a tree on a hidden crown's crescent and keeps a s
     }
 }
 
-TEST_CASE("crown fits taken from the pass before give the trees of a full refit", "[canopy]") {
-    // The generated canopy of the thread test, three passes of the crown fit: a tree the
-    // previous pass left in place whose window of the other crowns is unchanged takes that
-    // pass's fit (FitMemo); refitting every tree every pass must give the same trees, on 1
-    // and 2 threads, and the shortcut must have been taken.
-    const Biome b = defaultBiome();
-    const Grid<std::int32_t> sketch = generateDensitySketch(160, 140, 0.914, SketchParams{});
-    ChmGenParams cp;
-    cp.denseSpacingM = 3.5;
-    cp.minHeightM = 5;
-    cp.maxHeightM = 20;
-    const Grid<float> chm = generateChm(sketch, cp);
-    const Grid<std::int32_t> map = uniformMap(chm, b.speciesIndex("Douglas-Fir"));
-    const Grid<float> terrain = Grid<float>::like(chm, 0.f);
-    synth::CanopyParams p;
-    p.crownFitPasses = 3;
-    synth::CanopyCheckOptions full;
-    full.reuseCrownFits = false;
-    const int threads = omp_get_max_threads();
-    for (const int n : {1, 2}) {
-        omp_set_num_threads(n);
-        const synth::CanopyResult reuse = synth::placeCanopy(chm, terrain, map, b, p);
-        const synth::CanopyResult refit = synth::placeCanopy(chm, terrain, map, b, p, {}, full);
-        INFO(n << " threads: " << reuse.trees.size() << " trees, " << reuse.crownFitReused << " fits reused, "
-               << reuse.crownFitHidden << " hidden");
-        CHECK(reuse.crownFitReused > 0);
-        CHECK(refit.crownFitReused == 0);
-        CHECK(sameTrees(reuse.trees, refit.trees));
-        CHECK(reuse.crownFitHidden == refit.crownFitHidden);
-        CHECK(reuse.crownFitHiddenMarginM == refit.crownFitHiddenMarginM);
-        CHECK(reuse.final.rmseM == refit.final.rmseM);
-    }
-    omp_set_num_threads(threads);
-}
-
 TEST_CASE("after the crown fit an added tree on a conical crown keeps the CHM's height", "[canopy]") {
     // The flank pair of the next test, drawn as lidar-like crowns, not the placer's spheres:
     // z = h - D (d / r)^1.5 with D = 1.5 r (a pointed conifer crown), the lower trunk where
