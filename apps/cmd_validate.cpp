@@ -25,7 +25,7 @@ struct ValidateOptions {
     std::string configs;
     std::vector<std::string> only;
     int threads = 0;
-    int replicates = validate::kDefaultReplicates;
+    int replicates = 0;  ///< 0 = not given: each scenario's own count
     std::vector<std::string> model;  ///< KEY=VALUE
     std::string biome;               ///< "" = the built-in biome
 };
@@ -65,8 +65,11 @@ void runValidate(const ValidateOptions& o) {
             if (!name.empty()) so.only.push_back(name);
     }
     so.log = [](const std::string& line) { info(line); };
-    info("validate: " + std::string(validate::modeName(so.mode)) + " run, " + std::to_string(so.replicates) +
-         " replicate(s), " + std::to_string(omp_get_max_threads()) + " threads, configurations from " + so.configs.describe() + ", output " + so.outDir);
+    info("validate: " + std::string(validate::modeName(so.mode)) + " run, " +
+         (so.replicates > 0 ? std::to_string(so.replicates) + " replicate(s) per scenario"
+                            : std::string("each scenario's replicates (its file's, default ") +
+                                  std::to_string(validate::kDefaultReplicates) + ")") +
+         ", " + std::to_string(omp_get_max_threads()) + " threads, configurations from " + so.configs.describe() + ", output " + so.outDir);
     const validate::SuiteResult result = validate::runSuite(so);
     const auto written = validate::writeReport(result, so.outDir);
     char line[200];
@@ -101,9 +104,11 @@ void registerValidateCommand(CLI::App& app) {
                     "Directory of scenario configurations (default: configs/validation if it exists here, else the "
                     "copies embedded at build time)");
     sub->add_option("--replicates", opt->replicates,
-                    "Seeds per scenario (default " + std::to_string(validate::kDefaultReplicates) +
+                    "Seeds of every scenario, overriding the scenario files' counts (default: each file's [scenario] "
+                    "replicates, or quick_replicates with --quick, else " +
+                        std::to_string(validate::kDefaultReplicates) +
                         "): each check is judged on the 95 % interval of its mean over them; 1 judges single values")
-        ->check(CLI::Range(1, 1000));
+        ->check(CLI::Range(1, validate::kMaxReplicates));
     sub->add_option("--model", opt->model,
                     "KEY=VALUE (repeatable): replace a [model] key in every scenario and scene, e.g. growth_rule=literal, "
                     "germination_cells=every, germination_vigour=mean_vigour, canopy_limit=canopy_only "

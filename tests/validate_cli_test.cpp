@@ -129,6 +129,18 @@ TEST_CASE("eco validate: replicates give each check the mean, its interval and e
     CHECK(readAll(dir.file("out/report.md")).find("Replicates: **3**") != std::string::npos);
     // A replicate count below 1 is a usage error.
     CHECK(runEco("validate --quick --replicates 0 --configs " + cfgDir + " --out " + dir.file("out0")).exitCode == 2);
+    // Without --replicates, the scenario file's count (quick_replicates in a quick run);
+    // --replicates overrides it.
+    std::string own = kMinimalCircles;
+    const std::string name = "name = \"circles_small\"\n";
+    own.replace(own.find(name), name.size(), name + "replicates = 4\nquick_replicates = 2\n");
+    writeFile(cfgDir + "/circles.toml", own);
+    const auto fileCount = runEco("validate --quick --configs " + cfgDir + " --out " + dir.file("own"));
+    INFO(fileCount.output);
+    CHECK(fileCount.output.find("each scenario's replicates (its file's, default 5)") != std::string::npos);
+    for (const auto& row : eco::test::readCsvRows(dir.file("own/results.csv"))) CHECK(row.at("replicates") == "2");
+    CHECK(runEco("validate --quick --replicates 1 --configs " + cfgDir + " --out " + dir.file("one")).exitCode != 2);
+    for (const auto& row : eco::test::readCsvRows(dir.file("one/results.csv"))) CHECK(row.at("replicates") == "1");
 }
 
 // The whole quick suite, as CI runs it (about 25 s on 2 cores). Hidden from the default

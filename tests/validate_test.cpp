@@ -756,6 +756,7 @@ TEST_CASE("Replicates: a seed without a value fails the check and says so", "[va
 TEST_CASE("The report and results.csv carry the interval and every replicate's value", "[validate][replicates][report]") {
     SuiteResult res = demoSuite();
     res.replicates = 3;
+    res.scenarios[0].replicates = 3;
     res.scenarios[0].checks[0] =
         combineReplicates(replicates(CheckSpec::Kind::AtLeast, 1.5, 0, {2.0, 2.5, 3.0}));
     res.scenarios[0].checks[0].spec.id = "good";
@@ -771,6 +772,204 @@ TEST_CASE("The report and results.csv carry the interval and every replicate's v
     const std::string md = readAll(dir.file("report.md"));
     CHECK(md.find("Replicates: **3**") != std::string::npos);
     CHECK(md.find("Replicates: 2 2.5 3") != std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------------
+// Per-scenario replicate counts (issue 25): [scenario] replicates and quick_replicates, which
+// --replicates (SuiteOptions::replicates > 0) overrides.
+
+namespace {
+
+/// kMinimalCircles named `name`, with `scenarioLines` added to its [scenario] table.
+std::string circlesWith(const std::string& name, const std::string& scenarioLines) {
+    std::string text = kMinimalCircles;
+    replaceOnce(text, "name = \"circles_small\"\n", "name = \"" + name + "\"\n" + scenarioLines);
+    return text;
+}
+
+/// Number of replicate values of each check, by "scenario/check".
+std::map<std::string, std::size_t> valueCounts(const SuiteResult& r) {
+    std::map<std::string, std::size_t> out;
+    for (const auto& s : r.scenarios)
+        for (const auto& c : s.checks) out[s.name + "/" + c.spec.id] = c.replicateValues.size();
+    return out;
+}
+
+/// The replicate values of each check, by "scenario/check", as text ("nan" for a missing one):
+/// equal texts are equal bits to 17 digits.
+std::map<std::string, std::vector<std::string>> valuesOf(const SuiteResult& r) {
+    std::map<std::string, std::vector<std::string>> out;
+    for (const auto& s : r.scenarios)
+        for (const auto& c : s.checks)
+            for (double v : c.replicateValues) {
+                char buf[40];
+                std::snprintf(buf, sizeof buf, "%.17g", v);
+                out[s.name + "/" + c.spec.id].push_back(buf);
+            }
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("[scenario] replicates and quick_replicates are read strictly", "[validate][config][replicates]") {
+    const ScenarioConfig none = parseScenarioConfig(kMinimalCircles, "c.toml");
+    CHECK(none.replicateCount(Mode::Quick) == kDefaultReplicates);
+    CHECK(none.replicateCount(Mode::Full) == kDefaultReplicates);
+    const ScenarioConfig both = parseScenarioConfig(circlesWith("c", "replicates = 3\nquick_replicates = 7\n"), "c.toml");
+    CHECK(both.replicateCount(Mode::Full) == 3);
+    CHECK(both.replicateCount(Mode::Quick) == 7);
+    const ScenarioConfig every = parseScenarioConfig(circlesWith("c", "replicates = 3\n"), "c.toml");
+    CHECK(every.replicateCount(Mode::Full) == 3);
+    CHECK(every.replicateCount(Mode::Quick) == 3);  // quick falls back to replicates
+    const ScenarioConfig quick = parseScenarioConfig(circlesWith("c", "quick_replicates = 1000\n"), "c.toml");
+    CHECK(quick.replicateCount(Mode::Quick) == 1000);
+    CHECK(quick.replicateCount(Mode::Full) == kDefaultReplicates);  // then to the default
+
+    auto fails = [](const std::string& lines, const std::vector<std::string>& words) {
+        INFO(lines);
+        try {
+            parseScenarioConfig(circlesWith("c", lines), "c.toml");
+            FAIL("no error");
+        } catch (const ValidationError& e) {
+            const std::string m = e.what();
+            INFO(m);
+            CHECK(m.find("c.toml:") != std::string::npos);  // file and line
+            CHECK(m.find("[scenario]") != std::string::npos);
+            for (const auto& w : words) CHECK(m.find(w) != std::string::npos);
+        }
+    };
+    fails("replicates = 0\n", {"'replicates'", "value 0 outside [1, 1000]"});
+    fails("replicates = -3\n", {"'replicates'", "value -3 outside [1, 1000]"});
+    fails("quick_replicates = 1001\n", {"'quick_replicates'", "value 1001 outside [1, 1000]"});
+    fails("replicates = 2.5\n", {"'replicates'", "expected an integer"});
+    fails("quick_replicates = \"10\"\n", {"'quick_replicates'", "expected an integer"});
+    fails("quick_replicate = 10\n", {"'quick_replicate'", "unknown key"});
+
+    // The shipped fidelity scenario runs 10 replicates in quick mode and the default in full
+    // mode, the others the default; the copies embedded at build time say the same.
+    ConfigSource src;
+    src.directory = eco::test::sourcePath("configs/validation");
+    for (const ConfigSource& source : {src, ConfigSource{}}) {
+        INFO(source.describe());
+        const SuiteConfig suite = loadSuiteConfig(source, defaultBiome());
+        for (const auto& s : suite.scenarios) {
+            INFO(s.name);
+            CHECK(s.replicateCount(Mode::Quick) == (s.name == "fidelity" ? 10 : kDefaultReplicates));
+            CHECK(s.replicateCount(Mode::Full) == kDefaultReplicates);
+        }
+    }
+}
+
+TEST_CASE("Each scenario runs its own replicate count unless --replicates is given", "[validate][replicates]") {
+    TempDir dir("validate_scenario_replicates");
+    std::filesystem::create_directories(dir.file("cfg"));
+    // Deussen's circle test, twice: "two" has 2 replicates in every mode, "one" 1 in quick
+    // mode (and 4 in full mode, not run here).
+    std::ofstream(dir.file("cfg/two.toml")) << circlesWith("two", "replicates = 2\n");
+    std::ofstream(dir.file("cfg/one.toml")) << circlesWith("one", "replicates = 4\nquick_replicates = 1\n");
+    const auto runWith = [&](int replicates, const std::string& outName, std::vector<std::string>* log = nullptr) {
+        SuiteOptions o;
+        o.mode = Mode::Quick;
+        o.configs.directory = dir.file("cfg");
+        o.outDir = dir.file(outName);
+        o.replicates = replicates;
+        if (log) o.log = [log](const std::string& line) { log->push_back(line); };
+        return runSuite(o);
+    };
+
+    std::vector<std::string> log;
+    const SuiteResult own = runWith(0, "own", &log);
+    REQUIRE(own.scenarios.size() == 2);
+    CHECK(own.replicates == 0);
+    for (const auto& s : own.scenarios) CHECK(s.replicates == (s.name == "two" ? 2 : 1));
+    const auto counts = valueCounts(own);
+    CHECK(counts.at("two/slope") == 2);
+    CHECK(counts.at("two/r_squared") == 2);
+    CHECK(counts.at("one/slope") == 1);
+    CHECK(counts.at("one/r_squared") == 1);
+    // The same stands (seeds + 0 and + 1000) as when every scenario runs 2.
+    const SuiteResult all2 = runWith(2, "all2");
+    const auto ownValues = valuesOf(own), all2Values = valuesOf(all2);
+    CHECK(ownValues.at("two/slope") == all2Values.at("two/slope"));
+    CHECK(ownValues.at("one/slope").front() == all2Values.at("one/slope").front());
+    CHECK(ownValues.at("two/slope").at(0) != ownValues.at("two/slope").at(1));  // two seeds, two stands
+
+    // Progress lines: "one" has no replicate 2, and replicate 2 runs one scenario of one.
+    std::string text;
+    for (const auto& line : log) text += line + "\n";
+    INFO(text);
+    CHECK(text.find("validate: replicates: 1 per scenario; two 2 (the scenario files'") != std::string::npos);
+    CHECK(text.find("replicate 2/2 (seeds + 1000), [1/1] two") != std::string::npos);
+    CHECK(text.find("replicate 1/2 (seeds + 0), [2/2] two") != std::string::npos);
+    CHECK(text.find("validate: [1/2] one") != std::string::npos);
+    CHECK(text.find("] one (") == text.rfind("] one ("));  // "one" ran once
+
+    // The report states the counts; results.csv keeps its columns, one count per row.
+    writeReport(own, dir.file("own"));
+    const std::string md = readAll(dir.file("own/report.md"));
+    CHECK(md.find("Replicates: **1** per scenario; two **2** (the scenario files'") != std::string::npos);
+    CHECK(md.find("kind `deussen_circles`, 2 replicates,") != std::string::npos);
+    CHECK(md.find("kind `deussen_circles`, 1 replicate,") != std::string::npos);
+    for (const auto& row : test::readCsvRows(dir.file("own/results.csv"))) {
+        INFO(row.at("scenario") + "/" + row.at("check"));
+        CHECK(row.at("replicates") == (row.at("scenario") == "two" ? "2" : "1"));
+    }
+
+    // An explicit --replicates sets every scenario's count, the files' notwithstanding.
+    const SuiteResult three = runWith(3, "three");
+    CHECK(three.replicates == 3);
+    for (const auto& s : three.scenarios) CHECK(s.replicates == 3);
+    for (const auto& [id, n] : valueCounts(three)) {
+        INFO(id);
+        CHECK(n == 3);
+    }
+    writeReport(three, dir.file("three"));
+    CHECK(readAll(dir.file("three/report.md")).find("Replicates: **3** per scenario: replicate k") != std::string::npos);
+    const SuiteResult single = runWith(1, "single");
+    for (const auto& [id, n] : valueCounts(single)) {
+        INFO(id);
+        CHECK(n == 1);
+    }
+    CHECK_THROWS_WITH(runWith(-1, "bad"), Catch::Contains("--replicates") && Catch::Contains("-1"));
+}
+
+// Forest scenarios share the scene's runs: with different counts, replicate k (k >= 1) runs
+// only some of them, on a run planned for all of them, so that a scenario's values do not
+// depend on the others' counts. Here gap_dynamics measures at its own year 33 (which adds a
+// snapshot inside abiotic_gradients' window, years 16-40), on a 30 m, 40-year scene.
+TEST_CASE("Forest scenarios with different replicate counts share the scene's runs", "[validate][replicates]") {
+    TempDir dir("validate_forest_replicates");
+    std::filesystem::create_directories(dir.file("cfg"));
+    std::string scene = readAll(eco::test::sourcePath("configs/validation/scene_conifer_forest.toml"));
+    replaceOnce(scene, "[quick]\nplot_size_m = 60.0\nyears = 150", "[quick]\nplot_size_m = 30.0\nyears = 40");
+    std::ofstream(dir.file("cfg/scene_conifer_forest.toml")) << scene;
+    std::string gaps = readAll(eco::test::sourcePath("configs/validation/gap_dynamics.toml"));
+    replaceOnce(gaps, "order = 40\n", "order = 40\nreplicates = 1\n");
+    std::ofstream(dir.file("cfg/gap_dynamics.toml")) << gaps + "\n[quick]\nyears = 33\n";
+    std::string sun = readAll(eco::test::sourcePath("configs/validation/abiotic_gradients.toml"));
+    replaceOnce(sun, "order = 50\n", "order = 50\nreplicates = 2\n");
+    std::ofstream(dir.file("cfg/abiotic_gradients.toml")) << sun;
+    const auto runWith = [&](int replicates, const std::string& outName) {
+        SuiteOptions o;
+        o.mode = Mode::Quick;
+        o.configs.directory = dir.file("cfg");
+        o.outDir = dir.file(outName);
+        o.replicates = replicates;
+        return runSuite(o);
+    };
+    const SuiteResult own = runWith(0, "own");
+    const auto counts = valueCounts(own);
+    CHECK(counts.at("gap_dynamics/edge_vs_deep") == 1);
+    CHECK(counts.at("abiotic_gradients/sun_gap") == 2);
+    const SuiteResult both2 = runWith(2, "both2");
+    const auto ownValues = valuesOf(own), both2Values = valuesOf(both2);
+    for (const auto& [id, values] : ownValues) {
+        INFO(id);
+        const std::vector<std::string>& reference = both2Values.at(id);
+        REQUIRE(values.size() <= reference.size());
+        CHECK(std::vector<std::string>(reference.begin(), reference.begin() + static_cast<std::ptrdiff_t>(values.size())) == values);
+    }
+    CHECK(ownValues.at("abiotic_gradients/sun_gap").at(1) != "nan");
 }
 
 // ---------------------------------------------------------------------------------------

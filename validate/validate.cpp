@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include "atomic_file.h"
@@ -106,6 +107,25 @@ std::string intervalText(const CheckResult& c) {
     return num(c.value) + " [" + num(c.ciLow, 3) + ", " + num(c.ciHigh, 3) + "]";
 }
 
+/// The replicate counts of scenarios (name, count) in a line: "5 per scenario" when they are
+/// equal, else the count most of them have and the others by name, "5 per scenario;
+/// fidelity 10" (a tie goes to the smaller count); with `bold`, the counts in Markdown bold.
+std::string replicateCountsText(const std::vector<std::pair<std::string, int>>& counts, bool bold = false) {
+    const std::string b = bold ? "**" : "";
+    std::map<int, int> scenariosWith;
+    for (const auto& nc : counts) ++scenariosWith[nc.second];
+    int common = 1, most = 0;
+    for (const auto& cn : scenariosWith)
+        if (cn.second > most) {
+            common = cn.first;
+            most = cn.second;
+        }
+    std::string text = b + std::to_string(common) + b + " per scenario";
+    for (const auto& nc : counts)
+        if (nc.second != common) text += "; " + nc.first + " " + b + std::to_string(nc.second) + b;
+    return text;
+}
+
 /// One scenario: its kind's run() (scenario.h), timed.
 ScenarioResult runScenario(const ScenarioConfig& sc, ScenarioContext& context) {
     ScenarioResult r;
@@ -146,9 +166,22 @@ SuiteResult runSuite(const SuiteOptions& options) {
     for (const auto& s : suite.scenarios)
         if (options.only.empty() || std::find(options.only.begin(), options.only.end(), s.name) != options.only.end())
             selected.push_back(&s);
-    if (options.replicates < 1)
-        throw ValidationError("--replicates: " + std::to_string(options.replicates) + " is not a count of replicates (at least 1)");
+    if (options.replicates < 0 || options.replicates > kMaxReplicates)
+        throw ValidationError("--replicates: " + std::to_string(options.replicates) + " is not a count of replicates (1 to " +
+                              std::to_string(kMaxReplicates) + ", or 0 for each scenario's own)");
     result.replicates = options.replicates;
+    // Each scenario's count: --replicates when given, else its file's.
+    std::vector<int> counts;
+    std::vector<std::pair<std::string, int>> named;
+    for (const ScenarioConfig* sc : selected) {
+        counts.push_back(options.replicates > 0 ? options.replicates : sc->replicateCount(options.mode));
+        named.emplace_back(sc->name, counts.back());
+    }
+    const int rounds = counts.empty() ? 0 : *std::max_element(counts.begin(), counts.end());
+    if (options.log)
+        options.log("validate: replicates: " + replicateCountsText(named) +
+                    (options.replicates > 0 ? " (--replicates)" : " (the scenario files'; default " +
+                                                                      std::to_string(kDefaultReplicates) + ")"));
     ensureDirectory(options.outDir);
     // Replicate 0 writes its figures into the output directory; the others into a scratch
     // directory removed afterwards (the report shows replicate 0's pictures).
@@ -160,26 +193,36 @@ SuiteResult runSuite(const SuiteOptions& options) {
             std::filesystem::remove_all(dir, ec);
         }
     } guard{scratch};
-    // runs[i][k]: scenario i, replicate k.
+    // runs[i][k]: scenario i, replicate k (k < counts[i]).
     std::vector<std::vector<ScenarioResult>> runs(selected.size());
-    for (int k = 0; k < options.replicates; ++k) {
+    for (int k = 0; k < rounds; ++k) {
+        // Replicate k runs the scenarios that have more than k replicates.
+        std::vector<std::size_t> running;
+        for (std::size_t i = 0; i < selected.size(); ++i)
+            if (counts[i] > k) running.push_back(i);
         std::string figureDir = options.outDir;
         if (k > 0) {
             figureDir = scratch + "/" + std::to_string(k);
             ensureDirectory(figureDir);
         }
         ScenarioContext context(options, biome, suite, k, figureDir);
+        // Planned for every selected scenario, not only those running now: a forest run is
+        // simulated only when a running scenario asks for it, but with the same length and
+        // kept years in every replicate, so a scenario's replicates do not depend on how many
+        // replicates the scenarios sharing its scene have (an extra kept year adds a snapshot
+        // to a window measure).
         context.planForestRuns(selected);
-        const std::string rep = options.replicates > 1 ? "replicate " + std::to_string(k + 1) + "/" +
-                                                             std::to_string(options.replicates) + " (seeds + " +
-                                                             std::to_string(k * kReplicateSeedStep) + "), "
-                                                       : std::string();
-        for (std::size_t i = 0; i < selected.size(); ++i) {
+        for (std::size_t j = 0; j < running.size(); ++j) {
+            const std::size_t i = running[j];
             const ScenarioConfig& sc = *selected[i];
+            const std::string rep = counts[i] > 1 ? "replicate " + std::to_string(k + 1) + "/" + std::to_string(counts[i]) +
+                                                        " (seeds + " + std::to_string(k * kReplicateSeedStep) + "), "
+                                                  : std::string();
             if (options.log)
-                options.log("validate: " + rep + "[" + std::to_string(i + 1) + "/" + std::to_string(selected.size()) + "] " +
+                options.log("validate: " + rep + "[" + std::to_string(j + 1) + "/" + std::to_string(running.size()) + "] " +
                             sc.name + " (" + sc.path + ")");
             ScenarioResult r = runScenario(sc, context);
+            r.replicates = counts[i];
             if (options.log)
                 for (const CheckResult& c : r.checks)
                     options.log("validate:   " + sc.name + "/" + c.spec.id + " = " + num(c.value) + " (expected " +
@@ -239,14 +282,24 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
        << "\n";
     md << "- Started: " << res.startedUtc << "; wall time " << fixed(res.seconds, 1) << " s on " << res.threads << " thread(s)\n";
     md << "- eco " << ECO_VERSION_STRING << ", biome " << res.biomeName << ", configurations: " << res.configSource << "\n";
-    if (res.replicates > 1)
-        md << "- Replicates: **" << res.replicates << "** per scenario: replicate k runs with every configured seed + "
+    std::vector<std::pair<std::string, int>> counts;
+    int mostReplicates = 0;
+    for (const auto& s : res.scenarios) {
+        counts.emplace_back(s.name, s.replicates);
+        mostReplicates = std::max(mostReplicates, s.replicates);
+    }
+    // The counts' source only when they come from the files (the text of a --replicates run is as before).
+    const std::string source = res.replicates > 0 ? std::string()
+                                                  : " (the scenario files' `replicates` / `quick_replicates`; default " +
+                                                        std::to_string(kDefaultReplicates) + ")";
+    if (mostReplicates > 1)
+        md << "- Replicates: " << replicateCountsText(counts, true) << source << ": replicate k runs with every configured seed + "
            << kReplicateSeedStep << " k. A value is the mean over the replicates with its 95 % interval (Student's t) in "
            << "brackets; a check passes when the whole interval lies inside the accepted region. Figures and detail "
            << "lines show replicate 1 (the seeds as configured)\n";
     else
         md << "- Replicates: **1** (every seed as configured): a check passes on its single value; the suite's claims "
-           << "need " << kDefaultReplicates << " (--replicates)\n";
+           << "need " << kDefaultReplicates << " (" << (res.replicates > 0 ? "--replicates" : "the scenario files") << ")\n";
     const int passed = res.checkCount() - res.failedCount() - res.knownDeviationCount();
     md << "- Result: **" << passed << " of " << res.checkCount() << " checks passed**";
     if (res.knownDeviationCount() > 0)
@@ -272,7 +325,8 @@ std::vector<std::string> writeReport(const SuiteResult& res, const std::string& 
         const std::size_t sectionStart = md.str().size();
         md << "## " << s.title << " (`" << s.name << "`)\n\n";
         md << s.description << "\n\n";
-        md << "Configuration `" << s.configPath << "`, kind `" << s.kind << "`, " << fixed(s.seconds, 1) << " s"
+        md << "Configuration `" << s.configPath << "`, kind `" << s.kind << "`, " << s.replicates
+           << (s.replicates == 1 ? " replicate" : " replicates") << ", " << fixed(s.seconds, 1) << " s"
            << (s.sharesSimulation ? " (a forest simulation shared with an earlier scenario is counted there)" : "") << ".\n\n";
         md << "| check | measured | value | expected | result |\n|---|---|---|---|---|\n";
         for (const auto& c : s.checks) {

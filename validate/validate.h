@@ -61,22 +61,23 @@ struct ScenarioResult {
     std::string name, title, description, configPath, kind;
     double seconds = 0.0;
     bool sharesSimulation = false;  ///< uses the forest scene, whose runs are shared between scenarios
+    int replicates = 1;             ///< replicates (seeds) run; each check has one value per replicate
     std::vector<CheckResult> checks;
     std::vector<Figure> figures;
     std::vector<std::string> details;  ///< Markdown lines: supporting numbers, definitions
 };
 
-/// Replicates (seeds) of every scenario unless told otherwise: each check is measured on
-/// each and judged on the 95 % interval of their mean (issue 28).
-constexpr int kDefaultReplicates = 5;
 /// Replicate k of a scenario runs with every seed of its configuration plus k x this.
 constexpr std::uint64_t kReplicateSeedStep = 1000;
 
 struct SuiteOptions {
     Mode mode = Mode::Full;
-    /// Replicates of every scenario (>= 1): replicate k adds k x kReplicateSeedStep to every
-    /// seed its configuration gives. Figures and detail lines are those of replicate 0.
-    int replicates = kDefaultReplicates;
+    /// Replicates of every scenario (`--replicates`, 1 .. kMaxReplicates), overriding the
+    /// scenario files' counts; 0 = each scenario's own (ScenarioConfig::replicateCount:
+    /// [scenario] quick_replicates / replicates, else kDefaultReplicates). Replicate k adds
+    /// k x kReplicateSeedStep to every seed its configuration gives. Figures and detail lines
+    /// are those of replicate 0.
+    int replicates = 0;
     std::string outDir = "validation";
     ConfigSource configs;
     std::vector<std::string> only;  ///< scenario names to run; empty = all
@@ -88,7 +89,9 @@ struct SuiteOptions {
 
 struct SuiteResult {
     Mode mode = Mode::Full;
-    int replicates = 1;
+    /// SuiteOptions::replicates: the count every scenario ran when --replicates was given,
+    /// 0 when each ran its own (ScenarioResult::replicates).
+    int replicates = 0;
     std::string configSource;
     std::string biomeName;
     int threads = 1;

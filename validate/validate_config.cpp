@@ -269,6 +269,10 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
         c.title = s.string("title");
         c.description = s.string("description");
         c.order = static_cast<int>(s.integerOr("order", 100));
+        // Replicate counts, as a check's bound and its quick_ variant: quick_replicates for
+        // --quick only (e.g. a quick plot too small for the default count to judge steadily).
+        if (s.has("replicates")) c.replicates = yearsIn(s, "replicates", 1, kMaxReplicates);
+        if (s.has("quick_replicates")) c.quickReplicates = yearsIn(s, "quick_replicates", 1, kMaxReplicates);
         if (c.usesForestScene()) c.scenePath = s.string("scene");
         s.finish();
     }

@@ -80,6 +80,13 @@ struct ForestSceneConfig {
 
 class Scenario;  // scenario.h: one kind of scenario, created by name from the registry
 
+/// Replicates (seeds) of a scenario whose file gives no count and when `eco validate` is not
+/// given --replicates: each check is measured on each and judged on the 95 % interval of
+/// their mean (issue 28).
+constexpr int kDefaultReplicates = 5;
+/// The largest replicate count a scenario file (or --replicates) may ask for.
+constexpr int kMaxReplicates = 1000;
+
 /// One scenario file: the keys every kind has ([scenario], [checks], the forest scene's
 /// [quick] / [full] `years`), and the kind's own settings and measures in `scenario`.
 struct ScenarioConfig {
@@ -89,6 +96,15 @@ struct ScenarioConfig {
     std::string title;
     std::string description;
     int order = 0;            ///< [scenario] order: position in the report
+    /// [scenario] replicates (every mode) and quick_replicates (--quick only), in
+    /// [1, kMaxReplicates]; 0 = not given. `eco validate --replicates N` overrides both.
+    int replicates = 0, quickReplicates = 0;
+    /// The scenario's own replicate count in mode m: quick_replicates in a quick run when
+    /// given, else replicates, else kDefaultReplicates.
+    int replicateCount(Mode m) const {
+        if (m == Mode::Quick && quickReplicates > 0) return quickReplicates;
+        return replicates > 0 ? replicates : kDefaultReplicates;
+    }
     bool forestScene = false; ///< the kind runs the shared forest scene (ScenarioKind::usesForestScene)
     std::string scenePath;    ///< resolved path of the forest scene (forest-based kinds)
     /// Forest-based kinds: the year at which the scenario measures, from its optional
