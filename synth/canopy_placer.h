@@ -143,12 +143,12 @@ struct CanopyParams {
     /// crown whose top is hidden under a taller one. The hidden margin is the larger of
     /// crownFitHiddenM and 2 x the 90 % quantile of the same margin on every 8th seed (seeds
     /// stand on true tops: the quantile measures how far this CHM's crowns are from spheres).
-    /// 0: off. 2 raised bench_canopy_accuracy's sphere scenes from precision / recall 0.803 /
-    /// 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to 0.863 / 0.859; docs/canopy.md),
-    /// but it costs 2.3-2.6 x the placement time (1024^2 idle: 0.23-0.27 s -> 0.59-0.62 s,
-    /// over issue 25's 0.43 s), so it is off by default: set it for lidar work where the
-    /// tree count matters more than the time.
-    int crownFitPasses = 0;
+    /// 0: off. 2 (the default since 2026-11-28) raised bench_canopy_accuracy's sphere scenes
+    /// from precision / recall 0.803 / 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to
+    /// 0.863 / 0.859; docs/canopy.md); it doubles the placement's time (1024^2 on 2 idle
+    /// cores: 0.21 s -> 0.42 s, within issue 25's 0.43 s). 0 gives the placement before the
+    /// fit: about half the time, more short trees filling cover gaps.
+    int crownFitPasses = 2;
     /// Crown fit: apex positions searched within this distance (metres) of the tree.
     double crownFitReachM = 0.5;
     /// Crown fit: smallest hidden margin (metres).
