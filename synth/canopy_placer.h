@@ -143,12 +143,14 @@ struct CanopyParams {
     /// crown whose top is hidden under a taller one. The hidden margin is the larger of
     /// crownFitHiddenM and 2 x the 90 % quantile of the same margin on every 8th seed (seeds
     /// stand on true tops: the quantile measures how far this CHM's crowns are from spheres).
-    /// 0: off. 2 (the default since 2026-11-28) raised bench_canopy_accuracy's sphere scenes
-    /// from precision / recall 0.803 / 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to
-    /// 0.863 / 0.859; docs/canopy.md); it doubles the placement's time (1024^2 on 2 idle
-    /// cores: 0.21 s -> 0.42 s, within issue 25's 0.43 s). 0 gives the placement before the
-    /// fit: about half the time, more short trees filling cover gaps.
-    int crownFitPasses = 2;
+    /// 0: off. 2 raised bench_canopy_accuracy's sphere scenes from precision / recall 0.803 /
+    /// 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to 0.863 / 0.859; docs/canopy.md),
+    /// It doubles the placement's time (1024^2 on 2 idle cores, 2026-11-28: 0.21 s -> 0.42 s,
+    /// within issue 25's 0.43 s) and takes bench_synth's 3072^2 canopy placement + sampling
+    /// from 5.8-6.1 s to 8.3-8.6 s, over issue 24's 6.98 s; on the lidar-like scenes (noise,
+    /// gaps, negative cells) the placer reaches 0.85 without it. So it is off by default: set
+    /// it for dense, noise-free CHMs where the tree count matters more than the time.
+    int crownFitPasses = 0;
     /// Crown fit: apex positions searched within this distance (metres) of the tree.
     double crownFitReachM = 0.5;
     /// Crown fit: smallest hidden margin (metres).

@@ -670,7 +670,7 @@ TEST_CASE("the crown fit drops a tree on a hidden crown's crescent and keeps a s
         return o.str();
     };
     synth::CanopyParams p;
-    p.crownFitPasses = 2;  // the crown fit on (the default; set for clarity)
+    p.crownFitPasses = 2;  // the crown fit on (off by default)
 
     std::vector<GeneratedTree> hidden;
     const Grid<float> hChm = pairChm(1.5, 7.5, hidden);
@@ -725,7 +725,7 @@ TEST_CASE("after the crown fit an added tree on a conical crown keeps the CHM's 
             f.chm(ix, iy) = z;
         }
     synth::CanopyParams p;
-    p.crownFitPasses = 2;  // the crown fit on (the default; set for clarity)
+    p.crownFitPasses = 2;  // the crown fit on (off by default)
     const synth::CanopyResult r = f.place(p);
     std::ostringstream where;
     for (const Plant& t : r.trees) where << " (" << t.xM << ", " << t.yM << ", " << t.heightM << ")";

@@ -149,12 +149,12 @@ TEST_CASE("eco fidelity end to end on a tiny plot: stages cached, same bits for 
     // A canopy placer file reaches the canopy stage: the canopy is placed again with it (the
     // terrain, CHM and abiotics reused), and its recorded command line names the file.
     {
-        std::ofstream cfg(dir.file("fit-off.toml"));
-        cfg << "[canopy]\ncrown_fit_passes = 0\n";
+        std::ofstream cfg(dir.file("fit-on.toml"));
+        cfg << "[canopy]\ncrown_fit_passes = 2\n";
     }
-    r = test::runEco(common + " --canopy-config " + dir.file("fit-off.toml"));
+    r = test::runEco(common + " --canopy-config " + dir.file("fit-on.toml"));
     REQUIRE(r.exitCode == 0);
     CHECK(r.output.find("abiotics: reusing") != std::string::npos);
     CHECK(r.output.find("canopy: reusing") == std::string::npos);
-    CHECK(test::fileBytes(dir.file("out/canopy.h5.cmd")).find("fit-off.toml") != std::string::npos);
+    CHECK(test::fileBytes(dir.file("out/canopy.h5.cmd")).find("fit-on.toml") != std::string::npos);
 }

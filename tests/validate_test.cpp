@@ -624,9 +624,9 @@ TEST_CASE("The fidelity scenario's canopy_config key reaches the canopy placer a
     fails("[canopy\n", {"fit.toml"});
     fails("", {"fit.toml", "no such file"});
 
-    // The key reaches the placement: the crown fit off (on by default) changes the canopy,
-    // and the details name the setting; without the key the scene is the placer's defaults.
-    write(dir.file("on/canopy/fit.toml"), "# eco run's [canopy] config file\n[canopy]\ncrown_fit_passes = 0\n");
+    // The key reaches the placement: the crown fit changes the canopy, and the details name
+    // the setting; without the key the scene is the placer's defaults.
+    write(dir.file("on/canopy/fit.toml"), "# eco run's [canopy] config file\n[canopy]\ncrown_fit_passes = 2\n");
     CHECK_NOTHROW(parseScenarioConfig(withConfig, scenarioPath));
     const auto run = [&](const std::string& cfg) {
         SuiteOptions o;
@@ -655,7 +655,7 @@ TEST_CASE("The fidelity scenario's canopy_config key reaches the canopy placer a
     std::string detailsOn, detailsOff;
     for (const auto& d : on.details) detailsOn += d + "\n";
     for (const auto& d : off.details) detailsOff += d + "\n";
-    CHECK(detailsOn.find("Canopy placer configuration `canopy/fit.toml` ([protocol] canopy_config): crown_fit_passes = 0.") !=
+    CHECK(detailsOn.find("Canopy placer configuration `canopy/fit.toml` ([protocol] canopy_config): crown_fit_passes = 2.") !=
           std::string::npos);
     CHECK(detailsOff.find("canopy_config") == std::string::npos);
 }
