@@ -145,9 +145,11 @@ struct CanopyParams {
     /// stand on true tops: the quantile measures how far this CHM's crowns are from spheres).
     /// 0: off. 2 raised bench_canopy_accuracy's sphere scenes from precision / recall 0.803 /
     /// 0.873 to 0.865 / 0.876 (seeds 11-14: 0.789 / 0.858 to 0.863 / 0.859; docs/canopy.md),
-    /// but it costs 2.3-2.6 x the placement time (1024^2 idle: 0.23-0.27 s -> 0.59-0.62 s,
-    /// over issue 25's 0.43 s), so it is off by default: set it for lidar work where the
-    /// tree count matters more than the time.
+    /// It doubles the placement's time (1024^2 on 2 idle cores, 2026-11-28: 0.21 s -> 0.42 s,
+    /// within issue 25's 0.43 s) and takes bench_synth's 3072^2 canopy placement + sampling
+    /// from 5.8-6.1 s to 8.3-8.6 s, over issue 24's 6.98 s; on the lidar-like scenes (noise,
+    /// gaps, negative cells) the placer reaches 0.85 without it. So it is off by default: set
+    /// it for dense, noise-free CHMs where the tree count matters more than the time.
     int crownFitPasses = 0;
     /// Crown fit: apex positions searched within this distance (metres) of the tree.
     double crownFitReachM = 0.5;

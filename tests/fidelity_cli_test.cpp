@@ -53,6 +53,32 @@ TEST_CASE("eco fidelity: bad input gives one clear line and exit 1", "[fidelity]
     CHECK(r.exitCode == 1);
     CHECK(r.output.find("years") != std::string::npos);
 
+    // A canopy placer file: missing, with a bad key or value, or beside --canopy; refused
+    // before any stage runs (nothing written).
+    r = test::runEco("fidelity --canopy-config " + dir.file("nofile.toml") + " --out-dir " + dir.file("never"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("--canopy-config") != std::string::npos);
+    CHECK(r.output.find("nofile.toml") != std::string::npos);
+    {
+        std::ofstream cfg(dir.file("placer-key.toml"));
+        cfg << "[canopy]\ncrown_fit_pases = 0\n";
+        std::ofstream cfg2(dir.file("placer-value.toml"));
+        cfg2 << "[canopy]\ncrown_fit_passes = 11\n";
+    }
+    r = test::runEco("fidelity --canopy-config " + dir.file("placer-key.toml") + " --out-dir " + dir.file("never"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("placer-key.toml") != std::string::npos);
+    CHECK(r.output.find("crown_fit_pases") != std::string::npos);
+    r = test::runEco("fidelity --canopy-config " + dir.file("placer-value.toml") + " --out-dir " + dir.file("never"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("crown_fit_passes") != std::string::npos);
+    CHECK(r.output.find("11") != std::string::npos);
+    r = test::runEco("fidelity --canopy-config " + dir.file("placer-key.toml") + " --canopy " + dir.file("bad.toml") +
+                     " --out-dir " + dir.file("never"));
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("--canopy-config") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("never")));
+
     r = test::runEco("fidelity --seed-a 3 --seed-b 3 --out-dir " + dir.file("out"));
     CHECK(r.exitCode == 1);
     CHECK(r.output.find("seed") != std::string::npos);
@@ -120,4 +146,15 @@ TEST_CASE("eco fidelity end to end on a tiny plot: stages cached, same bits for 
     r = test::runEco(common + " --synth-method structured,bogus");
     CHECK(r.exitCode == 1);
     CHECK(r.output.find("bogus") != std::string::npos);
+    // A canopy placer file reaches the canopy stage: the canopy is placed again with it (the
+    // terrain, CHM and abiotics reused), and its recorded command line names the file.
+    {
+        std::ofstream cfg(dir.file("fit-on.toml"));
+        cfg << "[canopy]\ncrown_fit_passes = 2\n";
+    }
+    r = test::runEco(common + " --canopy-config " + dir.file("fit-on.toml"));
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("abiotics: reusing") != std::string::npos);
+    CHECK(r.output.find("canopy: reusing") == std::string::npos);
+    CHECK(test::fileBytes(dir.file("out/canopy.h5.cmd")).find("fit-on.toml") != std::string::npos);
 }

@@ -86,6 +86,7 @@ void readFidelityConfig(const std::string& path, FidelityRunOptions& a, const st
     str("database", "--database", a.database);
     str("scene", "--scene", a.scene);
     str("sim_config", "--sim-config", a.simConfig);
+    str("canopy_config", "--canopy-config", a.canopyConfig);
     integer("terrain_seed", "--terrain-seed", a.terrainSeed, 0);
     integer("seed_a", "--seed-a", a.seedA, 0);
     integer("seed_b", "--seed-b", a.seedB, 0);
@@ -134,8 +135,18 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
     synth::parseSynthMethod(a.synthMethod);  // an unknown --synth-method is refused before any stage runs
     for (const auto& [path, option] : std::vector<std::pair<std::string, std::string>>{
              {a.terrain, "--terrain"}, {a.chm, "--chm"}, {a.abiotics, "--abiotics"}, {a.canopy, "--canopy"},
-             {a.reference, "--reference"}, {a.replicate, "--replicate"}, {a.database, "--database"}, {a.scene, "--scene"}})
+             {a.reference, "--reference"}, {a.replicate, "--replicate"}, {a.database, "--database"}, {a.scene, "--scene"},
+             {a.canopyConfig, "--canopy-config"}})
         if (!path.empty()) requireFile(path, option);
+    if (!a.canopyConfig.empty() && !a.canopy.empty())
+        throw ValidationError("--canopy-config '" + a.canopyConfig + "' and --canopy '" + a.canopy +
+                              "': the placer's settings apply only to a canopy the protocol places; give one of them");
+    if (!a.canopyConfig.empty()) {  // read now: a bad key or value is refused before any stage runs
+        synth::CanopyParams canopyParams;
+        synth::SpeciesMapParams speciesParams;
+        synth::loadCanopyConfig(a.canopyConfig, canopyParams, speciesParams);
+        synth::validateCanopyParams(canopyParams);
+    }
     if (a.seedA == a.seedB && a.reference.empty() && a.replicate.empty())
         throw ValidationError("--seed-a and --seed-b are both " + std::to_string(a.seedA) +
                               ": the replicate must be another seed");
@@ -183,6 +194,7 @@ FidelityRunResult runFidelityProtocol(const FidelityRunOptions& options, pipelin
             o.chm = chm;
             o.abiotics = abiotics;
             o.out = canopy;
+            o.config = a.canopyConfig;
             o.params.setSeed("seed", static_cast<std::uint64_t>(a.terrainSeed));
             o.targets = a.canopyTargets;
             stages.run("canopy", canopy, o);

@@ -30,6 +30,9 @@ struct FidelityRunOptions {
     std::int64_t width = 512, height = 512, years = 150, kmax = 6;
     double cellSizeM = 0.914, sunStepMinutes = 10;
     std::string simConfig = "configs/sim-default.toml";
+    /// Canopy placer parameters (a TOML as `eco canopy --config` reads it) for the generated
+    /// canopy; "" = the placer's defaults. Its seed is replaced by terrainSeed.
+    std::string canopyConfig;
     std::vector<std::string> canopyTargets = {"Douglas-Fir=0.3"};
     std::string crop = "100,60,220,180";  ///< the plot x0,y0,x1,y1 (m)
     FidelityParams params;
