@@ -108,7 +108,7 @@ void registerFidelityCommand(CLI::App& app) {
     opt("--target", a->canopyTargets, "Canopy species targets, e.g. Douglas-Fir=0.3 (repeatable)");
     opt("--sim-config", a->simConfig, "Simulation configuration (model constants)")->capture_default_str();
     opt("--canopy-config", a->canopyConfig,
-        "Canopy placer parameters for the generated canopy (a TOML as eco canopy --config reads, e.g. crown_fit_passes = 0); "
+        "Canopy placer parameters for the generated canopy (a TOML as eco canopy --config reads, e.g. crown_fit_passes = 2 for the crown fit); "
         "default: the placer's defaults. Its seed is replaced by --terrain-seed");
     opt("--years", a->years, "Years simulated")->capture_default_str()->check(positiveNumber());
     opt("--kmax", a->kmax, "Analysis: largest k per combination")->capture_default_str()->check(positiveNumber());
