@@ -46,7 +46,7 @@ struct ScenarioParse {
 };
 
 /// Checked readers for a kind's tables; messages name the file, table, key and value.
-int yearsIn(StrictTable& s, const std::string& key, int lo, int hi);  ///< an integer in [lo, hi]
+int integerIn(StrictTable& s, const std::string& key, int lo, int hi);  ///< an integer in [lo, hi]
 std::uint64_t seedOf(StrictTable& s, const std::string& key);         ///< a non-negative integer
 std::vector<std::string> nonEmptyStrings(StrictTable& s, const std::string& key);  ///< at least one species name
 

@@ -173,7 +173,7 @@ CheckSpec parseCheck(const toml::table& t, const std::string& path, const std::s
 
 }  // namespace
 
-int yearsIn(StrictTable& s, const std::string& key, int lo, int hi) {
+int integerIn(StrictTable& s, const std::string& key, int lo, int hi) {
     const std::int64_t v = s.integer(key);
     if (v < lo || v > hi) s.fail(key, "value " + std::to_string(v) + " outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
     return static_cast<int>(v);
@@ -213,14 +213,14 @@ ForestSceneConfig parseForestSceneConfig(const std::string& text, const std::str
             total += w;
         }
         if (!(total > 0)) s.fail("canopy_species_weights", "at least one weight must be positive");
-        c.snapshotEveryYears = yearsIn(s, "snapshot_every_years", 1, 1000);
+        c.snapshotEveryYears = integerIn(s, "snapshot_every_years", 1, 1000);
         s.finish();
     }
     for (Mode m : {Mode::Quick, Mode::Full}) {
         StrictTable s(top.table(modeName(m)), path, std::string("[") + modeName(m) + "]");
         ForestSceneConfig::Size& z = m == Mode::Quick ? c.quick : c.full;
         z.plotSizeM = s.numberIn("plot_size_m", 5.0, 5000.0);
-        z.years = yearsIn(s, "years", 1, 100000);
+        z.years = integerIn(s, "years", 1, 100000);
         z.seed = seedOf(s, "seed");
         s.finish();
     }
@@ -271,8 +271,8 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
         c.order = static_cast<int>(s.integerOr("order", 100));
         // Replicate counts, as a check's bound and its quick_ variant: quick_replicates for
         // --quick only (e.g. a quick plot too small for the default count to judge steadily).
-        if (s.has("replicates")) c.replicates = yearsIn(s, "replicates", 1, kMaxReplicates);
-        if (s.has("quick_replicates")) c.quickReplicates = yearsIn(s, "quick_replicates", 1, kMaxReplicates);
+        if (s.has("replicates")) c.replicates = integerIn(s, "replicates", 1, kMaxReplicates);
+        if (s.has("quick_replicates")) c.quickReplicates = integerIn(s, "quick_replicates", 1, kMaxReplicates);
         if (c.usesForestScene()) c.scenePath = s.string("scene");
         s.finish();
     }
@@ -282,7 +282,7 @@ ScenarioConfig parseScenarioConfig(const std::string& text, const std::string& p
             const toml::table* t = top.optionalTable(modeName(m));
             if (!t) continue;
             StrictTable s(*t, path, std::string("[") + modeName(m) + "]");
-            (m == Mode::Quick ? c.yearsQuick : c.yearsFull) = yearsIn(s, "years", 1, 100000);
+            (m == Mode::Quick ? c.yearsQuick : c.yearsFull) = integerIn(s, "years", 1, 100000);
             s.finish();
         }
     }
