@@ -236,6 +236,7 @@ int main(int argc, char** argv) {
     bool models = false;  // --models: the monthly model against EcoMod on the hectare
     int ecomodYears = 0;  // 0 = 150 (50 with --quick)
     int ecomodCells = 256;  // --ecomod-cells: the bigger EcoMod scene (0 = none)
+    bool ecomodEmpty = false;  // --ecomod-empty: the bigger scene without its canopy (afforestation)
     SimParams params;
     int cells = 256;
     double cellSize = 0.914;
@@ -262,14 +263,15 @@ int main(int argc, char** argv) {
                 "  --quick); the least and the median wall time are reported, and every run's.\n"
                 "  --parallel-thresholds P,C: loops over fewer than P plants or C cells run on one thread\n"
                 "  (the simulator's defaults otherwise; results never depend on them).\n"
-                "bench_sim --models [--years N] [--ecomod-years N] [--ecomod-cells N] [--repeat N] [--quick]\n"
-                "          [--out FILE]\n"
+                "bench_sim --models [--years N] [--ecomod-years N] [--ecomod-cells N] [--ecomod-empty] [--repeat N]\n"
+                "          [--quick] [--out FILE]\n"
                 "  The two simulator models on the same hectare, one thread each, alternating: the monthly\n"
                 "  model's seconds per plant-month (--years, default 150) against EcoMod's seconds per\n"
                 "  tree-year (--ecomod-years, default 150), and their ratio (issue 30: at least 10). Then\n"
                 "  EcoMod alone on a bigger scene of the same kind (--ecomod-cells terrain cells of 0.914 m\n"
                 "  a side, default 256: about 4.9 ha; 0 = none), where per-year fixed costs weigh less, with\n"
-                "  its 1- and 2-thread state hashes (equal hashes = the same trees).\n");
+                "  its 1- and 2-thread state hashes (equal hashes = the same trees). --ecomod-empty: that\n"
+                "  scene without its canopy, afforested from empty ground (most trees free and growing).\n");
             return 0;
         }
         if (a == "--quick") quick = true;
@@ -279,6 +281,7 @@ int main(int argc, char** argv) {
             const std::string v = next();
             ecomodCells = v == "0" ? 0 : static_cast<int>(positiveInteger(a, v, 4096));
         }
+        else if (a == "--ecomod-empty") ecomodEmpty = true;
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
         else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));
@@ -351,8 +354,8 @@ int main(int argc, char** argv) {
                 perMonth.push_back(a.seconds / static_cast<double>(a.plantMonths));
                 perYear.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
                 std::snprintf(line, sizeof line,
-                              "run %d: monthly %d years %.2f s (CPU %.2f s), %lld plant-months, %.3f us/plant-month (%zu plants at "
-                              "the end); ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.3f us/tree-year (CPU %.3f; %zu "
+                              "run %d: monthly %d years %.2f s (CPU %.2f s), %lld plant-months, %.4f us/plant-month (%zu plants at "
+                              "the end); ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.4f us/tree-year (CPU %.4f; %zu "
                               "trees at the end, peak %zu)\n",
                               r + 1, mYears, a.seconds, a.cpuSeconds, static_cast<long long>(a.plantMonths), 1e6 * perMonth.back(),
                               a.plants, eYears, b.seconds, b.cpuSeconds, static_cast<long long>(b.plantMonths / 12),
@@ -367,7 +370,7 @@ int main(int argc, char** argv) {
             std::sort(perYear.begin(), perYear.end());
             const double med1 = perMonth[perMonth.size() / 2], med2 = perYear[perYear.size() / 2];
             std::snprintf(line, sizeof line,
-                          "median: monthly %.3f us per plant-month, ecomod %.3f us per tree-year: EcoMod %.1f x faster per step "
+                          "median: monthly %.4f us per plant-month, ecomod %.4f us per tree-year: EcoMod %.1f x faster per step "
                           "(issue 30 asks at least 10 x)\n",
                           1e6 * med1, 1e6 * med2, med1 / med2);
             m << line;
@@ -377,7 +380,8 @@ int main(int argc, char** argv) {
                 DemoSceneParams bp;
                 bp.cells = ecomodCells;
                 bp.seed = 3;
-                const SimInputs big = makeDemoScene(bp, biome);
+                SimInputs big = makeDemoScene(bp, biome);
+                if (ecomodEmpty) big.canopy.clear();
                 const double side = std::floor(ecomodCells * bp.cellSizeM - 12.0);
                 const SimArea bigArea{5, 5, 5 + side, 5 + side};
                 std::vector<double> perYearBig;
@@ -390,7 +394,7 @@ int main(int argc, char** argv) {
                     hash1 = b.stateHash;
                     perYearBig.push_back(b.seconds / (static_cast<double>(b.plantMonths) / 12.0));
                     std::snprintf(line, sizeof line,
-                                  "big run %d: ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.3f us/tree-year (CPU %.3f; "
+                                  "big run %d: ecomod %d years %.2f s (CPU %.2f s), %lld tree-years, %.4f us/tree-year (CPU %.4f; "
                                   "%zu trees at the end, peak %zu), state hash %016llx\n",
                                   r + 1, eYears, b.seconds, b.cpuSeconds, static_cast<long long>(b.plantMonths / 12),
                                   1e6 * perYearBig.back(), 1e6 * b.cpuSeconds / (static_cast<double>(b.plantMonths) / 12.0),
@@ -406,7 +410,7 @@ int main(int argc, char** argv) {
                 std::sort(perYearBig.begin(), perYearBig.end());
                 const double med3 = perYearBig[perYearBig.size() / 2];
                 std::snprintf(line, sizeof line,
-                              "median on the big scene: ecomod %.3f us per tree-year: %.1f x faster per step than the monthly "
+                              "median on the big scene: ecomod %.4f us per tree-year: %.1f x faster per step than the monthly "
                               "model's median per plant-month on the hectare\n",
                               1e6 * med3, med1 / med3);
                 m << line;

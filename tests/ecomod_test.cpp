@@ -345,11 +345,14 @@ TEST_CASE("ecomod: under-dispersion puts the share p_s of new trees near their p
     REQUIRE(plants.size() == 2001);
     int near = 0;
     int rings[4] = {0, 0, 0, 0};  // equal-area rings of the 10 m disc
+    int cells[4][4] = {};         // each ring cut into its four quadrants round the parent
     for (std::size_t i = 1; i < plants.size(); ++i) {
-        const double d2 = (plants[i].xM - cx) * (plants[i].xM - cx) + (plants[i].yM - cy) * (plants[i].yM - cy);
+        const double dx = plants[i].xM - cx, dy = plants[i].yM - cy, d2 = dx * dx + dy * dy;
         if (d2 < 100) {
             ++near;
-            ++rings[std::min(3, static_cast<int>(d2 / 25))];
+            const int ring = std::min(3, static_cast<int>(d2 / 25));
+            ++rings[ring];
+            ++cells[ring][(dx < 0 ? 1 : 0) + (dy < 0 ? 2 : 0)];
         }
     }
     const double p = 0.7 + 0.3 * 3.14159265358979 * 100 / 10000;
@@ -360,6 +363,12 @@ TEST_CASE("ecomod: under-dispersion puts the share p_s of new trees near their p
     double chi2 = 0;
     for (int r : rings) chi2 += (r - near / 4.0) * (r - near / 4.0) / (near / 4.0);
     CHECK(chi2 < 16.27);
+    // And in angle: chi-square over the 16 equal-area cells (rings x quadrants), 15 degrees of
+    // freedom, critical value 37.70 at significance 0.001.
+    double chi2Cells = 0;
+    for (const auto& ring : cells)
+        for (int c : ring) chi2Cells += (c - near / 16.0) * (c - near / 16.0) / (near / 16.0);
+    CHECK(chi2Cells < 37.70);
     // Without under-dispersion the same count falls to the far seeds' share.
     e.nearProbability = 0;
     Simulation uniform(flatScene(b, 100), ecomodParams(), 7, {tree(s, cx, cy, 5, 50)});
