@@ -845,8 +845,8 @@ TEST_CASE("[scenario] replicates and quick_replicates are read strictly", "[vali
     fails("quick_replicates = \"10\"\n", {"'quick_replicates'", "expected an integer"});
     fails("quick_replicate = 10\n", {"'quick_replicate'", "unknown key"});
 
-    // The shipped fidelity scenario runs 10 replicates in quick mode and the default in full
-    // mode, the others the default; the copies embedded at build time say the same.
+    // The shipped fidelity scenario runs 10 replicates in quick mode, ecomod 20, and both the
+    // default in full mode, the others the default; the copies embedded at build time say the same.
     ConfigSource src;
     src.directory = eco::test::sourcePath("configs/validation");
     for (const ConfigSource& source : {src, ConfigSource{}}) {
@@ -854,7 +854,8 @@ TEST_CASE("[scenario] replicates and quick_replicates are read strictly", "[vali
         const SuiteConfig suite = loadSuiteConfig(source, defaultBiome());
         for (const auto& s : suite.scenarios) {
             INFO(s.name);
-            CHECK(s.replicateCount(Mode::Quick) == (s.name == "fidelity" ? 10 : kDefaultReplicates));
+            const int quick = s.name == "fidelity" ? 10 : s.name == "ecomod" ? 20 : kDefaultReplicates;
+            CHECK(s.replicateCount(Mode::Quick) == quick);
             CHECK(s.replicateCount(Mode::Full) == kDefaultReplicates);
         }
     }
