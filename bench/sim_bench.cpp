@@ -29,6 +29,7 @@
 
 #include "atomic_file.h"
 #include "canopy_file.h"
+#include "cpu.h"
 #include "demo_scene.h"
 #include "h5io.h"
 #include "plants.h"
@@ -255,7 +256,7 @@ int main(int argc, char** argv) {
             std::printf(
                 "bench_sim [--quick] [--hectare-only | --km2-only] [--years N] [--km2-years N] [--repeat N]\n"
                 "          [--growth-rule ideal|literal] [--competition resources|deussen]\n"
-                "          [--parallel-thresholds P,C] [--out FILE]\n"
+                "          [--parallel-thresholds P,C] [--no-avx2] [--out FILE]\n"
                 "bench_sim --make-scene DIR [--cells N] [--cell-size M] [--seed S]\n"
                 "  Undergrowth simulator benchmark: 1 ha (1 and 2 threads, --years, default 150) and a\n"
                 "  1 km2 scene (all threads, --km2-years, default 10); phases, memory, state hashes.\n"
@@ -263,6 +264,8 @@ int main(int argc, char** argv) {
                 "  --quick); the least and the median wall time are reported, and every run's.\n"
                 "  --parallel-thresholds P,C: loops over fewer than P plants or C cells run on one thread\n"
                 "  (the simulator's defaults otherwise; results never depend on them).\n"
+                "  --no-avx2: the kernels' baseline (SSE2) forms even where the processor has AVX2 (the\n"
+                "  same results; for comparing the two forms' speed, with --models too).\n"
                 "bench_sim --models [--years N] [--ecomod-years N] [--ecomod-cells N] [--ecomod-empty] [--repeat N]\n"
                 "          [--quick] [--out FILE]\n"
                 "  The two simulator models on the same hectare, one thread each, alternating: the monthly\n"
@@ -282,6 +285,7 @@ int main(int argc, char** argv) {
             ecomodCells = v == "0" ? 0 : static_cast<int>(positiveInteger(a, v, 4096));
         }
         else if (a == "--ecomod-empty") ecomodEmpty = true;
+        else if (a == "--no-avx2") setAvx2Kernels(false);
         else if (a == "--hectare-only") hectareOnly = true;
         else if (a == "--km2-only") km2Only = true;
         else if (a == "--km2-years") km2Years = static_cast<int>(positiveInteger(a, next()));

@@ -6,6 +6,10 @@
 
 #include <omp.h>
 
+#ifdef __x86_64__
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +17,7 @@
 #include <limits>
 
 #include "abiotics.h"
+#include "cpu.h"
 #include "error.h"
 #include "factors.h"
 #include "rng.h"
@@ -240,6 +245,20 @@ struct EcoModel::Impl {
         int bw = 1, bh = 1;
         std::size_t first = 0;  // its first bucket in `start`
     };
+    // The buckets of level `lv` that a tree at offset (ox, oy) from the area's corner with crown
+    // radius `r` may overlap (every tree of the level has a radius <= maxRadius). Bucket ranges by
+    // truncation: exact for the non-negative offsets, and a negative one clamps to bucket 0 as
+    // its floor would.
+    struct BucketBox {
+        int bx0, bx1, by0, by1;
+    };
+    static BucketBox bucketBox(const Level& lv, double ox, double oy, double r) {
+        const double reach = r + lv.maxRadius;
+        return {std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1),
+                std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1),
+                std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1),
+                std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1)};
+    }
     struct Entry {  // a tree or canopy tree in bucket order: position, crown radius, ability
         double x, y, r, a;
     };
@@ -260,6 +279,9 @@ struct EcoModel::Impl {
     int maxLevel = 0;               // the grids' top level
     bool anyShrunk = false;         // growStore: a tree whose crown or height fell (an initial plant above its polyline)
     std::vector<Entry> packed;      // the able in bucket order
+    // The same in four arrays (x, y, r, a), for the AVX2 search's four entries at a time;
+    // three entries of padding past the last (never read as a find: the runs are masked).
+    std::vector<double> packedX, packedY, packedR, packedA;
     struct Parent {  // a parent's place, and itself as a witness (tree index or kWitnessCanopy | canopy index)
         double x, y;
         std::uint32_t self;
@@ -613,6 +635,9 @@ struct EcoModel::Impl {
     void rateYear();
     void buildGrids();
     bool isDominated(const Entry& me, std::uint32_t& wit) const;
+#ifdef ECO_HAVE_AVX2_KERNELS
+    ECO_TARGET_AVX2 bool searchAvx2(const Entry& me, std::uint32_t& wit) const;
+#endif
     void testAble();
     void testUnable();
     bool testPoint(const Entry& me, std::uint32_t& wit);
@@ -994,6 +1019,18 @@ void EcoModel::Impl::buildGrids() {
         packedItem[k] = able[i];
         slot[able[i]] = k;
     }
+#ifdef ECO_HAVE_AVX2_KERNELS
+    if (avx2Kernels()) {
+        for (auto* col : {&packedX, &packedY, &packedR, &packedA}) col->resize(m + 3);
+        for (std::size_t k = 0; k < m; ++k) {
+            const Entry& q = packed[k];
+            packedX[k] = q.x;
+            packedY[k] = q.y;
+            packedR[k] = q.r;
+            packedA[k] = q.a;
+        }
+    }
+#endif
 }
 
 // Is a tree (position, radius and ability `me` at the start of the year, witness `wit`)
@@ -1013,23 +1050,20 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
             if (pa < q.a && overlaps(q)) return true;
         }
     }
-    // Bucket ranges by truncation: exact for the non-negative offsets, and a negative one
-    // clamps to bucket 0 as its floor would.
+#ifdef ECO_HAVE_AVX2_KERNELS
+    if (avx2Kernels()) return searchAvx2(me, wit);
+#endif
     const double ox = px - area.x0, oy = py - area.y0;
     for (int L = maxLevel; L >= 0; --L) {
         const Level& lv = levels[static_cast<std::size_t>(L)];
         if (!(pa < lv.maxAbility)) continue;  // nobody there is more able
-        const double reach = pr + lv.maxRadius;  // every tree of level L has r <= maxRadius
-        const int bx0 = std::clamp(static_cast<int>((ox - reach) * lv.inverseM), 0, lv.bw - 1);
-        const int bx1 = std::clamp(static_cast<int>((ox + reach) * lv.inverseM), 0, lv.bw - 1);
-        const int by0 = std::clamp(static_cast<int>((oy - reach) * lv.inverseM), 0, lv.bh - 1);
-        const int by1 = std::clamp(static_cast<int>((oy + reach) * lv.inverseM), 0, lv.bh - 1);
+        const BucketBox b = bucketBox(lv, ox, oy, pr);
         // The buckets bx0..bx1 of a row are consecutive in `packed` (sorted by bucket, row by
         // row): one run of entries per row, in the order a bucket-by-bucket scan would meet them.
-        for (int by = by0; by <= by1; ++by) {
+        for (int by = b.by0; by <= b.by1; ++by) {
             const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
-            const std::uint32_t end = start[row + bx1 + 1];
-            for (std::uint32_t k = start[row + bx0]; k < end; ++k) {
+            const std::uint32_t end = start[row + b.bx1 + 1];
+            for (std::uint32_t k = start[row + b.bx0]; k < end; ++k) {
                 const Entry& q = packed[k];
                 if (pa < q.a && overlaps(q)) {  // only the more able dominate (p itself never)
                     wit = codeOf(packedItem[k]);
@@ -1041,6 +1075,43 @@ inline bool EcoModel::Impl::isDominated(const Entry& me, std::uint32_t& wit) con
     wit = kNoWitness;
     return false;
 }
+
+#ifdef ECO_HAVE_AVX2_KERNELS
+// isDominated's search (after the witness) four entries at a time: each lane performs the
+// scalar test's operations (the same bits: no fused multiply-add), and a run's first lane
+// that dominates is the entry the scalar loop would meet first, so the find is the same.
+ECO_TARGET_AVX2 bool EcoModel::Impl::searchAvx2(const Entry& me, std::uint32_t& wit) const {
+    const __m256d vx = _mm256_set1_pd(me.x), vy = _mm256_set1_pd(me.y), vr = _mm256_set1_pd(me.r),
+                  va = _mm256_set1_pd(me.a);
+    const double *qx = packedX.data(), *qy = packedY.data(), *qr = packedR.data(), *qa = packedA.data();
+    const double ox = me.x - area.x0, oy = me.y - area.y0;
+    for (int L = maxLevel; L >= 0; --L) {
+        const Level& lv = levels[static_cast<std::size_t>(L)];
+        if (!(me.a < lv.maxAbility)) continue;
+        const BucketBox b = bucketBox(lv, ox, oy, me.r);
+        for (int by = b.by0; by <= b.by1; ++by) {
+            const std::size_t row = lv.first + static_cast<std::size_t>(by) * lv.bw;
+            const std::uint32_t end = start[row + b.bx1 + 1];
+            for (std::uint32_t k = start[row + b.bx0]; k < end; k += 4) {
+                const __m256d dx = _mm256_sub_pd(vx, _mm256_loadu_pd(qx + k));
+                const __m256d dy = _mm256_sub_pd(vy, _mm256_loadu_pd(qy + k));
+                const __m256d rr = _mm256_add_pd(vr, _mm256_loadu_pd(qr + k));
+                const __m256d d2 = _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy));
+                const __m256d hit = _mm256_and_pd(_mm256_cmp_pd(va, _mm256_loadu_pd(qa + k), _CMP_LT_OQ),
+                                                  _mm256_cmp_pd(d2, _mm256_mul_pd(rr, rr), _CMP_LT_OQ));
+                unsigned bits = static_cast<unsigned>(_mm256_movemask_pd(hit));
+                if (end - k < 4) bits &= (1u << (end - k)) - 1;  // lanes past the run
+                if (bits != 0) {
+                    wit = codeOf(packedItem[k + static_cast<std::uint32_t>(__builtin_ctz(bits))]);
+                    return true;
+                }
+            }
+        }
+    }
+    wit = kNoWitness;
+    return false;
+}
+#endif
 
 // The able trees' test, in bucket order; each writes only its own flag and witness.
 void EcoModel::Impl::testAble() {
