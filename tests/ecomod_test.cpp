@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "abiotics_fixture.h"
+#include "cpu.h"
 #include "ecomod.h"
 #include "error.h"
 #include "sim_config.h"
@@ -249,10 +250,20 @@ TEST_CASE("ecomod: dominated seedlings survive each year with probability domina
     CHECK(sim.plants()[0].speciesId == oak);
 }
 
+// Sets the kernels' form for a test's scope and restores the processor's default after.
+struct Avx2Scope {
+    explicit Avx2Scope(bool on) { setAvx2Kernels(on); }
+    ~Avx2Scope() { setAvx2Kernels(true); }
+};
+
 TEST_CASE("ecomod: the domination test agrees with a brute-force search over every pair", "[sim][ecomod]") {
     // Hundreds of trees of several species, many of height 0 (seedlings, which cannot dominate),
     // crowds and gaps, and static canopy trees; nobody dies of domination, so that each year's
     // outcome shows in the growth ages: a dominated tree keeps its growth age, the others gain a year.
+    // Both forms of the search: AVX2 (where the processor has it) and the baseline.
+    const bool avx2 = GENERATE(true, false);
+    const Avx2Scope form(avx2);
+    INFO("AVX2 search " << (avx2Kernels() ? "on" : "off"));
     Biome b = quietBiome();
     for (Species& s : b.species) {
         s.ecomod.dominatedGrowth = 0;
@@ -521,6 +532,36 @@ TEST_CASE("ecomod: the step's caches change no tree, census or counter", "[sim][
     CHECK(c.wokenInPass > 5);
     CHECK(c.keysKept > 1000);
     CHECK(cached.plantCount() > 100);
+}
+
+TEST_CASE("ecomod: the AVX2 search finds what the baseline search finds", "[sim][ecomod]") {
+    // The same run twice, one with the kernels' AVX2 forms and one with their baseline forms,
+    // a year of each in turn: the same trees, censuses and counters every year (a search that
+    // found another dominator first would change a witness, and the set-aside's events with it).
+    if (!setAvx2Kernels(true)) {
+        WARN("no AVX2 on this processor: its form of the search is not checked");
+        return;
+    }
+    SimInputs in = test::smallDemoScene();
+    const SimParams params = ecomodParams();
+    Simulation wide(in, params, 13), base(in, params, 13);
+    REQUIRE(wide.ecomod() != nullptr);
+    bool same = true;
+    for (int y = 0; y < 60 && same; ++y) {
+        {
+            const Avx2Scope form(true);
+            wide.stepYear();
+        }
+        {
+            const Avx2Scope form(false);
+            base.stepYear();
+        }
+        same = sameRun(wide, base) && wide.ecomod()->cacheCounts().coverHits == base.ecomod()->cacheCounts().coverHits &&
+               wide.ecomod()->setAsideCount() == base.ecomod()->setAsideCount();
+        INFO("year " << y + 1);
+        CHECK(same);
+    }
+    CHECK(wide.plantCount() > 100);
 }
 
 TEST_CASE("ecomod: the set-aside events' calendar lists what a scan of the event years lists", "[sim][ecomod]") {
