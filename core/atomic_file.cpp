@@ -35,12 +35,21 @@ fs::path directoryOf(const fs::path& p) { return p.has_parent_path() ? p.parent_
 bool processIsGone(pid_t pid) { return pid > 0 && pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH; }
 
 /// A hidden name AtomicOutput or AtomicOutputSet gives: `.<output name><tag><pid>`, with tag
-/// ".tmp" (a temporary) or ".set" (a set's journal). Fills `output` and `pid`.
+/// ".tmp" (a temporary) or ".set" (a set's journal), and for a temporary possibly a writer's
+/// extension after the pid (`.<name>.tmp<pid>.png`: the PNG and EXR writers, whose library
+/// picks the format from the extension). Fills `output` and `pid`.
 bool parseHiddenName(const std::string& name, const char* tag, std::string& output, pid_t& pid) {
     if (name.size() < 2 || name[0] != '.') return false;
     const std::size_t at = name.rfind(tag);
     if (at == std::string::npos || at <= 1) return false;
-    const std::string digits = name.substr(at + std::strlen(tag));
+    std::string digits = name.substr(at + std::strlen(tag));
+    const std::size_t dot = digits.find('.');
+    if (dot != std::string::npos && std::strcmp(tag, ".tmp") == 0) {
+        const std::string ext = digits.substr(dot + 1);
+        if (ext.empty() || ext.size() > 8 || ext.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789") != std::string::npos)
+            return false;
+        digits.resize(dot);
+    }
     if (digits.empty() || digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) return false;
     output = name.substr(1, at - 1);
     pid = static_cast<pid_t>(std::stol(digits));

@@ -79,8 +79,9 @@ private:
 /// temporary's name and is checked on this machine): completes their set commits that were
 /// interrupted between renames (a journal `.<name>.set<pid>` beside finalPath that is
 /// complete), drops incomplete journals and removes their temporaries `.<name>.tmp<pid>`
-/// (checkpoints can be gigabytes). Never fails: anything unexpected is left alone. Commands
-/// call it for their outputs before they start work; AtomicOutput calls it too.
+/// (checkpoints can be gigabytes), and the image writers' `.<name>.tmp<pid>.<ext>`. Never
+/// fails: anything unexpected is left alone. Commands call it for their outputs before they
+/// start work; AtomicOutput calls it too.
 void cleanUpAfterDeadWriters(const std::string& finalPath);
 /// The same for every file in the directory `dir` (directories of pictures); no-op when the
 /// directory does not exist.

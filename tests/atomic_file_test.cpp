@@ -112,3 +112,29 @@ TEST_CASE("cleanUpAfterDeadWriters completes a dead writer's set from its journa
     CHECK(fs::exists(hidden(a, ".set", running)));
     CHECK(fs::exists(hidden(b, ".tmp", running)));
 }
+
+TEST_CASE("cleanUpDirectoryAfterDeadWriters removes a dead image writer's temporary with its extension", "[atomic]") {
+    // The PNG and EXR writers write `.<name>.tmp<pid>.png` (their library picks the format
+    // from the extension) and rename it to `.<name>.tmp<pid>` before the commit: a kill in
+    // between leaves the first name, which the cleanup must know.
+    eco::test::TempDir dir("atomic_image");
+    const std::string png = dir.file("plants_year_0008.png"), exr = dir.file("height.exr");
+    const pid_t dead = deadPid(), running = ::getppid();
+    writePlain(hidden(png, ".tmp", dead) + ".png", "half a png");
+    writePlain(hidden(exr, ".tmp", dead) + ".exr", "half an exr");
+    writePlain(hidden(png, ".tmp", running) + ".png", "a png being written");
+    writePlain(dir.file(".notes.tmp12x.png"), "not a temporary");  // kept: not a pid
+    writePlain(dir.file(".photo.tmp" + std::to_string(dead) + ".PNG!"), "not a temporary");
+    eco::cleanUpDirectoryAfterDeadWriters(dir.path().string());
+    CHECK_FALSE(fs::exists(hidden(png, ".tmp", dead) + ".png"));
+    CHECK_FALSE(fs::exists(hidden(exr, ".tmp", dead) + ".exr"));
+    CHECK(fs::exists(hidden(png, ".tmp", running) + ".png"));
+    CHECK(fs::exists(dir.file(".notes.tmp12x.png")));
+    CHECK(fs::exists(dir.file(".photo.tmp" + std::to_string(dead) + ".PNG!")));
+    // The cleanup of one output takes its own image temporary only.
+    writePlain(hidden(png, ".tmp", dead) + ".png", "half a png");
+    writePlain(hidden(exr, ".tmp", dead) + ".exr", "half an exr");
+    eco::cleanUpAfterDeadWriters(exr);
+    CHECK(fs::exists(hidden(png, ".tmp", dead) + ".png"));
+    CHECK_FALSE(fs::exists(hidden(exr, ".tmp", dead) + ".exr"));
+}
