@@ -229,7 +229,9 @@ def _read_disturbances(f):
     d = f["disturbance"]
     year = d["year"][()]
     n = len(year)
-    kind = read_strings(d["kind"]) if n else []
+    if n == 0:  # disturbance configured, no event in the run
+        return []
+    kind = read_strings(d["kind"])
     killed = d["killed"][()].reshape(n, -1)
     out = []
     has_mask = "mask_offset" in d

@@ -97,6 +97,12 @@ def setUpModule():
                 '[disturbance.fire]\nyears = [1]\nspread_probability = 0.45\nseverity = 1.0\nscorch_height_m = 1000.0\n'
                 '[disturbance.storm]\nyears = [2]\nseverity = 1.0\nreference_height_m = 0.05\n')
     run_eco("simulate fire", "simulate", "--config", "fire.toml")
+    # Disturbance configured, no event in the run: the file's event tables are empty.
+    with open(os.path.join(D, "quiet.toml"), "w") as f:
+        f.write('[inputs]\nabiotics = "abiotics.h5"\ncanopy = "canopy.h5"\nterrain = "terrain.h5"\n'
+                f'[run]\nyears = 1\nseed = 5\ncrop = [{", ".join(f"{v:g}" for v in CROP)}]\n'
+                '[outputs]\nhdf5 = "quiet.h5"\n[disturbance.fire]\nyears = [40]\n')
+    run_eco("simulate quiet", "simulate", "--config", "quiet.toml")
     run_eco("analyse", "analyse", "sim.h5", "--out", "db.h5", "--kmax", "3")
     run_eco("inspect", "inspect", "db.h5")
     run_eco("synth", "synth", "--terrain", "terrain.h5", "--canopy", "canopy.h5", "--database", "db.h5",
@@ -233,6 +239,7 @@ class TestDisturbanceMasks(unittest.TestCase):
         s = eco.read_simulation(path("fire.h5"))
         self.assertEqual([(e.kind, e.year) for e in s.disturbances], [("fire", 1), ("storm", 2)])
         self.assertEqual(eco.read_simulation(path("sim.h5")).disturbances, [])  # no disturbance configured
+        self.assertEqual(eco.read_simulation(path("quiet.h5")).disturbances, [])  # configured, no event
         fire = s.disturbances[0]
         self.assertEqual(fire.mask.dtype, bool)
         cells = int(fire.mask.sum())
