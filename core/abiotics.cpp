@@ -1129,6 +1129,18 @@ Abiotics readAbiotics(const std::string& path) {
     // Files written before the attribute existed hold the terrain's own sun.
     if (f.hasAttr("/", "canopy_shade") && f.attrString("/", "canopy_shade") != "none")
         a.canopyShadeSource = f.attrString("/", "canopy_shade");
+    bool windRecorded = true;
+    Wind w;
+    for (const auto& field : windFields()) {
+        const std::string key = std::string("wind_") + field.key;
+        if (!f.hasAttr("/", key)) {
+            windRecorded = false;
+            break;
+        }
+        if (field.kind == ParamDesc<Wind>::Kind::Real) w.*(field.real) = f.attrDouble("/", key);
+        else if (field.kind == ParamDesc<Wind>::Kind::Integer) w.*(field.integer) = static_cast<int>(f.attrInt("/", key));
+    }
+    if (windRecorded) a.mapWind = w;
     const auto eShape = f.shape("/elevation");
     if (eShape.size() != 2)
         throw IoError(path + ": dataset /elevation has rank " + std::to_string(eShape.size()) + ", expected [height][width]");

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -175,6 +176,9 @@ struct Abiotics {
     /// file; empty for the terrain's own sun. The simulator and the analyser apply their
     /// canopy themselves and refuse shaded input (the shade would count twice).
     std::string canopyShadeSource;
+    /// The biome's [wind] that the /wind map was computed for (the file's wind_* attributes);
+    /// runs whose disturbance uses the wind check their biome against it.
+    std::optional<Wind> mapWind;
 };
 
 /// One map of Abiotics (besides the elevation, which is the terrain and the geometry of the

@@ -19,6 +19,7 @@
 #include "provenance.h"
 #include "sim_render.h"
 #include "terrain_io.h"
+#include "text_format.h"
 
 namespace eco::sim {
 
@@ -37,12 +38,31 @@ Biome loadRunBiome(const RunConfig& config) {
     return config.biomePath.empty() ? defaultBiome() : loadBiome(config.biomePath);
 }
 
+// A run whose fires or storms use the biome's prevailing wind (the spread's downwind bias,
+// the storms' reference speed) on the abiotics' exposure map needs the wind that map was
+// computed for: ValidationError naming both files and both winds otherwise.
+static void requireMapWind(const RunConfig& config, const Biome& biome, const Abiotics& abiotics) {
+    if (!config.disturbance.enabled() || !abiotics.mapWind) return;
+    const Wind& map = *abiotics.mapWind;
+    if (map.directionDeg == biome.wind.directionDeg && map.strengthMS == biome.wind.strengthMS) return;
+    auto wind = [](const Wind& w) {
+        return "from " + formatNumber(w.directionDeg, 6) + " degrees at " + formatNumber(w.strengthMS, 6) + " m/s";
+    };
+    throw ValidationError(config.abioticsPath + ": its wind map was computed for wind " + wind(map) +
+                          " (attributes wind_direction_deg, wind_strength_m_s), the run's biome (" +
+                          (config.biomePath.empty() ? std::string("the embedded default") : config.biomePath) +
+                          ", [wind] direction_deg, strength_m_s) has wind " + wind(biome.wind) +
+                          ": the fires and storms would use a wind the exposure map was not made for; compute the "
+                          "abiotics with this biome (eco abiotics --biome) or run with the biome they were computed with");
+}
+
 SimInputs loadSimInputs(const RunConfig& config, Biome biome) {
     SimInputs in;
     in.biome = std::move(biome);
     requireFile(config.abioticsPath, "abiotics");
     if (!(config.canopyPath.empty() && config.params.kind == ModelKind::EcoMod)) requireFile(config.canopyPath, "canopy");
     in.abiotics = readAbiotics(config.abioticsPath);
+    requireMapWind(config, in.biome, in.abiotics);
     if (!in.abiotics.canopyShadeSource.empty())
         throw ValidationError(config.abioticsPath + ": its sun is already shaded by the canopy of " +
                               in.abiotics.canopyShadeSource + "; the simulator shades with its canopy itself: give "

@@ -9,6 +9,7 @@
 #include <memory>
 #include <set>
 #include <cstring>
+#include <filesystem>
 
 #include "abiotics_fixture.h"
 #include "disturbance.h"
@@ -16,6 +17,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "sim_config.h"
+#include "sim_run.h"
 #include "sim_scene_fixture.h"
 #include "simulator.h"
 #include "test_util.h"
@@ -844,4 +846,37 @@ TEST_CASE("disturbance masks: the simulation file keeps each event's mask, and a
     }
     auto b = h5::File::openRead(dir.file("bad.h5"));
     CHECK_THROWS_WITH(readDisturbanceTable(b, "/disturbance", biome.species.size()), Catch::Contains("mask_cells"));
+}
+
+TEST_CASE("disturbance run: a biome whose wind differs from the abiotics' wind map is refused", "[disturbance][config]") {
+    // The abiotics' exposure map was computed for wind from the east; the run's biome (the
+    // embedded default) blows from the west. With fire on, the run stops before any output.
+    test::TempDir dir("windmismatch");
+    const SimInputs in = test::smallDemoScene();
+    Biome easterly = in.biome;
+    easterly.wind.directionDeg = 90;
+    writeAbiotics(dir.file("east.h5"), in.abiotics, easterly, AbioticParams{});
+    writeAbiotics(dir.file("west.h5"), in.abiotics, defaultBiome(), AbioticParams{});
+    REQUIRE(defaultBiome().wind.directionDeg == 270);
+    RunConfig c;
+    c.canopyPath = "";  // EcoMod on empty ground
+    c.params.kind = ModelKind::EcoMod;
+    c.years = 1;
+    c.disturbance.fire.enabled = true;
+    c.disturbance.fire.timing.forcedYears = {0};
+    c.abioticsPath = dir.file("east.h5");
+    c.outputPath = dir.file("refused.h5");
+    CHECK_THROWS_WITH(runSimulation(c, false),
+                      Catch::Contains("east.h5: its wind map was computed for wind from 90 degrees at 5 m/s") &&
+                          Catch::Contains("has wind from 270 degrees at 5 m/s"));
+    CHECK_FALSE(std::filesystem::exists(c.outputPath));
+    // The same biome as the map's: the run goes; without disturbance the wind is not used.
+    c.abioticsPath = dir.file("west.h5");
+    c.outputPath = dir.file("matching.h5");
+    CHECK_NOTHROW(runSimulation(c, false));
+    CHECK(std::filesystem::exists(c.outputPath));
+    c.abioticsPath = dir.file("east.h5");
+    c.outputPath = dir.file("quiet.h5");
+    c.disturbance = DisturbanceSettings{};
+    CHECK_NOTHROW(runSimulation(c, false));
 }
