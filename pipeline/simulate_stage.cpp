@@ -7,6 +7,7 @@
 #include <ostream>
 
 #include "error.h"
+#include "text_format.h"
 
 namespace eco::pipeline {
 
@@ -55,14 +56,32 @@ SimulateResult simulateStage(const SimulateOptions& o, Reporter& reporter) {
                   ", output " + cfg.outputPath);
     if (cfg.disturbance.enabled()) {
         auto timing = [](const sim::EventTiming& t) {
-            std::string s = "probability " + std::to_string(t.probabilityPerYear).substr(0, 6) + "/year";
+            std::string s = "probability " + formatNumber(t.probabilityPerYear, 4) + "/year";
             for (std::size_t i = 0; i < t.forcedYears.size(); ++i) s += (i ? ", " : ", forced in years ") + std::to_string(t.forcedYears[i]);
             return s;
+        };
+        // Settings that cannot give an event in this run are said (as snapshot years beyond it).
+        auto never = [&](const char* kind, const sim::EventTiming& t) {
+            std::string beyond;
+            bool forcedInRun = false;
+            for (const int y : t.forcedYears) {
+                if (y < cfg.years) forcedInRun = true;
+                else beyond += (beyond.empty() ? "" : ", ") + std::to_string(y);
+            }
+            if (!beyond.empty())
+                reporter.info(std::string("simulate: disturbance: ") + kind + " forced in years beyond the " +
+                              std::to_string(cfg.years) + " simulated years (0 = the first) never happens: " + beyond);
+            if (t.probabilityPerYear == 0 && !forcedInRun)
+                reporter.info(std::string("simulate: disturbance: no ") + kind +
+                              " can happen in this run (probability 0 and no forced year within it; set "
+                              "probability_per_year, return_interval_years or years)");
         };
         std::string d;
         if (cfg.disturbance.fire.enabled) d += "fire (" + timing(cfg.disturbance.fire.timing) + ")";
         if (cfg.disturbance.storm.enabled) d += std::string(d.empty() ? "" : ", ") + "storms (" + timing(cfg.disturbance.storm.timing) + ")";
         reporter.info("simulate: disturbance: " + d + "; each event is logged and recorded in /disturbance");
+        if (cfg.disturbance.fire.enabled) never("fire", cfg.disturbance.fire.timing);
+        if (cfg.disturbance.storm.enabled) never("storm", cfg.disturbance.storm.timing);
     }
     std::unique_ptr<SimulationProgress> progress = reporter.simulationProgress(cfg.years);
     sim::RunHooks hooks;

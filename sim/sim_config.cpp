@@ -346,7 +346,9 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
             }
             if (s.has("years"))
                 for (const std::int64_t y : s.integers("years")) {
-                    if (y < 0 || y > 2147483647) s.fail("years", "years must be non-negative integers");
+                    if (y < 0 || y > 2147483647)
+                        s.fail("years", "value " + std::to_string(y) +
+                                            ": must lie in 0..2147483647 (0 = the first simulated year)");
                     timing.forcedYears.push_back(static_cast<int>(y));
                 }
             const std::int64_t m = s.integerOr("month", timing.month);

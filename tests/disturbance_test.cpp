@@ -345,6 +345,11 @@ TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are re
                       Catch::Contains("not both"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nmonth = 12\n", "t.toml"), Catch::Contains("month"));
     CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nseverity = 1.5\n", "t.toml"), Catch::Contains("severity"));
+    // Forced years name the value and the range (an int, 0 = the first simulated year).
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.fire]\nyears = [3, -1]\n", "t.toml"),
+                      Catch::Contains("t.toml") && Catch::Contains("'years'") && Catch::Contains("value -1: must lie in 0..2147483647"));
+    CHECK_THROWS_WITH(parseRunConfig(base + "[disturbance.storm]\nyears = [2147483648]\n", "t.toml"),
+                      Catch::Contains("value 2147483648: must lie in 0..2147483647"));
     // With the EcoMod model too (the events at the year's end).
     const RunConfig eco = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n[disturbance.fire]\nyears = [10]\n", "t.toml");
     CHECK_NOTHROW(eco.validate());

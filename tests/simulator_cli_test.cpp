@@ -106,6 +106,27 @@ TEST_CASE("eco simulate: bad configs and inputs give one clear line and a non-ze
     CHECK_FALSE(std::ifstream(dir.file("o.h5")).good());
 }
 
+TEST_CASE("eco simulate: disturbance settings that cannot strike in the run are said", "[sim][cli][disturbance]") {
+    test::TempDir dir("simcli_never");
+    writeSceneFiles(dir);
+    const std::string inputs = "[inputs]\nabiotics = \"" + dir.file("abiotics.h5") + "\"\ncanopy = \"\"\n" +
+                               "[model]\nkind = \"ecomod\"\n[run]\nyears = 3\n[outputs]\nhdf5 = \"" + dir.file("o.h5") + "\"\n";
+    // A forced year beyond the run and no probability: no fire can happen.
+    writeText(dir.file("late.toml"), inputs + "[disturbance.fire]\nyears = [1, 3, 500]\n[disturbance.storm]\nyears = [7]\n");
+    auto r = test::runEco("simulate --config " + dir.file("late.toml"));
+    INFO(r.output);
+    CHECK(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("fire forced in years beyond the 3 simulated years (0 = the first) never happens: 3, 500"));
+    CHECK_THAT(r.output, Catch::Contains("no storm can happen in this run"));
+    CHECK_THAT(r.output, !Catch::Contains("no fire can happen"));  // year 1 is within the run
+    // A table with neither a probability nor years; the probability rounded, not cut.
+    writeText(dir.file("empty.toml"), inputs + "[disturbance.fire]\n[disturbance.storm]\nreturn_interval_years = 15\n");
+    r = test::runEco("simulate --config " + dir.file("empty.toml"));
+    CHECK(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("no fire can happen in this run") && Catch::Contains("storms (probability 0.06667/year)"));
+    CHECK_THAT(r.output, !Catch::Contains("no storm can happen"));
+}
+
 TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one", "[sim][cli][checkpoint]") {
     test::TempDir dir("simrun");
     writeSceneFiles(dir);
