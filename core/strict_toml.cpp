@@ -21,7 +21,7 @@ void absolutizeConfigPaths(toml::table& config, const std::string& configPath,
         toml::table* t = table.empty() ? &config : config[table].as_table();
         if (!t) continue;
         toml::value<std::string>* v = t->get_as<std::string>(key);
-        if (!v || v->get().empty()) continue;
+        if (!v || v->get().empty() || v->get().rfind("embedded:", 0) == 0) continue;  // built in, not a file
         v->get() = std::filesystem::absolute(pathRelativeToConfig(configPath, v->get())).lexically_normal().string();
     }
 }

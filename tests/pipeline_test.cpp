@@ -240,6 +240,24 @@ TEST_CASE("ensemble: configs/ensemble.toml plans its members with their override
     for (std::size_t i = 0; i < spec.members.size(); ++i) CHECK(eco::pipeline::memberStatus(spec, i).state == "pending");
 }
 
+TEST_CASE("ensemble: a simulation override on a base that names the built-in simulation configuration", "[pipeline][ensemble]") {
+    // [simulate] config = "embedded:sim-default.toml" is not a file: the member's simulate.toml
+    // is the built-in text with the override (it was read as <folder>/embedded:sim-default.toml).
+    eco::test::TempDir dir("ensemble_embedded");
+    eco::test::writeText(dir.file("base.toml"), "[run]\nseed = 1\n[terrain]\nwidth = 32\nheight = 32\n[chm]\n[abiotics]\n"
+                                                "[canopy]\n[simulate]\nconfig = \"embedded:sim-default.toml\"\nyears = 2\n");
+    eco::test::writeText(dir.file("spec.toml"), "[ensemble]\nout_dir = \"out\"\nbase = \"base.toml\"\ndatabase = false\n"
+                                                "[vary]\n\"simulation.run.checkpoint_every_years\" = [5, 7]\n");
+    const auto spec = eco::pipeline::loadEnsembleSpec(dir.file("spec.toml"));
+    REQUIRE(spec.members.size() == 2);
+    for (std::size_t i = 0; i < spec.members.size(); ++i) eco::pipeline::writeMemberConfig(spec, i);
+    const std::string simToml = dir.file("out/members/m02/simulate.toml");
+    REQUIRE(std::filesystem::exists(simToml));
+    const eco::sim::RunConfig c = eco::sim::loadRunConfig(simToml);
+    CHECK(c.checkpointEveryYears == 7);
+    CHECK(c.years == eco::sim::loadRunConfig("embedded:sim-default.toml").years);  // the rest is the built-in text
+}
+
 TEST_CASE("database build: one member per sub-biome combination and terrain, each with its canopy mix", "[pipeline][ensemble]") {
     const eco::Biome biome = eco::defaultBiome();
     // Sonoma: 4 sub-biomes with canopy species -> 15 combinations.
