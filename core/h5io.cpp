@@ -231,6 +231,10 @@ void File::writeI64(const std::string& name, const std::vector<std::int64_t>& v,
                     const std::string& units) {
     writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_INT64, H5T_STD_I64LE, units);
 }
+void File::writeU8(const std::string& name, const std::vector<std::uint8_t>& v, const std::vector<hsize_t>& dims,
+                   const std::string& units) {
+    writeTyped(*this, name, v.data(), v.size(), dims, H5T_NATIVE_UINT8, H5T_STD_U8LE, units);
+}
 
 std::vector<float> File::readF32(const std::string& name, std::vector<hsize_t>* dims) const {
     return readTyped<float>(*this, name, dims, H5T_NATIVE_FLOAT, H5T_FLOAT);
@@ -243,6 +247,10 @@ std::vector<std::int32_t> File::readI32(const std::string& name, std::vector<hsi
 }
 std::vector<std::int64_t> File::readI64(const std::string& name, std::vector<hsize_t>* dims) const {
     return readTyped<std::int64_t>(*this, name, dims, H5T_NATIVE_INT64, H5T_INTEGER);
+}
+
+std::vector<std::uint8_t> File::readU8(const std::string& name, std::vector<hsize_t>* dims) const {
+    return readTyped<std::uint8_t>(*this, name, dims, H5T_NATIVE_UINT8, H5T_INTEGER);
 }
 
 std::vector<hsize_t> File::shape(const std::string& name) const {

@@ -80,6 +80,9 @@ public:
                   const std::string& units);
     void writeI64(const std::string& name, const std::vector<std::int64_t>& v, const std::vector<hsize_t>& dims,
                   const std::string& units);
+    /// Bytes (an encoded file kept in a checkpoint, ...).
+    void writeU8(const std::string& name, const std::vector<std::uint8_t>& v, const std::vector<hsize_t>& dims,
+                 const std::string& units);
     /// A list of names (fixed-length UTF-8 strings); no units.
     void writeStrings(const std::string& name, const std::vector<std::string>& v);
 
@@ -89,6 +92,7 @@ public:
     /// Any integer dataset as int64.
     std::vector<std::int64_t> readI64(const std::string& name, std::vector<hsize_t>* dims = nullptr) const;
     std::vector<std::string> readStrings(const std::string& name) const;
+    std::vector<std::uint8_t> readU8(const std::string& name, std::vector<hsize_t>* dims = nullptr) const;
     std::vector<hsize_t> shape(const std::string& name) const;
     /// True when the object is a group (false for a dataset); IoError when it does not exist.
     bool isGroup(const std::string& name) const;

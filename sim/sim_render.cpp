@@ -77,7 +77,7 @@ void renderPlot(const std::string& path, const std::vector<UndergrowthPlant>& pl
     std::vector<std::pair<std::string, Rgb>> entries;
     for (std::size_t s = 0; s < used.size(); ++s)
         if (used[s]) entries.emplace_back(biome.species[s].name, categoryColour(static_cast<int>(s)));
-    entries.emplace_back("canopy crown (outline)", outline);
+    if (!canopy.empty()) entries.emplace_back("canopy crown (outline)", outline);
     if (event) {
         char m[96];
         std::snprintf(m, sizeof m, "%s (%.0f m2, ground tint)", fire ? "burnt cells" : "cells with plants thrown",

@@ -1,6 +1,7 @@
 #include "sim_run.h"
 
 #include <omp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -251,6 +252,15 @@ void writeCheckpoint(const std::string& path, const Simulation& sim, const RunRe
         f.ensureGroup("/record/snapshots");
         for (const auto& [year, plants] : record.snapshots)
             writeSnapshot(f, snapshotGroup("/record/snapshots", year), year, plants, sim.biome());
+        if (!record.eventPictures.empty()) {
+            f.ensureGroup("/record/event_pictures");
+            for (std::size_t e = 0; e < record.eventPictures.size(); ++e) {
+                const std::string& png = record.eventPictures[e];
+                char name[64];
+                std::snprintf(name, sizeof name, "/record/event_pictures/%06zu", e);
+                f.writeU8(name, std::vector<std::uint8_t>(png.begin(), png.end()), {png.size()}, "1");
+            }
+        }
         // The wall time so far is measured, not simulated: provenance, so that two runs of the
         // same configuration write the same checkpoint bytes (docs/hdf5.md).
         writeProvenance(f, {{"wall_seconds_before", record.wallSecondsBefore}});
@@ -271,10 +281,36 @@ void readCheckpoint(const std::string& path, Simulation& sim, RunRecord& record)
         const std::string g = "/record/snapshots/" + n;
         r.snapshots.emplace_back(static_cast<int>(f.attrInt(g, "year")), readSnapshot(f, g, sim.biome()));
     }
+    if (f.exists("/record/event_pictures")) {
+        auto pictures = f.list("/record/event_pictures");
+        std::sort(pictures.begin(), pictures.end());  // zero-padded event indices
+        for (const auto& n : pictures) {
+            const std::vector<std::uint8_t> png = f.readU8("/record/event_pictures/" + n);
+            r.eventPictures.emplace_back(png.begin(), png.end());
+        }
+    }
     // Version 1 checkpoints kept it at the root; without provenance the earlier time is unknown.
     r.wallSecondsBefore = readProvenanceDouble(f, "wall_seconds_before", "wall_seconds_before").value_or(0.0);
     r.resumedFromYear = sim.yearsDone();
     record = std::move(r);
+}
+
+// The picture of a disturbance event over the plants at the end of its year (the event strikes
+// at the end of its month),
+// as PNG bytes: drawn into a temporary file of the pictures' folder (named after this process,
+// so that a run killed meanwhile leaves nothing the next run does not remove), read back and
+// removed.
+static std::string eventPicture(const std::string& pngDir, const DisturbanceRecord& ev, const Simulation& sim) {
+    ensureDirectory(pngDir);
+    const std::string temp = pngDir + "/.event_picture.tmp" + std::to_string(::getpid()) + ".png";
+    renderDisturbancePng(temp, ev, sim.plants(), sim.relevantCanopy(), sim.area(), sim.biome(),
+                         describeDisturbance(ev) + "; plants at the end of its year (after " +
+                             std::to_string(sim.yearsDone()) + " years)");
+    std::string png = readTextFile(temp);
+    std::error_code ec;
+    std::filesystem::remove(temp, ec);
+    if (png.empty()) throw IoError(temp + ": the event's picture could not be read back");
+    return png;
 }
 
 // ------------------------------------------------------------------ the run
@@ -356,7 +392,14 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
     while (sim.yearsDone() < config.years) {
         sim.stepYear();
         const int year = sim.yearsDone();
-        for (; eventsLogged < sim.disturbances().size(); ++eventsLogged) log(describeDisturbance(sim.disturbances()[eventsLogged]));
+        for (; eventsLogged < sim.disturbances().size(); ++eventsLogged) {
+            const DisturbanceRecord& ev = sim.disturbances()[eventsLogged];
+            log(describeDisturbance(ev));
+            if (!config.pngDir.empty()) {
+                record.eventPictures.resize(eventsLogged);  // "" for events without one (before a resume)
+                record.eventPictures.push_back(eventPicture(config.pngDir, ev, sim));
+            }
+        }
         record.timeseries.push_back(sim.census());
         if (snapshotYears.count(year)) takeSnapshot(year);
         if (hooks.onYear) hooks.onYear(sim, record);
@@ -402,11 +445,20 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
                             "Undergrowth after " + std::to_string(year) + " years (" + std::to_string(plants.size()) + " plants)");
             summary.written.push_back(p);
         }
-        // Each disturbance event's mask over the plants of the first snapshot after it (the
-        // census of year + 1 is the first after an event of year `year`), or the final plants.
+        // Each disturbance event's mask over the plants just after it (drawn at the end of its
+        // year); for an event without that picture (a run resumed from a checkpoint written
+        // without pictures), over the plants of the first snapshot after it (the census of
+        // year + 1 is the first after an event of year `year`), or the final plants.
         const std::vector<DisturbanceRecord>& events = sim.disturbances();
         for (std::size_t e = 0; e < events.size(); ++e) {
             const DisturbanceRecord& ev = events[e];
+            char name[96];
+            std::snprintf(name, sizeof name, "/disturbance_%03zu_year_%04d_%s.png", e, ev.year, ev.kind.c_str());
+            if (e < record.eventPictures.size() && !record.eventPictures[e].empty()) {
+                writeTextFile(config.pngDir + name, record.eventPictures[e]);
+                summary.written.push_back(config.pngDir + name);
+                continue;
+            }
             const std::vector<UndergrowthPlant>* shown = &finalPlants;
             int shownYear = sim.yearsDone();
             for (const auto& [year, plants] : record.snapshots)
@@ -415,8 +467,6 @@ RunSummary runSimulation(const RunConfig& config, bool resume, const RunHooks& h
                     shownYear = year;
                     break;
                 }
-            char name[96];
-            std::snprintf(name, sizeof name, "/disturbance_%03zu_year_%04d_%s.png", e, ev.year, ev.kind.c_str());
             const std::string p = config.pngDir + name;
             renderDisturbancePng(p, ev, *shown, sim.relevantCanopy(), sim.area(), sim.biome(),
                                  describeDisturbance(ev) + "; plants after " + std::to_string(shownYear) + " years");

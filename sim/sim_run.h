@@ -31,6 +31,11 @@ std::vector<UndergrowthPlant> readInitialPlants(const std::string& spec, const B
 struct RunRecord {
     std::vector<YearRecord> timeseries;  ///< one per complete year, from year 0
     SnapshotList snapshots;
+    /// Per disturbance event (sim.disturbances()' order), when pictures are asked for: the PNG
+    /// bytes of its picture, drawn at the end of its year over the plants just after it ("":
+    /// none, e.g. a run resumed from a checkpoint written without pictures). Kept in the
+    /// checkpoint, so that a resumed run writes the same pictures.
+    std::vector<std::string> eventPictures;
     double wallSecondsBefore = 0;  ///< wall time of earlier processes (resumed runs)
     int resumedFromYear = -1;      ///< -1 when not resumed
 };

@@ -17,6 +17,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "sim_config.h"
+#include "sim_render.h"
 #include "sim_run.h"
 #include "sim_scene_fixture.h"
 #include "simulator.h"
@@ -884,4 +885,63 @@ TEST_CASE("disturbance run: a biome whose wind differs from the abiotics' wind m
     c.outputPath = dir.file("quiet.h5");
     c.disturbance = DisturbanceSettings{};
     CHECK_NOTHROW(runSimulation(c, false));
+}
+
+TEST_CASE("disturbance pictures: each event is drawn over the plants at the end of its year, also after a resume",
+          "[disturbance][sim][checkpoint]") {
+    // A fire in year 1 of 5, with no snapshot until the last year: the picture must show the
+    // stand of year 2's census (the plants just after the fire), not the last snapshot's.
+    test::TempDir dir("eventpictures");
+    const SimInputs in = test::smallDemoScene();
+    writeAbiotics(dir.file("abiotics.h5"), in.abiotics, in.biome, AbioticParams{});
+    RunConfig c;
+    c.canopyPath = "";
+    c.params.kind = ModelKind::EcoMod;
+    c.years = 5;
+    c.snapshotYears = {5};
+    c.checkpointEveryYears = 1;
+    c.disturbance.fire.enabled = true;
+    c.disturbance.fire.timing.forcedYears = {1};
+    c.disturbance.fire.spreadProbability = 0.6;
+    c.disturbance.fire.severity = 1.0;
+    c.disturbance.fire.scorchHeightM = 1000;
+    c.abioticsPath = dir.file("abiotics.h5");
+    c.outputPath = dir.file("full/sim.h5");
+    c.pngDir = dir.file("full/png");
+    std::vector<UndergrowthPlant> afterFire;
+    std::vector<DisturbanceRecord> events;
+    std::vector<Plant> canopy;
+    SimArea area{};
+    Biome biome;
+    RunHooks hooks;
+    hooks.onYear = [&](const Simulation& s, const RunRecord&) {
+        if (s.yearsDone() == 2) {
+            afterFire = s.plants();
+            events = s.disturbances();
+            canopy = s.relevantCanopy();
+            area = s.area();
+            biome = s.biome();
+        }
+    };
+    runSimulation(c, false, hooks);
+    REQUIRE(events.size() == 1);
+    REQUIRE(events[0].killed.size() > 0);
+    const std::string picture = dir.file("full/png/disturbance_000_year_0001_fire.png");
+    REQUIRE(std::filesystem::exists(picture));
+    renderDisturbancePng(dir.file("expected.png"), events[0], afterFire, canopy, area, biome,
+                         describeDisturbance(events[0]) + "; plants at the end of its year (after 2 years)");
+    CHECK(test::readAll(picture) == test::readAll(dir.file("expected.png")));
+    // Stopped after year 3 (its checkpoint holds the picture) and resumed: the same bytes.
+    c.outputPath = dir.file("part/sim.h5");
+    c.pngDir = dir.file("part/png");
+    RunHooks stop;
+    stop.stopRequested = [] { return true; };
+    int stops = 0;
+    for (; stops < 10; ++stops) {
+        const RunSummary r = runSimulation(c, stops > 0, stop);
+        if (!r.stoppedEarly) break;
+        CHECK_FALSE(std::filesystem::exists(dir.file("part/png/disturbance_000_year_0001_fire.png")));
+    }
+    CHECK(stops == 4);  // stopped after years 1, 2, 3 and 4; the fifth run finished
+    CHECK(test::readAll(dir.file("part/png/disturbance_000_year_0001_fire.png")) == test::readAll(picture));
 }
