@@ -270,7 +270,11 @@ MapFrame mapFrame(const Canvas& picture, const MapExtent& world) {
     for (double v : xt) longestX = std::max(longestX, tickLabel(v, stepOf(xt)).size());
     const int plotLeft = 18 + 8 * static_cast<int>(longestY), plotTop = 8;
     const int bottom = 62, right = 4 + 4 * static_cast<int>(longestX);
-    MapFrame f{Canvas(plotLeft + W + right, plotTop + H + bottom), plotLeft, plotTop};
+    char note[160];
+    std::snprintf(note, sizeof note, "x (east), y (north) in world metres, north up; 1 px = %.3g m", pxW);
+    // A small picture gets room on the right for the note under it (it was cut at the edge).
+    const int width = std::max(plotLeft + W + right, plotLeft + textWidthPx(note, 11) + 6);
+    MapFrame f{Canvas(width, plotTop + H + bottom), plotLeft, plotTop};
     f.canvas.paste(picture, plotLeft, plotTop);
     // The frame lies just outside the picture: the chart's rectangle starts one pixel
     // before it (left, top), and its axes run from one pixel's width before the west / after
@@ -302,8 +306,6 @@ MapFrame mapFrame(const Canvas& picture, const MapExtent& world) {
     f.canvas.fillRect(bx, by - 3, bx + 1, by + 9, black);
     f.canvas.fillRect(bx + barPx - 1, by - 3, bx + barPx, by + 9, black);
     f.canvas.text(bx + barPx + 8, by + 9, tickLabel(barM, barM) + " m", 13, black);
-    char note[160];
-    std::snprintf(note, sizeof note, "x (east), y (north) in world metres, north up; 1 px = %.3g m", pxW);
     f.canvas.text(bx, by + 24, note, 11, {0.3f, 0.3f, 0.3f});
     return f;
 }

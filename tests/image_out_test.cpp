@@ -107,6 +107,22 @@ TEST_CASE("niceTicks gives round steps that cover the range", "[image][chart]") 
     CHECK(tickLabel(-0.0, 1) == "0");
 }
 
+TEST_CASE("a map frame of a small picture has room for its note", "[image][chart]") {
+    // 40 x 20 pixels: the note under the scale bar ("x (east), y (north) in world metres, ...")
+    // is wider than the picture; the canvas grows so that it is not cut at the right edge.
+    const MapFrame f = mapFrame(Canvas(40, 20, {0.5f, 0.5f, 0.5f}), MapExtent{0, 0, 40, 20});
+    const Canvas& c = f.canvas;
+    int rightmost = -1;
+    for (int y = f.plotTop + 20 + 40; y < c.height(); ++y)
+        for (int x = 0; x < c.width(); ++x) {
+            const Rgb v = c.get(x, y);
+            if (v[0] + v[1] + v[2] < 2.7f) rightmost = std::max(rightmost, x);
+        }
+    INFO("canvas width " << c.width() << ", rightmost text column " << rightmost);
+    CHECK(rightmost > f.plotLeft + 200);  // the note runs well past the picture
+    CHECK(rightmost < c.width() - 3);     // and ends inside the canvas
+}
+
 TEST_CASE("a map frame puts its ticks on the columns and rows of known world coordinates", "[image][chart]") {
     // 400 x 200 pixels over x 1000..1100 m, y 2000..2100 m: 4 px per metre east, 2 per metre north.
     const Rgb fill{0.2f, 0.6f, 0.3f};
