@@ -48,7 +48,7 @@ void registerSimulateCommand(CLI::App& app) {
     sub->add_option("--out", opt->out, "Output HDF5");
     sub->add_option("--csv", opt->csv, "CSV of the final plants");
     sub->add_option("--png", opt->png, "Directory for PNG renders of the snapshots and the species plot, and with disturbance one picture per event "
-                    "(disturbance_NNN_year_YYYY_KIND.png: its struck cells under the plants)");
+                    "(disturbance_EEE_year_YYYY_KIND.png, EEE the event's row: its struck cells under the plants)");
     sub->add_option("--checkpoint-every", opt->checkpointEvery, "Write a checkpoint every N years (0 = never)")
         ->check(nonNegativeNumber());
     sub->add_flag("--resume", opt->resume, "Continue from the checkpoint of this run when it exists");
