@@ -250,7 +250,8 @@ void registerConfigCommands(CLI::App& app) {
         "defaults",
         "Print every key of a configuration file with its default, as TOML that eco reads: 'simulate' (the "
         "simulation configuration of eco simulate --config and [simulate] config of eco run: the built-in "
-        "configs/sim-default.toml with every model constant at its default) or 'canopy' (the canopy placer's "
+        "configs/sim-default.toml with every model constant at its default, and the [disturbance.fire] and "
+        "[disturbance.storm] tables at their defaults, commented out) or 'canopy' (the canopy placer's "
         "configuration, eco canopy --config). Printed also with --quiet (it is the result).");
     defaults->add_option("command", *which, "Which configuration: simulate or canopy")
         ->capture_default_str()

@@ -27,12 +27,17 @@ void registerSimulateCommand(CLI::App& app) {
     CLI::App* sub = app.add_subcommand(
         "simulate",
         "Undergrowth simulation under a fixed canopy (paper §6.1): monthly competition for sun and water, carbon "
-        "pools, growth, mortality and yearly germination. Flags override the keys of --config (docs/simulator.md).");
+        "pools, growth, mortality and yearly germination (docs/simulator.md). --model ecomod ([model] kind = \"ecomod\"): "
+        "Zamuda & Brest's yearly EcoMod model instead, trees of every species colonising the ground under the canopy or "
+        "empty ground ([inputs] canopy = \"\") (docs/ecomod.md). Either model with fire and windthrow storms: the "
+        "[disturbance.fire] and [disturbance.storm] tables of --config (docs/disturbance.md). Flags override the keys "
+        "of --config.");
     sub->add_option("--config", opt->config, "Run configuration TOML (configs/sim-*.toml; embedded:sim-default.toml: the copy built into eco, also "
                     "read when a file of that name is missing)");
     sub->add_option("--terrain", opt->terrain, "Terrain file (optional; default: the elevation of the abiotics)");
     sub->add_option("--abiotics", opt->abiotics, "Abiotics HDF5 (eco abiotics), without canopy shade");
-    sub->add_option("--canopy", opt->canopy, "Canopy HDF5 (eco canopy): /canopy plants and /chm/height");
+    sub->add_option("--canopy", opt->canopy, "Canopy HDF5 (eco canopy): /canopy plants and /chm/height. EcoMod only: [inputs] canopy = \"\" in --config "
+                    "means empty ground (an empty --canopy keeps the configuration's)");
     sub->add_option("--biome", opt->biome, "Biome TOML (default: the embedded Sonoma biome)");
     sub->add_option("--years", opt->years, "Years to simulate")->check(positiveNumber());
     sub->add_option("--seed", opt->seed, "Random seed")->check(nonNegativeNumber());
@@ -42,7 +47,8 @@ void registerSimulateCommand(CLI::App& app) {
         ->check(parsedBy("--snapshot-years", [](const std::string& t) { sim::parseYearList(t, "--snapshot-years"); }));
     sub->add_option("--out", opt->out, "Output HDF5");
     sub->add_option("--csv", opt->csv, "CSV of the final plants");
-    sub->add_option("--png", opt->png, "Directory for PNG renders of the snapshots and the species plot");
+    sub->add_option("--png", opt->png, "Directory for PNG renders of the snapshots and the species plot, and with disturbance one picture per event "
+                    "(disturbance_EEE_year_YYYY_KIND.png, EEE the event's row: its struck cells under the plants)");
     sub->add_option("--checkpoint-every", opt->checkpointEvery, "Write a checkpoint every N years (0 = never)")
         ->check(nonNegativeNumber());
     sub->add_flag("--resume", opt->resume, "Continue from the checkpoint of this run when it exists");
@@ -54,7 +60,8 @@ void registerSimulateCommand(CLI::App& app) {
     sub->add_option("--model", opt->model,
                     "Simulator model: monthly (default, the paper's) or ecomod (Zamuda & Brest's yearly afforestation "
                     "model, docs/ecomod.md) ([model] kind)")
-        ->check(parsedBy("--model", [](const std::string& t) { sim::parseModelKind(t, "--model"); }));
+        ->check(parsedBy("--model", [](const std::string& t) { sim::parseModelKind(t, "--model"); }))
+        ->check(oneOf(sim::modelKindNames()));  // never fails after parsedBy; its choices go to the completion
     sub->add_option("--germination-cells", opt->germinationCells,
                     "Cells tested for germination: uncovered (default: no undergrowth crown over them) or every (the "
                     "paper's wording) ([model] germination_cells)")

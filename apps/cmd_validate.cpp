@@ -93,8 +93,9 @@ void registerValidateCommand(CLI::App& app) {
     auto opt = std::make_shared<ValidateOptions>();
     CLI::App* sub = app.add_subcommand(
         "validate",
-        "Ecological regression suite (paper §7.2, Figs. 13-15 and 20; Deussen et al. 1998): self-thinning, succession, "
-        "dynamic equilibrium, gap dynamics, abiotic gradients, the Deussen comparison and Deussen's circle test. Writes "
+        "Ecological regression suite (paper §7.2, Figs. 13-15 and 20; Deussen et al. 1998; Zamuda & Brest): "
+        "self-thinning, succession, dynamic equilibrium, gap dynamics, abiotic gradients, the Deussen comparison, "
+        "Deussen's circle test, synthesis fidelity and EcoMod's afforestation of empty ground (docs/ecomod.md). Writes "
         "DIR/report.md, its self-contained twin DIR/report.html (pictures embedded, interactive plots) and DIR/results.csv. Exit status: 0 all checks passed (a check its configuration declares a known "
         "deviation of the model is reported but does not fail), 3 a check failed, 1 bad input or error "
         "(docs/validation.md).");

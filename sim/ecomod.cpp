@@ -2129,8 +2129,8 @@ void EcoModel::loadState(const h5::File& f, const std::string& group) {
         throw IoError(where + ": the checkpoint is not of an ecomod run");
     const std::string fp = f.attrString(group, "fingerprint");
     if (fp != hex64(fingerprint()))
-        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed or model "
-                              "parameters; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
+        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed, model "
+                              "parameters or disturbance settings; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
     const auto idLo = f.readI32(group + "/id_lo");
     const auto idHi = f.readI32(group + "/id_hi");
     const auto sps = f.readI32(group + "/species");

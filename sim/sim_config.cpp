@@ -87,6 +87,11 @@ const char* modelKindName(ModelKind k) { return enumName(k, kModelKinds); }
 const char* germinationCellsName(GerminationCells g) { return enumName(g, kGerminationCells); }
 const char* germinationVigourName(GerminationVigour g) { return enumName(g, kGerminationVigours); }
 const char* canopyLimitName(CanopyLimit c) { return enumName(c, kCanopyLimits); }
+std::vector<std::string> modelKindNames() {
+    std::vector<std::string> names;
+    for (const auto& n : kModelKinds) names.emplace_back(n.name);
+    return names;
+}
 
 const std::vector<ParamDesc<SimParams>>& simParamFields() {
     using K = ParamDesc<SimParams>::Kind;
@@ -394,6 +399,28 @@ extern const char* const kSimDefaultToml;
 
 const char* embeddedDefaultRunConfigToml() { return detail::kSimDefaultToml; }
 
+namespace {
+// The [disturbance.*] tables at their defaults, commented out: a table's presence switches
+// its events on, so the defaults print them as a template (from DisturbanceSettings::toToml).
+std::string disturbanceDefaultsToml() {
+    DisturbanceSettings d;
+    d.fire.enabled = true;
+    d.storm.enabled = true;
+    std::string text =
+        "\n# Fire and windthrow storms (docs/disturbance.md), in either model: off unless their table is\n"
+        "# present (uncomment one to switch it on). Every key at its default; probability_per_year = 0\n"
+        "# and no forced years strike nothing (return_interval_years = T instead: probability 1 / T).\n";
+    const std::string tables = d.toToml();
+    for (std::size_t begin = 0; begin < tables.size();) {
+        const std::size_t end = tables.find('\n', begin);
+        const std::size_t stop = end == std::string::npos ? tables.size() : end;
+        text += "# " + tables.substr(begin, stop - begin) + "\n";
+        begin = stop + 1;
+    }
+    return text;
+}
+}  // namespace
+
 std::string defaultRunConfigToml() {
     std::string text = detail::kSimDefaultToml;
     // The file's [model] table (and the comment block just above it) is replaced by the one
@@ -411,7 +438,8 @@ std::string defaultRunConfigToml() {
     return text + "\n# Model constants (paper §6.1 and SPEC §5), every one at its default (docs/simulator.md).\n" +
            SimParams{}.toToml() +
            "# The model: \"monthly\" (the paper's, above) or \"ecomod\" (Zamuda & Brest, yearly; docs/ecomod.md)\n"
-           "kind = \"monthly\"\n";
+           "kind = \"monthly\"\n" +
+           disturbanceDefaultsToml();
 }
 
 const std::vector<std::pair<std::string, std::string>>& runConfigPathKeys() {

@@ -84,6 +84,8 @@ const char* competitionModeName(CompetitionMode m);
 const char* germinationCellsName(GerminationCells g);
 const char* germinationVigourName(GerminationVigour g);
 const char* canopyLimitName(CanopyLimit c);
+/// Every ModelKind's spelling, in declaration order ("monthly", "ecomod"): the choices of --model.
+std::vector<std::string> modelKindNames();
 /// Parse those spellings; ValidationError naming `what` and the accepted values otherwise.
 GrowthRule parseGrowthRule(const std::string& text, const std::string& what);
 CompetitionMode parseCompetitionMode(const std::string& text, const std::string& what);

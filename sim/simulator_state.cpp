@@ -140,8 +140,8 @@ void Simulation::loadState(const h5::File& f, const std::string& group) {
     if (!f.exists(group)) throw IoError(where + ": no simulation state");
     const std::string fp = f.attrString(group, "fingerprint");
     if (fp != hex64(fingerprint()))
-        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed or model "
-                              "parameters; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
+        throw IoError(where + ": the checkpoint belongs to another run (different inputs, biome, area, seed, model "
+                              "parameters or disturbance settings; fingerprint " + fp + ", this run " + hex64(fingerprint()) + ")");
     PlantStore pl;
     const auto idLo = f.readI32(group + "/id_lo");
     const auto idHi = f.readI32(group + "/id_hi");

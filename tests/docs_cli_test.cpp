@@ -109,6 +109,7 @@ TEST_CASE("eco completion bash: bash completes commands, options, option values 
     CHECK(complete(script, "eco synth --method x", empty) == std::set<std::string>{"xu2015"});
     CHECK(complete(script, "eco config defaults ", empty) == std::set<std::string>{"simulate", "canopy"});
     CHECK(complete(script, "eco instance --weight ", empty) == std::set<std::string>{"area", "none"});
+    CHECK(complete(script, "eco simulate --model ", empty) == std::set<std::string>{"monthly", "ecomod"});
     // A value that is a file: the directory's files are offered.
     std::ofstream(dir.file("empty/demo.toml")) << "";
     CHECK(complete(script, "eco run de", empty) == std::set<std::string>{"demo.toml"});

@@ -1339,6 +1339,22 @@ TEST_CASE("run config: the built-in defaults hold every key and read back", "[si
         CHECK(text.find(std::string("\n") + key + " = ") != std::string::npos);
     }
     CHECK(text.find("[model]") == text.rfind("[model]"));
+    // The [disturbance.*] tables are there commented out (as printed, disturbance is off);
+    // uncommented they read back as the defaults with both kinds on.
+    CHECK_FALSE(back.disturbance.enabled());
+    const std::size_t templateAt = text.find("\n# [disturbance.fire]\n");
+    REQUIRE(templateAt != std::string::npos);
+    CHECK(text.find("\n# [disturbance.storm]\n", templateAt) != std::string::npos);
+    std::string uncommented = text.substr(0, templateAt + 1);
+    std::istringstream lines(text.substr(templateAt + 1));
+    for (std::string line; std::getline(lines, line);)  // the template's tables and keys, not its prose
+        uncommented += (line.rfind("# [", 0) == 0 || line.find(" = ") != std::string::npos ? line.substr(2) : line) + "\n";
+    const RunConfig withDisturbance = parseRunConfig(uncommented, "defaults, disturbance uncommented");
+    DisturbanceSettings expected;
+    expected.fire.enabled = expected.storm.enabled = true;
+    CHECK(withDisturbance.disturbance.fire.enabled);
+    CHECK(withDisturbance.disturbance.storm.enabled);
+    CHECK(withDisturbance.disturbance.toToml() == expected.toToml());
 }
 
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
