@@ -102,7 +102,7 @@ public:
     /// with a scan of every set-aside tree's event year (cacheCounts().calendarMismatches).
     void checkSleeperCalendar(bool on);
     /// How many dominated trees of height > 0 doze (set aside from the store's yearly passes,
-    /// among the dominators; docs/ecomod.md "Dozing dominated trees").
+    /// among the dominators; docs/ecomod-speed.md "Dozing dominated trees").
     std::size_t dozingCount() const;
     /// Test mode: with dozing off no tree dozes (the trees are the same; tests).
     void setDozing(bool on);
