@@ -79,10 +79,27 @@ std::vector<DescribedParam> describe(const std::vector<ParamDesc<S>>& fields) {
     return out;
 }
 
+/// A [disturbance.*] table's keys (sim/disturbance.h): the numbers and the keys that are not one number.
+template <typename S>
+std::vector<DescribedParam> describe(const std::vector<sim::DisturbanceField<S>>& fields) {
+    std::vector<DescribedParam> out;
+    for (const auto& f : fields) {
+        const std::string unit = *f.unit() ? f.unit() : "-";
+        out.push_back({f.key(), f.docRow(), f.allowedText(), f.doc(), unit, &fields});
+    }
+    return out;
+}
+
 const std::vector<DescribedTable>& describedTables() {
     static const std::vector<DescribedTable> tables = {
         {"simulate", "sim::SimParams", "simParamFields()", "`[model]` of a simulation config (eco simulate --config, [simulate] of eco run); simulation file attributes",
          "docs/simulator.md", {"simulate"}, false, [] { return describe(sim::simParamFields()); }},
+        {"disturbance-fire", "sim::FireSettings", "fireFields()",
+         "`[disturbance.fire]` of a simulation config (either model); the simulation file's `disturbance_toml`",
+         "docs/disturbance.md", {}, false, [] { return describe(sim::fireFields()); }},
+        {"disturbance-storm", "sim::StormSettings", "stormFields()",
+         "`[disturbance.storm]` of a simulation config (either model); the simulation file's `disturbance_toml`",
+         "docs/disturbance.md", {}, false, [] { return describe(sim::stormFields()); }},
         {"canopy", "synth::CanopyParams", "canopyParamFields()", "`[canopy]` of eco canopy --config; canopy file attributes", "docs/canopy.md",
          {"canopy"}, false, [] { return describe(synth::canopyParamFields()); }},
         {"species-map", "synth::SpeciesMapParams", "speciesMapParamFields()", "`[canopy]` of eco canopy --config; canopy file attributes",

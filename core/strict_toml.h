@@ -164,6 +164,11 @@ private:
 template <typename S>
 void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields);
 
+/// Reads the key of one field into p when table t has it (readParams' rule for one field).
+/// Returns whether t had it.
+template <typename S>
+bool readParam(StrictTable& t, S& p, const ParamDesc<S>& f);
+
 /// Every (real) field of `fields` required, each checked against its range as it is read,
 /// so that the message names the file, the line, the table and the key (the biome's
 /// [climate], [soil] and [vigour] tables).
@@ -177,25 +182,29 @@ void readRequiredParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& f
 }
 
 template <typename S>
-void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
-    for (const auto& f : fields) {
-        if (!t.has(f.key)) continue;
-        switch (f.kind) {
-            case ParamDesc<S>::Kind::Real: p.*(f.real) = t.number(f.key); break;
-            case ParamDesc<S>::Kind::Integer: {
-                const std::int64_t v = t.integer(f.key);
-                if (v < -2147483647 || v > 2147483647) t.fail(f.key, "value " + std::to_string(v) + " out of range");
-                p.*(f.integer) = static_cast<int>(v);
-                break;
-            }
-            case ParamDesc<S>::Kind::Seed: {
-                const std::int64_t v = t.integer(f.key);
-                if (v < 0) t.fail(f.key, "must be >= 0");
-                p.*(f.seed) = static_cast<std::uint64_t>(v);
-                break;
-            }
+bool readParam(StrictTable& t, S& p, const ParamDesc<S>& f) {
+    if (!t.has(f.key)) return false;
+    switch (f.kind) {
+        case ParamDesc<S>::Kind::Real: p.*(f.real) = t.number(f.key); break;
+        case ParamDesc<S>::Kind::Integer: {
+            const std::int64_t v = t.integer(f.key);
+            if (v < -2147483647 || v > 2147483647) t.fail(f.key, "value " + std::to_string(v) + " out of range");
+            p.*(f.integer) = static_cast<int>(v);
+            break;
+        }
+        case ParamDesc<S>::Kind::Seed: {
+            const std::int64_t v = t.integer(f.key);
+            if (v < 0) t.fail(f.key, "must be >= 0");
+            p.*(f.seed) = static_cast<std::uint64_t>(v);
+            break;
         }
     }
+    return true;
+}
+
+template <typename S>
+void readParams(StrictTable& t, S& p, const std::vector<ParamDesc<S>>& fields) {
+    for (const auto& f : fields) readParam(t, p, f);
 }
 
 /// A path written in the configuration file `configPath`, as the program opens it: relative

@@ -28,79 +28,165 @@ const EventTiming& timingOf(const DisturbanceSettings& s, DisturbanceKind k) {
     return k == DisturbanceKind::Fire ? s.fire.timing : s.storm.timing;
 }
 
-std::string fmt(double v) { return tomlReal(v); }
-
-void timingToml(std::ostringstream& os, const EventTiming& t) {
-    os << "probability_per_year = " << fmt(t.probabilityPerYear) << "\n";
-    os << "years = [";
-    for (std::size_t i = 0; i < t.forcedYears.size(); ++i) os << (i ? ", " : "") << t.forcedYears[i];
-    os << "]\nmonth = " << t.month << "\n";
-}
-
-void checkTiming(const EventTiming& t, const std::string& where) {
-    if (!(t.probabilityPerYear >= 0 && t.probabilityPerYear <= 1))
-        throw ValidationError(where + " probability_per_year = " + fmt(t.probabilityPerYear) + ": must lie in [0, 1]");
-    if (t.month < 0 || t.month > 11) throw ValidationError(where + " month = " + std::to_string(t.month) + ": must lie in 0..11 (0 = January)");
-    for (int y : t.forcedYears)
-        if (y < 0) throw ValidationError(where + " years: year " + std::to_string(y) + " is negative");
-}
-
-void checkRange(double v, double lo, double hi, const std::string& where, const char* key) {
-    if (!(v >= lo && v <= hi))
-        throw ValidationError(where + " " + key + " = " + fmt(v) + ": must lie in [" + fmt(lo) + ", " + fmt(hi) + "]");
-}
-void checkPositive(double v, const std::string& where, const char* key) {
-    if (!(v > 0) || !std::isfinite(v)) throw ValidationError(where + " " + key + " = " + fmt(v) + ": must be positive");
-}
-
 }  // namespace
 
 const char* disturbanceKindName(DisturbanceKind k) { return k == DisturbanceKind::Fire ? "fire" : "storm"; }
 
+const std::vector<ParamDesc<EventTiming>>& eventTimingParamFields() {
+    using K = ParamDesc<EventTiming>::Kind;
+    using R = ParamRange;
+    using T = EventTiming;
+    static const std::vector<ParamDesc<EventTiming>> fields = {
+        {"probability_per_year", "chance of an event in a year (0: forced years only)", "", K::Real, &T::probabilityPerYear,
+         nullptr, R::closed(0, 1)},
+        {"month", "the month at whose end events strike (0 = January)", "month", K::Integer, nullptr, &T::month,
+         R::closed(0, 11), nullptr, "must lie in 0..11 (0 = January)"},
+    };
+    return fields;
+}
+
+// Positive lengths and moistures are capped at 1e9 (a typo such as 1e300 is refused).
+const std::vector<ParamDesc<FireSettings>>& fireParamFields() {
+    using K = ParamDesc<FireSettings>::Kind;
+    using R = ParamRange;
+    using F = FireSettings;
+    static const std::vector<ParamDesc<FireSettings>> fields = {
+        {"spread_probability",
+         "p0: probability that fire passes from a burning cell to a neighbour on flat, calm, dry ground", "", K::Real,
+         &F::spreadProbability, nullptr, R::closed(0, 1)},
+        {"slope_factor", "slope bias: a step's probability x exp(this x rise / run)", "", K::Real, &F::slopeFactor, nullptr,
+         R::closed(0, 100)},
+        {"wind_factor", "wind bias: a step's probability x exp(this x U x cos phi), U the burning cell's wind exposure", "per m/s",
+         K::Real, &F::windFactor, nullptr, R::closed(0, 100)},
+        {"extinction_moisture_mm",
+         "moisture at and above which a cell does not burn; below it the probability into the cell x (1 - moisture / this)",
+         "mm/month", K::Real, &F::extinctionMoistureMm, nullptr, R::openClosed(0, 1e9), nullptr,
+         "must be positive (at most 1e9)"},
+        {"severity", "kill probability of a plant of tolerance 0 below the scorch height in a burnt cell", "", K::Real,
+         &F::severity, nullptr, R::closed(0, 1)},
+        {"scorch_height_m", "plants up to this height are scorched whole, taller ones with probability x this / height", "m",
+         K::Real, &F::scorchHeightM, nullptr, R::openClosed(0, 1e9), nullptr, "must be positive (at most 1e9)"},
+        {"default_tolerance", "fire tolerance of species whose biome entry has no `fire_tolerance`", "", K::Real,
+         &F::defaultTolerance, nullptr, R::closed(0, 1)},
+    };
+    return fields;
+}
+
+const std::vector<ParamDesc<StormSettings>>& stormParamFields() {
+    using K = ParamDesc<StormSettings>::Kind;
+    using R = ParamRange;
+    using W = StormSettings;
+    static const std::vector<ParamDesc<StormSettings>> fields = {
+        {"severity", "kill probability of a plant of the reference height on fully exposed ground", "", K::Real, &W::severity,
+         nullptr, R::closed(0, 1)},
+        {"reference_height_m", "height scale: the probability x min(1, (height / this)^height_exponent)", "m", K::Real,
+         &W::referenceHeightM, nullptr, R::openClosed(0, 1e9), nullptr, "must be positive (at most 1e9)"},
+        {"height_exponent", "exponent of the height scale", "", K::Real, &W::heightExponent, nullptr, R::closed(0, 100)},
+        {"reference_wind_ms", "wind exposure counted as fully exposed; 0: the biome's prevailing wind strength", "m/s",
+         K::Real, &W::referenceWindMS, nullptr, R::closed(0, 1000)},
+    };
+    return fields;
+}
+
+namespace {
+// The keys every kind has, in the order they are written (enabled and return_interval_years
+// are not written: a written table is on, and the interval is written as its probability),
+// then the kind's own numbers.
+template <typename S>
+std::vector<DisturbanceField<S>> eventFields(const std::vector<ParamDesc<S>>& own) {
+    using D = DisturbanceField<S>;
+    using K = typename D::Kind;
+    const auto& timing = eventTimingParamFields();
+    D enabled{K::Enabled};
+    enabled.ownKey = "enabled";
+    enabled.ownDoc = "false: as if the table were absent (the table alone switches the kind on)";
+    enabled.ownDefault = "true";
+    enabled.ownAllowed = "true, false";
+    D interval{K::ReturnInterval};
+    interval.ownKey = "return_interval_years";
+    interval.ownDoc = "instead of probability_per_year (not both): the probability is 1 / this";
+    interval.ownUnit = "years";
+    interval.ownDefault = "-";
+    interval.ownAllowed = ">= 1";
+    interval.range = ParamRange::atLeast(1);
+    interval.rule = "must be at least 1 (years)";
+    D years{K::ForcedYears};
+    years.ownKey = "years";
+    years.ownDoc = "forced events: one in each of these years (0 = the first simulated year)";
+    years.ownDefault = "[]";
+    years.ownAllowed = "a list of integers in [0, 2147483647]";
+    years.range = ParamRange::closed(0, 2147483647);
+    years.rule = "must lie in 0..2147483647 (0 = the first simulated year)";
+    std::vector<D> out = {enabled, D::timingField(paramField(timing, "probability_per_year")), interval, years,
+                          D::timingField(paramField(timing, "month"))};
+    for (const auto& f : own) out.push_back(D::settingField(f));
+    return out;
+}
+}  // namespace
+
+const std::vector<DisturbanceField<FireSettings>>& fireFields() {
+    static const std::vector<DisturbanceField<FireSettings>> fields = eventFields(fireParamFields());
+    return fields;
+}
+const std::vector<DisturbanceField<StormSettings>>& stormFields() {
+    static const std::vector<DisturbanceField<StormSettings>> fields = eventFields(stormParamFields());
+    return fields;
+}
+
+template <typename S>
+std::string disturbanceTomlLines(const S& s, const std::vector<DisturbanceField<S>>& fields, bool withDocs) {
+    std::string out;
+    for (const auto& f : fields) {
+        if (!f.written()) continue;
+        out += std::string(f.key()) + " = " + f.tomlValue(s);
+        if (withDocs) out += std::string("  # ") + f.doc() + (*f.unit() ? std::string(", ") + f.unit() : std::string());
+        out += "\n";
+    }
+    return out;
+}
+
+template <typename S>
+std::string firstInvalidDisturbanceValue(const S& s, const std::vector<DisturbanceField<S>>& fields) {
+    using K = typename DisturbanceField<S>::Kind;
+    for (const auto& f : fields) {
+        const std::string key = f.key();
+        switch (f.kind) {
+            case K::Enabled:
+            case K::ReturnInterval: break;  // not stored (read into enabled / the probability)
+            case K::ForcedYears:
+                for (int y : s.timing.forcedYears)
+                    if (!f.range.contains(y)) return key + " = " + std::to_string(y) + ": " + f.ruleText();
+                break;
+            case K::Timing:
+                if (!f.timing->range.contains(f.timing->value(s.timing))) return key + " = " + f.tomlValue(s) + ": " + f.ruleText();
+                break;
+            case K::Setting:
+                if (!f.setting->range.contains(f.setting->value(s))) return key + " = " + f.tomlValue(s) + ": " + f.ruleText();
+                break;
+        }
+    }
+    return {};
+}
+
+template std::string disturbanceTomlLines(const FireSettings&, const std::vector<DisturbanceField<FireSettings>>&, bool);
+template std::string disturbanceTomlLines(const StormSettings&, const std::vector<DisturbanceField<StormSettings>>&, bool);
+template std::string firstInvalidDisturbanceValue(const FireSettings&, const std::vector<DisturbanceField<FireSettings>>&);
+template std::string firstInvalidDisturbanceValue(const StormSettings&, const std::vector<DisturbanceField<StormSettings>>&);
+
 void DisturbanceSettings::validate(const std::string& source) const {
-    if (fire.enabled) {
-        const std::string w = source + ": [disturbance.fire]";
-        checkTiming(fire.timing, w);
-        checkRange(fire.spreadProbability, 0, 1, w, "spread_probability");
-        checkRange(fire.slopeFactor, 0, 100, w, "slope_factor");
-        checkRange(fire.windFactor, 0, 100, w, "wind_factor");
-        checkPositive(fire.extinctionMoistureMm, w, "extinction_moisture_mm");
-        checkRange(fire.severity, 0, 1, w, "severity");
-        checkPositive(fire.scorchHeightM, w, "scorch_height_m");
-        checkRange(fire.defaultTolerance, 0, 1, w, "default_tolerance");
-    }
-    if (storm.enabled) {
-        const std::string w = source + ": [disturbance.storm]";
-        checkTiming(storm.timing, w);
-        checkRange(storm.severity, 0, 1, w, "severity");
-        checkPositive(storm.referenceHeightM, w, "reference_height_m");
-        checkRange(storm.heightExponent, 0, 100, w, "height_exponent");
-        checkRange(storm.referenceWindMS, 0, 1000, w, "reference_wind_ms");
-    }
+    if (fire.enabled)
+        if (const std::string bad = firstInvalidDisturbanceValue(fire, fireFields()); !bad.empty())
+            throw ValidationError(source + ": [disturbance.fire] " + bad);
+    if (storm.enabled)
+        if (const std::string bad = firstInvalidDisturbanceValue(storm, stormFields()); !bad.empty())
+            throw ValidationError(source + ": [disturbance.storm] " + bad);
 }
 
 std::string DisturbanceSettings::toToml() const {
-    std::ostringstream os;
-    if (fire.enabled) {
-        os << "[disturbance.fire]\n";
-        timingToml(os, fire.timing);
-        os << "spread_probability = " << fmt(fire.spreadProbability) << "\n"
-           << "slope_factor = " << fmt(fire.slopeFactor) << "\n"
-           << "wind_factor = " << fmt(fire.windFactor) << "\n"
-           << "extinction_moisture_mm = " << fmt(fire.extinctionMoistureMm) << "\n"
-           << "severity = " << fmt(fire.severity) << "\n"
-           << "scorch_height_m = " << fmt(fire.scorchHeightM) << "\n"
-           << "default_tolerance = " << fmt(fire.defaultTolerance) << "\n";
-    }
-    if (storm.enabled) {
-        os << "[disturbance.storm]\n";
-        timingToml(os, storm.timing);
-        os << "severity = " << fmt(storm.severity) << "\n"
-           << "reference_height_m = " << fmt(storm.referenceHeightM) << "\n"
-           << "height_exponent = " << fmt(storm.heightExponent) << "\n"
-           << "reference_wind_ms = " << fmt(storm.referenceWindMS) << "\n";
-    }
-    return os.str();
+    std::string out;
+    if (fire.enabled) out += "[disturbance.fire]\n" + disturbanceTomlLines(fire, fireFields(), false);
+    if (storm.enabled) out += "[disturbance.storm]\n" + disturbanceTomlLines(storm, stormFields(), false);
+    return out;
 }
 
 std::vector<PlannedEvent> eventsOfYear(const DisturbanceSettings& s, std::uint64_t seed, int year) {

@@ -19,6 +19,7 @@
 #include "abiotics.h"
 #include "biome.h"
 #include "grid.h"
+#include "param_desc.h"
 #include "sim_file.h"
 
 namespace eco::sim {
@@ -80,11 +81,109 @@ struct DisturbanceSettings {
     FireSettings fire;
     StormSettings storm;
     bool enabled() const { return fire.enabled || storm.enabled; }
-    /// ValidationError naming `source` and the key of the first bad value.
+    /// ValidationError "<source>: [disturbance.KIND] key = value: rule" for the first value of
+    /// an enabled kind outside its descriptor's range (fireFields(), stormFields()).
     void validate(const std::string& source) const;
-    /// TOML text of the [disturbance.*] tables present (records, fingerprints; "" when off).
+    /// TOML text of the [disturbance.*] tables present (records, fingerprints; "" when off):
+    /// the written keys of fireFields() / stormFields() in their order. The text enters
+    /// checkpoint fingerprints: it must not change for the same settings.
     std::string toToml() const;
 };
+
+// ---------------------------------------------------------------- the keys' descriptors
+
+/// The numbers of an event's timing, shared by both kinds: probability_per_year and month
+/// (core/param_desc.h). The month's default is the kind's (FireSettings{}.timing: 7).
+const std::vector<ParamDesc<EventTiming>>& eventTimingParamFields();
+/// The numbers of `[disturbance.fire]` besides the timing.
+const std::vector<ParamDesc<FireSettings>>& fireParamFields();
+/// The numbers of `[disturbance.storm]` besides the timing.
+const std::vector<ParamDesc<StormSettings>>& stormParamFields();
+
+/// One key of `[disturbance.fire]` (S = FireSettings) or `[disturbance.storm]` (S =
+/// StormSettings): the one description from which the table is read (parseRunConfig),
+/// checked (DisturbanceSettings::validate), written (toToml, eco config defaults simulate)
+/// and documented (eco config describe disturbance-fire / disturbance-storm, docs/
+/// disturbance.md). The numbers are ParamDesc rows (of the timing or of S); three keys are
+/// not one number and are described here.
+template <typename S>
+struct DisturbanceField {
+    enum class Kind {
+        Enabled,         ///< true / false in S::enabled; the table's presence alone means true. Not written.
+        ReturnInterval,  ///< years >= 1, read as probability_per_year = 1 / this (not with it). Not written.
+        ForcedYears,     ///< a list of integers, each in `range`, into S::timing.forcedYears
+        Timing,          ///< a number of S::timing (`timing`)
+        Setting,         ///< a number of S (`setting`)
+    };
+    Kind kind;
+    const ParamDesc<EventTiming>* timing = nullptr;  ///< Kind::Timing
+    const ParamDesc<S>* setting = nullptr;           ///< Kind::Setting
+    // The text of the keys that are not one number (the numbers' is their ParamDesc's).
+    const char* ownKey = "";
+    const char* ownDoc = "";
+    const char* ownUnit = "";
+    const char* ownDefault = "";
+    const char* ownAllowed = "";
+    ParamRange range{};        ///< ReturnInterval: the value; ForcedYears: each year
+    const char* rule = nullptr;
+
+    static DisturbanceField timingField(const ParamDesc<EventTiming>& f) { return {Kind::Timing, &f, nullptr}; }
+    static DisturbanceField settingField(const ParamDesc<S>& f) { return {Kind::Setting, nullptr, &f}; }
+
+    const char* key() const { return timing ? timing->key : setting ? setting->key : ownKey; }
+    const char* doc() const { return timing ? timing->doc : setting ? setting->doc : ownDoc; }
+    const char* unit() const { return timing ? timing->unit : setting ? setting->unit : ownUnit; }
+    /// In the TOML toToml writes (records, fingerprints, the defaults' template).
+    bool written() const { return kind != Kind::Enabled && kind != Kind::ReturnInterval; }
+    /// The range's message text ("must lie in [0, 1]").
+    std::string ruleText() const {
+        if (timing) return timing->ruleText();
+        if (setting) return setting->ruleText();
+        return rule ? std::string(rule) : range.text();
+    }
+    /// The allowed values as the docs show them.
+    std::string allowedText() const {
+        if (timing) return timing->range.valuesText();
+        if (setting) return setting->range.valuesText();
+        return ownAllowed;
+    }
+    /// The default (S{}'s value; the month the kind's own).
+    std::string defaultText() const {
+        static const S defaults{};
+        if (timing) return paramText(*timing, defaults.timing, 6);
+        if (setting) return paramText(*setting, defaults, 6);
+        return ownDefault;
+    }
+    /// The value in s as TOML text (written keys only): reals with tomlReal, integers whole.
+    std::string tomlValue(const S& s) const {
+        if (kind == Kind::ForcedYears) {
+            std::string out = "[";
+            for (std::size_t i = 0; i < s.timing.forcedYears.size(); ++i)
+                out += (i ? ", " : "") + std::to_string(s.timing.forcedYears[i]);
+            return out + "]";
+        }
+        if (timing) return timing->kind == ParamDesc<EventTiming>::Kind::Real ? tomlReal(timing->value(s.timing)) : paramText(*timing, s.timing, 17);
+        if (setting) return setting->kind == ParamDesc<S>::Kind::Real ? tomlReal(setting->value(s)) : paramText(*setting, s, 17);
+        return {};
+    }
+    /// The docs' row "| `key` | default | unit | meaning |" (eco config describe adds the
+    /// allowed values and the flag column).
+    std::string docRow() const {
+        return std::string("| `") + key() + "` | " + defaultText() + " | " + (*unit() ? unit() : "-") + " | " + doc() + " |";
+    }
+};
+
+/// Every key of `[disturbance.fire]`, in the order toToml writes them.
+const std::vector<DisturbanceField<FireSettings>>& fireFields();
+/// Every key of `[disturbance.storm]`, in the order toToml writes them.
+const std::vector<DisturbanceField<StormSettings>>& stormFields();
+/// The written keys of s as TOML lines "key = value" (toToml's body of one table), each
+/// followed by "  # doc, unit" when `withDocs` (the template of eco config defaults simulate).
+template <typename S>
+std::string disturbanceTomlLines(const S& s, const std::vector<DisturbanceField<S>>& fields, bool withDocs);
+/// The first value of s outside its field's range: "key = value: rule" ("" when all are valid).
+template <typename S>
+std::string firstInvalidDisturbanceValue(const S& s, const std::vector<DisturbanceField<S>>& fields);
 
 /// An event planned for a year: its kind, its month and the key of its random streams.
 struct PlannedEvent {

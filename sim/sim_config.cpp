@@ -274,6 +274,53 @@ const std::vector<PathKey>& pathKeys() {
 }
 }  // namespace
 
+namespace {
+// Reads a [disturbance.KIND] table into s by its descriptors (fireFields(), stormFields()):
+// the table's presence switches the kind on; each key given is read with its type and
+// checked against its range at once, so that a message names the file, the key's line, the
+// table, the key and the value; unknown keys are errors.
+template <typename S>
+void readDisturbanceConfigTable(StrictTable& t, S& s, const std::vector<DisturbanceField<S>>& fields) {
+    using K = typename DisturbanceField<S>::Kind;
+    s.enabled = true;
+    for (const auto& f : fields) {
+        const std::string key = f.key();
+        switch (f.kind) {
+            case K::Enabled:
+                if (t.has(key)) s.enabled = t.boolean(key);
+                break;
+            case K::ReturnInterval:
+                if (!t.has(key)) break;
+                for (const auto& other : fields)  // the interval is another spelling of the probability
+                    if (other.kind == K::Timing && other.timing->real == &EventTiming::probabilityPerYear && t.has(other.key()))
+                        t.fail(key, std::string("give ") + other.key() + " or " + key + ", not both");
+                {
+                    const double years = t.number(key);
+                    if (!f.range.contains(years)) t.fail(key, "value " + fmt(years) + ": " + f.ruleText());
+                    s.timing.probabilityPerYear = 1.0 / years;
+                }
+                break;
+            case K::ForcedYears:
+                if (!t.has(key)) break;
+                for (const std::int64_t y : t.integers(key)) {
+                    if (!f.range.contains(static_cast<double>(y))) t.fail(key, "value " + std::to_string(y) + ": " + f.ruleText());
+                    s.timing.forcedYears.push_back(static_cast<int>(y));
+                }
+                break;
+            case K::Timing:
+                if (readParam(t, s.timing, *f.timing) && !f.timing->range.contains(f.timing->value(s.timing)))
+                    t.fail(key, "value " + f.tomlValue(s) + ": " + f.ruleText());
+                break;
+            case K::Setting:
+                if (readParam(t, s, *f.setting) && !f.setting->range.contains(f.setting->value(s)))
+                    t.fail(key, "value " + f.tomlValue(s) + ": " + f.ruleText());
+                break;
+        }
+    }
+    t.finish();
+}
+}  // namespace
+
 RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceName, const std::string& filePath) {
     const toml::table root = parseTomlText(tomlText, sourceName);
     // A path the file sets is relative to the file's directory; defaults stay as they are.
@@ -339,51 +386,13 @@ RunConfig parseRunConfig(const std::string& tomlText, const std::string& sourceN
     }
     if (const toml::table* t = top.optionalTable("disturbance")) {
         StrictTable d(*t, sourceName, "[disturbance]");
-        // probability_per_year or return_interval_years (one of them), years, month.
-        auto readTiming = [](StrictTable& s, EventTiming& timing) {
-            if (s.has("probability_per_year") && s.has("return_interval_years"))
-                s.fail("return_interval_years", "give probability_per_year or return_interval_years, not both");
-            if (s.has("probability_per_year")) timing.probabilityPerYear = s.numberIn("probability_per_year", 0, 1);
-            if (s.has("return_interval_years")) {
-                const double t = s.number("return_interval_years");
-                if (!(t >= 1)) s.fail("return_interval_years", "value " + fmt(t) + ": must be at least 1 (years)");
-                timing.probabilityPerYear = 1.0 / t;
-            }
-            if (s.has("years"))
-                for (const std::int64_t y : s.integers("years")) {
-                    if (y < 0 || y > 2147483647)
-                        s.fail("years", "value " + std::to_string(y) +
-                                            ": must lie in 0..2147483647 (0 = the first simulated year)");
-                    timing.forcedYears.push_back(static_cast<int>(y));
-                }
-            const std::int64_t m = s.integerOr("month", timing.month);
-            if (m < 0 || m > 11) s.fail("month", "value " + std::to_string(m) + ": must lie in 0..11 (0 = January)");
-            timing.month = static_cast<int>(m);
-        };
         if (const toml::table* ft = d.optionalTable("fire")) {
             StrictTable s(*ft, sourceName, "[disturbance.fire]");
-            FireSettings& f = c.disturbance.fire;
-            f.enabled = s.booleanOr("enabled", true);
-            readTiming(s, f.timing);
-            f.spreadProbability = s.numberInOr("spread_probability", 0, 1, f.spreadProbability);
-            f.slopeFactor = s.numberInOr("slope_factor", 0, 100, f.slopeFactor);
-            f.windFactor = s.numberInOr("wind_factor", 0, 100, f.windFactor);
-            f.extinctionMoistureMm = s.numberInOr("extinction_moisture_mm", 1e-9, 1e9, f.extinctionMoistureMm);
-            f.severity = s.numberInOr("severity", 0, 1, f.severity);
-            f.scorchHeightM = s.numberInOr("scorch_height_m", 1e-9, 1e9, f.scorchHeightM);
-            f.defaultTolerance = s.numberInOr("default_tolerance", 0, 1, f.defaultTolerance);
-            s.finish();
+            readDisturbanceConfigTable(s, c.disturbance.fire, fireFields());
         }
         if (const toml::table* st = d.optionalTable("storm")) {
             StrictTable s(*st, sourceName, "[disturbance.storm]");
-            StormSettings& w = c.disturbance.storm;
-            w.enabled = s.booleanOr("enabled", true);
-            readTiming(s, w.timing);
-            w.severity = s.numberInOr("severity", 0, 1, w.severity);
-            w.referenceHeightM = s.numberInOr("reference_height_m", 1e-9, 1e9, w.referenceHeightM);
-            w.heightExponent = s.numberInOr("height_exponent", 0, 100, w.heightExponent);
-            w.referenceWindMS = s.numberInOr("reference_wind_ms", 0, 1000, w.referenceWindMS);
-            s.finish();
+            readDisturbanceConfigTable(s, c.disturbance.storm, stormFields());
         }
         d.finish();
     }
@@ -401,16 +410,15 @@ const char* embeddedDefaultRunConfigToml() { return detail::kSimDefaultToml; }
 
 namespace {
 // The [disturbance.*] tables at their defaults, commented out: a table's presence switches
-// its events on, so the defaults print them as a template (from DisturbanceSettings::toToml).
+// its events on, so the defaults print them as a template (the written keys of fireFields()
+// and stormFields(), each with its doc line).
 std::string disturbanceDefaultsToml() {
-    DisturbanceSettings d;
-    d.fire.enabled = true;
-    d.storm.enabled = true;
     std::string text =
         "\n# Fire and windthrow storms (docs/disturbance.md), in either model: off unless their table is\n"
         "# present (uncomment one to switch it on). Every key at its default; probability_per_year = 0\n"
         "# and no forced years strike nothing (return_interval_years = T instead: probability 1 / T).\n";
-    const std::string tables = d.toToml();
+    const std::string tables = "[disturbance.fire]\n" + disturbanceTomlLines(FireSettings{}, fireFields(), true) +
+                               "[disturbance.storm]\n" + disturbanceTomlLines(StormSettings{}, stormFields(), true);
     for (std::size_t begin = 0; begin < tables.size();) {
         const std::size_t end = tables.find('\n', begin);
         const std::size_t stop = end == std::string::npos ? tables.size() : end;

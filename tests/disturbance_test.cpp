@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <map>
 #include <set>
+#include <sstream>
 #include <cstring>
 #include <filesystem>
 
@@ -355,6 +357,180 @@ TEST_CASE("disturbance config: [disturbance.fire] and [disturbance.storm] are re
     const RunConfig eco = parseRunConfig(base + "[model]\nkind = \"ecomod\"\n[disturbance.fire]\nyears = [10]\n", "t.toml");
     CHECK_NOTHROW(eco.validate());
     CHECK(eco.disturbance.fire.enabled);
+}
+
+namespace {
+
+// A kind's settings in DisturbanceSettings and its numbers' ParamDesc table.
+template <typename S>
+struct KindOf;
+template <>
+struct KindOf<FireSettings> {
+    static FireSettings& of(DisturbanceSettings& d) { return d.fire; }
+    static const FireSettings& of(const DisturbanceSettings& d) { return d.fire; }
+    static const std::vector<ParamDesc<FireSettings>>& params() { return fireParamFields(); }
+};
+template <>
+struct KindOf<StormSettings> {
+    static StormSettings& of(DisturbanceSettings& d) { return d.storm; }
+    static const StormSettings& of(const DisturbanceSettings& d) { return d.storm; }
+    static const std::vector<ParamDesc<StormSettings>>& params() { return stormParamFields(); }
+};
+
+// The number of a Timing or Setting field in s, and its descriptor's range.
+template <typename S>
+double numberOf(const DisturbanceField<S>& f, const S& s) {
+    return f.timing ? f.timing->value(s.timing) : f.setting->value(s);
+}
+template <typename S>
+const ParamRange& rangeOf(const DisturbanceField<S>& f) {
+    return f.timing ? f.timing->range : f.setting->range;
+}
+template <typename S>
+bool isInteger(const DisturbanceField<S>& f) {
+    return f.timing && f.timing->kind == ParamDesc<EventTiming>::Kind::Integer;
+}
+
+// A valid value of field f other than its default (TOML text).
+template <typename S>
+std::string otherValidValue(const DisturbanceField<S>& f) {
+    using K = typename DisturbanceField<S>::Kind;
+    switch (f.kind) {
+        case K::Enabled: return "false";
+        case K::ReturnInterval: return "4.0";
+        case K::ForcedYears: return "[5, 2]";
+        case K::Timing:
+        case K::Setting: break;
+    }
+    const double dflt = numberOf(f, S{});
+    for (double v : {0.25, 0.5, 3.0, 5.0, 7.5, 1e3}) {
+        if (isInteger(f)) v = std::floor(v);
+        if (rangeOf(f).contains(v) && v != dflt) return isInteger(f) ? std::to_string(static_cast<int>(v)) : tomlReal(v);
+    }
+    FAIL("no other valid value for " << f.key());
+    return {};
+}
+
+// Each key's value in s as text ("" for return_interval_years, which is stored as the probability).
+template <typename S>
+std::map<std::string, std::string> valuesOf(const S& s, const std::vector<DisturbanceField<S>>& fields) {
+    using K = typename DisturbanceField<S>::Kind;
+    std::map<std::string, std::string> out;
+    for (const auto& f : fields)
+        out[f.key()] = f.kind == K::Enabled ? (s.enabled ? "true" : "false") : f.tomlValue(s);
+    return out;
+}
+
+// The descriptor table of a kind against its reader, its writer and its checks.
+template <typename S>
+void checkDisturbanceTable(const std::vector<DisturbanceField<S>>& fields, const std::string& table) {
+    using K = typename DisturbanceField<S>::Kind;
+    const std::string base = "[inputs]\nabiotics = \"a.h5\"\ncanopy = \"c.h5\"\n[disturbance." + table + "]\n";  // the key on line 5
+    const std::string context = "[disturbance." + table + "]";
+    S on{};
+    on.enabled = true;
+    const auto defaults = valuesOf(on, fields);
+    std::set<std::string> keys;
+    for (const auto& f : fields) {
+        const std::string key = f.key();
+        INFO(table << " key " << key);
+        CHECK(keys.insert(key).second);  // each key once
+        // Read: a valid value other than the default changes that key's value, and only it.
+        const std::string value = otherValidValue(f);
+        const RunConfig c = parseRunConfig(base + key + " = " + value + "\n", "t.toml");
+        const auto got = valuesOf(KindOf<S>::of(c.disturbance), fields);
+        const std::string changedKey = f.kind == K::ReturnInterval ? "probability_per_year" : key;
+        for (const auto& [k, v] : got) {
+            INFO("value of " << k);
+            if (k == changedKey) CHECK(v != defaults.at(k));
+            else CHECK(v == defaults.at(k));
+        }
+        if (f.kind != K::Enabled && f.kind != K::ReturnInterval) CHECK(got.at(key) == value);
+        if (f.kind == K::ReturnInterval) CHECK(got.at("probability_per_year") == "0.25");
+        // Refused: a value outside the range (or of the wrong type), naming the file, the
+        // key's line, the table, the key and the value.
+        std::string bad, expected;
+        switch (f.kind) {
+            case K::Enabled: bad = "1"; expected = "expected true or false"; break;
+            case K::ReturnInterval: bad = "0.5"; expected = "value 0.5: must be at least 1 (years)"; break;
+            case K::ForcedYears: bad = "[3, -1]"; expected = "value -1: must lie in 0..2147483647 (0 = the first simulated year)"; break;
+            case K::Timing:
+            case K::Setting: {
+                const ParamRange& r = rangeOf(f);
+                const double outside = r.highBound != ParamRange::Bound::None ? r.hi + 1 : r.lo - 1;
+                bad = isInteger(f) ? std::to_string(static_cast<long long>(outside)) : tomlReal(outside);
+                expected = "value " + bad + ": " + f.ruleText();
+                // The wrong type, too.
+                CHECK_THROWS_WITH(parseRunConfig(base + key + " = \"x\"\n", "t.toml"),
+                                  Catch::Contains("t.toml:5: " + context + ": field '" + key + "': expected a"));
+                // And validate() on settings made in code: the key, the value and the rule.
+                DisturbanceSettings d;
+                S& s = KindOf<S>::of(d);
+                s.enabled = true;
+                if (f.timing) setParam(s.timing, eventTimingParamFields(), key, outside, "timing");
+                else setParam(s, KindOf<S>::params(), key, outside, "setting");
+                CHECK_THROWS_WITH(d.validate("src"), Catch::Contains("src: " + context + " " + key + " = " + bad + ": " + f.ruleText()));
+                break;
+            }
+        }
+        CHECK_THROWS_WITH(parseRunConfig(base + key + " = " + bad + "\n", "t.toml"),
+                          Catch::Contains("t.toml:5: " + context + ": field '" + key + "': " + expected));
+    }
+    // Written: toToml holds the written keys, in the table's order, and nothing else.
+    DisturbanceSettings d;
+    KindOf<S>::of(d) = on;
+    std::istringstream lines(d.toToml());
+    std::vector<std::string> written, describedWritten;
+    for (std::string line; std::getline(lines, line);)
+        if (line.rfind("[", 0) != 0) written.push_back(line.substr(0, line.find(" = ")));
+    for (const auto& f : fields)
+        if (f.written()) describedWritten.push_back(f.key());
+    CHECK(written == describedWritten);
+    // Every key at a value other than its default reads back from what toToml writes.
+    std::string all = base;
+    for (const auto& f : fields)
+        if (f.kind != K::Enabled && f.kind != K::ReturnInterval) all += std::string(f.key()) + " = " + otherValidValue(f) + "\n";
+    const RunConfig c = parseRunConfig(all, "t.toml");
+    const RunConfig back = parseRunConfig(base.substr(0, base.find("[disturbance")) + c.disturbance.toToml(), "back.toml");
+    CHECK(valuesOf(KindOf<S>::of(back.disturbance), fields) == valuesOf(KindOf<S>::of(c.disturbance), fields));
+    for (const auto& f : fields)
+        if (f.written()) CHECK(valuesOf(KindOf<S>::of(c.disturbance), fields).at(f.key()) != defaults.at(f.key()));
+    // A key the table does not describe is refused.
+    CHECK_THROWS_WITH(parseRunConfig(base + "not_a_key = 1\n", "t.toml"),
+                      Catch::Contains("t.toml:5: " + context + ": field 'not_a_key': unknown key"));
+}
+
+}  // namespace
+
+TEST_CASE("disturbance config: each described key is read, checked and written, and no other key is read", "[disturbance][config]") {
+    // fireFields() / stormFields() drive the reader, the checks, toToml and eco config describe
+    // (docs/disturbance.md): every key they describe is accepted and lands in its value (no
+    // other), a bad value is refused with the file, line, table, key and value, toToml writes
+    // exactly the written keys, and an undescribed key is refused.
+    checkDisturbanceTable(fireFields(), "fire");
+    checkDisturbanceTable(stormFields(), "storm");
+    // Both spellings of the yearly chance at once are refused.
+    CHECK_THROWS_WITH(parseRunConfig("[disturbance.storm]\nprobability_per_year = 0.1\nreturn_interval_years = 10\n", "t.toml"),
+                      Catch::Contains("t.toml:3: [disturbance.storm]: field 'return_interval_years': give probability_per_year or "
+                                      "return_interval_years, not both"));
+    // toToml's text enters checkpoint fingerprints and the output's disturbance_toml: it is
+    // the text the hand-written writer gave before the descriptors (checkpoints of runs with
+    // disturbance keep resuming).
+    DisturbanceSettings d;
+    d.fire.enabled = d.storm.enabled = true;
+    d.fire.timing.probabilityPerYear = 0.02;
+    d.fire.timing.forcedYears = {40, 80};
+    d.storm.timing.probabilityPerYear = 1.0 / 15;
+    d.storm.referenceWindMS = 7;
+    CHECK(d.toToml() ==
+          "[disturbance.fire]\nprobability_per_year = 0.02\nyears = [40, 80]\nmonth = 7\nspread_probability = 0.35\n"
+          "slope_factor = 2.0\nwind_factor = 0.2\nextinction_moisture_mm = 150.0\nseverity = 0.9\nscorch_height_m = 2.0\n"
+          "default_tolerance = 0.0\n[disturbance.storm]\nprobability_per_year = 0.06666666666666667\nyears = []\nmonth = 11\n"
+          "severity = 0.5\nreference_height_m = 3.0\nheight_exponent = 2.0\nreference_wind_ms = 7.0\n");
+    // The storm's month default is its own (December), the fire's August.
+    CHECK(paramField(eventTimingParamFields(), "month").key == std::string("month"));
+    CHECK(fireFields()[4].defaultText() == "7");
+    CHECK(stormFields()[4].defaultText() == "11");
 }
 
 namespace {

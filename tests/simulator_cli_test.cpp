@@ -127,6 +127,46 @@ TEST_CASE("eco simulate: disturbance settings that cannot strike in the run are 
     CHECK_THAT(r.output, !Catch::Contains("no storm can happen"));
 }
 
+TEST_CASE("eco config describe disturbance-fire / -storm: the keys eco simulate reads; a bad value exits 1", "[sim][cli][disturbance]") {
+    // The describe tables list exactly the descriptors' keys, which are the keys the reader
+    // accepts (tests/disturbance_test.cpp checks the reader against the same tables).
+    auto describedKeys = [](const std::string& table) {
+        const auto r = test::runEco("config describe " + table);
+        REQUIRE(r.exitCode == 0);
+        std::vector<std::string> keys;
+        std::istringstream lines(r.output);
+        for (std::string line; std::getline(lines, line);) {
+            if (line.rfind(table + "\t", 0) != 0) continue;
+            const std::size_t a = line.find('\t') + 1;
+            keys.push_back(line.substr(a, line.find('\t', a) - a));
+        }
+        return keys;
+    };
+    std::vector<std::string> fire, storm;
+    for (const auto& f : sim::fireFields()) fire.push_back(f.key());
+    for (const auto& f : sim::stormFields()) storm.push_back(f.key());
+    CHECK(describedKeys("disturbance-fire") == fire);
+    CHECK(describedKeys("disturbance-storm") == storm);
+    const auto index = test::runEco("config describe --index");
+    CHECK_THAT(index.output, Catch::Contains("| `disturbance-fire` | `sim::FireSettings` | `fireFields()` | 12 |") &&
+                                 Catch::Contains("| `disturbance-storm` | `sim::StormSettings` | `stormFields()` | 9 |"));
+    // eco simulate refuses a bad value with the file, line, table, key and value, exit code 1.
+    test::TempDir dir("simcli_badfire");
+    writeSceneFiles(dir);
+    const std::string inputs = "[inputs]\nabiotics = \"" + dir.file("abiotics.h5") + "\"\ncanopy = \"" + dir.file("canopy.h5") +
+                               "\"\n[run]\nyears = 1\n[outputs]\nhdf5 = \"" + dir.file("o.h5") + "\"\n";
+    writeText(dir.file("bad.toml"), inputs + "[disturbance.fire]\nyears = [1]\nspread_probability = 1.5\n");
+    auto r = test::runEco("simulate --config " + dir.file("bad.toml"));
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("bad.toml:10: [disturbance.fire]: field 'spread_probability': value 1.5: must lie in [0, 1]"));
+    writeText(dir.file("bad2.toml"), inputs + "[disturbance.storm]\nmonth = 12\n");
+    r = test::runEco("simulate --config " + dir.file("bad2.toml"));
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::Contains("bad2.toml:9: [disturbance.storm]: field 'month': value 12: must lie in 0..11 (0 = January)"));
+    CHECK_FALSE(std::ifstream(dir.file("o.h5")).good());
+}
+
 TEST_CASE("eco simulate: outputs, and a resumed run equals an uninterrupted one", "[sim][cli][checkpoint]") {
     test::TempDir dir("simrun");
     writeSceneFiles(dir);

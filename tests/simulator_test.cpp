@@ -1355,6 +1355,22 @@ TEST_CASE("run config: the built-in defaults hold every key and read back", "[si
     CHECK(withDisturbance.disturbance.fire.enabled);
     CHECK(withDisturbance.disturbance.storm.enabled);
     CHECK(withDisturbance.disturbance.toToml() == expected.toToml());
+    // The template is made from the descriptors: each written key of either table once, at
+    // its default, with its doc line.
+    auto templateHas = [&](const std::string& table, const std::string& key, const std::string& value, const char* doc) {
+        const std::size_t at = text.find("\n# [disturbance." + table + "]\n");
+        const std::size_t end = text.find("\n# [", at + 1);
+        const std::string block = text.substr(at, end == std::string::npos ? std::string::npos : end - at);
+        return block.find("\n# " + key + " = " + value + "  # " + doc) != std::string::npos;
+    };
+    for (const auto& f : fireFields())
+        if (f.written()) CHECK(templateHas("fire", f.key(), f.tomlValue(FireSettings{}), f.doc()));
+    for (const auto& f : stormFields())
+        if (f.written()) CHECK(templateHas("storm", f.key(), f.tomlValue(StormSettings{}), f.doc()));
+    CHECK(withDisturbance.disturbance.fire.spreadProbability == FireSettings{}.spreadProbability);
+    CHECK(withDisturbance.disturbance.fire.timing.month == 7);
+    CHECK(withDisturbance.disturbance.storm.timing.month == 11);
+    CHECK(withDisturbance.disturbance.storm.referenceHeightM == StormSettings{}.referenceHeightM);
 }
 
 TEST_CASE("run config: strict parsing with the file and key named", "[sim][config]") {
