@@ -127,7 +127,7 @@ TEST_CASE("eco simulate: disturbance settings that cannot strike in the run are 
     CHECK_THAT(r.output, !Catch::Contains("no storm can happen"));
 }
 
-TEST_CASE("eco config describe disturbance-fire / -storm: the keys eco simulate reads; a bad value exits 1", "[sim][cli][disturbance]") {
+TEST_CASE("eco config describe disturbance-fire / -storm: the keys eco simulate reads, and a bad value exits 1", "[sim][cli][disturbance]") {
     // The describe tables list exactly the descriptors' keys, which are the keys the reader
     // accepts (tests/disturbance_test.cpp checks the reader against the same tables).
     auto describedKeys = [](const std::string& table) {
