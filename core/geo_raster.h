@@ -74,6 +74,10 @@ void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& lay
 /// (our HDF5 files, plain images). Reads no cells.
 std::string rasterCrsWkt(const std::string& path);
 
+/// The CRS's name for messages ("WGS 84 / UTM zone 10N"); "unnamed CRS" when it has none
+/// that GDAL reads, "" for an empty WKT.
+std::string crsDisplayName(const std::string& wkt);
+
 /// True when two CRSs (WKT) are the same coordinate system (GDAL's IsSame, so the same
 /// system written two ways matches). Two empty strings are the same; one empty is not.
 bool sameCrs(const std::string& wktA, const std::string& wktB);
