@@ -218,6 +218,12 @@ bool sameCrs(const std::string& wktA, const std::string& wktB) {
     return same < 0 ? wktA == wktB : same == 1;
 }
 
+bool gridCentreLatLon(const Grid<float>& g, double& latDeg, double& lonDeg) {
+    if (g.crsWkt().empty()) return false;
+    const double x = g.originX() + 0.5 * g.width() * g.cellSizeM(), y = g.originY() + 0.5 * g.height() * g.cellSizeM();
+    return gdal().geographicOf(g.crsWkt(), x, y, latDeg, lonDeg);
+}
+
 std::string crsDisplayName(const std::string& wkt) {
     if (wkt.empty()) return "";
     const std::string n = gdal().crsName(wkt);
