@@ -63,7 +63,7 @@ std::string readBackHint(const std::string& path, const Grid<float>& g, const Te
                        num(w.verticalScale);
     if (w.verticalOffsetM != 0) hint += " --vertical-offset " + num(w.verticalOffsetM);
     if (g.originX() != 0 || g.originY() != 0)
-        hint += "  (images do not store the origin " + num(g.originX()) + ", " + num(g.originY()) + ")";
+        hint += "  (images do not store the origin " + formatNumber(g.originX(), 10) + ", " + formatNumber(g.originY(), 10) + ")";
     return hint;
 }
 
