@@ -112,8 +112,10 @@ void runPcf(const PcfArgs& args) {
     if (n > 9) layout.plotWidthPx = 240, layout.plotHeightPx = 140;
     chartPanels(panels, layout).writePng(png);
 
-    resultStream() << "points: " << pattern.size() << " in window " << num(window.x0) << "," << num(window.y0) << ","
-              << num(window.x1) << "," << num(window.y1) << " (" << num(window.areaM2()) << " m2), types:";
+    // World coordinates in full (UTM northings have 7 digits before the point).
+    resultStream() << "points: " << pattern.size() << " in window " << num(window.x0, 10) << "," << num(window.y0, 10)
+                   << "," << num(window.x1, 10) << "," << num(window.y1, 10) << " (" << num(window.areaM2())
+                   << " m2), types:";
     for (std::size_t t = 0; t < pattern.typeNames.size(); ++t)
         resultStream() << (t ? ", " : " ") << pattern.typeNames[t] << " (" << sums.typeCount[t] << ")";
     const ClarkEvans ce = clarkEvans(pattern.x, pattern.y, window);

@@ -6,6 +6,7 @@
 
 #include "cli_common.h"
 #include "instancing.h"
+#include "reporter.h"
 #include "text_format.h"
 
 namespace eco::cli {
@@ -35,7 +36,17 @@ void registerInstanceCommand(CLI::App& app) {
     sub->add_option("--curve-max", a->curveMaxK, "Error curve for K = 1 .. this (default 2 K, at most 32)")->check(CLI::Range(1, 256));
     sub->callback([a, weight] {
         a->params.weightByCrownArea = *weight == "area";
-        const synth::InstancingSummary s = synth::runInstancing(*a);
+        // Progress on stderr: a scene of 600,000 plants takes a minute (k-means for each K of
+        // the error curve), which was silent.
+        CliReporter reporter;
+        std::unique_ptr<pipeline::ProgressBar> bar;
+        synth::InstancingRun run = *a;
+        run.progress = [&](int done, int total) {
+            if (!bar) bar = reporter.progress("instance", total);
+            bar->update(done);
+            if (done == total) bar->finish();
+        };
+        const synth::InstancingSummary s = synth::runInstancing(run);
         printResult("%zu plants as %zu prototypes: size error unscaled mean %s %%, max %s %%; scaled to height mean %s %%, max %s %%\n%s",
                     s.plants, s.prototypes, formatNumber(100 * s.error.meanUnscaled, 3).c_str(), formatNumber(100 * s.error.maxUnscaled, 3).c_str(),
                     formatNumber(100 * s.error.meanScaled, 3).c_str(), formatNumber(100 * s.error.maxScaled, 3).c_str(), s.text.c_str());

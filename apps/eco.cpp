@@ -24,7 +24,7 @@ std::unique_ptr<CLI::App> makeApp() {
     app->require_subcommand(1);
     auto threads = std::make_shared<int>(0);
     app->add_option("--threads", *threads, "OpenMP threads, 1..1024 (default: all cores); results do not depend on it")
-        ->check(CLI::Range(0, 1024));
+        ->check(CLI::Range(1, 1024));
     auto noProvenance = std::make_shared<bool>(false);
     app->add_flag("--no-provenance", *noProvenance,
                   "Leave the /provenance group (wall times, thread counts, dates) out of every HDF5 output, so that "

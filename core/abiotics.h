@@ -278,9 +278,15 @@ FactorGrids annualFactors(const Abiotics& a, const Grid<float>* sunHoursAnnual =
 /// Throws ValidationError unless the elevation grid is at least 3 x 3 with finite values.
 void validateElevation(const Grid<float>& elevationM, const std::string& what = "elevation");
 
+/// Peak memory of computeAbiotics per terrain cell, bytes (the maps and the buffers of the
+/// sun and moisture computations; measured 2026-11-28).
+inline constexpr double kAbioticsBytesPerCell = 280.0;
+
 /// All abiotic maps for a terrain and biome. `progress(stage, fraction)` is called from
 /// the calling thread with stage "slope", "temperature", "sun", "moisture" or "wind" and the
-/// fraction of that stage done (each stage ends with 1.0).
+/// fraction of that stage done (each stage ends with 1.0). A terrain whose maps would not fit
+/// in the available memory (core/memory.h) is refused first (ValidationError: what it needs,
+/// what the machine has).
 Abiotics computeAbiotics(const Grid<float>& elevationM, const Biome& biome, const AbioticParams& params,
                          const std::function<void(const std::string& stage, double fraction)>& progress = {});
 

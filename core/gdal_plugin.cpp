@@ -5,6 +5,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include <cmath>
 #include <memory>
 #include <mutex>
 #include <utility>
@@ -204,6 +205,28 @@ public:
         OGRSpatialReference a, b;
         if (a.importFromWkt(wktA.c_str()) != OGRERR_NONE || b.importFromWkt(wktB.c_str()) != OGRERR_NONE) return -1;
         return a.IsSame(&b) != 0 ? 1 : 0;
+    }
+
+    bool geographicOf(const std::string& wkt, double x, double y, double& latDeg, double& lonDeg) override {
+        OGRSpatialReference src;
+        if (src.importFromWkt(wkt.c_str()) != OGRERR_NONE) return false;
+        src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+        OGRSpatialReference* geo = src.CloneGeogCS();
+        if (geo == nullptr) return false;
+        geo->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // x = longitude, y = latitude
+        OGRCoordinateTransformation* t = OGRCreateCoordinateTransformation(&src, geo);
+        bool ok = false;
+        if (t != nullptr) {
+            double px = x, py = y;
+            ok = t->Transform(1, &px, &py) != 0 && std::isfinite(px) && std::isfinite(py);
+            if (ok) {
+                lonDeg = px;
+                latDeg = py;
+            }
+            OGRCoordinateTransformation::DestroyCT(t);
+        }
+        OGRSpatialReference::DestroySpatialReference(geo);
+        return ok;
     }
 };
 

@@ -12,7 +12,7 @@
 
 namespace eco::plugin {
 
-constexpr int kGdalPluginAbi = 1;
+constexpr int kGdalPluginAbi = 2;  // 2: geographicOf
 
 /// What a raster file says about itself (nothing read from its cells).
 struct RasterInfo {
@@ -84,6 +84,9 @@ public:
     virtual std::string crsName(const std::string& wkt) = 0;
     /// 1 same, 0 different, -1 when either does not parse.
     virtual int sameCrs(const std::string& wktA, const std::string& wktB) = 0;
+    /// Latitude and longitude (degrees, on the CRS's own datum) of the point (x, y) of a CRS;
+    /// false when the WKT does not parse or the point does not transform.
+    virtual bool geographicOf(const std::string& wkt, double x, double y, double& latDeg, double& lonDeg) = 0;
 };
 
 }  // namespace eco::plugin

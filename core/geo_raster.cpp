@@ -218,12 +218,21 @@ bool sameCrs(const std::string& wktA, const std::string& wktB) {
     return same < 0 ? wktA == wktB : same == 1;
 }
 
+bool gridCentreLatLon(const Grid<float>& g, double& latDeg, double& lonDeg) {
+    if (g.crsWkt().empty()) return false;
+    const double x = g.originX() + 0.5 * g.width() * g.cellSizeM(), y = g.originY() + 0.5 * g.height() * g.cellSizeM();
+    return gdal().geographicOf(g.crsWkt(), x, y, latDeg, lonDeg);
+}
+
+std::string crsDisplayName(const std::string& wkt) {
+    if (wkt.empty()) return "";
+    const std::string n = gdal().crsName(wkt);
+    return n.empty() ? std::string("unnamed CRS") : n;
+}
+
 std::string sharedCrs(const std::string& wktA, const std::string& whatA, const std::string& wktB, const std::string& whatB) {
     if (wktA.empty() || wktB.empty() || sameCrs(wktA, wktB)) return wktA.empty() ? wktB : wktA;
-    auto name = [](const std::string& wkt) {
-        const std::string n = gdal().crsName(wkt);
-        return n.empty() ? std::string("unnamed CRS") : n;
-    };
+    auto name = [](const std::string& wkt) { return crsDisplayName(wkt); };
     throw ValidationError(whatA + " is in " + name(wktA) + " but " + whatB + " is in " + name(wktB) +
                           ": the two must share one CRS; reproject one onto the other's grid, e.g. gdalwarp -t_srs <CRS of " + whatA +
                           "> -tr <cell size> -te <extent> " + whatB + " OUT.tif");

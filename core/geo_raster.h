@@ -74,6 +74,14 @@ void writePlantsGpkg(const std::string& path, const std::vector<PlantLayer>& lay
 /// (our HDF5 files, plain images). Reads no cells.
 std::string rasterCrsWkt(const std::string& path);
 
+/// Latitude and longitude (degrees) of the centre of a grid that carries a CRS (a
+/// georeferenced terrain); false when it has none or GDAL cannot transform the point.
+bool gridCentreLatLon(const Grid<float>& g, double& latDeg, double& lonDeg);
+
+/// The CRS's name for messages ("WGS 84 / UTM zone 10N"); "unnamed CRS" when it has none
+/// that GDAL reads, "" for an empty WKT.
+std::string crsDisplayName(const std::string& wkt);
+
 /// True when two CRSs (WKT) are the same coordinate system (GDAL's IsSame, so the same
 /// system written two ways matches). Two empty strings are the same; one empty is not.
 bool sameCrs(const std::string& wktA, const std::string& wktB);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <numeric>
 #include <sstream>
 #include <type_traits>
@@ -98,12 +99,24 @@ File File::create(const std::string& path) {
     return File(path, id);
 }
 
+namespace {
+std::uintmax_t fileSizeOrZero(const std::string& path) {
+    std::error_code ec;
+    const std::uintmax_t n = std::filesystem::file_size(path, ec);
+    return ec ? 0 : n;
+}
+}  // namespace
+
 File File::openRead(const std::string& path) {
     if (std::FILE* probe = std::fopen(path.c_str(), "rb")) std::fclose(probe);
     else throw IoError(path + ": cannot open file (missing or unreadable)");
     if (H5Fis_hdf5(path.c_str()) <= 0) throw IoError(path + ": not an HDF5 file (or corrupt)");
     const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-    if (id < 0) throw IoError(path + ": cannot open HDF5 file");
+    // An HDF5 signature that does not open: usually a file cut short (an interrupted copy,
+    // download or write), which said only "cannot open HDF5 file".
+    if (id < 0)
+        throw IoError(path + ": cannot open HDF5 file: truncated or damaged (" + std::to_string(fileSizeOrZero(path)) +
+                      " bytes; an interrupted copy, download or write?), or locked by a program writing it");
     noteInputFile(path);
     return File(path, id);
 }

@@ -506,6 +506,12 @@ ChmRead readChm(const std::string& path, const ChmReadOptions& options) {
         out.chm = readTerrain(path, options.raster);
     Grid<float>& g = out.chm;
     const int w = g.width(), h = g.height();
+    // A CHM with no data at all is the wrong file, band or nodata value, not a treeless
+    // landscape: "filled" with 0 m it would give a canopy of no trees and exit 0.
+    if (out.nodataCells > 0 && static_cast<double>(out.nodataCells) >= static_cast<double>(w) * h)
+        throw IoError(path + ": every cell (" + std::to_string(out.nodataCells) +
+                      ") is nodata: the canopy height model holds no height; check its nodata value and band "
+                      "(gdalinfo -stats), or give a CHM with data");
     if (out.nodataCells > 0) {
         if (options.gaps == ChmGapRule::Fail)
             for (int iy = 0; iy < h; ++iy)

@@ -124,6 +124,7 @@ AbioticsResult abioticsStage(const AbioticsOptions& args, Reporter& reporter) {
                   num(terrain.minValue()) + " .. " + num(terrain.maxValue()) + " m");
     reporter.info("biome: " + biome.name + (args.biome.empty() ? " (embedded)" : " (" + args.biome + ")") +
                   ", latitude " + num(biome.climate.latitudeDeg) + " deg");
+    warnLatitudeMismatch(terrain, args.terrain, biome, args.biome.empty() ? "embedded" : args.biome, reporter);
 
     cleanUpAfterDeadWriters(args.out);  // what killed runs left
     if (!args.geotiffDir.empty()) prepareOutputDirectory(args.geotiffDir);

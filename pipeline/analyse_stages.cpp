@@ -129,6 +129,16 @@ AnalyseResult analyseStage(const AnalyseOptions& args, Reporter& reporter) {
     if (!args.abiotics.empty() && args.abiotics.size() != 1 && args.abiotics.size() != args.simulations.size())
         throw ValidationError("--abiotics: give one file for all simulations or one per simulation (" +
                               std::to_string(args.simulations.size()) + "), got " + std::to_string(args.abiotics.size()));
+    // One file named twice (two spellings of a path, a link) would count twice: the
+    // database's area, plant count and replicates doubled, its statistics unchanged.
+    for (std::size_t i = 0; i < args.simulations.size(); ++i)
+        for (std::size_t j = 0; j < i; ++j) {
+            std::error_code ec;
+            if (std::filesystem::equivalent(args.simulations[j], args.simulations[i], ec) && !ec)
+                throw ValidationError("simulation file '" + args.simulations[i] + "' is given twice (also as '" +
+                                      args.simulations[j] + "'): it would count twice in the database's area, plants "
+                                      "and replicates; give each simulation once");
+        }
     std::vector<analysis::LoadedSimulation> loaded;
     double simFactor = 0;
     for (std::size_t i = 0; i < args.simulations.size(); ++i) {

@@ -10,6 +10,7 @@
 #include "atomic_file.h"
 #include "error.h"
 #include "geo_raster.h"
+#include "text_format.h"
 
 namespace eco::pipeline {
 
@@ -101,6 +102,18 @@ void setCrs(Abiotics& a, const std::string& wkt) {
 
 }  // namespace
 
+void warnLatitudeMismatch(const Grid<float>& terrain, const std::string& terrainPath, const Biome& biome,
+                          const std::string& biomePath, Reporter& reporter) {
+    double lat = 0, lon = 0;
+    if (!gridCentreLatLon(terrain, lat, lon)) return;
+    if (!(std::abs(lat - biome.climate.latitudeDeg) > kLatitudeWarningDeg)) return;
+    reporter.info("warning: terrain '" + terrainPath + "' lies at latitude " + formatNumber(lat, 4) +
+                  " deg (its centre, from its CRS) but the sun's path is computed for the biome's latitude_deg " +
+                  formatNumber(biome.climate.latitudeDeg, 4) + " (biome " + biome.name +
+                  (biomePath.empty() ? std::string() : ", " + biomePath) + "); for the site's sunlight set [climate] latitude_deg in a biome file (eco biome show > biome.toml) "
+                  "and give it with --biome");
+}
+
 Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& terrain,
                             const std::string& terrainPath, const Biome& biome, const std::string& note,
                             Reporter& reporter) {
@@ -119,6 +132,7 @@ Abiotics abioticsForTerrain(const std::string& abioticsPath, const Grid<float>& 
     }
     reporter.info("no --abiotics: computing the abiotic maps from the terrain with default parameters (" + note + ")");
     validateElevation(terrain, terrainPath);
+    warnLatitudeMismatch(terrain, terrainPath, biome, "", reporter);
     AbioticsProgress progress(reporter);
     Abiotics abiotics = computeAbiotics(terrain, biome, AbioticParams{},
                                         [&](const std::string& s, double f) { progress(s, f); });

@@ -76,6 +76,15 @@ void requireDistinctOutputs(const std::vector<std::pair<std::string, std::string
 void writeGeoTiffs(const std::string& h5Path, const AtomicOutputSet& outputs, const std::string& dir, Reporter& reporter,
                    std::vector<std::string>& written);
 
+/// Biome latitude and terrain latitude differ by more than this (degrees): a warning.
+inline constexpr double kLatitudeWarningDeg = 2.0;
+
+/// A warning when a georeferenced terrain (one with a CRS) lies at a latitude more than
+/// kLatitudeWarningDeg from the biome's `latitude_deg`, which alone sets the sun's path:
+/// the sun maps are then those of another latitude. Nothing for a terrain without a CRS.
+void warnLatitudeMismatch(const Grid<float>& terrain, const std::string& terrainPath, const Biome& biome,
+                          const std::string& biomePath, Reporter& reporter);
+
 /// The abiotic maps of a terrain: read from `abioticsPath` and checked against the
 /// terrain's geometry, or, when the path is empty, computed with default parameters (as
 /// 'eco abiotics' would) with progress; `note` tells the user how to avoid that.

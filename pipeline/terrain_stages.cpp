@@ -63,8 +63,25 @@ std::string readBackHint(const std::string& path, const Grid<float>& g, const Te
                        num(w.verticalScale);
     if (w.verticalOffsetM != 0) hint += " --vertical-offset " + num(w.verticalOffsetM);
     if (g.originX() != 0 || g.originY() != 0)
-        hint += "  (images do not store the origin " + num(g.originX()) + ", " + num(g.originY()) + ")";
+        hint += "  (images do not store the origin " + formatNumber(g.originX(), 10) + ", " + formatNumber(g.originY(), 10) + ")";
     return hint;
+}
+
+/// A warning when `path`'s format stores no CRS (an ESRI ASCII grid, a plain image) but the
+/// grid has one: GIS software would open the file without it.
+void warnCrsDropped(const std::string& path, const Grid<float>& g, Reporter& reporter) {
+    const std::string ext = fileExtension(path);
+    if (g.crsWkt().empty() || ext == ".h5" || ext == ".hdf5") return;
+    reporter.info("warning: " + path + ": " + (ext == ".asc" ? "an ESRI ASCII grid" : "a plain image") +
+                  " stores no CRS, so " + crsDisplayName(g.crsWkt()) +
+                  " is not in the file (write .tif or .h5 to keep it; eco takes the other input's CRS for a file without one)");
+}
+
+/// True when a .tif/.tiff output of `g`, read from `input`, is written as a GeoTIFF (its
+/// geotransform and CRS) rather than a plain image: the grid has a CRS or the input a
+/// geotransform, and no image encoding was asked for.
+bool writesGeoTiff(const std::string& outExt, const Grid<float>& g, const std::string& input, bool verticalGiven) {
+    return (outExt == ".tif" || outExt == ".tiff") && !verticalGiven && (!g.crsWkt().empty() || hasGeotransform(input));
 }
 
 std::string describe(const Grid<float>& g, const std::string& units) {
@@ -217,8 +234,7 @@ TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& repo
     // A georeferenced input (a GeoTIFF, or our HDF5 of one, which keeps its CRS) written as
     // .tif stays a GeoTIFF in metres with its geotransform and CRS (a vertical encoding asked
     // for gives the plain image, as before).
-    if ((outExt == ".tif" || outExt == ".tiff") && !verticalGiven &&
-        (!terrain.crsWkt().empty() || hasGeotransform(a.in))) {
+    if (writesGeoTiff(outExt, terrain, a.in, verticalGiven)) {
         writeGeoTiff(a.out, terrain, "m");
         result.written.push_back(a.out);
         out << "wrote terrain: " << a.out << " (GeoTIFF" << (terrain.crsWkt().empty() ? "" : ", the input's CRS") << "; "
@@ -232,6 +248,7 @@ TerrainResult convertTerrainStage(const TerrainConvertOptions& a, Reporter& repo
     out << "wrote terrain: " << a.out << " (" << describe(terrain, "m") << ")\n";
     const std::string hint = readBackHint(a.out, terrain, enc);
     if (!hint.empty()) out << hint << "\n";
+    warnCrsDropped(a.out, terrain, reporter);
     return result;
 }
 
@@ -265,13 +282,23 @@ ChmResult generateChmStage(const ChmGenerateOptions& a, Reporter& reporter) {
         out << "wrote CHM: " << a.out << " (/chm/height, /chm/sketch, /chm/trees; " << describe(chm, "m above ground")
             << ", " << trees.size() << " trees)\n";
     } else {
-        TerrainWriteOptions wo;
-        if (outExt == ".png") wo.verticalScale = niceScaleAbove(std::max<double>(chm.maxValue(), a.chm.maxHeightM));
-        writeTerrain(a.out, chm, wo);
-        result.written.push_back(a.out);
-        out << "wrote CHM: " << a.out << " (" << describe(chm, "m above ground") << ", " << trees.size() << " trees)\n";
-        const std::string hint = readBackHint(a.out, chm, wo);
-        if (!hint.empty()) out << hint << "\n";
+        if (writesGeoTiff(outExt, chm, a.terrain, false)) {
+            // A georeferenced terrain gives a GeoTIFF CHM on its cells, as eco terrain convert
+            // does: a plain TIFF had no cell size or origin, and eco canopy refused it.
+            writeGeoTiff(a.out, chm, "m");
+            result.written.push_back(a.out);
+            out << "wrote CHM: " << a.out << " (GeoTIFF" << (chm.crsWkt().empty() ? "" : ", the terrain's CRS") << "; "
+                << describe(chm, "m above ground") << ", " << trees.size() << " trees)\n";
+        } else {
+            TerrainWriteOptions wo;
+            if (outExt == ".png") wo.verticalScale = niceScaleAbove(std::max<double>(chm.maxValue(), a.chm.maxHeightM));
+            writeTerrain(a.out, chm, wo);
+            result.written.push_back(a.out);
+            out << "wrote CHM: " << a.out << " (" << describe(chm, "m above ground") << ", " << trees.size() << " trees)\n";
+            const std::string hint = readBackHint(a.out, chm, wo);
+            if (!hint.empty()) out << hint << "\n";
+            warnCrsDropped(a.out, chm, reporter);
+        }
         const std::string sketchPath = withoutExtension(a.out) + "_sketch.png";
         writeDensitySketch(sketchPath, sketch);
         result.written.push_back(sketchPath);

@@ -273,6 +273,13 @@ void writeInstancesPly(const std::string& path, const std::string& scenePath, co
 
 InstancingSummary runInstancing(const InstancingRun& run) {
     namespace fs = std::filesystem;
+    // Error against K, the chosen K marked: K = 1 .. kMax.
+    const int kMax = run.curveMaxK > 0 ? run.curveMaxK : std::min(32, std::max(2 * run.params.prototypesPerSpecies, 4));
+    const int steps = kMax + 3;  // read, the chosen K, each K of the curve, the outputs
+    int done = 0;
+    const auto step = [&] {
+        if (run.progress) run.progress(++done, steps);
+    };
     const Biome biome = [&] {
         if (!run.biome.empty()) return loadBiome(run.biome);
         const h5::File f = h5::File::openRead(run.scene);
@@ -284,10 +291,10 @@ InstancingSummary runInstancing(const InstancingRun& run) {
     std::vector<Plant> plants = scene.canopy;
     plants.insert(plants.end(), scene.undergrowth.begin(), scene.undergrowth.end());
     if (plants.empty()) throw ValidationError(run.scene + ": the scene has no plants to instance");
+    step();
     const InstancingResult r = quantisePlants(plants, biome.species.size(), run.params);
+    step();
 
-    // Error against K, the chosen K marked.
-    const int kMax = run.curveMaxK > 0 ? run.curveMaxK : std::min(32, std::max(2 * run.params.prototypesPerSpecies, 4));
     ChartSeries meanU, maxU, meanS, chosen;
     meanU.name = "mean, unscaled";
     meanU.colour = {0.12f, 0.47f, 0.71f};
@@ -330,6 +337,7 @@ InstancingSummary runInstancing(const InstancingRun& run) {
               << formatNumber(100 * rk.error.meanUnscaled, 3) << " % | " << formatNumber(100 * rk.error.maxUnscaled, 3) << " % | "
               << formatNumber(100 * rk.error.meanScaled, 3) << " % | " << formatNumber(100 * rk.error.maxScaled, 3) << " % | "
               << formatNumber(100 * rk.error.areaMeanUnscaled, 3) << " % | " << formatNumber(100 * rk.error.areaMeanScaled, 3) << " % |\n";
+        step();
     }
 
     AtomicOutputSet outputs;
@@ -422,6 +430,7 @@ InstancingSummary runInstancing(const InstancingRun& run) {
        << "`litter.exr`, `grass.tif`, `litter.tif` (forest floor densities), `terrain.exr` (elevation). docs/export.md has a Blender recipe.\n";
     writeTextFile(at("instancing.md"), md.str());
     outputs.commit();
+    step();
     summary.files = {at("instancing.md"), at("prototypes.csv"), at("instances.csv"), at("instances.ply"), at("error_vs_k.png")};
     for (const char* name : {"grass.exr", "litter.exr", "terrain.exr", "grass.tif", "litter.tif"})
         if (fs::exists(at(name))) summary.files.push_back(at(name));

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,9 @@ struct InstancingRun {
     std::string outDir;
     InstancingParams params;
     int curveMaxK = 0;    ///< error against K for K = 1 .. this (0: 2 K, at most 32)
+    /// Called with (steps done, steps in all) after reading the scene, after the chosen K,
+    /// after each K of the error curve and after the outputs; may be empty.
+    std::function<void(int done, int total)> progress;
 };
 
 struct InstancingSummary {

@@ -15,6 +15,7 @@
 #include "abiotics.h"
 #include "abiotics_fixture.h"
 #include "error.h"
+#include "geotiff_fixture.h"
 #include "h5io.h"
 #include "terrain_io.h"
 #include "test_util.h"
@@ -93,4 +94,47 @@ TEST_CASE("abiotics: the eco abiotics command rejects bad input with one clear l
     r = test::runEco("abiotics --terrain '" + ok + "' --out '" + dir.file("missing_dir/a.h5") + "'");
     REQUIRE(r.exitCode == 1);
     REQUIRE(r.output.find("missing_dir") != std::string::npos);
+}
+
+TEST_CASE("abiotics: a georeferenced terrain far from the biome's latitude is warned about", "[abiotics][cli][geo]") {
+    // The sun's path comes from the biome's latitude_deg alone. A DEM in UTM 33N at 6,600 km
+    // north (southern Norway, about 59.5 deg) with the embedded Sonoma biome (38.58 deg) had
+    // Californian sun maps without a word.
+    test::TempDir dir("abiotics_latitude");
+    test::GeoTiffSpec s;
+    s.width = 8;
+    s.height = 6;
+    s.geotransform[1] = 10.0;
+    s.geotransform[5] = -10.0;
+    for (int i = 0; i < s.width * s.height; ++i) s.northFirst.push_back(100.0 + 0.5 * (i % s.width));
+    const std::string north = dir.file("norway.tif"), sonoma = dir.file("sonoma.tif");
+    s.epsg = 32633;
+    s.geotransform[0] = 500000.0;
+    s.geotransform[3] = 6600060.0;
+    test::writeGeoTiff(north, s);
+    s.epsg = 32610;
+    s.geotransform[0] = 545000.0;
+    s.geotransform[3] = 4270060.0;  // about 38.58 deg north
+    test::writeGeoTiff(sonoma, s);
+
+    const auto far = test::runEco("abiotics --terrain " + north + " --out " + dir.file("a.h5"));
+    INFO(far.output);
+    REQUIRE(far.exitCode == 0);
+    CHECK_THAT(far.output, Catch::Contains("warning: terrain '" + north + "' lies at latitude 59.") &&
+                               Catch::Contains("latitude_deg 38.58") && Catch::Contains("eco biome show"));
+    const auto near = test::runEco("abiotics --terrain " + sonoma + " --out " + dir.file("b.h5"));
+    REQUIRE(near.exitCode == 0);
+    CHECK_THAT(near.output, !Catch::Contains("warning"));
+    // The same check where eco canopy computes the maps itself.
+    std::vector<double> heights(static_cast<std::size_t>(s.width * s.height), 20.0);
+    test::GeoTiffSpec c = s;
+    c.epsg = 32633;
+    c.geotransform[0] = 500000.0;
+    c.geotransform[3] = 6600060.0;
+    c.northFirst = heights;
+    test::writeGeoTiff(dir.file("chm.tif"), c);
+    const auto canopy = test::runEco("canopy --terrain " + north + " --chm " + dir.file("chm.tif") + " --out " + dir.file("c.h5"));
+    INFO(canopy.output);
+    CHECK(canopy.exitCode == 0);
+    CHECK_THAT(canopy.output, Catch::Contains("lies at latitude 59."));
 }

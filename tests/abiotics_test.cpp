@@ -797,3 +797,20 @@ TEST_CASE("abiotics: wind: parameters outside their ranges are refused", "[abiot
     wind.samples = 0;
     CHECK_THROWS_WITH(windSpeedMS(z, wind), Catch::Contains("samples"));
 }
+
+TEST_CASE("abiotics: a terrain whose maps would not fit in memory is refused before any work", "[abiotics][errors]") {
+    // A 1 m lidar DEM read fine (13 bytes a cell) but its abiotics (about 280) were an
+    // out-of-memory kill after minutes of work. ECO_MEMORY_LIMIT_MB stands for a small machine.
+    const eco::Grid<float> z(512, 512, 1.0, 0.0, 0.0, 100.0f);  // 262,144 cells: about 73 MB of maps
+    ::setenv("ECO_MEMORY_LIMIT_MB", "20", 1);
+    bool progressCalled = false;
+    auto call = [&] {
+        (void)eco::computeAbiotics(z, testBiome(), eco::AbioticParams{},
+                                   [&](const std::string&, double) { progressCalled = true; });
+    };
+    CHECK_THROWS_AS(call(), eco::ValidationError);
+    CHECK_THROWS_WITH(call(), Catch::Contains("abiotic maps of a terrain of 512 x 512 cells needs about") &&
+                                  Catch::Contains("available") && Catch::Contains("gdalwarp"));
+    ::unsetenv("ECO_MEMORY_LIMIT_MB");
+    CHECK_FALSE(progressCalled);
+}

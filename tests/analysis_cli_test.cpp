@@ -91,3 +91,23 @@ TEST_CASE("eco analyse: bad input gives one clear line, a non-zero exit and no o
         CHECK_FALSE(std::filesystem::exists(db));
     }
 }
+
+TEST_CASE("eco analyse: one simulation file named twice is refused", "[analysis][cli][errors]") {
+    // Given as "sim.h5 ./sim.h5" it counted twice: the database said twice the area and
+    // plants (and two replicates) of one simulation, with exit 0.
+    eco::test::TempDir dir("cli_twice");
+    const std::string sim = dir.file("sim.h5");
+    writeFakeSimulation(sim, dir.file("abiotics.h5"));
+    const std::string other = (dir.path() / "." / "sim.h5").string();
+    const std::string db = dir.file("db.h5");
+    const auto r = eco::test::runEco("analyse " + sim + " " + other + " --out " + db + " --kmax 3");
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.output, Catch::StartsWith("eco: error: ") && Catch::Contains("is given twice") && Catch::Contains(other));
+    CHECK_FALSE(std::filesystem::exists(db));
+    // Two different files are two simulations, as before.
+    std::filesystem::copy_file(sim, dir.file("copy.h5"));
+    const auto two = eco::test::runEco("--quiet analyse " + sim + " " + dir.file("copy.h5") + " --out " + db + " --kmax 3");
+    INFO(two.output);
+    CHECK(two.exitCode == 0);
+}

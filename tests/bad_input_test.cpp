@@ -368,7 +368,7 @@ std::vector<BadCase> corpus() {
     add({"not an HDF5 file", textCase("x.h5", "this is text, not HDF5\n"), "inspect {I}/x.h5", 1, {"x.h5"}});
     add({"truncated HDF5 file",
          [](const GoodInputs& g, const CaseDirs& d) { writeText(d.file("db.h5"), readText(g.db).substr(0, 3000)); },
-         "inspect {I}/db.h5", 1, {"db.h5"}});
+         "inspect {I}/db.h5", 1, {"db.h5", "truncated or damaged"}});
 
     // ---- ESRI ASCII grids
     const std::string convert = "terrain convert {I}/x.asc {O}/x.h5";

@@ -200,3 +200,30 @@ TEST_CASE("CRS: the same system matches however written, two different ones are 
     CHECK_THROWS_WITH(eco::requireSameCrs(utm10, utm11), Catch::Contains("UTM zone 10N") && Catch::Contains("UTM zone 11N") &&
                                                              Catch::Contains("gdalwarp"));
 }
+
+TEST_CASE("CHM: a raster with no data at all is refused, whatever the gap rule", "[geo]") {
+    // A lidar CHM read with the wrong nodata value or band is all gaps: "filled" to 0 m it
+    // would give a canopy of no trees with coverage 1 and exit 0.
+    TempDir dir("geo_allgap");
+    GeoTiffSpec s = chmSpec();
+    s.northFirst.assign(12, -9999);
+    const std::string path = dir.file("empty.tif");
+    writeGeoTiff(path, s);
+    for (eco::ChmGapRule rule : {eco::ChmGapRule::Fill, eco::ChmGapRule::Zero, eco::ChmGapRule::Fail}) {
+        eco::ChmReadOptions o;
+        o.gaps = rule;
+        CHECK_THROWS_AS(eco::readChm(path, o), eco::IoError);
+        CHECK_THROWS_WITH(eco::readChm(path, o), Catch::Contains("empty.tif") && Catch::Contains("every cell (12) is nodata"));
+    }
+    const std::string asc = dir.file("empty.asc");
+    {
+        std::FILE* f = std::fopen(asc.c_str(), "w");
+        std::fputs("ncols 3\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\n-9999 -9999 -9999\n", f);
+        std::fclose(f);
+    }
+    CHECK_THROWS_WITH(eco::readChm(asc), Catch::Contains("every cell (3) is nodata"));
+    // One cell of data is enough.
+    s.northFirst[5] = 12;
+    writeGeoTiff(path, s);
+    CHECK(eco::readChm(path).nodataCells == 11);
+}

@@ -12,6 +12,7 @@
 #include "error.h"
 #include "h5io.h"
 #include "provenance.h"
+#include "terrain_io.h"
 #include "test_util.h"
 
 using eco::Grid;
@@ -286,6 +287,18 @@ TEST_CASE("h5io: a missing or non-HDF5 file gives a clear error", "[h5io]") {
     CHECK_THROWS_WITH(File::openRead(text), Catch::Contains(text) && Catch::Contains("not an HDF5 file"));
     // Creating in a directory that does not exist.
     CHECK_THROWS_AS(File::create(dir.file("no/such/dir/x.h5")), eco::IoError);
+    // A file cut short (an interrupted copy): said, with its size; it was only "cannot open HDF5 file".
+    const std::string whole = dir.file("whole.h5"), cut = dir.file("cut.h5");
+    eco::writeTerrainH5(whole, eco::Grid<float>(64, 64, 1.0, 0.0, 0.0, 5.0f));
+    {
+        std::ifstream in(whole, std::ios::binary);
+        std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        REQUIRE(bytes.size() > 2000);
+        std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    }
+    CHECK_THROWS_AS(File::openRead(cut), eco::IoError);
+    CHECK_THROWS_WITH(File::openRead(cut), Catch::Contains(cut) && Catch::Contains("truncated or damaged") &&
+                                               Catch::Contains("interrupted copy"));
 }
 
 TEST_CASE("h5io: the same content written at different times has the same bytes, and provenance stays apart", "[h5io][provenance]") {

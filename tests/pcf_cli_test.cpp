@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -110,4 +111,20 @@ TEST_CASE("eco pcf: bad input gives one clear error line and a non-zero exit", "
     r = eco::test::runEco("pcf " + csv + " --window 0,0,10 --out " + out);
     CHECK(r.exitCode != 0);
     CHECK_THAT(r.output, Catch::Contains("window"));
+}
+
+TEST_CASE("eco pcf: a window in UTM coordinates is printed in full", "[pcf][cli]") {
+    // It printed "in window 5.451e+05,4.26e+06,5.452e+05,4.26e+06": four digits of a northing.
+    eco::test::TempDir dir("pcfutm");
+    const std::string csv = dir.file("utm.csv");
+    {
+        std::ofstream f(csv);
+        f << "x,y\n" << std::setprecision(10);
+        eco::RandomStream rng(3, 0);
+        for (int i = 0; i < 200; ++i) f << 545100.0 + 120.0 * rng.uniform() << "," << 4260060.0 + 120.0 * rng.uniform() << "\n";
+    }
+    const auto r = eco::test::runEco("pcf " + csv + " --window 545100,4260060,545220,4260180 --out " + dir.file("g.csv"));
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("in window 545100,4260060,545220,4260180 (1.44e+04 m2)"));
 }

@@ -110,6 +110,8 @@ TEST_CASE("eco synth and eco compare write a scene and report it", "[synth][cli]
         INFO(inst.output);
         REQUIRE(inst.exitCode == 0);
         CHECK_THAT(inst.output, Catch::Contains("prototypes: size error"));
+        // Progress on stderr (a large scene took a minute without a word).
+        CHECK_THAT(inst.output, Catch::Contains("instance: done in"));
     }
     const auto prototypes = test::readCsvRows(dir.file("inst1/prototypes.csv"));
     std::map<std::string, int> perSpecies;

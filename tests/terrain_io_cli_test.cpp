@@ -101,3 +101,43 @@ TEST_CASE("eco terrain convert: a GeoTIFF stays a GeoTIFF with its geotransform 
     CHECK(g.sameGeometry(a.grid));
     CHECK(g(5, 3) == a.grid(5, 3));
 }
+
+TEST_CASE("eco chm generate on a GeoTIFF terrain: a .tif CHM is a GeoTIFF on its cells, a format without a CRS warns",
+          "[terrain][cli][geo]") {
+    // Before: chm.tif was a plain TIFF (origin 0, no cell size, no CRS), which eco canopy
+    // refused next to the terrain it was made from ("an image terrain has no cell size").
+    eco::test::TempDir dir("geo_chm_generate");
+    eco::test::GeoTiffSpec s;
+    s.width = 40;
+    s.height = 30;
+    s.geotransform[1] = 1.0;
+    s.geotransform[5] = -1.0;
+    s.geotransform[3] = 4200030.0;
+    for (int i = 0; i < s.width * s.height; ++i) s.northFirst.push_back(100.0 + 0.01 * i);
+    const std::string dem = dir.file("dem.tif"), chm = dir.file("chm.tif"), asc = dir.file("chm.asc");
+    eco::test::writeGeoTiff(dem, s);
+    const auto r = eco::test::runEco("chm generate --terrain " + dem + " --out " + chm);
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.output, Catch::Contains("GeoTIFF, the terrain's CRS"));
+    const eco::GeoRaster d = eco::readGeoRaster(dem), c = eco::readGeoRaster(chm);
+    CHECK(c.grid.sameGeometry(d.grid));
+    CHECK(eco::sameCrs(c.crsWkt, d.crsWkt));
+    const auto canopy = eco::test::runEco("--quiet canopy --terrain " + dem + " --chm " + chm + " --out " + dir.file("canopy.h5"));
+    INFO(canopy.output);
+    CHECK(canopy.exitCode == 0);
+
+    // An .asc keeps the geometry but cannot hold the CRS: said, not silently dropped.
+    const auto a = eco::test::runEco("chm generate --terrain " + dem + " --out " + asc);
+    REQUIRE(a.exitCode == 0);
+    CHECK_THAT(a.output, Catch::Contains("warning: " + asc + ": an ESRI ASCII grid stores no CRS") &&
+                             Catch::Contains("UTM zone 10N"));
+    CHECK(eco::readTerrain(asc).sameGeometry(d.grid));
+    const auto conv = eco::test::runEco("terrain convert " + dem + " " + dir.file("dem.asc"));
+    REQUIRE(conv.exitCode == 0);
+    CHECK_THAT(conv.output, Catch::Contains("stores no CRS, so WGS 84 / UTM zone 10N is not in the file"));
+    // A terrain with no CRS has nothing to lose: no warning.
+    const auto plain = eco::test::runEco("terrain convert " + asc + " " + dir.file("again.asc"));
+    REQUIRE(plain.exitCode == 0);
+    CHECK_THAT(plain.output, !Catch::Contains("warning"));
+}

@@ -104,7 +104,7 @@ class Grid:
         kind = f"{len(self.months)} months x " if self.months is not None else ""
         ny, nx = self.values.shape[-2], self.values.shape[-1]
         return (f"Grid({self.name!r}: {kind}{ny} x {nx} cells of {self.cell_size_m:g} m from "
-                f"({self.origin_x_m:g}, {self.origin_y_m:g}), units {self.units!r})")
+                f"({self.origin_x_m:.10g}, {self.origin_y_m:.10g}), units {self.units!r})")
 
 
 def read_grid(f, name, path, monthly=None):

@@ -132,6 +132,13 @@ class GridGeometry:
         np.testing.assert_allclose(g.extent, (X0, X0 + NX * CELL, Y0, Y0 + NY * CELL))
 
 
+class TestGridText(unittest.TestCase):
+    def test_a_utm_origin_is_printed_in_full(self):
+        # It printed "from (546000, 4.26e+06)": a northing rounded to 10 km.
+        g = eco.Grid(np.zeros((2, 3), dtype=np.float32), 1.0, 546000.0, 4260300.0, "m", name="/terrain/elevation")
+        self.assertIn("from (546000, 4260300)", repr(g))
+
+
 class TestTerrain(unittest.TestCase, GridGeometry):
     def test_values_and_coordinates_match_the_ascii_grid(self):
         t = eco.read_terrain(path("terrain.h5"))
