@@ -119,8 +119,8 @@ void registerValidateCommand(CLI::App& app) {
                     "on tuned parameters. The scenarios name species (e.g. California Laurel), which the biome must have")
         ->check(CLI::ExistingFile);
     sub->add_option("--only", opt->only, "Run only these scenarios (names, comma-separated or repeated)");
-    sub->add_option("--threads", opt->threads, "OpenMP threads (default: all cores); results do not depend on it")
-        ->check(nonNegativeNumber());
+    sub->add_option("--threads", opt->threads, "OpenMP threads, 1..1024 (default: all cores); results do not depend on it")
+        ->check(CLI::Range(1, 1024));
     sub->callback([opt] { runValidate(*opt); });
 }
 

@@ -94,7 +94,8 @@ TEST_CASE("usage errors exit 2 whatever CLI11 calls them, bad data exits 1", "[c
     // CLI11 gives 105-109 for these; eco documents one code (eco --help, README).
     for (const char* args : {"simulate --no-such-flag", "terrain generate --width", "terrain generate --width abc --out x.h5",
                              "canopy --chm c.h5", "--threads 100000 pcf pts.csv", "--threads -1 pcf pts.csv",
-                             "--threads 0 biome show"}) {  // 0: the help says 1..1024; it was taken as "all cores"
+                             "--threads 0 biome show",  // 0: the help says 1..1024; it was taken as "all cores"
+                             "validate --threads 0 --only ecomod --out v0", "validate --threads 2000 --only ecomod --out v0"}) {
         const auto r = runEco(args);
         INFO(args << "\n" << r.output);
         CHECK(r.exitCode == 2);
